@@ -1,0 +1,173 @@
+"""uwhl_rs: underwater single-image color restoration with haze-lines.
+
+Berman, Levy, Avidan & Treibitz, "Underwater Single Image Color Restoration
+Using Haze-Lines and a New Quantitative Dataset", IEEE TPAMI 2020. The
+method runs in a Rust core (``uwhl_rs._core``); this module checks and
+converts the numpy inputs and documents the API.
+
+>>> import uwhl_rs
+>>> from uwhl_rs import synth
+>>> img, truth = synth.demo_input(120, 160)
+>>> res = uwhl_rs.restore(img)
+>>> res.image.shape, res.transmission.shape
+((120, 160, 3), (120, 160))
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _core
+from ._core import ImageError, ParameterError, Restoration, UwhlError
+
+__all__ = [
+    "restore",
+    "Restoration",
+    "WATER_TYPES",
+    "UwhlError",
+    "ImageError",
+    "ParameterError",
+    "synth",
+    "__version__",
+]
+
+__version__: str = _core.__version__
+
+#: The Jerlov water types of SPEC section 1: ``{name: (beta_BR, beta_BG)}``
+#: in table order (clear oceanic I ... turbid coastal 9C).
+WATER_TYPES: dict[str, tuple[float, float]] = {n: (br, bg) for n, br, bg in _core.JERLOV_TABLE}
+
+
+def __getattr__(name: str):
+    # Submodules are imported on first use so that `import uwhl_rs` stays fast.
+    if name == "synth":
+        import importlib
+
+        return importlib.import_module(".synth", __name__)
+    raise AttributeError(f"module 'uwhl_rs' has no attribute {name!r}")
+
+
+def _as_image(image) -> np.ndarray:
+    a = np.asarray(image)
+    if a.dtype not in (np.float32, np.float64):
+        raise ImageError(
+            f"image has dtype {a.dtype}; expected float32 or float64 linear RGB in [0, 1] "
+            "(convert integer images with img / 255.0 or img / 65535.0 and linearize sRGB first)"
+        )
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise ImageError(f"image has shape {a.shape}; expected (H, W, 3)")
+    if a.dtype == np.float64:
+        # Check before the cast: large float64 values would overflow to inf.
+        bad = ~np.isfinite(a)
+        if bad.any():
+            r, c, ch = np.argwhere(bad)[0]
+            raise ImageError(
+                f"image has a non-finite value ({a[r, c, ch]}) at row {r}, column {c}, channel {ch}"
+            )
+    return np.ascontiguousarray(a, dtype=np.float32)
+
+
+def _as_mask(mask, name: str, shape) -> np.ndarray | None:
+    if mask is None:
+        return None
+    m = np.asarray(mask)
+    if m.dtype != np.bool_:
+        raise ParameterError(f"{name} has dtype {m.dtype}; expected bool (True/False per pixel)")
+    if m.shape != tuple(shape):
+        raise ParameterError(f"{name} has shape {m.shape}; the image needs {tuple(shape)}")
+    return np.ascontiguousarray(m)
+
+
+def restore(
+    image,
+    *,
+    water_types=None,
+    veiling_light=None,
+    water_mask=None,
+    mask=None,
+    guided_radius: int | None = None,
+    guided_eps: float = 1e-3,
+    sphere_points: int = 500,
+    threads: int | None = None,
+    max_memory: int | None = None,
+) -> Restoration:
+    """Restore the colors of one underwater image (SPEC sections 2-10).
+
+    Parameters
+    ----------
+    image : ndarray, float32 or float64, (H, W, 3)
+        LINEAR RGB in [0, 1] (raw-derived camera RGB, or sRGB decoded
+        through the inverse sRGB curve). At least 4x4 pixels; NaN/Inf,
+        values outside [0, 1] and constant images are rejected.
+    water_types : list, optional
+        Candidate water types: names from :data:`WATER_TYPES` and/or
+        ``(name, beta_BR, beta_BG)`` tuples with ratios in (0, 100].
+        Default: all ten Jerlov types (SPEC 1).
+    veiling_light : 3 floats in (0, 1], optional
+        A given veiling light A; default: estimated from the water region
+        (SPEC 3), or by the documented fallback when there is none.
+    water_mask : bool ndarray (H, W), optional
+        A given water region VL, used instead of detection (SPEC 3).
+    mask : bool ndarray (H, W), optional
+        False = do not use this pixel for estimation (e.g. a color chart);
+        such regions are filled (SPEC 4.5) and get one transmission each
+        (SPEC 6). At least one pixel must be True.
+    guided_radius : int, optional
+        Guided-filter radius; default ``round(min(H, W) / 4)`` (SPEC 6).
+    guided_eps : float
+        Guided-filter regulariser, > 0; default 1e-3 (SPEC 6).
+    sphere_points : int
+        Number of haze-line clusters; default 500 (SPEC 4.3).
+    threads : int, optional
+        Worker threads; default all cores. Results are bit-identical for
+        any value.
+    max_memory : int, optional
+        Working-memory limit in bytes (default 16 GiB); a larger image
+        raises MemoryError before anything large is allocated.
+
+    Returns
+    -------
+    Restoration
+        ``image`` (H, W, 3) float32: the white-balanced result (SPEC 8);
+        ``radiance`` (H, W, 3) float32: J before the display stretch
+        (SPEC 7); ``transmission`` (H, W) float32: t_B, whose ``-log`` is
+        a distance proxy; ``water_type`` (str); ``scores`` (dict name ->
+        gray-world score, lower is better); ``excluded`` (names ruled out
+        by the t_R test of SPEC 9); ``veiling_light`` (A); ``veiling_mask``
+        (H, W) bool; ``flags`` (list of fallbacks used, e.g.
+        ``"veiling_fallback"``); ``guided_radius``; ``beta_ratios``;
+        ``channel_transmissions()`` -> (H, W, 3) t_R, t_G, t_B.
+
+    Raises
+    ------
+    ImageError, ParameterError
+        (both ValueError) for unusable input, with a message naming it.
+    MemoryError
+        when the estimated working memory exceeds ``max_memory``.
+    """
+    img = _as_image(image)
+    hw = img.shape[:2]
+    wm = _as_mask(water_mask, "water_mask", hw)
+    m = _as_mask(mask, "mask", hw)
+    if veiling_light is not None:
+        v = np.asarray(veiling_light, dtype=np.float64).ravel()
+        if v.shape != (3,):
+            raise ParameterError(f"veiling_light must be 3 numbers (R, G, B); got {veiling_light!r}")
+        veiling_light = tuple(float(x) for x in v)
+    if water_types is not None and isinstance(water_types, (str, tuple)):
+        water_types = [water_types]
+    for name, value in (("guided_radius", guided_radius), ("sphere_points", sphere_points), ("threads", threads)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0):
+            raise ParameterError(f"{name} must be a non-negative integer; got {value!r}")
+    return _core.restore_f32(
+        img,
+        water_types=water_types,
+        veiling_light=veiling_light,
+        water_mask=wm,
+        mask=m,
+        guided_radius=guided_radius,
+        guided_eps=float(guided_eps),
+        sphere_points=int(sphere_points),
+        threads=threads,
+        max_memory=max_memory,
+    )

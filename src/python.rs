@@ -1,0 +1,283 @@
+//! pyo3 bindings (feature "python"): numpy in, numpy out, the GIL released
+//! for the whole Rust call, core errors mapped to Python exceptions in one
+//! function ([`to_py_err`]). No algorithm code lives here.
+
+use crate::error::Error;
+use crate::pipeline::{restore, Input, Params, Restoration};
+use crate::water::{WaterType, JERLOV};
+use crate::ImageRef;
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString, PyTuple};
+
+create_exception!(
+    _core,
+    UwhlError,
+    PyValueError,
+    "Bad input to uwhl_rs (a ValueError)."
+);
+create_exception!(
+    _core,
+    ImageError,
+    UwhlError,
+    "The image is unusable: shape, size, NaN/Inf, range, constant."
+);
+create_exception!(
+    _core,
+    ParameterError,
+    UwhlError,
+    "A parameter, mask or water type is invalid."
+);
+
+/// The one place where core errors become Python exceptions.
+fn to_py_err(e: Error) -> PyErr {
+    let msg = e.to_string();
+    match e {
+        Error::Shape(_)
+        | Error::TooSmall { .. }
+        | Error::NonFinite { .. }
+        | Error::OutOfRange { .. }
+        | Error::Constant(_) => ImageError::new_err(msg),
+        Error::Mask { .. } | Error::WaterType(_) | Error::Param { .. } => {
+            ParameterError::new_err(msg)
+        }
+        Error::Memory { .. } => PyMemoryError::new_err(msg),
+        Error::Internal(_) => PyRuntimeError::new_err(msg),
+    }
+}
+
+/// Result of `restore` (see `uwhl_rs.Restoration` in the stubs for fields).
+#[pyclass(name = "Restoration", module = "uwhl_rs._core", frozen)]
+pub struct PyRestoration {
+    #[pyo3(get)]
+    image: Py<PyAny>,
+    #[pyo3(get)]
+    radiance: Py<PyAny>,
+    #[pyo3(get)]
+    transmission: Py<PyAny>,
+    #[pyo3(get)]
+    water_type: String,
+    #[pyo3(get)]
+    beta_ratios: (f64, f64),
+    #[pyo3(get)]
+    scores: Py<PyDict>,
+    #[pyo3(get)]
+    excluded: Vec<String>,
+    #[pyo3(get)]
+    veiling_light: (f32, f32, f32),
+    #[pyo3(get)]
+    veiling_mask: Py<PyAny>,
+    #[pyo3(get)]
+    flags: Vec<String>,
+    #[pyo3(get)]
+    guided_radius: usize,
+    inner_t: Vec<f32>,
+    wt: WaterType,
+    shape: (usize, usize),
+}
+
+#[pymethods]
+impl PyRestoration {
+    /// Per-channel transmissions (t_R, t_G, t_B) of the chosen type as an
+    /// HxWx3 float32 array (SPEC 7).
+    fn channel_transmissions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let r = Restoration {
+            height: self.shape.0,
+            width: self.shape.1,
+            image: Vec::new(),
+            radiance: Vec::new(),
+            transmission: self.inner_t.clone(),
+            water_type: self.wt.clone(),
+            scores: Vec::new(),
+            excluded: Vec::new(),
+            veiling_light: [0.0; 3],
+            veiling_mask: Vec::new(),
+            flags: Vec::new(),
+            guided_radius: 0,
+        };
+        let [tr, tg, tb] = py.detach(|| r.channel_transmissions());
+        let v: Vec<f32> = tr
+            .iter()
+            .zip(&tg)
+            .zip(&tb)
+            .flat_map(|((a, b), c)| [*a, *b, *c])
+            .collect();
+        Ok(PyArray1::from_vec(py, v)
+            .reshape([self.shape.0, self.shape.1, 3])?
+            .into_any())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Restoration(water_type={:?}, veiling_light=({:.4}, {:.4}, {:.4}), shape={}x{}, flags={:?})",
+            self.water_type, self.veiling_light.0, self.veiling_light.1, self.veiling_light.2, self.shape.0, self.shape.1, self.flags
+        )
+    }
+}
+
+fn parse_types(obj: &Bound<'_, PyAny>) -> PyResult<Vec<WaterType>> {
+    if obj.is_instance_of::<PyString>() {
+        return Err(ParameterError::new_err(
+            "water_types must be a list of names or (name, beta_BR, beta_BG) tuples, not a string",
+        ));
+    }
+    let mut out = Vec::new();
+    for item in obj
+        .try_iter()
+        .map_err(|_| ParameterError::new_err("water_types must be a list"))?
+    {
+        let item = item?;
+        if let Ok(name) = item.extract::<String>() {
+            out.push(WaterType::by_name(&name).map_err(to_py_err)?);
+        } else if let Ok(t) = item.cast::<PyTuple>() {
+            let (name, br, bg): (String, f64, f64) = t.extract().map_err(|_| {
+                ParameterError::new_err(format!(
+                    "water type {t} must be (name, beta_BR, beta_BG) with a str and two numbers"
+                ))
+            })?;
+            out.push(WaterType::new(&name, br, bg).map_err(to_py_err)?);
+        } else {
+            return Err(ParameterError::new_err(format!(
+                "water type {item} must be a name or a (name, beta_BR, beta_BG) tuple"
+            )));
+        }
+    }
+    Ok(out)
+}
+
+fn mask_slice<'a>(
+    name: &str,
+    m: &'a Option<PyReadonlyArray2<'a, bool>>,
+    h: usize,
+    w: usize,
+) -> PyResult<Option<&'a [bool]>> {
+    match m {
+        None => Ok(None),
+        Some(a) => {
+            let s = a.shape();
+            if s != [h, w] {
+                return Err(ParameterError::new_err(format!(
+                    "{name} has shape {s:?}; the image needs ({h}, {w})"
+                )));
+            }
+            Ok(Some(a.as_slice().map_err(|_| {
+                ParameterError::new_err(format!("{name} must be C-contiguous"))
+            })?))
+        }
+    }
+}
+
+/// Native entry point behind `uwhl_rs.restore` (which checks dtypes and
+/// converts float64 to float32 first). Releases the GIL while it works.
+#[pyfunction]
+#[pyo3(signature = (image, *, water_types=None, veiling_light=None, water_mask=None, mask=None,
+                    guided_radius=None, guided_eps=1e-3, sphere_points=500, threads=None, max_memory=None))]
+#[allow(clippy::too_many_arguments)]
+fn restore_f32(
+    py: Python<'_>,
+    image: PyReadonlyArray3<'_, f32>,
+    water_types: Option<Bound<'_, PyAny>>,
+    veiling_light: Option<(f32, f32, f32)>,
+    water_mask: Option<PyReadonlyArray2<'_, bool>>,
+    mask: Option<PyReadonlyArray2<'_, bool>>,
+    guided_radius: Option<usize>,
+    guided_eps: f64,
+    sphere_points: usize,
+    threads: Option<usize>,
+    max_memory: Option<u64>,
+) -> PyResult<PyRestoration> {
+    let shape = image.shape();
+    if shape.len() != 3 || shape[2] != 3 {
+        return Err(ImageError::new_err(format!(
+            "image has shape {shape:?}; expected (H, W, 3)"
+        )));
+    }
+    let (h, w) = (shape[0], shape[1]);
+    let data = image
+        .as_slice()
+        .map_err(|_| ImageError::new_err("image must be C-contiguous"))?;
+    let mut params = Params::default();
+    if let Some(t) = water_types {
+        params.water_types = parse_types(&t)?;
+    }
+    params.veiling_light = veiling_light.map(|(r, g, b)| [r, g, b]);
+    params.guided_radius = guided_radius;
+    params.guided_eps = guided_eps;
+    params.sphere_points = sphere_points;
+    params.threads = threads;
+    if let Some(m) = max_memory {
+        params.max_memory = m;
+    }
+    let wm = mask_slice("water_mask", &water_mask, h, w)?;
+    let mk = mask_slice("mask", &mask, h, w)?;
+    let res = py
+        .detach(|| {
+            let img = ImageRef::new(data, h, w)?;
+            restore(
+                &Input {
+                    image: img,
+                    mask: mk,
+                    water_mask: wm,
+                },
+                &params,
+            )
+        })
+        .map_err(to_py_err)?;
+    let scores = PyDict::new(py);
+    for (n, s) in &res.scores {
+        scores.set_item(n, *s)?;
+    }
+    let to3 = |v: Vec<f32>| -> PyResult<Py<PyAny>> {
+        Ok(PyArray1::from_vec(py, v)
+            .reshape([h, w, 3])?
+            .into_any()
+            .unbind())
+    };
+    let t = res.transmission.clone();
+    Ok(PyRestoration {
+        image: to3(res.image)?,
+        radiance: to3(res.radiance)?,
+        transmission: PyArray1::from_vec(py, res.transmission)
+            .reshape([h, w])?
+            .into_any()
+            .unbind(),
+        water_type: res.water_type.name.clone(),
+        beta_ratios: (res.water_type.beta_br, res.water_type.beta_bg),
+        scores: scores.unbind(),
+        excluded: res.excluded,
+        veiling_light: (
+            res.veiling_light[0],
+            res.veiling_light[1],
+            res.veiling_light[2],
+        ),
+        veiling_mask: PyArray1::from_vec(py, res.veiling_mask)
+            .reshape([h, w])?
+            .into_any()
+            .unbind(),
+        flags: res.flags,
+        guided_radius: res.guided_radius,
+        inner_t: t,
+        wt: res.water_type,
+        shape: (h, w),
+    })
+}
+
+/// The native module `uwhl_rs._core`.
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
+    m.add_class::<PyRestoration>()?;
+    m.add("UwhlError", py.get_type::<UwhlError>())?;
+    m.add("ImageError", py.get_type::<ImageError>())?;
+    m.add("ParameterError", py.get_type::<ParameterError>())?;
+    let table = PyList::empty(py);
+    for (n, br, bg) in JERLOV {
+        table.append((n, br, bg))?;
+    }
+    m.add("JERLOV_TABLE", table)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

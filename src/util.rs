@@ -1,0 +1,165 @@
+//! Small shared tools: percentiles (DECISIONS "P"), deterministic parallel
+//! reductions, per-count thread pools.
+
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// Rows per chunk for deterministic reductions: partial sums are formed per
+/// fixed chunk of rows and combined serially in chunk order, so the result
+/// does not depend on the number of threads.
+pub const REDUCE_ROWS: usize = 16;
+
+/// Percentiles of `values` at the fractions `qs` with linear interpolation
+/// between order statistics (NumPy's default "linear" method), in f64.
+/// Returns 0 for an empty input.
+pub fn percentiles(values: &[f32], qs: &[f64]) -> Vec<f64> {
+    let n = values.len();
+    if n == 0 {
+        return vec![0.0; qs.len()];
+    }
+    let mut buf = values.to_vec();
+    qs.iter()
+        .map(|&q| {
+            let h = q.clamp(0.0, 1.0) * (n - 1) as f64;
+            let lo = h.floor() as usize;
+            let (_, &mut a, rest) = buf.select_nth_unstable_by(lo, f32::total_cmp);
+            let frac = h - lo as f64;
+            if frac > 0.0 {
+                let b = rest.iter().copied().fold(f32::INFINITY, f32::min);
+                a as f64 + frac * (b as f64 - a as f64)
+            } else {
+                a as f64
+            }
+        })
+        .collect()
+}
+
+/// Sum of `f(i)` for i in 0..n, accumulated in f64 in fixed chunks so that it
+/// is bit-identical for any thread count.
+pub fn det_sum<F: Fn(usize) -> f64 + Sync>(n: usize, chunk: usize, f: F) -> f64 {
+    let chunk = chunk.max(1);
+    let parts: Vec<f64> = (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let mut s = 0.0;
+            for i in c * chunk..((c + 1) * chunk).min(n) {
+                s += f(i);
+            }
+            s
+        })
+        .collect();
+    parts.iter().sum()
+}
+
+/// Several sums at once (same determinism as [`det_sum`]).
+pub fn det_sums<const K: usize, F: Fn(usize, &mut [f64; K]) + Sync>(
+    n: usize,
+    chunk: usize,
+    f: F,
+) -> [f64; K] {
+    let chunk = chunk.max(1);
+    let parts: Vec<[f64; K]> = (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let mut s = [0.0; K];
+            for i in c * chunk..((c + 1) * chunk).min(n) {
+                f(i, &mut s);
+            }
+            s
+        })
+        .collect();
+    let mut out = [0.0; K];
+    for p in parts {
+        for k in 0..K {
+            out[k] += p[k];
+        }
+    }
+    out
+}
+
+/// Minimum and maximum of a slice (NaN-free input).
+pub fn min_max(v: &[f32]) -> (f32, f32) {
+    v.par_chunks(1 << 16)
+        .map(|c| {
+            c.iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                })
+        })
+        .reduce(
+            || (f32::INFINITY, f32::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        )
+}
+
+/// Runs `f` on a rayon pool of `threads` threads (cached per count), or on
+/// the global pool when `threads` is None.
+pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f: F) -> Result<T> {
+    let Some(n) = threads else { return Ok(f()) };
+    if n == 0 {
+        return Err(Error::Param {
+            name: "threads",
+            msg: "must be at least 1".into(),
+        });
+    }
+    if n > 1024 {
+        return Err(Error::Param {
+            name: "threads",
+            msg: format!("{n} is more than 1024"),
+        });
+    }
+    static POOLS: OnceLock<Mutex<HashMap<usize, Arc<rayon::ThreadPool>>>> = OnceLock::new();
+    let pools = POOLS.get_or_init(|| Mutex::new(HashMap::new()));
+    let pool = {
+        let mut map = pools
+            .lock()
+            .map_err(|_| Error::Internal("thread pool cache poisoned".into()))?;
+        match map.get(&n) {
+            Some(p) => p.clone(),
+            None => {
+                let p = Arc::new(
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(n)
+                        .thread_name(|i| format!("uwhl-{i}"))
+                        .build()
+                        .map_err(|e| Error::Internal(format!("cannot start {n} threads: {e}")))?,
+                );
+                map.insert(n, p.clone());
+                p
+            }
+        }
+    };
+    Ok(pool.install(f))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_match_hand_values() {
+        // sorted: 1 2 3 4 ; q=0.5 -> position 1.5 -> 2.5 ; q=0.1 -> 0.3 -> 1.3
+        let v = [4.0f32, 1.0, 3.0, 2.0];
+        let p = percentiles(&v, &[0.0, 0.1, 0.5, 1.0]);
+        assert_eq!(p[0], 1.0);
+        assert!((p[1] - 1.3).abs() < 1e-12);
+        assert_eq!(p[2], 2.5);
+        assert_eq!(p[3], 4.0);
+        assert_eq!(percentiles(&[7.0], &[0.3]), vec![7.0]);
+    }
+
+    #[test]
+    fn det_sum_is_thread_independent() {
+        let f = |i: usize| (i as f64 * 0.1).sin() * 1e-3 + 1.0 / (i as f64 + 1.0);
+        let a = with_threads(Some(1), || det_sum(100_000, 77, f)).unwrap();
+        let b = with_threads(Some(3), || det_sum(100_000, 77, f)).unwrap();
+        assert_eq!(a.to_bits(), b.to_bits());
+    }
+
+    #[test]
+    fn zero_threads_is_an_error() {
+        assert!(with_threads(Some(0), || 1).is_err());
+    }
+}

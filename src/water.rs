@@ -1,0 +1,132 @@
+//! Water types: the search space of the two attenuation ratios (SPEC 1).
+
+use crate::error::{Error, Result};
+
+/// One candidate water: beta_BR = beta_B / beta_R and beta_BG = beta_B / beta_G.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaterType {
+    /// Display name ("I", "IA", ..., "9C", or a user's own).
+    pub name: String,
+    /// beta_B / beta_R.
+    pub beta_br: f64,
+    /// beta_B / beta_G.
+    pub beta_bg: f64,
+}
+
+/// Largest ratio accepted for a custom type; beyond it the powers in SPEC 4
+/// and 7 lose all meaning for data in [0, 1].
+pub const MAX_RATIO: f64 = 100.0;
+
+/// The Jerlov (1968) table of SPEC 1: (name, beta_BR, beta_BG).
+pub const JERLOV: [(&str, f64, f64); 10] = [
+    ("I", 0.1118, 0.4566),
+    ("IA", 0.1452, 0.5499),
+    ("IB", 0.1745, 0.6341),
+    ("II", 0.2773, 0.7937),
+    ("III", 0.4051, 0.9539),
+    ("1C", 0.4642, 1.0930),
+    ("3C", 0.6515, 1.1244),
+    ("5C", 1.0000, 1.2725),
+    ("7C", 1.4500, 1.4022),
+    ("9C", 2.0708, 1.5942),
+];
+
+impl WaterType {
+    /// A custom water type; both ratios must be finite, > 0 and <= [`MAX_RATIO`].
+    pub fn new(name: &str, beta_br: f64, beta_bg: f64) -> Result<Self> {
+        for (label, v) in [("beta_BR", beta_br), ("beta_BG", beta_bg)] {
+            if !v.is_finite() || v <= 0.0 || v > MAX_RATIO {
+                return Err(Error::WaterType(format!(
+                    "{label} of water type {name:?} is {v}; it must be a finite number in (0, {MAX_RATIO}]"
+                )));
+            }
+        }
+        if name.is_empty() {
+            return Err(Error::WaterType(
+                "a water type needs a non-empty name".into(),
+            ));
+        }
+        Ok(Self {
+            name: name.to_string(),
+            beta_br,
+            beta_bg,
+        })
+    }
+
+    /// A type of the Jerlov table by its name (case-sensitive, as in SPEC 1).
+    pub fn by_name(name: &str) -> Result<Self> {
+        JERLOV
+            .iter()
+            .find(|(n, _, _)| *n == name)
+            .map(|&(n, br, bg)| Self {
+                name: n.to_string(),
+                beta_br: br,
+                beta_bg: bg,
+            })
+            .ok_or_else(|| {
+                let names: Vec<&str> = JERLOV.iter().map(|t| t.0).collect();
+                Error::WaterType(format!(
+                    "unknown water type {name:?}; known types: {}",
+                    names.join(", ")
+                ))
+            })
+    }
+}
+
+/// All ten Jerlov types in table order (the default search space).
+pub fn jerlov_types() -> Vec<WaterType> {
+    JERLOV
+        .iter()
+        .map(|&(n, br, bg)| WaterType {
+            name: n.to_string(),
+            beta_br: br,
+            beta_bg: bg,
+        })
+        .collect()
+}
+
+/// Checks a list of candidate types: non-empty, names unique.
+pub fn validate_types(types: &[WaterType]) -> Result<()> {
+    if types.is_empty() {
+        return Err(Error::WaterType("the list of water types is empty".into()));
+    }
+    for (i, t) in types.iter().enumerate() {
+        WaterType::new(&t.name, t.beta_br, t.beta_bg)?;
+        if types[..i].iter().any(|o| o.name == t.name) {
+            return Err(Error::WaterType(format!(
+                "water type {:?} is listed twice",
+                t.name
+            )));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_has_ten_types_in_order() {
+        let t = jerlov_types();
+        assert_eq!(t.len(), 10);
+        assert_eq!(t[0].name, "I");
+        assert_eq!(t[9].name, "9C");
+        // 5C is where red and blue attenuate alike (SPEC 1).
+        assert_eq!(WaterType::by_name("5C").unwrap().beta_br, 1.0);
+    }
+
+    #[test]
+    fn unknown_and_bad_types_are_errors() {
+        let e = WaterType::by_name("XI").unwrap_err().to_string();
+        assert!(e.contains("XI") && e.contains("known types"), "{e}");
+        assert!(WaterType::new("x", 0.0, 1.0).is_err());
+        assert!(WaterType::new("x", -1.0, 1.0).is_err());
+        assert!(WaterType::new("x", f64::NAN, 1.0).is_err());
+        assert!(WaterType::new("x", 1.0, f64::INFINITY).is_err());
+        assert!(WaterType::new("", 1.0, 1.0).is_err());
+        assert!(validate_types(&[]).is_err());
+        let a = WaterType::new("a", 1.0, 1.0).unwrap();
+        assert!(validate_types(&[a.clone(), a]).is_err());
+    }
+}
