@@ -36,6 +36,12 @@ pub const HALF_NORMAL_Q25: f64 = 0.318_639_363_964_375_2;
 /// Lower bound for every component of A, so that I / A is defined.
 pub const MIN_A: f32 = 1e-4;
 
+/// Flag: no usable water region (none found, too small, or rejected as a
+/// dark shadow); the matting and the exclusion rule are skipped.
+pub const FLAG_NO_REGION: &str = "no_water_region";
+/// A detected region whose median-luminance color is darker than this
+/// fraction of the image's median luminance is rejected (a shadow).
+pub const DARK_REGION_RATIO: f64 = 0.2;
 /// Flag: A came from the fallback, not from a water region.
 pub const FLAG_FALLBACK: &str = "veiling_fallback";
 /// Flag: a component of A was raised to [`MIN_A`].
@@ -165,6 +171,23 @@ pub fn luminance(p: [f32; 3]) -> f64 {
     0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64
 }
 
+/// Median (lower) luminance of the masked-in pixels.
+pub fn median_luminance(img: &ImageRef, mask: Option<&[bool]>) -> f64 {
+    let y: Vec<f32> = (0..img.len())
+        .into_par_iter()
+        .filter(|&i| mask.is_none_or(|m| m[i]))
+        .map(|i| luminance(img.px(i)) as f32)
+        .collect();
+    let n = y.len();
+    if n == 0 {
+        return 0.0;
+    }
+    let mut y = y;
+    let k = (n - 1) / 2;
+    let (_, v, _) = y.select_nth_unstable_by(k, f32::total_cmp);
+    *v as f64
+}
+
 /// A as the color of the VL pixel with the (lower) median luminance; VL
 /// pixels ordered by (luminance, raster index). None for an empty region.
 pub fn veiling_from_region(img: &ImageRef, vl: &[bool]) -> Option<[f32; 3]> {
@@ -224,6 +247,7 @@ pub fn estimate(
     given_a: Option<[f32; 3]>,
 ) -> Veiling {
     let n = img.len();
+    let detected = water_mask.is_none();
     let mut vl = match water_mask {
         Some(wm) => wm
             .iter()
@@ -235,11 +259,24 @@ pub fn estimate(
     let mut vl_count = vl.iter().filter(|&&b| b).count();
     let min_count = ((MIN_VL_FRACTION * n as f64).ceil() as usize).max(2);
     let mut flags = Vec::new();
-    if vl_count < min_count {
+    let mut from_region = veiling_from_region(img, &vl);
+    if detected {
+        if let Some(cand) = from_region {
+            // A flat region far darker than the scene is a shadow, not the
+            // water at infinity: every object pixel would be brighter than
+            // its own asymptote (DECISIONS S3 step 9).
+            if luminance(cand) < DARK_REGION_RATIO * median_luminance(img, mask) {
+                from_region = None;
+            }
+        }
+    }
+    if vl_count < min_count || from_region.is_none() {
         vl.iter_mut().for_each(|b| *b = false);
         vl_count = 0;
+        from_region = None;
+        flags.push(FLAG_NO_REGION);
     }
-    let mut a = match (given_a, veiling_from_region(img, &vl)) {
+    let mut a = match (given_a, from_region) {
         (Some(a), _) => a,
         (None, Some(a)) => a,
         (None, None) => {
@@ -302,7 +339,7 @@ mod tests {
         let img = ImageRef::new(&d, h, w).unwrap();
         let v = estimate(&img, None, None, None);
         assert_eq!(v.vl_count, 0);
-        assert_eq!(v.flags, vec![FLAG_FALLBACK]);
+        assert_eq!(v.flags, vec![FLAG_NO_REGION, FLAG_FALLBACK]);
         assert!(v.a.iter().all(|&x| x > 0.0 && x <= 1.0));
     }
 
@@ -317,6 +354,25 @@ mod tests {
         assert_eq!(v.vl, wm);
         assert_eq!(v.a, [0.2, 0.3, MIN_A]);
         assert_eq!(v.flags, vec![FLAG_CLAMPED]);
+    }
+
+    #[test]
+    fn dark_flat_region_is_a_shadow_not_water() {
+        // flat near-black top (a shadow) over bright texture: rejected
+        let (h, w) = (40, 60);
+        let mut d = water_over_texture(h, w, 14);
+        for px in d[..14 * w * 3].chunks_mut(3) {
+            px.copy_from_slice(&[0.004, 0.006, 0.007]);
+        }
+        let img = ImageRef::new(&d, h, w).unwrap();
+        let v = estimate(&img, None, None, None);
+        assert_eq!(v.vl_count, 0);
+        assert_eq!(v.flags, vec![FLAG_NO_REGION, FLAG_FALLBACK]);
+        // the same region given as a water mask is the user's word: kept
+        let mut wm = vec![false; h * w];
+        wm[..10 * w].iter_mut().for_each(|b| *b = true);
+        let v = estimate(&img, None, Some(&wm), None);
+        assert_eq!(v.vl_count, 10 * w);
     }
 
     #[test]

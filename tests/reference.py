@@ -356,21 +356,33 @@ def detect_veiling(img, mask=None, water_mask=None, veiling_light=None):
         vl = _as_mask(water_mask, (h, w)) & m
     else:
         vl = detect_vl_region(img, m)
-    if vl.sum() < max(2.0, VL_MIN_FRACTION * h * w):
+    region_a = None
+    if vl.any():
+        pix = img[vl]
+        y = luminance(pix)
+        idx = np.flatnonzero(vl.ravel())
+        order = np.lexsort((idx, y))
+        region_a = pix[order[(len(order) - 1) // 2]].copy()
+        if water_mask is None:
+            # DECISIONS S3 step 9: a detected region darker than 0.2 x the
+            # median luminance of the masked-in pixels is a shadow.
+            ym = luminance(img[m].reshape(-1, 3))
+            med = np.sort(ym)[(ym.size - 1) // 2]
+            if luminance(region_a[None, :])[0] < 0.2 * med:
+                region_a = None
+    if vl.sum() < max(2.0, VL_MIN_FRACTION * h * w) or region_a is None:
         vl = np.zeros((h, w), dtype=bool)
-        flags.append("veiling_fallback")
+        region_a = None
+        flags.append("no_water_region")
 
     if veiling_light is not None:
         a = np.asarray(veiling_light, dtype=np.float64).reshape(-1)
         if a.size != 3 or not np.all(np.isfinite(a)) or np.any(a <= 0) or np.any(a > 1):
             raise ValueError("veiling_light must be 3 values in (0, 1]")
-    elif vl.any():
-        pix = img[vl]
-        y = luminance(pix)
-        idx = np.flatnonzero(vl.ravel())
-        order = np.lexsort((idx, y))
-        a = pix[order[(len(order) - 1) // 2]].copy()
+    elif region_a is not None:
+        a = region_a
     else:
+        flags.append("veiling_fallback")
         a = fallback_veiling_light(img)
 
     clamped = np.maximum(a, A_MIN)
