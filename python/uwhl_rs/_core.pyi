@@ -1,0 +1,43 @@
+"""Type stubs of the native module uwhl_rs._core (built from src/python.rs)."""
+
+from typing import Optional, Sequence, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+JERLOV_TABLE: list[tuple[str, float, float]]
+
+class UwhlError(ValueError): ...
+class ImageError(UwhlError): ...
+class ParameterError(UwhlError): ...
+
+class Restoration:
+    image: npt.NDArray[np.float32]
+    radiance: npt.NDArray[np.float32]
+    transmission: npt.NDArray[np.float32]
+    water_type: str
+    beta_ratios: tuple[float, float]
+    scores: dict[str, float]
+    excluded: list[str]
+    veiling_light: tuple[float, float, float]
+    veiling_mask: npt.NDArray[np.bool_]
+    flags: list[str]
+    guided_radius: int
+    def channel_transmissions(self) -> npt.NDArray[np.float32]: ...
+
+WaterTypeSpec = Union[str, tuple[str, float, float]]
+
+def restore_f32(
+    image: npt.NDArray[np.float32],
+    *,
+    water_types: Optional[Sequence[WaterTypeSpec]] = None,
+    veiling_light: Optional[tuple[float, float, float]] = None,
+    water_mask: Optional[npt.NDArray[np.bool_]] = None,
+    mask: Optional[npt.NDArray[np.bool_]] = None,
+    guided_radius: Optional[int] = None,
+    guided_eps: float = 1e-3,
+    sphere_points: int = 500,
+    threads: Optional[int] = None,
+    max_memory: Optional[int] = None,
+) -> Restoration: ...
