@@ -247,29 +247,26 @@ def report_renders(recs: list, args) -> None:
                  "  (no water in the scene: 'given' = an all-False mask -> fallback A;"
                  "\n    A_true is the water color the model uses, never visible directly)"))
         rows = []
-        for wt in TYPES:
-            g = [r for r in sub if r["type"] == wt and r["mode"] == "given"]
-            d = [r for r in sub if r["type"] == wt and r["mode"] == "detected"]
-            rows.append([
-                wt,
-                med_min([r["rho"] for r in g]), med_min([r["rho"] for r in d]),
+        for wt in TYPES + ["all"]:
+            s = [r for r in sub if wt == "all" or r["type"] == wt]
+            g = [r for r in s if r["mode"] == "given"]
+            d = [r for r in s if r["mode"] == "detected"]
+            row = [wt]
+            for mode_recs in (g, d):
+                for noise in args.noise:
+                    row.append(med_min([r["rho"] for r in mode_recs if r["noise"] == noise]))
+            row += [
                 med_max([r["a_err"] for r in g]), med_max([r["a_err"] for r in d]),
                 fmt(np.median([r["ang_in"] for r in g]), 1),
                 fmt(np.median([r["ang_out"] for r in g]), 1),
                 fmt(np.median([r["ang_out"] for r in d]), 1),
-            ])
-        allg = [r for r in sub if r["mode"] == "given"]
-        alld = [r for r in sub if r["mode"] == "detected"]
-        rows.append([
-            "all", med_min([r["rho"] for r in allg]), med_min([r["rho"] for r in alld]),
-            med_max([r["a_err"] for r in allg]), med_max([r["a_err"] for r in alld]),
-            fmt(np.median([r["ang_in"] for r in allg]), 1),
-            fmt(np.median([r["ang_out"] for r in allg]), 1),
-            fmt(np.median([r["ang_out"] for r in alld]), 1),
-        ])
-        print(table(["type", "rho given med/min", "rho detected med/min",
-                     "|A-A| given med/max", "|A-A| det med/max",
-                     "angle in", "out given", "out det"], rows))
+            ]
+            rows.append(row)
+        print(table(["type"]
+                    + [f"rho given n={n} med/min" for n in args.noise]
+                    + [f"rho det n={n} med/min" for n in args.noise]
+                    + ["|A-A| given med/max", "|A-A| det med/max",
+                       "angle in", "out given", "out det"], rows))
 
         for mode in ("given", "detected"):
             print()
@@ -521,6 +518,8 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, default=None, help="restore threads (default all)")
     ap.add_argument("--panel", type=int, default=720,
                     help="longest side of each panel in the saved PNGs (0 = full size)")
+    ap.add_argument("--json", default=None,
+                    help="also write the per-run records of sections 1-2 to this JSON file")
     ap.add_argument("--skip", default="", help="comma list of sections to skip: renders,photos,timing")
     args = ap.parse_args(argv)
     if args.quick:
@@ -536,7 +535,14 @@ def main(argv=None) -> int:
     print(f"uwhl_rs {uwhl_rs.__version__} quality report ({'quick' if args.quick else 'full'} run)")
     t0 = time.perf_counter()
     if "renders" not in skip:
-        report_renders(run_renders(args), args)
+        recs = run_renders(args)
+        report_renders(recs, args)
+        if args.json:
+            import json
+
+            pathlib.Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            with open(args.json, "w") as f:
+                json.dump(recs, f, indent=0)
     if "photos" not in skip:
         run_photos(args)
     if "timing" not in skip:

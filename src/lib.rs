@@ -26,6 +26,7 @@
 #![cfg_attr(not(feature = "python"), forbid(unsafe_code))]
 #![warn(missing_docs)]
 
+pub mod clahe;
 pub mod error;
 pub mod filters;
 pub mod guided;

@@ -12,7 +12,8 @@ use crate::matting::{lower_bound_px, mahalanobis_sq, matting_weights};
 use crate::recover::{channel_t, display_stretch, recover};
 use crate::select::{choose, type_stats, TypeStats, FLAG_RELAXED};
 use crate::sphere::SphereIndex;
-use crate::util::{min_max, percentiles, with_threads};
+use crate::util::percentiles;
+use crate::util::{masked_channel, masked_min_max, with_threads};
 use crate::veiling::{estimate, Veiling};
 use crate::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
@@ -129,8 +130,9 @@ pub fn memory_estimate(h: usize, w: usize, in_flight: usize) -> u64 {
 
 /// The contrast stretch of SPEC 3.1 (DECISIONS S3.1): global min-max, then
 /// per channel between its 1% and 99% percentiles, clipped to [0, 1].
-pub fn stretch_image(data: &[f32]) -> Vec<f32> {
-    let (lo, hi) = min_max(data);
+/// Statistics over masked-in pixels (all without a mask), applied to all.
+pub fn stretch_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
+    let (lo, hi) = masked_min_max(data, mask);
     let range = hi - lo;
     let x: Vec<f32> = if range > 0.0 {
         data.par_iter().map(|&v| (v - lo) / range).collect()
@@ -139,8 +141,7 @@ pub fn stretch_image(data: &[f32]) -> Vec<f32> {
     };
     let mut lim = [(0f64, 1f64, false); 3];
     for (c, l) in lim.iter_mut().enumerate() {
-        let ch: Vec<f32> = x.par_iter().skip(c).step_by(3).copied().collect();
-        let p = percentiles(&ch, &[0.01, 0.99]);
+        let p = percentiles(&masked_channel(&x, c, mask), &[0.01, 0.99]);
         *l = (p[0], p[1], p[1] - p[0] > 1e-12);
     }
     x.par_chunks(3)
@@ -159,7 +160,7 @@ pub fn stretch_image(data: &[f32]) -> Vec<f32> {
 
 /// The guide of SPEC 6: the stretched input raised to 1/2.2, 0 on masked-out pixels.
 pub fn guide_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let mut g = stretch_image(data);
+    let mut g = stretch_image(data, mask);
     g.par_chunks_mut(3).enumerate().for_each(|(i, px)| {
         if mask.is_some_and(|m| !m[i]) {
             px.iter_mut().for_each(|v| *v = 0.0);
@@ -180,14 +181,11 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
         return;
     }
     let nl = sizes.len();
+    // Per region, the SET of its neighbour pixels at the given offsets: (label,
+    // pixel) pairs, sorted and deduplicated, then summed in that order.
     let collect = |offsets: &[(isize, isize)]| -> (Vec<f64>, Vec<f64>) {
-        let mut seen = vec![false; h * w];
-        let mut sum = vec![0f64; nl];
-        let mut cnt = vec![0f64; nl];
-        // per label, each neighbour pixel counted once (raster order: deterministic)
-        let mut last_label = vec![0u32; h * w];
-        for i in 0..h * w {
-            let l = labels[i];
+        let mut pairs: Vec<(u32, usize)> = Vec::new();
+        for (i, &l) in labels.iter().enumerate() {
             if l == 0 {
                 continue;
             }
@@ -198,13 +196,18 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
                     continue;
                 }
                 let j = ny as usize * w + nx as usize;
-                if mask[j] && !(seen[j] && last_label[j] == l) {
-                    seen[j] = true;
-                    last_label[j] = l;
-                    sum[l as usize - 1] += q[j] as f64;
-                    cnt[l as usize - 1] += 1.0;
+                if mask[j] {
+                    pairs.push((l, j));
                 }
             }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut sum = vec![0f64; nl];
+        let mut cnt = vec![0f64; nl];
+        for (l, j) in pairs {
+            sum[l as usize - 1] += q[j] as f64;
+            cnt[l as usize - 1] += 1.0;
         }
         (sum, cnt)
     };
@@ -274,8 +277,8 @@ impl Shared<'_> {
     /// Selection statistics of one type (SPEC 7-9).
     fn stats(&self, wt: &WaterType) -> TypeStats {
         let q = self.refined(wt);
-        let (j, tb) = recover(&self.input.image, self.veil.a, &q, wt);
-        let s = display_stretch(&j);
+        let (j, tb) = recover(&self.input.image, self.veil.a, &q, wt, self.input.mask);
+        let s = display_stretch(&j, self.input.mask);
         let tr: Vec<f32> = tb.par_iter().map(|&t| channel_t(t, wt)[0]).collect();
         type_stats(
             &s,
@@ -345,6 +348,15 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
     let (h, w) = (img.height, img.width);
     let index = SphereIndex::new(params.sphere_points)?;
     let veil = estimate(img, input.mask, input.water_mask, params.veiling_light);
+    let usable = input
+        .mask
+        .map_or(img.len(), |m| m.iter().filter(|&&b| b).count());
+    if veil.vl_count >= usable {
+        return Err(Error::Mask {
+            name: "water_mask",
+            msg: "covers every pixel used for estimation: no object pixels are left to choose the water type".into(),
+        });
+    }
     let weights = if veil.vl_count > 0 {
         mahalanobis_sq(img, &veil.vl).map(|d| matting_weights(&d, &veil.vl, w))
     } else {
@@ -380,8 +392,8 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         .ok_or_else(|| Error::Internal("winner out of range".into()))?
         .clone();
     let q = shared.refined(&wt);
-    let (radiance, transmission) = recover(img, shared.veil.a, &q, &wt);
-    let image = display_stretch(&radiance);
+    let (radiance, transmission) = recover(img, shared.veil.a, &q, &wt, input.mask);
+    let image = display_stretch(&radiance, input.mask);
 
     let mut flags: Vec<String> = shared.veil.flags.iter().map(|s| s.to_string()).collect();
     if choice.relaxed {

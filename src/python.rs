@@ -291,16 +291,19 @@ fn img_of<'a>(a: &'a PyReadonlyArray3<'a, f32>) -> PyResult<ImageRef<'a>> {
     ImageRef::new(d, s[0], s[1]).map_err(to_py_err)
 }
 
-/// SPEC 3.1 contrast stretch.
+/// SPEC 3.1 contrast stretch (statistics over masked-in pixels).
 #[pyfunction]
+#[pyo3(signature = (image, mask=None))]
 fn _stage_stretch<'py>(
     py: Python<'py>,
     image: PyReadonlyArray3<'py, f32>,
+    mask: Option<PyReadonlyArray2<'py, bool>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let img = img_of(&image)?;
+    let m = mask_slice("mask", &mask, img.height, img.width)?;
     arr3(
         py,
-        crate::pipeline::stretch_image(img.data),
+        crate::pipeline::stretch_image(img.data, m),
         img.height,
         img.width,
     )
@@ -441,6 +444,7 @@ fn _stage_guided<'py>(
 
 /// Recovery (SPEC 7): (J after the artifact clamp, clamped t_B).
 #[pyfunction]
+#[pyo3(signature = (image, a, t, beta_br, beta_bg, mask=None))]
 fn _stage_recover<'py>(
     py: Python<'py>,
     image: PyReadonlyArray3<'py, f32>,
@@ -448,8 +452,10 @@ fn _stage_recover<'py>(
     t: PyReadonlyArray2<'py, f32>,
     beta_br: f64,
     beta_bg: f64,
+    mask: Option<PyReadonlyArray2<'py, bool>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
     let img = img_of(&image)?;
+    let m = mask_slice("mask", &mask, img.height, img.width)?;
     let ts = t
         .as_slice()
         .map_err(|_| ParameterError::new_err("t must be C-contiguous"))?;
@@ -459,24 +465,32 @@ fn _stage_recover<'py>(
         ));
     }
     let wt = WaterType::new("custom", beta_br, beta_bg).map_err(to_py_err)?;
-    let (j, tb) = crate::recover::recover(&img, [a.0, a.1, a.2], ts, &wt);
+    let (j, tb) = crate::recover::recover(&img, [a.0, a.1, a.2], ts, &wt, m);
     Ok((
         arr3(py, j, img.height, img.width)?,
         arr2(py, tb, img.height, img.width)?,
     ))
 }
 
-/// Display stretch (SPEC 8).
+/// Display stretch (SPEC 8), limits from masked-in pixels.
 #[pyfunction]
+#[pyo3(signature = (j, mask=None))]
 fn _stage_display_stretch<'py>(
     py: Python<'py>,
     j: PyReadonlyArray3<'py, f32>,
+    mask: Option<PyReadonlyArray2<'py, bool>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let s = j.shape();
+    if s.len() != 3 || s[2] != 3 {
+        return Err(ImageError::new_err(format!(
+            "J has shape {s:?}; expected (H, W, 3)"
+        )));
+    }
+    let m = mask_slice("mask", &mask, s[0], s[1])?;
     let d = j
         .as_slice()
         .map_err(|_| ImageError::new_err("J must be C-contiguous"))?;
-    arr3(py, crate::recover::display_stretch(d), s[0], s[1])
+    arr3(py, crate::recover::display_stretch(d, m), s[0], s[1])
 }
 
 /// Chart fill (SPEC 6, last paragraph).

@@ -2,7 +2,7 @@
 //! per-channel display stretch (SPEC 8).
 
 use crate::image::ImageRef;
-use crate::util::{min_max, percentiles};
+use crate::util::{masked_channel, masked_min_max, percentiles};
 use crate::water::WaterType;
 use rayon::prelude::*;
 
@@ -27,12 +27,14 @@ pub fn channel_t(tb: f32, wt: &WaterType) -> [f32; 3] {
 }
 
 /// Recovers J = A + (I - A) / t_c (SPEC 7) from the refined transmission and
-/// applies the artifact clamp. Returns (J interleaved, clamped t_B).
+/// applies the artifact clamp (statistics over masked-in pixels). Returns
+/// (J interleaved, clamped t_B).
 pub fn recover(
     img: &ImageRef,
     a: [f32; 3],
     t_refined: &[f32],
     wt: &WaterType,
+    mask: Option<&[bool]>,
 ) -> (Vec<f32>, Vec<f32>) {
     let tb: Vec<f32> = t_refined.par_iter().map(|&t| clamp_tb(t, wt)).collect();
     let mut j = vec![0f32; img.data.len()];
@@ -43,17 +45,18 @@ pub fn recover(
             o[c] = a[c] + (p[c] - a[c]) / t[c];
         }
     });
-    artifact_clamp(&mut j);
+    artifact_clamp(&mut j, mask);
     (j, tb)
 }
 
-/// SPEC 7's last line, over all pixels and channels:
+/// SPEC 7's last line, min and max over the masked-in pixels' channels
+/// (all pixels without a mask), applied to every pixel:
 /// J -= max(min J, -0.08); J = max(J, 0); J /= min(max J, 1.6); J = min(J, 1).
-pub fn artifact_clamp(j: &mut [f32]) {
-    let (lo, _) = min_max(j);
-    let shift = lo.max(-0.08);
+pub fn artifact_clamp(j: &mut [f32], mask: Option<&[bool]>) {
+    let (lo, _) = masked_min_max(j, mask);
+    let shift = if lo.is_finite() { lo.max(-0.08) } else { 0.0 };
     j.par_iter_mut().for_each(|v| *v = (*v - shift).max(0.0));
-    let (_, hi) = min_max(j);
+    let (_, hi) = masked_min_max(j, mask);
     let div = hi.min(1.6);
     if div > 0.0 {
         j.par_iter_mut().for_each(|v| *v = (*v / div).min(1.0));
@@ -63,8 +66,10 @@ pub fn artifact_clamp(j: &mut [f32]) {
 /// The display stretch of SPEC 8: global min-max, then per channel a linear
 /// stretch between its 0.1% and 99.9% percentiles with the upper limit at
 /// least 0.8 (0.9 for red) and the lower at most 0.2, clipped to [0, 1].
-pub fn display_stretch(j: &[f32]) -> Vec<f32> {
-    let (lo, hi) = min_max(j);
+/// Limits come from the masked-in pixels (all without a mask), so that a
+/// masked-out color chart cannot change them; they apply to every pixel.
+pub fn display_stretch(j: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
+    let (lo, hi) = masked_min_max(j, mask);
     let range = hi - lo;
     let x: Vec<f32> = if range > 0.0 {
         j.par_iter().map(|&v| (v - lo) / range).collect()
@@ -73,8 +78,7 @@ pub fn display_stretch(j: &[f32]) -> Vec<f32> {
     };
     let mut limits = [(0f64, 1f64); 3];
     for (c, lim) in limits.iter_mut().enumerate() {
-        let ch: Vec<f32> = x.par_iter().skip(c).step_by(3).copied().collect();
-        let p = percentiles(&ch, &[0.001, 0.999]);
+        let p = percentiles(&masked_channel(&x, c, mask), &[0.001, 0.999]);
         let top = if c == 0 { 0.9 } else { 0.8 };
         *lim = (p[0].min(0.2), p[1].max(top));
     }
@@ -125,7 +129,7 @@ mod tests {
         let img = ImageRef::new(&d, 4, 4).unwrap();
         let mut tr = vec![1.0f32; 16];
         tr[0] = 0.64;
-        let (j, tb) = recover(&img, a, &tr, &wt);
+        let (j, tb) = recover(&img, a, &tr, &wt, None);
         assert_eq!(tb[0], 0.64);
         // before the clamp: J0 = (0.5, 0.3, 0.2), water = A; min 0.1 -> shift 0.1;
         // max 0.5 (water's B: 0.6 - 0.1) -> divide by 0.5
@@ -141,16 +145,36 @@ mod tests {
     }
 
     #[test]
+    fn masked_out_values_do_not_set_the_limits() {
+        // pixel 1 is masked out and extreme: min/max come from pixel 0 only
+        let mut j = vec![0.2f32, 0.4, 0.6, -3.0, 9.0, 0.5];
+        artifact_clamp(&mut j, Some(&[true, false]));
+        // shift 0.2 -> (0, 0.2, 0.4); max 0.4 -> (0, 0.5, 1)
+        for (a, b) in j[..3].iter().zip([0.0f32, 0.5, 1.0]) {
+            assert!((a - b).abs() < 1e-6, "{j:?}");
+        }
+        let s = display_stretch(
+            &[0.2, 0.4, 0.6, 0.2, 0.4, 0.6, 5.0, 5.0, 5.0],
+            Some(&[true, true, false]),
+        );
+        let t = display_stretch(
+            &[0.2, 0.4, 0.6, 0.2, 0.4, 0.6, -1.0, 0.0, 1.0],
+            Some(&[true, true, false]),
+        );
+        assert_eq!(&s[..6], &t[..6]);
+    }
+
+    #[test]
     fn artifact_clamp_cases() {
         let mut j = vec![-0.5f32, 0.0, 2.0, 1.0];
         // shift by -0.08 -> (-0.42, 0.08, 2.08, 1.08) -> clip 0 -> divide by 1.6 -> min 1
-        artifact_clamp(&mut j);
+        artifact_clamp(&mut j, None);
         let e = [0.0, 0.08 / 1.6, 1.0, 1.08 / 1.6];
         for (a, b) in j.iter().zip(e) {
             assert!((a - b).abs() < 1e-6);
         }
         let mut z = vec![0.0f32; 4];
-        artifact_clamp(&mut z);
+        artifact_clamp(&mut z, None);
         assert!(z.iter().all(|&v| v == 0.0));
     }
 
@@ -162,7 +186,7 @@ mod tests {
         let j: Vec<f32> = (0..1000)
             .flat_map(|k| [k as f32 / 999.0 * 0.1 + 0.05; 3])
             .collect();
-        let s = display_stretch(&j);
+        let s = display_stretch(&j, None);
         let (lo, hi) = (0.001f64, 998.001f64 / 999.0);
         for k in 0..1000 {
             let x = k as f64 / 999.0;
@@ -174,12 +198,14 @@ mod tests {
         // limits are forced: a channel concentrated in [0.3, 0.5] keeps lo <= 0.2, hi >= 0.8
         let mut q = vec![0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0];
         q.extend((0..1000).flat_map(|k| [0.3 + 0.2 * k as f32 / 999.0; 3]));
-        let s = display_stretch(&q);
+        let s = display_stretch(&q, None);
         // a value 0.4 (mid) maps to (0.4 - 0.2) / (0.8 - 0.2) = 1/3 in G and B, (0.2 / 0.7) in R
         let mid = 6 + 3 * 500;
         let x = q[mid] as f64;
         assert!((s[mid + 1] as f64 - (x - 0.2) / 0.6).abs() < 1e-5);
         assert!((s[mid] as f64 - (x - 0.2) / 0.7).abs() < 1e-5);
-        assert!(display_stretch(&[0.3f32; 6]).iter().all(|&v| v == 0.0));
+        assert!(display_stretch(&[0.3f32; 6], None)
+            .iter()
+            .all(|&v| v == 0.0));
     }
 }

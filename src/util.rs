@@ -94,6 +94,47 @@ pub fn min_max(v: &[f32]) -> (f32, f32) {
         )
 }
 
+/// Minimum and maximum over all channels of the pixels of an interleaved
+/// RGB slice whose mask entry is true (all pixels without a mask).
+/// (inf, -inf) when no pixel counts.
+pub fn masked_min_max(rgb: &[f32], mask: Option<&[bool]>) -> (f32, f32) {
+    match mask {
+        None => min_max(rgb),
+        Some(m) => rgb
+            .par_chunks(3 * 4096)
+            .zip(m.par_chunks(4096))
+            .map(|(px, mm)| {
+                px.chunks(3).zip(mm).filter(|(_, &b)| b).fold(
+                    (f32::INFINITY, f32::NEG_INFINITY),
+                    |(a, b), (p, _)| {
+                        (
+                            a.min(p[0]).min(p[1]).min(p[2]),
+                            b.max(p[0]).max(p[1]).max(p[2]),
+                        )
+                    },
+                )
+            })
+            .reduce(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |(a, b), (c, d)| (a.min(c), b.max(d)),
+            ),
+    }
+}
+
+/// Channel `c` of an interleaved RGB slice over the pixels whose mask entry
+/// is true (all pixels without a mask), in raster order.
+pub fn masked_channel(rgb: &[f32], c: usize, mask: Option<&[bool]>) -> Vec<f32> {
+    match mask {
+        None => rgb.par_chunks(3).map(|p| p[c]).collect(),
+        Some(m) => rgb
+            .par_chunks(3)
+            .zip(m.par_iter())
+            .filter(|(_, &b)| b)
+            .map(|(p, _)| p[c])
+            .collect(),
+    }
+}
+
 /// Runs `f` on a rayon pool of `threads` threads (cached per count), or on
 /// the global pool when `threads` is None.
 pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f: F) -> Result<T> {

@@ -98,19 +98,31 @@ def _global_minmax(img):
     return (img - lo) / (hi - lo)
 
 
-def stretch_image(img):
-    x = _global_minmax(_as_image(img))
+def _masked_minmax(x, m):
+    """Global min-max normalisation with min and max taken over the pixels
+    where m is True (DECISIONS: statistics over masked-in pixels)."""
+    sel = x[m]
+    lo, hi = sel.min(), sel.max()
+    if hi == lo:
+        return np.zeros_like(x)
+    return (x - lo) / (hi - lo)
+
+
+def stretch_image(img, mask=None):
+    img = _as_image(img)
+    m = _as_mask(mask, img.shape[:2])
+    x = _masked_minmax(img, m)
     out = x.copy()
     for c in range(3):
-        lo = pct(x[:, :, c], 0.01)
-        hi = pct(x[:, :, c], 0.99)
+        lo = pct(x[:, :, c][m], 0.01)
+        hi = pct(x[:, :, c][m], 0.99)
         if hi - lo > 1e-12:
             out[:, :, c] = np.clip((x[:, :, c] - lo) / (hi - lo), 0.0, 1.0)
     return out
 
 
 def guide_image(img, mask=None):
-    g = stretch_image(img) ** (1.0 / 2.2)
+    g = stretch_image(img, mask) ** (1.0 / 2.2)
     m = _as_mask(mask, g.shape[:2])
     g[~m] = 0.0
     return g
@@ -544,8 +556,9 @@ def chart_fill(q, mask):
 # S7 recovery, S8 display stretch
 # ---------------------------------------------------------------------------
 
-def recover(img, A, t_refined, beta_br, beta_bg):
+def recover(img, A, t_refined, beta_br, beta_bg, mask=None):
     img = _as_image(img)
+    m = _as_mask(mask, img.shape[:2])
     a = np.asarray(A, dtype=np.float64)
     t_b = np.clip(np.asarray(t_refined, dtype=np.float64), 0.1 ** beta_br, 1.0)
     t_r = np.clip(t_b ** (1.0 / beta_br), 0.1, 1.0)
@@ -553,21 +566,23 @@ def recover(img, A, t_refined, beta_br, beta_bg):
     t = np.stack([t_r, t_g, t_b], axis=-1)
     d = a[None, None, :] - img
     j = a[None, None, :] - d / t
-    j = j - max(j.min(), -0.08)
+    j = j - max(j[m].min(), -0.08)
     j = np.maximum(j, 0.0)
-    top = j.max()
+    top = j[m].max()
     if top > 0:
         j = j / min(top, 1.6)
     j = np.minimum(j, 1.0)
     return {"J": j, "t_B": t_b, "t_R": t_r, "t_G": t_g}
 
 
-def display_stretch(J):
-    x = _global_minmax(np.asarray(J, dtype=np.float64))
+def display_stretch(J, mask=None):
+    J = np.asarray(J, dtype=np.float64)
+    m = _as_mask(mask, J.shape[:2])
+    x = _masked_minmax(J, m)
     out = np.empty_like(x)
     for c in range(3):
-        lo = min(pct(x[..., c], 0.001), 0.2)
-        hi = max(pct(x[..., c], 0.999), 0.9 if c == 0 else 0.8)
+        lo = min(pct(x[..., c][m], 0.001), 0.2)
+        hi = max(pct(x[..., c][m], 0.999), 0.9 if c == 0 else 0.8)
         out[..., c] = np.clip((x[..., c] - lo) / (hi - lo), 0.0, 1.0)
     return out
 
@@ -668,6 +683,8 @@ def restore(img, water_types=None, veiling_light=None, water_mask=None, mask=Non
     det = detect_veiling(img, m, water_mask, veiling_light)
     a, vl = det["A"], det["vl"]
     flags = list(det["flags"])
+    if vl.sum() >= m.sum():
+        raise ValueError("water_mask covers every pixel used for estimation")
 
     wgt = matting_weights(img, vl, m)
     stats = guide_stats(guide_image(img, m), radius, guided_eps)
@@ -683,9 +700,9 @@ def restore(img, water_types=None, veiling_light=None, water_mask=None, mask=Non
         q = guided_filter_stats(stats, t)
         if has_holes:
             q = chart_fill(q, m)
-        rec = recover(img, a, q, br, bg)
+        rec = recover(img, a, q, br, bg, m)
         names.append(name)
-        stretched.append(display_stretch(rec["J"]))
+        stretched.append(display_stretch(rec["J"], m))
         t_rs.append(rec["t_R"])
         results.append(rec)
 

@@ -57,14 +57,34 @@ def _as_image(image) -> np.ndarray:
     if a.ndim != 3 or a.shape[2] != 3:
         raise ImageError(f"image has shape {a.shape}; expected (H, W, 3)")
     if a.dtype == np.float64:
-        # Check before the cast: large float64 values would overflow to inf.
-        bad = ~np.isfinite(a)
+        # Check before the cast: a large finite float64 would become inf.
+        # Same order and wording as the core: first offending value in
+        # raster order, non-finite or outside [0, 1].
+        bad = ~np.isfinite(a) | (a < 0.0) | (a > 1.0)
         if bad.any():
             r, c, ch = np.argwhere(bad)[0]
+            v = a[r, c, ch]
+            if not np.isfinite(v):
+                raise ImageError(f"image has a non-finite value ({v}) at row {r}, column {c}, channel {ch}")
             raise ImageError(
-                f"image has a non-finite value ({a[r, c, ch]}) at row {r}, column {c}, channel {ch}"
+                f"image value {v} at row {r}, column {c}, channel {ch} is outside [0, 1]; "
+                "the input must be linear RGB scaled to [0, 1]"
             )
     return np.ascontiguousarray(a, dtype=np.float32)
+
+
+_MAX_INT = 2**63 - 1
+
+
+def _int_param(name: str, value, lo: int):
+    """None, or an integer in [lo, 2**63 - 1]; anything else -> ParameterError."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(f"{name} must be an integer; got {value!r}")
+    if not lo <= int(value) <= _MAX_INT:
+        raise ParameterError(f"{name} must be an integer in [{lo}, {_MAX_INT}]; got {value!r}")
+    return int(value)
 
 
 def _as_mask(mask, name: str, shape) -> np.ndarray | None:
@@ -150,15 +170,24 @@ def restore(
     wm = _as_mask(water_mask, "water_mask", hw)
     m = _as_mask(mask, "mask", hw)
     if veiling_light is not None:
-        v = np.asarray(veiling_light, dtype=np.float64).ravel()
+        try:
+            v = np.asarray(veiling_light, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ParameterError(f"veiling_light must be 3 numbers (R, G, B); got {veiling_light!r}") from None
         if v.shape != (3,):
             raise ParameterError(f"veiling_light must be 3 numbers (R, G, B); got {veiling_light!r}")
         veiling_light = tuple(float(x) for x in v)
-    if water_types is not None and isinstance(water_types, (str, tuple)):
-        water_types = [water_types]
-    for name, value in (("guided_radius", guided_radius), ("sphere_points", sphere_points), ("threads", threads)):
-        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0):
-            raise ParameterError(f"{name} must be a non-negative integer; got {value!r}")
+    if water_types is not None and isinstance(water_types, (str, bytes, tuple)):
+        raise ParameterError(
+            f"water_types must be a list of names or (name, beta_BR, beta_BG) tuples, not a "
+            f"{type(water_types).__name__} ({water_types!r}); write [{water_types!r}] for a single type"
+        )
+    if isinstance(guided_eps, (bool, np.bool_)) or not isinstance(guided_eps, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"guided_eps must be a number > 0; got {guided_eps!r}")
+    guided_radius = _int_param("guided_radius", guided_radius, 0)
+    sphere_points = _int_param("sphere_points", sphere_points, 0)
+    threads = _int_param("threads", threads, 0)
+    max_memory = _int_param("max_memory", max_memory, 0)
     return _core.restore_f32(
         img,
         water_types=water_types,
@@ -167,7 +196,7 @@ def restore(
         mask=m,
         guided_radius=guided_radius,
         guided_eps=float(guided_eps),
-        sphere_points=int(sphere_points),
+        sphere_points=sphere_points,
         threads=threads,
         max_memory=max_memory,
     )
