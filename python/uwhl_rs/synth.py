@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from . import WATER_TYPES
+
 __all__ = [
     "JERLOV",
     "Scene",
@@ -47,18 +49,7 @@ __all__ = [
 #: Jerlov water types and their attenuation ratios (SPEC section 1), in
 #: table order: ``name -> (beta_BR, beta_BG)`` with
 #: ``beta_BR = beta_B / beta_R`` and ``beta_BG = beta_B / beta_G``.
-JERLOV: dict[str, tuple[float, float]] = {
-    "I": (0.1118, 0.4566),
-    "IA": (0.1452, 0.5499),
-    "IB": (0.1745, 0.6341),
-    "II": (0.2773, 0.7937),
-    "III": (0.4051, 0.9539),
-    "1C": (0.4642, 1.0930),
-    "3C": (0.6515, 1.1244),
-    "5C": (1.0000, 1.2725),
-    "7C": (1.4500, 1.4022),
-    "9C": (2.0708, 1.5942),
-}
+JERLOV: dict[str, tuple[float, float]] = dict(WATER_TYPES)  # the core's own table
 
 _SCENE_KINDS = ("open_water", "looking_down")
 _MIN_Z = 1.0  # objects in scenes are never nearer than this (meters)
