@@ -17,10 +17,10 @@ Sections
 2. VL detection on the renders: IoU with the true water region (full, and
    restricted to the rows VL may occupy, SPEC 3 step 4), and how often the
    looking-down scenes (no water) raise ``veiling_fallback``.
-3. Real photos of /work/shared/data/images (sRGB, linearized): VL fraction,
+3. Real photos of ../shared/data/images (sRGB, linearized): VL fraction,
    fallback, A, chosen type, time; one PNG per photo (input with VL tinted |
    restored, sRGB | t_B as gray) in ``--out``. The expectation (open water
-   visible or looking down) comes from /work/shared/data/PROVENANCE.md.
+   visible or looking down) comes from ../shared/data/PROVENANCE.md.
 4. Timing of one ``restore`` call at 1 MP and at the largest shared photo.
 """
 
@@ -43,14 +43,21 @@ except ImportError as exc:  # pragma: no cover - a clear message for a missing b
     sys.exit(f"cannot import uwhl_rs ({exc}); run with PYTHONPATH=python from the repo root")
 
 TYPES = list(synth.JERLOV)
-DATA_DIR = pathlib.Path("/work/shared/data/images")
+# ../shared/data beside the repository (as in CI); UWHL_DATA overrides.
+DATA_DIR = pathlib.Path(os.environ.get("UWHL_DATA", pathlib.Path(__file__).resolve().parents[2] / "shared" / "data")) / "images"
 LARGEST_PHOTO = "udc_5-2.jpg"
 
-# What each shared photo shows, from /work/shared/data/PROVENANCE.md ("what it
+# What each shared photo shows, from ../shared/data/PROVENANCE.md ("what it
 # is" column): "water" = open water visible as a background (VL should be
 # found, in the upper part), "down" = looking down at the bottom, no water
 # background (VL should be empty -> veiling_fallback), "?" = PROVENANCE does
 # not say that a water background is visible (turbid/murky, charts in a pool).
+# Looking at the overlays shows where these labels are loose: lcm_sample_7 has
+# open water above a sand horizon in its top quarter and udc_hazed2 turbid
+# water above the sand slope (a VL there is right although the label says
+# "down"); udc_hazed3 is filled by a fish school (a VL there lands on blurred
+# fish, although the label says "water"); uieb_880's top is defocused far
+# sand. udc_5-2 is a high-resolution copy of the galdran1 scene.
 EXPECT = {
     "uwhl_Ancuti2_input.jpg": ("?", "turbid coastal, divers + statue; little open water"),
     "uwhl_galdran1_input.jpg": ("water", "reef, blue-green water background (top)"),
