@@ -3,8 +3,8 @@
 
 Run from the repository root with the package importable, e.g.::
 
-    PYTHONPATH=python python3 benches/quality.py            # full run
-    PYTHONPATH=python python3 benches/quality.py --quick    # small run
+    python3 benches/quality.py            # full run (package installed)
+    python3 benches/quality.py --quick    # small run; PYTHONPATH=python for a dev build
 
 Sections
 --------

@@ -431,7 +431,8 @@ def test_import_is_light():
         "print(','.join(bad))\n"
     )
     env = dict(os.environ)
-    pkg = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "python")
+    # the same package this test process imported (installed, or a dev tree)
+    pkg = os.path.dirname(os.path.dirname(os.path.abspath(uwhl_rs.__file__)))
     env["PYTHONPATH"] = pkg + os.pathsep + env.get("PYTHONPATH", "")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
     assert out.returncode == 0, out.stderr
