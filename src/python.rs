@@ -534,12 +534,20 @@ fn _stage_sphere<'py>(
     ))
 }
 
+/// Called in a forked child (registered by `uwhl_rs` with
+/// `os.register_at_fork`): later calls use fresh thread pools.
+#[pyfunction]
+fn _after_fork() {
+    crate::util::after_fork();
+}
+
 /// The native module `uwhl_rs._core`.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
     m.add_class::<PyRestoration>()?;
+    m.add_function(wrap_pyfunction!(_after_fork, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_stretch, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_guide, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_edge_map, m)?)?;

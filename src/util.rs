@@ -4,6 +4,7 @@
 use crate::error::{Error, Result};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Rows per chunk for deterministic reductions: partial sums are formed per
@@ -135,10 +136,38 @@ pub fn masked_channel(rgb: &[f32], c: usize, mask: Option<&[bool]>) -> Vec<f32> 
     }
 }
 
+/// Bumped by [`after_fork`] in a forked child: pools made before the fork
+/// have no threads there, so every pool is keyed by this generation.
+static GENERATION: AtomicUsize = AtomicUsize::new(0);
+
+/// To be called in the child after `fork()` (the Python package registers it
+/// with `os.register_at_fork`): rayon's global pool and every cached pool
+/// lost their threads in the fork, so from now on each call runs on a fresh
+/// pool of this process.
+pub fn after_fork() {
+    GENERATION.fetch_add(1, Ordering::SeqCst);
+}
+
+fn build_pool(n: usize) -> Result<Arc<rayon::ThreadPool>> {
+    Ok(Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .thread_name(|i| format!("uwhl-{i}"))
+            .build()
+            .map_err(|e| Error::Internal(format!("cannot start {n} threads: {e}")))?,
+    ))
+}
+
 /// Runs `f` on a rayon pool of `threads` threads (cached per count), or on
-/// the global pool when `threads` is None.
+/// the global pool when `threads` is None (after a fork: on a pool of as
+/// many threads as the machine has, see [`after_fork`]).
 pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f: F) -> Result<T> {
-    let Some(n) = threads else { return Ok(f()) };
+    let generation = GENERATION.load(Ordering::SeqCst);
+    let n = match threads {
+        Some(n) => n,
+        None if generation == 0 => return Ok(f()),
+        None => std::thread::available_parallelism().map_or(1, |v| v.get()),
+    };
     if n == 0 {
         return Err(Error::Param {
             name: "threads",
@@ -151,26 +180,30 @@ pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f:
             msg: format!("{n} is more than 1024"),
         });
     }
-    static POOLS: OnceLock<Mutex<HashMap<usize, Arc<rayon::ThreadPool>>>> = OnceLock::new();
+    type Pools = Mutex<HashMap<(usize, usize), Arc<rayon::ThreadPool>>>;
+    static POOLS: OnceLock<Pools> = OnceLock::new();
     let pools = POOLS.get_or_init(|| Mutex::new(HashMap::new()));
-    let pool = {
-        let mut map = pools
-            .lock()
-            .map_err(|_| Error::Internal("thread pool cache poisoned".into()))?;
-        match map.get(&n) {
+    // In a forked child the lock may have been held by a thread that no
+    // longer exists: never wait for it there, build an uncached pool instead.
+    let guard = if generation == 0 {
+        Some(
+            pools
+                .lock()
+                .map_err(|_| Error::Internal("thread pool cache poisoned".into()))?,
+        )
+    } else {
+        pools.try_lock().ok()
+    };
+    let pool = match guard {
+        Some(mut map) => match map.get(&(generation, n)) {
             Some(p) => p.clone(),
             None => {
-                let p = Arc::new(
-                    rayon::ThreadPoolBuilder::new()
-                        .num_threads(n)
-                        .thread_name(|i| format!("uwhl-{i}"))
-                        .build()
-                        .map_err(|e| Error::Internal(format!("cannot start {n} threads: {e}")))?,
-                );
-                map.insert(n, p.clone());
+                let p = build_pool(n)?;
+                map.insert((generation, n), p.clone());
                 p
             }
-        }
+        },
+        None => build_pool(n)?,
     };
     Ok(pool.install(f))
 }

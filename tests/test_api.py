@@ -441,3 +441,30 @@ def test_import_is_light():
     code2 = "import sys, uwhl_rs\nuwhl_rs.synth.JERLOV\nprint('uwhl_rs.synth' in sys.modules)\n"
     out2 = subprocess.run([sys.executable, "-c", code2], capture_output=True, text=True, env=env, timeout=60)
     assert out2.stdout.strip() == "True", out2.stderr
+
+
+def _restore_in_child(q):
+    img, _ = synth.demo_input(60, 80)
+    q.put(uwhl_rs.restore(img).water_type)
+
+
+def test_restore_works_in_a_forked_child():
+    """rayon pools do not survive fork(): after the parent has used them, a child made with the
+    'fork' start method still restores (instead of hanging on threads that no longer exist)."""
+    import multiprocessing as mp
+
+    if "fork" not in mp.get_all_start_methods():
+        pytest.skip("no fork on this platform")
+    img, _ = synth.demo_input(60, 80)
+    expected = uwhl_rs.restore(img).water_type  # parent's global pool is running
+    uwhl_rs.restore(img, threads=2)  # and a cached 2-thread pool
+    ctx = mp.get_context("fork")
+    q = ctx.Queue()
+    p = ctx.Process(target=_restore_in_child, args=(q,))
+    p.start()
+    p.join(60)
+    if p.is_alive():
+        p.kill()
+        pytest.fail("restore hung in a forked child")
+    assert p.exitcode == 0
+    assert q.get(timeout=5) == expected

@@ -15,6 +15,8 @@ converts the numpy inputs and documents the API.
 
 from __future__ import annotations
 
+import os as _os
+
 import numpy as np
 
 from . import _core
@@ -32,6 +34,12 @@ __all__ = [
 ]
 
 __version__: str = _core.__version__
+
+# rayon's thread pools do not survive fork(): a forked child (multiprocessing
+# with the "fork" start method) would wait forever on threads that are gone.
+# After a fork the core builds fresh pools in the child.
+if hasattr(_os, "register_at_fork"):
+    _os.register_at_fork(after_in_child=_core._after_fork)
 
 #: The Jerlov water types of SPEC section 1: ``{name: (beta_BR, beta_BG)}``
 #: in table order (clear oceanic I ... turbid coastal 9C).
