@@ -22,19 +22,10 @@ import pytest
 import uwhl_rs
 from uwhl_rs import synth
 
-# SPEC section 1, typed in again (name, beta_BR, beta_BG), in table order.
-SPEC_TABLE = [
-    ("I", 0.1118, 0.4566),
-    ("IA", 0.1452, 0.5499),
-    ("IB", 0.1745, 0.6341),
-    ("II", 0.2773, 0.7937),
-    ("III", 0.4051, 0.9539),
-    ("1C", 0.4642, 1.0930),
-    ("3C", 0.6515, 1.1244),
-    ("5C", 1.0000, 1.2725),
-    ("7C", 1.4500, 1.4022),
-    ("9C", 2.0708, 1.5942),
-]
+import reference
+
+# SPEC section 1 as typed in, independently of the core, by tests/reference.py.
+SPEC_TABLE = list(reference.WATER_TYPES)
 NAMES = [n for n, _, _ in SPEC_TABLE]
 RATIOS = {n: (br, bg) for n, br, bg in SPEC_TABLE}
 
