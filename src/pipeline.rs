@@ -101,14 +101,14 @@ pub struct Restoration {
 impl Restoration {
     /// Per-channel transmission maps (t_R, t_G, t_B) of the chosen type (SPEC 7).
     pub fn channel_transmissions(&self) -> [Vec<f32>; 3] {
-        let wt = &self.water_type;
-        let per: Vec<[f32; 3]> = self
-            .transmission
-            .par_iter()
-            .map(|&t| channel_t(t, wt))
-            .collect();
-        [0, 1, 2].map(|c| per.iter().map(|v| v[c]).collect())
+        channel_transmissions(&self.transmission, &self.water_type)
     }
+}
+
+/// Per-channel transmission maps (t_R, t_G, t_B) from a clamped t_B (SPEC 7).
+pub fn channel_transmissions(t_b: &[f32], wt: &WaterType) -> [Vec<f32>; 3] {
+    let per: Vec<[f32; 3]> = t_b.par_iter().map(|&t| channel_t(t, wt)).collect();
+    [0, 1, 2].map(|c| per.iter().map(|v| v[c]).collect())
 }
 
 /// Default guided-filter radius: round(min(H, W) / 4), halves away from zero (SPEC 6).

@@ -3,7 +3,7 @@
 //! function ([`to_py_err`]). No algorithm code lives here.
 
 use crate::error::Error;
-use crate::pipeline::{restore, Input, Params, Restoration};
+use crate::pipeline::{restore, Input, Params};
 use crate::water::{WaterType, JERLOV};
 use crate::ImageRef;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
@@ -73,7 +73,6 @@ pub struct PyRestoration {
     flags: Vec<String>,
     #[pyo3(get)]
     guided_radius: usize,
-    inner_t: Vec<f32>,
     wt: WaterType,
     shape: (usize, usize),
 }
@@ -83,21 +82,16 @@ impl PyRestoration {
     /// Per-channel transmissions (t_R, t_G, t_B) of the chosen type as an
     /// HxWx3 float32 array (SPEC 7).
     fn channel_transmissions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let r = Restoration {
-            height: self.shape.0,
-            width: self.shape.1,
-            image: Vec::new(),
-            radiance: Vec::new(),
-            transmission: self.inner_t.clone(),
-            water_type: self.wt.clone(),
-            scores: Vec::new(),
-            excluded: Vec::new(),
-            veiling_light: [0.0; 3],
-            veiling_mask: Vec::new(),
-            flags: Vec::new(),
-            guided_radius: 0,
-        };
-        let [tr, tg, tb] = py.detach(|| r.channel_transmissions());
+        let arr = self
+            .transmission
+            .bind(py)
+            .cast::<numpy::PyArray2<f32>>()?
+            .readonly();
+        let t = arr
+            .as_slice()
+            .map_err(|_| PyRuntimeError::new_err("transmission is not contiguous"))?;
+        let wt = &self.wt;
+        let [tr, tg, tb] = py.detach(|| crate::pipeline::channel_transmissions(t, wt));
         let v: Vec<f32> = tr
             .iter()
             .zip(&tg)
@@ -235,7 +229,6 @@ fn restore_f32(
             .into_any()
             .unbind())
     };
-    let t = res.transmission.clone();
     Ok(PyRestoration {
         image: to3(res.image)?,
         radiance: to3(res.radiance)?,
@@ -258,7 +251,6 @@ fn restore_f32(
             .unbind(),
         flags: res.flags,
         guided_radius: res.guided_radius,
-        inner_t: t,
         wt: res.water_type,
         shape: (h, w),
     })
