@@ -12,8 +12,7 @@ use crate::matting::{lower_bound_px, mahalanobis_sq, matting_weights};
 use crate::recover::{channel_t, display_stretch, recover};
 use crate::select::{choose, type_stats, TypeStats, FLAG_RELAXED};
 use crate::sphere::SphereIndex;
-use crate::util::percentiles;
-use crate::util::{masked_channel, masked_min_max, with_threads};
+use crate::util::{masked_channel, normalize_masked, percentiles, stretch_channels, with_threads};
 use crate::veiling::{estimate, Veiling};
 use crate::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
@@ -132,30 +131,12 @@ pub fn memory_estimate(h: usize, w: usize, in_flight: usize) -> u64 {
 /// per channel between its 1% and 99% percentiles, clipped to [0, 1].
 /// Statistics over masked-in pixels (all without a mask), applied to all.
 pub fn stretch_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let (lo, hi) = masked_min_max(data, mask);
-    let range = hi - lo;
-    let x: Vec<f32> = if range > 0.0 {
-        data.par_iter().map(|&v| (v - lo) / range).collect()
-    } else {
-        vec![0.0; data.len()]
-    };
-    let mut lim = [(0f64, 1f64, false); 3];
-    for (c, l) in lim.iter_mut().enumerate() {
-        let p = percentiles(&masked_channel(&x, c, mask), &[0.01, 0.99]);
-        *l = (p[0], p[1], p[1] - p[0] > 1e-12);
-    }
-    x.par_chunks(3)
-        .flat_map_iter(|px| {
-            (0..3).map(move |c| {
-                let (a, b, ok) = lim[c];
-                if ok {
-                    ((px[c] as f64 - a) / (b - a)).clamp(0.0, 1.0) as f32
-                } else {
-                    px[c]
-                }
-            })
-        })
-        .collect()
+    let x = normalize_masked(data, mask);
+    let limits = [0, 1, 2].map(|c| {
+        let p = percentiles(masked_channel(&x, c, mask), &[0.01, 0.99]);
+        (p[1] - p[0] > 1e-12).then_some((p[0], p[1]))
+    });
+    stretch_channels(&x, limits)
 }
 
 /// The guide of SPEC 6: the stretched input raised to 1/2.2, 0 on masked-out pixels.

@@ -2,7 +2,9 @@
 //! per-channel display stretch (SPEC 8).
 
 use crate::image::ImageRef;
-use crate::util::{masked_channel, masked_min_max, percentiles};
+use crate::util::{
+    masked_channel, masked_min_max, normalize_masked, percentiles, stretch_channels,
+};
 use crate::water::WaterType;
 use rayon::prelude::*;
 
@@ -69,27 +71,13 @@ pub fn artifact_clamp(j: &mut [f32], mask: Option<&[bool]>) {
 /// Limits come from the masked-in pixels (all without a mask), so that a
 /// masked-out color chart cannot change them; they apply to every pixel.
 pub fn display_stretch(j: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let (lo, hi) = masked_min_max(j, mask);
-    let range = hi - lo;
-    let x: Vec<f32> = if range > 0.0 {
-        j.par_iter().map(|&v| (v - lo) / range).collect()
-    } else {
-        vec![0.0; j.len()]
-    };
-    let mut limits = [(0f64, 1f64); 3];
-    for (c, lim) in limits.iter_mut().enumerate() {
-        let p = percentiles(&masked_channel(&x, c, mask), &[0.001, 0.999]);
+    let x = normalize_masked(j, mask);
+    let limits = [0, 1, 2].map(|c| {
+        let p = percentiles(masked_channel(&x, c, mask), &[0.001, 0.999]);
         let top = if c == 0 { 0.9 } else { 0.8 };
-        *lim = (p[0].min(0.2), p[1].max(top));
-    }
-    x.par_chunks(3)
-        .flat_map_iter(|px| {
-            (0..3).map(move |c| {
-                let (l, h) = limits[c];
-                ((px[c] as f64 - l) / (h - l)).clamp(0.0, 1.0) as f32
-            })
-        })
-        .collect()
+        Some((p[0].min(0.2), p[1].max(top)))
+    });
+    stretch_channels(&x, limits)
 }
 
 #[cfg(test)]

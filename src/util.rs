@@ -14,13 +14,13 @@ pub const REDUCE_ROWS: usize = 16;
 
 /// Percentiles of `values` at the fractions `qs` with linear interpolation
 /// between order statistics (NumPy's default "linear" method), in f64.
-/// Returns 0 for an empty input.
-pub fn percentiles(values: &[f32], qs: &[f64]) -> Vec<f64> {
-    let n = values.len();
+/// Takes the values by value: it reorders them in place (selection, no
+/// copy). Returns 0 for an empty input.
+pub fn percentiles(mut buf: Vec<f32>, qs: &[f64]) -> Vec<f64> {
+    let n = buf.len();
     if n == 0 {
         return vec![0.0; qs.len()];
     }
-    let mut buf = values.to_vec();
     qs.iter()
         .map(|&q| {
             let h = q.clamp(0.0, 1.0) * (n - 1) as f64;
@@ -122,6 +122,34 @@ pub fn masked_min_max(rgb: &[f32], mask: Option<&[bool]>) -> (f32, f32) {
     }
 }
 
+/// Global min-max normalisation (x - min) / (max - min) of every value,
+/// with min and max over all channels of the masked-in pixels (all pixels
+/// without a mask); all zeros when they are equal (SPEC 3.1 first half,
+/// SPEC 8 first half).
+pub fn normalize_masked(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
+    let (lo, hi) = masked_min_max(data, mask);
+    let range = hi - lo;
+    if range.is_finite() && range > 0.0 {
+        data.par_iter().map(|&v| (v - lo) / range).collect()
+    } else {
+        vec![0.0; data.len()]
+    }
+}
+
+/// Per-channel linear stretch of interleaved RGB: channel c becomes
+/// clip((x - lo_c) / (hi_c - lo_c), 0, 1), or is left as it is where its
+/// limits are None.
+pub fn stretch_channels(x: &[f32], limits: [Option<(f64, f64)>; 3]) -> Vec<f32> {
+    x.par_chunks(3)
+        .flat_map_iter(|px| {
+            (0..3).map(move |c| match limits[c] {
+                Some((lo, hi)) => ((px[c] as f64 - lo) / (hi - lo)).clamp(0.0, 1.0) as f32,
+                None => px[c],
+            })
+        })
+        .collect()
+}
+
 /// Channel `c` of an interleaved RGB slice over the pixels whose mask entry
 /// is true (all pixels without a mask), in raster order.
 pub fn masked_channel(rgb: &[f32], c: usize, mask: Option<&[bool]>) -> Vec<f32> {
@@ -216,12 +244,12 @@ mod tests {
     fn percentiles_match_hand_values() {
         // sorted: 1 2 3 4 ; q=0.5 -> position 1.5 -> 2.5 ; q=0.1 -> 0.3 -> 1.3
         let v = [4.0f32, 1.0, 3.0, 2.0];
-        let p = percentiles(&v, &[0.0, 0.1, 0.5, 1.0]);
+        let p = percentiles(v.to_vec(), &[0.0, 0.1, 0.5, 1.0]);
         assert_eq!(p[0], 1.0);
         assert!((p[1] - 1.3).abs() < 1e-12);
         assert_eq!(p[2], 2.5);
         assert_eq!(p[3], 4.0);
-        assert_eq!(percentiles(&[7.0], &[0.3]), vec![7.0]);
+        assert_eq!(percentiles(vec![7.0], &[0.3]), vec![7.0]);
     }
 
     #[test]

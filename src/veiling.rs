@@ -12,7 +12,7 @@ use crate::filters::{
     convolve_separable, downscale, gaussian_kernel, largest_component, sobel_max,
 };
 use crate::image::ImageRef;
-use crate::util::{min_max, percentiles};
+use crate::util::{normalize_masked, percentiles};
 use rayon::prelude::*;
 
 /// Longer side of the working copy for the edge map (SPEC 3 variant).
@@ -77,17 +77,6 @@ pub struct Veiling {
     pub flags: Vec<&'static str>,
 }
 
-/// Global min-max normalisation over all channels and pixels (SPEC 3.1, first half).
-pub fn normalize_global(data: &[f32]) -> Vec<f32> {
-    let (lo, hi) = min_max(data);
-    let range = hi - lo;
-    if range.is_finite() && range > 0.0 {
-        data.par_iter().map(|&v| (v - lo) / range).collect()
-    } else {
-        vec![0.0; data.len()]
-    }
-}
-
 /// Immerkaer's robust noise estimate (DECISIONS S3 step 5): per channel
 /// the lower quartile of |M * x| over interior pixels (M the Laplacian-
 /// difference kernel, whose response to white noise of std sigma has std
@@ -114,7 +103,7 @@ pub fn noise_sigma(img: &[f32], h: usize, w: usize) -> f64 {
                 })
             })
             .collect();
-        let q = percentiles(&resp, &[0.25])[0];
+        let q = percentiles(resp, &[0.25])[0];
         best = best.max(q / (6.0 * HALF_NORMAL_Q25));
     }
     best
@@ -128,7 +117,7 @@ pub fn edge_scale(h: usize, w: usize) -> usize {
 /// The edge-strength map of DECISIONS S3 steps 1-5.
 pub fn edge_map(img: &ImageRef) -> EdgeMap {
     let (h, w) = (img.height, img.width);
-    let norm = normalize_global(img.data);
+    let norm = normalize_masked(img.data, None);
     let scale = edge_scale(h, w);
     let (small, hs, ws) = downscale(&norm, h, w, 3, scale);
     let sigma = noise_sigma(&small, hs, ws);
