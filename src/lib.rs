@@ -27,6 +27,7 @@
 #![warn(missing_docs)]
 
 pub mod clahe;
+pub mod color;
 pub mod error;
 pub mod filters;
 pub mod guided;
@@ -43,6 +44,8 @@ pub mod water;
 
 #[cfg(feature = "python")]
 mod python;
+#[cfg(feature = "python")]
+mod python_color;
 
 pub use error::{Error, Result};
 pub use image::ImageRef;

@@ -538,6 +538,7 @@ fn _after_fork() {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
+    crate::python_color::register(m)?;
     m.add_class::<PyRestoration>()?;
     m.add_function(wrap_pyfunction!(_after_fork, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_stretch, m)?)?;

@@ -1,0 +1,142 @@
+//! pyo3 bindings (feature "python") of [`crate::color`]: the pixel
+//! conventions the Python I/O layer shares with the `uwhl-rs` binary
+//! (docs/OUTPUTS.md). Each call releases the GIL.
+
+use crate::color;
+use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+fn slice<'a, T: numpy::Element>(a: &'a PyReadonlyArrayDyn<'a, T>, what: &str) -> PyResult<&'a [T]> {
+    a.as_slice()
+        .map_err(|_| PyValueError::new_err(format!("{what} must be C-contiguous")))
+}
+
+fn same_shape<'py, T: numpy::Element>(
+    py: Python<'py>,
+    v: Vec<T>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+    Ok(PyArray1::from_vec(py, v).reshape(shape)?)
+}
+
+fn rgb_shape(shape: &[usize], what: &str) -> PyResult<()> {
+    if shape.len() != 3 || shape[2] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "{what} has shape {shape:?}; expected (H, W, 3)"
+        )));
+    }
+    Ok(())
+}
+
+/// 8-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`.
+#[pyfunction]
+fn _decode_u8<'py>(
+    py: Python<'py>,
+    codes: PyReadonlyArrayDyn<'py, u8>,
+    linearize: bool,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let s = slice(&codes, "codes")?;
+    let v = py.detach(|| color::decode_u8(s, linearize));
+    same_shape(py, v, codes.shape())
+}
+
+/// 16-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`.
+#[pyfunction]
+fn _decode_u16<'py>(
+    py: Python<'py>,
+    codes: PyReadonlyArrayDyn<'py, u16>,
+    linearize: bool,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let s = slice(&codes, "codes")?;
+    let v = py.detach(|| color::decode_u16(s, linearize));
+    same_shape(py, v, codes.shape())
+}
+
+/// float32 values (any shape) to uint8 or uint16 codes (`bits` 8 or 16),
+/// through the sRGB curve when `srgb`.
+#[pyfunction]
+fn _quantize<'py>(
+    py: Python<'py>,
+    data: PyReadonlyArrayDyn<'py, f32>,
+    bits: u32,
+    srgb: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let s = slice(&data, "data")?;
+    let shape = data.shape().to_vec();
+    match bits {
+        8 => Ok(same_shape(py, py.detach(|| color::quantize_u8(s, srgb)), &shape)?.into_any()),
+        16 => Ok(same_shape(py, py.detach(|| color::quantize_u16(s, srgb)), &shape)?.into_any()),
+        _ => Err(PyValueError::new_err(format!("bits must be 8 or 16, got {bits}"))),
+    }
+}
+
+/// A transmission map (H, W) to its colour-mapped uint8 image (H, W, 3).
+#[pyfunction]
+fn _colormap<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArrayDyn<'py, f32>,
+) -> PyResult<Bound<'py, PyArrayDyn<u8>>> {
+    let s = slice(&t, "t")?;
+    let mut shape = t.shape().to_vec();
+    shape.push(3);
+    let v = py.detach(|| color::colormap(s));
+    same_shape(py, v, &shape)
+}
+
+/// Block-average downscale of an (H, W, C) float32 image by an integer factor.
+#[pyfunction]
+fn _downscale<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArrayDyn<'py, f32>,
+    factor: usize,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let shape = image.shape().to_vec();
+    let (h, w, c) = match shape.as_slice() {
+        [h, w, c] => (*h, *w, *c),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "image has shape {shape:?}; expected (H, W, C)"
+            )))
+        }
+    };
+    let s = slice(&image, "image")?;
+    let (v, hs, ws) = py.detach(|| crate::filters::downscale(s, h, w, c, factor));
+    same_shape(py, v, &[hs, ws, c])
+}
+
+/// SPEC 2 reference preprocessing of a non-linearised sRGB image (H, W, 3).
+#[pyfunction]
+fn _reference_srgb<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArrayDyn<'py, f32>,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    rgb_shape(image.shape(), "image")?;
+    let s = slice(&image, "image")?;
+    let v = py.detach(|| color::reference_srgb_stretch(s, None));
+    same_shape(py, v, image.shape())
+}
+
+/// SPEC 2 reference preprocessing of a white-balanced linear raw image (H, W, 3).
+#[pyfunction]
+fn _reference_raw<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArrayDyn<'py, f32>,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    rgb_shape(image.shape(), "image")?;
+    let s = slice(&image, "image")?;
+    let v = py.detach(|| color::reference_raw_stretch(s));
+    same_shape(py, v, image.shape())
+}
+
+/// Adds the colour functions to `uwhl_rs._core`.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(_decode_u8, m)?)?;
+    m.add_function(wrap_pyfunction!(_decode_u16, m)?)?;
+    m.add_function(wrap_pyfunction!(_quantize, m)?)?;
+    m.add_function(wrap_pyfunction!(_colormap, m)?)?;
+    m.add_function(wrap_pyfunction!(_downscale, m)?)?;
+    m.add_function(wrap_pyfunction!(_reference_srgb, m)?)?;
+    m.add_function(wrap_pyfunction!(_reference_raw, m)?)?;
+    Ok(())
+}
