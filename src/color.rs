@@ -111,7 +111,11 @@ pub fn colormap_one(t: f32) -> [u8; 3] {
     let f = x - i as f64;
     let lo = VIRIDIS.get(i).copied().unwrap_or(VIRIDIS[0]);
     let hi = VIRIDIS.get(i + 1).copied().unwrap_or(VIRIDIS[8]);
-    [0, 1, 2].map(|c| (lo[c] + f * (hi[c] - lo[c]) + 0.5).floor().clamp(0.0, 255.0) as u8)
+    let mut out = [0u8; 3];
+    for ((o, l), h) in out.iter_mut().zip(lo).zip(hi) {
+        *o = (l + f * (h - l) + 0.5).floor().clamp(0.0, 255.0) as u8;
+    }
+    out
 }
 
 /// A transmission map to interleaved 8-bit RGB (dark = far, yellow = near).

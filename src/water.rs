@@ -92,7 +92,7 @@ pub fn validate_types(types: &[WaterType]) -> Result<()> {
     }
     for (i, t) in types.iter().enumerate() {
         WaterType::new(&t.name, t.beta_br, t.beta_bg)?;
-        if types[..i].iter().any(|o| o.name == t.name) {
+        if types.iter().take(i).any(|o| o.name == t.name) {
             return Err(Error::WaterType(format!(
                 "water type {:?} is listed twice",
                 t.name

@@ -1,0 +1,50 @@
+//! `uwhl-rs`: the standalone restoration command (feature `cli`). All the
+//! work is in [`uwhl::cli`]; this file reads the process arguments and
+//! exits with the documented code (see `uwhl-rs --help`).
+
+#![forbid(unsafe_code)]
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use std::io::Write;
+use std::process::ExitCode;
+use uwhl::cli::args::{parse, Command, HELP};
+use uwhl::cli::run::{init_threads, report, run_batch, run_stream};
+
+fn main() -> ExitCode {
+    let json_errors = std::env::args_os().any(|a| a == "--json-errors");
+    let mut stdout = std::io::stdout().lock();
+    let mut stderr = std::io::stderr().lock();
+    let code = match parse(std::env::args_os().skip(1)) {
+        Ok(Command::Help) => {
+            let _ = stdout.write_all(HELP.as_bytes());
+            0
+        }
+        Ok(Command::Version) => {
+            let _ = writeln!(stdout, "uwhl-rs {}", env!("CARGO_PKG_VERSION"));
+            0
+        }
+        Ok(Command::Run(opts)) => {
+            init_threads(opts.threads);
+            if opts.stream {
+                let mut stdin = std::io::stdin().lock();
+                run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)
+            } else {
+                run_batch(&opts, &mut stdout, &mut stderr)
+            }
+        }
+        Err(e) => {
+            report(&mut stderr, json_errors, None, &e);
+            if !json_errors {
+                let _ = writeln!(stderr, "Try 'uwhl-rs --help'.");
+            }
+            e.kind.exit_code()
+        }
+    };
+    let _ = stdout.flush();
+    ExitCode::from(code)
+}

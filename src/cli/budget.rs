@@ -1,0 +1,115 @@
+//! The memory plan of one input through the binary, computed from the
+//! image header before anything large is allocated (`--max-memory`).
+//!
+//! Phases and what is alive in each (n = input pixels after orientation,
+//! m = pixels after `--max-side`, b = decoded bytes per pixel):
+//!
+//! | phase | bytes |
+//! |---|---|
+//! | decode | `b n` decoded + `b n` rotated copy (EXIF orientation) or RGB conversion + `12 n` f32 (while the RGB buffer is alive) |
+//! | downscale / preprocess | `12 n` + `12 m` (downscale), or `24 m + 4 m` (reference stretch) |
+//! | restore | `12 m` input + `m` mask + `pipeline::memory_estimate(h, w, k)` |
+//! | write | `12 m` input + the restoration (`29 m`) + one encoded output (`6 m`) |
+//!
+//! plus, with `--mask`, the mask (`n` bools, and its decoded image while it is
+//! read, which happens once per run). The plan is the largest phase.
+
+use crate::pipeline::memory_estimate;
+
+/// Everything the plan needs to know, from the header and the options.
+#[derive(Debug, Clone, Copy)]
+pub struct Plan {
+    /// rows after orientation
+    pub height: usize,
+    /// columns after orientation
+    pub width: usize,
+    /// bytes per decoded pixel (e.g. 3 for 8-bit RGB, 8 for 16-bit RGBA)
+    pub decoded_bpp: u64,
+    /// whether the decoded buffer is already interleaved RGB (no conversion copy)
+    pub decoded_is_rgb: bool,
+    /// whether EXIF orientation needs a rotated copy
+    pub oriented: bool,
+    /// `--max-side` block size (1 = none)
+    pub factor: usize,
+    /// SPEC 2 reference stretch
+    pub reference: bool,
+    /// a mask is given
+    pub mask: bool,
+    /// water types evaluated at once (threads, at most the number of types)
+    pub in_flight: usize,
+}
+
+impl Plan {
+    /// The processed size after `--max-side`.
+    pub fn processed(&self) -> (usize, usize) {
+        let s = self.factor.max(1);
+        (self.height.div_ceil(s), self.width.div_ceil(s))
+    }
+
+    /// Peak bytes of the largest phase (see the module documentation).
+    pub fn bytes(&self) -> u64 {
+        let n = (self.height as u64).saturating_mul(self.width as u64);
+        let (h, w) = self.processed();
+        let m = (h as u64).saturating_mul(w as u64);
+        let mul = |a: u64, b: u64| a.saturating_mul(b);
+        let decoded = mul(self.decoded_bpp, n);
+        let second = if self.oriented || !self.decoded_is_rgb {
+            decoded
+        } else {
+            0
+        };
+        let decode = decoded.saturating_add(second).saturating_add(mul(12, n));
+        let scale = if self.factor > 1 {
+            mul(12, n).saturating_add(mul(12, m))
+        } else {
+            0
+        };
+        let reference = if self.reference { mul(28, m) } else { 0 };
+        let restore = mul(13, m).saturating_add(memory_estimate(h, w, self.in_flight));
+        let write = mul(12 + 29 + 6, m);
+        let mask = if self.mask { n } else { 0 };
+        [decode, scale, reference, restore, write]
+            .into_iter()
+            .max()
+            .unwrap_or(0)
+            .saturating_add(mask)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(h: usize, w: usize) -> Plan {
+        Plan {
+            height: h,
+            width: w,
+            decoded_bpp: 3,
+            decoded_is_rgb: true,
+            oriented: false,
+            factor: 1,
+            reference: false,
+            mask: false,
+            in_flight: 2,
+        }
+    }
+
+    #[test]
+    fn restore_dominates_and_downscaling_shrinks_it() {
+        let p = plan(1000, 1000);
+        assert_eq!(p.bytes(), 13_000_000 + memory_estimate(1000, 1000, 2));
+        let small = Plan { factor: 4, ..p };
+        assert_eq!(small.processed(), (250, 250));
+        // the decode phase now dominates: 3 n + 12 n
+        assert!(small.bytes() >= 15_000_000 && small.bytes() < p.bytes());
+    }
+
+    #[test]
+    fn absurd_headers_saturate_instead_of_overflowing() {
+        let p = Plan {
+            decoded_bpp: 8,
+            ..plan(usize::MAX, usize::MAX)
+        };
+        assert_eq!(p.bytes(), u64::MAX);
+    }
+}

@@ -1,0 +1,270 @@
+//! Decoding of PNG, JPEG and TIFF inputs (8 or 16 bits per sample) with
+//! limits: the header is read first, the caller's memory plan is checked
+//! against it, and only then is the image decoded, with the decoders' own
+//! allocation limit set to the budget.
+//!
+//! Channels: gray is replicated to R = G = B, alpha is dropped (not
+//! composited), floating-point samples are refused. EXIF orientation is
+//! applied (as Pillow's `exif_transpose` does on the Python side).
+
+use super::{CliError, Kind};
+use crate::color::{decode_u16, decode_u8};
+use image::{ColorType, DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader};
+use std::io::{BufRead, Seek};
+
+/// Limits on one decoded file.
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    /// largest accepted width x height
+    pub max_pixels: u64,
+    /// memory budget in bytes (also the decoders' allocation limit)
+    pub max_memory: u64,
+}
+
+/// What the header says, before the pixels are decoded.
+#[derive(Debug, Clone, Copy)]
+pub struct Header {
+    /// rows after orientation
+    pub height: usize,
+    /// columns after orientation
+    pub width: usize,
+    /// decoded bytes per pixel
+    pub bpp: u64,
+    /// the decoded buffer is already 3-channel
+    pub is_rgb: bool,
+    /// a rotation or flip will be applied (EXIF orientation)
+    pub oriented: bool,
+}
+
+/// A decoded input: H x W x 3 values in [0, 1] and where they came from.
+#[derive(Debug, Clone)]
+pub struct Decoded {
+    /// interleaved RGB, linear unless decoded with `linearize = false`
+    pub data: Vec<f32>,
+    /// rows
+    pub height: usize,
+    /// columns
+    pub width: usize,
+    /// "PNG", "JPEG" or "TIFF"
+    pub format: &'static str,
+    /// bits per sample of the file: 8 or 16
+    pub bits: u8,
+    /// the EXIF orientation that was applied (1 = none)
+    pub orientation: u8,
+}
+
+fn image_error(e: ImageError) -> CliError {
+    match e {
+        ImageError::Limits(l) => CliError::new(Kind::Budget, format!("decoder limit: {l}")),
+        ImageError::Unsupported(u) => CliError::new(Kind::Input, format!("unsupported: {u}")),
+        other => CliError::new(Kind::Input, format!("cannot decode: {other}")),
+    }
+}
+
+/// Opens a decoder on `reader`, checks the header (pixel count, then the
+/// caller's `check`), decodes and orients. Returns the image, its format
+/// name and the EXIF orientation code applied.
+fn open<R: BufRead + Seek>(
+    reader: R,
+    limits: &Limits,
+    check: impl FnOnce(&Header) -> Result<(), CliError>,
+) -> Result<(DynamicImage, &'static str, u8), CliError> {
+    let reader = ImageReader::new(reader)
+        .with_guessed_format()
+        .map_err(|e| CliError::new(Kind::Input, format!("cannot read: {e}")))?;
+    let format = match reader.format() {
+        Some(ImageFormat::Png) => "PNG",
+        Some(ImageFormat::Jpeg) => "JPEG",
+        Some(ImageFormat::Tiff) => "TIFF",
+        Some(f) => {
+            return Err(CliError::new(
+                Kind::Input,
+                format!("unsupported format {f:?}: PNG, JPEG and TIFF are read"),
+            ))
+        }
+        None => {
+            return Err(CliError::new(
+                Kind::Input,
+                "not a PNG, JPEG or TIFF file (unrecognised signature)",
+            ))
+        }
+    };
+    let side = u32::try_from(limits.max_pixels).unwrap_or(u32::MAX);
+    let mut lim = image::Limits::default();
+    lim.max_image_width = Some(side);
+    lim.max_image_height = Some(side);
+    lim.max_alloc = Some(limits.max_memory);
+    let mut reader = reader;
+    reader.limits(lim);
+    let mut decoder = reader.into_decoder().map_err(image_error)?;
+    let (w, h) = decoder.dimensions();
+    let pixels = u64::from(w) * u64::from(h);
+    if pixels > limits.max_pixels {
+        return Err(CliError::new(
+            Kind::Budget,
+            format!(
+                "{w}x{h} = {pixels} pixels, over --max-pixels {}",
+                limits.max_pixels
+            ),
+        ));
+    }
+    if w == 0 || h == 0 {
+        return Err(CliError::new(Kind::Input, format!("empty image ({w}x{h})")));
+    }
+    // A damaged EXIF block is not worth refusing the picture for.
+    let orientation = decoder
+        .orientation()
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
+    let code = orientation.to_exif();
+    let swap = matches!(code, 5..=8);
+    let ct = decoder.color_type();
+    let (height, width) = if swap { (w, h) } else { (h, w) };
+    check(&Header {
+        height: height as usize,
+        width: width as usize,
+        bpp: u64::from(ct.bytes_per_pixel()),
+        is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16),
+        oriented: code != 1,
+    })?;
+    let mut img = DynamicImage::from_decoder(decoder).map_err(image_error)?;
+    img.apply_orientation(orientation);
+    Ok((img, format, code))
+}
+
+/// Decodes one file's bytes from `reader` to H x W x 3 values in [0, 1],
+/// through the inverse sRGB curve when `linearize`. `check` sees the header
+/// before the pixels are decoded and may refuse it (the memory plan).
+pub fn decode<R: BufRead + Seek>(
+    reader: R,
+    limits: &Limits,
+    linearize: bool,
+    check: impl FnOnce(&Header) -> Result<(), CliError>,
+) -> Result<Decoded, CliError> {
+    let (img, format, orientation) = open(reader, limits, check)?;
+    let (height, width) = (img.height() as usize, img.width() as usize);
+    let (data, bits) = match img.color() {
+        ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
+            (decode_u8(img.into_rgb8().as_raw(), linearize), 8)
+        }
+        ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 => {
+            (decode_u16(img.into_rgb16().as_raw(), linearize), 16)
+        }
+        other => {
+            return Err(CliError::new(
+                Kind::Input,
+                format!("unsupported sample type {other:?}: 8- and 16-bit integer images are read"),
+            ))
+        }
+    };
+    Ok(Decoded {
+        data,
+        height,
+        width,
+        format,
+        bits,
+        orientation,
+    })
+}
+
+/// Decodes a mask image: a pixel is used (true) when any of its colour
+/// channels is nonzero (alpha is ignored). Returns (mask, height, width).
+pub fn decode_mask<R: BufRead + Seek>(
+    reader: R,
+    limits: &Limits,
+) -> Result<(Vec<bool>, usize, usize), CliError> {
+    let budget = limits.max_memory;
+    let (img, _, _) = open(reader, limits, |h| {
+        let n = (h.height as u64).saturating_mul(h.width as u64);
+        // decoded + converted (6 bytes per pixel) + the bools
+        let need = n.saturating_mul(h.bpp.saturating_mul(2).saturating_add(7));
+        if need > budget {
+            return Err(CliError::new(
+                Kind::Budget,
+                format!("mask of {}x{} pixels needs about {need} bytes, over --max-memory {budget}", h.height, h.width),
+            ));
+        }
+        Ok(())
+    })?;
+    let (h, w) = (img.height() as usize, img.width() as usize);
+    let mask = img
+        .into_rgb16()
+        .as_raw()
+        .chunks_exact(3)
+        .map(|p| p.iter().any(|&v| v != 0))
+        .collect();
+    Ok((mask, h, w))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Cursor;
+
+    const NO_LIMIT: Limits = Limits {
+        max_pixels: 1 << 40,
+        max_memory: 1 << 40,
+    };
+
+    fn png(w: u32, h: u32, ct: image::ExtendedColorType, data: &[u8]) -> Vec<u8> {
+        use image::ImageEncoder;
+        let mut out = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(data, w, h, ct)
+            .unwrap();
+        out
+    }
+
+    #[test]
+    fn gray_is_replicated_and_alpha_dropped() {
+        let g = png(2, 1, image::ExtendedColorType::L8, &[0, 255]);
+        let d = decode(Cursor::new(g), &NO_LIMIT, false, |_| Ok(())).unwrap();
+        assert_eq!(d.data, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        assert_eq!((d.format, d.bits, d.orientation), ("PNG", 8, 1));
+        let rgba = png(1, 1, image::ExtendedColorType::Rgba8, &[255, 0, 51, 0]);
+        let d = decode(Cursor::new(rgba), &NO_LIMIT, false, |_| Ok(())).unwrap();
+        assert_eq!(d.data, vec![1.0, 0.0, 0.2]);
+    }
+
+    #[test]
+    fn sixteen_bit_codes_are_kept() {
+        // PNG stores big-endian; the encoder takes native-endian u16 bytes
+        let px: [u16; 3] = [0, 32768, 65535];
+        let bytes: Vec<u8> = px.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        let f = png(1, 1, image::ExtendedColorType::Rgb16, &bytes);
+        let d = decode(Cursor::new(f), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        assert_eq!(d.bits, 16);
+        assert_eq!(d.data, decode_u16(&px, true));
+    }
+
+    #[test]
+    fn limits_refuse_before_decoding() {
+        let f = png(4, 3, image::ExtendedColorType::Rgb8, &[7; 36]);
+        let lim = Limits {
+            max_pixels: 11,
+            ..NO_LIMIT
+        };
+        let e = decode(Cursor::new(f.clone()), &lim, true, |_| Ok(())).unwrap_err();
+        assert_eq!(e.kind, Kind::Budget);
+        let e = decode(Cursor::new(f), &NO_LIMIT, true, |h| {
+            assert_eq!((h.height, h.width, h.bpp, h.is_rgb), (3, 4, 3, true));
+            Err(CliError::new(Kind::Budget, "no"))
+        })
+        .unwrap_err();
+        assert_eq!(e.message, "no");
+    }
+
+    #[test]
+    fn garbage_is_an_input_error() {
+        for bytes in [&b""[..], b"hello", b"\x89PNG\r\n\x1a\n\0\0"] {
+            let e = decode(Cursor::new(bytes), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
+            assert_eq!(e.kind, Kind::Input, "{bytes:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn mask_nonzero_is_used() {
+        let f = png(3, 1, image::ExtendedColorType::Rgb8, &[0, 0, 0, 0, 1, 0, 9, 9, 9]);
+        let (m, h, w) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
+        assert_eq!((m, h, w), (vec![false, true, true], 1, 3));
+    }
+}

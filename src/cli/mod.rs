@@ -1,0 +1,121 @@
+//! The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
+//! the memory plan, the outputs and sidecar of `docs/OUTPUTS.md`, batch and
+//! stream modes. `src/bin/uwhl-rs.rs` only parses the process arguments and
+//! exits with the code this module returns; keeping the work in the library
+//! lets the fuzz target and the tests call the same decode + restore path.
+//!
+//! Nothing here panics on data from outside: every failure is a
+//! [`CliError`] of one [`Kind`], and each kind has its own exit code.
+
+pub mod args;
+pub mod budget;
+pub mod decode;
+pub mod output;
+pub mod run;
+pub mod sidecar;
+
+use std::fmt;
+
+/// What went wrong, as far as the caller of the command needs to know; each
+/// kind has its own exit code (documented in `--help` and the README).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Kind {
+    /// Bad command line or option values (exit 2).
+    Usage,
+    /// An input that cannot be read, decoded or restored (exit 3).
+    Input,
+    /// An input over `--max-pixels` or `--max-memory` (exit 4).
+    Budget,
+    /// An output that cannot be written (exit 5).
+    Write,
+    /// A bug: a state the program believes impossible (exit 6).
+    Internal,
+}
+
+impl Kind {
+    /// The process exit code of this kind; larger is more severe.
+    pub fn exit_code(self) -> u8 {
+        match self {
+            Kind::Usage => 2,
+            Kind::Input => 3,
+            Kind::Budget => 4,
+            Kind::Write => 5,
+            Kind::Internal => 6,
+        }
+    }
+
+    /// The machine-readable name used in `--json-errors` objects.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Usage => "bad_arguments",
+            Kind::Input => "unreadable_input",
+            Kind::Budget => "over_budget",
+            Kind::Write => "write_failed",
+            Kind::Internal => "internal",
+        }
+    }
+
+    /// The kind of an error of the core: bad parameters are the caller's,
+    /// bad data the input's, over-budget the budget's.
+    pub fn of_core(e: &crate::Error) -> Kind {
+        use crate::Error as E;
+        match e {
+            E::Shape(_)
+            | E::TooSmall { .. }
+            | E::NonFinite { .. }
+            | E::OutOfRange { .. }
+            | E::Constant(_) => Kind::Input,
+            E::Mask { .. } | E::WaterType(_) | E::Param { .. } => Kind::Usage,
+            E::Memory { .. } => Kind::Budget,
+            E::Internal(_) => Kind::Internal,
+        }
+    }
+}
+
+/// An error of the command: its kind and a message that names the problem.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CliError {
+    /// what kind of failure (sets the exit code)
+    pub kind: Kind,
+    /// a human-readable message
+    pub message: String,
+}
+
+impl CliError {
+    /// An error of `kind` with `message`.
+    pub fn new(kind: Kind, message: impl Into<String>) -> Self {
+        Self {
+            kind,
+            message: message.into(),
+        }
+    }
+
+    /// A usage error.
+    pub fn usage(message: impl Into<String>) -> Self {
+        Self::new(Kind::Usage, message)
+    }
+
+    /// The one-line JSON object of `--json-errors` and of stream mode.
+    pub fn to_json(&self, input: Option<&str>) -> serde_json::Value {
+        serde_json::json!({
+            "error": self.kind.name(),
+            "input": input,
+            "message": self.message,
+            "exit_code": self.kind.exit_code(),
+        })
+    }
+}
+
+impl fmt::Display for CliError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for CliError {}
+
+impl From<crate::Error> for CliError {
+    fn from(e: crate::Error) -> Self {
+        Self::new(Kind::of_core(&e), e.to_string())
+    }
+}

@@ -1,0 +1,184 @@
+//! Writing the outputs of docs/OUTPUTS.md: every file goes to a temporary
+//! name in its folder and is renamed into place; a [`Transaction`] that is
+//! not committed removes the files it already renamed, so a failed input
+//! leaves nothing behind.
+
+use super::args::Format;
+use super::{CliError, Kind};
+use crate::color::{colormap, quantize_u16, quantize_u8};
+use image::codecs::jpeg::JpegEncoder;
+use image::codecs::png::PngEncoder;
+use image::codecs::tiff::TiffEncoder;
+use image::{ImageBuffer, ImageEncoder, Luma, Pixel, PixelWithColorType, Rgb};
+use std::fs::{self, File, OpenOptions};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+fn write_error(path: &Path, e: impl std::fmt::Display) -> CliError {
+    CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display()))
+}
+
+/// The files of one input written so far; dropped without [`Transaction::commit`]
+/// it removes them.
+#[derive(Debug, Default)]
+pub struct Transaction {
+    done: Vec<PathBuf>,
+    committed: bool,
+}
+
+impl Transaction {
+    /// A transaction with nothing written.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Writes `path` through `body` into a temporary file of the same folder,
+    /// syncs it and renames it into place.
+    pub fn write(
+        &mut self,
+        path: &Path,
+        body: impl FnOnce(&mut BufWriter<File>) -> Result<(), CliError>,
+    ) -> Result<(), CliError> {
+        let name = path
+            .file_name()
+            .ok_or_else(|| CliError::new(Kind::Internal, format!("no file name in {}", path.display())))?;
+        let mut tmp_name = std::ffi::OsString::from(".");
+        tmp_name.push(name);
+        tmp_name.push(format!(".{}.tmp", std::process::id()));
+        let tmp = path.with_file_name(tmp_name);
+        let result = (|| {
+            let file = OpenOptions::new()
+                .write(true)
+                .create(true)
+                .truncate(true)
+                .open(&tmp)
+                .map_err(|e| write_error(&tmp, e))?;
+            let mut out = BufWriter::new(file);
+            body(&mut out)?;
+            out.flush().map_err(|e| write_error(&tmp, e))?;
+            let file = out.into_inner().map_err(|e| write_error(&tmp, e.error()))?;
+            file.sync_all().map_err(|e| write_error(&tmp, e))?;
+            fs::rename(&tmp, path).map_err(|e| write_error(path, e))
+        })();
+        if result.is_err() {
+            let _ = fs::remove_file(&tmp);
+        } else {
+            self.done.push(path.to_path_buf());
+        }
+        result
+    }
+
+    /// Keeps the written files.
+    pub fn commit(mut self) {
+        self.committed = true;
+    }
+}
+
+impl Drop for Transaction {
+    fn drop(&mut self) {
+        if !self.committed {
+            for p in &self.done {
+                let _ = fs::remove_file(p);
+            }
+        }
+    }
+}
+
+fn buffer<P: Pixel>(w: usize, h: usize, data: Vec<P::Subpixel>) -> Result<ImageBuffer<P, Vec<P::Subpixel>>, CliError> {
+    let (wu, hu) = (u32::try_from(w), u32::try_from(h));
+    match (wu, hu) {
+        (Ok(wu), Ok(hu)) => ImageBuffer::from_raw(wu, hu, data),
+        _ => None,
+    }
+    .ok_or_else(|| CliError::new(Kind::Internal, format!("buffer does not hold a {w}x{h} image")))
+}
+
+fn encode<P>(
+    path: &Path,
+    img: &ImageBuffer<P, Vec<P::Subpixel>>,
+    encoder: impl ImageEncoder,
+) -> Result<(), CliError>
+where
+    P: Pixel + PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+{
+    img.write_with_encoder(encoder)
+        .map_err(|e| write_error(path, e))
+}
+
+/// Writes the restored image (interleaved RGB in [0, 1]) as `format`; the
+/// values go through the sRGB curve when `srgb`.
+#[allow(clippy::too_many_arguments)]
+pub fn write_image(
+    tx: &mut Transaction,
+    path: &Path,
+    data: &[f32],
+    h: usize,
+    w: usize,
+    format: Format,
+    bits: u8,
+    srgb: bool,
+) -> Result<(), CliError> {
+    match (format, bits) {
+        (Format::Jpg, _) => {
+            let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
+            tx.write(path, |f| encode(path, &img, JpegEncoder::new_with_quality(f, 95)))
+        }
+        (Format::Png, 16) => {
+            let img = buffer::<Rgb<u16>>(w, h, quantize_u16(data, srgb))?;
+            tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+        }
+        (Format::Png, _) => {
+            let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
+            tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+        }
+        (Format::Tiff, _) => {
+            let img = buffer::<Rgb<u16>>(w, h, quantize_u16(data, srgb))?;
+            tx.write(path, |f| encode(path, &img, TiffEncoder::new(f)))
+        }
+    }
+}
+
+/// Writes t as 16-bit grayscale PNG: `floor(t * 65535 + 0.5)`.
+pub fn write_transmission(tx: &mut Transaction, path: &Path, t: &[f32], h: usize, w: usize) -> Result<(), CliError> {
+    let img = buffer::<Luma<u16>>(w, h, quantize_u16(t, false))?;
+    tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+}
+
+/// Writes t through the colour map as 8-bit RGB PNG.
+pub fn write_transmission_color(tx: &mut Transaction, path: &Path, t: &[f32], h: usize, w: usize) -> Result<(), CliError> {
+    let img = buffer::<Rgb<u8>>(w, h, colormap(t))?;
+    tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+}
+
+/// Writes bytes (the sidecar).
+pub fn write_bytes(tx: &mut Transaction, path: &Path, bytes: &[u8]) -> Result<(), CliError> {
+    tx.write(path, |f| f.write_all(bytes).map_err(|e| write_error(path, e)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uncommitted_transaction_removes_its_files() {
+        let dir = std::env::temp_dir().join(format!("uwhl-tx-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let (a, b) = (dir.join("a.txt"), dir.join("b.txt"));
+        {
+            let mut tx = Transaction::new();
+            write_bytes(&mut tx, &a, b"1").unwrap();
+            let e = tx.write(&b, |_| Err(CliError::new(Kind::Write, "disk full")));
+            assert!(e.is_err());
+            assert!(a.exists() && !b.exists());
+        }
+        assert!(!a.exists());
+        let mut tx = Transaction::new();
+        write_bytes(&mut tx, &a, b"2").unwrap();
+        tx.commit();
+        assert_eq!(fs::read(&a).unwrap(), b"2");
+        // no temporary file is left
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 1);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,128 @@
+//! The JSON sidecar `NAME.json` of docs/OUTPUTS.md (`implementation: "rust"`).
+//! Single-precision results (A) are written as the f64 of the same value,
+//! as Python's `float(np.float32(x))` does, so both commands write equal numbers.
+
+use super::args::Options;
+use crate::pipeline::Restoration;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// Where the input came from (the `source` object).
+#[derive(Debug, Clone)]
+pub struct Source {
+    /// "srgb" or "linear"
+    pub kind: &'static str,
+    /// "PNG", "JPEG", "TIFF"
+    pub format: &'static str,
+    /// bits per sample of the file
+    pub bits: u8,
+    /// rows after orientation
+    pub height: usize,
+    /// columns after orientation
+    pub width: usize,
+    /// EXIF orientation code applied
+    pub orientation: u8,
+    /// rows restored (after `--max-side`)
+    pub processed_height: usize,
+    /// columns restored
+    pub processed_width: usize,
+}
+
+/// Paths of the three image outputs.
+#[derive(Debug, Clone)]
+pub struct OutputPaths<'a> {
+    /// `NAME.jpg|png|tif`
+    pub image: &'a Path,
+    /// `NAME_t.png`
+    pub transmission: &'a Path,
+    /// `NAME_t_color.png`
+    pub transmission_color: &'a Path,
+}
+
+/// Seconds spent per phase.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Seconds {
+    /// decoding and preprocessing
+    pub read: f64,
+    /// `restore`
+    pub restore: f64,
+    /// encoding and writing the image outputs
+    pub write: f64,
+    /// everything
+    pub total: f64,
+}
+
+fn path(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+/// The options as given, in the `parameters` object.
+pub fn parameters(o: &Options) -> Value {
+    json!({
+        "water_types": o.water_types,
+        "veiling_light": o.veiling_light,
+        "mask": o.mask.as_deref().map(path),
+        "guided_radius": o.guided_radius,
+        "guided_eps": o.guided_eps,
+        "sphere_points": o.sphere_points,
+        "max_side": o.max_side,
+        "preprocess": o.preprocess.name(),
+        "format": o.format.name(),
+        "bits": o.bits,
+    })
+}
+
+/// The whole sidecar object.
+pub fn sidecar(
+    input: &Path,
+    outputs: &OutputPaths,
+    source: &Source,
+    res: &Restoration,
+    opts: &Options,
+    seconds: Seconds,
+) -> Value {
+    let vl_pixels = res.veiling_mask.iter().filter(|&&b| b).count();
+    let n = res.height.saturating_mul(res.width).max(1);
+    let scores: serde_json::Map<String, Value> = res
+        .scores
+        .iter()
+        .map(|(name, s)| (name.clone(), json!(s)))
+        .collect();
+    let a: Vec<f64> = res.veiling_light.iter().map(|&v| f64::from(v)).collect();
+    json!({
+        "input": path(input),
+        "outputs": {
+            "image": path(outputs.image),
+            "transmission": path(outputs.transmission),
+            "transmission_color": path(outputs.transmission_color),
+        },
+        "uwhl_version": env!("CARGO_PKG_VERSION"),
+        "implementation": "rust",
+        "source": {
+            "kind": source.kind,
+            "format": source.format,
+            "bits": source.bits,
+            "height": source.height,
+            "width": source.width,
+            "orientation": source.orientation,
+            "processed_height": source.processed_height,
+            "processed_width": source.processed_width,
+        },
+        "water_type": res.water_type.name,
+        "scores": scores,
+        "excluded": res.excluded,
+        "veiling_light": a,
+        "vl_pixels": vl_pixels,
+        "vl_fraction": vl_pixels as f64 / n as f64,
+        "flags": res.flags,
+        "guided_radius": res.guided_radius,
+        "beta_ratios": [res.water_type.beta_br, res.water_type.beta_bg],
+        "parameters": parameters(opts),
+        "seconds": {
+            "read": seconds.read,
+            "restore": seconds.restore,
+            "write": seconds.write,
+            "total": seconds.total,
+        },
+    })
+}
