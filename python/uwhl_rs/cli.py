@@ -228,7 +228,7 @@ def collect_inputs(inputs: list[str], out_dir: str) -> tuple[list[Job], list[tup
     Returns (jobs, problems): problems are (input, reason) for inputs that
     match nothing. Files under ``out_dir`` are never taken as inputs; the
     same file named twice is processed once; two inputs that would share
-    an output name get ``NAME_ext``.
+    an output name get ``NAME_ext`` (then ``NAME_ext_2``, ... if still shared).
     """
     out_real = os.path.realpath(out_dir)
     found: list[tuple[str, str]] = []  # (file, output sub-folder)
@@ -268,9 +268,15 @@ def collect_inputs(inputs: list[str], out_dir: str) -> tuple[list[Job], list[tup
         key = (sub, os.path.splitext(os.path.basename(path))[0])
         stems[key] = stems.get(key, 0) + 1
     jobs = []
+    taken: set[tuple[str, str]] = set()
     for path, sub in unique:
         stem, ext = os.path.splitext(os.path.basename(path))
         name = stem if stems[(sub, stem)] == 1 else f"{stem}_{ext.lstrip('.').lower()}"
+        base, k = name, 1
+        while (sub, name) in taken:  # same stem and extension from two folders
+            k += 1
+            name = f"{base}_{k}"
+        taken.add((sub, name))
         jobs.append(Job(path, os.path.join(out_dir, sub), name))
     return jobs, problems
 
