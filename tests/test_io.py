@@ -300,3 +300,14 @@ def test_raw_half_size_and_metadata():
     assert meta.preprocess == "reference" and img.max() == 1.0
     assert all(np.mean(img[..., c] >= 1.0) >= 0.001 for c in range(3))
     assert np.median(img) > np.median(plain)
+
+
+def test_io_functions_are_reachable_from_the_package():
+    import uwhl_rs
+
+    assert uwhl_rs.read_image is io.read_image and uwhl_rs.to_srgb is io.to_srgb
+    assert uwhl_rs.write_image is io.write_image
+    assert uwhl_rs.restore_file is uwhl_rs.files.restore_file
+    assert {"read_image", "restore_file"} <= set(dir(uwhl_rs))
+    with pytest.raises(AttributeError):
+        uwhl_rs.no_such_thing
