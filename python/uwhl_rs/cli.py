@@ -453,6 +453,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     progress.close()
     order = {id(j): k for k, j in enumerate(jobs)}
     outcomes.sort(key=lambda o: order[id(o.job)])
+    # inputs that matched nothing count as failed in the summary too
+    outcomes = [Outcome(Job(item, "", ""), "failed", note=why) for item, why in problems] + outcomes
     failed = [o for o in outcomes if o.status == "failed"]
     if not a.quiet:
         _summary(outcomes, out, time.perf_counter() - progress.t0)
@@ -460,8 +462,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         err.write(f"uwhl: interrupted after {len(outcomes)} of {len(jobs)} inputs; "
                   "run the same command again to resume\n")
         return EXIT_INTERRUPTED
-    if failed or problems:
-        err.write(f"uwhl: {len(failed) + len(problems)} input(s) failed\n")
+    if failed:
+        err.write(f"uwhl: {len(failed)} input(s) failed\n")
         return EXIT_FAILED
     return EXIT_OK
 
