@@ -129,6 +129,62 @@ fn _reference_raw<'py>(
     same_shape(py, v, image.shape())
 }
 
+/// Decodes a PNG file's bytes to (codes, bit depth): an (H, W, 3) uint8 or
+/// uint16 array (gray is replicated, alpha dropped, palettes expanded).
+/// Used for 16-bit PNGs, which Pillow reads only as 8 bits.
+#[pyfunction]
+fn _decode_png<'py>(py: Python<'py>, data: &[u8], max_pixels: u64) -> PyResult<Bound<'py, PyAny>> {
+    let bad = |e: String| PyValueError::new_err(format!("corrupt or unsupported PNG: {e}"));
+    let mut dec = png::Decoder::new(std::io::Cursor::new(data));
+    dec.set_transformations(png::Transformations::EXPAND);
+    let mut reader = dec.read_info().map_err(|e| bad(e.to_string()))?;
+    let (w, h) = {
+        let info = reader.info();
+        (info.width as usize, info.height as usize)
+    };
+    if (w as u64).saturating_mul(h as u64) > max_pixels {
+        return Err(PyValueError::new_err(format!(
+            "PNG is {w}x{h} pixels, over the limit of {max_pixels} pixels"
+        )));
+    }
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| bad("image too large".into()))?;
+    let mut buf = vec![0u8; size];
+    let frame = reader.next_frame(&mut buf).map_err(|e| bad(e.to_string()))?;
+    let (ct, depth) = reader.output_color_type();
+    let chans = ct.samples();
+    let wide = depth == png::BitDepth::Sixteen;
+    let bytes = if wide { 2 } else { 1 };
+    let line = frame.line_size;
+    let pick = |px: &[u8], c: usize| -> u16 {
+        // gray(+alpha) replicates channel 0; RGB(A) takes 0..3
+        let k = if chans < 3 { 0 } else { c } * bytes;
+        match (px.get(k), px.get(k + 1)) {
+            (Some(&hi), Some(&lo)) if wide => u16::from_be_bytes([hi, lo]),
+            (Some(&v), _) => u16::from(v),
+            _ => 0,
+        }
+    };
+    let mut out: Vec<u16> = Vec::with_capacity(h * w * 3);
+    for row in buf.chunks(line).take(h) {
+        for px in row.chunks(chans * bytes).take(w) {
+            for c in 0..3 {
+                out.push(pick(px, c));
+            }
+        }
+    }
+    if out.len() != h * w * 3 {
+        return Err(bad("truncated image data".into()));
+    }
+    if wide {
+        Ok(same_shape(py, out, &[h, w, 3])?.into_any())
+    } else {
+        let v: Vec<u8> = out.into_iter().map(|v| v as u8).collect();
+        Ok(same_shape(py, v, &[h, w, 3])?.into_any())
+    }
+}
+
 /// Adds the colour functions to `uwhl_rs._core`.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_decode_u8, m)?)?;
@@ -138,5 +194,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_downscale, m)?)?;
     m.add_function(wrap_pyfunction!(_reference_srgb, m)?)?;
     m.add_function(wrap_pyfunction!(_reference_raw, m)?)?;
+    m.add_function(wrap_pyfunction!(_decode_png, m)?)?;
     Ok(())
 }

@@ -415,10 +415,11 @@ def test_gil_is_released():
 
 
 def test_import_is_light():
-    """`import uwhl_rs` imports neither scipy, imageio nor uwhl_rs.synth."""
+    """`import uwhl_rs` imports neither scipy, imageio, rawpy, PIL, tifffile nor the I/O submodules."""
     code = (
         "import sys, uwhl_rs\n"
-        "bad = [m for m in ('scipy', 'imageio', 'uwhl_rs.synth') if m in sys.modules]\n"
+        "mods = ('scipy', 'imageio', 'rawpy', 'PIL', 'tifffile', 'uwhl_rs.synth', 'uwhl_rs.io', 'uwhl_rs.files')\n"
+        "bad = [m for m in mods if m in sys.modules]\n"
         "print(','.join(bad))\n"
     )
     env = dict(os.environ)

@@ -15,21 +15,18 @@ tests skip when the folder is absent.
 from __future__ import annotations
 
 import math
-import os
-import pathlib
 
 import numpy as np
 import pytest
 
 uwhl_rs = pytest.importorskip("uwhl_rs")
 from uwhl_rs import synth  # noqa: E402
+from datapaths import IMAGES_DIR as DATA_DIR  # noqa: E402
 
 TYPES = list(synth.JERLOV)
 H, W = 200, 260
 SEEDS = (0, 1, 2, 3)
 NOISE = 0.002
-# ../shared/data beside the repository (as in CI); UWHL_DATA overrides.
-DATA_DIR = pathlib.Path(os.environ.get("UWHL_DATA", pathlib.Path(__file__).resolve().parents[2] / "shared" / "data")) / "images"
 
 
 def _pearson(x, y) -> float:

@@ -30,6 +30,13 @@ __all__ = [
     "ImageError",
     "ParameterError",
     "synth",
+    "read_image",
+    "to_srgb",
+    "write_image",
+    "restore_file",
+    "ImageMeta",
+    "ImageReadError",
+    "FileResult",
     "__version__",
 ]
 
@@ -46,13 +53,36 @@ if hasattr(_os, "register_at_fork"):
 WATER_TYPES: dict[str, tuple[float, float]] = {n: (br, bg) for n, br, bg in _core.JERLOV_TABLE}
 
 
+# name -> submodule defining it; imported on first use so that
+# `import uwhl_rs` stays fast (rawpy, imageio and Pillow load only when used)
+_LAZY = {
+    "synth": None,
+    "io": None,
+    "files": None,
+    "cli": None,
+    "read_image": "io",
+    "to_srgb": "io",
+    "write_image": "io",
+    "ImageMeta": "io",
+    "ImageReadError": "io",
+    "restore_file": "files",
+    "FileResult": "files",
+}
+
+
 def __getattr__(name: str):
-    # Submodules are imported on first use so that `import uwhl_rs` stays fast.
-    if name == "synth":
+    if name in _LAZY:
         import importlib
 
-        return importlib.import_module(".synth", __name__)
+        sub = _LAZY[name]
+        if sub is None:
+            return importlib.import_module(f".{name}", __name__)
+        return getattr(importlib.import_module(f".{sub}", __name__), name)
     raise AttributeError(f"module 'uwhl_rs' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
 
 
 def _as_image(image) -> np.ndarray:

@@ -1,0 +1,340 @@
+"""One photograph in, corrected files out: :func:`restore_file`, the JSON
+sidecar and the contact sheet (file names and contents: docs/OUTPUTS.md)."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core
+from .io import (
+    DEFAULT_MAX_PIXELS,
+    ImageMeta,
+    ImageReadError,
+    _display_linear,
+    atomic_write_bytes,
+    colorize_transmission,
+    read_image,
+    to_srgb,
+    write_image,
+)
+
+__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "FORMATS"]
+
+#: --format -> (extension, default bits)
+FORMATS = {"jpg": (".jpg", 8), "tiff": (".tif", 16), "png": (".png", 8)}
+
+
+@dataclass
+class FileResult:
+    """What :func:`restore_file` did for one input."""
+
+    restoration: object
+    meta: ImageMeta
+    #: role ("image", "transmission", "transmission_color", "contact_sheet", "sidecar") -> path
+    paths: dict = field(default_factory=dict)
+    sidecar: dict = field(default_factory=dict)
+
+
+def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = False) -> dict:
+    """The files written for an input whose outputs are called ``name``."""
+    if fmt not in FORMATS:
+        raise ValueError(f"format must be one of {sorted(FORMATS)}, not {fmt!r}")
+    p = {
+        "image": os.path.join(out_dir, name + FORMATS[fmt][0]),
+        "transmission": os.path.join(out_dir, name + "_t.png"),
+        "transmission_color": os.path.join(out_dir, name + "_t_color.png"),
+    }
+    if contact:
+        p["contact_sheet"] = os.path.join(out_dir, name + "_sheet.png")
+    p["sidecar"] = os.path.join(out_dir, name + ".json")
+    return p
+
+
+def _read_mask(mask, shape, what: str) -> np.ndarray | None:
+    """A bool mask from an array or an image file (nonzero = True)."""
+    if mask is None:
+        return None
+    if isinstance(mask, (str, os.PathLike)):
+        import imageio.v3 as iio
+
+        try:
+            a = np.asarray(iio.imread(os.fspath(mask)))
+        except Exception as e:
+            raise ImageReadError(f"{what} {os.fspath(mask)}: cannot read ({type(e).__name__}: {e})") from None
+        m = (a != 0) if a.ndim == 2 else (a[..., :3] != 0).any(axis=-1)
+    else:
+        m = np.asarray(mask, dtype=bool)
+    if m.shape != tuple(shape):
+        raise ValueError(f"{what} is {m.shape[1]}x{m.shape[0]} but the image is {shape[1]}x{shape[0]}")
+    return m
+
+
+def _shrink_mask(m: np.ndarray | None, s: int, rule: str) -> np.ndarray | None:
+    """Downscale a mask by blocks: "all" (every pixel true) or "half" (>= 50%)."""
+    if m is None or s <= 1:
+        return m
+    frac = _core._downscale(np.ascontiguousarray(m, dtype=np.float32)[:, :, None], s)[:, :, 0]
+    return frac >= 1.0 if rule == "all" else frac >= 0.5
+
+
+def _max_side_factor(h: int, w: int, n: int | None) -> int:
+    return 1 if not n else max(1, -(-max(h, w) // max(1, int(n))))
+
+
+def restore_file(
+    in_path: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    *,
+    name: str | None = None,
+    format: str = "jpg",
+    bits: int | None = None,
+    quality: int = 95,
+    preprocess: str = "none",
+    half_size: bool = False,
+    max_side: int | None = None,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+    mask=None,
+    water_mask=None,
+    contact: bool = False,
+    **restore_kwargs,
+) -> FileResult:
+    """Restore one photograph and write its outputs (docs/OUTPUTS.md).
+
+    Reads ``in_path`` (raw or JPEG/PNG/TIFF, see :func:`uwhl_rs.io.read_image`
+    for ``preprocess``, ``half_size``, ``max_pixels``), optionally shrinks it
+    so the longer side is at most ``max_side``, runs :func:`uwhl_rs.restore`
+    with ``restore_kwargs`` (``mask``/``water_mask`` may be bool arrays or
+    image files, nonzero = True, of the input's size), and writes into
+    ``out_dir``: the corrected photo (``format`` "jpg", "tiff" (16-bit) or
+    "png"; ``bits`` 8/16), t_B as a 16-bit PNG and colour-mapped, the
+    contact sheet when ``contact``, and the JSON sidecar last. Every file
+    is written atomically; if anything fails, the files already written
+    for this input are removed and the error propagates.
+
+    Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
+    the paths written and the sidecar dict).
+    """
+    import uwhl_rs
+
+    t_start = time.perf_counter()
+    in_path = os.fspath(in_path)
+    out_dir = os.fspath(out_dir)
+    if format not in FORMATS:
+        raise ValueError(f"format must be one of {sorted(FORMATS)}, not {format!r}")
+    ext, default_bits = FORMATS[format]
+    bits = default_bits if bits is None else int(bits)
+    if bits not in (8, 16) or (format == "jpg" and bits != 8):
+        raise ValueError(f"bits={bits} is not possible for {format} (jpg: 8; png, tiff: 8 or 16)")
+    if max_side is not None and int(max_side) < 4:
+        raise ValueError(f"max_side must be at least 4, not {max_side}")
+    name = name or os.path.splitext(os.path.basename(in_path))[0]
+    paths = output_paths(out_dir, name, format, contact)
+
+    image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels)
+    full_hw = image.shape[:2]
+    m = _read_mask(mask, full_hw, "mask")
+    wm = _read_mask(water_mask, full_hw, "water_mask")
+    s = _max_side_factor(*full_hw, max_side)
+    if s > 1:
+        image = _core._downscale(image, s)
+        m = _shrink_mask(m, s, "all")
+        wm = _shrink_mask(wm, s, "half")
+    t_read = time.perf_counter()
+    res = uwhl_rs.restore(image, mask=m, water_mask=wm, **restore_kwargs)
+    t_restore = time.perf_counter()
+
+    os.makedirs(out_dir, exist_ok=True)
+    written: list[str] = []
+    try:
+        shown = _display_linear(res.image, meta)
+        encoding = "linear" if meta.linear else "srgb"
+        written.append(write_image(paths["image"], shown, bits=bits, encoding=encoding, quality=quality))
+        written.append(write_image(paths["transmission"], res.transmission, bits=16, encoding="srgb"))
+        written.append(write_image(paths["transmission_color"], colorize_transmission(res.transmission)))
+        t_sheet = time.perf_counter()
+        if contact:
+            sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
+            written.append(write_image(paths["contact_sheet"], sheet))
+        t_sheet = time.perf_counter() - t_sheet
+        t_end = time.perf_counter()
+        sidecar = {
+            "input": in_path,
+            "outputs": {k: os.path.basename(v) for k, v in paths.items() if k != "sidecar"},
+            "uwhl_version": uwhl_rs.__version__,
+            "implementation": "python",
+            "source": {
+                **meta.to_dict(),
+                "height": int(full_hw[0]),
+                "width": int(full_hw[1]),
+                "processed_height": int(res.transmission.shape[0]),
+                "processed_width": int(res.transmission.shape[1]),
+            },
+            "water_type": res.water_type,
+            "scores": {k: float(v) for k, v in res.scores.items()},
+            "excluded": list(res.excluded),
+            "veiling_light": [float(v) for v in res.veiling_light],
+            "vl_pixels": int(res.veiling_mask.sum()),
+            "vl_fraction": float(res.veiling_mask.mean()),
+            "flags": list(res.flags),
+            "guided_radius": int(res.guided_radius),
+            "beta_ratios": [float(v) for v in res.beta_ratios],
+            "parameters": {
+                "water_types": _jsonable(restore_kwargs.get("water_types")),
+                "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
+                "mask": _mask_label(mask),
+                "water_mask": _mask_label(water_mask),
+                "guided_radius": restore_kwargs.get("guided_radius"),
+                "guided_eps": float(restore_kwargs.get("guided_eps", 1e-3)),
+                "sphere_points": int(restore_kwargs.get("sphere_points", 500)),
+                "threads": restore_kwargs.get("threads"),
+                "max_side": None if max_side is None else int(max_side),
+                "max_pixels": int(max_pixels),
+                "preprocess": preprocess,
+                "half_size": bool(half_size),
+                "format": format,
+                "bits": bits,
+                "quality": int(quality),
+                **{k: _jsonable(v) for k, v in restore_kwargs.items() if k not in _KNOWN},
+            },
+            "seconds": {
+                "read": round(t_read - t_start, 4),
+                "restore": round(t_restore - t_read, 4),
+                "write": round(t_end - t_restore - t_sheet, 4),
+                "contact_sheet": round(t_sheet, 4),
+                "total": round(t_end - t_start, 4),
+            },
+        }
+        text = json.dumps(sidecar, indent=2) + "\n"
+
+        def put(tmp: str) -> None:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(text)
+
+        atomic_write_bytes(paths["sidecar"], put)
+        written.append(paths["sidecar"])
+    except BaseException:
+        for p in written:
+            try:
+                os.remove(p)
+            except OSError:
+                pass
+        raise
+    return FileResult(res, meta, paths, sidecar)
+
+
+_KNOWN = {"water_types", "veiling_light", "guided_radius", "guided_eps", "sphere_points", "threads"}
+
+
+def _jsonable(v):
+    if v is None or isinstance(v, (bool, int, float, str)):
+        return v
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_jsonable(x) for x in v]
+    return str(v)
+
+
+def _mask_label(mask):
+    if mask is None:
+        return None
+    if isinstance(mask, (str, os.PathLike)):
+        return os.fspath(mask)
+    return "array"
+
+
+# ---------------------------------------------------------------- contact sheet
+
+_ORANGE = (255, 140, 0)
+
+
+def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None, cell: int = 360) -> np.ndarray:
+    """An 8-bit RGB sheet for judging the water-type choice by eye.
+
+    Cells: the input with the water region VL overlaid (magenta), then
+    every evaluated water type's restoration labelled with its gray-world
+    score (the chosen one framed in orange, excluded ones marked), then the
+    chosen type's colour-mapped transmission. The candidates are restored
+    on a copy shrunk so its longer side is about ``cell`` pixels, with the
+    full image's veiling light A and water region, so they show what each
+    type does, not a re-estimate.
+    """
+    import uwhl_rs
+    from PIL import Image, ImageDraw, ImageFont
+
+    kw = dict(restore_kwargs or {})
+    h, w = image.shape[:2]
+    s = _max_side_factor(h, w, cell)
+    thumb = _core._downscale(np.ascontiguousarray(image, dtype=np.float32), s) if s > 1 else image
+    vl = _shrink_mask(res.veiling_mask, s, "half") if s > 1 else res.veiling_mask
+    m = _shrink_mask(mask, s, "all") if s > 1 else mask
+    th, tw = thumb.shape[:2]
+    specs = {}
+    for spec in kw.get("water_types") or []:
+        specs[spec if isinstance(spec, str) else spec[0]] = spec
+    radius = kw.get("guided_radius")
+    sub = {k: kw[k] for k in ("guided_eps", "sphere_points", "threads") if k in kw}
+    if radius is not None:
+        sub["guided_radius"] = max(1, int(round(radius / s)))
+
+    def label_font(size: int):
+        try:
+            return ImageFont.load_default(size=size)
+        except TypeError:  # Pillow < 10.1
+            return ImageFont.load_default()
+
+    font = label_font(15)
+    bar = 24
+    cells = []
+    # input with VL overlay
+    shown = to_srgb(thumb, meta)
+    over = shown.copy()
+    over[vl] = 0.45 * over[vl] + 0.55 * np.array([1.0, 0.0, 1.0], np.float32)
+    n_vl = int(res.veiling_mask.sum())
+    cells.append((over, f"input; VL {n_vl} px ({res.veiling_mask.mean():.1%})", None))
+    for name, score in res.scores.items():
+        label = name
+        try:
+            r = uwhl_rs.restore(
+                thumb,
+                water_types=[specs.get(name, name)],
+                veiling_light=res.veiling_light,
+                water_mask=vl,
+                mask=m,
+                **sub,
+            )
+            img = to_srgb(r.image, meta)
+        except (ValueError, MemoryError) as e:
+            img = np.full((th, tw, 3), 0.3, np.float32)
+            label = f"{name} failed: {e}"[:40]
+        tag = " CHOSEN" if name == res.water_type else (" excluded" if name in res.excluded else "")
+        cells.append((img, f"{label}  {score:.4f}{tag}", _ORANGE if name == res.water_type else None))
+    t_small = _core._downscale(np.ascontiguousarray(res.transmission, dtype=np.float32)[:, :, None], s)[:, :, 0]
+    cells.append((colorize_transmission(t_small).astype(np.float32) / 255.0, f"t_B of {res.water_type}", None))
+
+    cols = 4
+    rows = -(-len(cells) // cols)
+    pad = 6
+    sheet = Image.new("RGB", (cols * (tw + pad) + pad, rows * (th + bar + pad) + pad + 30), (24, 24, 24))
+    draw = ImageDraw.Draw(sheet)
+    draw.text(
+        (pad, 6),
+        f"{os.path.basename(meta.path)}: chosen {res.water_type}, A = "
+        f"({', '.join(f'{v:.3f}' for v in res.veiling_light)}); flags: {', '.join(res.flags) or 'none'}",
+        fill=(235, 235, 235),
+        font=label_font(17),
+    )
+    for k, (img, text, frame) in enumerate(cells):
+        x0 = pad + (k % cols) * (tw + pad)
+        y0 = 30 + pad + (k // cols) * (th + bar + pad)
+        tile = Image.fromarray((np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8))
+        sheet.paste(tile, (x0, y0))
+        if frame is not None:
+            draw.rectangle([x0 - 3, y0 - 3, x0 + tw + 2, y0 + th + bar - 1], outline=frame, width=4)
+        draw.text((x0 + 4, y0 + th + 4), text, fill=frame or (235, 235, 235), font=font)
+    return np.asarray(sheet)

@@ -1,0 +1,523 @@
+"""Reading and writing images: raw camera files (rawpy/LibRaw), JPEG, PNG
+and TIFF (imageio), the sRGB transfer curves and the camera matrix.
+
+Everything here converts between files and the LINEAR float32 HxWx3
+arrays that :func:`uwhl_rs.restore` takes (SPEC 2) and returns (SPEC 10).
+The pixel conventions (curves, rounding, colour map) are shared with the
+``uwhl-rs`` binary through ``uwhl_rs._core`` and documented in
+``docs/OUTPUTS.md``. rawpy and imageio are imported on first use only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import threading
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from . import _core
+
+__all__ = [
+    "ImageMeta",
+    "ImageReadError",
+    "RAW_EXTENSIONS",
+    "IMAGE_EXTENSIONS",
+    "PREPROCESS_MODES",
+    "DEFAULT_MAX_PIXELS",
+    "read_image",
+    "to_srgb",
+    "srgb_to_linear",
+    "linear_to_srgb",
+    "write_image",
+    "atomic_write_bytes",
+    "colorize_transmission",
+]
+
+#: Extensions read through LibRaw (every format LibRaw reads; other names
+#: are sniffed: anything that is not JPEG/PNG/TIFF is offered to LibRaw).
+RAW_EXTENSIONS = frozenset(
+    ".3fr .ari .arw .bay .braw .cap .cr2 .cr3 .crw .cs1 .dc2 .dcr .dcs .dng .drf .eip .erf .fff "
+    ".gpr .iiq .k25 .kdc .mdc .mef .mos .mrw .nef .nrw .orf .ori .pef .ptx .pxn .qtk .r3d .raf "
+    ".raw .rdc .rw2 .rwl .rwz .sr2 .srf .srw .sti .x3f".split()
+)
+#: Extensions read through imageio as sRGB-encoded images.
+IMAGE_EXTENSIONS = frozenset({".jpg", ".jpeg", ".png", ".tif", ".tiff"})
+#: ``none``: linear data (sRGB decoded through the inverse curve; raw as
+#: decoded). ``reference``: the reference code's preprocessing (SPEC 2).
+PREPROCESS_MODES = ("none", "reference")
+#: Refuse images with more pixels than this unless told otherwise (a
+#: 300 MP frame needs ~3.6 GB as float32 before any processing).
+DEFAULT_MAX_PIXELS = 300_000_000
+
+# linear sRGB (D65) -> CIE XYZ, IEC 61966-2-1
+_SRGB_TO_XYZ = np.array(
+    [[0.4124564, 0.3575761, 0.1804375], [0.2126729, 0.7151522, 0.0721750], [0.0193339, 0.1191920, 0.9503041]]
+)
+# LibRaw's flip code -> EXIF orientation
+_FLIP_TO_EXIF = {0: 1, 3: 3, 5: 8, 6: 6}
+
+
+class ImageReadError(ValueError):
+    """A file could not be read as an image (missing, truncated, corrupt,
+    unsupported or too large). The message names the file and the reason."""
+
+
+@dataclass(frozen=True)
+class ImageMeta:
+    """What :func:`read_image` knows about the file it read."""
+
+    path: str
+    #: "raw" (LibRaw), "srgb" (JPEG/PNG/TIFF) or "linear" (float TIFF)
+    kind: str
+    #: "JPEG", "PNG", "TIFF" or the raw file's extension in capitals
+    format: str
+    #: bits per sample in the file (raw: 16 after demosaicing)
+    bits: int
+    #: of the returned array, after orientation and half-size
+    height: int
+    width: int
+    #: EXIF orientation of the file (1 = upright); the array is already upright
+    orientation: int = 1
+    #: True if the returned data is linear light (False only for sRGB with preprocess="reference")
+    linear: bool = True
+    preprocess: str = "none"
+    #: 3x3 camera RGB -> linear sRGB (raw only), applied by :func:`to_srgb`
+    camera_matrix: np.ndarray | None = None
+    #: the as-shot white-balance multipliers applied (raw only)
+    white_balance: tuple | None = None
+    #: documented fallbacks taken while reading
+    notes: tuple = field(default_factory=tuple)
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict (the sidecar's ``source``)."""
+        d = asdict(self)
+        d["camera_matrix"] = None if self.camera_matrix is None else np.asarray(self.camera_matrix).tolist()
+        d["white_balance"] = None if self.white_balance is None else list(self.white_balance)
+        d["notes"] = list(self.notes)
+        return d
+
+
+def srgb_to_linear(encoded: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] -> linear (IEC 61966-2-1), float64."""
+    x = np.asarray(encoded, dtype=np.float64)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Linear values -> sRGB-encoded, clipped to [0, 1] first, float64."""
+    x = np.clip(np.nan_to_num(np.asarray(linear, dtype=np.float64), nan=0.0), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+
+
+def _sniff(path: str) -> str | None:
+    """The container by magic bytes: "JPEG", "PNG", "TIFF" or None."""
+    with open(path, "rb") as f:
+        head = f.read(8)
+    if head[:3] == b"\xff\xd8\xff":
+        return "JPEG"
+    if head == b"\x89PNG\r\n\x1a\n":
+        return "PNG"
+    if head[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"):
+        return "TIFF"
+    return None
+
+
+def read_image(
+    path: str | os.PathLike,
+    *,
+    preprocess: str = "none",
+    half_size: bool = False,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+) -> tuple[np.ndarray, ImageMeta]:
+    """Read a photograph as the linear float32 HxWx3 image ``restore`` takes.
+
+    Raw files (any format LibRaw reads) are demosaiced by rawpy: linear
+    (gamma 1), no auto-brightening, the as-shot white balance, 16 bits, in
+    the camera's colour space (``meta.camera_matrix`` takes it to sRGB; see
+    :func:`to_srgb`), upright; ``half_size`` halves each side (faster).
+    JPEG, PNG and TIFF (8 or 16 bit) are decoded through the inverse sRGB
+    curve with the EXIF orientation applied; float TIFFs are taken as
+    linear. Gray is replicated to three channels, alpha dropped.
+
+    ``preprocess="reference"`` applies SPEC 2's reference preprocessing
+    instead: raw is scaled so the 99.999th percentile of the channel
+    maximum is 1 and each channel stretched to clip its top 0.1%; sRGB is
+    NOT linearised and gets the reference's pulled 1%/99% stretch
+    (``meta.linear`` is then False).
+
+    Returns ``(image, meta)``. Raises :class:`ImageReadError` naming the
+    file and the reason (missing, truncated, corrupt, unsupported, or more
+    than ``max_pixels`` pixels).
+    """
+    path = os.fspath(path)
+    if preprocess not in PREPROCESS_MODES:
+        raise ValueError(f"preprocess must be one of {PREPROCESS_MODES}, not {preprocess!r}")
+    if not os.path.exists(path):
+        raise ImageReadError(f"{path}: no such file")
+    if os.path.isdir(path):
+        raise ImageReadError(f"{path}: is a folder, not an image")
+    try:
+        size = os.path.getsize(path)
+        # raw formats are often TIFF containers (DNG, NEF): the extension decides
+        ext = os.path.splitext(path)[1].lower()
+        kind = None if ext in RAW_EXTENSIONS else _sniff(path)
+    except OSError as e:
+        raise ImageReadError(f"{path}: cannot open ({e.strerror or e})") from None
+    if size == 0:
+        raise ImageReadError(f"{path}: empty file")
+    try:
+        if kind is None:
+            return _read_raw(path, preprocess, half_size, max_pixels)
+        return _read_encoded(path, kind, preprocess, max_pixels)
+    except ImageReadError:
+        raise
+    except MemoryError:
+        raise ImageReadError(f"{path}: not enough memory to decode") from None
+    except Exception as e:  # decoders raise many types; name the file and the reason
+        raise ImageReadError(f"{path}: cannot decode {kind or 'raw'} ({type(e).__name__}: {e})") from None
+
+
+def _check_pixels(path: str, h: int, w: int, max_pixels: int) -> None:
+    if h * w > max_pixels:
+        raise ImageReadError(f"{path}: {w}x{h} pixels is over the limit of {max_pixels} (max_pixels)")
+    if h < 1 or w < 1:
+        raise ImageReadError(f"{path}: the image is empty ({w}x{h})")
+
+
+def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int) -> tuple[np.ndarray, ImageMeta]:
+    from PIL import Image
+
+    orientation = 1
+    if kind in ("JPEG", "PNG"):
+        with _pillow_limit(), Image.open(path) as im:
+            _check_pixels(path, im.height, im.width, max_pixels)
+            orientation = int(im.getexif().get(0x0112, 1) or 1)
+            mode = im.mode
+    if kind == "PNG" and _png_bit_depth(path) == 16:
+        with open(path, "rb") as f:
+            codes = _core._decode_png(f.read(), max_pixels)
+        codes = _orient(codes, orientation)
+    elif kind == "TIFF":
+        import tifffile
+
+        with tifffile.TiffFile(path) as tf:
+            page = tf.pages[0]
+            shape = page.shape
+            h, w = (shape[0], shape[1]) if len(shape) >= 2 else (0, 0)
+            if page.samplesperpixel > 1 and page.planarconfig == 2:  # planar: (C, H, W)
+                h, w = shape[-2], shape[-1]
+            _check_pixels(path, h, w, max_pixels)
+            orientation = int(page.tags.get("Orientation").value) if "Orientation" in page.tags else 1
+            codes = page.asarray()
+            if page.samplesperpixel > 1 and page.planarconfig == 2:
+                codes = np.moveaxis(codes, 0, -1)
+        codes = _orient(codes, orientation)
+    else:
+        import imageio.v3 as iio
+
+        if mode == "CMYK":
+            raise ImageReadError(f"{path}: CMYK {kind} is not supported (convert it to RGB)")
+        with _pillow_limit():
+            codes = iio.imread(path, plugin="pillow", rotate=True)
+            if mode == "P":  # palette: expand through Pillow's RGB conversion
+                codes = iio.imread(path, plugin="pillow", mode="RGB", rotate=True)
+    codes = _to_rgb(path, np.asarray(codes))
+    linearize = preprocess == "none"
+    if codes.dtype == np.uint8:
+        bits = 8
+        img = _core._decode_u8(np.ascontiguousarray(codes), linearize)
+    elif codes.dtype == np.uint16:
+        bits = 16
+        img = _core._decode_u16(np.ascontiguousarray(codes), linearize)
+    elif codes.dtype.kind == "f":
+        bits = codes.dtype.itemsize * 8
+        img = np.ascontiguousarray(codes, dtype=np.float32)
+        if not np.all(np.isfinite(img)):
+            raise ImageReadError(f"{path}: the float image contains NaN or Inf")
+        meta = ImageMeta(path, "linear", kind, bits, img.shape[0], img.shape[1], orientation, True, "none")
+        return img, meta
+    else:
+        raise ImageReadError(f"{path}: samples of type {codes.dtype} are not supported (8/16-bit or float)")
+    if preprocess == "reference":
+        img = _core._reference_srgb(img)
+    meta = ImageMeta(path, "srgb", kind, bits, img.shape[0], img.shape[1], orientation, linearize, preprocess)
+    return img, meta
+
+
+_PILLOW_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _pillow_limit():
+    """Pillow refuses images over its own pixel limit with a message about
+    "decompression bombs"; our ``max_pixels`` is checked with a clearer one
+    instead (right after opening, before decoding), so Pillow's check is
+    switched off while we read."""
+    from PIL import Image
+
+    with _PILLOW_LOCK:
+        old = Image.MAX_IMAGE_PIXELS
+        Image.MAX_IMAGE_PIXELS = None
+        try:
+            yield
+        finally:
+            Image.MAX_IMAGE_PIXELS = old
+
+
+def _png_bit_depth(path: str) -> int:
+    with open(path, "rb") as f:
+        head = f.read(26)
+    return head[24] if len(head) >= 25 and head[12:16] == b"IHDR" else 8
+
+
+def _orient(a: np.ndarray, orientation: int) -> np.ndarray:
+    """Apply an EXIF orientation (1-8) to an (H, W, ...) array."""
+    ops = {
+        2: lambda x: x[:, ::-1],
+        3: lambda x: x[::-1, ::-1],
+        4: lambda x: x[::-1],
+        5: lambda x: np.swapaxes(x, 0, 1),
+        6: lambda x: np.swapaxes(x, 0, 1)[:, ::-1],
+        7: lambda x: np.swapaxes(x, 0, 1)[::-1, ::-1],
+        8: lambda x: np.swapaxes(x, 0, 1)[::-1],
+    }
+    return ops[orientation](a) if orientation in ops else a
+
+
+def _to_rgb(path: str, a: np.ndarray) -> np.ndarray:
+    """Gray -> 3 channels, gray+alpha / RGBA -> drop alpha."""
+    if a.ndim == 2:
+        return np.repeat(a[:, :, None], 3, axis=2)
+    if a.ndim == 3 and a.shape[2] in (1, 2):
+        return np.repeat(a[:, :, :1], 3, axis=2)
+    if a.ndim == 3 and a.shape[2] >= 3:
+        return a[:, :, :3]
+    raise ImageReadError(f"{path}: cannot use an image of shape {a.shape} (need HxW or HxWx3)")
+
+
+def _camera_matrix(raw) -> tuple[np.ndarray | None, list[str]]:
+    """Camera RGB (white balanced) -> linear sRGB, from LibRaw's colour data."""
+    cm = np.asarray(raw.color_matrix, dtype=np.float64)[:3, :3]
+    if np.any(cm != 0) and np.all(np.isfinite(cm)):
+        return cm, []
+    xyz = np.asarray(raw.rgb_xyz_matrix, dtype=np.float64)[:3, :3]
+    if np.any(xyz != 0):
+        # camera <- XYZ <- sRGB, rows normalised so white stays white, inverted
+        cam_rgb = xyz @ _SRGB_TO_XYZ
+        cam_rgb /= cam_rgb.sum(axis=1, keepdims=True)
+        try:
+            return np.linalg.inv(cam_rgb), []
+        except np.linalg.LinAlgError:
+            pass
+    return None, ["no_camera_matrix"]
+
+
+def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int) -> tuple[np.ndarray, ImageMeta]:
+    try:
+        import rawpy
+    except ImportError:  # pragma: no cover - rawpy is a dependency
+        raise ImageReadError(f"{path}: reading raw files needs rawpy (pip install rawpy)") from None
+    try:
+        raw = rawpy.imread(path)
+    except Exception as e:
+        ext = os.path.splitext(path)[1].lower()
+        what = "a raw file LibRaw can read" if ext in RAW_EXTENSIONS else "a JPEG, PNG, TIFF or raw file"
+        raise ImageReadError(f"{path}: not {what} ({type(e).__name__}: {e})") from None
+    with raw:
+        s = raw.sizes
+        _check_pixels(path, s.height, s.width, max_pixels)
+        notes: list[str] = []
+        # Some files declare a white level below their own data (the shared
+        # Nikon NEF: 255 vs 54998): every pixel would clip. Use the data's
+        # maximum as the saturation level instead.
+        data_max = int(raw.raw_image_visible.max())
+        user_sat = None
+        if data_max > raw.white_level > 0:
+            user_sat = data_max
+            notes.append("white_level_below_data")
+        wb = tuple(float(v) for v in raw.camera_whitebalance)
+        if not (wb[0] > 0 and wb[1] > 0 and wb[2] > 0):
+            notes.append("no_as_shot_white_balance")
+        rgb = raw.postprocess(
+            gamma=(1, 1),
+            no_auto_bright=True,
+            output_bps=16,
+            use_camera_wb=True,
+            output_color=rawpy.ColorSpace.raw,
+            half_size=half_size,
+            user_sat=user_sat,
+        )
+        cm, more = _camera_matrix(raw)
+        notes += more
+        orientation = _FLIP_TO_EXIF.get(int(s.flip), 1)
+    img = _core._decode_u16(np.ascontiguousarray(rgb[:, :, :3]), False)
+    if preprocess == "reference":
+        img = _core._reference_raw(img)
+    meta = ImageMeta(
+        path,
+        "raw",
+        os.path.splitext(path)[1].lstrip(".").upper() or "RAW",
+        16,
+        img.shape[0],
+        img.shape[1],
+        orientation,
+        True,
+        preprocess,
+        cm,
+        wb[:3],
+        tuple(notes),
+    )
+    return img, meta
+
+
+def to_srgb(linear: np.ndarray, meta: ImageMeta | None = None) -> np.ndarray:
+    """Linear float HxWx3 -> sRGB-encoded float32 in [0, 1] for display.
+
+    For a raw source the camera matrix (``meta.camera_matrix``) takes the
+    camera colours to linear sRGB first. For data that was never linearised
+    (``meta.linear`` False, ``preprocess="reference"`` on an sRGB file) the
+    values are only clipped.
+    """
+    x = _display_linear(linear, meta)
+    if meta is not None and not meta.linear:
+        return np.clip(np.nan_to_num(x, nan=0.0), 0.0, 1.0).astype(np.float32)
+    return linear_to_srgb(x).astype(np.float32)
+
+
+def _display_linear(linear: np.ndarray, meta: ImageMeta | None) -> np.ndarray:
+    """Apply the camera matrix when the source was raw (float32, clipped to [0, 1])."""
+    x = np.asarray(linear, dtype=np.float32)
+    if meta is not None and meta.camera_matrix is not None:
+        m = np.asarray(meta.camera_matrix, dtype=np.float32)
+        x = np.clip(x @ m.T, 0.0, 1.0)
+    return np.ascontiguousarray(x, dtype=np.float32)
+
+
+def quantize(image: np.ndarray, bits: int, *, encoding: str) -> np.ndarray:
+    """Float image -> uint8/uint16 codes (docs/OUTPUTS.md): ``encoding``
+    "linear" applies the sRGB curve, "srgb" (already encoded) does not."""
+    if encoding not in ("linear", "srgb"):
+        raise ValueError(f"encoding must be 'linear' or 'srgb', not {encoding!r}")
+    return _core._quantize(np.ascontiguousarray(image, dtype=np.float32), bits, encoding == "linear")
+
+
+def _current_umask() -> int:
+    old = os.umask(0)
+    os.umask(old)
+    return old
+
+
+# mkstemp creates files readable by the owner only; outputs get the usual
+# permissions (0666 minus the umask), read once at import.
+_FILE_MODE = 0o666 & ~_current_umask()
+
+
+def atomic_write_bytes(path: str | os.PathLike, write) -> None:
+    """Create ``path`` atomically: ``write(tmp_path)`` fills a temporary
+    file in the same folder, which is then renamed over ``path``. On any
+    failure (full disk, interrupt) the temporary file is removed and
+    ``path`` is untouched."""
+    path = os.fspath(path)
+    folder = os.path.dirname(path) or "."
+    base, ext = os.path.splitext(os.path.basename(path))
+    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.chmod(tmp, _FILE_MODE)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def write_image(
+    path: str | os.PathLike,
+    image: np.ndarray,
+    *,
+    bits: int = 8,
+    encoding: str = "srgb",
+    quality: int = 95,
+) -> str:
+    """Write an image atomically as JPEG, PNG or TIFF (chosen by the extension).
+
+    ``image``: HxWx3 or HxW; float values in [0, 1] are quantised to
+    ``bits`` (8, or 16 for PNG/TIFF) — ``encoding="linear"`` means they are
+    linear and get the sRGB curve, ``"srgb"`` that they are already
+    encoded — while uint8/uint16 arrays are written as they are. The file
+    appears complete or not at all. Returns the path.
+    """
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in IMAGE_EXTENSIONS:
+        raise ValueError(f"{path}: cannot write {ext or 'a file without extension'}; use .jpg, .png or .tif")
+    a = np.asarray(image)
+    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] != 3) or a.size == 0:
+        raise ValueError(f"{path}: cannot write an array of shape {a.shape} (need HxW or HxWx3, non-empty)")
+    if a.dtype.kind == "f":
+        if bits not in (8, 16):
+            raise ValueError(f"bits must be 8 or 16, not {bits}")
+        a = quantize(a, bits, encoding=encoding)
+    elif a.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"{path}: cannot write samples of type {a.dtype} (float, uint8 or uint16)")
+    if ext in (".jpg", ".jpeg") and a.dtype != np.uint8:
+        raise ValueError(f"{path}: JPEG holds 8 bits per sample; use .png or .tif for 16 bits")
+
+    def write(tmp: str) -> None:
+        if ext == ".png":
+            with open(tmp, "wb") as f:
+                f.write(_png_bytes(a))
+        elif ext in (".tif", ".tiff"):
+            import tifffile
+
+            tifffile.imwrite(tmp, a, photometric="rgb" if a.ndim == 3 else "minisblack", compression="zlib")
+        else:
+            import imageio.v3 as iio
+
+            iio.imwrite(tmp, a, extension=ext, quality=int(quality))
+
+    try:
+        atomic_write_bytes(path, write)
+    except OSError as e:
+        raise OSError(e.errno, f"cannot write {path}: {e.strerror or e}") from None
+    return path
+
+
+def _png_bytes(a: np.ndarray) -> bytes:
+    """Encode uint8/uint16 HxW or HxWx3 as PNG (filter Sub on every row)."""
+    import struct
+    import zlib
+
+    h, w = a.shape[:2]
+    chans = 1 if a.ndim == 2 else 3
+    depth = 8 if a.dtype == np.uint8 else 16
+    rows = np.ascontiguousarray(a.astype(">u2") if depth == 16 else a).view(np.uint8).reshape(h, -1)
+    bpp = chans * depth // 8
+    filtered = rows.copy()
+    filtered[:, bpp:] -= rows[:, :-bpp]  # uint8 wraps: PNG filter type 1 (Sub)
+    raw = np.empty((h, rows.shape[1] + 1), np.uint8)
+    raw[:, 0] = 1
+    raw[:, 1:] = filtered
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+
+    color = 0 if chans == 1 else 2
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, depth, color, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6))
+        + chunk(b"IEND", b"")
+    )
+
+
+def colorize_transmission(t: np.ndarray) -> np.ndarray:
+    """A transmission map (HxW in [0, 1]) -> uint8 HxWx3 through the
+    viridis-like map of docs/OUTPUTS.md (dark purple = far, yellow = near)."""
+    return _core._colormap(np.ascontiguousarray(t, dtype=np.float32))

@@ -1,0 +1,287 @@
+"""The ``uwhl`` command end to end, through a real subprocess: outputs exist
+and decode, the sidecar is complete, bad files fail alone with one clear
+line, interrupted runs resume, and the help is complete."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from datapaths import IMAGES_DIR, RAW_DIR
+
+import uwhl_rs
+from uwhl_rs import io, synth
+
+SIDECAR_KEYS = {
+    "input", "outputs", "uwhl_version", "implementation", "source", "water_type", "scores",
+    "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags", "guided_radius",
+    "beta_ratios", "parameters", "seconds",
+}
+
+
+def _env() -> dict:
+    """The environment of the tests' own interpreter: the package the tests
+    import (installed, or the source tree when it holds a built extension)."""
+    env = dict(os.environ)
+    pkg = os.path.dirname(os.path.dirname(os.path.abspath(uwhl_rs.__file__)))
+    env["PYTHONPATH"] = os.pathsep.join(p for p in [pkg, env.get("PYTHONPATH", "")] if p)
+    return env
+
+
+def uwhl(*args, timeout=600) -> subprocess.CompletedProcess:
+    """Run the command as users do (``python -m uwhl_rs`` runs the console script's code)."""
+    return subprocess.run([sys.executable, "-m", "uwhl_rs", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, env=_env())
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    """Three small rendered underwater scenes saved as 8-bit sRGB files."""
+    d = tmp_path_factory.mktemp("scenes")
+    for k, wt in enumerate(["II", "3C", "7C"]):
+        img, _ = synth.demo_input(96, 128, water_type=wt, seed=k)
+        io.write_image(d / f"scene_{wt}.png", img, encoding="linear")
+    return d
+
+
+def _check_outputs(out, name, fmt="jpg"):
+    ext = {"jpg": ".jpg", "tiff": ".tif", "png": ".png"}[fmt]
+    side = json.loads((out / f"{name}.json").read_text())
+    assert SIDECAR_KEYS <= set(side), SIDECAR_KEYS - set(side)
+    assert side["water_type"] in side["scores"] and len(side["scores"]) == 10
+    assert set(side["excluded"]) <= set(side["scores"])
+    assert all(0 < v <= 1 for v in side["veiling_light"])
+    assert side["implementation"] == "python" and side["uwhl_version"] == uwhl_rs.__version__
+    assert {"preprocess", "format", "guided_eps", "sphere_points", "max_side"} <= set(side["parameters"])
+    assert side["seconds"]["total"] >= side["seconds"]["restore"] > 0
+    img, meta = io.read_image(out / f"{name}{ext}")
+    h, w = side["source"]["processed_height"], side["source"]["processed_width"]
+    assert img.shape == (h, w, 3)
+    t16 = io._core._decode_png((out / f"{name}_t.png").read_bytes(), 10**9)
+    assert t16.dtype == np.uint16 and t16.shape == (h, w, 3)
+    tc, _ = io.read_image(out / f"{name}_t_color.png")
+    assert tc.shape == (h, w, 3)
+    for role, fname in side["outputs"].items():
+        assert (out / fname).is_file(), role
+    return side
+
+
+def test_restore_writes_every_output_and_a_complete_sidecar(scenes, tmp_path):
+    r = uwhl("restore", scenes, "-o", tmp_path)
+    assert r.returncode == 0, r.stderr
+    for wt in ["II", "3C", "7C"]:
+        side = _check_outputs(tmp_path, f"scene_{wt}")
+        assert side["source"]["kind"] == "srgb" and side["source"]["bits"] == 8
+    assert "3 done, 0 skipped, 0 failed" in r.stdout
+    assert not [f for f in os.listdir(tmp_path) if f.startswith(".")]  # no temporaries
+
+
+def test_outputs_equal_the_python_api(scenes, tmp_path):
+    """The command's files hold exactly what restore() returns."""
+    r = uwhl("restore", scenes / "scene_3C.png", "-o", tmp_path, "--format", "tiff")
+    assert r.returncode == 0, r.stderr
+    img, _ = io.read_image(scenes / "scene_3C.png")
+    res = uwhl_rs.restore(img)
+    side = json.loads((tmp_path / "scene_3C.json").read_text())
+    assert side["water_type"] == res.water_type
+    assert side["scores"] == pytest.approx(res.scores, rel=1e-12)
+    import tifffile
+
+    tif = tifffile.imread(tmp_path / "scene_3C.tif")
+    assert tif.dtype == np.uint16
+    # 16-bit sRGB codes of the restored image: floor(srgb(v) * 65535 + 0.5)
+    want = np.floor(io.linear_to_srgb(res.image) * 65535 + 0.5)
+    assert np.array_equal(tif, want)
+    t16 = io._core._decode_png((tmp_path / "scene_3C_t.png").read_bytes(), 10**9)[..., 0]
+    assert np.array_equal(t16, np.floor(np.clip(res.transmission, 0, 1).astype(np.float64) * 65535 + 0.5))
+
+
+def test_bad_files_fail_alone_with_one_clear_line(scenes, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    good = (scenes / "scene_II.png").read_bytes()
+    (src / "a_good.png").write_bytes(good)
+    img = (np.random.default_rng(0).random((80, 80, 3)) * 255).astype(np.uint8)
+    io.write_image(src / "b_full.jpg", img)
+    data = (src / "b_full.jpg").read_bytes()
+    (src / "b_full.jpg").unlink()
+    (src / "c_truncated.jpg").write_bytes(data[: len(data) // 2])
+    (src / "d_random.NEF").write_bytes(np.random.default_rng(1).bytes(4096))
+    (src / "e_good.png").write_bytes(good)
+    out = tmp_path / "out"
+    r = uwhl("restore", src, "-o", out)
+    assert r.returncode == 1
+    lines = [ln for ln in r.stderr.splitlines() if "FAILED" in ln]
+    assert len(lines) == 2, r.stderr
+    assert any("c_truncated.jpg" in ln and "truncated" in ln.lower() for ln in lines)
+    assert any("d_random.NEF" in ln and "LibRaw" in ln for ln in lines)
+    assert "2 done, 0 skipped, 2 failed" in r.stdout
+    names = sorted(os.listdir(out))
+    assert not [n for n in names if n.startswith(("c_truncated", "d_random", "."))], names  # nothing partial
+    assert {"a_good.json", "e_good.json"} <= set(names)
+
+
+def test_failure_while_writing_leaves_no_partial_outputs(scenes, tmp_path):
+    # the output folder holds a directory where the sidecar should go: the
+    # last write fails, and the files already written for the input are removed
+    (tmp_path / "scene_II.json").mkdir()
+    r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path, "--overwrite")
+    assert r.returncode == 1 and "scene_II.png: FAILED" in r.stderr
+    assert sorted(os.listdir(tmp_path)) == ["scene_II.json"]
+
+
+def test_an_interrupted_run_resumes_without_redoing_finished_files(tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    for k in range(6):
+        img, _ = synth.demo_input(240, 320, water_type="3C", seed=k)
+        io.write_image(src / f"f{k}.png", img, encoding="linear")
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "--threads", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
+    deadline = time.time() + 300
+    while time.time() < deadline and not (out.is_dir() and any(f.endswith(".json") for f in os.listdir(out))):
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=300)
+    done = sorted(f for f in os.listdir(out) if f.endswith(".json"))
+    if proc.returncode == 0:
+        pytest.skip("the run finished before it could be interrupted")
+    assert proc.returncode == 130 and "run the same command again to resume" in err
+    assert 1 <= len(done) < 6
+    assert not [f for f in os.listdir(out) if f.startswith(".")]  # no temporaries
+    stamps = {f: os.stat(out / f).st_mtime_ns for f in done}
+    r = uwhl("restore", src, "-o", out, "--threads", "1")
+    assert r.returncode == 0, r.stderr
+    assert f"{6 - len(done)} done, {len(done)} skipped, 0 failed" in r.stdout
+    assert {f: os.stat(out / f).st_mtime_ns for f in done} == stamps  # untouched
+    assert len([f for f in os.listdir(out) if f.endswith(".json")]) == 6
+    r = uwhl("restore", src / "f0.png", "-o", out, "--overwrite")
+    assert "1 done, 0 skipped" in r.stdout
+
+
+def test_options_reach_restore(scenes, tmp_path):
+    mask = np.ones((96, 128), np.uint8) * 255
+    mask[60:80, 10:40] = 0  # a "chart" to ignore
+    io.write_image(tmp_path / "mask.png", mask)
+    r = uwhl("restore", scenes / "scene_3C.png", "-o", tmp_path / "o", "--water-type", "II,3C", "--water-type", "x:1.2:1.1",
+             "--veiling-light", "0.05,0.3,0.4", "--mask", tmp_path / "mask.png", "--guided-radius", "9",
+             "--guided-eps", "0.01", "--sphere-points", "300", "--format", "png", "--bits", "16",
+             "--max-side", "64", "--contact-sheet", "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    side = json.loads((tmp_path / "o" / "scene_3C.json").read_text())
+    assert list(side["scores"]) == ["II", "3C", "x"]
+    assert side["veiling_light"] == pytest.approx([0.05, 0.3, 0.4], abs=1e-7)
+    assert side["guided_radius"] == 9
+    p = side["parameters"]
+    assert p["guided_eps"] == 0.01 and p["sphere_points"] == 300 and p["max_side"] == 64 and p["bits"] == 16
+    assert p["mask"].endswith("mask.png")
+    # 128 wide, max side 64: blocks of 2
+    assert (side["source"]["processed_height"], side["source"]["processed_width"]) == (48, 64)
+    assert (side["source"]["height"], side["source"]["width"]) == (96, 128)
+    img, meta = io.read_image(tmp_path / "o" / "scene_3C.png")
+    assert meta.bits == 16 and img.shape == (48, 64, 3)
+    sheet, _ = io.read_image(tmp_path / "o" / "scene_3C_sheet.png")
+    assert sheet.shape[1] > 4 * 64  # four columns of cells
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--water-type", "XX"], "unknown"),
+        (["--veiling-light", "0.1,0.2"], "R,G,B"),
+        (["--veiling-light", "0,0.2,0.3"], "(0, 1]"),
+        (["--max-side", "0"], "at least 1"),
+        (["--format", "bmp"], "invalid choice"),
+        (["--bits", "16"], "--bits 16 needs"),
+        (["--mask", "/nonexistent/m.png"], "no such file"),
+        (["--max-memory", "lots"], "not a size"),
+    ],
+)
+def test_bad_arguments_exit_2_with_a_message(scenes, tmp_path, args, needle):
+    r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path, *args)
+    assert r.returncode == 2 and needle in r.stderr, r.stderr
+    assert not any(tmp_path.iterdir())
+
+
+def test_memory_budget_and_missing_inputs_are_reported(scenes, tmp_path):
+    r = uwhl("restore", scenes / "scene_II.png", tmp_path / "nope.jpg", str(tmp_path / "*.tif"), "-o", tmp_path / "o",
+             "--max-memory", "1M")
+    assert r.returncode == 1
+    assert "nope.jpg: no such file" in r.stderr and "matches no image file" in r.stderr
+    assert "over the memory budget" in r.stderr
+
+
+def test_glob_and_name_collisions(scenes, tmp_path):
+    src = tmp_path / "in"
+    (src / "sub").mkdir(parents=True)
+    img, _ = synth.demo_input(64, 80, water_type="II", seed=3)
+    io.write_image(src / "x.png", img, encoding="linear")
+    io.write_image(src / "x.jpg", img, encoding="linear")
+    io.write_image(src / "sub" / "x.png", img, encoding="linear")
+    r = uwhl("restore", str(src / "*.*"), src / "sub", "-o", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    names = set(os.listdir(tmp_path / "o"))
+    # the folder argument's own files land in the root too: three x's
+    assert {"x_png.json", "x_jpg.json", "x_png_2.json"} <= names
+    r = uwhl("restore", src, "-o", tmp_path / "o2")
+    assert (tmp_path / "o2" / "sub" / "x.json").is_file()  # folder inputs mirror sub-folders
+
+
+def test_help_and_version():
+    r = uwhl("--help")
+    assert r.returncode == 0 and "restore" in r.stdout and "demo" in r.stdout
+    r = uwhl("restore", "--help")
+    assert r.returncode == 0
+    for opt in ["--water-type", "--veiling-light", "--mask", "--water-mask", "--guided-radius", "--guided-eps",
+                "--sphere-points", "--max-side", "--jobs", "--overwrite", "--contact-sheet", "--format", "--threads",
+                "--max-memory", "--preprocess", "--half-size", "exit status"]:
+        assert opt in r.stdout, opt
+    assert uwhl("demo", "--help").returncode == 0
+    r = uwhl("--version")
+    assert r.returncode == 0 and uwhl_rs.__version__ in r.stdout
+
+
+def test_demo_reports_true_and_estimated_type(tmp_path):
+    r = uwhl("demo", "-o", tmp_path, "--size", "120x160")
+    assert r.returncode == 0, r.stderr
+    assert "true water type:      III" in r.stdout and "estimated water type:" in r.stdout
+    for f in ["input.png", "restored.png", "transmission.png", "clean_truth.png"]:
+        img, _ = io.read_image(tmp_path / f)
+        assert img.shape == (120, 160, 3)
+
+
+# --------------------------------------------------- the shared real data
+
+
+@pytest.mark.skipif(not RAW_DIR.is_dir(), reason=f"{RAW_DIR} absent")
+def test_shared_raw_files_end_to_end(tmp_path):
+    r = uwhl("restore", RAW_DIR, "-o", tmp_path, "--max-side", "600", "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    for f in sorted(RAW_DIR.iterdir()):
+        name = f.stem
+        side = _check_outputs(tmp_path, name)
+        src = side["source"]
+        assert src["kind"] == "raw" and src["orientation"] == 1
+        img, meta = io.read_image(f)
+        assert (src["height"], src["width"]) == img.shape[:2]
+        assert max(src["processed_height"], src["processed_width"]) <= 600
+
+
+@pytest.mark.skipif(not IMAGES_DIR.is_dir(), reason=f"{IMAGES_DIR} absent")
+def test_shared_images_end_to_end(tmp_path):
+    r = uwhl("restore", IMAGES_DIR, "-o", tmp_path, "--max-side", "384", "--jobs", "2")
+    assert r.returncode == 0, r.stderr
+    inputs = sorted(p for p in IMAGES_DIR.iterdir() if p.suffix.lower() in (".jpg", ".png"))
+    assert len(inputs) >= 20
+    for p in inputs:
+        side = _check_outputs(tmp_path, p.stem)
+        assert side["source"]["kind"] == "srgb"
+    assert f"{len(inputs)} done, 0 skipped, 0 failed" in r.stdout
