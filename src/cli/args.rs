@@ -57,8 +57,20 @@ impl Preprocess {
     }
 }
 
-/// Default `--max-pixels`: 200 megapixels.
-pub const DEFAULT_MAX_PIXELS: u64 = 200_000_000;
+/// Default `--max-pixels`: 300 megapixels (as the Python command).
+pub const DEFAULT_MAX_PIXELS: u64 = 300_000_000;
+
+/// The smallest `--max-side` (the method needs 4x4 pixels).
+pub const MIN_MAX_SIDE: usize = 4;
+
+/// One `--water-type` entry: a Jerlov name or a custom `NAME:BETA_BR:BETA_BG`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaterChoice {
+    /// the type
+    pub water_type: WaterType,
+    /// given as `NAME:BETA_BR:BETA_BG` (echoed as `[name, br, bg]` in the sidecar)
+    pub custom: bool,
+}
 
 /// Every option of the command, checked.
 #[derive(Debug, Clone)]
@@ -67,12 +79,14 @@ pub struct Options {
     pub inputs: Vec<PathBuf>,
     /// `-o DIR`
     pub outdir: PathBuf,
-    /// `--water-type` names in order (None = all ten)
-    pub water_types: Option<Vec<String>>,
+    /// `--water-type` entries in order (None = all ten)
+    pub water_types: Option<Vec<WaterChoice>>,
     /// `--veiling-light R,G,B`
     pub veiling_light: Option<[f64; 3]>,
     /// `--mask PATH`
     pub mask: Option<PathBuf>,
+    /// `--water-mask PATH`: a given water region (nonzero = water)
+    pub water_mask: Option<PathBuf>,
     /// `--guided-radius`
     pub guided_radius: Option<usize>,
     /// `--guided-eps`
@@ -87,8 +101,10 @@ pub struct Options {
     pub linear: bool,
     /// `--format`
     pub format: Format,
-    /// `--bits` (PNG only; JPEG is 8-bit and TIFF 16-bit whatever is given)
-    pub bits: u8,
+    /// `--bits` as given (None: the format's default, see [`Options::bits`])
+    pub bits: Option<u8>,
+    /// `--quality` of JPEG outputs, 1..=100
+    pub quality: u8,
     /// `--overwrite`: process inputs whose sidecar exists
     pub overwrite: bool,
     /// `--threads` (None = all cores)
@@ -115,6 +131,7 @@ impl Default for Options {
             water_types: None,
             veiling_light: None,
             mask: None,
+            water_mask: None,
             guided_radius: None,
             guided_eps: crate::pipeline::DEFAULT_EPS,
             sphere_points: crate::pipeline::DEFAULT_SPHERE_POINTS,
@@ -122,7 +139,8 @@ impl Default for Options {
             preprocess: Preprocess::None,
             linear: false,
             format: Format::Jpg,
-            bits: 8,
+            bits: None,
+            quality: 95,
             overwrite: false,
             threads: None,
             max_memory: crate::pipeline::DEFAULT_MAX_MEMORY,
@@ -132,6 +150,17 @@ impl Default for Options {
             reuse_estimates: None,
             quiet: false,
         }
+    }
+}
+
+impl Options {
+    /// Bits per sample of the restored image: `--bits`, else 8 for JPEG and
+    /// PNG, 16 for TIFF.
+    pub fn bits(&self) -> u8 {
+        self.bits.unwrap_or(match self.format {
+            Format::Tiff => 16,
+            Format::Jpg | Format::Png => 8,
+        })
     }
 }
 
@@ -160,21 +189,26 @@ Inputs are sRGB (decoded to linear) unless --linear.
 
 Options:
   -o, --output DIR         output folder (created if missing)
-      --water-type NAMES   candidate Jerlov types, repeatable or comma list (default: all ten)
-      --veiling-light R,G,B  given veiling light A, each in (0, 1]
-      --mask PATH          PNG, nonzero = use the pixel for estimation (same size as the inputs)
+      --water-type TYPES   candidate water types: Jerlov names (I IA IB II III 1C 3C 5C 7C 9C)
+                           or NAME:BETA_BR:BETA_BG; repeatable or comma list (default: all ten)
+      --veiling-light R,G,B  given veiling light A (linear), each in (0, 1]
+      --mask PATH          image of the input's size: nonzero = use the pixel for estimation
+      --water-mask PATH    image of the input's size: nonzero = water region (replaces detection)
       --guided-radius N    guided-filter radius (default round(min(H, W) / 4))
       --guided-eps X       guided-filter eps (default 0.001)
       --sphere-points N    haze-line clusters (default 500)
-      --max-side N         block-average the input so its longer side is at most N
+      --max-side N         block-average the input so its longer side is at most N (N >= 4);
+                           a mask block is used if all its pixels are, a water-mask block is
+                           water if at least half its pixels are
       --preprocess MODE    none (default) | reference (SPEC 2: sRGB kept, pulled stretch)
-      --linear             the input values are already linear
+      --linear             the input values are already linear (float TIFFs always are)
       --format FMT         jpg (default) | png | tiff
-      --bits 8|16          PNG bit depth (default 8)
+      --bits 8|16          png/tiff bits per sample (default: png 8, tiff 16; jpg is 8)
+      --quality Q          JPEG quality 1-100 (default 95)
       --overwrite          process inputs whose sidecar exists (default: skip them)
       --threads N          worker threads (default: all cores); results do not depend on N
       --max-memory BYTES   memory budget, checked before decoding (suffixes K, M, G; default 16G)
-      --max-pixels N       largest accepted input in pixels (default 200000000)
+      --max-pixels N       largest accepted input in pixels (default 300000000)
       --json-errors        report each error as one JSON object on stderr
       --stream             stream mode: one JSON line per frame on stdout, never stops on a bad frame
       --reuse-estimates N  stream mode: estimate water type and veiling light every N frames,
@@ -232,7 +266,10 @@ pub fn parse_bytes(s: &str) -> Option<u64> {
 }
 
 fn triple(s: &str, opt: &str) -> Result<[f64; 3], CliError> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let parts: Vec<&str> = s
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|p| !p.is_empty())
+        .collect();
     let bad = || CliError::usage(format!("{opt}: {s:?} is not three numbers R,G,B"));
     match parts.as_slice() {
         [r, g, b] => {
@@ -249,6 +286,31 @@ fn triple(s: &str, opt: &str) -> Result<[f64; 3], CliError> {
         }
         _ => Err(bad()),
     }
+}
+
+/// One `--water-type` item: a Jerlov name, or `NAME:BETA_BR:BETA_BG`.
+fn water_choice(item: &str) -> Result<WaterChoice, CliError> {
+    let bad = |e: crate::Error| CliError::usage(format!("--water-type {item:?}: {e}"));
+    if item.contains(':') {
+        let parts: Vec<&str> = item.split(':').map(str::trim).collect();
+        let ratios = match parts.as_slice() {
+            [name, br, bg] => br.parse::<f64>().ok().zip(bg.parse::<f64>().ok()).map(|r| (*name, r)),
+            _ => None,
+        };
+        let (name, (br, bg)) = ratios.ok_or_else(|| {
+            CliError::usage(format!(
+                "--water-type {item:?}: a custom type is NAME:BETA_BR:BETA_BG"
+            ))
+        })?;
+        return Ok(WaterChoice {
+            water_type: WaterType::new(name, br, bg).map_err(bad)?,
+            custom: true,
+        });
+    }
+    Ok(WaterChoice {
+        water_type: WaterType::by_name(item).map_err(bad)?,
+        custom: false,
+    })
 }
 
 /// Parses the command line (without the program name).
@@ -270,14 +332,15 @@ where
             Long("water-type") => {
                 let v = text(p.value().map_err(lex)?, "--water-type")?;
                 let list = o.water_types.get_or_insert_with(Vec::new);
-                for name in v.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-                    WaterType::by_name(name).map_err(|e| CliError::usage(e.to_string()))?;
-                    if list.iter().any(|n| n == name) {
+                for item in v.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+                    let choice = water_choice(item)?;
+                    if list.iter().any(|c| c.water_type.name == choice.water_type.name) {
                         return Err(CliError::usage(format!(
-                            "--water-type: {name:?} is listed twice"
+                            "--water-type: {:?} is listed twice",
+                            choice.water_type.name
                         )));
                     }
-                    list.push(name.to_string());
+                    list.push(choice);
                 }
                 if list.is_empty() {
                     return Err(CliError::usage("--water-type: no type named"));
@@ -288,6 +351,7 @@ where
                 o.veiling_light = Some(triple(&v, "--veiling-light")?);
             }
             Long("mask") => o.mask = Some(p.value().map_err(lex)?.into()),
+            Long("water-mask") => o.water_mask = Some(p.value().map_err(lex)?.into()),
             Long("guided-radius") => {
                 o.guided_radius = Some(number(p.value().map_err(lex)?, "--guided-radius", 0)?)
             }
@@ -305,7 +369,9 @@ where
             Long("sphere-points") => {
                 o.sphere_points = number(p.value().map_err(lex)?, "--sphere-points", 1)?
             }
-            Long("max-side") => o.max_side = Some(number(p.value().map_err(lex)?, "--max-side", 1)?),
+            Long("max-side") => {
+                o.max_side = Some(number(p.value().map_err(lex)?, "--max-side", MIN_MAX_SIDE)?)
+            }
             Long("preprocess") => {
                 o.preprocess = match text(p.value().map_err(lex)?, "--preprocess")?.as_str() {
                     "none" => Preprocess::None,
@@ -335,9 +401,16 @@ where
             }
             Long("bits") => {
                 o.bits = match number::<u8>(p.value().map_err(lex)?, "--bits", 0)? {
-                    b @ (8 | 16) => b,
+                    b @ (8 | 16) => Some(b),
                     b => return Err(CliError::usage(format!("--bits: {b} is not 8 or 16"))),
                 }
+            }
+            Long("quality") => {
+                let q = number::<u8>(p.value().map_err(lex)?, "--quality", 1)?;
+                if q > 100 {
+                    return Err(CliError::usage(format!("--quality: {q} is not in 1..100")));
+                }
+                o.quality = q;
             }
             Long("overwrite") => o.overwrite = true,
             Long("threads") => {
@@ -378,6 +451,11 @@ where
     if o.reuse_estimates.is_some() && !o.stream {
         return Err(CliError::usage("--reuse-estimates needs --stream"));
     }
+    if o.format == Format::Jpg && o.bits == Some(16) {
+        return Err(CliError::usage(
+            "--bits 16 needs --format png or tiff (JPEG holds 8 bits)",
+        ));
+    }
     if o.linear && o.preprocess == Preprocess::Reference {
         return Err(CliError::usage(
             "--preprocess reference is the SPEC 2 treatment of sRGB inputs; it cannot be used with --linear",
@@ -401,7 +479,8 @@ mod tests {
     fn parses_every_option() {
         let o = run(&[
             "a.png", "-o", "out", "--water-type", "II,III", "--water-type", "5C",
-            "--veiling-light", "0.1,0.2,0.3", "--mask", "m.png", "--guided-radius", "7",
+            "--veiling-light", "0.1 0.2,0.3", "--mask", "m.png", "--guided-radius", "7",
+            "--water-type", "mine:0.5:1.1", "--water-mask", "w.png", "--quality", "90",
             "--guided-eps", "0.01", "--sphere-points", "100", "--max-side", "512",
             "--preprocess", "reference", "--format", "tiff", "--bits", "16", "--overwrite",
             "--threads", "2", "--max-memory", "512M", "--max-pixels", "1000", "--json-errors",
@@ -409,7 +488,10 @@ mod tests {
         ])
         .unwrap();
         assert_eq!(o.inputs, vec![PathBuf::from("a.png"), PathBuf::from("b.jpg")]);
-        assert_eq!(o.water_types.unwrap(), vec!["II", "III", "5C"]);
+        let names: Vec<String> = o.water_types.iter().flatten().map(|c| c.water_type.name.clone()).collect();
+        assert_eq!(names, vec!["II", "III", "5C", "mine"]);
+        assert_eq!(o.water_types.as_ref().map(|v| v[3].custom), Some(true));
+        assert_eq!((o.bits(), o.quality), (16, 90));
         assert_eq!(o.veiling_light, Some([0.1, 0.2, 0.3]));
         assert_eq!(o.guided_radius, Some(7));
         assert_eq!(o.max_side, Some(512));
@@ -432,7 +514,11 @@ mod tests {
             &["a", "-o", "o", "--bits", "12"],
             &["a", "-o", "o", "--threads", "0"],
             &["a", "-o", "o", "--max-memory", "lots"],
-            &["a", "-o", "o", "--max-side", "0"],
+            &["a", "-o", "o", "--max-side", "3"],
+            &["a", "-o", "o", "--bits", "16"],
+            &["a", "-o", "o", "--quality", "101"],
+            &["a", "-o", "o", "--water-type", "x:1"],
+            &["a", "-o", "o", "--water-type", "x:0:1"],
             &["a", "-o", "o", "--format", "gif"],
             &["a", "-o", "o", "--frobnicate"],
             &["a", "-o", "o", "--reuse-estimates", "3"],

@@ -7,12 +7,13 @@
 //! | phase | bytes |
 //! |---|---|
 //! | decode | `b n` decoded + `b n` rotated copy (EXIF orientation) or RGB conversion + `12 n` f32 (while the RGB buffer is alive) |
-//! | downscale / preprocess | `12 n` + `12 m` (downscale), or `24 m + 4 m` (reference stretch) |
-//! | restore | `12 m` input + `m` mask + `pipeline::memory_estimate(h, w, k)` |
+//! | reference stretch | `12 n` in + `12 n` out + `4 n` one channel's percentile copy |
+//! | downscale | `12 n` + `12 m` |
+//! | restore | `12 m` input + `pipeline::memory_estimate(h, w, k)` |
 //! | write | `12 m` input + the restoration (`29 m`) + one encoded output (`6 m`) |
 //!
-//! plus, with `--mask`, the mask (`n` bools, and its decoded image while it is
-//! read, which happens once per run). The plan is the largest phase.
+//! plus `n` bytes per mask given (`--mask`, `--water-mask`; read once per run)
+//! and `2 m` for their downscaled copies. The plan is the largest phase.
 
 use crate::pipeline::memory_estimate;
 
@@ -33,8 +34,8 @@ pub struct Plan {
     pub factor: usize,
     /// SPEC 2 reference stretch
     pub reference: bool,
-    /// a mask is given
-    pub mask: bool,
+    /// masks given (0, 1 or 2)
+    pub masks: u8,
     /// water types evaluated at once (threads, at most the number of types)
     pub in_flight: usize,
 }
@@ -64,10 +65,11 @@ impl Plan {
         } else {
             0
         };
-        let reference = if self.reference { mul(28, m) } else { 0 };
-        let restore = mul(13, m).saturating_add(memory_estimate(h, w, self.in_flight));
+        let reference = if self.reference { mul(28, n) } else { 0 };
+        let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.in_flight));
         let write = mul(12 + 29 + 6, m);
-        let mask = if self.mask { n } else { 0 };
+        let masks = u64::from(self.masks);
+        let mask = mul(masks, n).saturating_add(mul(masks, m));
         [decode, scale, reference, restore, write]
             .into_iter()
             .max()
@@ -89,7 +91,7 @@ mod tests {
             oriented: false,
             factor: 1,
             reference: false,
-            mask: false,
+            masks: 0,
             in_flight: 2,
         }
     }
@@ -97,7 +99,7 @@ mod tests {
     #[test]
     fn restore_dominates_and_downscaling_shrinks_it() {
         let p = plan(1000, 1000);
-        assert_eq!(p.bytes(), 13_000_000 + memory_estimate(1000, 1000, 2));
+        assert_eq!(p.bytes(), 12_000_000 + memory_estimate(1000, 1000, 2));
         let small = Plan { factor: 4, ..p };
         assert_eq!(small.processed(), (250, 250));
         // the decode phase now dominates: 3 n + 12 n

@@ -4,8 +4,10 @@
 //! allocation limit set to the budget.
 //!
 //! Channels: gray is replicated to R = G = B, alpha is dropped (not
-//! composited), floating-point samples are refused. EXIF orientation is
-//! applied (as Pillow's `exif_transpose` does on the Python side).
+//! composited). 8- and 16-bit samples are sRGB codes (decoded through the
+//! inverse curve unless told otherwise); 32-bit float samples (TIFF) are
+//! taken as linear values, as the Python reader does. EXIF orientation is
+//! applied to inputs (not to masks), as on the Python side.
 
 use super::{CliError, Kind};
 use crate::color::{decode_u16, decode_u8};
@@ -47,8 +49,10 @@ pub struct Decoded {
     pub width: usize,
     /// "PNG", "JPEG" or "TIFF"
     pub format: &'static str,
-    /// bits per sample of the file: 8 or 16
+    /// bits per sample of the file: 8, 16 or 32 (float)
     pub bits: u8,
+    /// float samples, taken as linear whatever was asked
+    pub is_float: bool,
     /// the EXIF orientation that was applied (1 = none)
     pub orientation: u8,
 }
@@ -67,6 +71,7 @@ fn image_error(e: ImageError) -> CliError {
 fn open<R: BufRead + Seek>(
     reader: R,
     limits: &Limits,
+    orient: bool,
     check: impl FnOnce(&Header) -> Result<(), CliError>,
 ) -> Result<(DynamicImage, &'static str, u8), CliError> {
     let reader = ImageReader::new(reader)
@@ -112,9 +117,13 @@ fn open<R: BufRead + Seek>(
         return Err(CliError::new(Kind::Input, format!("empty image ({w}x{h})")));
     }
     // A damaged EXIF block is not worth refusing the picture for.
-    let orientation = decoder
-        .orientation()
-        .unwrap_or(image::metadata::Orientation::NoTransforms);
+    let orientation = if orient {
+        decoder
+            .orientation()
+            .unwrap_or(image::metadata::Orientation::NoTransforms)
+    } else {
+        image::metadata::Orientation::NoTransforms
+    };
     let code = orientation.to_exif();
     let swap = matches!(code, 5..=8);
     let ct = decoder.color_type();
@@ -123,7 +132,7 @@ fn open<R: BufRead + Seek>(
         height: height as usize,
         width: width as usize,
         bpp: u64::from(ct.bytes_per_pixel()),
-        is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16),
+        is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F),
         oriented: code != 1,
     })?;
     let mut img = DynamicImage::from_decoder(decoder).map_err(image_error)?;
@@ -140,7 +149,7 @@ pub fn decode<R: BufRead + Seek>(
     linearize: bool,
     check: impl FnOnce(&Header) -> Result<(), CliError>,
 ) -> Result<Decoded, CliError> {
-    let (img, format, orientation) = open(reader, limits, check)?;
+    let (img, format, orientation) = open(reader, limits, true, check)?;
     let (height, width) = (img.height() as usize, img.width() as usize);
     let (data, bits) = match img.color() {
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
@@ -149,10 +158,11 @@ pub fn decode<R: BufRead + Seek>(
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 => {
             (decode_u16(img.into_rgb16().as_raw(), linearize), 16)
         }
+        ColorType::Rgb32F | ColorType::Rgba32F => (img.into_rgb32f().into_raw(), 32),
         other => {
             return Err(CliError::new(
                 Kind::Input,
-                format!("unsupported sample type {other:?}: 8- and 16-bit integer images are read"),
+                format!("unsupported sample type {other:?}: 8/16-bit integer and 32-bit float images are read"),
             ))
         }
     };
@@ -162,18 +172,29 @@ pub fn decode<R: BufRead + Seek>(
         width,
         format,
         bits,
+        is_float: bits == 32,
         orientation,
     })
 }
 
-/// Decodes a mask image: a pixel is used (true) when any of its colour
-/// channels is nonzero (alpha is ignored). Returns (mask, height, width).
+/// Per pixel: is any of its first three channels nonzero (gray + alpha
+/// counts both, as `a[..., :3] != 0` does in the Python reader).
+fn nonzero<T: PartialEq + Default>(raw: &[T], channels: usize) -> Vec<bool> {
+    let zero = T::default();
+    raw.chunks_exact(channels.max(1))
+        .map(|p| p.iter().take(3).any(|v| *v != zero))
+        .collect()
+}
+
+/// Decodes a mask image (not oriented): a pixel is true when any of its
+/// first three channels is nonzero (RGBA: alpha ignored; gray + alpha:
+/// either). Returns (mask, height, width).
 pub fn decode_mask<R: BufRead + Seek>(
     reader: R,
     limits: &Limits,
 ) -> Result<(Vec<bool>, usize, usize), CliError> {
     let budget = limits.max_memory;
-    let (img, _, _) = open(reader, limits, |h| {
+    let (img, _, _) = open(reader, limits, false, |h| {
         let n = (h.height as u64).saturating_mul(h.width as u64);
         // decoded + converted (6 bytes per pixel) + the bools
         let need = n.saturating_mul(h.bpp.saturating_mul(2).saturating_add(7));
@@ -186,12 +207,20 @@ pub fn decode_mask<R: BufRead + Seek>(
         Ok(())
     })?;
     let (h, w) = (img.height() as usize, img.width() as usize);
-    let mask = img
-        .into_rgb16()
-        .as_raw()
-        .chunks_exact(3)
-        .map(|p| p.iter().any(|&v| v != 0))
-        .collect();
+    let c = usize::from(img.color().channel_count());
+    let mask = match img {
+        DynamicImage::ImageLuma8(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageLumaA8(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageRgb8(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageRgba8(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageLuma16(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageLumaA16(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageRgb16(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageRgba16(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageRgb32F(b) => nonzero(b.as_raw(), c),
+        DynamicImage::ImageRgba32F(b) => nonzero(b.as_raw(), c),
+        other => nonzero(other.into_rgb16().as_raw(), 3),
+    };
     Ok((mask, h, w))
 }
 
@@ -266,5 +295,11 @@ mod tests {
         let f = png(3, 1, image::ExtendedColorType::Rgb8, &[0, 0, 0, 0, 1, 0, 9, 9, 9]);
         let (m, h, w) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
         assert_eq!((m, h, w), (vec![false, true, true], 1, 3));
+        let f = png(3, 1, image::ExtendedColorType::Rgba8, &[0, 0, 0, 9, 0, 2, 0, 0, 1, 1, 1, 0]);
+        let (m, _, _) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
+        assert_eq!(m, vec![false, true, true]);
+        let f = png(2, 1, image::ExtendedColorType::La8, &[0, 5, 0, 0]);
+        let (m, _, _) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
+        assert_eq!(m, vec![true, false]);
     }
 }

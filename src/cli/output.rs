@@ -106,23 +106,26 @@ where
         .map_err(|e| write_error(path, e))
 }
 
-/// Writes the restored image (interleaved RGB in [0, 1]) as `format`; the
-/// values go through the sRGB curve when `srgb`.
-#[allow(clippy::too_many_arguments)]
-pub fn write_image(
-    tx: &mut Transaction,
-    path: &Path,
-    data: &[f32],
-    h: usize,
-    w: usize,
-    format: Format,
-    bits: u8,
-    srgb: bool,
-) -> Result<(), CliError> {
-    match (format, bits) {
+/// How the restored image is encoded.
+#[derive(Debug, Clone, Copy)]
+pub struct Encoding {
+    /// file format
+    pub format: Format,
+    /// 8 or 16 (JPEG: always 8)
+    pub bits: u8,
+    /// the values are linear: apply the sRGB curve
+    pub srgb: bool,
+    /// JPEG quality
+    pub quality: u8,
+}
+
+/// Writes the restored image (interleaved RGB in [0, 1]).
+pub fn write_image(tx: &mut Transaction, path: &Path, data: &[f32], h: usize, w: usize, enc: Encoding) -> Result<(), CliError> {
+    let srgb = enc.srgb;
+    match (enc.format, enc.bits) {
         (Format::Jpg, _) => {
             let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
-            tx.write(path, |f| encode(path, &img, JpegEncoder::new_with_quality(f, 95)))
+            tx.write(path, |f| encode(path, &img, JpegEncoder::new_with_quality(f, enc.quality)))
         }
         (Format::Png, 16) => {
             let img = buffer::<Rgb<u16>>(w, h, quantize_u16(data, srgb))?;
@@ -132,8 +135,12 @@ pub fn write_image(
             let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
             tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
         }
-        (Format::Tiff, _) => {
+        (Format::Tiff, 16) => {
             let img = buffer::<Rgb<u16>>(w, h, quantize_u16(data, srgb))?;
+            tx.write(path, |f| encode(path, &img, TiffEncoder::new(f)))
+        }
+        (Format::Tiff, _) => {
+            let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
             tx.write(path, |f| encode(path, &img, TiffEncoder::new(f)))
         }
     }

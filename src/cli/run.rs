@@ -4,7 +4,9 @@
 use super::args::{Options, Preprocess};
 use super::budget::Plan;
 use super::decode::{decode, decode_mask, Limits};
-use super::output::{write_bytes, write_image, write_transmission, write_transmission_color, Transaction};
+use super::output::{
+    write_bytes, write_image, write_transmission, write_transmission_color, Encoding, Transaction,
+};
 use super::sidecar::{sidecar, OutputPaths, Seconds, Source};
 use super::{CliError, Kind};
 use crate::color::{max_side_factor, reference_srgb_stretch};
@@ -22,17 +24,25 @@ use std::time::Instant;
 /// Extensions taken when walking a folder (case-insensitive).
 pub const IMAGE_EXTENSIONS: [&str; 5] = ["png", "jpg", "jpeg", "tif", "tiff"];
 
-/// Raw extensions: taken when walking a folder (so that names agree with the
-/// Python command, which decodes them), refused with an input error here.
-pub const RAW_EXTENSIONS: [&str; 18] = [
-    "dng", "nef", "nrw", "cr2", "cr3", "crw", "arw", "srf", "sr2", "orf", "rw2", "raf", "pef",
-    "srw", "rwl", "3fr", "iiq", "x3f",
+/// Raw extensions (those the Python command reads through LibRaw): taken
+/// when walking a folder, so that output names agree with the Python
+/// command, and refused with an input error here.
+pub const RAW_EXTENSIONS: [&str; 46] = [
+    "3fr", "ari", "arw", "bay", "braw", "cap", "cr2", "cr3", "crw", "cs1", "dc2", "dcr", "dcs",
+    "dng", "drf", "eip", "erf", "fff", "gpr", "iiq", "k25", "kdc", "mdc", "mef", "mos", "mrw",
+    "nef", "nrw", "orf", "ori", "pef", "ptx", "pxn", "qtk", "r3d", "raf", "raw", "rdc", "rw2",
+    "rwl", "rwz", "sr2", "srf", "srw", "sti", "x3f",
 ];
 
 fn extension(p: &Path) -> String {
     p.extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default()
+}
+
+fn supported(p: &Path) -> bool {
+    let ext = extension(p);
+    IMAGE_EXTENSIONS.contains(&ext.as_str()) || RAW_EXTENSIONS.contains(&ext.as_str())
 }
 
 /// One input and where its outputs go.
@@ -46,7 +56,7 @@ pub struct Job {
     pub name: String,
 }
 
-fn walk(dir: &Path, rel: &Path, found: &mut Vec<(PathBuf, PathBuf)>) -> Result<(), CliError> {
+fn walk(dir: &Path, rel: &Path, skip: &Path, found: &mut Vec<(PathBuf, PathBuf)>) -> Result<(), CliError> {
     let rd = fs::read_dir(dir)
         .map_err(|e| CliError::new(Kind::Input, format!("cannot list {}: {e}", dir.display())))?;
     let mut entries: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).collect();
@@ -58,66 +68,87 @@ fn walk(dir: &Path, rel: &Path, found: &mut Vec<(PathBuf, PathBuf)>) -> Result<(
         if fname.to_string_lossy().starts_with('.') {
             continue;
         }
-        // symlinked folders are not followed (no cycles); symlinked files are
-        let Ok(meta) = fs::symlink_metadata(&p) else {
-            continue;
-        };
-        if meta.is_dir() {
-            walk(&p, &rel.join(&fname), found)?;
-        } else {
-            let ext = extension(&p);
-            let known = IMAGE_EXTENSIONS.contains(&ext.as_str()) || RAW_EXTENSIONS.contains(&ext.as_str());
-            if known && p.is_file() {
-                found.push((p, rel.to_path_buf()));
+        if p.is_dir() {
+            // the output folder is never searched (nor are symlink cycles followed twice)
+            if fs::canonicalize(&p).is_ok_and(|c| c == skip) {
+                continue;
             }
+            if fs::symlink_metadata(&p).is_ok_and(|m| m.file_type().is_symlink()) {
+                continue;
+            }
+            walk(&p, &rel.join(&fname), skip, found)?;
+        } else if supported(&p) && p.is_file() {
+            found.push((p, rel.to_path_buf()));
         }
     }
     Ok(())
 }
 
-/// The jobs of a batch: files as given, folders walked recursively (sorted,
-/// hidden entries skipped), outputs in `outdir/<path relative to the folder>/`.
-/// Inputs that would share a `NAME` in one folder get `NAME_ext`. Returns the
-/// jobs and the inputs that could not be listed.
+/// The jobs of a batch, named as the Python command names them: files as
+/// given, folders walked recursively (sorted, hidden entries and the output
+/// folder skipped, JPEG/PNG/TIFF and raw extensions taken), outputs in
+/// `outdir/<path relative to the folder>/`. The same file given twice is
+/// processed once; files under `outdir` are never inputs. Inputs that would
+/// share a `NAME` in one folder get `NAME_ext` (lower-case extension), then
+/// `NAME_ext_2`, ... Returns the jobs and the inputs that matched nothing.
 pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path) -> (Vec<Job>, Vec<(PathBuf, CliError)>) {
+    let out_real = fs::canonicalize(outdir).unwrap_or_else(|_| outdir.to_path_buf());
     let mut found: Vec<(PathBuf, PathBuf)> = Vec::new();
     let mut errors = Vec::new();
     for input in inputs {
         if input.is_dir() {
-            if let Err(e) = walk(input, Path::new(""), &mut found) {
-                errors.push((input.clone(), e));
+            let before = found.len();
+            match walk(input, Path::new(""), &out_real, &mut found) {
+                Err(e) => errors.push((input.clone(), e)),
+                Ok(()) if found.len() == before => errors.push((
+                    input.clone(),
+                    CliError::new(Kind::Input, "folder holds no JPEG, PNG, TIFF or raw file"),
+                )),
+                Ok(()) => {}
             }
-        } else {
+        } else if input.exists() {
             found.push((input.clone(), PathBuf::new()));
+        } else {
+            errors.push((input.clone(), CliError::new(Kind::Input, "no such file or folder")));
         }
     }
     let mut seen = std::collections::HashSet::new();
-    found.retain(|(p, _)| seen.insert(p.clone()));
+    found.retain(|(p, _)| {
+        let real = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        !real.starts_with(&out_real) && seen.insert(real)
+    });
     let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let mut count: BTreeMap<(PathBuf, String), usize> = BTreeMap::new();
     for (p, rel) in &found {
-        *count.entry((outdir.join(rel), stem(p))).or_insert(0) += 1;
+        *count.entry((rel.clone(), stem(p))).or_insert(0) += 1;
     }
+    let mut taken = std::collections::HashSet::new();
     let jobs = found
         .into_iter()
         .map(|(p, rel)| {
-            let dir = outdir.join(&rel);
             let s = stem(&p);
-            let shared = count.get(&(dir.clone(), s.clone())).copied().unwrap_or(0) > 1;
-            let name = match (shared, p.extension()) {
-                (true, Some(e)) => format!("{s}_{}", e.to_string_lossy()),
-                _ => s,
-            };
-            Job { input: p, dir, name }
+            let shared = count.get(&(rel.clone(), s.clone())).copied().unwrap_or(0) > 1;
+            let base = if shared { format!("{s}_{}", extension(&p)) } else { s };
+            let mut name = base.clone();
+            let mut k = 1;
+            while !taken.insert((rel.clone(), name.clone())) {
+                k += 1;
+                name = format!("{base}_{k}");
+            }
+            Job {
+                input: p,
+                dir: outdir.join(&rel),
+                name,
+            }
         })
         .collect();
     (jobs, errors)
 }
 
-/// A decoded `--mask`.
+/// A decoded mask image (`--mask` or `--water-mask`).
 #[derive(Debug, Clone)]
 pub struct Mask {
-    /// true = use the pixel for estimation
+    /// true where the image is nonzero
     pub data: Vec<bool>,
     /// rows
     pub height: usize,
@@ -125,19 +156,37 @@ pub struct Mask {
     pub width: usize,
 }
 
-/// Reads `--mask`; an unreadable mask is a usage error (it is an argument).
-pub fn load_mask(path: &Path, opts: &Options) -> Result<Mask, CliError> {
+/// The masks of a run, read once.
+#[derive(Debug, Clone, Default)]
+pub struct Masks {
+    /// `--mask`: true = use the pixel for estimation
+    pub mask: Option<Mask>,
+    /// `--water-mask`: true = water region
+    pub water: Option<Mask>,
+}
+
+/// Reads a mask file; an unreadable mask is a usage error (it is an argument).
+pub fn load_mask(path: &Path, flag: &str, opts: &Options) -> Result<Mask, CliError> {
     let file = File::open(path)
-        .map_err(|e| CliError::usage(format!("--mask {}: {e}", path.display())))?;
+        .map_err(|e| CliError::usage(format!("{flag} {}: {e}", path.display())))?;
     let limits = Limits {
         max_pixels: opts.max_pixels,
         max_memory: opts.max_memory,
     };
     let (data, height, width) = decode_mask(BufReader::new(file), &limits).map_err(|e| {
         let kind = if e.kind == Kind::Budget { Kind::Budget } else { Kind::Usage };
-        CliError::new(kind, format!("--mask {}: {}", path.display(), e.message))
+        CliError::new(kind, format!("{flag} {}: {}", path.display(), e.message))
     })?;
     Ok(Mask { data, height, width })
+}
+
+/// Reads `--mask` and `--water-mask`.
+pub fn load_masks(opts: &Options) -> Result<Masks, CliError> {
+    let read = |p: &Option<PathBuf>, flag: &str| p.as_deref().map(|p| load_mask(p, flag, opts)).transpose();
+    Ok(Masks {
+        mask: read(&opts.mask, "--mask")?,
+        water: read(&opts.water_mask, "--water-mask")?,
+    })
 }
 
 /// The water type and veiling light of a restored frame, for `--reuse-estimates`.
@@ -158,19 +207,64 @@ pub enum Outcome {
     Skipped(PathBuf),
 }
 
-fn water_types(opts: &Options) -> Result<Vec<WaterType>, CliError> {
+fn water_types(opts: &Options) -> Vec<WaterType> {
     match &opts.water_types {
-        None => Ok(jerlov_types()),
-        Some(names) => names
-            .iter()
-            .map(|n| WaterType::by_name(n).map_err(|e| CliError::usage(e.to_string())))
-            .collect(),
+        None => jerlov_types(),
+        Some(list) => list.iter().map(|c| c.water_type.clone()).collect(),
     }
+}
+
+/// A mask checked against the input size and downscaled by `factor`: a
+/// block is true when at least `need` of its pixels are (1.0 = all).
+fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, need: f32) -> Result<Option<Vec<bool>>, CliError> {
+    let Some(m) = m else { return Ok(None) };
+    if (m.height, m.width) != (h, w) {
+        return Err(CliError::usage(format!(
+            "{flag} is {}x{} pixels but the input is {h}x{w}",
+            m.width, m.height
+        )));
+    }
+    if factor <= 1 {
+        return Ok(Some(m.data.clone()));
+    }
+    let plane: Vec<f32> = m.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
+    Ok(Some(downscale(&plane, h, w, 1, factor).0.iter().map(|&v| v >= need).collect()))
+}
+
+/// The memory plan of one input, checked against `--max-memory` from its header.
+fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, in_flight: usize) -> Result<(), CliError> {
+    let plan = Plan {
+        height: h.height,
+        width: h.width,
+        decoded_bpp: h.bpp,
+        decoded_is_rgb: h.is_rgb,
+        oriented: h.oriented,
+        factor: opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n)),
+        reference: opts.preprocess == Preprocess::Reference,
+        masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
+        in_flight,
+    };
+    let need = plan.bytes();
+    if need > opts.max_memory {
+        return Err(CliError::new(
+            Kind::Budget,
+            format!(
+                "{}x{} pixels need about {need} bytes, over --max-memory {} (use --max-side or raise --max-memory)",
+                h.height, h.width, opts.max_memory
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Restores one input and writes its outputs; `reuse` replaces the water
 /// types and the veiling light by a previous frame's.
-pub fn process(job: &Job, opts: &Options, mask: Option<&Mask>, reuse: Option<&Estimates>) -> Result<Outcome, CliError> {
+///
+/// Order (as the Python command): decode (sRGB -> linear unless `--linear`
+/// or `--preprocess reference`; float TIFF as is) -> reference stretch of
+/// SPEC 2 (integer inputs with `--preprocess reference`, whole image, no
+/// mask) -> `--max-side` block average (masks: see `--help`) -> `restore`.
+pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimates>) -> Result<Outcome, CliError> {
     let t0 = Instant::now();
     let sidecar_path = job.dir.join(format!("{}.json", job.name));
     if !opts.overwrite && sidecar_path.exists() {
@@ -184,70 +278,35 @@ pub fn process(job: &Job, opts: &Options, mask: Option<&Mask>, reuse: Option<&Es
     }
     let types = match reuse {
         Some(r) => vec![r.water_type.clone()],
-        None => water_types(opts)?,
+        None => water_types(opts),
     };
     let threads = opts.threads.unwrap_or_else(rayon::current_num_threads);
     let in_flight = threads.min(types.len()).max(1);
     let file = File::open(&job.input)
         .map_err(|e| CliError::new(Kind::Input, format!("cannot open: {e}")))?;
     let reference = opts.preprocess == Preprocess::Reference;
-    let linearize = !opts.linear && !reference;
     let limits = Limits {
         max_pixels: opts.max_pixels,
         max_memory: opts.max_memory,
     };
-    let decoded = decode(BufReader::new(file), &limits, linearize, |h| {
-        let plan = Plan {
-            height: h.height,
-            width: h.width,
-            decoded_bpp: h.bpp,
-            decoded_is_rgb: h.is_rgb,
-            oriented: h.oriented,
-            factor: opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n)),
-            reference,
-            mask: mask.is_some(),
-            in_flight,
-        };
-        let need = plan.bytes();
-        if need > opts.max_memory {
-            return Err(CliError::new(
-                Kind::Budget,
-                format!(
-                    "{}x{} pixels need about {need} bytes, over --max-memory {} (use --max-side or raise --max-memory)",
-                    h.height, h.width, opts.max_memory
-                ),
-            ));
-        }
-        Ok(())
+    let decoded = decode(BufReader::new(file), &limits, !opts.linear && !reference, |h| {
+        check_plan(h, opts, masks, in_flight)
     })?;
     let (h, w) = (decoded.height, decoded.width);
-    if let Some(m) = mask {
-        if (m.height, m.width) != (h, w) {
-            return Err(CliError::usage(format!(
-                "--mask is {}x{} pixels but the input is {h}x{w}",
-                m.height, m.width
-            )));
-        }
-    }
+    // float samples are linear: no reference stretch, sRGB curve on output
+    let linear = !reference || decoded.is_float;
     let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n));
-    let (data, hp, wp) = if factor > 1 {
-        downscale(&decoded.data, h, w, 3, factor)
+    let mask = fit_mask(masks.mask.as_ref(), "--mask", h, w, factor, 1.0)?;
+    let water = fit_mask(masks.water.as_ref(), "--water-mask", h, w, factor, 0.5)?;
+    let data = if linear {
+        decoded.data
     } else {
-        (decoded.data, h, w)
+        reference_srgb_stretch(&decoded.data, None)
     };
-    // A block of the downscaled mask is used only when every pixel in it is.
-    let mask_p: Option<Vec<bool>> = mask.map(|m| {
-        if factor > 1 {
-            let plane: Vec<f32> = m.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
-            downscale(&plane, h, w, 1, factor).0.iter().map(|&v| v >= 1.0).collect()
-        } else {
-            m.data.clone()
-        }
-    });
-    let data = if reference {
-        reference_srgb_stretch(&data, mask_p.as_deref())
+    let (data, hp, wp) = if factor > 1 {
+        downscale(&data, h, w, 3, factor)
     } else {
-        data
+        (data, h, w)
     };
     let t_read = t0.elapsed().as_secs_f64();
 
@@ -264,11 +323,10 @@ pub fn process(job: &Job, opts: &Options, mask: Option<&Mask>, reuse: Option<&Es
         threads: None,
         max_memory: opts.max_memory,
     };
-    let image = ImageRef::new(&data, hp, wp)?;
     let input = Input {
-        image,
-        mask: mask_p.as_deref(),
-        water_mask: None,
+        image: ImageRef::new(&data, hp, wp)?,
+        mask: mask.as_deref(),
+        water_mask: water.as_deref(),
     };
     let t1 = Instant::now();
     let res = restore(&input, &params)?;
@@ -282,16 +340,24 @@ pub fn process(job: &Job, opts: &Options, mask: Option<&Mask>, reuse: Option<&Es
     let t_path = job.dir.join(format!("{}_t.png", job.name));
     let tc_path = job.dir.join(format!("{}_t_color.png", job.name));
     let mut tx = Transaction::new();
-    write_image(&mut tx, &image_path, &res.image, hp, wp, opts.format, opts.bits, !reference)?;
+    let enc = Encoding {
+        format: opts.format,
+        bits: opts.bits(),
+        srgb: linear,
+        quality: opts.quality,
+    };
+    write_image(&mut tx, &image_path, &res.image, hp, wp, enc)?;
     write_transmission(&mut tx, &t_path, &res.transmission, hp, wp)?;
     write_transmission_color(&mut tx, &tc_path, &res.transmission, hp, wp)?;
     let source = Source {
-        kind: if opts.linear { "linear" } else { "srgb" },
+        kind: if decoded.is_float || opts.linear { "linear" } else { "srgb" },
         format: decoded.format,
         bits: decoded.bits,
         height: h,
         width: w,
         orientation: decoded.orientation,
+        linear,
+        preprocess: if linear { Preprocess::None } else { Preprocess::Reference },
         processed_height: hp,
         processed_width: wp,
     };
@@ -352,19 +418,16 @@ pub fn init_threads(threads: Option<usize>) {
     }
 }
 
-fn load_run_mask(opts: &Options, err: &mut dyn Write) -> Result<Option<Mask>, u8> {
-    match &opts.mask {
-        None => Ok(None),
-        Some(p) => load_mask(p, opts).map(Some).map_err(|e| {
-            report(err, opts.json_errors, None, &e);
-            e.kind.exit_code()
-        }),
-    }
+fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
+    load_masks(opts).map_err(|e| {
+        report(err, opts.json_errors, None, &e);
+        e.kind.exit_code()
+    })
 }
 
 /// Batch mode: every input is processed; returns the largest exit code.
 pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
-    let mask = match load_run_mask(opts, err) {
+    let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,
     };
@@ -375,7 +438,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         code = code.max(e.kind.exit_code());
     }
     for job in &jobs {
-        match process(job, opts, mask.as_ref(), None) {
+        match process(job, opts, &masks, None) {
             Ok(Outcome::Done(side, est)) => {
                 if !opts.quiet {
                     let img = side
@@ -413,7 +476,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
 /// the next N - 1 frames. Returns 0 at the end of the input (or the code of
 /// a bad `--mask`).
 pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
-    let mask = match load_run_mask(opts, err) {
+    let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,
     };
@@ -449,7 +512,7 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
                     dir: opts.outdir.clone(),
                 };
                 let reuse = last.as_ref().filter(|_| since < every);
-                match process(&job, opts, mask.as_ref(), reuse) {
+                match process(&job, opts, &masks, reuse) {
                     Ok(o) => Ok((job.input, o, reuse.is_some())),
                     Err(e) => Err((Some(job.input), e)),
                 }

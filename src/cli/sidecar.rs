@@ -2,7 +2,7 @@
 //! Single-precision results (A) are written as the f64 of the same value,
 //! as Python's `float(np.float32(x))` does, so both commands write equal numbers.
 
-use super::args::Options;
+use super::args::{Options, Preprocess};
 use crate::pipeline::Restoration;
 use serde_json::{json, Value};
 use std::path::Path;
@@ -22,13 +22,18 @@ pub struct Source {
     pub width: usize,
     /// EXIF orientation code applied
     pub orientation: u8,
+    /// the restored data is linear light (false only with the reference preprocessing)
+    pub linear: bool,
+    /// the preprocessing applied
+    pub preprocess: Preprocess,
     /// rows restored (after `--max-side`)
     pub processed_height: usize,
     /// columns restored
     pub processed_width: usize,
 }
 
-/// Paths of the three image outputs.
+/// Paths of the three image outputs (the sidecar names them by file name,
+/// relative to itself).
 #[derive(Debug, Clone)]
 pub struct OutputPaths<'a> {
     /// `NAME.jpg|png|tif`
@@ -56,20 +61,44 @@ fn path(p: &Path) -> String {
     p.to_string_lossy().into_owned()
 }
 
-/// The options as given, in the `parameters` object.
+/// The options, in the `parameters` object (keys as the Python command's;
+/// `half_size` is always false here: it concerns raw files).
 pub fn parameters(o: &Options) -> Value {
+    let types = o.water_types.as_ref().map(|list| {
+        list.iter()
+            .map(|c| {
+                let t = &c.water_type;
+                if c.custom {
+                    json!([t.name, t.beta_br, t.beta_bg])
+                } else {
+                    json!(t.name)
+                }
+            })
+            .collect::<Vec<_>>()
+    });
     json!({
-        "water_types": o.water_types,
+        "water_types": types,
         "veiling_light": o.veiling_light,
         "mask": o.mask.as_deref().map(path),
+        "water_mask": o.water_mask.as_deref().map(path),
         "guided_radius": o.guided_radius,
         "guided_eps": o.guided_eps,
         "sphere_points": o.sphere_points,
+        "threads": o.threads,
         "max_side": o.max_side,
+        "max_pixels": o.max_pixels,
         "preprocess": o.preprocess.name(),
+        "half_size": false,
         "format": o.format.name(),
-        "bits": o.bits,
+        "bits": o.bits(),
+        "quality": o.quality,
+        "max_memory": o.max_memory,
+        "linear": o.linear,
     })
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()
 }
 
 /// The whole sidecar object.
@@ -92,19 +121,25 @@ pub fn sidecar(
     json!({
         "input": path(input),
         "outputs": {
-            "image": path(outputs.image),
-            "transmission": path(outputs.transmission),
-            "transmission_color": path(outputs.transmission_color),
+            "image": file_name(outputs.image),
+            "transmission": file_name(outputs.transmission),
+            "transmission_color": file_name(outputs.transmission_color),
         },
         "uwhl_version": env!("CARGO_PKG_VERSION"),
         "implementation": "rust",
         "source": {
+            "path": path(input),
             "kind": source.kind,
             "format": source.format,
             "bits": source.bits,
             "height": source.height,
             "width": source.width,
             "orientation": source.orientation,
+            "linear": source.linear,
+            "preprocess": source.preprocess.name(),
+            "camera_matrix": null,
+            "white_balance": null,
+            "notes": [],
             "processed_height": source.processed_height,
             "processed_width": source.processed_width,
         },
