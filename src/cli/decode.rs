@@ -12,7 +12,7 @@
 use super::{CliError, Kind};
 use crate::color::{decode_u16, decode_u8};
 use image::{ColorType, DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader};
-use std::io::{BufRead, Seek};
+use std::io::{BufRead, Cursor, Read, Seek};
 
 /// Limits on one decoded file.
 #[derive(Debug, Clone, Copy)]
@@ -65,6 +65,46 @@ fn image_error(e: ImageError) -> CliError {
     }
 }
 
+/// Whether a JPEG stream is complete: an end-of-image marker (FF D9)
+/// follows its last start-of-scan marker (FF DA). Inside entropy-coded data
+/// 0xFF is always followed by 0x00 or a restart marker, so the only FF D9
+/// after the last scan header is the real end. The JPEG decoder fills a
+/// truncated scan with gray and reports success; a cut-off frame must be an
+/// error instead (Pillow refuses it too).
+pub fn jpeg_complete(bytes: &[u8]) -> bool {
+    let last_sos = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    match last_sos.and_then(|i| bytes.get(i..)) {
+        Some(tail) => tail.windows(2).any(|w| w == [0xFF, 0xD9]),
+        None => false,
+    }
+}
+
+/// Reads a whole JPEG file (bounded by the memory budget) and checks that it
+/// is complete; the JPEG decoder holds the whole file in memory anyway.
+fn read_jpeg<R: BufRead + Seek>(mut reader: R, limits: &Limits) -> Result<Vec<u8>, CliError> {
+    let io = |e: std::io::Error| CliError::new(Kind::Input, format!("cannot read: {e}"));
+    let len = reader.seek(std::io::SeekFrom::End(0)).map_err(io)?;
+    if len > limits.max_memory {
+        return Err(CliError::new(
+            Kind::Budget,
+            format!("JPEG file of {len} bytes is over --max-memory {}", limits.max_memory),
+        ));
+    }
+    reader.seek(std::io::SeekFrom::Start(0)).map_err(io)?;
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX))
+        .map_err(|e| CliError::new(Kind::Budget, format!("cannot hold the file: {e}")))?;
+    reader.read_to_end(&mut bytes).map_err(io)?;
+    if !jpeg_complete(&bytes) {
+        return Err(CliError::new(
+            Kind::Input,
+            "cannot decode: truncated JPEG (no end-of-image marker after the last scan)",
+        ));
+    }
+    Ok(bytes)
+}
+
 /// Opens a decoder on `reader`, checks the header (pixel count, then the
 /// caller's `check`), decodes and orients. Returns the image, its format
 /// name and the EXIF orientation code applied.
@@ -77,6 +117,20 @@ fn open<R: BufRead + Seek>(
     let reader = ImageReader::new(reader)
         .with_guessed_format()
         .map_err(|e| CliError::new(Kind::Input, format!("cannot read: {e}")))?;
+    if reader.format() == Some(ImageFormat::Jpeg) {
+        let bytes = read_jpeg(reader.into_inner(), limits)?;
+        let reader = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
+        return open_reader(reader, limits, orient, check);
+    }
+    open_reader(reader, limits, orient, check)
+}
+
+fn open_reader<R: BufRead + Seek>(
+    reader: ImageReader<R>,
+    limits: &Limits,
+    orient: bool,
+    check: impl FnOnce(&Header) -> Result<(), CliError>,
+) -> Result<(DynamicImage, &'static str, u8), CliError> {
     let format = match reader.format() {
         Some(ImageFormat::Png) => "PNG",
         Some(ImageFormat::Jpeg) => "JPEG",
@@ -227,7 +281,6 @@ pub fn decode_mask<R: BufRead + Seek>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Cursor;
 
     const NO_LIMIT: Limits = Limits {
         max_pixels: 1 << 40,
@@ -288,6 +341,24 @@ mod tests {
             let e = decode(Cursor::new(bytes), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
             assert_eq!(e.kind, Kind::Input, "{bytes:?}: {e}");
         }
+    }
+
+    #[test]
+    fn truncated_jpeg_is_an_input_error() {
+        use image::ImageEncoder;
+        let px: Vec<u8> = (0..16 * 16 * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let mut jpg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 90)
+            .write_image(&px, 16, 16, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        assert!(jpeg_complete(&jpg));
+        let d = decode(Cursor::new(jpg.clone()), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        assert_eq!((d.format, d.height, d.width), ("JPEG", 16, 16));
+        let cut = &jpg[..jpg.len() - 10];
+        assert!(!jpeg_complete(cut));
+        let e = decode(Cursor::new(cut), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
+        assert_eq!(e.kind, Kind::Input);
+        assert!(e.message.contains("truncated"), "{e}");
     }
 
     #[test]

@@ -444,12 +444,14 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                     let img = side
                         .pointer("/outputs/image")
                         .and_then(Value::as_str)
-                        .unwrap_or("");
+                        .map(|f| job.dir.join(f))
+                        .unwrap_or_default();
                     let secs = side.pointer("/seconds/total").and_then(Value::as_f64).unwrap_or(0.0);
                     let _ = writeln!(
                         out,
-                        "{} -> {img} (water type {}, {secs:.2} s)",
+                        "{} -> {} (water type {}, {secs:.2} s)",
                         job.input.display(),
+                        img.display(),
                         est.water_type.name
                     );
                 }
