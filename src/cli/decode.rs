@@ -12,7 +12,7 @@
 use super::{CliError, Kind};
 use crate::color::{decode_u16, decode_u8};
 use image::{ColorType, DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader};
-use std::io::{BufRead, Cursor, Read, Seek};
+use std::io::{BufRead, Cursor, Seek};
 
 /// Limits on one decoded file.
 #[derive(Debug, Clone, Copy)]
