@@ -13,9 +13,12 @@ pub struct WaterType {
     pub beta_bg: f64,
 }
 
-/// Largest ratio accepted for a custom type; beyond it the powers in SPEC 4
-/// and 7 lose all meaning for data in [0, 1].
-pub const MAX_RATIO: f64 = 100.0;
+/// Largest ratio accepted for a custom type (the Jerlov table stays below
+/// 2.1). Beyond it the powers in SPEC 4 and 7 lose all meaning for data in
+/// [0, 1], and SPEC 7's floor of t_B, 0.1^beta_BR, is no longer a normal f32
+/// (at 45 it underflows to 0 and t_B = 0 reaches the output; found by the
+/// property tests).
+pub const MAX_RATIO: f64 = 30.0;
 
 /// The Jerlov (1968) table of SPEC 1: (name, beta_BR, beta_BG).
 pub const JERLOV: [(&str, f64, f64); 10] = [
@@ -125,6 +128,10 @@ mod tests {
         assert!(WaterType::new("x", f64::NAN, 1.0).is_err());
         assert!(WaterType::new("x", 1.0, f64::INFINITY).is_err());
         assert!(WaterType::new("", 1.0, 1.0).is_err());
+        assert!(WaterType::new("x", MAX_RATIO, 1.0).is_ok());
+        assert!(WaterType::new("x", MAX_RATIO * 1.01, 1.0).is_err());
+        // the t_B floor of SPEC 7 stays a normal f32 for every accepted ratio
+        assert!(0.1f32.powf(MAX_RATIO as f32) >= f32::MIN_POSITIVE);
         assert!(validate_types(&[]).is_err());
         let a = WaterType::new("a", 1.0, 1.0).unwrap();
         assert!(validate_types(&[a.clone(), a]).is_err());
