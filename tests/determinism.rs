@@ -5,18 +5,17 @@ mod common;
 
 use uwhl::{restore, ImageRef, Input, Params, Restoration};
 
-/// Every output of a restoration as bits, for exact comparison.
-fn fingerprint(r: &Restoration) -> (Vec<u32>, Vec<u32>, Vec<u32>, Vec<u64>, Vec<u32>, Vec<bool>, Vec<String>, String) {
-    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+/// Every output of a restoration: its f32 values as bits, the scores as
+/// bits, the water region, and the names (type, flags, excluded).
+type Fingerprint = (Vec<u32>, Vec<u64>, Vec<bool>, String);
+
+fn fingerprint(r: &Restoration) -> Fingerprint {
+    let floats = [&r.image[..], &r.radiance, &r.transmission, &r.veiling_light];
     (
-        bits(&r.image),
-        bits(&r.radiance),
-        bits(&r.transmission),
+        floats.iter().flat_map(|v| v.iter().map(|x| x.to_bits())).collect(),
         r.scores.iter().map(|s| s.1.to_bits()).collect(),
-        bits(&r.veiling_light),
         r.veiling_mask.clone(),
-        [r.flags.clone(), r.excluded.clone()].concat(),
-        r.water_type.name.clone(),
+        format!("{} {:?} {:?}", r.water_type.name, r.flags, r.excluded),
     )
 }
 

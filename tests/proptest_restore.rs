@@ -195,7 +195,7 @@ fn mask_kind() -> impl Strategy<Value = MaskKind> {
 fn make_mask(k: &MaskKind, n: usize) -> Option<Vec<bool>> {
     match k {
         MaskKind::None => None,
-        MaskKind::Random(s) => Some((0..n).map(|i| (s.rotate_left(i as u32 % 64) ^ i as u64) % 3 != 0).collect()),
+        MaskKind::Random(s) => Some((0..n).map(|i| !(s.rotate_left(i as u32 % 64) ^ i as u64).is_multiple_of(3)).collect()),
         MaskKind::AllFalse => Some(vec![false; n]),
         MaskKind::OneTrue(k) => Some((0..n).map(|i| i == k % n).collect()),
         MaskKind::AllTrue => Some(vec![true; n]),
