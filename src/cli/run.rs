@@ -17,7 +17,7 @@ use crate::water::{jerlov_types, WaterType};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::fs::{self, File};
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Seek, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -257,39 +257,45 @@ fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, in_fligh
     Ok(())
 }
 
-/// Restores one input and writes its outputs; `reuse` replaces the water
-/// types and the veiling light by a previous frame's.
+/// A restored input before anything is written.
+#[derive(Debug, Clone)]
+pub struct Restored {
+    /// the result of `restore`
+    pub res: crate::pipeline::Restoration,
+    /// where it came from (the sidecar's `source`)
+    pub source: Source,
+    /// seconds spent decoding and preprocessing
+    pub t_read: f64,
+    /// seconds spent in `restore`
+    pub t_restore: f64,
+}
+
+/// Decodes one file from `reader` and restores it with the options; `reuse`
+/// replaces the water types and the veiling light by a previous frame's.
 ///
 /// Order (as the Python command): decode (sRGB -> linear unless `--linear`
 /// or `--preprocess reference`; float TIFF as is) -> reference stretch of
 /// SPEC 2 (integer inputs with `--preprocess reference`, whole image, no
 /// mask) -> `--max-side` block average (masks: see `--help`) -> `restore`.
-pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimates>) -> Result<Outcome, CliError> {
+pub fn decode_and_restore<R: BufRead + Seek>(
+    reader: R,
+    opts: &Options,
+    masks: &Masks,
+    reuse: Option<&Estimates>,
+) -> Result<Restored, CliError> {
     let t0 = Instant::now();
-    let sidecar_path = job.dir.join(format!("{}.json", job.name));
-    if !opts.overwrite && sidecar_path.exists() {
-        return Ok(Outcome::Skipped(sidecar_path));
-    }
-    if RAW_EXTENSIONS.contains(&extension(&job.input).as_str()) {
-        return Err(CliError::new(
-            Kind::Input,
-            "raw files are decoded by the Python command (uwhl restore); uwhl-rs reads PNG, JPEG and TIFF",
-        ));
-    }
     let types = match reuse {
         Some(r) => vec![r.water_type.clone()],
         None => water_types(opts),
     };
     let threads = opts.threads.unwrap_or_else(rayon::current_num_threads);
     let in_flight = threads.min(types.len()).max(1);
-    let file = File::open(&job.input)
-        .map_err(|e| CliError::new(Kind::Input, format!("cannot open: {e}")))?;
     let reference = opts.preprocess == Preprocess::Reference;
     let limits = Limits {
         max_pixels: opts.max_pixels,
         max_memory: opts.max_memory,
     };
-    let decoded = decode(BufReader::new(file), &limits, !opts.linear && !reference, |h| {
+    let decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
         check_plan(h, opts, masks, in_flight)
     })?;
     let (h, w) = (decoded.height, decoded.width);
@@ -309,7 +315,6 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimate
         (data, h, w)
     };
     let t_read = t0.elapsed().as_secs_f64();
-
     let params = Params {
         water_types: types,
         veiling_light: match (reuse, opts.veiling_light) {
@@ -331,24 +336,6 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimate
     let t1 = Instant::now();
     let res = restore(&input, &params)?;
     let t_restore = t1.elapsed().as_secs_f64();
-    drop(data);
-
-    let t2 = Instant::now();
-    fs::create_dir_all(&job.dir)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot create {}: {e}", job.dir.display())))?;
-    let image_path = job.dir.join(format!("{}.{}", job.name, opts.format.extension()));
-    let t_path = job.dir.join(format!("{}_t.png", job.name));
-    let tc_path = job.dir.join(format!("{}_t_color.png", job.name));
-    let mut tx = Transaction::new();
-    let enc = Encoding {
-        format: opts.format,
-        bits: opts.bits(),
-        srgb: linear,
-        quality: opts.quality,
-    };
-    write_image(&mut tx, &image_path, &res.image, hp, wp, enc)?;
-    write_transmission(&mut tx, &t_path, &res.transmission, hp, wp)?;
-    write_transmission_color(&mut tx, &tc_path, &res.transmission, hp, wp)?;
     let source = Source {
         kind: if decoded.is_float || opts.linear { "linear" } else { "srgb" },
         format: decoded.format,
@@ -361,6 +348,93 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimate
         processed_height: hp,
         processed_width: wp,
     };
+    Ok(Restored {
+        res,
+        source,
+        t_read,
+        t_restore,
+    })
+}
+
+/// The fuzz target's body (`fuzz/`) and its regression test: the first byte
+/// picks options (bit 0 reference preprocessing, bit 1 `--linear`, bit 2
+/// `--max-side 16`, bit 3 two water types), the rest is a file decoded and
+/// restored in memory with tight limits (65536 pixels, 256 MiB, one
+/// thread's worth of water types in flight). Returns the restoration or the
+/// error; panics only if a result breaks the output contract.
+pub fn fuzz_one(data: &[u8]) -> Result<Restored, CliError> {
+    let Some((&sel, file)) = data.split_first() else {
+        return Err(CliError::new(Kind::Input, "empty"));
+    };
+    let reference = sel & 1 != 0;
+    let opts = Options {
+        max_pixels: 1 << 16,
+        max_memory: 256 << 20,
+        sphere_points: 64,
+        threads: Some(1),
+        preprocess: if reference { Preprocess::Reference } else { Preprocess::None },
+        linear: sel & 2 != 0 && !reference,
+        max_side: (sel & 4 != 0).then_some(16),
+        water_types: (sel & 8 != 0).then(|| {
+            ["II", "7C"]
+                .iter()
+                .filter_map(|n| WaterType::by_name(n).ok())
+                .map(|water_type| super::args::WaterChoice {
+                    water_type,
+                    custom: false,
+                })
+                .collect()
+        }),
+        ..Options::default()
+    };
+    let r = decode_and_restore(std::io::Cursor::new(file), &opts, &Masks::default(), None)?;
+    let ok = r.res.image.iter().chain(&r.res.radiance).all(|v| (0.0..=1.0).contains(v))
+        && r.res.transmission.iter().all(|t| *t > 0.0 && *t <= 1.0);
+    if !ok {
+        return Err(CliError::new(Kind::Internal, "output outside [0, 1]"));
+    }
+    Ok(r)
+}
+
+/// Restores one input and writes its outputs (see [`decode_and_restore`]).
+pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimates>) -> Result<Outcome, CliError> {
+    let t0 = Instant::now();
+    let sidecar_path = job.dir.join(format!("{}.json", job.name));
+    if !opts.overwrite && sidecar_path.exists() {
+        return Ok(Outcome::Skipped(sidecar_path));
+    }
+    if RAW_EXTENSIONS.contains(&extension(&job.input).as_str()) {
+        return Err(CliError::new(
+            Kind::Input,
+            "raw files are decoded by the Python command (uwhl restore); uwhl-rs reads PNG, JPEG and TIFF",
+        ));
+    }
+    let file = File::open(&job.input)
+        .map_err(|e| CliError::new(Kind::Input, format!("cannot open: {e}")))?;
+    let Restored {
+        res,
+        source,
+        t_read,
+        t_restore,
+    } = decode_and_restore(BufReader::new(file), opts, masks, reuse)?;
+    let (hp, wp) = (source.processed_height, source.processed_width);
+
+    let t2 = Instant::now();
+    fs::create_dir_all(&job.dir)
+        .map_err(|e| CliError::new(Kind::Write, format!("cannot create {}: {e}", job.dir.display())))?;
+    let image_path = job.dir.join(format!("{}.{}", job.name, opts.format.extension()));
+    let t_path = job.dir.join(format!("{}_t.png", job.name));
+    let tc_path = job.dir.join(format!("{}_t_color.png", job.name));
+    let mut tx = Transaction::new();
+    let enc = Encoding {
+        format: opts.format,
+        bits: opts.bits(),
+        srgb: source.linear,
+        quality: opts.quality,
+    };
+    write_image(&mut tx, &image_path, &res.image, hp, wp, enc)?;
+    write_transmission(&mut tx, &t_path, &res.transmission, hp, wp)?;
+    write_transmission_color(&mut tx, &tc_path, &res.transmission, hp, wp)?;
     let paths = OutputPaths {
         image: &image_path,
         transmission: &t_path,
