@@ -25,9 +25,9 @@
 
 #![cfg_attr(not(feature = "python"), forbid(unsafe_code))]
 #![warn(missing_docs)]
-// Vehicle-grade rules for this file: no unwrap/expect/panic/indexing on
-// outside data. The modules below carry the same rules where they are
-// marked `deny(...)`; the rest follow once the performance work has landed.
+// Vehicle-grade rules: no unwrap/expect/panic/indexing on outside data, in
+// this file, the `checked` core modules below and the `cli` module; the
+// `pending` ones follow once the performance work on them has landed.
 #![cfg_attr(
     not(test),
     deny(
@@ -38,49 +38,25 @@
     )
 )]
 
-// Every core module is free of unsafe code even when the pyo3 bindings
-// (which expand to unsafe code) are built into the same crate.
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod clahe;
-#[forbid(unsafe_code)]
-pub mod color;
-#[forbid(unsafe_code)]
-pub mod error;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod filters;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod guided;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod hazelines;
-#[forbid(unsafe_code)]
-pub mod image;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod matting;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod pipeline;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod recover;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod select;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod sphere;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod util;
-#[forbid(unsafe_code)]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-pub mod veiling;
-#[forbid(unsafe_code)]
-pub mod water;
+/// Declares the core modules: every one forbids unsafe code even when the
+/// pyo3 bindings (which expand to unsafe code) are built into the crate.
+/// `checked` modules also get the crate's panic lints above; `pending` ones
+/// are exempt until the performance work on them has landed.
+macro_rules! core_modules {
+    (checked: $($c:ident),*; pending: $($p:ident),*;) => {
+        $(#[forbid(unsafe_code)] pub mod $c;)*
+        $(
+            #[forbid(unsafe_code)]
+            #[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
+            pub mod $p;
+        )*
+    };
+}
+
+core_modules! {
+    checked: color, error, image, water;
+    pending: clahe, filters, guided, hazelines, matting, pipeline, recover, select, sphere, util, veiling;
+}
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
 /// outputs and sidecar, batch and stream modes.
@@ -93,7 +69,7 @@ mod python;
 #[cfg(feature = "python")]
 mod python_color;
 
-pub use error::{Error, Result};
-pub use image::ImageRef;
-pub use pipeline::{restore, Input, Params, Restoration};
-pub use water::{jerlov_types, WaterType, JERLOV};
+pub use crate::error::{Error, Result};
+pub use crate::image::ImageRef;
+pub use crate::pipeline::{restore, Input, Params, Restoration};
+pub use crate::water::{jerlov_types, WaterType, JERLOV};

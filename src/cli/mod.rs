@@ -5,7 +5,7 @@
 //! lets the fuzz target and the tests call the same decode + restore path.
 //!
 //! Nothing here panics on data from outside: every failure is a
-//! [`CliError`] of one [`Kind`], and each kind has its own exit code.
+//! [`CliError`](crate::cli::CliError) of one [`Kind`](crate::cli::Kind), and each kind has its own exit code.
 
 pub mod args;
 pub mod budget;
