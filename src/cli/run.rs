@@ -17,7 +17,7 @@ use crate::water::{jerlov_types, WaterType};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::fs::{self, File};
-use std::io::{BufRead, BufReader, Seek, Write};
+use std::io::{BufRead, BufReader, Read, Seek, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -545,6 +545,31 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     code
 }
 
+/// The longest path line accepted in stream mode.
+pub const MAX_LINE: usize = 64 * 1024;
+
+/// Reads one line of at most [`MAX_LINE`] bytes into `line`; a longer line
+/// is consumed to its end and reported as `Some(true)`. `None` at the end.
+fn read_line(input: &mut dyn BufRead, line: &mut Vec<u8>) -> std::io::Result<Option<bool>> {
+    let n = Read::take(&mut *input, MAX_LINE as u64 + 1).read_until(b'\n', line)?;
+    if n == 0 {
+        return Ok(None);
+    }
+    if line.len() <= MAX_LINE || line.last() == Some(&b'\n') {
+        return Ok(Some(false));
+    }
+    let mut rest = Vec::new();
+    loop {
+        rest.clear();
+        let k = Read::take(&mut *input, MAX_LINE as u64).read_until(b'\n', &mut rest)?;
+        if k == 0 || rest.last() == Some(&b'\n') {
+            break;
+        }
+    }
+    line.truncate(MAX_LINE);
+    Ok(Some(true))
+}
+
 /// Stream mode: one image path per line of `input`, one JSON line per frame
 /// on `out` (the sidecar, `{"skipped": ...}` or an error object), flushed at
 /// once; a bad frame never stops the loop. With `--reuse-estimates N` the
@@ -562,16 +587,20 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
     let mut line = Vec::new();
     loop {
         line.clear();
-        match input.read_until(b'\n', &mut line) {
-            Ok(0) => break,
-            Ok(_) => {}
+        let too_long = match read_line(input, &mut line) {
+            Ok(None) => break,
+            Ok(Some(too_long)) => too_long,
             Err(e) => {
                 let e = CliError::new(Kind::Input, format!("cannot read stdin: {e}"));
                 report(err, opts.json_errors, None, &e);
                 break;
             }
-        }
+        };
         let result = match std::str::from_utf8(&line) {
+            _ if too_long => Err((
+                None,
+                CliError::new(Kind::Input, format!("input line longer than {MAX_LINE} bytes")),
+            )),
             Err(_) => Err((None, CliError::new(Kind::Input, "input line is not valid UTF-8"))),
             Ok(s) => {
                 let s = s.trim_end_matches(['\n', '\r']);
@@ -618,4 +647,50 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
         let _ = out.flush();
     }
     0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stream_lines_are_bounded() {
+        let long = vec![b'a'; MAX_LINE + 10];
+        let data = [&b"one\n"[..], &long, b"\ntwo"].concat();
+        let mut input = std::io::Cursor::new(data);
+        let mut line = Vec::new();
+        assert_eq!(read_line(&mut input, &mut line).unwrap(), Some(false));
+        assert_eq!(line, b"one\n");
+        line.clear();
+        assert_eq!(read_line(&mut input, &mut line).unwrap(), Some(true));
+        assert_eq!(line.len(), MAX_LINE);
+        line.clear();
+        assert_eq!(read_line(&mut input, &mut line).unwrap(), Some(false));
+        assert_eq!(line, b"two");
+        line.clear();
+        assert_eq!(read_line(&mut input, &mut line).unwrap(), None);
+    }
+
+    #[test]
+    fn names_follow_the_python_command() {
+        let d = std::env::temp_dir().join(format!("uwhl-names-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        for f in ["in/a/x.png", "in/a/x.JPG", "in/b/y.tif", "in/b/.hidden.png", "in/b/notes.txt", "in/raw.NEF", "out/old.png"] {
+            let p = d.join(f);
+            fs::create_dir_all(p.parent().unwrap()).unwrap();
+            fs::write(&p, b"").unwrap();
+        }
+        let out = d.join("out");
+        let inputs = [d.join("in"), d.join("in/a/x.png"), d.join("in/raw.NEF"), d.join("out/old.png"), d.join("none.png")];
+        let (jobs, errors) = collect_jobs(&inputs, &out);
+        let got: Vec<(String, String)> = jobs
+            .iter()
+            .map(|j| (j.dir.strip_prefix(&out).unwrap().display().to_string(), j.name.clone()))
+            .collect();
+        let want = [("a", "x_jpg"), ("a", "x_png"), ("b", "y"), ("", "raw")];
+        assert_eq!(got, want.map(|(a, b)| (a.to_string(), b.to_string())));
+        assert_eq!(errors.len(), 1);
+        assert!(errors[0].0.ends_with("none.png"));
+        fs::remove_dir_all(&d).unwrap();
+    }
 }
