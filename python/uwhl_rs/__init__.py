@@ -159,7 +159,8 @@ def restore(
         values outside [0, 1] and constant images are rejected.
     water_types : list, optional
         Candidate water types: names from :data:`WATER_TYPES` and/or
-        ``(name, beta_BR, beta_BG)`` tuples with ratios in (0, 100].
+        ``(name, beta_BR, beta_BG)`` tuples with ratios in (0, 30] (above ~45
+        the t_B floor 0.1^beta_BR underflows in float32).
         Default: all ten Jerlov types (SPEC 1).
     veiling_light : 3 floats in (0, 1], optional
         A given veiling light A; default: estimated from the water region
