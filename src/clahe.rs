@@ -33,30 +33,61 @@ impl Default for Clahe {
     }
 }
 
-/// Tile boundaries: `n` tiles over `len` pixels, as equal as integers allow.
-fn bounds(len: usize, n: usize) -> Vec<usize> {
-    (0..=n).map(|k| k * len / n).collect()
+/// Tile spans: `n` tiles over `len` pixels as (start, end), as equal as integers allow.
+fn spans(len: usize, n: usize) -> Vec<(usize, usize)> {
+    (0..n).map(|k| (k * len / n, (k + 1) * len / n)).collect()
+}
+
+/// The centre of each span, in pixel coordinates.
+fn centres(spans: &[(usize, usize)]) -> Vec<f64> {
+    spans
+        .iter()
+        .map(|&(a, b)| (a + b) as f64 / 2.0 - 0.5)
+        .collect()
+}
+
+/// The lower neighbour centre of `p`, the upper one, and the upper one's weight.
+fn locate(c: &[f64], p: f64) -> (usize, usize, f64) {
+    let (Some(&first), Some(&last_c)) = (c.first(), c.last()) else {
+        return (0, 0, 0.0);
+    };
+    let last = c.len() - 1;
+    if p <= first {
+        return (0, 0, 0.0);
+    }
+    if p >= last_c {
+        return (last, last, 0.0);
+    }
+    let i = c.iter().rposition(|&v| v <= p).unwrap_or(0).min(last.saturating_sub(1));
+    match (c.get(i), c.get(i + 1)) {
+        (Some(&lo), Some(&hi)) if hi > lo => (i, i + 1, (p - lo) / (hi - lo)),
+        _ => (i, i, 0.0),
+    }
 }
 
 impl Clahe {
     #[inline]
     fn bin(&self, v: f32) -> usize {
-        ((v.clamp(0.0, 1.0) as f64 * self.bins as f64) as usize).min(self.bins - 1)
+        ((v.clamp(0.0, 1.0) as f64 * self.bins as f64) as usize).min(self.bins.saturating_sub(1))
     }
 
     /// The mapping (bin -> [0, 1]) of one tile: clipped histogram with the
     /// excess spread evenly over all bins, then its normalised cumulative sum.
     fn mapping(&self, plane: &[f32], w: usize, ys: (usize, usize), xs: (usize, usize)) -> Vec<f32> {
-        let nb = self.bins;
+        let nb = self.bins.max(1);
         let mut hist = vec![0f64; nb];
-        for y in ys.0..ys.1 {
-            for &v in &plane[y * w + xs.0..y * w + xs.1] {
-                hist[self.bin(v)] += 1.0;
+        for row in plane.chunks(w.max(1)).skip(ys.0).take(ys.1.saturating_sub(ys.0)) {
+            for &v in row.get(xs.0..xs.1).unwrap_or(&[]) {
+                if let Some(c) = hist.get_mut(self.bin(v)) {
+                    *c += 1.0;
+                }
             }
         }
         let n: f64 = hist.iter().sum();
         if n == 0.0 {
-            return (0..nb).map(|b| b as f32 / (nb - 1) as f32).collect();
+            return (0..nb)
+                .map(|b| b as f32 / nb.saturating_sub(1).max(1) as f32)
+                .collect();
         }
         // adapthisteq's actual limit: at least the uniform count per bin.
         let min_clip = (n / nb as f64).ceil();
@@ -80,48 +111,35 @@ impl Clahe {
             self.tiles.0.clamp(1, h.max(1)),
             self.tiles.1.clamp(1, w.max(1)),
         );
-        let (by, bx) = (bounds(h, ty), bounds(w, tx));
-        let maps: Vec<Vec<f32>> = (0..ty * tx)
+        let (sy, sx) = (spans(h, ty), spans(w, tx));
+        let maps: Vec<Vec<f32>> = sy
+            .iter()
+            .flat_map(|&ys| sx.iter().map(move |&xs| (ys, xs)))
+            .collect::<Vec<_>>()
             .into_par_iter()
-            .map(|k| {
-                self.mapping(
-                    plane,
-                    w,
-                    (by[k / tx], by[k / tx + 1]),
-                    (bx[k % tx], bx[k % tx + 1]),
-                )
-            })
+            .map(|(ys, xs)| self.mapping(plane, w, ys, xs))
             .collect();
-        let cy: Vec<f64> = (0..ty)
-            .map(|k| (by[k] + by[k + 1]) as f64 / 2.0 - 0.5)
-            .collect();
-        let cx: Vec<f64> = (0..tx)
-            .map(|k| (bx[k] + bx[k + 1]) as f64 / 2.0 - 0.5)
-            .collect();
-        // index of the lower neighbour centre and the weight of the upper one
-        let locate = |c: &[f64], p: f64| -> (usize, usize, f64) {
-            if p <= c[0] {
-                return (0, 0, 0.0);
-            }
-            let last = c.len() - 1;
-            if p >= c[last] {
-                return (last, last, 0.0);
-            }
-            let i = c.iter().rposition(|&v| v <= p).unwrap_or(0).min(last - 1);
-            (i, i + 1, (p - c[i]) / (c[i + 1] - c[i]))
+        let (cy, cx) = (centres(&sy), centres(&sx));
+        let map = |yy: usize, xx: usize, b: usize| -> f64 {
+            maps.get(yy * tx + xx)
+                .and_then(|m| m.get(b))
+                .copied()
+                .unwrap_or(0.0) as f64
         };
         let mut out = vec![0f32; h * w];
-        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let (y0, y1, fy) = locate(&cy, y as f64);
-            for (x, o) in row.iter_mut().enumerate() {
-                let (x0, x1, fx) = locate(&cx, x as f64);
-                let b = self.bin(plane[y * w + x]);
-                let m = |yy: usize, xx: usize| maps[yy * tx + xx][b] as f64;
-                let top = m(y0, x0) * (1.0 - fx) + m(y0, x1) * fx;
-                let bot = m(y1, x0) * (1.0 - fx) + m(y1, x1) * fx;
-                *o = (top * (1.0 - fy) + bot * fy) as f32;
-            }
-        });
+        out.par_chunks_mut(w.max(1))
+            .zip(plane.par_chunks(w.max(1)))
+            .enumerate()
+            .for_each(|(y, (row, src))| {
+                let (y0, y1, fy) = locate(&cy, y as f64);
+                for (x, (o, &v)) in row.iter_mut().zip(src).enumerate() {
+                    let (x0, x1, fx) = locate(&cx, x as f64);
+                    let b = self.bin(v);
+                    let top = map(y0, x0, b) * (1.0 - fx) + map(y0, x1, b) * fx;
+                    let bot = map(y1, x0, b) * (1.0 - fx) + map(y1, x1, b) * fx;
+                    *o = (top * (1.0 - fy) + bot * fy) as f32;
+                }
+            });
         out
     }
 }
@@ -132,14 +150,15 @@ impl Clahe {
 pub fn naive_edge_map(data: &[f32], h: usize, w: usize) -> Vec<f32> {
     let s = stretch_image(data, None);
     let c = Clahe::default();
-    let chans: Vec<Vec<f32>> = (0..3)
-        .map(|k| {
-            let p: Vec<f32> = s.iter().skip(k).step_by(3).copied().collect();
-            c.apply(&p, h, w)
-        })
-        .collect();
-    let inter: Vec<f32> = (0..h * w)
-        .flat_map(|i| [chans[0][i], chans[1][i], chans[2][i]])
+    let [r, g, b] = [0, 1, 2].map(|k| {
+        let p: Vec<f32> = s.iter().skip(k).step_by(3).copied().collect();
+        c.apply(&p, h, w)
+    });
+    let inter: Vec<f32> = r
+        .iter()
+        .zip(&g)
+        .zip(&b)
+        .flat_map(|((&r, &g), &b)| [r, g, b])
         .collect();
     sobel_max(&inter, h, w, 3)
 }

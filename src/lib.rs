@@ -54,8 +54,8 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    checked: color, error, image, water;
-    pending: clahe, filters, guided, hazelines, matting, pipeline, recover, select, sphere, util, veiling;
+    checked: clahe, color, error, image, water;
+    pending: filters, guided, hazelines, matting, pipeline, recover, select, sphere, util, veiling;
 }
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
