@@ -26,6 +26,7 @@
 #![cfg_attr(not(feature = "python"), forbid(unsafe_code))]
 #![warn(missing_docs)]
 
+pub mod boxsum;
 pub mod clahe;
 pub mod error;
 pub mod filters;
@@ -34,6 +35,7 @@ pub mod hazelines;
 pub mod image;
 pub mod matting;
 pub mod pipeline;
+pub mod rank;
 pub mod recover;
 pub mod select;
 pub mod sphere;

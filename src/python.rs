@@ -400,15 +400,17 @@ fn _stage_matting<'py>(
     let img = img_of(&image)?;
     let v = Some(vl);
     let vs = mask_slice("vl", &v, img.height, img.width)?.unwrap_or(&[]);
-    match crate::matting::mahalanobis_sq(&img, vs) {
-        None => Ok(None),
-        Some(d) => {
-            let w = crate::matting::matting_weights(&d, vs, img.width);
+    match (
+        crate::matting::mahalanobis_sq(&img, vs),
+        crate::matting::matting_weights(&img, vs),
+    ) {
+        (Some(d), Some(w)) => {
             Ok(Some((
                 arr2(py, d, img.height, img.width)?,
                 arr2(py, w, img.height, img.width)?,
             )))
         }
+        _ => Ok(None),
     }
 }
 
