@@ -7,40 +7,85 @@
 //! percentiles), where the wanted ranks are selected. If the sample was
 //! unlucky and a rank falls outside its bracket, that stream is collected in
 //! full: the answer is always exact, only the time depends on the sample.
-//! The order is `cmp`'s total order, so the result does not depend on the
+//! Values are ranked by integer keys that order as the total order of the
+//! floats they encode ([`f32_key`]), so the result does not depend on the
 //! number of threads.
 
 use rayon::prelude::*;
-use std::cmp::Ordering;
 
 /// Rows per chunk of the counting pass.
 const CHUNK_ROWS: usize = 16;
 /// Sample values wanted per stream.
 const SAMPLE: usize = 4096;
 
-/// A range of values [lo, hi] (None = unbounded) whose members are kept.
-#[derive(Clone, Copy)]
-struct Bracket<T> {
-    lo: Option<T>,
-    hi: Option<T>,
+/// An ordered key: unsigned integers, whose order is the order of the
+/// values they encode (see [`f32_key`], [`f64_key`]).
+pub trait Key: Copy + Ord + Send + Sync {
+    /// the smallest key
+    const MIN: Self;
+    /// the largest key
+    const MAX: Self;
 }
 
-/// The values at `ranks[k]` (0-based, ascending in `cmp`) of stream k, for
-/// K streams whose values `row_values(y, bufs)` pushes row by row (y in
-/// 0..rows; `bufs` are cleared before each call). `counts[k]` is the number
-/// of values stream k yields in total; ranks >= counts[k] are ignored
-/// (the output holds one value per valid rank, in the order asked).
-pub fn order_stats<T, const K: usize, F, C>(
+impl Key for u32 {
+    const MIN: Self = 0;
+    const MAX: Self = u32::MAX;
+}
+
+impl Key for u128 {
+    const MIN: Self = 0;
+    const MAX: Self = u128::MAX;
+}
+
+/// The key of an f32: its bits mapped so that keys order as
+/// `f32::total_cmp` orders the values.
+#[inline(always)]
+pub fn f32_key(v: f32) -> u32 {
+    let b = v.to_bits();
+    if b >> 31 == 1 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// The f32 of a key made by [`f32_key`].
+#[inline(always)]
+pub fn key_f32(k: u32) -> f32 {
+    f32::from_bits(if k >> 31 == 1 { k & 0x7fff_ffff } else { !k })
+}
+
+/// The key of an f64 (ordered as `f64::total_cmp`).
+#[inline(always)]
+pub fn f64_key(v: f64) -> u64 {
+    let b = v.to_bits();
+    if b >> 63 == 1 {
+        !b
+    } else {
+        b | 0x8000_0000_0000_0000
+    }
+}
+
+/// Kept values: keys k with lo <= k <= hi (inclusive; MIN / MAX = unbounded).
+type Bracket<T> = (T, T);
+
+/// Per stream, per bracket: the number of keys below it and the keys inside it.
+type Groups<T, const K: usize> = [Vec<(usize, Vec<T>)>; K];
+
+/// The keys at `ranks[k]` (0-based, ascending) of stream k, for K streams
+/// whose keys `row_values(y, bufs)` pushes row by row (y in 0..rows).
+/// `counts[k]` is the number of keys stream k yields in total; ranks >=
+/// counts[k] are ignored (the output holds one key per valid rank, in the
+/// order asked).
+pub fn order_stats<T, const K: usize, F>(
     rows: usize,
     counts: [usize; K],
     ranks: [&[usize]; K],
-    cmp: C,
     row_values: F,
 ) -> [Vec<T>; K]
 where
-    T: Copy + Send + Sync,
+    T: Key,
     F: Fn(usize, &mut [Vec<T>; K]) + Sync,
-    C: Fn(&T, &T) -> Ordering + Sync,
 {
     // 1. a strided sample: every s_r-th row, every s_c-th value of it
     let s_r = (rows / 64).max(1);
@@ -65,34 +110,32 @@ where
         }
     }
     for s in samples.iter_mut() {
-        s.sort_unstable_by(&cmp);
+        s.sort_unstable();
     }
     // 2. one bracket per wanted rank, widened by 8 binomial standard deviations
     let brackets: [Vec<Bracket<T>>; K] = std::array::from_fn(|k| {
-        let (n, sample) = (counts.get(k).copied().unwrap_or(0), samples.get(k));
-        let sample = sample.map_or(&[][..], |s| s.as_slice());
+        let n = counts.get(k).copied().unwrap_or(0);
+        let sample = samples.get(k).map_or(&[][..], |s| s.as_slice());
         let m = sample.len();
-        let mut out: Vec<Bracket<T>> = ranks
+        ranks
             .get(k)
             .map_or(&[][..], |r| *r)
             .iter()
             .filter(|&&r| r < n)
             .map(|&r| {
-                let f = r as f64 / (n.max(2) - 1) as f64;
-                let delta = 8.0 * (f * (1.0 - f) / m.max(1) as f64).sqrt() + 4.0 / m.max(1) as f64;
-                let at = |g: f64| sample.get((g * (m.max(1) - 1) as f64) as usize).copied();
-                Bracket {
-                    lo: if f - delta <= 0.0 { None } else { at((f - delta).max(0.0)) },
-                    hi: if f + delta >= 1.0 { None } else { at(f + delta).filter(|_| m > 0) },
+                if m == 0 {
+                    return (T::MIN, T::MAX);
                 }
+                let f = r as f64 / (n.max(2) - 1) as f64;
+                let delta = 8.0 * (f * (1.0 - f) / m as f64).sqrt() + 4.0 / m as f64;
+                let at = |g: f64| sample.get((g * (m - 1) as f64) as usize).copied();
+                let lo = if f - delta <= 0.0 { None } else { at(f - delta) };
+                let hi = if f + delta >= 1.0 { None } else { at(f + delta) };
+                (lo.unwrap_or(T::MIN), hi.unwrap_or(T::MAX))
             })
-            .collect();
-        if m == 0 {
-            out.iter_mut().for_each(|b| *b = Bracket { lo: None, hi: None });
-        }
-        out
+            .collect()
     });
-    let found = collect(rows, &brackets, &cmp, &row_values);
+    let found = collect(rows, &brackets, &row_values);
     // 3. select each rank inside its bracket, or fall back to the whole stream
     let mut result: [Vec<T>; K] = std::array::from_fn(|_| Vec::new());
     for (k, ((res, mut groups), (&n, rk))) in result
@@ -106,18 +149,18 @@ where
             if !groups.iter().any(inside) {
                 let all: [Vec<Bracket<T>>; K] = std::array::from_fn(|j| {
                     if j == k {
-                        vec![Bracket { lo: None, hi: None }]
+                        vec![(T::MIN, T::MAX)]
                     } else {
                         Vec::new()
                     }
                 });
-                groups = collect(rows, &all, &cmp, &row_values)
+                groups = collect(rows, &all, &row_values)
                     .into_iter()
                     .nth(k)
                     .unwrap_or_default();
             }
             if let Some((below, vals)) = groups.iter_mut().find(|g| inside(g)) {
-                if let Some(v) = select(vals, r - *below, &cmp) {
+                if let Some(v) = select(vals, r - *below) {
                     res.push(v);
                 }
             }
@@ -126,29 +169,20 @@ where
     result
 }
 
-fn select<T: Copy, C: Fn(&T, &T) -> Ordering>(vals: &mut [T], k: usize, cmp: &C) -> Option<T> {
+fn select<T: Key>(vals: &mut [T], k: usize) -> Option<T> {
     if k >= vals.len() {
         return None;
     }
-    let (_, v, _) = vals.select_nth_unstable_by(k, cmp);
+    let (_, v, _) = vals.select_nth_unstable(k);
     Some(*v)
 }
 
-/// Per stream, per bracket: the number of values below it and the values inside it.
-type Groups<T, const K: usize> = [Vec<(usize, Vec<T>)>; K];
-
-/// For every stream and bracket: the number of values below the bracket
-/// and the values inside it.
-fn collect<T, const K: usize, F, C>(
-    rows: usize,
-    brackets: &[Vec<Bracket<T>>; K],
-    cmp: &C,
-    row_values: &F,
-) -> Groups<T, K>
+/// For every stream and bracket: the number of keys below the bracket
+/// and the keys inside it.
+fn collect<T, const K: usize, F>(rows: usize, brackets: &[Vec<Bracket<T>>; K], row_values: &F) -> Groups<T, K>
 where
-    T: Copy + Send + Sync,
+    T: Key,
     F: Fn(usize, &mut [Vec<T>; K]) + Sync,
-    C: Fn(&T, &T) -> Ordering + Sync,
 {
     let empty = || -> Groups<T, K> {
         std::array::from_fn(|k| {
@@ -166,12 +200,12 @@ where
                 bufs.iter_mut().for_each(Vec::clear);
                 row_values(y, &mut bufs);
                 for ((a, b), br) in acc.iter_mut().zip(&bufs).zip(brackets) {
-                    for v in b {
-                        for ((below, vals), bk) in a.iter_mut().zip(br) {
-                            if bk.lo.is_some_and(|lo| cmp(v, &lo) == Ordering::Less) {
+                    for ((below, vals), &(lo, hi)) in a.iter_mut().zip(br) {
+                        for &v in b {
+                            if v < lo {
                                 *below += 1;
-                            } else if bk.hi.is_none_or(|hi| cmp(v, &hi) != Ordering::Greater) {
-                                vals.push(*v);
+                            } else if v <= hi {
+                                vals.push(v);
                             }
                         }
                     }
@@ -192,12 +226,8 @@ where
     out
 }
 
-/// Percentiles (DECISIONS "P", NumPy's "linear" method) at the fractions
-/// `qs` of a stream of `n` values, from its order statistics: position
-/// h = q (n - 1), x_floor(h) + (h - floor(h)) (x_floor(h)+1 - x_floor(h)),
-/// where `value(rank)` maps an order statistic to the value whose
-/// percentile is wanted (a non-decreasing map commutes with ranking).
-/// Returns 0 for every q when n == 0.
+/// The ranks (0-based) whose values the percentiles at `qs` of `n` values
+/// need: floor(h) and, when h is not whole, floor(h) + 1, h = q (n - 1).
 pub fn ranks_for(n: usize, qs: &[f64]) -> Vec<usize> {
     let mut out = Vec::new();
     for &q in qs {
@@ -211,8 +241,11 @@ pub fn ranks_for(n: usize, qs: &[f64]) -> Vec<usize> {
     out
 }
 
-/// The percentiles at `qs` given the values at [`ranks_for`]`(n, qs)` (in
-/// that order, already mapped to f64).
+/// Percentiles (DECISIONS "P", NumPy's "linear" method) at the fractions
+/// `qs` of `n` values from their order statistics: position h = q (n - 1),
+/// x_floor(h) + (h - floor(h)) (x_floor(h)+1 - x_floor(h)). `stats` holds
+/// the values at [`ranks_for`]`(n, qs)` in that order (already mapped: a
+/// non-decreasing map commutes with ranking). 0 for every q when n == 0.
 pub fn percentiles_from(n: usize, qs: &[f64], stats: &[f64]) -> Vec<f64> {
     let mut it = stats.iter();
     qs.iter()
@@ -250,9 +283,10 @@ mod tests {
         let w = v.len() / rows;
         let mut sorted = v.to_vec();
         sorted.sort_by(f32::total_cmp);
-        let [got] = order_stats(rows, [v.len()], [ranks], f32::total_cmp, |y, b: &mut [Vec<f32>; 1]| {
-            b[0].extend_from_slice(&v[y * w..(y + 1) * w]);
+        let [got] = order_stats(rows, [v.len()], [ranks], |y, b: &mut [Vec<u32>; 1]| {
+            b[0].extend(v[y * w..(y + 1) * w].iter().map(|&x| f32_key(x)));
         });
+        let got: Vec<f32> = got.into_iter().map(key_f32).collect();
         let exp: Vec<f32> = ranks.iter().filter(|&&r| r < v.len()).map(|&r| sorted[r]).collect();
         assert_eq!(got, exp, "ranks {ranks:?}");
     }
@@ -275,6 +309,18 @@ mod tests {
             .map(|i| if (i / w) % 10 == 0 { (i % w) as f32 } else { 1000.0 + (i % 97) as f32 })
             .collect();
         check(&v, rows, &[10, rows * w / 2, rows * w - 3]);
+    }
+
+    #[test]
+    fn keys_order_as_total_cmp() {
+        let v = [f32::NEG_INFINITY, -3.5, -1e-40, -0.0, 0.0, 1e-40, 2.0, f32::INFINITY];
+        for w in v.windows(2) {
+            assert!(f32_key(w[0]) < f32_key(w[1]), "{w:?}");
+            assert!(f64_key(w[0] as f64) < f64_key(w[1] as f64), "{w:?}");
+        }
+        for x in v {
+            assert_eq!(key_f32(f32_key(x)).to_bits(), x.to_bits());
+        }
     }
 
     #[test]

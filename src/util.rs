@@ -2,7 +2,7 @@
 //! reductions, per-count thread pools.
 
 use crate::error::{Error, Result};
-use crate::rank::{order_stats, percentiles_from, ranks_for};
+use crate::rank::{f32_key, key_f32, order_stats, percentiles_from, ranks_for};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -20,12 +20,12 @@ pub fn percentiles(buf: Vec<f32>, qs: &[f64]) -> Vec<f64> {
     let n = buf.len();
     let ranks = ranks_for(n, qs);
     let rows = n.div_ceil(PSEUDO_ROW);
-    let [stats] = order_stats(rows, [n], [&ranks], f32::total_cmp, |y, b: &mut [Vec<f32>; 1]| {
+    let [stats] = order_stats(rows, [n], [&ranks], |y, b: &mut [Vec<u32>; 1]| {
         if let (Some(o), Some(v)) = (b.first_mut(), buf.get(y * PSEUDO_ROW..((y + 1) * PSEUDO_ROW).min(n))) {
-            o.extend_from_slice(v);
+            o.extend(v.iter().map(|&x| f32_key(x)));
         }
     });
-    let stats: Vec<f64> = stats.iter().map(|&v| v as f64).collect();
+    let stats: Vec<f64> = stats.iter().map(|&k| key_f32(k) as f64).collect();
     percentiles_from(n, qs, &stats)
 }
 
@@ -49,20 +49,30 @@ where
     let n = masked_count(npx, mask);
     let ranks = ranks_for(n, qs);
     let rows = npx.div_ceil(PSEUDO_ROW);
-    let stats = order_stats(rows, [n; 3], [&ranks; 3], f32::total_cmp, |y, b: &mut [Vec<f32>; 3]| {
+    let stats = order_stats(rows, [n; 3], [&ranks; 3], |y, b: &mut [Vec<u32>; 3]| {
         let (start, end) = (y * PSEUDO_ROW, ((y + 1) * PSEUDO_ROW).min(npx));
         let px = rgb.get(3 * start..3 * end).unwrap_or(&[]);
-        for (i, p) in px.chunks_exact(3).enumerate() {
-            if mask.is_none_or(|m| m.get(start + i).copied().unwrap_or(false)) {
-                for (o, v) in b.iter_mut().zip(p) {
-                    o.push(*v);
+        let [b0, b1, b2] = b;
+        match mask.and_then(|m| m.get(start..end)) {
+            None => {
+                for p in px.chunks_exact(3) {
+                    b0.push(f32_key(p[0]));
+                    b1.push(f32_key(p[1]));
+                    b2.push(f32_key(p[2]));
+                }
+            }
+            Some(m) => {
+                for (p, _) in px.chunks_exact(3).zip(m).filter(|(_, &k)| k) {
+                    b0.push(f32_key(p[0]));
+                    b1.push(f32_key(p[1]));
+                    b2.push(f32_key(p[2]));
                 }
             }
         }
     });
     let mut c = 0;
     stats.map(|v| {
-        let mapped: Vec<f64> = v.iter().map(|&x| map(c, x) as f64).collect();
+        let mapped: Vec<f64> = v.iter().map(|&k| map(c, key_f32(k)) as f64).collect();
         c += 1;
         percentiles_from(n, qs, &mapped)
     })

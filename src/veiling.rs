@@ -12,7 +12,7 @@ use crate::filters::{
     convolve_separable, downscale, downscale_map, gaussian_kernel, largest_component, sobel_max,
 };
 use crate::image::ImageRef;
-use crate::rank::order_stats;
+use crate::rank::{f32_key, f64_key, key_f32, order_stats};
 use crate::util::{percentiles, Normalize};
 use rayon::prelude::*;
 
@@ -169,15 +169,15 @@ pub fn median_luminance(img: &ImageRef, mask: Option<&[bool]>) -> f64 {
         return 0.0;
     }
     let k = (n - 1) / 2;
-    let [v] = order_stats(h, [n], [&[k]], f32::total_cmp, |y, b: &mut [Vec<f32>; 1]| {
+    let [v] = order_stats(h, [n], [&[k]], |y, b: &mut [Vec<u32>; 1]| {
         let row = img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
         for (x, p) in row.chunks_exact(3).enumerate() {
             if mask.is_none_or(|m| m.get(y * w + x).copied().unwrap_or(false)) {
-                b[0].push(luminance([p[0], p[1], p[2]]) as f32);
+                b[0].push(f32_key(luminance([p[0], p[1], p[2]]) as f32));
             }
         }
     });
-    v.first().copied().unwrap_or(0.0) as f64
+    v.first().map_or(0.0, |&k| key_f32(k) as f64)
 }
 
 /// A as the color of the VL pixel with the (lower) median luminance; VL
@@ -189,17 +189,17 @@ pub fn veiling_from_region(img: &ImageRef, vl: &[bool]) -> Option<[f32; 3]> {
         return None;
     }
     let k = (n - 1) / 2;
-    let cmp = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-    let [v] = order_stats(h, [n], [&[k]], cmp, |y, b: &mut [Vec<(f64, usize)>; 1]| {
+    // key: (luminance, raster index), as one integer
+    let [v] = order_stats(h, [n], [&[k]], |y, b: &mut [Vec<u128>; 1]| {
         let row = img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
         for (x, p) in row.chunks_exact(3).enumerate() {
             let i = y * w + x;
             if vl.get(i).copied().unwrap_or(false) {
-                b[0].push((luminance([p[0], p[1], p[2]]), i));
+                b[0].push(((f64_key(luminance([p[0], p[1], p[2]])) as u128) << 64) | i as u128);
             }
         }
     });
-    let (_, i) = v.first().copied()?;
+    let i = v.first().map(|&key| key as u64 as usize)?;
     img.data.get(3 * i..3 * i + 3).map(|p| [p[0], p[1], p[2]])
 }
 
