@@ -108,6 +108,8 @@ pub struct Choice {
     pub excluded: Vec<bool>,
     /// the exclusion rule was given up (no threshold left a type)
     pub relaxed: bool,
+    /// the exclusion threshold that was applied (None: no exclusion)
+    pub threshold: Option<f64>,
 }
 
 /// SPEC 9: exclude types whose t_R difference is below the threshold
@@ -117,9 +119,9 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
     let n = stats.len();
     let mut excluded = vec![false; n];
     let mut relaxed = false;
+    let mut threshold = None;
     if stats.iter().all(|s| s.tr_diff.is_some()) && n > 0 {
         let mut thr = EXCLUDE_THRESHOLD;
-        let mut found = false;
         for _ in 0..=MAX_HALVINGS {
             let ex: Vec<bool> = stats
                 .iter()
@@ -127,12 +129,12 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
                 .collect();
             if ex.iter().any(|&e| !e) {
                 excluded = ex;
-                found = true;
+                threshold = Some(thr);
                 break;
             }
             thr /= 2.0;
         }
-        relaxed = !found;
+        relaxed = threshold.is_none();
     }
     let mut winner = None::<usize>;
     for (i, s) in stats.iter().enumerate() {
@@ -148,6 +150,7 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
         winner: winner.unwrap_or(0),
         excluded,
         relaxed,
+        threshold,
     }
 }
 
@@ -183,10 +186,10 @@ mod tests {
         assert_eq!(c.excluded, vec![true, false, false]);
         // no type reaches 0.1: halve to 0.05 -> types with d >= 0.05 survive
         let c = choose(&[t(0.01, 0.04), t(0.02, 0.06), t(0.005, 0.01)]);
-        assert_eq!((c.winner, c.relaxed), (1, false));
+        assert_eq!((c.winner, c.relaxed, c.threshold), (1, false, Some(0.05)));
         // all negative: the rule is given up, the best score wins
         let c = choose(&[t(0.02, -0.5), t(0.01, -0.4)]);
-        assert_eq!((c.winner, c.relaxed), (1, true));
+        assert_eq!((c.winner, c.relaxed, c.threshold), (1, true, None));
         // ties go to the first
         let c = choose(&[t(0.02, 0.5), t(0.02, 0.5)]);
         assert_eq!(c.winner, 0);
