@@ -100,23 +100,29 @@ pub fn haze_pass(
         .enumerate()
         .map(|(ci, ((rr, aa), px))| {
             let mut m = vec![0f32; k];
-            for (j, ((r, a), p)) in rr.iter_mut().zip(aa.iter_mut()).zip(px.chunks_exact(3)).enumerate() {
-                let i = ci * chunk + j;
-                let v = ht.compensated([p[0], p[1], p[2]]);
-                let lb = ht.lower_bound(v);
-                let inside = mask.is_none_or(|mk| mk.get(i).copied().unwrap_or(false));
-                let rad = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                let mut cl = NO_CLUSTER;
-                if inside && rad > 0.0 && rad.is_finite() {
-                    // the direction of v: no need to normalise it (SphereIndex::nearest)
-                    let c = index.nearest(&v);
-                    if let Some(slot) = m.get_mut(c) {
-                        *slot = slot.max(rad);
-                    }
-                    cl = c as f32;
+            // per row: first the compensated vectors (the powers), then the
+            // cluster lookups in a loop without calls
+            let mut vs = vec![[0f32; 3]; w];
+            for (y, ((rr, aa), px)) in rr.chunks_mut(w).zip(aa.chunks_mut(w)).zip(px.chunks(3 * w)).enumerate() {
+                for (v, p) in vs.iter_mut().zip(px.chunks_exact(3)) {
+                    *v = ht.compensated([p[0], p[1], p[2]]);
                 }
-                *r = if inside { rad } else { 0.0 };
-                *a = [lb, cl, 0.0, 0.0];
+                let row0 = ci * chunk + y * w;
+                for (x, ((r, a), v)) in rr.iter_mut().zip(aa.iter_mut()).zip(&vs).enumerate() {
+                    let inside = mask.is_none_or(|mk| mk.get(row0 + x).copied().unwrap_or(false));
+                    let rad = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                    let mut cl = NO_CLUSTER;
+                    if inside && rad > 0.0 && rad.is_finite() {
+                        // the direction of v: no need to normalise it (SphereIndex::nearest)
+                        let c = index.nearest(v);
+                        if let Some(slot) = m.get_mut(c) {
+                            *slot = slot.max(rad);
+                        }
+                        cl = c as f32;
+                    }
+                    *r = if inside { rad } else { 0.0 };
+                    *a = [ht.lower_bound(*v), cl, 0.0, 0.0];
+                }
             }
             m
         })
