@@ -147,8 +147,7 @@ fn main() {
         let png = dir.join(format!("scene_{h}x{w}.png"));
         write_png(&png, h, w);
         for threads in [1usize, 2] {
-            let k = threads.min(10);
-            let est = uwhl::pipeline::memory_estimate(h, w, k) as f64;
+            let est = uwhl::pipeline::memory_estimate(h, w, false) as f64;
             for what in ["core", "binary"] {
                 let a: Vec<String> = match what {
                     "core" => vec!["--child-core".into(), h.to_string(), w.to_string(), threads.to_string()],

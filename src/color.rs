@@ -7,7 +7,7 @@
 //! `uwhl_rs._core`) and the `uwhl-rs` binary use one implementation and
 //! write identical files.
 
-use crate::util::{masked_channel, percentiles};
+use crate::util::{channel_percentiles, percentiles};
 use rayon::prelude::*;
 
 /// The inverse sRGB curve (IEC 61966-2-1): an encoded value in [0, 1] to linear.
@@ -134,9 +134,7 @@ pub fn max_side_factor(h: usize, w: usize, n: usize) -> usize {
 /// channels' limits, then a linear stretch clipped to [0, 1]. A channel
 /// whose limits coincide is left unchanged.
 pub fn reference_srgb_stretch(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let lims: Vec<Vec<f64>> = (0..3)
-        .map(|c| percentiles(masked_channel(data, c, mask), &[0.01, 0.99]))
-        .collect();
+    let lims = channel_percentiles(data, mask, &[0.01, 0.99], |_, v| v);
     let lim = |c: usize, k: usize| lims.get(c).and_then(|l| l.get(k)).copied().unwrap_or(0.0);
     let mean = |k: usize| (lim(0, k) + lim(1, k) + lim(2, k)) / 3.0;
     let pulled = [0, 1, 2].map(|c| {
@@ -165,11 +163,9 @@ pub fn reference_raw_stretch(data: &[f32]) -> Vec<f32> {
         .par_iter()
         .map(|&v| (f64::from(v) * scale).clamp(0.0, 1.0) as f32)
         .collect();
+    let tops = channel_percentiles(&scaled, None, &[0.999], |_, v| v);
     let limits = [0, 1, 2].map(|c| {
-        let hi = percentiles(masked_channel(&scaled, c, None), &[0.999])
-            .first()
-            .copied()
-            .unwrap_or(1.0);
+        let hi = tops.get(c).and_then(|t| t.first()).copied().unwrap_or(1.0);
         (hi > 1e-12).then_some((0.0, hi))
     });
     apply_limits(&scaled, limits)

@@ -3,61 +3,15 @@
 //! components (SPEC 3). Planes are row-major `h * w` slices; RGB images are
 //! interleaved `h * w * 3` slices.
 
+use crate::boxsum::{box_mean_plane, BoxGeom};
 use rayon::prelude::*;
 
 /// Clipped-window box mean of a plane (SPEC 6): each output is the mean of
 /// the input over `[y-r, y+r] x [x-r, x+r]` intersected with the image,
-/// divided by the number of pixels actually in that window. Sums are
-/// accumulated in f64, in a fixed order (bit-identical for any thread count).
+/// divided by the number of pixels actually in that window. Exact sums of
+/// quantised values ([`crate::boxsum`]): bit-identical for any thread count.
 pub fn box_mean(src: &[f32], h: usize, w: usize, r: usize) -> Vec<f32> {
-    let mut out = vec![0f32; h * w];
-    box_mean_into(src, h, w, r, &mut out);
-    out
-}
-
-/// [`box_mean`] writing into `out` (length `h * w`).
-pub fn box_mean_into(src: &[f32], h: usize, w: usize, r: usize, out: &mut [f32]) {
-    if h == 0 || w == 0 {
-        return;
-    }
-    // Horizontal window sums, one row at a time, via a row prefix sum.
-    let mut acc = vec![0f64; h * w];
-    acc.par_chunks_mut(w)
-        .zip(src.par_chunks(w))
-        .for_each(|(dst, row)| {
-            let mut prefix = Vec::with_capacity(w + 1);
-            prefix.push(0f64);
-            let mut s = 0f64;
-            for &v in row {
-                s += v as f64;
-                prefix.push(s);
-            }
-            for (x, d) in dst.iter_mut().enumerate() {
-                let lo = x.saturating_sub(r);
-                let hi = (x + r).min(w - 1);
-                *d = prefix[hi + 1] - prefix[lo];
-            }
-        });
-    // Cumulative sums down the columns (sequential in y, vectorised in x).
-    for y in 1..h {
-        let (above, rest) = acc.split_at_mut(y * w);
-        let prev = &above[(y - 1) * w..];
-        for (c, p) in rest[..w].iter_mut().zip(prev) {
-            *c += *p;
-        }
-    }
-    let acc = &acc;
-    out.par_chunks_mut(w).enumerate().for_each(|(y, dst)| {
-        let lo = y.saturating_sub(r);
-        let hi = (y + r).min(h - 1);
-        let ny = (hi - lo + 1) as f64;
-        let top = &acc[hi * w..(hi + 1) * w];
-        for (x, d) in dst.iter_mut().enumerate() {
-            let nx = ((x + r).min(w - 1) - x.saturating_sub(r) + 1) as f64;
-            let above = if lo > 0 { acc[(lo - 1) * w + x] } else { 0.0 };
-            *d = ((top[x] - above) / (nx * ny)) as f32;
-        }
-    });
+    box_mean_plane(src, BoxGeom { h, w, r }, rayon::current_num_threads())
 }
 
 /// Normalised 1-D Gaussian kernel exp(-x^2 / (2 sigma^2)) on [-radius, radius].
@@ -136,9 +90,21 @@ pub fn sobel_max(src: &[f32], h: usize, w: usize, c: usize) -> Vec<f32> {
 /// factor `s` (DECISIONS S3 step 2); partial border blocks average the pixels
 /// they hold. Returns the image and its size.
 pub fn downscale(src: &[f32], h: usize, w: usize, c: usize, s: usize) -> (Vec<f32>, usize, usize) {
+    downscale_map(src, h, w, c, s, |v| v)
+}
+
+/// [`downscale`] of `f(value)` (e.g. a normalisation), without a full-size copy.
+pub fn downscale_map<F: Fn(f32) -> f32 + Sync>(
+    src: &[f32],
+    h: usize,
+    w: usize,
+    c: usize,
+    s: usize,
+    f: F,
+) -> (Vec<f32>, usize, usize) {
     let s = s.max(1);
     if s == 1 {
-        return (src.to_vec(), h, w);
+        return (src.par_iter().map(|&v| f(v)).collect(), h, w);
     }
     let (hs, ws) = (h.div_ceil(s), w.div_ceil(s));
     let mut out = vec![0f32; hs * ws * c];
@@ -148,20 +114,20 @@ pub fn downscale(src: &[f32], h: usize, w: usize, c: usize, s: usize) -> (Vec<f3
             let y0 = by * s;
             let y1 = (y0 + s).min(h);
             let mut sums = vec![0f64; ws * c];
-            for y in y0..y1 {
-                let row = &src[y * w * c..(y + 1) * w * c];
-                for x in 0..w {
-                    let bx = x / s;
-                    for ch in 0..c {
-                        sums[bx * c + ch] += row[x * c + ch] as f64;
+            for row in src.get(y0 * w * c..y1 * w * c).unwrap_or(&[]).chunks_exact(w * c) {
+                for (blk, px) in sums.chunks_exact_mut(c).zip(row.chunks(s * c)) {
+                    for p in px.chunks_exact(c) {
+                        for (acc, v) in blk.iter_mut().zip(p) {
+                            *acc += f(*v) as f64;
+                        }
                     }
                 }
             }
-            for bx in 0..ws {
+            for (bx, (d, sm)) in dst.chunks_exact_mut(c).zip(sums.chunks_exact(c)).enumerate() {
                 let nx = ((bx + 1) * s).min(w) - bx * s;
                 let n = ((y1 - y0) * nx) as f64;
-                for ch in 0..c {
-                    dst[bx * c + ch] = (sums[bx * c + ch] / n) as f32;
+                for (o, v) in d.iter_mut().zip(sm) {
+                    *o = (v / n) as f32;
                 }
             }
         });

@@ -1,22 +1,31 @@
 //! He et al.'s guided filter with a color guide (SPEC 6). Everything that
 //! depends only on the guide (window means, inverse regularised covariances)
 //! is computed once per image in [`GuideStats::new`] and reused for every
-//! water type by [`GuideStats::filter`].
+//! water type. Filtering a plane takes two streaming box passes
+//! ([`crate::boxsum`]): the first forms (a, b) per pixel from the window
+//! means of p and I p, the second the window means of (a, b) and
+//! q = mean(a) . I + mean(b), handed row by row to the caller.
 
-use crate::filters::box_mean;
+use crate::boxsum::{band_ranges, box_means, split_bands, with_starts, BoxGeom};
 use rayon::prelude::*;
+use std::ops::Range;
+
+/// Rows a band of the box passes has at least.
+const MIN_BAND_ROWS: usize = 16;
 
 /// Guide-only terms of the color guided filter.
 pub struct GuideStats {
-    h: usize,
-    w: usize,
-    r: usize,
+    geom: BoxGeom,
+    eps: f64,
     /// the guide, interleaved RGB
     guide: Vec<f32>,
-    /// window means of the three guide channels
-    mean: [Vec<f32>; 3],
-    /// (Sigma + eps U)^-1, symmetric: xx, xy, xz, yy, yz, zz
-    inv: [Vec<f32>; 6],
+    /// max |guide value| (bounds the products I p)
+    guide_bound: f64,
+    /// per pixel: window means of the three guide channels, then
+    /// (Sigma + eps U)^-1 (symmetric: xx, xy, xz, yy, yz, zz)
+    stats: Vec<[f32; 9]>,
+    /// parallel row bands of the box passes
+    bands: usize,
 }
 
 /// Inverse of a symmetric 3x3 matrix given as (a, b, c, d, e, f) =
@@ -45,130 +54,203 @@ pub fn inv_sym3(m: [f64; 6]) -> Option<[f64; 6]> {
 
 impl GuideStats {
     /// Precomputes the guide statistics for radius `r` and regulariser `eps`
-    /// (eps > 0 keeps every per-pixel matrix positive definite).
+    /// (eps > 0 keeps every per-pixel matrix positive definite). The box
+    /// passes run in as many row bands as the current pool has threads.
     pub fn new(guide: Vec<f32>, h: usize, w: usize, r: usize, eps: f64) -> Self {
-        let n = h * w;
-        let chan =
-            |c: usize| -> Vec<f32> { (0..n).into_par_iter().map(|i| guide[3 * i + c]).collect() };
-        let ch = [chan(0), chan(1), chan(2)];
-        let mean = [
-            box_mean(&ch[0], h, w, r),
-            box_mean(&ch[1], h, w, r),
-            box_mean(&ch[2], h, w, r),
-        ];
-        const PAIRS: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
-        let mut prod_means: Vec<Vec<f32>> = Vec::with_capacity(6);
-        for &(i, j) in &PAIRS {
-            let p: Vec<f32> = (0..n)
-                .into_par_iter()
-                .map(|k| ch[i][k] * ch[j][k])
-                .collect();
-            prod_means.push(box_mean(&p, h, w, r));
-        }
-        let mut inv: [Vec<f32>; 6] = std::array::from_fn(|_| vec![0f32; n]);
-        {
-            let [i0, i1, i2, i3, i4, i5] = &mut inv;
-            let (m0, m1, m2) = (&mean[0], &mean[1], &mean[2]);
-            let pm = &prod_means;
-            (i0, i1, i2, i3, i4, i5)
-                .into_par_iter()
-                .enumerate()
-                .for_each(|(k, (o0, o1, o2, o3, o4, o5))| {
-                    let mu = [m0[k] as f64, m1[k] as f64, m2[k] as f64];
-                    let mut s = [0f64; 6];
-                    for (q, &(i, j)) in PAIRS.iter().enumerate() {
-                        s[q] = pm[q][k] as f64 - mu[i] * mu[j];
-                    }
-                    s[0] += eps;
-                    s[3] += eps;
-                    s[5] += eps;
-                    // Positive definite for eps > 0 (a covariance plus eps I).
-                    let v = inv_sym3(s).unwrap_or([1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps]);
-                    *o0 = v[0] as f32;
-                    *o1 = v[1] as f32;
-                    *o2 = v[2] as f32;
-                    *o3 = v[3] as f32;
-                    *o4 = v[4] as f32;
-                    *o5 = v[5] as f32;
-                });
-        }
-        Self {
-            h,
-            w,
-            r,
+        let geom = BoxGeom { h, w, r };
+        let guide_bound = guide.iter().fold(0f32, |m, v| m.max(v.abs())) as f64;
+        let mut gs = Self {
+            geom,
+            eps,
             guide,
-            mean,
-            inv,
-        }
+            guide_bound,
+            stats: Vec::new(),
+            bands: rayon::current_num_threads(),
+        };
+        gs.stats = gs.compute_stats();
+        gs
+    }
+
+    fn compute_stats(&self) -> Vec<[f32; 9]> {
+        let BoxGeom { h, w, .. } = self.geom;
+        let mut stats = vec![[0f32; 9]; h * w];
+        let g = &self.guide;
+        let eps = self.eps;
+        let source = |y: usize, row: &mut [[f64; 9]]| {
+            let line = g.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
+            for (d, px) in row.iter_mut().zip(line.chunks_exact(3)) {
+                if let [r, gg, b] = *px {
+                    let (r, gg, b) = (r as f64, gg as f64, b as f64);
+                    *d = [r, gg, b, r * r, r * gg, r * b, gg * gg, gg * b, b * b];
+                }
+            }
+        };
+        let sink = |o: &mut (usize, &mut [[f32; 9]]), y: usize, means: &[[f64; 9]]| {
+            let off = (y - o.0) * w;
+            let Some(line) = o.1.get_mut(off..off + w) else {
+                return;
+            };
+            for (d, m) in line.iter_mut().zip(means) {
+                let [m0, m1, m2, rr, rg, rb, gg, gb, bb] = *m;
+                let cov = [
+                    rr - m0 * m0 + eps,
+                    rg - m0 * m1,
+                    rb - m0 * m2,
+                    gg - m1 * m1 + eps,
+                    gb - m1 * m2,
+                    bb - m2 * m2 + eps,
+                ];
+                // Positive definite for eps > 0 (a covariance plus eps I).
+                let v = inv_sym3(cov).unwrap_or([1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps]);
+                *d = [
+                    m0 as f32, m1 as f32, m2 as f32, v[0] as f32, v[1] as f32, v[2] as f32,
+                    v[3] as f32, v[4] as f32, v[5] as f32,
+                ];
+            }
+        };
+        let gb = self.guide_bound;
+        let bounds = [gb, gb, gb, gb * gb, gb * gb, gb * gb, gb * gb, gb * gb, gb * gb];
+        let ranges = self.ranges();
+        let work = with_starts(&ranges, split_bands(&mut stats, w, &ranges));
+        box_means(self.geom, bounds, work, &source, &sink);
+        stats
+    }
+
+    /// Sets the number of parallel row bands of the box passes (results do
+    /// not depend on it); 1 when the caller already runs several filters in
+    /// parallel.
+    pub fn set_bands(&mut self, bands: usize) {
+        self.bands = bands.max(1);
+    }
+
+    /// The row bands of the box passes (and of [`GuideStats::apply_rows`]'s sink).
+    pub fn ranges(&self) -> Vec<Range<usize>> {
+        band_ranges(self.geom.h, self.bands, MIN_BAND_ROWS)
     }
 
     /// The radius the statistics were computed for.
     pub fn radius(&self) -> usize {
-        self.r
+        self.geom.r
     }
 
-    /// Filters the plane `p` (SPEC 6): a = (Sigma + eps U)^-1 cov(I, p),
-    /// b = mean_p - a . mean_I, q = mean(a) . I + mean(b).
-    pub fn filter(&self, p: &[f32]) -> Vec<f32> {
-        let (h, w, r, n) = (self.h, self.w, self.r, self.h * self.w);
-        let g = &self.guide;
-        let mean_p = box_mean(p, h, w, r);
-        let ip = |c: usize| -> Vec<f32> {
-            let v: Vec<f32> = (0..n)
-                .into_par_iter()
-                .map(|k| g[3 * k + c] * p[k])
-                .collect();
-            box_mean(&v, h, w, r)
-        };
-        let mip = [ip(0), ip(1), ip(2)];
-        let mut a: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0f32; n]);
-        let mut b = vec![0f32; n];
-        {
-            let [a0, a1, a2] = &mut a;
-            let (mean, inv) = (&self.mean, &self.inv);
-            (a0, a1, a2, &mut b)
-                .into_par_iter()
-                .enumerate()
-                .for_each(|(k, (o0, o1, o2, ob))| {
-                    let mu = [mean[0][k] as f64, mean[1][k] as f64, mean[2][k] as f64];
-                    let mp = mean_p[k] as f64;
-                    let cov = [
-                        mip[0][k] as f64 - mu[0] * mp,
-                        mip[1][k] as f64 - mu[1] * mp,
-                        mip[2][k] as f64 - mu[2] * mp,
-                    ];
-                    let m = [
-                        inv[0][k] as f64,
-                        inv[1][k] as f64,
-                        inv[2][k] as f64,
-                        inv[3][k] as f64,
-                        inv[4][k] as f64,
-                        inv[5][k] as f64,
-                    ];
-                    let ax = m[0] * cov[0] + m[1] * cov[1] + m[2] * cov[2];
-                    let ay = m[1] * cov[0] + m[3] * cov[1] + m[4] * cov[2];
-                    let az = m[2] * cov[0] + m[4] * cov[1] + m[5] * cov[2];
-                    *o0 = ax as f32;
-                    *o1 = ay as f32;
-                    *o2 = az as f32;
-                    *ob = (mp - ax * mu[0] - ay * mu[1] - az * mu[2]) as f32;
-                });
+    /// The guide image (interleaved RGB).
+    pub fn guide(&self) -> &[f32] {
+        &self.guide
+    }
+
+    /// Frees the per-pixel statistics once no further plane needs
+    /// [`GuideStats::coefficients`] ([`GuideStats::apply_rows`] needs only the guide).
+    pub fn release_stats(&mut self) {
+        self.stats = Vec::new();
+    }
+
+    /// First pass (SPEC 6): a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
+    /// b = mean_p - a . mean_I for every pixel, written to `ab` as
+    /// (a_R, a_G, a_B, b). Returns max |.| of each of the four, which
+    /// bounds the second pass.
+    pub fn coefficients(&self, p: &[f32], ab: &mut [[f32; 4]]) -> [f64; 4] {
+        let BoxGeom { h, w, .. } = self.geom;
+        let n = h * w;
+        if p.len() != n || ab.len() != n || self.stats.len() != n {
+            return [0.0; 4];
         }
-        let ma = [
-            box_mean(&a[0], h, w, r),
-            box_mean(&a[1], h, w, r),
-            box_mean(&a[2], h, w, r),
-        ];
-        let mb = box_mean(&b, h, w, r);
-        (0..n)
-            .into_par_iter()
-            .map(|k| {
-                (ma[0][k] as f64 * g[3 * k] as f64
-                    + ma[1][k] as f64 * g[3 * k + 1] as f64
-                    + ma[2][k] as f64 * g[3 * k + 2] as f64
-                    + mb[k] as f64) as f32
-            })
+        let (g, st) = (&self.guide, &self.stats);
+        let pb = p.par_chunks(w.max(1)).map(|c| c.iter().fold(0f32, |m, v| m.max(v.abs()))).reduce(|| 0.0, f32::max) as f64;
+        let source = |y: usize, row: &mut [[f64; 4]]| {
+            let pl = p.get(y * w..(y + 1) * w).unwrap_or(&[]);
+            let gl = g.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
+            for ((d, &pv), px) in row.iter_mut().zip(pl).zip(gl.chunks_exact(3)) {
+                if let [r, gg, b] = *px {
+                    let pv = pv as f64;
+                    *d = [pv, r as f64 * pv, gg as f64 * pv, b as f64 * pv];
+                }
+            }
+        };
+        let sink = |o: &mut (usize, &mut [[f32; 4]], [f64; 4]), y: usize, means: &[[f64; 4]]| {
+            let off = (y - o.0) * w;
+            let (Some(line), Some(sl)) = (o.1.get_mut(off..off + w), st.get(y * w..(y + 1) * w))
+            else {
+                return;
+            };
+            for ((d, m), s) in line.iter_mut().zip(means).zip(sl) {
+                let [mp, mr, mg, mb] = *m;
+                let [u0, u1, u2, i0, i1, i2, i3, i4, i5] = s.map(f64::from);
+                let c = [mr - u0 * mp, mg - u1 * mp, mb - u2 * mp];
+                let ax = i0 * c[0] + i1 * c[1] + i2 * c[2];
+                let ay = i1 * c[0] + i3 * c[1] + i4 * c[2];
+                let az = i2 * c[0] + i4 * c[1] + i5 * c[2];
+                let b = mp - ax * u0 - ay * u1 - az * u2;
+                *d = [ax as f32, ay as f32, az as f32, b as f32];
+                for (mx, v) in o.2.iter_mut().zip(d.iter()) {
+                    *mx = mx.max(v.abs() as f64);
+                }
+            }
+        };
+        let gb = self.guide_bound;
+        let ranges = self.ranges();
+        let work: Vec<_> = with_starts(&ranges, split_bands(ab, w, &ranges))
+            .into_iter()
+            .map(|(r, (y0, sl))| (r, (y0, sl, [0f64; 4])))
+            .collect();
+        let done = box_means(self.geom, [pb, pb * gb, pb * gb, pb * gb], work, &source, &sink);
+        done.iter().fold([0f64; 4], |acc, o| {
+            [acc[0].max(o.2[0]), acc[1].max(o.2[1]), acc[2].max(o.2[2]), acc[3].max(o.2[3])]
+        })
+    }
+
+    /// Second pass (SPEC 6): q = mean(a) . I + mean(b) row by row. `work`
+    /// pairs each of [`GuideStats::ranges`] with a state; `sink(state, y, q)`
+    /// gets row y of q. `bounds` is what [`GuideStats::coefficients`] returned.
+    pub fn apply_rows<O, K>(
+        &self,
+        ab: &[[f32; 4]],
+        bounds: [f64; 4],
+        work: Vec<(Range<usize>, O)>,
+        sink: &K,
+    ) -> Vec<O>
+    where
+        O: Send,
+        K: Fn(&mut O, usize, &[f32]) + Sync,
+    {
+        let BoxGeom { w, .. } = self.geom;
+        let g = &self.guide;
+        let source = |y: usize, row: &mut [[f64; 4]]| {
+            let line = ab.get(y * w..(y + 1) * w).unwrap_or(&[]);
+            for (d, v) in row.iter_mut().zip(line) {
+                *d = v.map(f64::from);
+            }
+        };
+        let inner = |o: &mut (O, Vec<f32>), y: usize, means: &[[f64; 4]]| {
+            let gl = g.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
+            for ((q, m), px) in o.1.iter_mut().zip(means).zip(gl.chunks_exact(3)) {
+                if let [r, gg, b] = *px {
+                    *q = (m[0] * r as f64 + m[1] * gg as f64 + m[2] * b as f64 + m[3]) as f32;
+                }
+            }
+            sink(&mut o.0, y, &o.1);
+        };
+        let work: Vec<_> = work.into_iter().map(|(r, o)| (r, (o, vec![0f32; w]))).collect();
+        box_means(self.geom, bounds, work, &source, &inner)
+            .into_iter()
+            .map(|(o, _)| o)
             .collect()
+    }
+
+    /// Filters the plane `p` (SPEC 6): both passes, q as a plane.
+    pub fn filter(&self, p: &[f32]) -> Vec<f32> {
+        let BoxGeom { h, w, .. } = self.geom;
+        let mut ab = vec![[0f32; 4]; h * w];
+        let bounds = self.coefficients(p, &mut ab);
+        let mut q = vec![0f32; h * w];
+        let ranges = self.ranges();
+        let work = with_starts(&ranges, split_bands(&mut q, w, &ranges));
+        self.apply_rows(&ab, bounds, work, &|o: &mut (usize, &mut [f32]), y, row: &[f32]| {
+            let off = (y - o.0) * w;
+            if let Some(d) = o.1.get_mut(off..off + w) {
+                d.copy_from_slice(row);
+            }
+        });
+        q
     }
 }
 

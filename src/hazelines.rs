@@ -2,6 +2,7 @@
 
 use crate::filters::box_mean;
 use crate::image::ImageRef;
+use crate::matting::LB_FLOOR;
 use crate::sphere::SphereIndex;
 use crate::water::WaterType;
 use rayon::prelude::*;
@@ -10,11 +11,11 @@ use rayon::prelude::*;
 pub const T_MIN: f32 = 0.01;
 /// Factor applied after clustering (SPEC 4.6).
 pub const T_SCALE: f32 = 0.9;
-/// Cluster id of pixels that have none (r == 0 or masked out).
-const NO_CLUSTER: u32 = u32::MAX;
+/// Cluster id (as stored, f32) of pixels that have none (r == 0 or masked out).
+const NO_CLUSTER: f32 = -1.0;
 
 /// sgn(d) |d|^p.
-#[inline]
+#[inline(always)]
 pub fn signed_pow(d: f32, p: f32) -> f32 {
     if d == 0.0 {
         0.0
@@ -26,11 +27,125 @@ pub fn signed_pow(d: f32, p: f32) -> f32 {
 /// The medium-compensated vector of SPEC 0 / 4.1 for one pixel.
 #[inline]
 pub fn compensated(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> [f32; 3] {
-    [
-        signed_pow(a[0] - px[0], wt.beta_br as f32),
-        signed_pow(a[1] - px[1], wt.beta_bg as f32),
-        a[2] - px[2],
-    ]
+    HazeType::new(a, wt).compensated(px)
+}
+
+/// Per-type constants of SPEC 4-5 for a given veiling light A.
+#[derive(Debug, Clone, Copy)]
+pub struct HazeType {
+    /// veiling light A
+    pub a: [f32; 3],
+    /// (beta_BR, beta_BG) as f32
+    pub beta: [f32; 2],
+    /// A_R^-beta_BR, A_G^-beta_BG, 1 / A_B: the lower bound's factors
+    lb_scale: [f32; 3],
+}
+
+impl HazeType {
+    /// The constants for water type `wt` and veiling light `a` (each > 0).
+    pub fn new(a: [f32; 3], wt: &WaterType) -> Self {
+        let beta = [wt.beta_br as f32, wt.beta_bg as f32];
+        Self {
+            a,
+            beta,
+            lb_scale: [a[0].powf(-beta[0]), a[1].powf(-beta[1]), 1.0 / a[2]],
+        }
+    }
+
+    /// The medium-compensated vector of SPEC 0 / 4.1 for one pixel.
+    #[inline(always)]
+    pub fn compensated(&self, px: [f32; 3]) -> [f32; 3] {
+        [
+            signed_pow(self.a[0] - px[0], self.beta[0]),
+            signed_pow(self.a[1] - px[1], self.beta[1]),
+            self.a[2] - px[2],
+        ]
+    }
+
+    /// The lower bound t_LB of SPEC 5 from the compensated vector v:
+    /// max(1 - I_c/A_c, 0)^beta_c = max(v_c, 0) A_c^-beta_c, floor 0.1.
+    #[inline(always)]
+    pub fn lower_bound(&self, v: [f32; 3]) -> f32 {
+        let [r, g, b] = v;
+        let [sr, sg, sb] = self.lb_scale;
+        (r.max(0.0) * sr)
+            .max(g.max(0.0) * sg)
+            .max(b.max(0.0) * sb)
+            .max(LB_FLOOR)
+    }
+}
+
+/// Rows per work item of the per-pixel passes.
+pub const CHUNK_ROWS: usize = 8;
+
+/// First pass of SPEC 4 (and the lower bound of SPEC 5) over all pixels:
+/// `r_out[i]` = |v| (0 for masked-out pixels), `aux[i]` = (t_LB, cluster
+/// as f32 or -1 for none, 0, 0). Returns r_max per cluster (max is exact
+/// and order-free: the same for any split).
+pub fn haze_pass(
+    img: &ImageRef,
+    ht: &HazeType,
+    index: &SphereIndex,
+    mask: Option<&[bool]>,
+    r_out: &mut [f32],
+    aux: &mut [[f32; 4]],
+) -> Vec<f32> {
+    let w = img.width;
+    let k = index.len();
+    let chunk = w * CHUNK_ROWS;
+    r_out
+        .par_chunks_mut(chunk)
+        .zip(aux.par_chunks_mut(chunk))
+        .zip(img.data.par_chunks(3 * chunk))
+        .enumerate()
+        .map(|(ci, ((rr, aa), px))| {
+            let mut m = vec![0f32; k];
+            // per row: first the compensated vectors (the powers), then the
+            // cluster lookups in a loop without calls
+            let mut vs = vec![[0f32; 3]; w];
+            for (y, ((rr, aa), px)) in rr.chunks_mut(w).zip(aa.chunks_mut(w)).zip(px.chunks(3 * w)).enumerate() {
+                for (v, p) in vs.iter_mut().zip(px.chunks_exact(3)) {
+                    *v = ht.compensated([p[0], p[1], p[2]]);
+                }
+                let row0 = ci * chunk + y * w;
+                for (x, ((r, a), v)) in rr.iter_mut().zip(aa.iter_mut()).zip(&vs).enumerate() {
+                    let inside = mask.is_none_or(|mk| mk.get(row0 + x).copied().unwrap_or(false));
+                    let rad = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                    let mut cl = NO_CLUSTER;
+                    if inside && rad > 0.0 && rad.is_finite() {
+                        // the direction of v: no need to normalise it (SphereIndex::nearest)
+                        let c = index.nearest(v);
+                        if let Some(slot) = m.get_mut(c) {
+                            *slot = slot.max(rad);
+                        }
+                        cl = c as f32;
+                    }
+                    *r = if inside { rad } else { 0.0 };
+                    *a = [ht.lower_bound(*v), cl, 0.0, 0.0];
+                }
+            }
+            m
+        })
+        .reduce(
+            || vec![0f32; k],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x = x.max(*y));
+                a
+            },
+        )
+}
+
+/// t~ of one pixel (SPEC 4.4) from its radius, cluster (-1: none) and the
+/// clusters' r_max: clamp(r / r_max, 0.01, 1), or 1 without a cluster.
+#[inline(always)]
+pub fn t_tilde(r: f32, cluster: f32, rmax: &[f32]) -> f32 {
+    if cluster < 0.0 {
+        return 1.0;
+    }
+    match rmax.get(cluster as usize) {
+        Some(&m) if m > 0.0 => (r / m).clamp(T_MIN, 1.0),
+        _ => 1.0,
+    }
 }
 
 /// t~ for every pixel (SPEC 4.1-4.6): haze-line clusters on masked-in
@@ -44,68 +159,14 @@ pub fn initial_transmission(
     mask: Option<&[bool]>,
 ) -> Vec<f32> {
     let n = img.len();
-    let w = img.width;
-    // Per pixel: radius and cluster.
-    let mut radius = vec![0f32; n];
-    let mut cluster = vec![NO_CLUSTER; n];
-    radius
-        .par_chunks_mut(w)
-        .zip(cluster.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, (rr, cc))| {
-            for x in 0..w {
-                let i = y * w + x;
-                if mask.is_some_and(|m| !m[i]) {
-                    continue;
-                }
-                let v = compensated(img.px(i), a, wt);
-                let r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                rr[x] = r;
-                if r > 0.0 && r.is_finite() {
-                    cc[x] = index.nearest(&[v[0] / r, v[1] / r, v[2] / r]) as u32;
-                }
-            }
-        });
-    // r_max per cluster: max is exact and order-free, so any split is deterministic.
-    let k = index.len();
-    let rmax = radius
-        .par_chunks(w * 16)
-        .zip(cluster.par_chunks(w * 16))
-        .map(|(rr, cc)| {
-            let mut m = vec![0f32; k];
-            for (&r, &c) in rr.iter().zip(cc) {
-                if c != NO_CLUSTER {
-                    let slot = &mut m[c as usize];
-                    *slot = slot.max(r);
-                }
-            }
-            m
-        })
-        .reduce(
-            || vec![0f32; k],
-            |mut a, b| {
-                a.iter_mut().zip(&b).for_each(|(x, y)| *x = x.max(*y));
-                a
-            },
-        );
-    let mut t: Vec<f32> = radius
-        .par_iter()
-        .zip(&cluster)
-        .map(|(&r, &c)| {
-            if c == NO_CLUSTER {
-                1.0
-            } else {
-                let m = rmax[c as usize];
-                if m > 0.0 {
-                    (r / m).clamp(T_MIN, 1.0)
-                } else {
-                    1.0
-                }
-            }
-        })
-        .collect();
+    let mut t = vec![0f32; n];
+    let mut aux = vec![[0f32; 4]; n];
+    let rmax = haze_pass(img, &HazeType::new(a, wt), index, mask, &mut t, &mut aux);
+    t.par_iter_mut()
+        .zip(aux.par_iter())
+        .for_each(|(v, x)| *v = t_tilde(*v, x[1], &rmax));
     if let Some(m) = mask {
-        fill_masked(&mut t, m, img.height, w);
+        fill_masked(&mut t, m, img.height, img.width);
     }
     t.par_iter_mut().for_each(|v| *v *= T_SCALE);
     t

@@ -55,7 +55,7 @@ macro_rules! core_modules {
 
 core_modules! {
     checked: clahe, color, error, image, water;
-    pending: filters, guided, hazelines, matting, pipeline, recover, select, sphere, util, veiling;
+    pending: boxsum, filters, guided, hazelines, matting, pipeline, rank, recover, select, sphere, util, veiling;
 }
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,

@@ -1,10 +1,11 @@
 //! The transmission lower bound and the Mahalanobis soft matting with the
 //! water region (SPEC 5 / DECISIONS S5).
 
+use crate::hazelines::HazeType;
 use crate::image::ImageRef;
 use crate::util::{det_sum, det_sums, REDUCE_ROWS};
 use crate::water::WaterType;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 /// Floor of the lower bound (SPEC 5).
@@ -13,119 +14,172 @@ pub const LB_FLOOR: f32 = 0.1;
 /// The lower bound t_LB of SPEC 5 for one pixel.
 #[inline]
 pub fn lower_bound_px(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> f32 {
-    let r = (1.0 - px[0] / a[0]).max(0.0).powf(wt.beta_br as f32);
-    let g = (1.0 - px[1] / a[1]).max(0.0).powf(wt.beta_bg as f32);
-    let b = (1.0 - px[2] / a[2]).max(0.0);
-    r.max(g).max(b).max(LB_FLOOR)
+    let ht = HazeType::new(a, wt);
+    ht.lower_bound(ht.compensated(px))
 }
 
 /// t_LB for every pixel (SPEC 5).
 pub fn lower_bound(img: &ImageRef, a: [f32; 3], wt: &WaterType) -> Vec<f32> {
-    (0..img.len())
-        .into_par_iter()
-        .map(|i| lower_bound_px(img.px(i), a, wt))
+    let ht = HazeType::new(a, wt);
+    img.data
+        .par_chunks_exact(3)
+        .map(|p| ht.lower_bound(ht.compensated([p[0], p[1], p[2]])))
         .collect()
 }
 
-/// Squared Mahalanobis distances (as MATLAB's `mahal`) of every pixel to the
-/// colors of the VL pixels (mean, covariance with n - 1, ridge-regularised:
-/// C + (1e-6 trace(C) / 3 + 1e-12) I). None with fewer than 2 VL pixels.
-pub fn mahalanobis_sq(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
-    let n = img.len();
-    let chunk = img.width * REDUCE_ROWS;
-    let count = vl.iter().filter(|&&b| b).count();
-    if count < 2 {
-        return None;
-    }
-    let s = det_sums::<3, _>(n, chunk, |i, acc| {
-        if vl[i] {
-            let p = img.px(i);
-            for c in 0..3 {
-                acc[c] += p[c] as f64;
-            }
-        }
-    });
-    let mu = Vector3::new(
-        s[0] / count as f64,
-        s[1] / count as f64,
-        s[2] / count as f64,
-    );
-    let cs = det_sums::<6, _>(n, chunk, |i, acc| {
-        if vl[i] {
-            let p = img.px(i);
-            let d = [
-                p[0] as f64 - mu[0],
-                p[1] as f64 - mu[1],
-                p[2] as f64 - mu[2],
-            ];
-            acc[0] += d[0] * d[0];
-            acc[1] += d[0] * d[1];
-            acc[2] += d[0] * d[2];
-            acc[3] += d[1] * d[1];
-            acc[4] += d[1] * d[2];
-            acc[5] += d[2] * d[2];
-        }
-    });
-    let k = (count - 1) as f64;
-    let mut cov = Matrix3::new(
-        cs[0], cs[1], cs[2], cs[1], cs[3], cs[4], cs[2], cs[4], cs[5],
-    ) / k;
-    let lambda = 1e-6 * cov.trace() / 3.0 + 1e-12;
-    cov += Matrix3::identity() * lambda;
-    let inv = cov.try_inverse()?;
-    Some(
-        (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let p = img.px(i);
-                let d = Vector3::new(
-                    p[0] as f64 - mu[0],
-                    p[1] as f64 - mu[1],
-                    p[2] as f64 - mu[2],
-                );
-                (d.transpose() * inv * d)[(0, 0)] as f32
-            })
-            .collect(),
-    )
+/// The soft matting of SPEC 5 as a model of the water's colors: the VL
+/// pixels' mean and regularised inverse covariance, and the two thresholds
+/// on the squared Mahalanobis distance. Weights are computed per pixel when
+/// needed (no per-pixel plane is stored).
+#[derive(Debug, Clone, Copy)]
+pub struct Matting {
+    mu: [f64; 3],
+    /// inverse covariance, row-major
+    inv: [f64; 9],
+    thr_water: f64,
+    /// 1 / (thr_notwater - thr_water), or 0 when the thresholds coincide
+    inv_span: f64,
 }
 
-/// Matting weights w of SPEC 5 (1 = water, 0 = object) from the squared
-/// distances `d`, with the thresholds taken over the VL pixels:
-/// thr_water = m + 2 s, thr_notwater = M + s.
-pub fn matting_weights(d: &[f32], vl: &[bool], width: usize) -> Vec<f32> {
-    let n = d.len();
-    let chunk = width.max(1) * REDUCE_ROWS;
-    let count = vl.iter().filter(|&&b| b).count().max(1) as f64;
-    let mean = det_sum(n, chunk, |i| if vl[i] { d[i] as f64 } else { 0.0 }) / count;
-    let var = det_sum(n, chunk, |i| {
-        if vl[i] {
-            (d[i] as f64 - mean).powi(2)
+impl Matting {
+    /// Fits the model to the VL pixels of `img` (DECISIONS S5): mean and
+    /// covariance (n - 1) of their colors, ridge C + (1e-6 trace(C) / 3 +
+    /// 1e-12) I, and over their own distances d: thr_water = m + 2 s,
+    /// thr_notwater = M + s. None with fewer than 2 VL pixels or a singular
+    /// matrix.
+    pub fn fit(img: &ImageRef, vl: &[bool]) -> Option<Self> {
+        let n = img.len();
+        let chunk = img.width * REDUCE_ROWS;
+        let count = vl.iter().filter(|&&b| b).count();
+        if count < 2 || vl.len() != n {
+            return None;
+        }
+        let px = |i: usize| -> [f64; 3] {
+            let p = img.data.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]);
+            [p[0] as f64, p[1] as f64, p[2] as f64]
+        };
+        let in_vl = |i: usize| vl.get(i).copied().unwrap_or(false);
+        let s = det_sums::<3, _>(n, chunk, |i, acc| {
+            if in_vl(i) {
+                let p = px(i);
+                acc.iter_mut().zip(p).for_each(|(a, v)| *a += v);
+            }
+        });
+        let mu = s.map(|v| v / count as f64);
+        let cs = det_sums::<6, _>(n, chunk, |i, acc| {
+            if in_vl(i) {
+                let p = px(i);
+                let d = [p[0] - mu[0], p[1] - mu[1], p[2] - mu[2]];
+                let prods = [d[0] * d[0], d[0] * d[1], d[0] * d[2], d[1] * d[1], d[1] * d[2], d[2] * d[2]];
+                acc.iter_mut().zip(prods).for_each(|(a, v)| *a += v);
+            }
+        });
+        let k = (count - 1) as f64;
+        let mut cov = Matrix3::new(
+            cs[0], cs[1], cs[2], cs[1], cs[3], cs[4], cs[2], cs[4], cs[5],
+        ) / k;
+        let lambda = 1e-6 * cov.trace() / 3.0 + 1e-12;
+        cov += Matrix3::identity() * lambda;
+        let inv = cov.try_inverse()?;
+        let mut model = Self {
+            mu,
+            inv: [
+                inv[(0, 0)],
+                inv[(0, 1)],
+                inv[(0, 2)],
+                inv[(1, 0)],
+                inv[(1, 1)],
+                inv[(1, 2)],
+                inv[(2, 0)],
+                inv[(2, 1)],
+                inv[(2, 2)],
+            ],
+            thr_water: 0.0,
+            inv_span: 0.0,
+        };
+        let (tw, tn) = thresholds(vl, img.width, |i| model.distance_px(px(i)) as f64);
+        model.set_thresholds(tw, tn);
+        Some(model)
+    }
+
+    fn set_thresholds(&mut self, thr_water: f64, thr_not: f64) {
+        self.thr_water = thr_water;
+        let inv = 1.0 / (thr_not - thr_water);
+        self.inv_span = if inv > 0.0 && inv.is_finite() { inv } else { 0.0 };
+    }
+
+    /// Squared Mahalanobis distance of one color (f64 arithmetic, f32 result).
+    #[inline(always)]
+    fn distance_px(&self, p: [f64; 3]) -> f32 {
+        let d = [p[0] - self.mu[0], p[1] - self.mu[1], p[2] - self.mu[2]];
+        let m = &self.inv;
+        let row = |r: usize| -> f64 {
+            m.get(3 * r..3 * r + 3)
+                .map_or(0.0, |v| v[0] * d[0] + v[1] * d[1] + v[2] * d[2])
+        };
+        (d[0] * row(0) + d[1] * row(1) + d[2] * row(2)) as f32
+    }
+
+    /// Squared Mahalanobis distance of a pixel to the water's colors.
+    #[inline(always)]
+    pub fn distance(&self, p: [f32; 3]) -> f32 {
+        self.distance_px([p[0] as f64, p[1] as f64, p[2] as f64])
+    }
+
+    /// The weight w of SPEC 5 (1 = water, 0 = object) for a distance d:
+    /// 1 - clamp((d - thr_water) / (thr_notwater - thr_water), 0, 1), or a
+    /// hard step at thr_water when the thresholds coincide.
+    #[inline(always)]
+    pub fn weight_of(&self, d: f32) -> f32 {
+        let v = d as f64;
+        if self.inv_span > 0.0 {
+            (1.0 - ((v - self.thr_water) * self.inv_span).clamp(0.0, 1.0)) as f32
+        } else if v <= self.thr_water {
+            1.0
         } else {
             0.0
         }
-    }) / (count - 1.0).max(1.0);
-    let s = var.sqrt();
-    let max = d
-        .iter()
-        .zip(vl)
-        .filter(|(_, &b)| b)
-        .map(|(&v, _)| v as f64)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let thr_water = mean + 2.0 * s;
-    let thr_not = max + s;
-    let span = thr_not - thr_water;
-    d.par_iter()
-        .map(|&v| {
-            let v = v as f64;
-            if span > 0.0 {
-                (1.0 - ((v - thr_water) / span).clamp(0.0, 1.0)) as f32
-            } else if v <= thr_water {
-                1.0
-            } else {
-                0.0
-            }
-        })
-        .collect()
+    }
+
+    /// The weight of a pixel.
+    #[inline(always)]
+    pub fn weight(&self, p: [f32; 3]) -> f32 {
+        self.weight_of(self.distance(p))
+    }
+}
+
+/// The matting thresholds of SPEC 5 from the distances `d(i)` of the VL
+/// pixels: m = mean, s = std (n - 1), M = max; (m + 2 s, M + s).
+pub fn thresholds<F: Fn(usize) -> f64 + Sync>(vl: &[bool], width: usize, d: F) -> (f64, f64) {
+    let n = vl.len();
+    let chunk = width.max(1) * REDUCE_ROWS;
+    let in_vl = |i: usize| vl.get(i).copied().unwrap_or(false);
+    let count = vl.iter().filter(|&&b| b).count().max(1) as f64;
+    let mean = det_sum(n, chunk, |i| if in_vl(i) { d(i) } else { 0.0 }) / count;
+    let var = det_sum(n, chunk, |i| if in_vl(i) { (d(i) - mean).powi(2) } else { 0.0 })
+        / (count - 1.0).max(1.0);
+    let max = (0..n)
+        .into_par_iter()
+        .filter(|&i| in_vl(i))
+        .map(&d)
+        .reduce(|| f64::NEG_INFINITY, f64::max);
+    let sd = var.sqrt();
+    (mean + 2.0 * sd, max + sd)
+}
+
+/// Squared Mahalanobis distances (as MATLAB's `mahal`) of every pixel to the
+/// colors of the VL pixels (see [`Matting::fit`]). None with fewer than 2
+/// VL pixels.
+pub fn mahalanobis_sq(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
+    let m = Matting::fit(img, vl)?;
+    Some(img.data.par_chunks_exact(3).map(|p| m.distance([p[0], p[1], p[2]])).collect())
+}
+
+/// Matting weights w of SPEC 5 (1 = water, 0 = object) of every pixel
+/// (see [`Matting::weight`]). None with fewer than 2 VL pixels.
+pub fn matting_weights(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
+    let m = Matting::fit(img, vl)?;
+    Some(img.data.par_chunks_exact(3).map(|p| m.weight([p[0], p[1], p[2]])).collect())
 }
 
 #[cfg(test)]
@@ -171,16 +225,22 @@ mod tests {
 
     #[test]
     fn matting_weights_by_hand() {
-        // VL distances 1, 2, 3: m = 2, s = 1, M = 3 -> thr_water 4, thr_not 4 + 0 ... = M + s = 4
+        let weights = |d: &[f32], vl: &[bool]| -> Vec<f32> {
+            let (thr_water, thr_not) = thresholds(vl, d.len(), |i| d[i] as f64);
+            let mut m = Matting { mu: [0.0; 3], inv: [0.0; 9], thr_water: 0.0, inv_span: 0.0 };
+            m.set_thresholds(thr_water, thr_not);
+            d.iter().map(|&v| m.weight_of(v)).collect()
+        };
+        // VL distances 1, 2, 3: m = 2, s = 1, M = 3 -> thr_water 4, thr_not = M + s = 4:
         // equal thresholds: a hard step at 4.
         let d = [1.0f32, 2.0, 3.0, 4.0, 4.5];
         let vl = [true, true, true, false, false];
-        assert_eq!(matting_weights(&d, &vl, 5), vec![1.0, 1.0, 1.0, 1.0, 0.0]);
+        assert_eq!(weights(&d, &vl), vec![1.0, 1.0, 1.0, 1.0, 0.0]);
         // VL distances 0, 0, 6: m = 2, s = sqrt(12) = 3.4641, M = 6:
         // thr_water = 8.9282, thr_not = 9.4641: d = 9.1962 -> w = 0.5
         let d = [0.0f32, 0.0, 6.0, 9.196152, 20.0, 1.0];
         let vl = [true, true, true, false, false, false];
-        let w = matting_weights(&d, &vl, 6);
+        let w = weights(&d, &vl);
         assert!(
             (w[3] - 0.5).abs() < 1e-4 && w[4] == 0.0 && w[5] == 1.0,
             "{w:?}"

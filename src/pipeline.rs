@@ -1,21 +1,30 @@
 //! Orchestration (SPEC 2-10): per-image work once (validation, veiling
-//! light and water region, Mahalanobis weights, guide statistics), per-type
-//! work in parallel, the chosen type recomputed once to produce the outputs
-//! (so no per-type full-resolution image is kept).
+//! light and water region, the Mahalanobis matting model, guide
+//! statistics), then the water types one after another, each with every
+//! pass parallel over rows, and the chosen type computed once more to
+//! produce the outputs. Per type only three buffers exist (the refined
+//! transmission / J, the guided filter's (a, b), and with an estimation
+//! mask the filtered plane); no per-type full-resolution image is kept.
+//!
+//! Selection needs from each type only sums over pixels (SPEC 9) and the
+//! display stretch's limits, which come from order statistics of J before
+//! the artifact clamp: the clamp and the normalisation are non-decreasing
+//! maps, so they commute with ranking ([`crate::rank`]).
 
 use crate::error::{Error, Result};
 use crate::filters::components8;
 use crate::guided::GuideStats;
-use crate::hazelines::initial_transmission;
+use crate::hazelines::{fill_masked, haze_pass, t_tilde, HazeType, CHUNK_ROWS, T_SCALE};
 use crate::image::{check_mask, ImageRef};
-use crate::matting::{lower_bound_px, mahalanobis_sq, matting_weights};
-use crate::recover::{channel_t, display_stretch, recover};
-use crate::select::{choose, type_stats, TypeStats, FLAG_RELAXED};
+use crate::matting::Matting;
+use crate::recover::{display_limits, ArtifactClamp, Recovery, DISPLAY_QS};
+use crate::select::{choose, Choice, SelectionSums, TypeStats, FLAG_RELAXED};
 use crate::sphere::SphereIndex;
-use crate::util::{masked_channel, normalize_masked, percentiles, stretch_channels, with_threads};
+use crate::util::{channel_percentiles, with_threads, ChannelStretch, Normalize};
 use crate::veiling::{estimate, Veiling};
 use crate::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Default guided-filter regulariser (SPEC 6).
 pub const DEFAULT_EPS: f64 = 1e-3;
@@ -23,6 +32,31 @@ pub const DEFAULT_EPS: f64 = 1e-3;
 pub const DEFAULT_SPHERE_POINTS: usize = 500;
 /// Default working-memory limit: 16 GiB.
 pub const DEFAULT_MAX_MEMORY: u64 = 16 << 30;
+/// Longer side (about) of the copy on which [`Selection::Fast`] scores the types.
+pub const FAST_SIDE: usize = 1024;
+/// How many of the copy's best-scoring surviving types [`Selection::Fast`]
+/// scores again at full resolution before choosing.
+pub const FAST_RESCORE: usize = 3;
+
+/// How the water type is chosen (SPEC 9).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Selection {
+    /// Every candidate type is restored at full resolution and scored
+    /// (SPEC 9 as written).
+    #[default]
+    Exhaustive,
+    /// The types are scored on a copy whose longer side is about
+    /// [`FAST_SIDE`]: one pixel (the centre) of every s x s block, s =
+    /// ceil(max(H, W) / 1024), with its water region and mask, and the
+    /// full-resolution veiling light. Where the copy's choice (SPEC 9 on
+    /// the copy) is uncertain, up to [`FAST_RESCORE`] of its best surviving
+    /// types are scored again at full resolution and SPEC 9 chooses among
+    /// them (see [`FAST_SCORE_MARGIN`], [`FAST_EXCLUSION_MARGIN`]); the
+    /// chosen type is restored exactly as the exhaustive mode restores it. Reported scores and exclusions are full-resolution ones for the
+    /// re-scored types and the copy's for the others. Images whose longer
+    /// side is at most 1024 are processed exhaustively.
+    Fast,
+}
 
 /// Parameters of [`restore`]; `Default` gives SPEC.md's defaults.
 #[derive(Debug, Clone)]
@@ -41,6 +75,8 @@ pub struct Params {
     pub threads: Option<usize>,
     /// working-memory limit in bytes, checked before anything large is allocated
     pub max_memory: u64,
+    /// how the water type is chosen; default exhaustive
+    pub selection: Selection,
 }
 
 impl Default for Params {
@@ -53,6 +89,7 @@ impl Default for Params {
             sphere_points: DEFAULT_SPHERE_POINTS,
             threads: None,
             max_memory: DEFAULT_MAX_MEMORY,
+            selection: Selection::Exhaustive,
         }
     }
 }
@@ -106,7 +143,8 @@ impl Restoration {
 
 /// Per-channel transmission maps (t_R, t_G, t_B) from a clamped t_B (SPEC 7).
 pub fn channel_transmissions(t_b: &[f32], wt: &WaterType) -> [Vec<f32>; 3] {
-    let per: Vec<[f32; 3]> = t_b.par_iter().map(|&t| channel_t(t, wt)).collect();
+    let rec = Recovery::new([1.0; 3], wt);
+    let per: Vec<[f32; 3]> = t_b.par_iter().map(|&t| rec.channel_t(t)).collect();
     [0, 1, 2].map(|c| per.iter().map(|v| v[c]).collect())
 }
 
@@ -115,40 +153,63 @@ pub fn default_radius(h: usize, w: usize) -> usize {
     (h.min(w) as f64 / 4.0).round() as usize
 }
 
-/// Working memory of [`restore`] in bytes, estimated from the image size and
-/// the number of types evaluated at once (documented in the README):
-/// per pixel 4 B x (3 guide + 9 guide statistics + 1 matting weight + 3 + 3
-/// + 1 + 1 outputs) for the image-wide buffers, plus for each type in flight
-/// 4 B x 16 planes and one 8 B box-filter accumulator.
-pub fn memory_estimate(h: usize, w: usize, in_flight: usize) -> u64 {
+/// Working memory of [`restore`] in bytes beyond the input image, estimated
+/// up front from the image size (documented in the README):
+/// `H W (80 + 21 holes)` bytes, holes = the estimation mask has false pixels.
+/// Per pixel: 12 B guide + 36 B guide statistics (window means and inverse
+/// covariances, f32) + 1 B water region, image-wide; 12 B (J, first the
+/// refined transmission) + 16 B (t_LB and cluster, then the guided
+/// filter's a, b) for the type being evaluated; 3 B for row buffers,
+/// order-statistics brackets and allocator slack (measured: 79.2 B per
+/// pixel at 12 MP). With masked-out pixels, 4 B for the filtered plane
+/// and 17 B for the fill of SPEC 4.5. The outputs (29 B per pixel) are
+/// allocated after the per-type buffers and the guide statistics are
+/// freed. [`Selection::Fast`] scores its copy before the full-size
+/// buffers exist (the estimate adds the copy's share anyway).
+pub fn memory_estimate(h: usize, w: usize, holes: bool) -> u64 {
     let n = (h as u64).saturating_mul(w as u64);
-    let per_image = 4 * (3 + 9 + 1 + 3 + 3 + 1 + 1) + 1;
-    let per_type = 4 * 16 + 8;
-    n.saturating_mul(per_image + per_type * in_flight.max(1) as u64)
+    let per_px = 80 + if holes { 21 } else { 0 };
+    n.saturating_mul(per_px)
+}
+
+/// Fractions of the guide stretch's percentiles (SPEC 3.1).
+const GUIDE_QS: [f64; 2] = [0.01, 0.99];
+
+/// The normalisation and per-channel limits of SPEC 3.1 (DECISIONS S3.1).
+fn stretch_limits(data: &[f32], mask: Option<&[bool]>) -> (Normalize, ChannelStretch) {
+    let norm = Normalize::masked(data, mask);
+    let p = channel_percentiles(data, mask, &GUIDE_QS, |_, v| norm.apply(v));
+    let limits = p.map(|p| match (p.first(), p.get(1)) {
+        (Some(&lo), Some(&hi)) if hi - lo > 1e-12 => Some((lo, hi)),
+        _ => None,
+    });
+    (norm, ChannelStretch::new(limits))
 }
 
 /// The contrast stretch of SPEC 3.1 (DECISIONS S3.1): global min-max, then
 /// per channel between its 1% and 99% percentiles, clipped to [0, 1].
 /// Statistics over masked-in pixels (all without a mask), applied to all.
 pub fn stretch_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let x = normalize_masked(data, mask);
-    let limits = [0, 1, 2].map(|c| {
-        let p = percentiles(masked_channel(&x, c, mask), &[0.01, 0.99]);
-        (p[1] - p[0] > 1e-12).then_some((p[0], p[1]))
-    });
-    stretch_channels(&x, limits)
+    let (norm, st) = stretch_limits(data, mask);
+    st.map_rgb(data, |v| norm.apply(v))
 }
 
 /// The guide of SPEC 6: the stretched input raised to 1/2.2, 0 on masked-out pixels.
 pub fn guide_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let mut g = stretch_image(data, mask);
-    g.par_chunks_mut(3).enumerate().for_each(|(i, px)| {
-        if mask.is_some_and(|m| !m[i]) {
-            px.iter_mut().for_each(|v| *v = 0.0);
-        } else {
-            px.iter_mut().for_each(|v| *v = v.powf(1.0 / 2.2));
-        }
-    });
+    let (norm, st) = stretch_limits(data, mask);
+    let mut g = vec![0f32; data.len()];
+    g.par_chunks_mut(3 * 4096)
+        .zip(data.par_chunks(3 * 4096))
+        .enumerate()
+        .for_each(|(ci, (o, s))| {
+            for (k, (op, sp)) in o.chunks_exact_mut(3).zip(s.chunks_exact(3)).enumerate() {
+                if mask.is_none_or(|m| m.get(ci * 4096 + k).copied().unwrap_or(false)) {
+                    for (c, (d, v)) in op.iter_mut().zip(sp).enumerate() {
+                        *d = st.apply(c, norm.apply(*v)).powf(1.0 / 2.2);
+                    }
+                }
+            }
+        });
     g
 }
 
@@ -221,53 +282,321 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
     });
 }
 
+/// What one pass over a row of recovered pixels gathers (SPEC 7-9).
+#[derive(Debug, Clone, Copy)]
+struct RowStats {
+    /// min and max of J over the masked-in pixels' channels
+    lo: f32,
+    hi: f32,
+    /// t_R sums over counted and VL pixels (the channel sums come later)
+    sums: SelectionSums,
+}
+
+impl Default for RowStats {
+    fn default() -> Self {
+        Self {
+            lo: f32::INFINITY,
+            hi: f32::NEG_INFINITY,
+            sums: SelectionSums::default(),
+        }
+    }
+}
+
+impl RowStats {
+    fn add(&mut self, o: &Self) {
+        self.lo = self.lo.min(o.lo);
+        self.hi = self.hi.max(o.hi);
+        self.sums.add(&o.sums);
+    }
+}
+
+/// The buffers of the type being evaluated (reused from type to type).
+struct Work {
+    /// the refined transmission p in the first n entries, then J (3 per pixel)
+    j: Vec<f32>,
+    /// t_LB and cluster per pixel (SPEC 4-5), then the guided filter's (a, b)
+    aux: Vec<[f32; 4]>,
+    /// the filtered plane q (only with masked-out pixels, for the chart fill)
+    q: Vec<f32>,
+}
+
+impl Work {
+    fn new(n: usize, holes: bool) -> Self {
+        Self {
+            j: vec![0.0; 3 * n],
+            aux: vec![[0.0; 4]; n],
+            q: if holes { vec![0.0; n] } else { Vec::new() },
+        }
+    }
+}
+
+/// A type's restored image before its final form: J before the artifact
+/// clamp, and the maps that make the outputs from it.
+struct Stretch {
+    clamp: ArtifactClamp,
+    norm: Normalize,
+    limits: ChannelStretch,
+}
+
+impl Stretch {
+    /// The displayed value of channel c of J (SPEC 7 clamp, SPEC 8 stretch).
+    #[inline(always)]
+    fn apply(&self, c: usize, j: f32) -> f32 {
+        self.limits.apply(c, self.norm.apply(self.clamp.apply(j)))
+    }
+}
+
 /// Per-image state shared by every water type.
 struct Shared<'a> {
-    input: Input<'a>,
-    veil: Veiling,
-    weights: Option<Vec<f32>>,
+    img: ImageRef<'a>,
+    mask: Option<&'a [bool]>,
+    vl: &'a [bool],
+    a: [f32; 3],
+    matting: Option<Matting>,
     guide: GuideStats,
-    index: SphereIndex,
-    has_holes: bool,
+    index: &'a SphereIndex,
+    holes: bool,
 }
 
 impl Shared<'_> {
-    /// The refined transmission of one type (SPEC 4-6).
-    fn refined(&self, wt: &WaterType) -> Vec<f32> {
-        let img = &self.input.image;
-        let a = self.veil.a;
-        let mut t = initial_transmission(img, a, wt, &self.index, self.input.mask);
-        let weights = self.weights.as_deref();
-        t.par_iter_mut().enumerate().for_each(|(i, v)| {
-            let lb = lower_bound_px(img.px(i), a, wt);
-            let tt = v.max(lb);
-            *v = match weights {
-                Some(w) => w[i] * lb + (1.0 - w[i]) * tt,
-                None => tt,
-            };
-        });
-        let mut q = self.guide.filter(&t);
-        if self.has_holes {
-            if let Some(m) = self.input.mask {
-                chart_fill(&mut q, m, img.height, img.width);
-            }
-        }
-        q
+    #[inline(always)]
+    fn masked_in(&self, i: usize) -> bool {
+        self.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false))
     }
 
-    /// Selection statistics of one type (SPEC 7-9).
-    fn stats(&self, wt: &WaterType) -> TypeStats {
-        let q = self.refined(wt);
-        let (j, tb) = recover(&self.input.image, self.veil.a, &q, wt, self.input.mask);
-        let s = display_stretch(&j, self.input.mask);
-        let tr: Vec<f32> = tb.par_iter().map(|&t| channel_t(t, wt)[0]).collect();
-        type_stats(
-            &s,
-            &tr,
-            &self.veil.vl,
-            self.input.mask,
-            self.input.image.width,
-        )
+    #[inline(always)]
+    fn in_vl(&self, i: usize) -> bool {
+        self.vl.get(i).copied().unwrap_or(false)
+    }
+
+    /// SPEC 4-6 up to the guided filter's first pass: the refined
+    /// transmission p = blend(max(t~, t_LB)) into `work.j[..n]`, then (a, b)
+    /// into `work.aux`. Returns the bounds of (a, b) for the second pass.
+    fn refine(&self, wt: &WaterType, work: &mut Work) -> [f64; 4] {
+        let img = &self.img;
+        let (n, w) = (img.len(), img.width);
+        let Work { j, aux, .. } = work;
+        let (p, _) = j.split_at_mut(n);
+        let ht = HazeType::new(self.a, wt);
+        let rmax = haze_pass(img, &ht, self.index, self.mask, p, aux);
+        let blend = |tt: f32, lb: f32, px: &[f32]| -> f32 {
+            let tt = tt.max(lb);
+            match &self.matting {
+                Some(m) => {
+                    let wgt = m.weight([px[0], px[1], px[2]]);
+                    wgt * lb + (1.0 - wgt) * tt
+                }
+                None => tt,
+            }
+        };
+        let chunk = w * CHUNK_ROWS;
+        if self.holes {
+            p.par_iter_mut()
+                .zip(aux.par_iter())
+                .for_each(|(v, x)| *v = t_tilde(*v, x[1], &rmax));
+            if let Some(m) = self.mask {
+                fill_masked(p, m, img.height, w);
+            }
+            p.par_chunks_mut(chunk)
+                .zip(aux.par_chunks(chunk))
+                .zip(img.data.par_chunks(3 * chunk))
+                .for_each(|((pp, aa), px)| {
+                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.chunks_exact(3)) {
+                        *v = blend(*v * T_SCALE, x[0], c);
+                    }
+                });
+        } else {
+            p.par_chunks_mut(chunk)
+                .zip(aux.par_chunks(chunk))
+                .zip(img.data.par_chunks(3 * chunk))
+                .for_each(|((pp, aa), px)| {
+                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.chunks_exact(3)) {
+                        *v = blend(t_tilde(*v, x[1], &rmax) * T_SCALE, x[0], c);
+                    }
+                });
+        }
+        self.guide.coefficients(p, aux)
+    }
+
+    /// SPEC 7 for one row: t_B (written to `tb` if given), t_R, t_G and J
+    /// before the artifact clamp (to `j`), with the row's statistics.
+    fn recover_row(&self, rec: &Recovery, y: usize, q: &[f32], j: &mut [f32], mut tb: Option<&mut [f32]>) -> RowStats {
+        let w = self.img.width;
+        let mut st = RowStats::default();
+        let px = self.img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
+        for (x, ((qv, o), p)) in q.iter().zip(j.chunks_exact_mut(3)).zip(px.chunks_exact(3)).enumerate() {
+            let i = y * w + x;
+            let t = rec.clamp_tb(*qv);
+            let tc = rec.channel_t(t);
+            let jv = rec.radiance([p[0], p[1], p[2]], tc);
+            o.copy_from_slice(&jv);
+            if let Some(d) = tb.as_deref_mut().and_then(|b| b.get_mut(x)) {
+                *d = t;
+            }
+            if self.masked_in(i) {
+                st.lo = st.lo.min(jv[0]).min(jv[1]).min(jv[2]);
+                st.hi = st.hi.max(jv[0]).max(jv[1]).max(jv[2]);
+                if self.in_vl(i) {
+                    st.sums.tr_vl += tc[0] as f64;
+                    st.sums.vl += 1.0;
+                } else {
+                    st.sums.tr_counted += tc[0] as f64;
+                    st.sums.counted += 1.0;
+                }
+            }
+        }
+        st
+    }
+
+    /// The guided filter's second pass, the chart fill (SPEC 6) and the
+    /// recovery (SPEC 7) into `work.j` (and t_B into `tb` if given);
+    /// returns the statistics of all rows combined in row order.
+    fn recover(&self, wt: &WaterType, bounds: [f64; 4], work: &mut Work, tb: Option<&mut [f32]>) -> RowStats {
+        let (h, w) = (self.img.height, self.img.width);
+        let rec = Recovery::new(self.a, wt);
+        let Work { j, aux, q } = work;
+        let mut rows = vec![RowStats::default(); h];
+        let mut tb_buf = tb;
+        if !self.holes {
+            let ranges = self.guide.ranges();
+            let tbs: Vec<Option<&mut [f32]>> = match tb_buf.as_deref_mut() {
+                Some(b) => split_rows(b, w, &ranges).into_iter().map(Some).collect(),
+                None => ranges.iter().map(|_| None).collect(),
+            };
+            let work: Vec<_> = ranges
+                .iter()
+                .cloned()
+                .zip(split_rows(j, 3 * w, &ranges).into_iter().zip(tbs).zip(split_rows(&mut rows, 1, &ranges)))
+                .map(|(r, ((jj, tt), rr))| (r.clone(), (r.start, jj, tt, rr)))
+                .collect();
+            type State<'s> = (usize, &'s mut [f32], Option<&'s mut [f32]>, &'s mut [RowStats]);
+            let sink = |o: &mut State<'_>, y: usize, qrow: &[f32]| {
+                let k = y - o.0;
+                let (Some(jr), Some(slot)) = (o.1.get_mut(3 * k * w..3 * (k + 1) * w), o.3.get_mut(k)) else {
+                    return;
+                };
+                let tr = o.2.as_deref_mut().and_then(|b| b.get_mut(k * w..(k + 1) * w));
+                *slot = self.recover_row(&rec, y, qrow, jr, tr);
+            };
+            self.guide.apply_rows(aux, bounds, work, &sink);
+        } else {
+            let ranges = self.guide.ranges();
+            let work: Vec<_> = ranges
+                .iter()
+                .cloned()
+                .zip(split_rows(q, w, &ranges))
+                .map(|(r, s)| (r.clone(), (r.start, s)))
+                .collect();
+            let sink = |o: &mut (usize, &mut [f32]), y: usize, qrow: &[f32]| {
+                let k = y - o.0;
+                if let Some(d) = o.1.get_mut(k * w..(k + 1) * w) {
+                    d.copy_from_slice(qrow);
+                }
+            };
+            self.guide.apply_rows(aux, bounds, work, &sink);
+            if let Some(m) = self.mask {
+                chart_fill(q, m, h, w);
+            }
+            let tbs: Vec<Option<&mut [f32]>> = match tb_buf {
+                Some(b) => b.chunks_mut(w).map(Some).collect(),
+                None => (0..h).map(|_| None).collect(),
+            };
+            rows.par_iter_mut()
+                .zip(j.par_chunks_mut(3 * w))
+                .zip(q.par_chunks(w))
+                .zip(tbs)
+                .enumerate()
+                .for_each(|(y, (((slot, jr), qr), tr))| *slot = self.recover_row(&rec, y, qr, jr, tr));
+        }
+        rows.iter().fold(RowStats::default(), |mut acc, r| {
+            acc.add(r);
+            acc
+        })
+    }
+
+    /// The artifact clamp and display stretch of a recovered J (SPEC 7-8),
+    /// from J's min and max and the order statistics of its channels.
+    fn stretch(&self, j: &[f32], st: &RowStats) -> Stretch {
+        let clamp = ArtifactClamp::new(st.lo, st.hi);
+        let norm = Normalize::new(clamp.apply(st.lo), clamp.apply(st.hi));
+        let pcts = channel_percentiles(j, self.mask, &DISPLAY_QS, |_, v| norm.apply(clamp.apply(v)));
+        Stretch {
+            clamp,
+            norm,
+            limits: display_limits(&pcts),
+        }
+    }
+
+    /// Sums of the three displayed channels over counted pixels (SPEC 9),
+    /// per row, combined in row order. `value(c, v)` maps a stored value.
+    fn channel_sums<F: Fn(usize, f32) -> f32 + Sync>(&self, rgb: &[f32], value: F) -> [f64; 3] {
+        let w = self.img.width;
+        let rows: Vec<[f64; 3]> = rgb
+            .par_chunks(3 * w)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut s = [0f64; 3];
+                for (x, p) in row.chunks_exact(3).enumerate() {
+                    let i = y * w + x;
+                    if self.masked_in(i) && !self.in_vl(i) {
+                        for (c, (acc, v)) in s.iter_mut().zip(p).enumerate() {
+                            *acc += value(c, *v) as f64;
+                        }
+                    }
+                }
+                s
+            })
+            .collect();
+        rows.iter().fold([0f64; 3], |a, r| [a[0] + r[0], a[1] + r[1], a[2] + r[2]])
+    }
+
+    /// Selection statistics of one type (SPEC 4-9) without keeping any of
+    /// its images.
+    fn evaluate(&self, wt: &WaterType, work: &mut Work) -> TypeStats {
+        let bounds = self.refine(wt, work);
+        let st = self.recover(wt, bounds, work, None);
+        let sp = self.stretch(&work.j, &st);
+        let mut sums = st.sums;
+        sums.channels = self.channel_sums(&work.j, |c, v| sp.apply(c, v));
+        sums.stats()
+    }
+}
+
+/// Splits a buffer of `row_len` items per row at the row ranges.
+fn split_rows<'a, T>(buf: &'a mut [T], row_len: usize, ranges: &[Range<usize>]) -> Vec<&'a mut [T]> {
+    crate::boxsum::split_bands(buf, row_len, ranges)
+}
+
+/// The outputs of the chosen type.
+struct Final {
+    radiance: Vec<f32>,
+    transmission: Vec<f32>,
+    image: Vec<f32>,
+    stats: TypeStats,
+}
+
+/// Restores the image with one water type (SPEC 4-8): the outputs and the
+/// type's selection statistics, identical to what the evaluation gave.
+fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work) -> Final {
+    let n = shared.img.len();
+    let bounds = shared.refine(wt, &mut work);
+    // the guide statistics serve only the first pass
+    shared.guide.release_stats();
+    let mut transmission = vec![0f32; n];
+    let st = shared.recover(wt, bounds, &mut work, Some(&mut transmission));
+    let sp = shared.stretch(&work.j, &st);
+    drop(std::mem::take(&mut work.aux));
+    drop(std::mem::take(&mut work.q));
+    let mut radiance = std::mem::take(&mut work.j);
+    radiance.par_iter_mut().for_each(|v| *v = sp.clamp.apply(*v));
+    let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
+    let mut sums = st.sums;
+    sums.channels = shared.channel_sums(&image, |_, v| v);
+    Final {
+        radiance,
+        transmission,
+        image,
+        stats: sums.stats(),
     }
 }
 
@@ -306,11 +635,12 @@ fn check_params(input: &Input, params: &Params) -> Result<()> {
     }
     check_mask("mask", input.mask, img.len(), 1)?;
     check_mask("water_mask", input.water_mask, img.len(), 0)?;
-    let in_flight = params
-        .threads
-        .unwrap_or_else(rayon::current_num_threads)
-        .min(params.water_types.len());
-    let needed = memory_estimate(img.height, img.width, in_flight);
+    let holes = input.mask.is_some_and(|m| m.iter().any(|&b| !b));
+    let mut needed = memory_estimate(img.height, img.width, holes);
+    if params.selection == Selection::Fast {
+        let s = fast_factor(img.height, img.width);
+        needed += memory_estimate(img.height.div_ceil(s), img.width.div_ceil(s), holes);
+    }
     if needed > params.max_memory {
         return Err(Error::Memory {
             height: img.height,
@@ -322,12 +652,95 @@ fn check_params(input: &Input, params: &Params) -> Result<()> {
     Ok(())
 }
 
+/// Relative margin of [`Selection::Fast`]: a survivor scoring within this
+/// factor of the copy's best is re-scored at full resolution.
+pub const FAST_SCORE_MARGIN: f64 = 1.5;
+/// A survivor whose t_R difference on the copy is within this of the
+/// copy's exclusion threshold may be excluded at full resolution: the next
+/// survivor is re-scored too.
+pub const FAST_EXCLUSION_MARGIN: f64 = 0.03;
+
+/// The types [`Selection::Fast`] scores again at full resolution: from the
+/// copy's survivors in order of score (`order`, best first), the best one,
+/// then every next one while it scores within [`FAST_SCORE_MARGIN`] of the
+/// best or all taken so far might be excluded at full resolution (t_R
+/// difference within [`FAST_EXCLUSION_MARGIN`] of the threshold); at most
+/// [`FAST_RESCORE`]. Measured on the shared photos and renders: the copy's
+/// t_R differences are within 0.02 of the full-resolution ones, and its
+/// choice differs only between types within 30% of each other's score or
+/// across the exclusion threshold.
+fn rescore_candidates(order: &[usize], copy: &[TypeStats], threshold: Option<f64>) -> Vec<usize> {
+    let stat = |i: usize| copy.get(i).copied();
+    let uncertain = |i: usize| match (threshold, stat(i).and_then(|s| s.tr_diff)) {
+        (Some(thr), Some(d)) => d < thr + FAST_EXCLUSION_MARGIN,
+        _ => false,
+    };
+    let best = order.first().and_then(|&i| stat(i)).map_or(f64::NAN, |s| s.score);
+    let mut out: Vec<usize> = Vec::new();
+    for &i in order {
+        let close = stat(i).is_some_and(|s| s.score <= FAST_SCORE_MARGIN * best);
+        if out.len() >= FAST_RESCORE || !(out.is_empty() || close || out.iter().all(|&j| uncertain(j))) {
+            break;
+        }
+        out.push(i);
+    }
+    out
+}
+
+/// Block factor of the copy [`Selection::Fast`] scores on (1: no copy).
+pub fn fast_factor(h: usize, w: usize) -> usize {
+    h.max(w).div_ceil(FAST_SIDE).max(1)
+}
+
+/// The copy of the image with its masks that [`Selection::Fast`] scores
+/// the types on: every s-th pixel of every s-th row (the centre of each
+/// s x s block). Point samples, not block averages: the statistics that
+/// selection depends on (the largest radius of each haze-line cluster, the
+/// 0.1% / 99.9% percentiles of the display stretch) are those of the
+/// pixels' own distribution, which averaging would narrow by removing
+/// noise.
+struct Small {
+    data: Vec<f32>,
+    h: usize,
+    w: usize,
+    mask: Option<Vec<bool>>,
+    vl: Vec<bool>,
+}
+
+impl Small {
+    fn new(img: &ImageRef, mask: Option<&[bool]>, vl: &[bool], s: usize) -> Self {
+        let (h, w) = (img.height, img.width);
+        let (hs, ws) = (h.div_ceil(s), w.div_ceil(s));
+        // the sampled pixel of block (by, bx): its centre, inside the image
+        let ys: Vec<usize> = (0..hs).map(|b| (b * s + s / 2).min(h - 1)).collect();
+        let xs: Vec<usize> = (0..ws).map(|b| (b * s + s / 2).min(w - 1)).collect();
+        let pick = |m: &[bool]| -> Vec<bool> {
+            ys.iter()
+                .flat_map(|&y| xs.iter().map(move |&x| y * w + x))
+                .map(|i| m.get(i).copied().unwrap_or(false))
+                .collect()
+        };
+        let data = ys
+            .iter()
+            .flat_map(|&y| xs.iter().map(move |&x| y * w + x))
+            .flat_map(|i| img.data.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]).iter().copied())
+            .collect();
+        Self {
+            mask: mask.map(pick),
+            vl: pick(vl),
+            data,
+            h: hs,
+            w: ws,
+        }
+    }
+}
+
 fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
     check_params(input, params)?;
     let img = &input.image;
     img.validate_values()?;
     let (h, w) = (img.height, img.width);
-    let index = SphereIndex::new(params.sphere_points)?;
+    let index = SphereIndex::shared(params.sphere_points)?;
     let veil = estimate(img, input.mask, input.water_mask, params.veiling_light);
     let usable = input
         .mask
@@ -338,74 +751,182 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
             msg: "covers every pixel used for estimation: no object pixels are left to choose the water type".into(),
         });
     }
-    let weights = if veil.vl_count > 0 {
-        mahalanobis_sq(img, &veil.vl).map(|d| matting_weights(&d, &veil.vl, w))
+    let radius = params.guided_radius.unwrap_or_else(|| default_radius(h, w));
+    let holes = input.mask.is_some_and(|m| m.iter().any(|&b| !b));
+    let make = |img: ImageRef<'_>, mask: Option<&'_ [bool]>, vl: &'_ [bool], r: usize| {
+        (
+            Matting::fit(&img, vl),
+            GuideStats::new(guide_image(img.data, mask), img.height, img.width, r, params.guided_eps),
+        )
+    };
+    let types = &params.water_types;
+    let s = fast_factor(h, w);
+    // Selection::Fast: scores of every type on the copy (SPEC 9 there)
+    let copy: Option<Vec<TypeStats>> = if types.len() >= 2 && params.selection == Selection::Fast && s > 1 {
+        let small = Small::new(img, input.mask, &veil.vl, s);
+        let simg = ImageRef::new(&small.data, small.h, small.w)?;
+        let sr = params
+            .guided_radius
+            .map_or_else(|| default_radius(small.h, small.w), |r| (r as f64 / s as f64).round() as usize);
+        let (matting, guide) = make(simg, small.mask.as_deref(), &small.vl, sr);
+        let sh = Shared {
+            img: simg,
+            mask: small.mask.as_deref(),
+            vl: &small.vl,
+            a: veil.a,
+            matting,
+            guide,
+            index: &index,
+            holes: small.mask.as_ref().is_some_and(|m| m.iter().any(|&b| !b)),
+        };
+        let mut work = Work::new(simg.len(), sh.holes);
+        Some(types.iter().map(|wt| sh.evaluate(wt, &mut work)).collect())
     } else {
         None
     };
-    let radius = params.guided_radius.unwrap_or_else(|| default_radius(h, w));
-    let guide = GuideStats::new(
-        guide_image(img.data, input.mask),
-        h,
-        w,
-        radius,
-        params.guided_eps,
-    );
-    let has_holes = input.mask.is_some_and(|m| m.iter().any(|&b| !b));
+    let (matting, guide) = make(*img, input.mask, &veil.vl, radius);
+    let matting_skipped = veil.vl_count > 0 && matting.is_none();
     let shared = Shared {
-        input: *input,
-        veil,
-        weights,
+        img: *img,
+        mask: input.mask,
+        vl: &veil.vl,
+        a: veil.a,
+        matting,
         guide,
-        index,
-        has_holes,
+        index: &index,
+        holes,
     };
-
-    let stats: Vec<TypeStats> = params
-        .water_types
-        .par_iter()
-        .map(|wt| shared.stats(wt))
-        .collect();
-    let choice = choose(&stats);
-    let wt = params
-        .water_types
-        .get(choice.winner)
+    let mut work = Work::new(img.len(), holes);
+    // SPEC 9: which types are scored at full resolution, and the choice
+    let mut sel = match copy {
+        Some(copy) => {
+            let c = choose(&copy);
+            // the copy's best survivors, re-scored at full resolution where
+            // its choice is uncertain
+            let mut order: Vec<usize> = (0..copy.len()).filter(|&i| !c.excluded.get(i).copied().unwrap_or(true)).collect();
+            let score = |i: usize| copy.get(i).map_or(f64::NAN, |s| s.score);
+            order.sort_by(|&i, &j| score(i).total_cmp(&score(j)).then(i.cmp(&j)));
+            let order = rescore_candidates(&order, &copy, c.threshold);
+            let mut stats = copy;
+            let mut excluded = c.excluded;
+            let (winner, relaxed) = if order.len() > 1 {
+                let full: Vec<TypeStats> = order
+                    .iter()
+                    .filter_map(|&i| types.get(i).map(|wt| shared.evaluate(wt, &mut work)))
+                    .collect();
+                let sub = choose(&full);
+                for ((&i, st), ex) in order.iter().zip(&full).zip(&sub.excluded) {
+                    if let (Some(d), Some(e)) = (stats.get_mut(i), excluded.get_mut(i)) {
+                        *d = *st;
+                        *e = *ex;
+                    }
+                }
+                (order.get(sub.winner).copied().unwrap_or(c.winner), sub.relaxed)
+            } else {
+                (c.winner, c.relaxed)
+            };
+            Some((stats, Choice { winner, excluded, relaxed, threshold: None }))
+        }
+        None if types.len() >= 2 => {
+            let stats: Vec<TypeStats> = types.iter().map(|wt| shared.evaluate(wt, &mut work)).collect();
+            let ch = choose(&stats);
+            Some((stats, ch))
+        }
+        None => None,
+    };
+    let winner = sel.as_ref().map_or(0, |(_, c)| c.winner);
+    let wt = types
+        .get(winner)
         .ok_or_else(|| Error::Internal("winner out of range".into()))?
         .clone();
-    let q = shared.refined(&wt);
-    let (radiance, transmission) = recover(img, shared.veil.a, &q, &wt, input.mask);
-    let image = display_stretch(&radiance, input.mask);
-
-    let mut flags: Vec<String> = shared.veil.flags.iter().map(|s| s.to_string()).collect();
+    let out = finish(shared, &wt, work);
+    let (stats, choice) = match sel.take() {
+        Some((mut stats, choice)) => {
+            // the chosen type's full-resolution statistics (what the copy
+            // reported for it otherwise; identical in the exhaustive mode)
+            if let Some(d) = stats.get_mut(winner) {
+                *d = out.stats;
+            }
+            (stats, choice)
+        }
+        None => {
+            let stats = vec![out.stats];
+            let choice = choose(&stats);
+            (stats, choice)
+        }
+    };
+    let Veiling { a, vl, flags: vflags, .. } = veil;
+    let mut flags: Vec<String> = vflags.iter().map(|s| s.to_string()).collect();
     if choice.relaxed {
         flags.push(FLAG_RELAXED.to_string());
     }
-    if shared.veil.vl_count > 0 && shared.weights.is_none() {
+    if matting_skipped {
         flags.push("matting_skipped".to_string());
     }
     Ok(Restoration {
         height: h,
         width: w,
-        image,
-        radiance,
-        transmission,
-        scores: params
-            .water_types
+        image: out.image,
+        radiance: out.radiance,
+        transmission: out.transmission,
+        scores: types
             .iter()
             .zip(&stats)
             .map(|(t, s)| (t.name.clone(), s.score))
             .collect(),
-        excluded: params
-            .water_types
+        excluded: types
             .iter()
             .zip(&choice.excluded)
             .filter(|(_, &e)| e)
             .map(|(t, _)| t.name.clone())
             .collect(),
         water_type: wt,
-        veiling_light: shared.veil.a,
-        veiling_mask: shared.veil.vl,
+        veiling_light: a,
+        veiling_mask: vl,
         flags,
         guided_radius: radius,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn st(score: f64, d: Option<f64>) -> TypeStats {
+        TypeStats { score, tr_diff: d }
+    }
+
+    #[test]
+    fn fast_rescores_only_uncertain_choices() {
+        // clear winner, safely above the threshold: only it
+        let copy = [st(0.01, Some(0.3)), st(0.05, Some(0.3)), st(0.06, Some(0.3))];
+        assert_eq!(rescore_candidates(&[0, 1, 2], &copy, Some(0.1)), vec![0]);
+        // a near-tie in score: both
+        let copy = [st(0.010, Some(0.3)), st(0.012, Some(0.3)), st(0.06, Some(0.3))];
+        assert_eq!(rescore_candidates(&[0, 1, 2], &copy, Some(0.1)), vec![0, 1]);
+        // the best two might be excluded at full resolution: down to the first safe one
+        let copy = [st(0.01, Some(0.11)), st(0.05, Some(0.12)), st(0.09, Some(0.3)), st(0.1, Some(0.3))];
+        assert_eq!(rescore_candidates(&[0, 1, 2, 3], &copy, Some(0.1)), vec![0, 1, 2]);
+        // never more than FAST_RESCORE
+        let copy = [st(0.01, None), st(0.011, None), st(0.012, None), st(0.013, None)];
+        assert_eq!(rescore_candidates(&[0, 1, 2, 3], &copy, None).len(), FAST_RESCORE);
+        assert!(rescore_candidates(&[], &copy, None).is_empty());
+    }
+
+    #[test]
+    fn fast_copy_samples_block_centres() {
+        // 5 x 7 image, s = 2: rows 1, 3, 4 (last block clipped), columns 1, 3, 5, 6
+        let (h, w) = (5usize, 7usize);
+        let data: Vec<f32> = (0..h * w).flat_map(|i| [i as f32 / 100.0, 0.5, 0.5]).collect();
+        let img = ImageRef::new(&data, h, w).unwrap();
+        let mut mask = vec![true; h * w];
+        mask[3 * w + 3] = false;
+        let vl: Vec<bool> = (0..h * w).map(|i| i / w == 1).collect();
+        let small = Small::new(&img, Some(&mask), &vl, 2);
+        assert_eq!((small.h, small.w), (3, 4));
+        let picked: Vec<usize> = small.data.chunks(3).map(|p| (p[0] * 100.0).round() as usize).collect();
+        assert_eq!(picked, vec![8, 10, 12, 13, 22, 24, 26, 27, 29, 31, 33, 34]);
+        assert_eq!(small.vl, vec![true, true, true, true, false, false, false, false, false, false, false, false]);
+        assert_eq!(small.mask.unwrap().iter().filter(|&&b| !b).count(), 1);
+    }
 }

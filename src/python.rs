@@ -3,7 +3,7 @@
 //! function ([`to_py_err`]). No algorithm code lives here.
 
 use crate::error::Error;
-use crate::pipeline::{restore, Input, Params};
+use crate::pipeline::{restore, Input, Params, Selection};
 use crate::water::{WaterType, JERLOV};
 use crate::ImageRef;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
@@ -167,7 +167,8 @@ fn mask_slice<'a>(
 /// converts float64 to float32 first). Releases the GIL while it works.
 #[pyfunction]
 #[pyo3(signature = (image, *, water_types=None, veiling_light=None, water_mask=None, mask=None,
-                    guided_radius=None, guided_eps=1e-3, sphere_points=500, threads=None, max_memory=None))]
+                    guided_radius=None, guided_eps=1e-3, sphere_points=500, threads=None, max_memory=None,
+                    selection="exhaustive"))]
 #[allow(clippy::too_many_arguments)]
 fn restore_f32(
     py: Python<'_>,
@@ -181,6 +182,7 @@ fn restore_f32(
     sphere_points: usize,
     threads: Option<usize>,
     max_memory: Option<u64>,
+    selection: &str,
 ) -> PyResult<PyRestoration> {
     let shape = image.shape();
     if shape.len() != 3 || shape[2] != 3 {
@@ -204,6 +206,15 @@ fn restore_f32(
     if let Some(m) = max_memory {
         params.max_memory = m;
     }
+    params.selection = match selection {
+        "exhaustive" => Selection::Exhaustive,
+        "fast" => Selection::Fast,
+        other => {
+            return Err(ParameterError::new_err(format!(
+                "selection must be \"exhaustive\" or \"fast\"; got {other:?}"
+            )))
+        }
+    };
     let wm = mask_slice("water_mask", &water_mask, h, w)?;
     let mk = mask_slice("mask", &mask, h, w)?;
     let res = py
@@ -400,15 +411,17 @@ fn _stage_matting<'py>(
     let img = img_of(&image)?;
     let v = Some(vl);
     let vs = mask_slice("vl", &v, img.height, img.width)?.unwrap_or(&[]);
-    match crate::matting::mahalanobis_sq(&img, vs) {
-        None => Ok(None),
-        Some(d) => {
-            let w = crate::matting::matting_weights(&d, vs, img.width);
+    match (
+        crate::matting::mahalanobis_sq(&img, vs),
+        crate::matting::matting_weights(&img, vs),
+    ) {
+        (Some(d), Some(w)) => {
             Ok(Some((
                 arr2(py, d, img.height, img.width)?,
                 arr2(py, w, img.height, img.width)?,
             )))
         }
+        _ => Ok(None),
     }
 }
 

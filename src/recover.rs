@@ -2,9 +2,7 @@
 //! per-channel display stretch (SPEC 8).
 
 use crate::image::ImageRef;
-use crate::util::{
-    masked_channel, masked_min_max, normalize_masked, percentiles, stretch_channels,
-};
+use crate::util::{channel_percentiles, masked_min_max, ChannelStretch, Normalize};
 use crate::water::WaterType;
 use rayon::prelude::*;
 
@@ -14,18 +12,96 @@ pub const T_FLOOR: f32 = 0.1;
 /// t_B clamped to [0.1^beta_BR, 1] (SPEC 7) for one refined value.
 #[inline]
 pub fn clamp_tb(t: f32, wt: &WaterType) -> f32 {
-    let lo = T_FLOOR.powf(wt.beta_br as f32).min(1.0);
-    t.clamp(lo, 1.0)
+    Recovery::new([1.0; 3], wt).clamp_tb(t)
 }
 
 /// Per-channel transmissions (t_R, t_G, t_B) from a clamped t_B (SPEC 7).
 #[inline]
 pub fn channel_t(tb: f32, wt: &WaterType) -> [f32; 3] {
-    [
-        tb.powf(1.0 / wt.beta_br as f32).clamp(T_FLOOR, 1.0),
-        tb.powf(1.0 / wt.beta_bg as f32).clamp(T_FLOOR, 1.0),
-        tb,
-    ]
+    Recovery::new([1.0; 3], wt).channel_t(tb)
+}
+
+/// The per-pixel recovery of SPEC 7 for one water type and veiling light.
+#[derive(Debug, Clone, Copy)]
+pub struct Recovery {
+    a: [f32; 3],
+    /// lower clamp of t_B: 0.1^beta_BR (at most 1)
+    tb_lo: f32,
+    /// 1 / beta_BR, 1 / beta_BG
+    inv_beta: [f32; 2],
+}
+
+impl Recovery {
+    /// The constants for water type `wt` and veiling light `a`.
+    pub fn new(a: [f32; 3], wt: &WaterType) -> Self {
+        Self {
+            a,
+            tb_lo: T_FLOOR.powf(wt.beta_br as f32).min(1.0),
+            inv_beta: [1.0 / wt.beta_br as f32, 1.0 / wt.beta_bg as f32],
+        }
+    }
+
+    /// t_B = clamp(t_refined, 0.1^beta_BR, 1).
+    #[inline(always)]
+    pub fn clamp_tb(&self, t: f32) -> f32 {
+        t.clamp(self.tb_lo, 1.0)
+    }
+
+    /// (t_R, t_G, t_B) from a clamped t_B: t_c = clamp(t_B^(1/beta_Bc), 0.1, 1).
+    #[inline(always)]
+    pub fn channel_t(&self, tb: f32) -> [f32; 3] {
+        [
+            tb.powf(self.inv_beta[0]).clamp(T_FLOOR, 1.0),
+            tb.powf(self.inv_beta[1]).clamp(T_FLOOR, 1.0),
+            tb,
+        ]
+    }
+
+    /// J_c = A_c + (I_c - A_c) / t_c before the artifact clamp.
+    #[inline(always)]
+    pub fn radiance(&self, p: [f32; 3], t: [f32; 3]) -> [f32; 3] {
+        let a = self.a;
+        [
+            a[0] + (p[0] - a[0]) / t[0],
+            a[1] + (p[1] - a[1]) / t[1],
+            a[2] + (p[2] - a[2]) / t[2],
+        ]
+    }
+}
+
+/// The artifact clamp of SPEC 7's last line with the statistics over the
+/// masked-in pixels' channels:
+/// J -= max(min J, -0.08); J = max(J, 0); J /= min(max J, 1.6); J = min(J, 1).
+/// A non-decreasing map of J (so it commutes with ranking).
+#[derive(Debug, Clone, Copy)]
+pub struct ArtifactClamp {
+    shift: f32,
+    div: Option<f32>,
+}
+
+impl ArtifactClamp {
+    /// From the min and max of J (before the clamp) over the masked-in
+    /// pixels' channels: (inf, -inf) when there is none.
+    pub fn new(lo: f32, hi: f32) -> Self {
+        let shift = if lo.is_finite() { lo.max(-0.08) } else { 0.0 };
+        // max of the shifted, clipped values (f32 subtraction is monotone)
+        let top = (hi - shift).max(0.0);
+        let div = top.min(1.6);
+        Self {
+            shift,
+            div: (div > 0.0).then_some(div),
+        }
+    }
+
+    /// The clamped value of one J value.
+    #[inline(always)]
+    pub fn apply(&self, v: f32) -> f32 {
+        let v = (v - self.shift).max(0.0);
+        match self.div {
+            Some(d) => (v / d).min(1.0),
+            None => v,
+        }
+    }
 }
 
 /// Recovers J = A + (I - A) / t_c (SPEC 7) from the refined transmission and
@@ -38,31 +114,40 @@ pub fn recover(
     wt: &WaterType,
     mask: Option<&[bool]>,
 ) -> (Vec<f32>, Vec<f32>) {
-    let tb: Vec<f32> = t_refined.par_iter().map(|&t| clamp_tb(t, wt)).collect();
+    let rec = Recovery::new(a, wt);
+    let tb: Vec<f32> = t_refined.par_iter().map(|&t| rec.clamp_tb(t)).collect();
     let mut j = vec![0f32; img.data.len()];
-    j.par_chunks_mut(3).enumerate().for_each(|(i, o)| {
-        let t = channel_t(tb[i], wt);
-        let p = img.px(i);
-        for c in 0..3 {
-            o[c] = a[c] + (p[c] - a[c]) / t[c];
-        }
-    });
+    j.par_chunks_mut(3)
+        .zip(img.data.par_chunks(3))
+        .zip(tb.par_iter())
+        .for_each(|((o, p), &t)| {
+            o.copy_from_slice(&rec.radiance([p[0], p[1], p[2]], rec.channel_t(t)));
+        });
     artifact_clamp(&mut j, mask);
     (j, tb)
 }
 
-/// SPEC 7's last line, min and max over the masked-in pixels' channels
-/// (all pixels without a mask), applied to every pixel:
-/// J -= max(min J, -0.08); J = max(J, 0); J /= min(max J, 1.6); J = min(J, 1).
+/// SPEC 7's artifact clamp in place (see [`ArtifactClamp`]).
 pub fn artifact_clamp(j: &mut [f32], mask: Option<&[bool]>) {
-    let (lo, _) = masked_min_max(j, mask);
-    let shift = if lo.is_finite() { lo.max(-0.08) } else { 0.0 };
-    j.par_iter_mut().for_each(|v| *v = (*v - shift).max(0.0));
-    let (_, hi) = masked_min_max(j, mask);
-    let div = hi.min(1.6);
-    if div > 0.0 {
-        j.par_iter_mut().for_each(|v| *v = (*v / div).min(1.0));
-    }
+    let (lo, hi) = masked_min_max(j, mask);
+    let ac = ArtifactClamp::new(lo, hi);
+    j.par_iter_mut().for_each(|v| *v = ac.apply(*v));
+}
+
+/// Fractions of the display stretch's percentiles (SPEC 8).
+pub const DISPLAY_QS: [f64; 2] = [0.001, 0.999];
+
+/// The stretch limits of SPEC 8 from the 0.1% and 99.9% percentiles of
+/// each channel: lo = min(p0.1, 0.2), hi = max(p99.9, 0.8 (0.9 for red)).
+pub fn display_limits(pcts: &[Vec<f64>; 3]) -> ChannelStretch {
+    let mut c = 0;
+    ChannelStretch::new(pcts.clone().map(|p| {
+        let top = if c == 0 { 0.9 } else { 0.8 };
+        c += 1;
+        let lo = p.first().copied().unwrap_or(0.0);
+        let hi = p.get(1).copied().unwrap_or(0.0);
+        Some((lo.min(0.2), hi.max(top)))
+    }))
 }
 
 /// The display stretch of SPEC 8: global min-max, then per channel a linear
@@ -71,13 +156,9 @@ pub fn artifact_clamp(j: &mut [f32], mask: Option<&[bool]>) {
 /// Limits come from the masked-in pixels (all without a mask), so that a
 /// masked-out color chart cannot change them; they apply to every pixel.
 pub fn display_stretch(j: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let x = normalize_masked(j, mask);
-    let limits = [0, 1, 2].map(|c| {
-        let p = percentiles(masked_channel(&x, c, mask), &[0.001, 0.999]);
-        let top = if c == 0 { 0.9 } else { 0.8 };
-        Some((p[0].min(0.2), p[1].max(top)))
-    });
-    stretch_channels(&x, limits)
+    let norm = Normalize::masked(j, mask);
+    let pcts = channel_percentiles(j, mask, &DISPLAY_QS, |_, v| norm.apply(v));
+    display_limits(&pcts).map_rgb(j, |v| norm.apply(v))
 }
 
 #[cfg(test)]

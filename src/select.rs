@@ -19,6 +19,49 @@ pub struct TypeStats {
     pub tr_diff: Option<f64>,
 }
 
+/// Sums over the pixels of one type's result that selection needs
+/// (SPEC 9): over counted pixels (masked-in, not VL) the three channels of
+/// the stretched image, t_R and their number; over VL pixels t_R and their
+/// number.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SelectionSums {
+    /// sum of each stretched channel over counted pixels
+    pub channels: [f64; 3],
+    /// sum of t_R over counted pixels
+    pub tr_counted: f64,
+    /// number of counted pixels
+    pub counted: f64,
+    /// sum of t_R over VL pixels
+    pub tr_vl: f64,
+    /// number of VL pixels
+    pub vl: f64,
+}
+
+impl SelectionSums {
+    /// Adds another partial sum (combine partials in a fixed order).
+    pub fn add(&mut self, o: &Self) {
+        self.channels.iter_mut().zip(&o.channels).for_each(|(a, b)| *a += b);
+        self.tr_counted += o.tr_counted;
+        self.counted += o.counted;
+        self.tr_vl += o.tr_vl;
+        self.vl += o.vl;
+    }
+
+    /// Score and t_R difference (SPEC 9): the sample std (n - 1) of the
+    /// three channel means; mean t_R over counted minus over VL pixels.
+    pub fn stats(&self) -> TypeStats {
+        let cnt = self.counted.max(1.0);
+        let means = self.channels.map(|s| s / cnt);
+        let mu = (means[0] + means[1] + means[2]) / 3.0;
+        let var = means.iter().map(|m| (m - mu).powi(2)).sum::<f64>() / 2.0;
+        let tr_diff = (self.vl > 0.0).then(|| self.tr_counted / cnt - self.tr_vl / self.vl);
+        TypeStats {
+            score: var.sqrt(),
+            tr_diff,
+        }
+    }
+}
+
 /// Score and t_R difference for one type (SPEC 9). `stretched` is
 /// interleaved RGB, `t_red` per pixel; counted pixels are masked-in and
 /// not in VL.
@@ -31,33 +74,29 @@ pub fn type_stats(
 ) -> TypeStats {
     let n = t_red.len();
     let s = det_sums::<7, _>(n, width.max(1) * REDUCE_ROWS, |i, acc| {
-        if mask.is_some_and(|m| !m[i]) {
+        if mask.is_some_and(|m| !m.get(i).copied().unwrap_or(false)) {
             return;
         }
-        if vl[i] {
-            acc[5] += t_red[i] as f64;
+        let t = t_red.get(i).copied().unwrap_or(0.0) as f64;
+        if vl.get(i).copied().unwrap_or(false) {
+            acc[5] += t;
             acc[6] += 1.0;
         } else {
-            for c in 0..3 {
-                acc[c] += stretched[3 * i + c] as f64;
+            if let Some(p) = stretched.get(3 * i..3 * i + 3) {
+                acc.iter_mut().zip(p).for_each(|(a, v)| *a += *v as f64);
             }
-            acc[3] += t_red[i] as f64;
+            acc[3] += t;
             acc[4] += 1.0;
         }
     });
-    let cnt = s[4].max(1.0);
-    let means = [s[0] / cnt, s[1] / cnt, s[2] / cnt];
-    let mu = (means[0] + means[1] + means[2]) / 3.0;
-    let var = means.iter().map(|m| (m - mu).powi(2)).sum::<f64>() / 2.0;
-    let tr_diff = if s[6] > 0.0 {
-        Some(s[3] / cnt - s[5] / s[6])
-    } else {
-        None
-    };
-    TypeStats {
-        score: var.sqrt(),
-        tr_diff,
+    SelectionSums {
+        channels: [s[0], s[1], s[2]],
+        tr_counted: s[3],
+        counted: s[4],
+        tr_vl: s[5],
+        vl: s[6],
     }
+    .stats()
 }
 
 /// The outcome of [`choose`].
@@ -69,6 +108,8 @@ pub struct Choice {
     pub excluded: Vec<bool>,
     /// the exclusion rule was given up (no threshold left a type)
     pub relaxed: bool,
+    /// the exclusion threshold that was applied (None: no exclusion)
+    pub threshold: Option<f64>,
 }
 
 /// SPEC 9: exclude types whose t_R difference is below the threshold
@@ -78,9 +119,9 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
     let n = stats.len();
     let mut excluded = vec![false; n];
     let mut relaxed = false;
+    let mut threshold = None;
     if stats.iter().all(|s| s.tr_diff.is_some()) && n > 0 {
         let mut thr = EXCLUDE_THRESHOLD;
-        let mut found = false;
         for _ in 0..=MAX_HALVINGS {
             let ex: Vec<bool> = stats
                 .iter()
@@ -88,12 +129,12 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
                 .collect();
             if ex.iter().any(|&e| !e) {
                 excluded = ex;
-                found = true;
+                threshold = Some(thr);
                 break;
             }
             thr /= 2.0;
         }
-        relaxed = !found;
+        relaxed = threshold.is_none();
     }
     let mut winner = None::<usize>;
     for (i, s) in stats.iter().enumerate() {
@@ -109,6 +150,7 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
         winner: winner.unwrap_or(0),
         excluded,
         relaxed,
+        threshold,
     }
 }
 
@@ -144,10 +186,10 @@ mod tests {
         assert_eq!(c.excluded, vec![true, false, false]);
         // no type reaches 0.1: halve to 0.05 -> types with d >= 0.05 survive
         let c = choose(&[t(0.01, 0.04), t(0.02, 0.06), t(0.005, 0.01)]);
-        assert_eq!((c.winner, c.relaxed), (1, false));
+        assert_eq!((c.winner, c.relaxed, c.threshold), (1, false, Some(0.05)));
         // all negative: the rule is given up, the best score wins
         let c = choose(&[t(0.02, -0.5), t(0.01, -0.4)]);
-        assert_eq!((c.winner, c.relaxed), (1, true));
+        assert_eq!((c.winner, c.relaxed, c.threshold), (1, true, None));
         // ties go to the first
         let c = choose(&[t(0.02, 0.5), t(0.02, 0.5)]);
         assert_eq!(c.winner, 0);

@@ -2,6 +2,7 @@
 
 use crate::error::{Error, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Largest number of sphere points accepted.
 pub const MAX_POINTS: usize = 1_000_000;
@@ -20,12 +21,207 @@ pub fn fibonacci_points(n: usize) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// The cluster centres of SPEC 4.3 with an exact nearest-neighbour query
-/// (kiddo's immutable k-d tree, squared Euclidean distance, which orders
-/// unit vectors the same way as the angle does).
+/// Largest number of points served by the direction grid (its lists hold
+/// 16-bit indices); above it the index answers with a k-d tree (the same
+/// answer up to near-ties, slower per query).
+pub const GRID_MAX_POINTS: usize = 20_000;
+/// Angular slack (radians) added to every cell's candidate radius: covers
+/// the f32 rounding of a query (|u| = 1 +- 1e-7, its cell computed in f32)
+/// and of the stored points, which are below 1e-6 rad.
+const CELL_MARGIN: f64 = 1e-4;
+
+/// The cluster centres of SPEC 4.3 with an exact nearest-neighbour query.
+///
+/// "Nearest" to a direction v (any length) means the largest dot product
+/// computed in f32 as `p0 v0 + p1 v1 + p2 v2`, ties to the lowest index:
+/// exactly what a brute-force scan over all points returns. For unit points
+/// this orders them as the angle to v does (as the Euclidean distance to
+/// v / |v| does), so v need not be normalised.
+///
+/// Up to [`GRID_MAX_POINTS`] points, queries use a direction grid: the six
+/// faces of a cube, each cut into G x G cells in gnomonic coordinates; each
+/// cell stores every point that can be the nearest for some direction in the
+/// cell (all points within theta0 + 2 rho + margin of the cell centre c,
+/// theta0 = angle from c to its nearest point, rho = the cell's angular
+/// radius around c: a direction u in the cell is within rho of c, so its
+/// nearest point is within theta0 + rho of u and thus theta0 + 2 rho of c).
+/// A query scans the few candidates of its cell.
 pub struct SphereIndex {
     points: Vec<[f32; 3]>,
-    tree: ImmutableKdTree<f32, 3>,
+    lookup: Lookup,
+}
+
+enum Lookup {
+    Grid(DirectionGrid),
+    Tree(ImmutableKdTree<f32, 3>),
+}
+
+/// The cube-map grid of candidate lists, each padded to the same length
+/// (repeating its last candidate, which cannot change the answer) so that
+/// every query scans the same number of entries. Lists hold 16-bit point
+/// indices in increasing order (small enough to stay in cache).
+struct DirectionGrid {
+    /// cells per face side
+    g: usize,
+    /// candidates per cell (the longest list)
+    width: usize,
+    /// `width` point indices per cell
+    cands: Vec<u16>,
+    /// the points again, for the queries
+    points: Vec<[f32; 3]>,
+    /// mean length of the unpadded lists
+    mean: f64,
+}
+
+/// Face of the cube and gnomonic coordinates (s, t) in [-1, 1] of a direction.
+#[inline(always)]
+fn face_coords(u: &[f32; 3]) -> (usize, f32, f32) {
+    let [x, y, z] = *u;
+    let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
+    // the major axis, chosen with selects rather than branches (directions
+    // of neighbouring pixels jump between faces unpredictably)
+    let fx = ax >= ay && ax >= az;
+    let fy = !fx && ay >= az;
+    let m = if fx { ax } else if fy { ay } else { az };
+    let s = if fx { y } else { x };
+    let t = if fx || fy { z } else { y };
+    let neg = if fx { x < 0.0 } else if fy { y < 0.0 } else { z < 0.0 };
+    let axis = usize::from(!fx) + usize::from(!fx && !fy);
+    let inv = 1.0 / m;
+    (2 * axis + usize::from(neg), s * inv, t * inv)
+}
+
+/// The direction (not normalised) of gnomonic point (s, t) on `face`.
+fn face_dir(face: usize, s: f64, t: f64) -> [f64; 3] {
+    let sign = if face.is_multiple_of(2) { 1.0 } else { -1.0 };
+    match face / 2 {
+        0 => [sign, s, t],
+        1 => [s, sign, t],
+        _ => [s, t, sign],
+    }
+}
+
+fn normalized(v: [f64; 3]) -> [f64; 3] {
+    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    [v[0] / n, v[1] / n, v[2] / n]
+}
+
+/// Chord |a - b| between two unit vectors (monotone in their angle).
+fn chord(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Angle of a chord, and chord of an angle (angles capped at pi).
+fn chord_angle(c: f64) -> f64 {
+    2.0 * (c / 2.0).min(1.0).asin()
+}
+fn angle_chord(a: f64) -> f64 {
+    2.0 * (a.min(std::f64::consts::PI) / 2.0).sin()
+}
+
+/// Cell index along one gnomonic coordinate in [-1, 1] (clamped; NaN -> 0).
+#[inline(always)]
+fn cell_1d(s: f32, g: usize) -> usize {
+    ((s + 1.0) * (0.5 * g as f32)).clamp(0.0, (g - 1) as f32) as u32 as usize
+}
+
+impl DirectionGrid {
+    /// Builds the grid over Fibonacci points (sorted by decreasing z, which
+    /// lets a z band bound every search).
+    fn new(points: &[[f32; 3]]) -> Self {
+        let n = points.len();
+        // fine enough that the default 500 points need one group of candidates
+        let g = ((2.9 * (n as f64).sqrt()).ceil() as usize).clamp(1, 64);
+        let p64: Vec<[f64; 3]> = points
+            .iter()
+            .map(|p| normalized([p[0] as f64, p[1] as f64, p[2] as f64]))
+            .collect();
+        // indices whose z lies in [lo, hi] (Fibonacci: z_i = 1 - (2i + 1)/n), with slack
+        let band = |lo: f64, hi: f64| -> std::ops::Range<usize> {
+            let idx = |z: f64| ((1.0 - z) * n as f64 - 1.0) / 2.0;
+            let a = (idx(hi.min(1.0)).floor() - 1.0).max(0.0) as usize;
+            let b = ((idx(lo.max(-1.0)).ceil() + 2.0).max(0.0) as usize).min(n);
+            a.min(b)..b
+        };
+        let step = 2.0 / g as f64;
+        let mut lists: Vec<Vec<u16>> = Vec::with_capacity(6 * g * g);
+        for face in 0..6 {
+            for i in 0..g {
+                for j in 0..g {
+                    let (s0, t0) = (-1.0 + step * i as f64, -1.0 + step * j as f64);
+                    let c = normalized(face_dir(face, s0 + step / 2.0, t0 + step / 2.0));
+                    let rho = [(0.0, 0.0), (step, 0.0), (0.0, step), (step, step)]
+                        .iter()
+                        .map(|&(ds, dt)| chord(&c, &normalized(face_dir(face, s0 + ds, t0 + dt))))
+                        .fold(0.0, f64::max);
+                    // nearest point to c: search a z band, widen until the
+                    // best found is nearer than the band's half-width
+                    let mut half = 4.0 / (n as f64).sqrt();
+                    let near = loop {
+                        let best = p64
+                            .get(band(c[2] - half, c[2] + half))
+                            .unwrap_or(&[])
+                            .iter()
+                            .map(|p| chord(&c, p))
+                            .fold(f64::INFINITY, f64::min);
+                        // |dz| <= chord: a nearer point lies in the band
+                        if best <= half || half >= 2.0 {
+                            break best;
+                        }
+                        half *= 2.0;
+                    };
+                    let radius = angle_chord(chord_angle(near) + 2.0 * chord_angle(rho) + CELL_MARGIN);
+                    let r = band(c[2] - radius, c[2] + radius);
+                    let list = p64
+                        .iter()
+                        .zip(points)
+                        .enumerate()
+                        .skip(r.start)
+                        .take(r.len())
+                        .filter(|(_, (p, _))| chord(&c, p) <= radius)
+                        .map(|(k, _)| k as u16)
+                        .collect();
+                    lists.push(list);
+                }
+            }
+        }
+        let width = lists.iter().map(Vec::len).max().unwrap_or(1).max(1);
+        let mean = lists.iter().map(Vec::len).sum::<usize>() as f64 / lists.len().max(1) as f64;
+        let mut cands = Vec::with_capacity(lists.len() * width);
+        for l in &lists {
+            // an empty list cannot happen (the nearest point is always in it); pad anyway
+            let last = l.last().copied().unwrap_or(0);
+            cands.extend(l.iter().copied().chain(std::iter::repeat(last)).take(width));
+        }
+        Self {
+            g,
+            width,
+            cands,
+            points: points.to_vec(),
+            mean,
+        }
+    }
+
+    #[inline(always)]
+    fn nearest(&self, v: &[f32; 3]) -> usize {
+        let (face, s, t) = face_coords(v);
+        let g = self.g;
+        let cell = (face * g + cell_1d(s, g)) * g + cell_1d(t, g);
+        let w = self.width;
+        let run = self.cands.get(cell * w..(cell + 1) * w).unwrap_or(&[]);
+        let pts = &self.points;
+        // strict >: the lowest index wins ties, as the list is in index order
+        // (padding repeats the last entry)
+        let (mut best, mut k) = (f32::NEG_INFINITY, 0u16);
+        for &c in run {
+            let p = pts.get(c as usize).copied().unwrap_or([f32::NAN; 3]);
+            let d = p[0] * v[0] + p[1] * v[1] + p[2] * v[2];
+            let better = d > best;
+            best = if better { d } else { best };
+            k = if better { c } else { k };
+        }
+        k as usize
+    }
 }
 
 impl SphereIndex {
@@ -41,9 +237,37 @@ impl SphereIndex {
             .into_iter()
             .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
             .collect();
-        let tree = ImmutableKdTree::new_from_slice(&points)
-            .map_err(|e| Error::Internal(format!("k-d tree construction failed: {e:?}")))?;
-        Ok(Self { points, tree })
+        let lookup = if n <= GRID_MAX_POINTS {
+            Lookup::Grid(DirectionGrid::new(&points))
+        } else {
+            Lookup::Tree(
+                ImmutableKdTree::new_from_slice(&points)
+                    .map_err(|e| Error::Internal(format!("k-d tree construction failed: {e:?}")))?,
+            )
+        };
+        Ok(Self { points, lookup })
+    }
+
+    /// The index over `n` points, built once per process and count (the
+    /// grid takes milliseconds to build; a video needs it once, not per frame).
+    pub fn shared(n: usize) -> Result<Arc<Self>> {
+        type Cache = Mutex<Vec<(usize, Arc<SphereIndex>)>>;
+        static CACHE: OnceLock<Cache> = OnceLock::new();
+        let cache = CACHE.get_or_init(|| Mutex::new(Vec::new()));
+        if let Ok(c) = cache.lock() {
+            if let Some((_, idx)) = c.iter().find(|(k, _)| *k == n) {
+                return Ok(idx.clone());
+            }
+        }
+        let idx = Arc::new(Self::new(n)?);
+        // a poisoned or busy cache only costs a rebuild next time
+        if let Ok(mut c) = cache.try_lock() {
+            if c.len() >= 8 {
+                c.remove(0);
+            }
+            c.push((n, idx.clone()));
+        }
+        Ok(idx)
     }
 
     /// Number of points.
@@ -61,15 +285,37 @@ impl SphereIndex {
         &self.points
     }
 
-    /// Index of the point nearest to `u` (exact).
+    /// Index of the point nearest to the direction `v` (exact; see the
+    /// type's documentation). Above [`GRID_MAX_POINTS`] the k-d tree answers
+    /// for v / |v| by Euclidean distance, which may break near-ties differently.
     #[inline]
-    pub fn nearest(&self, u: &[f32; 3]) -> usize {
-        let r = self
-            .tree
-            .query(u)
-            .nearest_one::<SquaredEuclidean<f32>>()
-            .execute();
-        r.item as usize
+    pub fn nearest(&self, v: &[f32; 3]) -> usize {
+        match &self.lookup {
+            Lookup::Grid(g) => g.nearest(v),
+            Lookup::Tree(t) => {
+                let r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                t.query(&[v[0] / r, v[1] / r, v[2] / r])
+                    .nearest_one::<SquaredEuclidean<f32>>()
+                    .execute()
+                    .item as usize
+            }
+        }
+    }
+
+    /// Average number of candidates a grid query scans (None for the k-d tree).
+    pub fn mean_candidates(&self) -> Option<f64> {
+        match &self.lookup {
+            Lookup::Grid(g) => Some(g.mean),
+            Lookup::Tree(_) => None,
+        }
+    }
+
+    /// Largest number of candidates a grid query scans (None for the k-d tree).
+    pub fn max_candidates(&self) -> Option<usize> {
+        match &self.lookup {
+            Lookup::Grid(g) => Some(g.width),
+            Lookup::Tree(_) => None,
+        }
     }
 }
 
@@ -105,32 +351,130 @@ mod tests {
         assert!(min > 0.1, "two points too close: {min}");
     }
 
-    #[test]
-    fn nearest_matches_brute_force() {
-        let idx = SphereIndex::new(500).unwrap();
-        // deterministic pseudo-random unit vectors (xorshift)
-        let mut s: u64 = 0x9E3779B97F4A7C15;
-        let mut rnd = || {
+    /// The definition of "nearest": the largest f32 dot product, ties to the lowest index.
+    fn brute(points: &[[f32; 3]], v: &[f32; 3]) -> usize {
+        let mut best = (f32::NEG_INFINITY, 0);
+        for (k, p) in points.iter().enumerate() {
+            let d = p[0] * v[0] + p[1] * v[1] + p[2] * v[2];
+            if d > best.0 {
+                best = (d, k);
+            }
+        }
+        best.1
+    }
+
+    /// Deterministic pseudo-random numbers in [-1, 1) (xorshift).
+    fn rng(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed;
+        move || {
             s ^= s << 13;
             s ^= s >> 7;
             s ^= s << 17;
             (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
-        for _ in 0..20_000 {
-            let v = [rnd(), rnd(), rnd()];
-            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            if n < 1e-6 {
-                continue;
-            }
-            let u = [(v[0] / n) as f32, (v[1] / n) as f32, (v[2] / n) as f32];
-            let k = idx.nearest(&u);
-            let best = idx
-                .points()
-                .iter()
-                .map(|p| dist2(p, &u))
-                .fold(f32::INFINITY, f32::min);
-            assert_eq!(dist2(&idx.points()[k], &u), best);
         }
+    }
+
+    fn unit(v: [f64; 3]) -> [f32; 3] {
+        let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        [(v[0] / n) as f32, (v[1] / n) as f32, (v[2] / n) as f32]
+    }
+
+    /// Query directions that stress the grid: random ones, the points
+    /// themselves, midpoints between neighbouring points (ties), directions
+    /// on cell boundaries and on cube edges and corners, and the poles.
+    fn hard_queries(idx: &SphereIndex, seed: u64) -> Vec<[f32; 3]> {
+        let mut r = rng(seed);
+        let mut q: Vec<[f32; 3]> = (0..20_000).map(|_| unit([r(), r(), r()])).collect();
+        let pts = idx.points();
+        q.extend_from_slice(pts);
+        for (i, a) in pts.iter().enumerate() {
+            // midpoint with the nearest other point: an exact tie up to rounding
+            let other = pts
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .min_by(|x, y| dist2(x.1, a).total_cmp(&dist2(y.1, a)));
+            if let Some((_, b)) = other {
+                let m = [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+                if m.iter().any(|v| *v != 0.0) {
+                    q.push(unit([m[0] as f64, m[1] as f64, m[2] as f64]));
+                }
+            }
+        }
+        if let Lookup::Grid(g) = &idx.lookup {
+            // cell boundaries s or t = -1 + 2k/G (and a hair either side), on every face
+            for face in 0..6 {
+                for k in 0..=g.g {
+                    let edge = -1.0 + 2.0 * k as f64 / g.g as f64;
+                    for e in [edge, edge + 1e-7, edge - 1e-7] {
+                        let t = r();
+                        q.push(unit(face_dir(face, e, t)));
+                        q.push(unit(face_dir(face, t, e)));
+                    }
+                }
+            }
+        }
+        for v in [
+            [1.0, 1.0, 0.3],
+            [1.0, -1.0, 1.0],
+            [-1.0, -1.0, -1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+            [1.0, 0.0, 0.0],
+            [0.0, -1.0, 0.0],
+        ] {
+            q.push(unit(v));
+        }
+        q
+    }
+
+    #[test]
+    fn grid_equals_brute_force_including_ties_and_cell_edges() {
+        for n in [1usize, 2, 3, 37, 500, 2000] {
+            let idx = SphereIndex::new(n).unwrap();
+            assert!(matches!(idx.lookup, Lookup::Grid(_)));
+            for u in hard_queries(&idx, n as u64 + 1) {
+                assert_eq!(idx.nearest(&u), brute(idx.points(), &u), "n={n} u={u:?}");
+                // any length: the direction counts
+                let v = [u[0] * 37.5, u[1] * 37.5, u[2] * 37.5];
+                assert_eq!(idx.nearest(&v), brute(idx.points(), &v), "n={n} v={v:?}");
+                let v = [u[0] * 1e-3, u[1] * 1e-3, u[2] * 1e-3];
+                assert_eq!(idx.nearest(&v), brute(idx.points(), &v), "n={n} v={v:?}");
+            }
+        }
+        // the default size scans at most 4 candidates per query
+        assert!(SphereIndex::new(500).unwrap().max_candidates() <= Some(4));
+    }
+
+    #[test]
+    fn grid_equals_brute_force_at_the_largest_grid_size() {
+        let idx = SphereIndex::new(GRID_MAX_POINTS).unwrap();
+        let mut r = rng(99);
+        for _ in 0..3_000 {
+            let u = unit([r(), r(), r()]);
+            assert_eq!(idx.nearest(&u), brute(idx.points(), &u));
+        }
+    }
+
+    #[test]
+    fn tree_above_the_grid_size_is_exact_up_to_ties() {
+        let idx = SphereIndex::new(GRID_MAX_POINTS + 1).unwrap();
+        assert!(matches!(idx.lookup, Lookup::Tree(_)));
+        let mut r = rng(5);
+        for _ in 0..2_000 {
+            let u = unit([r(), r(), r()]);
+            let (k, b) = (idx.nearest(&u), brute(idx.points(), &u));
+            let d = |k: usize| dist2(&idx.points()[k], &u);
+            assert!((d(k) - d(b)).abs() <= 1e-6, "{} vs {}", d(k), d(b));
+        }
+    }
+
+    #[test]
+    fn shared_index_is_built_once() {
+        let a = SphereIndex::shared(123).unwrap();
+        let b = SphereIndex::shared(123).unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        assert!(SphereIndex::shared(0).is_err());
     }
 
     #[test]

@@ -2,6 +2,7 @@
 //! reductions, per-count thread pools.
 
 use crate::error::{Error, Result};
+use crate::rank::{f32_key, key_f32, order_stats, percentiles_from, ranks_for};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -14,27 +15,144 @@ pub const REDUCE_ROWS: usize = 16;
 
 /// Percentiles of `values` at the fractions `qs` with linear interpolation
 /// between order statistics (NumPy's default "linear" method), in f64.
-/// Takes the values by value: it reorders them in place (selection, no
-/// copy). Returns 0 for an empty input.
-pub fn percentiles(mut buf: Vec<f32>, qs: &[f64]) -> Vec<f64> {
+/// Returns 0 for an empty input.
+pub fn percentiles(buf: Vec<f32>, qs: &[f64]) -> Vec<f64> {
     let n = buf.len();
-    if n == 0 {
-        return vec![0.0; qs.len()];
-    }
-    qs.iter()
-        .map(|&q| {
-            let h = q.clamp(0.0, 1.0) * (n - 1) as f64;
-            let lo = h.floor() as usize;
-            let (_, &mut a, rest) = buf.select_nth_unstable_by(lo, f32::total_cmp);
-            let frac = h - lo as f64;
-            if frac > 0.0 {
-                let b = rest.iter().copied().fold(f32::INFINITY, f32::min);
-                a as f64 + frac * (b as f64 - a as f64)
-            } else {
-                a as f64
+    let ranks = ranks_for(n, qs);
+    let rows = n.div_ceil(PSEUDO_ROW);
+    let [stats] = order_stats(rows, [n], [&ranks], |y, b: &mut [Vec<u32>; 1]| {
+        if let (Some(o), Some(v)) = (b.first_mut(), buf.get(y * PSEUDO_ROW..((y + 1) * PSEUDO_ROW).min(n))) {
+            o.extend(v.iter().map(|&x| f32_key(x)));
+        }
+    });
+    let stats: Vec<f64> = stats.iter().map(|&k| key_f32(k) as f64).collect();
+    percentiles_from(n, qs, &stats)
+}
+
+/// Pixels per pseudo-row when a flat buffer is streamed to [`order_stats`].
+const PSEUDO_ROW: usize = 4096;
+
+/// Number of pixels whose mask entry is true (all without a mask).
+pub fn masked_count(n: usize, mask: Option<&[bool]>) -> usize {
+    mask.map_or(n, |m| m.par_iter().filter(|&&b| b).count())
+}
+
+/// Per channel c of an interleaved RGB buffer: the percentiles at `qs`
+/// (DECISIONS "P") of `map(c, v)` over the masked-in pixels. `map` must be
+/// non-decreasing in v (it then commutes with taking order statistics, so
+/// only the few values at the wanted ranks are mapped).
+pub fn channel_percentiles<M>(rgb: &[f32], mask: Option<&[bool]>, qs: &[f64], map: M) -> [Vec<f64>; 3]
+where
+    M: Fn(usize, f32) -> f32,
+{
+    let npx = rgb.len() / 3;
+    let n = masked_count(npx, mask);
+    let ranks = ranks_for(n, qs);
+    let rows = npx.div_ceil(PSEUDO_ROW);
+    let stats = order_stats(rows, [n; 3], [&ranks; 3], |y, b: &mut [Vec<u32>; 3]| {
+        let (start, end) = (y * PSEUDO_ROW, ((y + 1) * PSEUDO_ROW).min(npx));
+        let px = rgb.get(3 * start..3 * end).unwrap_or(&[]);
+        let [b0, b1, b2] = b;
+        match mask.and_then(|m| m.get(start..end)) {
+            None => {
+                for p in px.chunks_exact(3) {
+                    b0.push(f32_key(p[0]));
+                    b1.push(f32_key(p[1]));
+                    b2.push(f32_key(p[2]));
+                }
             }
-        })
-        .collect()
+            Some(m) => {
+                for (p, _) in px.chunks_exact(3).zip(m).filter(|(_, &k)| k) {
+                    b0.push(f32_key(p[0]));
+                    b1.push(f32_key(p[1]));
+                    b2.push(f32_key(p[2]));
+                }
+            }
+        }
+    });
+    let mut c = 0;
+    stats.map(|v| {
+        let mapped: Vec<f64> = v.iter().map(|&k| map(c, key_f32(k)) as f64).collect();
+        c += 1;
+        percentiles_from(n, qs, &mapped)
+    })
+}
+
+/// The global min-max normalisation of SPEC 3.1 / SPEC 8 (first half):
+/// x = (v - lo) / (hi - lo) in f32, or 0 everywhere when hi - lo is not a
+/// finite number > 0.
+#[derive(Debug, Clone, Copy)]
+pub struct Normalize {
+    lo: f32,
+    range: Option<f32>,
+}
+
+impl Normalize {
+    /// From the minimum and maximum of the values.
+    pub fn new(lo: f32, hi: f32) -> Self {
+        let range = hi - lo;
+        Self {
+            lo,
+            range: (range.is_finite() && range > 0.0).then_some(range),
+        }
+    }
+
+    /// From the min and max over the masked-in pixels' channels (all pixels without a mask).
+    pub fn masked(rgb: &[f32], mask: Option<&[bool]>) -> Self {
+        let (lo, hi) = masked_min_max(rgb, mask);
+        Self::new(lo, hi)
+    }
+
+    /// The normalised value (non-decreasing in v).
+    #[inline(always)]
+    pub fn apply(&self, v: f32) -> f32 {
+        match self.range {
+            Some(r) => (v - self.lo) / r,
+            None => 0.0,
+        }
+    }
+}
+
+/// Per-channel linear stretch: channel c becomes clip((x - lo_c) / (hi_c -
+/// lo_c), 0, 1) (computed in f64, as a product with the reciprocal), or is
+/// left as it is where its limits are None.
+#[derive(Debug, Clone, Copy)]
+pub struct ChannelStretch {
+    /// per channel: lo and 1 / (hi - lo), or None
+    limits: [Option<(f64, f64)>; 3],
+}
+
+impl ChannelStretch {
+    /// From per-channel limits (lo, hi) with hi > lo, or None for "unchanged".
+    pub fn new(limits: [Option<(f64, f64)>; 3]) -> Self {
+        Self {
+            limits: limits.map(|l| l.map(|(lo, hi)| (lo, 1.0 / (hi - lo)))),
+        }
+    }
+
+    /// The stretched value of channel c.
+    #[inline(always)]
+    pub fn apply(&self, c: usize, x: f32) -> f32 {
+        match self.limits.get(c).copied().flatten() {
+            Some((lo, inv)) => ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32,
+            None => x,
+        }
+    }
+
+    /// Applies `f(v)` then the stretch to every value of an interleaved RGB buffer.
+    pub fn map_rgb<F: Fn(f32) -> f32 + Sync>(&self, rgb: &[f32], f: F) -> Vec<f32> {
+        let mut out = vec![0f32; rgb.len()];
+        out.par_chunks_mut(3 * PSEUDO_ROW)
+            .zip(rgb.par_chunks(3 * PSEUDO_ROW))
+            .for_each(|(o, s)| {
+                for (op, sp) in o.chunks_exact_mut(3).zip(s.chunks_exact(3)) {
+                    for (c, (d, v)) in op.iter_mut().zip(sp).enumerate() {
+                        *d = self.apply(c, f(*v));
+                    }
+                }
+            });
+        out
+    }
 }
 
 /// Sum of `f(i)` for i in 0..n, accumulated in f64 in fixed chunks so that it
@@ -119,48 +237,6 @@ pub fn masked_min_max(rgb: &[f32], mask: Option<&[bool]>) -> (f32, f32) {
                 || (f32::INFINITY, f32::NEG_INFINITY),
                 |(a, b), (c, d)| (a.min(c), b.max(d)),
             ),
-    }
-}
-
-/// Global min-max normalisation (x - min) / (max - min) of every value,
-/// with min and max over all channels of the masked-in pixels (all pixels
-/// without a mask); all zeros when they are equal (SPEC 3.1 first half,
-/// SPEC 8 first half).
-pub fn normalize_masked(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
-    let (lo, hi) = masked_min_max(data, mask);
-    let range = hi - lo;
-    if range.is_finite() && range > 0.0 {
-        data.par_iter().map(|&v| (v - lo) / range).collect()
-    } else {
-        vec![0.0; data.len()]
-    }
-}
-
-/// Per-channel linear stretch of interleaved RGB: channel c becomes
-/// clip((x - lo_c) / (hi_c - lo_c), 0, 1), or is left as it is where its
-/// limits are None.
-pub fn stretch_channels(x: &[f32], limits: [Option<(f64, f64)>; 3]) -> Vec<f32> {
-    x.par_chunks(3)
-        .flat_map_iter(|px| {
-            (0..3).map(move |c| match limits[c] {
-                Some((lo, hi)) => ((px[c] as f64 - lo) / (hi - lo)).clamp(0.0, 1.0) as f32,
-                None => px[c],
-            })
-        })
-        .collect()
-}
-
-/// Channel `c` of an interleaved RGB slice over the pixels whose mask entry
-/// is true (all pixels without a mask), in raster order.
-pub fn masked_channel(rgb: &[f32], c: usize, mask: Option<&[bool]>) -> Vec<f32> {
-    match mask {
-        None => rgb.par_chunks(3).map(|p| p[c]).collect(),
-        Some(m) => rgb
-            .par_chunks(3)
-            .zip(m.par_iter())
-            .filter(|(_, &b)| b)
-            .map(|(p, _)| p[c])
-            .collect(),
     }
 }
 

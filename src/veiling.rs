@@ -9,10 +9,11 @@
 //! Immerkaer's robust estimate of the image's own noise.
 
 use crate::filters::{
-    convolve_separable, downscale, gaussian_kernel, largest_component, sobel_max,
+    convolve_separable, downscale, downscale_map, gaussian_kernel, largest_component, sobel_max,
 };
 use crate::image::ImageRef;
-use crate::util::{normalize_masked, percentiles};
+use crate::rank::{f32_key, f64_key, key_f32, order_stats};
+use crate::util::{percentiles, Normalize};
 use rayon::prelude::*;
 
 /// Longer side of the working copy for the edge map (SPEC 3 variant).
@@ -117,9 +118,9 @@ pub fn edge_scale(h: usize, w: usize) -> usize {
 /// The edge-strength map of DECISIONS S3 steps 1-5.
 pub fn edge_map(img: &ImageRef) -> EdgeMap {
     let (h, w) = (img.height, img.width);
-    let norm = normalize_masked(img.data, None);
+    let norm = Normalize::masked(img.data, None);
     let scale = edge_scale(h, w);
-    let (small, hs, ws) = downscale(&norm, h, w, 3, scale);
+    let (small, hs, ws) = downscale_map(img.data, h, w, 3, scale, |v| norm.apply(v));
     let sigma = noise_sigma(&small, hs, ws);
     let blurred = convolve_separable(&small, hs, ws, 3, &gaussian_kernel(1.0, 3));
     let e = sobel_max(&blurred, hs, ws, 3);
@@ -162,37 +163,44 @@ pub fn luminance(p: [f32; 3]) -> f64 {
 
 /// Median (lower) luminance of the masked-in pixels.
 pub fn median_luminance(img: &ImageRef, mask: Option<&[bool]>) -> f64 {
-    let y: Vec<f32> = (0..img.len())
-        .into_par_iter()
-        .filter(|&i| mask.is_none_or(|m| m[i]))
-        .map(|i| luminance(img.px(i)) as f32)
-        .collect();
-    let n = y.len();
+    let (h, w) = (img.height, img.width);
+    let n = mask.map_or(img.len(), |m| m.par_iter().filter(|&&b| b).count());
     if n == 0 {
         return 0.0;
     }
-    let mut y = y;
     let k = (n - 1) / 2;
-    let (_, v, _) = y.select_nth_unstable_by(k, f32::total_cmp);
-    *v as f64
+    let [v] = order_stats(h, [n], [&[k]], |y, b: &mut [Vec<u32>; 1]| {
+        let row = img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
+        for (x, p) in row.chunks_exact(3).enumerate() {
+            if mask.is_none_or(|m| m.get(y * w + x).copied().unwrap_or(false)) {
+                b[0].push(f32_key(luminance([p[0], p[1], p[2]]) as f32));
+            }
+        }
+    });
+    v.first().map_or(0.0, |&k| key_f32(k) as f64)
 }
 
 /// A as the color of the VL pixel with the (lower) median luminance; VL
 /// pixels ordered by (luminance, raster index). None for an empty region.
 pub fn veiling_from_region(img: &ImageRef, vl: &[bool]) -> Option<[f32; 3]> {
-    let mut idx: Vec<(f64, usize)> = vl
-        .iter()
-        .enumerate()
-        .filter(|(_, &b)| b)
-        .map(|(i, _)| (luminance(img.px(i)), i))
-        .collect();
-    if idx.is_empty() {
+    let (h, w) = (img.height, img.width);
+    let n = vl.par_iter().filter(|&&b| b).count();
+    if n == 0 {
         return None;
     }
-    let k = (idx.len() - 1) / 2;
-    let (_, &mut (_, i), _) =
-        idx.select_nth_unstable_by(k, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    Some(img.px(i))
+    let k = (n - 1) / 2;
+    // key: (luminance, raster index), as one integer
+    let [v] = order_stats(h, [n], [&[k]], |y, b: &mut [Vec<u128>; 1]| {
+        let row = img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
+        for (x, p) in row.chunks_exact(3).enumerate() {
+            let i = y * w + x;
+            if vl.get(i).copied().unwrap_or(false) {
+                b[0].push(((f64_key(luminance([p[0], p[1], p[2]])) as u128) << 64) | i as u128);
+            }
+        }
+    });
+    let i = v.first().map(|&key| key as u64 as usize)?;
+    img.data.get(3 * i..3 * i + 3).map(|p| [p[0], p[1], p[2]])
 }
 
 /// The fallback A (DECISIONS S3): the brightest 0.1% of a heavily blurred,

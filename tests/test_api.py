@@ -360,6 +360,40 @@ def test_water_mask_covering_everything_is_an_error():
 
 
 # ---------------------------------------------------------------------------
+# selection="fast"
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("water,seed", [("II", 3), ("III", 5), ("5C", 8)])
+def test_fast_selection_agrees_with_exhaustive(water, seed):
+    """On rendered 540x1100 scenes (the copy is 270x550), selection="fast"
+    picks the exhaustive mode's water type, and then every output is
+    bit-identical to the exhaustive one (same A, VL and restoration of that
+    type); its scores are the copy's, one per type."""
+    img, _ = synth.demo_input(540, 1100, water_type=water, seed=seed)
+    ex = uwhl_rs.restore(img)
+    fa = uwhl_rs.restore(img, selection="fast")
+    assert fa.water_type == ex.water_type, (fa.scores, ex.scores)
+    for field in ("image", "radiance", "transmission", "veiling_mask"):
+        assert np.array_equal(getattr(fa, field), getattr(ex, field)), field
+    assert fa.veiling_light == ex.veiling_light and fa.flags == ex.flags
+    assert list(fa.scores) == list(ex.scores)
+    assert all(math.isfinite(v) for v in fa.scores.values())
+
+
+def test_fast_selection_on_small_images_is_exhaustive(scene, result):
+    """An image whose longer side is at most 1024 px has no smaller copy:
+    "fast" gives the exhaustive result, scores included."""
+    _same(uwhl_rs.restore(scene[0], selection="fast"), result)
+
+
+def test_fast_selection_is_deterministic():
+    """selection="fast" is bit-identical for 1 and 3 threads."""
+    img, _ = synth.demo_input(300, 1100, water_type="1C", seed=2)
+    _same(uwhl_rs.restore(img, selection="fast", threads=1), uwhl_rs.restore(img, selection="fast", threads=3))
+
+
+# ---------------------------------------------------------------------------
 # Determinism, the GIL, import hygiene
 # ---------------------------------------------------------------------------
 

@@ -126,6 +126,7 @@ CASES = [
     ("scene8.png", ["--format", "png", "--preprocess", "reference", "--guided-radius", "9",
                     "--sphere-points", "200", "--guided-eps", "0.01"]),
     ("rotated.png", ["--format", "tiff", "--bits", "8", "--veiling-light", "0.05,0.2,0.3"]),
+    ("scene8.png", ["--format", "png", "--selection", "fast"]),
 ]
 
 

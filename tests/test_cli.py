@@ -213,7 +213,7 @@ def test_bad_arguments_exit_2_with_a_message(scenes, tmp_path, args, needle):
 
 def test_memory_budget_and_missing_inputs_are_reported(scenes, tmp_path):
     r = uwhl("restore", scenes / "scene_II.png", tmp_path / "nope.jpg", str(tmp_path / "*.tif"), "-o", tmp_path / "o",
-             "--max-memory", "1M")
+             "--max-memory", "100K")
     assert r.returncode == 1
     assert "nope.jpg: no such file" in r.stderr and "matches no image file" in r.stderr
     assert "over the memory budget" in r.stderr
@@ -241,7 +241,7 @@ def test_help_and_version():
     r = uwhl("restore", "--help")
     assert r.returncode == 0
     for opt in ["--water-type", "--veiling-light", "--mask", "--water-mask", "--guided-radius", "--guided-eps",
-                "--sphere-points", "--max-side", "--jobs", "--overwrite", "--contact-sheet", "--format", "--threads",
+                "--sphere-points", "--selection", "--max-side", "--jobs", "--overwrite", "--contact-sheet", "--format", "--threads",
                 "--max-memory", "--preprocess", "--half-size", "exit status"]:
         assert opt in r.stdout, opt
     assert uwhl("demo", "--help").returncode == 0

@@ -265,6 +265,13 @@ case(
     ["sphere_points"],
 )
 case("threads-0", lambda: (_base(), {"threads": 0}), ParameterError, ["threads"])
+for _sel in ["Fast", "quick", "", 1, None]:
+    case(
+        f"selection-{_sel!r}",
+        lambda sel=_sel: (_base(), {"selection": sel}),
+        ParameterError,
+        ["selection", "exhaustive", "fast"],
+    )
 
 # --- memory budget -------------------------------------------------------------
 for _lim in [0, 1000]:

@@ -148,6 +148,7 @@ def restore(
     sphere_points: int = 500,
     threads: int | None = None,
     max_memory: int | None = None,
+    selection: str = "exhaustive",
 ) -> Restoration:
     """Restore the colors of one underwater image (SPEC sections 2-10).
 
@@ -183,6 +184,15 @@ def restore(
     max_memory : int, optional
         Working-memory limit in bytes (default 16 GiB); a larger image
         raises MemoryError before anything large is allocated.
+    selection : {"exhaustive", "fast"}
+        How the water type is chosen (SPEC 9). ``"exhaustive"`` (default)
+        restores every candidate type at full resolution and scores it.
+        ``"fast"`` scores the types on a block-averaged copy whose longer
+        side is about 1024 px (with the full-resolution veiling light and
+        water region), then restores the chosen type once at full
+        resolution, exactly as the exhaustive mode restores it; ``scores``
+        are then the copy's. Images whose longer side is at most 1024 px
+        are processed exhaustively either way.
 
     Returns
     -------
@@ -227,6 +237,8 @@ def restore(
     sphere_points = _int_param("sphere_points", sphere_points, 0)
     threads = _int_param("threads", threads, 0)
     max_memory = _int_param("max_memory", max_memory, 0)
+    if not isinstance(selection, str) or selection not in ("exhaustive", "fast"):
+        raise ParameterError(f'selection must be "exhaustive" or "fast"; got {selection!r}')
     return _core.restore_f32(
         img,
         water_types=water_types,
@@ -238,4 +250,5 @@ def restore(
         sphere_points=sphere_points,
         threads=threads,
         max_memory=max_memory,
+        selection=selection,
     )

@@ -1,6 +1,6 @@
 """Type stubs of the native module uwhl_rs._core (built from src/python.rs)."""
 
-from typing import Optional, Sequence, Union
+from typing import Literal, Optional, Sequence, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -40,4 +40,5 @@ def restore_f32(
     sphere_points: int = 500,
     threads: Optional[int] = None,
     max_memory: Optional[int] = None,
+    selection: Literal["exhaustive", "fast"] = "exhaustive",
 ) -> Restoration: ...

@@ -174,6 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "repeatable, or NAME:BETA_BR:BETA_BG; default all ten Jerlov types")
     g.add_argument("--veiling-light", type=_veiling_light, metavar="R,G,B",
                    help="a known veiling light A (linear, each in (0, 1]); default: estimated")
+    g.add_argument("--selection", choices=["exhaustive", "fast"], default="exhaustive",
+                   help="exhaustive (default): every water type restored and scored at full resolution; "
+                   "fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size")
     g.add_argument("--guided-radius", type=_nonneg_int, metavar="N", help="guided-filter radius (default min(H, W)/4)")
     g.add_argument("--guided-eps", type=_positive_float, default=1e-3, metavar="X", help="guided-filter eps (default 1e-3)")
     g.add_argument("--sphere-points", type=_positive_int, default=500, metavar="N", help="haze-line clusters (default 500)")
@@ -406,6 +409,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         guided_radius=a.guided_radius,
         guided_eps=a.guided_eps,
         sphere_points=a.sphere_points,
+        selection=a.selection,
         threads=threads,
     )
     if a.max_memory is not None:

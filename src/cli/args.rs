@@ -97,6 +97,8 @@ pub struct Options {
     pub max_side: Option<usize>,
     /// `--preprocess`
     pub preprocess: Preprocess,
+    /// `--selection`: how the water type is chosen
+    pub selection: crate::pipeline::Selection,
     /// `--linear`: the input is already linear (no sRGB decoding)
     pub linear: bool,
     /// `--format`
@@ -137,6 +139,7 @@ impl Default for Options {
             sphere_points: crate::pipeline::DEFAULT_SPHERE_POINTS,
             max_side: None,
             preprocess: Preprocess::None,
+            selection: crate::pipeline::Selection::Exhaustive,
             linear: false,
             format: Format::Jpg,
             bits: None,
@@ -201,6 +204,8 @@ Options:
                            a mask block is used if all its pixels are, a water-mask block is
                            water if at least half its pixels are
       --preprocess MODE    none (default) | reference (SPEC 2: sRGB kept, pulled stretch)
+      --selection MODE     exhaustive (default: every type at full resolution) | fast (types
+                           scored on a ~1024 px copy, uncertain ones re-scored at full size)
       --linear             the input values are already linear (float TIFFs always are)
       --format FMT         jpg (default) | png | tiff
       --bits 8|16          png/tiff bits per sample (default: png 8, tiff 16; jpg is 8)
@@ -379,6 +384,17 @@ where
                     v => {
                         return Err(CliError::usage(format!(
                             "--preprocess: {v:?} is not none or reference"
+                        )))
+                    }
+                }
+            }
+            Long("selection") => {
+                o.selection = match text(p.value().map_err(lex)?, "--selection")?.as_str() {
+                    "exhaustive" => crate::pipeline::Selection::Exhaustive,
+                    "fast" => crate::pipeline::Selection::Fast,
+                    v => {
+                        return Err(CliError::usage(format!(
+                            "--selection: {v:?} is not exhaustive or fast"
                         )))
                     }
                 }

@@ -36,8 +36,6 @@ pub struct Plan {
     pub reference: bool,
     /// masks given (0, 1 or 2)
     pub masks: u8,
-    /// water types evaluated at once (threads, at most the number of types)
-    pub in_flight: usize,
 }
 
 impl Plan {
@@ -66,7 +64,7 @@ impl Plan {
             0
         };
         let reference = if self.reference { mul(28, n) } else { 0 };
-        let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.in_flight));
+        let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.masks > 0));
         let write = mul(12 + 29 + 6, m);
         let masks = u64::from(self.masks);
         let mask = mul(masks, n).saturating_add(mul(masks, m));
@@ -92,14 +90,13 @@ mod tests {
             factor: 1,
             reference: false,
             masks: 0,
-            in_flight: 2,
         }
     }
 
     #[test]
     fn restore_dominates_and_downscaling_shrinks_it() {
         let p = plan(1000, 1000);
-        assert_eq!(p.bytes(), 12_000_000 + memory_estimate(1000, 1000, 2));
+        assert_eq!(p.bytes(), 12_000_000 + memory_estimate(1000, 1000, false));
         let small = Plan { factor: 4, ..p };
         assert_eq!(small.processed(), (250, 250));
         // the decode phase now dominates: 3 n + 12 n

@@ -232,7 +232,7 @@ fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, nee
 }
 
 /// The memory plan of one input, checked against `--max-memory` from its header.
-fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, in_flight: usize) -> Result<(), CliError> {
+fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks) -> Result<(), CliError> {
     let plan = Plan {
         height: h.height,
         width: h.width,
@@ -242,7 +242,6 @@ fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, in_fligh
         factor: opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n)),
         reference: opts.preprocess == Preprocess::Reference,
         masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
-        in_flight,
     };
     let need = plan.bytes();
     if need > opts.max_memory {
@@ -288,15 +287,13 @@ pub fn decode_and_restore<R: BufRead + Seek>(
         Some(r) => vec![r.water_type.clone()],
         None => water_types(opts),
     };
-    let threads = opts.threads.unwrap_or_else(rayon::current_num_threads);
-    let in_flight = threads.min(types.len()).max(1);
     let reference = opts.preprocess == Preprocess::Reference;
     let limits = Limits {
         max_pixels: opts.max_pixels,
         max_memory: opts.max_memory,
     };
     let decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
-        check_plan(h, opts, masks, in_flight)
+        check_plan(h, opts, masks)
     })?;
     let (h, w) = (decoded.height, decoded.width);
     // float samples are linear: no reference stretch, sRGB curve on output
@@ -327,6 +324,7 @@ pub fn decode_and_restore<R: BufRead + Seek>(
         sphere_points: opts.sphere_points,
         threads: None,
         max_memory: opts.max_memory,
+        selection: opts.selection,
     };
     let input = Input {
         image: ImageRef::new(&data, hp, wp)?,
