@@ -65,16 +65,7 @@ def _reference():
     return mod
 
 
-def best_of(fn, n: int) -> float:
-    best = float("inf")
-    for _ in range(n):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
-
-
-def floor_time(img: np.ndarray, n: int = 5) -> float:
+def floor_time(img: np.ndarray, best_of, n: int = 5) -> float:
     """Read the input once and write the three outputs once (float32)."""
     h, w = img.shape[:2]
     out_image = np.empty_like(img)
@@ -166,6 +157,8 @@ def main(argv=None) -> int:
 
     uw = _import_package(args.package)
     from uwhl_rs import synth
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    from quality import best_of  # one timing helper for both bench scripts
 
     ref = _reference()
     import inspect
@@ -194,7 +187,7 @@ def main(argv=None) -> int:
         t_all = best_of(lambda: uw.restore(img), reps)
         t_fast = best_of(lambda: uw.restore(img, selection="fast"), reps) if has_fast else float("nan")
         fast_type = uw.restore(img, selection="fast").water_type if has_fast else "-"
-        t_floor = floor_time(img)
+        t_floor = floor_time(img, best_of)
         if ref_mode == "full":
             t0 = time.perf_counter()
             rr = ref.restore(img)
@@ -230,7 +223,7 @@ def main(argv=None) -> int:
     seq_kw = {"water_types": [first.water_type], "veiling_light": first.veiling_light}
     uw.restore(img, **seq_kw)
     t_seq = best_of(lambda: uw.restore(img, **seq_kw), 5)
-    t_seq_floor = floor_time(img)
+    t_seq_floor = floor_time(img, best_of)
 
     print()
     print("Whole restore (seconds; reference = tests/reference.py, NumPy/SciPy):")

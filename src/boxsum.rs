@@ -272,16 +272,9 @@ pub fn box_mean_plane(src: &[f32], geom: BoxGeom, bands: usize) -> Vec<f32> {
 mod tests {
     use super::*;
 
+    /// Values in [-0.3, 0.7): negative ones too.
     fn lcg(n: usize, seed: u64) -> Vec<f32> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 40) as f32) / (1u64 << 24) as f32 - 0.3
-            })
-            .collect()
+        crate::util::test_noise(n, seed).into_iter().map(|v| v - 0.3).collect()
     }
 
     fn brute(x: &[f32], h: usize, w: usize, r: usize) -> Vec<f64> {

@@ -268,14 +268,11 @@ mod tests {
     use super::*;
 
     fn data(n: usize, seed: u64) -> Vec<f32> {
-        let mut s = seed;
-        (0..n)
-            .map(|i| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                // structured: smooth gradient + noise + repeated values
-                let noise = ((s >> 40) as f32) / (1u64 << 24) as f32;
-                if i % 7 == 0 { 0.5 } else { (i % 300) as f32 / 300.0 * 0.3 + noise * 0.7 }
-            })
+        // structured: a gradient plus noise, and a repeated value
+        crate::util::test_noise(n, seed)
+            .into_iter()
+            .enumerate()
+            .map(|(i, noise)| if i % 7 == 0 { 0.5 } else { (i % 300) as f32 / 300.0 * 0.3 + noise * 0.7 })
             .collect()
     }
 
