@@ -54,8 +54,8 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    checked: clahe, color, error, image, recover, select, water;
-    pending: boxsum, filters, guided, hazelines, matting, pipeline, rank, sphere, util, veiling;
+    checked: clahe, color, error, image, matting, recover, select, water;
+    pending: boxsum, filters, guided, hazelines, pipeline, rank, sphere, util, veiling;
 }
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
