@@ -104,8 +104,8 @@ pub fn haze_pass(
             // cluster lookups in a loop without calls
             let mut vs = vec![[0f32; 3]; w];
             for (y, ((rr, aa), px)) in rr.chunks_mut(w).zip(aa.chunks_mut(w)).zip(px.chunks(3 * w)).enumerate() {
-                for (v, p) in vs.iter_mut().zip(px.chunks_exact(3)) {
-                    *v = ht.compensated([p[0], p[1], p[2]]);
+                for (v, p) in vs.iter_mut().zip(px.as_chunks::<3>().0) {
+                    *v = ht.compensated(*p);
                 }
                 let row0 = ci * chunk + y * w;
                 for (x, ((r, a), v)) in rr.iter_mut().zip(aa.iter_mut()).zip(&vs).enumerate() {
@@ -188,10 +188,10 @@ pub fn fill_masked(t: &mut [f32], mask: &[bool], h: usize, w: usize) {
         let den = box_mean(&wts, h, w, rad);
         t.par_iter_mut()
             .zip(filled.par_iter_mut())
-            .enumerate()
-            .for_each(|(i, (v, f))| {
-                if !*f && den[i] > 0.0 {
-                    *v = num[i] / den[i];
+            .zip(num.par_iter().zip(den.par_iter()))
+            .for_each(|((v, f), (&nm, &dn))| {
+                if !*f && dn > 0.0 {
+                    *v = nm / dn;
                     *f = true;
                 }
             });

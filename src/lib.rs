@@ -54,8 +54,8 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    checked: clahe, color, error, image, water;
-    pending: boxsum, filters, guided, hazelines, matting, pipeline, rank, recover, select, sphere, util, veiling;
+    checked: clahe, color, error, guided, hazelines, image, matting, pipeline, recover, select, sphere, veiling, water;
+    pending: boxsum, filters, rank, util;
 }
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,

@@ -22,8 +22,10 @@ pub fn lower_bound_px(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> f32 {
 pub fn lower_bound(img: &ImageRef, a: [f32; 3], wt: &WaterType) -> Vec<f32> {
     let ht = HazeType::new(a, wt);
     img.data
-        .par_chunks_exact(3)
-        .map(|p| ht.lower_bound(ht.compensated([p[0], p[1], p[2]])))
+        .as_chunks::<3>()
+        .0
+        .par_iter()
+        .map(|&p| ht.lower_bound(ht.compensated(p)))
         .collect()
 }
 
@@ -54,9 +56,9 @@ impl Matting {
         if count < 2 || vl.len() != n {
             return None;
         }
+        let pixels = img.data.as_chunks::<3>().0;
         let px = |i: usize| -> [f64; 3] {
-            let p = img.data.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]);
-            [p[0] as f64, p[1] as f64, p[2] as f64]
+            pixels.get(i).copied().unwrap_or([0.0; 3]).map(f64::from)
         };
         let in_vl = |i: usize| vl.get(i).copied().unwrap_or(false);
         let s = det_sums::<3, _>(n, chunk, |i, acc| {
@@ -83,16 +85,9 @@ impl Matting {
         let inv = cov.try_inverse()?;
         let mut model = Self {
             mu,
+            // m<row><col> fields of the 3x3 matrix
             inv: [
-                inv[(0, 0)],
-                inv[(0, 1)],
-                inv[(0, 2)],
-                inv[(1, 0)],
-                inv[(1, 1)],
-                inv[(1, 2)],
-                inv[(2, 0)],
-                inv[(2, 1)],
-                inv[(2, 2)],
+                inv.m11, inv.m12, inv.m13, inv.m21, inv.m22, inv.m23, inv.m31, inv.m32, inv.m33,
             ],
             thr_water: 0.0,
             inv_span: 0.0,
@@ -112,12 +107,9 @@ impl Matting {
     #[inline(always)]
     fn distance_px(&self, p: [f64; 3]) -> f32 {
         let d = [p[0] - self.mu[0], p[1] - self.mu[1], p[2] - self.mu[2]];
-        let m = &self.inv;
-        let row = |r: usize| -> f64 {
-            m.get(3 * r..3 * r + 3)
-                .map_or(0.0, |v| v[0] * d[0] + v[1] * d[1] + v[2] * d[2])
-        };
-        (d[0] * row(0) + d[1] * row(1) + d[2] * row(2)) as f32
+        let [m0, m1, m2, m3, m4, m5, m6, m7, m8] = self.inv;
+        let row = |v: [f64; 3]| -> f64 { v[0] * d[0] + v[1] * d[1] + v[2] * d[2] };
+        (d[0] * row([m0, m1, m2]) + d[1] * row([m3, m4, m5]) + d[2] * row([m6, m7, m8])) as f32
     }
 
     /// Squared Mahalanobis distance of a pixel to the water's colors.
@@ -172,14 +164,14 @@ pub fn thresholds<F: Fn(usize) -> f64 + Sync>(vl: &[bool], width: usize, d: F) -
 /// VL pixels.
 pub fn mahalanobis_sq(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
     let m = Matting::fit(img, vl)?;
-    Some(img.data.par_chunks_exact(3).map(|p| m.distance([p[0], p[1], p[2]])).collect())
+    Some(img.data.as_chunks::<3>().0.par_iter().map(|&p| m.distance(p)).collect())
 }
 
 /// Matting weights w of SPEC 5 (1 = water, 0 = object) of every pixel
 /// (see [`Matting::weight`]). None with fewer than 2 VL pixels.
 pub fn matting_weights(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
     let m = Matting::fit(img, vl)?;
-    Some(img.data.par_chunks_exact(3).map(|p| m.weight([p[0], p[1], p[2]])).collect())
+    Some(img.data.as_chunks::<3>().0.par_iter().map(|&p| m.weight(p)).collect())
 }
 
 #[cfg(test)]

@@ -145,7 +145,11 @@ impl Restoration {
 pub fn channel_transmissions(t_b: &[f32], wt: &WaterType) -> [Vec<f32>; 3] {
     let rec = Recovery::new([1.0; 3], wt);
     let per: Vec<[f32; 3]> = t_b.par_iter().map(|&t| rec.channel_t(t)).collect();
-    [0, 1, 2].map(|c| per.iter().map(|v| v[c]).collect())
+    [
+        per.iter().map(|v| v[0]).collect(),
+        per.iter().map(|v| v[1]).collect(),
+        per.iter().map(|v| v[2]).collect(),
+    ]
 }
 
 /// Default guided-filter radius: round(min(H, W) / 4), halves away from zero (SPEC 6).
@@ -238,7 +242,7 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
                     continue;
                 }
                 let j = ny as usize * w + nx as usize;
-                if mask[j] {
+                if mask.get(j).copied().unwrap_or(false) {
                     pairs.push((l, j));
                 }
             }
@@ -248,8 +252,12 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
         let mut sum = vec![0f64; nl];
         let mut cnt = vec![0f64; nl];
         for (l, j) in pairs {
-            sum[l as usize - 1] += q[j] as f64;
-            cnt[l as usize - 1] += 1.0;
+            // labels are 1..=nl (0 was skipped above)
+            let k = l as usize - 1;
+            if let (Some(s), Some(c), Some(&qj)) = (sum.get_mut(k), cnt.get_mut(k), q.get(j)) {
+                *s += qj as f64;
+                *c += 1.0;
+            }
         }
         (sum, cnt)
     };
@@ -269,13 +277,15 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
         .map(|k| {
             [&below, &above, &around]
                 .iter()
-                .find(|(_, c)| c[k] > 0.0)
-                .map(|(s, c)| (s[k] / c[k]) as f32)
+                .find_map(|(s, c)| match (s.get(k), c.get(k)) {
+                    (Some(&s), Some(&c)) if c > 0.0 => Some((s / c) as f32),
+                    _ => None,
+                })
         })
         .collect();
     q.par_iter_mut().zip(labels.par_iter()).for_each(|(v, &l)| {
         if l > 0 {
-            if let Some(x) = value[l as usize - 1] {
+            if let Some(&Some(x)) = value.get(l as usize - 1) {
                 *v = x;
             }
         }
@@ -379,11 +389,11 @@ impl Shared<'_> {
         let (p, _) = j.split_at_mut(n);
         let ht = HazeType::new(self.a, wt);
         let rmax = haze_pass(img, &ht, self.index, self.mask, p, aux);
-        let blend = |tt: f32, lb: f32, px: &[f32]| -> f32 {
+        let blend = |tt: f32, lb: f32, px: &[f32; 3]| -> f32 {
             let tt = tt.max(lb);
             match &self.matting {
                 Some(m) => {
-                    let wgt = m.weight([px[0], px[1], px[2]]);
+                    let wgt = m.weight(*px);
                     wgt * lb + (1.0 - wgt) * tt
                 }
                 None => tt,
@@ -401,7 +411,7 @@ impl Shared<'_> {
                 .zip(aux.par_chunks(chunk))
                 .zip(img.data.par_chunks(3 * chunk))
                 .for_each(|((pp, aa), px)| {
-                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.chunks_exact(3)) {
+                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.as_chunks::<3>().0) {
                         *v = blend(*v * T_SCALE, x[0], c);
                     }
                 });
@@ -410,7 +420,7 @@ impl Shared<'_> {
                 .zip(aux.par_chunks(chunk))
                 .zip(img.data.par_chunks(3 * chunk))
                 .for_each(|((pp, aa), px)| {
-                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.chunks_exact(3)) {
+                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.as_chunks::<3>().0) {
                         *v = blend(t_tilde(*v, x[1], &rmax) * T_SCALE, x[0], c);
                     }
                 });
@@ -424,12 +434,13 @@ impl Shared<'_> {
         let w = self.img.width;
         let mut st = RowStats::default();
         let px = self.img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
-        for (x, ((qv, o), p)) in q.iter().zip(j.chunks_exact_mut(3)).zip(px.chunks_exact(3)).enumerate() {
+        let pixels = px.as_chunks::<3>().0;
+        for (x, ((qv, o), p)) in q.iter().zip(j.as_chunks_mut::<3>().0.iter_mut()).zip(pixels).enumerate() {
             let i = y * w + x;
             let t = rec.clamp_tb(*qv);
             let tc = rec.channel_t(t);
-            let jv = rec.radiance([p[0], p[1], p[2]], tc);
-            o.copy_from_slice(&jv);
+            let jv = rec.radiance(*p, tc);
+            *o = jv;
             if let Some(d) = tb.as_deref_mut().and_then(|b| b.get_mut(x)) {
                 *d = t;
             }

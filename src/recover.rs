@@ -117,11 +117,14 @@ pub fn recover(
     let rec = Recovery::new(a, wt);
     let tb: Vec<f32> = t_refined.par_iter().map(|&t| rec.clamp_tb(t)).collect();
     let mut j = vec![0f32; img.data.len()];
-    j.par_chunks_mut(3)
-        .zip(img.data.par_chunks(3))
+    // pixels as [f32; 3]: the image holds 3 * h * w values (ImageRef::new)
+    j.as_chunks_mut::<3>()
+        .0
+        .par_iter_mut()
+        .zip(img.data.as_chunks::<3>().0.par_iter())
         .zip(tb.par_iter())
         .for_each(|((o, p), &t)| {
-            o.copy_from_slice(&rec.radiance([p[0], p[1], p[2]], rec.channel_t(t)));
+            *o = rec.radiance(*p, rec.channel_t(t));
         });
     artifact_clamp(&mut j, mask);
     (j, tb)

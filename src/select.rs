@@ -136,18 +136,19 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
         }
         relaxed = threshold.is_none();
     }
-    let mut winner = None::<usize>;
-    for (i, s) in stats.iter().enumerate() {
-        if excluded[i] {
+    // (index, stats) of the best type so far
+    let mut winner = None::<(usize, &TypeStats)>;
+    for (i, (s, &ex)) in stats.iter().zip(&excluded).enumerate() {
+        if ex {
             continue;
         }
         // NaN scores never win
-        if winner.is_none_or(|w| s.score < stats[w].score || stats[w].score.is_nan()) {
-            winner = Some(i);
+        if winner.is_none_or(|(_, w)| s.score < w.score || w.score.is_nan()) {
+            winner = Some((i, s));
         }
     }
     Choice {
-        winner: winner.unwrap_or(0),
+        winner: winner.map_or(0, |(i, _)| i),
         excluded,
         relaxed,
         threshold,
