@@ -97,9 +97,12 @@ impl ArtifactClamp {
     #[inline(always)]
     pub fn apply(&self, v: f32) -> f32 {
         let v = (v - self.shift).max(0.0);
+        // Without a divisor (every masked-in value at or below the shift),
+        // masked-out pixels can still be above 1: the final clip to 1 holds
+        // for them too (DECISIONS S7; found by the property test).
         match self.div {
             Some(d) => (v / d).min(1.0),
-            None => v,
+            None => v.min(1.0),
         }
     }
 }
@@ -248,6 +251,10 @@ mod tests {
         let mut z = vec![0.0f32; 4];
         artifact_clamp(&mut z, None);
         assert!(z.iter().all(|&v| v == 0.0));
+        // the one masked-in value is 0: no divisor, yet masked-out values are clipped to 1
+        let mut m = vec![0.0f32, 0.0, 0.0, 3.0, 0.5, f32::INFINITY];
+        artifact_clamp(&mut m, Some(&[true, false]));
+        assert_eq!(m, vec![0.0, 0.0, 0.0, 1.0, 0.5, 1.0]);
     }
 
     #[test]
