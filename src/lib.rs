@@ -54,7 +54,7 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    checked: clahe, color, error, guided, hazelines, image, matting, pipeline, recover, select, sphere, veiling, water;
+    checked: clahe, color, error, fastmath, guided, hazelines, image, matting, pipeline, recover, select, sphere, veiling, water;
     pending: boxsum, filters, rank, util;
 }
 
