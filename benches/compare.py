@@ -25,7 +25,10 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
   (``VmHWM``: includes the input array, the outputs and the interpreter
   with NumPy), also as a multiple of the float32 input;
 * ``python -X importtime -c "import uwhl_rs"``: the package's own import
-  time (its modules' self times) and what it adds beyond NumPy.
+  time (its modules' self times) and what it adds beyond NumPy;
+* ``selection="fast"`` against the exhaustive mode: the chosen water type on
+  every shared photo (``../shared/data/images``, when present) and on renders
+  of the ten types.
 
 Timings on a shared machine are noisy: compare rows of the same run.
 """
@@ -78,6 +81,26 @@ def floor_time(img: np.ndarray, best_of, n: int = 5) -> float:
         np.copyto(out_t, out_image[..., 2])
 
     return best_of(run, n)
+
+
+_TIME = r"""
+import sys, time, numpy as np
+sys.path.insert(0, {pkg!r})
+import uwhl_rs
+img = np.load({path!r})
+t = time.perf_counter()
+uwhl_rs.restore(img)
+print(time.perf_counter() - t)
+"""
+
+
+def time_baseline(pkg: str, img: np.ndarray, tmp: pathlib.Path) -> float:
+    """One all-ten-types call of the package in `pkg`, in a fresh process."""
+    path = tmp / "baseline_input.npy"
+    np.save(path, img)
+    out = subprocess.run([sys.executable, "-c", _TIME.format(pkg=str(pathlib.Path(pkg).resolve()), path=str(path))],
+                         capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
 
 
 # VmHWM (this process image's peak RSS): ru_maxrss would include the
@@ -139,6 +162,42 @@ def import_times(n: int = 7) -> dict:
     return best
 
 
+def fast_agreement(uw, synth, quick: bool, best_of) -> list[str]:
+    """selection="fast" vs "exhaustive": the chosen type on every shared
+    photo (sRGB decoded to linear, full size) and on renders of all ten
+    types (540x1100, the copy is 270x550); returns the report lines."""
+    import quality  # DATA_DIR, sRGB decoding
+
+    rows, agree = [], {"photos": [0, 0], "renders": [0, 0]}
+
+    def compare(kind, name, img):
+        img = np.ascontiguousarray(img, dtype=np.float32)
+        ex = uw.restore(img)
+        fa = uw.restore(img, selection="fast")
+        same = ex.water_type == fa.water_type
+        agree[kind][0] += same
+        agree[kind][1] += 1
+        t_ex = best_of(lambda: uw.restore(img), 1)
+        t_fa = best_of(lambda: uw.restore(img, selection="fast"), 1)
+        rows.append([kind[:-1], name, f"{img.shape[1]}x{img.shape[0]}", ex.water_type, fa.water_type,
+                     "yes" if same else "NO", f"{t_ex:.2f}", f"{t_fa:.2f}"])
+
+    if quality.DATA_DIR.is_dir():
+        import imageio.v3 as iio
+
+        for p in sorted(quality.DATA_DIR.iterdir()):
+            if p.suffix.lower() in (".jpg", ".jpeg", ".png"):
+                compare("photos", p.name, quality.srgb_to_linear(quality.to_unit_float(iio.imread(p))))
+    for water in (["III", "5C"] if quick else list(synth.JERLOV)):
+        for seed in ((1,) if quick else (1, 2)):
+            img, _ = synth.demo_input(540, 1100, water_type=water, seed=seed)
+            compare("renders", f"{water} seed {seed}", img)
+    out = [table(["kind", "input", "WxH", "exhaustive", "fast", "same", "t exh s", "t fast s"], rows)]
+    out.append(f"agreement: shared photos {agree['photos'][0]}/{agree['photos'][1]}, "
+               f"renders {agree['renders'][0]}/{agree['renders'][1]}")
+    return out
+
+
 def table(header, rows) -> str:
     cols = [header] + rows
     wid = [max(len(str(r[i])) for r in cols) for i in range(len(header))]
@@ -153,6 +212,8 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-crop", type=int, default=1000,
                     help="side of the square crop the reference runs on where it is scaled (default 1000)")
     ap.add_argument("--tmp", default=None, help="directory for the subprocess inputs (default: a temporary one)")
+    ap.add_argument("--baseline", help="also time uwhl_rs from this directory (an older build), in subprocesses "
+                    "alternating with the current package's calls, so both see the same machine load")
     args = ap.parse_args(argv)
 
     uw = _import_package(args.package)
@@ -184,7 +245,14 @@ def main(argv=None) -> int:
         img = np.ascontiguousarray(img, dtype=np.float32)
         reps = 3 if h * w <= 3_000_000 else 2
         res = uw.restore(img)  # warm-up (and the sphere index)
-        t_all = best_of(lambda: uw.restore(img), reps)
+        if args.baseline:
+            t_all = t_base = float("inf")
+            for _ in range(reps):
+                t_all = min(t_all, best_of(lambda: uw.restore(img), 1))
+                t_base = min(t_base, time_baseline(args.baseline, img, tmp))
+        else:
+            t_all = best_of(lambda: uw.restore(img), reps)
+            t_base = float("nan")
         t_fast = best_of(lambda: uw.restore(img, selection="fast"), reps) if has_fast else float("nan")
         fast_type = uw.restore(img, selection="fast").water_type if has_fast else "-"
         t_floor = floor_time(img, best_of)
@@ -204,6 +272,7 @@ def main(argv=None) -> int:
             same = "-"
         rows.append([
             label, f"{w}x{h}", f"{t_all:.3f}", f"{t_fast:.3f}" if has_fast else "-",
+            f"{t_base:.3f} ({t_base / t_all:.1f}x)" if args.baseline else "-",
             f"{t_ref:.1f}", ref_note, f"{t_ref / t_all:.0f}x", f"{t_floor * 1e3:.1f}",
             f"{t_all / t_floor:.0f}x", res.water_type, fast_type, same,
         ])
@@ -227,7 +296,7 @@ def main(argv=None) -> int:
 
     print()
     print("Whole restore (seconds; reference = tests/reference.py, NumPy/SciPy):")
-    print(table(["size", "WxH", "uwhl_rs all 10", "uwhl_rs fast", "reference", "reference run",
+    print(table(["size", "WxH", "uwhl_rs all 10", "uwhl_rs fast", "baseline all 10", "reference", "reference run",
                  "speed-up", "floor ms", "x floor", "type", "fast type", "ref type same"], rows))
     print()
     print(f"Sequence mode (1920x1080, water_types=[{first.water_type!r}], veiling_light given): "
@@ -235,6 +304,11 @@ def main(argv=None) -> int:
     print()
     print("Peak resident memory of one call (fresh process; MiB; includes input, outputs, interpreter):")
     print(table(["size", "mode", "input", "before call", "peak", "peak / input", "(peak - before) / input"], mem_rows))
+    if has_fast:
+        print()
+        print('selection="fast" vs exhaustive (water type chosen; one call each):')
+        for line in fast_agreement(uw, synth, args.quick, best_of):
+            print(line)
     it = import_times()
     print()
     print(f"import uwhl_rs: package self time {it['self_ms']:.1f} ms; numpy {it['numpy_ms']:.1f} ms; "

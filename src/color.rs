@@ -42,22 +42,22 @@ fn decode_table(max_code: u32, linearize: bool) -> Vec<f32> {
         .collect()
 }
 
-/// Decodes 8-bit codes to f32 in [0, 1] (linearised when `linearize`).
-pub fn decode_u8(codes: &[u8], linearize: bool) -> Vec<f32> {
-    let lut = decode_table(u32::from(u8::MAX), linearize);
+/// Codes to f32 through `lut` (built for the code type's full range).
+fn decode_with<C: Copy + Into<u32> + Sync>(codes: &[C], lut: &[f32]) -> Vec<f32> {
     codes
         .par_iter()
-        .map(|&c| lut.get(usize::from(c)).copied().unwrap_or(0.0))
+        .map(|&c| lut.get(c.into() as usize).copied().unwrap_or(0.0))
         .collect()
+}
+
+/// Decodes 8-bit codes to f32 in [0, 1] (linearised when `linearize`).
+pub fn decode_u8(codes: &[u8], linearize: bool) -> Vec<f32> {
+    decode_with(codes, &decode_table(u32::from(u8::MAX), linearize))
 }
 
 /// Decodes 16-bit codes to f32 in [0, 1] (linearised when `linearize`).
 pub fn decode_u16(codes: &[u16], linearize: bool) -> Vec<f32> {
-    let lut = decode_table(u32::from(u16::MAX), linearize);
-    codes
-        .par_iter()
-        .map(|&c| lut.get(usize::from(c)).copied().unwrap_or(0.0))
-        .collect()
+    decode_with(codes, &decode_table(u32::from(u16::MAX), linearize))
 }
 
 /// One value to a code in 0..=max: clip to [0, 1] (NaN -> 0), the sRGB
