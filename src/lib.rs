@@ -54,8 +54,8 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    checked: filters, rank, util, clahe, color, error, guided, hazelines, image, matting, pipeline, recover, select, sphere, veiling, water;
-    pending: boxsum;
+    checked: boxsum, filters, rank, util, clahe, color, error, guided, hazelines, image, matting, pipeline, recover, select, sphere, veiling, water;
+    pending: ;
 }
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
