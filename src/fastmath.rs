@@ -26,7 +26,7 @@ const LOG2_E: f64 = std::f64::consts::LOG2_E;
 /// +inf for +inf (as `f64::log2`).
 #[inline(always)]
 pub fn log2(x: f32) -> f64 {
-    if !(x >= f32::MIN_POSITIVE && x < f32::INFINITY) {
+    if !(f32::MIN_POSITIVE..f32::INFINITY).contains(&x) {
         // zero, subnormal, negative, infinite or NaN: rare, exact path
         return f64::from(x).log2();
     }

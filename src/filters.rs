@@ -24,32 +24,38 @@ pub fn gaussian_kernel(sigma: f64, radius: usize) -> Vec<f64> {
 }
 
 /// Separable convolution of a `c`-channel interleaved image with a symmetric
-/// kernel, rows then columns, replicate border.
+/// kernel, rows then columns, replicate border. Values missing from a short
+/// `src` read as 0 (never a panic).
 pub fn convolve_separable(src: &[f32], h: usize, w: usize, c: usize, k: &[f64]) -> Vec<f32> {
+    if h == 0 || w == 0 || c == 0 {
+        // nothing to convolve (and no rows to walk: chunk sizes must be non-zero)
+        return vec![0f32; src.len()];
+    }
     let rad = (k.len() / 2) as isize;
+    let row_len = w * c;
     let mut tmp = vec![0f32; src.len()];
-    tmp.par_chunks_mut(w * c)
-        .zip(src.par_chunks(w * c))
+    tmp.par_chunks_mut(row_len)
+        .zip(src.par_chunks(row_len))
         .for_each(|(dst, row)| {
-            for x in 0..w as isize {
-                for ch in 0..c {
+            for (x, px) in dst.chunks_exact_mut(c).enumerate() {
+                for (ch, d) in px.iter_mut().enumerate() {
                     let mut s = 0f64;
                     for (j, kv) in k.iter().enumerate() {
-                        let xx = (x + j as isize - rad).clamp(0, w as isize - 1) as usize;
-                        s += kv * row[xx * c + ch] as f64;
+                        let xx = (x as isize + j as isize - rad).clamp(0, w as isize - 1) as usize;
+                        s += kv * row.get(xx * c + ch).map_or(0.0, |&v| v as f64);
                     }
-                    dst[x as usize * c + ch] = s as f32;
+                    *d = s as f32;
                 }
             }
         });
     let mut out = vec![0f32; src.len()];
     let tmp = &tmp;
-    out.par_chunks_mut(w * c).enumerate().for_each(|(y, dst)| {
+    out.par_chunks_mut(row_len).enumerate().for_each(|(y, dst)| {
         for (i, d) in dst.iter_mut().enumerate() {
             let mut s = 0f64;
             for (j, kv) in k.iter().enumerate() {
                 let yy = (y as isize + j as isize - rad).clamp(0, h as isize - 1) as usize;
-                s += kv * tmp[yy * w * c + i] as f64;
+                s += kv * tmp.get(yy * w * c + i).map_or(0.0, |&v| v as f64);
             }
             *d = s as f32;
         }
@@ -60,10 +66,13 @@ pub fn convolve_separable(src: &[f32], h: usize, w: usize, c: usize, k: &[f64]) 
 /// Sobel gradient magnitude divided by 8 (replicate border) of each channel
 /// of an interleaved `c`-channel image, maximum over channels (SPEC 3).
 pub fn sobel_max(src: &[f32], h: usize, w: usize, c: usize) -> Vec<f32> {
+    if h == 0 || w == 0 {
+        return Vec::new();
+    }
     let at = |y: isize, x: isize, ch: usize| -> f64 {
         let yy = y.clamp(0, h as isize - 1) as usize;
         let xx = x.clamp(0, w as isize - 1) as usize;
-        src[(yy * w + xx) * c + ch] as f64
+        src.get((yy * w + xx) * c + ch).map_or(0.0, |&v| v as f64)
     };
     let mut out = vec![0f32; h * w];
     out.par_chunks_mut(w).enumerate().for_each(|(y, dst)| {
@@ -141,12 +150,15 @@ pub fn components8(grid: &[bool], h: usize, w: usize) -> (Vec<u32>, Vec<usize>) 
     let mut labels = vec![0u32; h * w];
     let mut sizes = Vec::new();
     let mut stack = Vec::new();
-    for start in 0..h * w {
-        if !grid[start] || labels[start] != 0 {
+    for (start, &g) in grid.iter().enumerate().take(h * w) {
+        let Some(first) = labels.get_mut(start) else {
+            continue;
+        };
+        if !g || *first != 0 {
             continue;
         }
         let label = sizes.len() as u32 + 1;
-        labels[start] = label;
+        *first = label;
         stack.push(start);
         let mut size = 0usize;
         while let Some(i) = stack.pop() {
@@ -159,9 +171,11 @@ pub fn components8(grid: &[bool], h: usize, w: usize) -> (Vec<u32>, Vec<usize>) 
                         continue;
                     }
                     let j = ny as usize * w + nx as usize;
-                    if grid[j] && labels[j] == 0 {
-                        labels[j] = label;
-                        stack.push(j);
+                    if let (Some(&true), Some(l)) = (grid.get(j), labels.get_mut(j)) {
+                        if *l == 0 {
+                            *l = label;
+                            stack.push(j);
+                        }
                     }
                 }
             }

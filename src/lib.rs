@@ -26,8 +26,7 @@
 #![cfg_attr(not(feature = "python"), forbid(unsafe_code))]
 #![warn(missing_docs)]
 // Vehicle-grade rules: no unwrap/expect/panic/indexing on outside data, in
-// this file, the `checked` core modules below and the `cli` module; the
-// `pending` ones follow once the performance work on them has landed.
+// this file, every core module below and the `cli` module.
 #![cfg_attr(
     not(test),
     deny(
@@ -39,23 +38,17 @@
 )]
 
 /// Declares the core modules: every one forbids unsafe code even when the
-/// pyo3 bindings (which expand to unsafe code) are built into the crate.
-/// `checked` modules also get the crate's panic lints above; `pending` ones
-/// are exempt until the performance work on them has landed.
+/// pyo3 bindings (which expand to unsafe code) are built into the crate, and
+/// all are under the crate's panic lints above.
 macro_rules! core_modules {
-    (checked: $($c:ident),*; pending: $($p:ident),*;) => {
-        $(#[forbid(unsafe_code)] pub mod $c;)*
-        $(
-            #[forbid(unsafe_code)]
-            #[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-            pub mod $p;
-        )*
+    ($($m:ident),* $(,)?) => {
+        $(#[forbid(unsafe_code)] pub mod $m;)*
     };
 }
 
 core_modules! {
-    checked: clahe, color, error, fastmath, guided, hazelines, image, matting, pipeline, recover, select, sphere, veiling, water;
-    pending: boxsum, filters, rank, util;
+    boxsum, clahe, color, error, fastmath, filters, guided, hazelines, image, matting, pipeline, rank, recover, select, sphere, util,
+    veiling, water,
 }
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,

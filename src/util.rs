@@ -55,17 +55,17 @@ where
         let [b0, b1, b2] = b;
         match mask.and_then(|m| m.get(start..end)) {
             None => {
-                for p in px.chunks_exact(3) {
-                    b0.push(f32_key(p[0]));
-                    b1.push(f32_key(p[1]));
-                    b2.push(f32_key(p[2]));
+                for &[r, g, bl] in px.as_chunks::<3>().0 {
+                    b0.push(f32_key(r));
+                    b1.push(f32_key(g));
+                    b2.push(f32_key(bl));
                 }
             }
             Some(m) => {
-                for (p, _) in px.chunks_exact(3).zip(m).filter(|(_, &k)| k) {
-                    b0.push(f32_key(p[0]));
-                    b1.push(f32_key(p[1]));
-                    b2.push(f32_key(p[2]));
+                for (&[r, g, bl], _) in px.as_chunks::<3>().0.iter().zip(m).filter(|(_, &k)| k) {
+                    b0.push(f32_key(r));
+                    b1.push(f32_key(g));
+                    b2.push(f32_key(bl));
                 }
             }
         }
@@ -191,8 +191,8 @@ pub fn det_sums<const K: usize, F: Fn(usize, &mut [f64; K]) + Sync>(
         .collect();
     let mut out = [0.0; K];
     for p in parts {
-        for k in 0..K {
-            out[k] += p[k];
+        for (o, v) in out.iter_mut().zip(p) {
+            *o += v;
         }
     }
     out
@@ -223,12 +223,12 @@ pub fn masked_min_max(rgb: &[f32], mask: Option<&[bool]>) -> (f32, f32) {
             .par_chunks(3 * 4096)
             .zip(m.par_chunks(4096))
             .map(|(px, mm)| {
-                px.chunks(3).zip(mm).filter(|(_, &b)| b).fold(
+                px.as_chunks::<3>().0.iter().zip(mm).filter(|(_, &b)| b).fold(
                     (f32::INFINITY, f32::NEG_INFINITY),
-                    |(a, b), (p, _)| {
+                    |(a, b), (&[r, g, bl], _)| {
                         (
-                            a.min(p[0]).min(p[1]).min(p[2]),
-                            b.max(p[0]).max(p[1]).max(p[2]),
+                            a.min(r).min(g).min(bl),
+                            b.max(r).max(g).max(bl),
                         )
                     },
                 )
