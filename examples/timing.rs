@@ -10,6 +10,15 @@ use std::time::Instant;
 use uwhl::pipeline::Selection;
 use uwhl::{restore, ImageRef, Input, Params, WaterType};
 
+trait WithSub {
+    fn clone_with_subsample(&self, s: usize) -> Params;
+}
+impl WithSub for Params {
+    fn clone_with_subsample(&self, s: usize) -> Params {
+        Params { guided_subsample: s, ..self.clone() }
+    }
+}
+
 #[path = "../benches/scene.rs"]
 mod scene;
 
@@ -27,7 +36,8 @@ fn main() {
         mask: None,
         water_mask: None,
     };
-    let mut p = Params { threads, ..Params::default() };
+    let sub: usize = args.get(6).and_then(|s| s.parse().ok()).unwrap_or(1);
+    let mut p = Params { threads, guided_subsample: sub, ..Params::default() };
     match mode.as_str() {
         "fast" => p.selection = Selection::Fast,
         "seq" => {
@@ -47,9 +57,32 @@ fn main() {
     ts.sort_by(f64::total_cmp);
     let r = last.unwrap_or_else(|| panic!("no run"));
     println!(
-        "{h}x{w} {mode}: median {:.3} s (min {:.3}) over {reps}; chose {}",
+        "{h}x{w} {mode} subsample {}: median {:.3} s (min {:.3}) over {reps}; chose {}",
+        r.guided_subsample,
         ts[ts.len() / 2],
         ts[0],
         r.water_type.name
     );
+    for (name, t) in &r.timings {
+        println!("  {:>7.1} ms  {name}", t * 1e3);
+    }
+    if r.guided_subsample > 1 {
+        // against the exact filter with the same type and A
+        let e = restore(
+            &inp,
+            &Params {
+                water_types: vec![r.water_type.clone()],
+                veiling_light: Some(r.veiling_light),
+                ..p.clone()
+            }
+            .clone_with_subsample(1),
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        let diff = |a: &[f32], b: &[f32]| {
+            let m = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
+            let mean = a.iter().zip(b).map(|(x, y)| f64::from((x - y).abs())).sum::<f64>() / a.len() as f64;
+            (m, mean)
+        };
+        println!("  vs exact: t_B max {:.2e} mean {:.2e}; image max {:.2e} mean {:.2e}", diff(&r.transmission, &e.transmission).0, diff(&r.transmission, &e.transmission).1, diff(&r.image, &e.image).0, diff(&r.image, &e.image).1);
+    }
 }

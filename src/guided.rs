@@ -26,6 +26,75 @@ pub struct GuideStats {
     stats: Vec<[f32; 9]>,
     /// parallel row bands of the box passes
     bands: usize,
+    /// He and Sun's fast guided filter (subsampling factor > 1): the filter
+    /// of the s x s blocks' centre samples, whose window means of (a, b) are
+    /// interpolated back to full resolution
+    low: Option<Box<Low>>,
+}
+
+/// The subsampled level of a [`GuideStats`] (factor s > 1).
+struct Low {
+    /// the factor s
+    s: usize,
+    /// the exact filter of the sampled guide at radius round(r / s)
+    gs: GuideStats,
+    /// per full-resolution row and column: the two low-resolution samples
+    /// around it and the weight of the second (bilinear interpolation
+    /// between block centres, constant beyond the first and last)
+    rows: Vec<(usize, usize, f32)>,
+    cols: Vec<(usize, usize, f32)>,
+}
+
+/// Point samples of a plane with `c` interleaved channels at the centres
+/// of its s x s blocks (clipped at the border): ceil(h / s) x ceil(w / s) x c
+/// values. Point samples, not block means: the window statistics of the
+/// samples (the variance of the guide, its covariance with the input) are
+/// those of the full-resolution pixels, which averaging would shrink.
+pub fn block_samples(src: &[f32], h: usize, w: usize, c: usize, s: usize) -> Vec<f32> {
+    let s = s.max(1);
+    let centre = |k: usize, n: usize| (k * s + ((k + 1) * s).min(n) - 1) / 2;
+    let xs: Vec<usize> = (0..w.div_ceil(s)).map(|k| centre(k, w)).collect();
+    let mut out = vec![0f32; h.div_ceil(s) * xs.len() * c];
+    out.par_chunks_mut((xs.len() * c).max(1)).enumerate().for_each(|(by, orow)| {
+        let y = centre(by, h);
+        let line = src.get(y * w * c..(y + 1) * w * c).unwrap_or(&[]);
+        for (o, &x) in orow.chunks_exact_mut(c.max(1)).zip(&xs) {
+            if let Some(px) = line.get(x * c..(x + 1) * c) {
+                o.copy_from_slice(px);
+            }
+        }
+    });
+    out
+}
+
+/// a + t (b - a) per component.
+#[inline(always)]
+fn lerp4(a: &[f32; 4], b: &[f32; 4], t: f32) -> [f32; 4] {
+    let [a0, a1, a2, a3] = *a;
+    let [b0, b1, b2, b3] = *b;
+    [a0 + t * (b0 - a0), a1 + t * (b1 - a1), a2 + t * (b2 - a2), a3 + t * (b3 - a3)]
+}
+
+/// Interpolation table along one axis of length n for blocks of s: for each
+/// position, the blocks whose centres bracket it and the second one's weight.
+fn interp_axis(n: usize, s: usize) -> Vec<(usize, usize, f32)> {
+    let nb = n.div_ceil(s);
+    let centre = |k: usize| (k * s + ((k + 1) * s).min(n) - 1) as f64 / 2.0;
+    let mut k = 0usize;
+    (0..n)
+        .map(|i| {
+            let x = i as f64;
+            while k + 1 < nb && centre(k + 1) <= x {
+                k += 1;
+            }
+            if k + 1 >= nb || x <= centre(k) {
+                (k, k, 0.0)
+            } else {
+                let (c0, c1) = (centre(k), centre(k + 1));
+                (k, k + 1, ((x - c0) / (c1 - c0)) as f32)
+            }
+        })
+        .collect()
 }
 
 /// Inverse of a symmetric 3x3 matrix given as (a, b, c, d, e, f) =
@@ -57,8 +126,29 @@ impl GuideStats {
     /// (eps > 0 keeps every per-pixel matrix positive definite). The box
     /// passes run in as many row bands as the current pool has threads.
     pub fn new(guide: Vec<f32>, h: usize, w: usize, r: usize, eps: f64) -> Self {
+        Self::subsampled(guide, h, w, r, eps, 1)
+    }
+
+    /// As [`GuideStats::new`], for He and Sun's fast guided filter with
+    /// subsampling factor `s` (1: the exact filter): the guide and the
+    /// input sampled at the centres of s x s blocks are filtered exactly at radius
+    /// max(1, round(r / s)), and the window means of (a, b) are interpolated
+    /// bilinearly back to full resolution, where q = mean(a) . I + mean(b)
+    /// uses the full-resolution guide (DECISIONS F4).
+    pub fn subsampled(guide: Vec<f32>, h: usize, w: usize, r: usize, eps: f64, s: usize) -> Self {
         let geom = BoxGeom { h, w, r };
         let guide_bound = guide.iter().fold(0f32, |m, v| m.max(v.abs())) as f64;
+        let s = s.clamp(1, h.max(w).max(1));
+        let low = (s > 1).then(|| {
+            let (hs, ws) = (h.div_ceil(s), w.div_ceil(s));
+            let rl = ((r as f64 / s as f64).round() as usize).max(1);
+            Box::new(Low {
+                s,
+                gs: Self::new(block_samples(&guide, h, w, 3, s), hs, ws, rl, eps),
+                rows: interp_axis(h, s),
+                cols: interp_axis(w, s),
+            })
+        });
         let mut gs = Self {
             geom,
             eps,
@@ -66,9 +156,17 @@ impl GuideStats {
             guide_bound,
             stats: Vec::new(),
             bands: rayon::current_num_threads(),
+            low,
         };
-        gs.stats = gs.compute_stats();
+        if gs.low.is_none() {
+            gs.stats = gs.compute_stats();
+        }
         gs
+    }
+
+    /// The subsampling factor (1: the exact filter).
+    pub fn subsample(&self) -> usize {
+        self.low.as_ref().map_or(1, |l| l.s)
     }
 
     fn compute_stats(&self) -> Vec<[f32; 9]> {
@@ -142,15 +240,28 @@ impl GuideStats {
     /// [`GuideStats::coefficients`] ([`GuideStats::apply_rows`] needs only the guide).
     pub fn release_stats(&mut self) {
         self.stats = Vec::new();
+        if let Some(l) = self.low.as_mut() {
+            l.gs.release_stats();
+        }
     }
 
     /// First pass (SPEC 6): a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
     /// b = mean_p - a . mean_I for every pixel, written to `ab` as
     /// (a_R, a_G, a_B, b). Returns max |.| of each of the four, which
     /// bounds the second pass.
+    /// With subsampling, (a, b) are those of the samples and fill the
+    /// first ceil(H/s) ceil(W/s) entries of `ab`.
     pub fn coefficients(&self, p: &[f32], ab: &mut [[f32; 4]]) -> [f64; 4] {
         let BoxGeom { h, w, .. } = self.geom;
         let n = h * w;
+        if let Some(l) = &self.low {
+            let pl = block_samples(p, h, w, 1, l.s);
+            let m = pl.len();
+            return match ab.get_mut(..m) {
+                Some(abl) if p.len() == n => l.gs.coefficients(&pl, abl),
+                _ => [0.0; 4],
+            };
+        }
         if p.len() != n || ab.len() != n || self.stats.len() != n {
             return [0.0; 4];
         }
@@ -212,6 +323,9 @@ impl GuideStats {
         O: Send,
         K: Fn(&mut O, usize, &[f32]) + Sync,
     {
+        if let Some(l) = &self.low {
+            return self.apply_rows_low(l, ab, bounds, work, sink);
+        }
         let BoxGeom { w, .. } = self.geom;
         let g = &self.guide;
         let source = |y: usize, row: &mut [[f64; 4]]| {
@@ -233,6 +347,77 @@ impl GuideStats {
         box_means(self.geom, bounds, work, &source, &inner)
             .into_iter()
             .map(|(o, _)| o)
+            .collect()
+    }
+
+    /// Window means of a plane of (a, b) (exact filter level).
+    fn mean_coefficients(&self, ab: &[[f32; 4]], bounds: [f64; 4]) -> Vec<[f32; 4]> {
+        let BoxGeom { h, w, .. } = self.geom;
+        let mut out = vec![[0f32; 4]; h * w];
+        let source = |y: usize, row: &mut [[f64; 4]]| {
+            let line = ab.get(y * w..(y + 1) * w).unwrap_or(&[]);
+            for (d, v) in row.iter_mut().zip(line) {
+                *d = v.map(f64::from);
+            }
+        };
+        let sink = |o: &mut (usize, &mut [[f32; 4]]), y: usize, means: &[[f64; 4]]| {
+            let off = (y - o.0) * w;
+            if let Some(line) = o.1.get_mut(off..off + w) {
+                for (d, m) in line.iter_mut().zip(means) {
+                    *d = m.map(|v| v as f32);
+                }
+            }
+        };
+        let ranges = self.ranges();
+        let work = with_starts(&ranges, split_bands(&mut out, w, &ranges));
+        box_means(self.geom, bounds, work, &source, &sink);
+        out
+    }
+
+    /// Second pass with subsampling: the low level's window means of (a, b),
+    /// interpolated bilinearly to each full-resolution pixel, then
+    /// q = mean(a) . I + mean(b).
+    fn apply_rows_low<O, K>(
+        &self,
+        l: &Low,
+        ab: &[[f32; 4]],
+        bounds: [f64; 4],
+        work: Vec<(Range<usize>, O)>,
+        sink: &K,
+    ) -> Vec<O>
+    where
+        O: Send,
+        K: Fn(&mut O, usize, &[f32]) + Sync,
+    {
+        let BoxGeom { w, .. } = self.geom;
+        let wl = l.gs.geom.w;
+        let nl = l.gs.geom.h * wl;
+        let means = l.gs.mean_coefficients(ab.get(..nl).unwrap_or(&[]), bounds);
+        let g = &self.guide;
+        work.into_par_iter()
+            .map(|(range, mut o)| {
+                let mut q = vec![0f32; w];
+                // the row interpolated vertically, then horizontally per pixel
+                let mut line = vec![[0f32; 4]; wl];
+                for y in range {
+                    let &(k0, k1, wy) = l.rows.get(y).unwrap_or(&(0, 0, 0.0));
+                    let r0 = means.get(k0 * wl..(k0 + 1) * wl).unwrap_or(&[]);
+                    let r1 = means.get(k1 * wl..(k1 + 1) * wl).unwrap_or(&[]);
+                    for ((d, a), b) in line.iter_mut().zip(r0).zip(r1) {
+                        *d = lerp4(a, b, wy);
+                    }
+                    let gl = g.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
+                    for ((qv, px), &(c0, c1, wx)) in q.iter_mut().zip(gl.as_chunks::<3>().0).zip(&l.cols) {
+                        let (Some(a), Some(b), &[r, gg, bb]) = (line.get(c0), line.get(c1), px) else {
+                            continue;
+                        };
+                        let m = lerp4(a, b, wx);
+                        *qv = m[0] * r + m[1] * gg + m[2] * bb + m[3];
+                    }
+                    sink(&mut o, y, &q);
+                }
+                o
+            })
             .collect()
     }
 
@@ -289,6 +474,42 @@ mod tests {
         let gs = GuideStats::new(noise_guide(h, w), h, w, 3, 1e-3);
         let q = gs.filter(&vec![0.42f32; h * w]);
         assert!(q.iter().all(|&v| (v - 0.42).abs() < 1e-5), "{:?}", &q[..5]);
+    }
+
+    #[test]
+    fn subsampled_returns_constants_and_linear_functions_of_the_guide() {
+        // samples of p = c . I + d are c . (samples of I) + d, so the
+        // low level's (a, b) is (c, d) everywhere and q = p up to eps effects
+        for &(h, w, s) in &[(40usize, 37usize, 4usize), (33, 50, 3), (9, 9, 2), (70, 64, 8)] {
+            let g = noise_guide(h, w);
+            let gs = GuideStats::subsampled(g.clone(), h, w, 4 * s, 1e-6, s);
+            assert_eq!(gs.subsample(), s);
+            let q = gs.filter(&vec![0.42f32; h * w]);
+            assert!(q.iter().all(|&v| (v - 0.42).abs() < 1e-4), "{h}x{w}/{s}: {:?}", &q[..5]);
+            let p: Vec<f32> = (0..h * w)
+                .map(|k| 0.3 * g[3 * k] - 0.2 * g[3 * k + 1] + 0.5 * g[3 * k + 2] + 0.1)
+                .collect();
+            let q = gs.filter(&p);
+            let err = p.iter().zip(&q).map(|(a, b)| (a - b).abs()).fold(0f32, f32::max);
+            assert!(err < 2e-3, "{h}x{w}/{s}: max error {err}");
+        }
+    }
+
+    #[test]
+    fn block_samples_by_hand() {
+        // 3 x 5, s = 2: blocks of 2x2, 2x2, 2x1, 1x2, 1x2, 1x1; centres
+        // (rounded down) at rows 0, 2 and columns 0, 2, 4
+        let src: Vec<f32> = (0..15).map(|v| v as f32).collect();
+        let m = block_samples(&src, 3, 5, 1, 2);
+        assert_eq!(m, vec![0.0, 2.0, 4.0, 10.0, 12.0, 14.0]);
+        // the interpolation weights bracket each position by block centres
+        let t = interp_axis(5, 2);
+        assert_eq!(t[0], (0, 0, 0.0));
+        // centres 0.5, 2.5, 4
+        assert_eq!(t[1], (0, 1, 0.25));
+        assert_eq!(t[2], (0, 1, 0.75));
+        assert_eq!(t[3], (1, 2, 1.0 / 3.0));
+        assert_eq!(t[4], (2, 2, 0.0));
     }
 
     #[test]

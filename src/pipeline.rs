@@ -77,6 +77,21 @@ pub struct Params {
     pub max_memory: u64,
     /// how the water type is chosen; default exhaustive
     pub selection: Selection,
+    /// guided-filter subsampling factor s: 1 (default) = the exact filter
+    /// of SPEC 6; s >= 2 = He and Sun's fast guided filter, (a, b) computed
+    /// on s x s block means and interpolated back (DECISIONS F4);
+    /// 0 = automatic, [`auto_subsample`] of the radius
+    pub guided_subsample: usize,
+}
+
+/// Window radius, in blocks, that [`auto_subsample`] keeps at least.
+pub const AUTO_SUBSAMPLE_BLOCKS: usize = 32;
+
+/// The automatic guided-filter subsampling factor for radius r:
+/// max(1, floor(r / 32)), so that the subsampled window still spans at
+/// least 65 x 65 blocks (DECISIONS F4).
+pub fn auto_subsample(r: usize) -> usize {
+    (r / AUTO_SUBSAMPLE_BLOCKS).max(1)
 }
 
 impl Default for Params {
@@ -90,6 +105,7 @@ impl Default for Params {
             threads: None,
             max_memory: DEFAULT_MAX_MEMORY,
             selection: Selection::Exhaustive,
+            guided_subsample: 1,
         }
     }
 }
@@ -132,6 +148,37 @@ pub struct Restoration {
     pub flags: Vec<String>,
     /// the guided-filter radius used
     pub guided_radius: usize,
+    /// the guided-filter subsampling factor used at full resolution (1: exact)
+    pub guided_subsample: usize,
+    /// wall-clock seconds of each stage, in order (for profiling; not part
+    /// of the result proper and different from run to run)
+    pub timings: Vec<(&'static str, f64)>,
+}
+
+/// Wall-clock laps of the stages of one [`restore`] call.
+struct Clock {
+    last: std::time::Instant,
+    laps: Vec<(&'static str, f64)>,
+}
+
+impl Clock {
+    fn new() -> Self {
+        Self {
+            last: std::time::Instant::now(),
+            laps: Vec::new(),
+        }
+    }
+
+    /// Ends the stage `name` (adds to an earlier lap of that name).
+    fn lap(&mut self, name: &'static str) {
+        let now = std::time::Instant::now();
+        let dt = (now - self.last).as_secs_f64();
+        self.last = now;
+        match self.laps.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, t)) => *t += dt,
+            None => self.laps.push((name, dt)),
+        }
+    }
 }
 
 impl Restoration {
@@ -588,14 +635,17 @@ struct Final {
 
 /// Restores the image with one water type (SPEC 4-8): the outputs and the
 /// type's selection statistics, identical to what the evaluation gave.
-fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work) -> Final {
+fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, clock: &mut Clock) -> Final {
     let n = shared.img.len();
     let bounds = shared.refine(wt, &mut work);
+    clock.lap("chosen: haze-lines, bounds, guided filter pass 1");
     // the guide statistics serve only the first pass
     shared.guide.release_stats();
     let mut transmission = vec![0f32; n];
     let st = shared.recover(wt, bounds, &mut work, Some(&mut transmission));
+    clock.lap("chosen: guided filter pass 2, recovery");
     let sp = shared.stretch(&work.j, &st);
+    clock.lap("chosen: display stretch limits");
     drop(std::mem::take(&mut work.aux));
     drop(std::mem::take(&mut work.q));
     let mut radiance = std::mem::take(&mut work.j);
@@ -603,6 +653,7 @@ fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work) -> Final {
     let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
     let mut sums = st.sums;
     sums.channels = shared.channel_sums(&image, |_, v| v);
+    clock.lap("chosen: outputs");
     Final {
         radiance,
         transmission,
@@ -643,6 +694,15 @@ fn check_params(input: &Input, params: &Params) -> Result<()> {
                 ),
             });
         }
+    }
+    if params.guided_subsample > img.height.max(img.width) {
+        return Err(Error::Param {
+            name: "guided_subsample",
+            msg: format!(
+                "{} is larger than the image ({}x{})",
+                params.guided_subsample, img.height, img.width
+            ),
+        });
     }
     check_mask("mask", input.mask, img.len(), 1)?;
     check_mask("water_mask", input.water_mask, img.len(), 0)?;
@@ -747,12 +807,15 @@ impl Small {
 }
 
 fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
+    let mut clock = Clock::new();
     check_params(input, params)?;
     let img = &input.image;
     img.validate_values()?;
     let (h, w) = (img.height, img.width);
     let index = SphereIndex::shared(params.sphere_points)?;
+    clock.lap("validation");
     let veil = estimate(img, input.mask, input.water_mask, params.veiling_light);
+    clock.lap("veiling light");
     let usable = input
         .mask
         .map_or(img.len(), |m| m.iter().filter(|&&b| b).count());
@@ -764,10 +827,14 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
     }
     let radius = params.guided_radius.unwrap_or_else(|| default_radius(h, w));
     let holes = input.mask.is_some_and(|m| m.iter().any(|&b| !b));
+    let sub = |r: usize| match params.guided_subsample {
+        0 => auto_subsample(r),
+        s => s,
+    };
     let make = |img: ImageRef<'_>, mask: Option<&'_ [bool]>, vl: &'_ [bool], r: usize| {
         (
             Matting::fit(&img, vl),
-            GuideStats::new(guide_image(img.data, mask), img.height, img.width, r, params.guided_eps),
+            GuideStats::subsampled(guide_image(img.data, mask), img.height, img.width, r, params.guided_eps, sub(r)),
         )
     };
     let types = &params.water_types;
@@ -791,11 +858,14 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
             holes: small.mask.as_ref().is_some_and(|m| m.iter().any(|&b| !b)),
         };
         let mut work = Work::new(simg.len(), sh.holes);
-        Some(types.iter().map(|wt| sh.evaluate(wt, &mut work)).collect())
+        let stats = types.iter().map(|wt| sh.evaluate(wt, &mut work)).collect();
+        clock.lap("fast: scoring on the copy");
+        Some(stats)
     } else {
         None
     };
     let (matting, guide) = make(*img, input.mask, &veil.vl, radius);
+    clock.lap("matting model, guide and its statistics");
     let matting_skipped = veil.vl_count > 0 && matting.is_none();
     let shared = Shared {
         img: *img,
@@ -808,6 +878,7 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         holes,
     };
     let mut work = Work::new(img.len(), holes);
+    clock.lap("work buffers");
     // SPEC 9: which types are scored at full resolution, and the choice
     let mut sel = match copy {
         Some(copy) => {
@@ -845,12 +916,13 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         }
         None => None,
     };
+    clock.lap("scoring the types");
     let winner = sel.as_ref().map_or(0, |(_, c)| c.winner);
     let wt = types
         .get(winner)
         .ok_or_else(|| Error::Internal("winner out of range".into()))?
         .clone();
-    let out = finish(shared, &wt, work);
+    let out = finish(shared, &wt, work, &mut clock);
     let (stats, choice) = match sel.take() {
         Some((mut stats, choice)) => {
             // the chosen type's full-resolution statistics (what the copy
@@ -896,6 +968,8 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         veiling_mask: vl,
         flags,
         guided_radius: radius,
+        guided_subsample: sub(radius),
+        timings: clock.laps,
     })
 }
 

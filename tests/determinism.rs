@@ -20,6 +20,10 @@ fn fingerprint(r: &Restoration) -> Fingerprint {
 }
 
 fn check(h: usize, w: usize, mask: Option<&[bool]>) {
+    check_with(h, w, mask, 1);
+}
+
+fn check_with(h: usize, w: usize, mask: Option<&[bool]>, guided_subsample: usize) {
     let img = common::scene(h, w, 99);
     let input = Input {
         image: ImageRef::new(&img, h, w).unwrap(),
@@ -29,13 +33,17 @@ fn check(h: usize, w: usize, mask: Option<&[bool]>) {
     let run = |n: usize| {
         let p = Params {
             threads: Some(n),
+            guided_subsample,
             ..Params::default()
         };
         fingerprint(&restore(&input, &p).unwrap())
     };
     let base = run(1);
     for n in [2, 8, 1, 8, 2, 1] {
-        assert!(run(n) == base, "{h}x{w}, {n} threads differ from 1 thread");
+        assert!(
+            run(n) == base,
+            "{h}x{w}, subsample {guided_subsample}: {n} threads differ from 1 thread"
+        );
     }
 }
 
@@ -51,4 +59,10 @@ fn bit_identical_with_a_mask() {
         .map(|i| !((40..55).contains(&(i / w)) && (10..40).contains(&(i % w))))
         .collect();
     check(h, w, Some(&mask));
+}
+
+#[test]
+fn bit_identical_with_the_subsampled_guided_filter() {
+    check_with(97, 131, None, 3);
+    check_with(150, 170, None, 5);
 }

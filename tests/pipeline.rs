@@ -191,6 +191,13 @@ fn errors_not_panics() {
         })
     ));
     assert!(matches!(
+        p(|p| p.guided_subsample = 25),
+        Err(Error::Param {
+            name: "guided_subsample",
+            ..
+        })
+    ));
+    assert!(matches!(
         p(|p| p.sphere_points = 0),
         Err(Error::Param {
             name: "sphere_points",
@@ -240,4 +247,43 @@ fn errors_not_panics() {
             ..
         })
     ));
+}
+
+#[test]
+fn subsampled_guided_filter_stays_close_to_the_exact_one() {
+    // He and Sun's approximation on the rendered scene: the same water type,
+    // t_B within a small distance of the exact filter's, the distance
+    // correlation kept (SPEC 11)
+    let s = scene(240, 320);
+    let input = Input {
+        image: ImageRef::new(&s.img, s.h, s.w).unwrap(),
+        mask: None,
+        water_mask: None,
+    };
+    let exact = restore(&input, &Params::default()).unwrap();
+    assert_eq!(exact.guided_subsample, 1);
+    for sub in [2usize, 4, 0] {
+        let r = restore(&input, &Params { guided_subsample: sub, ..Params::default() }).unwrap();
+        // radius 60: automatic = 60 / 32 = 1 (exact), so 0 must equal the exact run
+        let expect = if sub == 0 { 1 } else { sub };
+        assert_eq!(r.guided_subsample, expect);
+        assert_eq!(r.water_type, exact.water_type, "subsample {sub}");
+        let d: Vec<f32> = r.transmission.iter().zip(&exact.transmission).map(|(a, b)| (a - b).abs()).collect();
+        let max = d.iter().copied().fold(0f32, f32::max);
+        let mean = d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64;
+        if expect == 1 {
+            assert_eq!(max, 0.0);
+        } else {
+            assert!(max > 0.0, "subsample {sub} changed nothing");
+            assert!(max < 0.05 && mean < 6e-3, "subsample {sub}: max {max}, mean {mean}");
+        }
+        let (mut zz, mut lt) = (Vec::new(), Vec::new());
+        for i in 0..s.h * s.w {
+            if s.z[i].is_finite() {
+                zz.push(s.z[i]);
+                lt.push(-(r.transmission[i] as f64).ln());
+            }
+        }
+        assert!(pearson(&zz, &lt) > 0.6, "subsample {sub}");
+    }
 }
