@@ -13,7 +13,8 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
 * ``restore``: ``uwhl_rs.restore`` with all ten water types (best of a
   few calls), ``selection="fast"`` where the package has it, and the
   sequence mode (one type and the veiling light of a previous call) at
-  1920x1080;
+  1920x1080; both also with ``guided_subsample="auto"`` (DECISIONS F4)
+  where the package has it;
 * ``reference``: ``tests/reference.py``'s ``restore`` (imported by path).
   It runs in full where the table says "full"; where it says "scaled from
   HxW", it ran on a crop of that size and its time is scaled by the pixel
@@ -168,19 +169,24 @@ def fast_agreement(uw, synth, quick: bool, best_of) -> list[str]:
     types (540x1100, the copy is 270x550); returns the report lines."""
     import quality  # DATA_DIR, sRGB decoding
 
-    rows, agree = [], {"photos": [0, 0], "renders": [0, 0]}
+    import inspect
+
+    has_sub = "guided_subsample" in inspect.signature(uw.restore).parameters
+    rows, agree = [], {"photos": [0, 0, 0], "renders": [0, 0, 0]}
 
     def compare(kind, name, img):
         img = np.ascontiguousarray(img, dtype=np.float32)
         ex = uw.restore(img)
         fa = uw.restore(img, selection="fast")
+        fs = uw.restore(img, selection="fast", guided_subsample="auto").water_type if has_sub else "-"
         same = ex.water_type == fa.water_type
         agree[kind][0] += same
         agree[kind][1] += 1
+        agree[kind][2] += fs == ex.water_type
         t_ex = best_of(lambda: uw.restore(img), 1)
         t_fa = best_of(lambda: uw.restore(img, selection="fast"), 1)
         rows.append([kind[:-1], name, f"{img.shape[1]}x{img.shape[0]}", ex.water_type, fa.water_type,
-                     "yes" if same else "NO", f"{t_ex:.2f}", f"{t_fa:.2f}"])
+                     "yes" if same else "NO", fs, f"{t_ex:.2f}", f"{t_fa:.2f}"])
 
     if quality.DATA_DIR.is_dir():
         import imageio.v3 as iio
@@ -192,9 +198,13 @@ def fast_agreement(uw, synth, quick: bool, best_of) -> list[str]:
         for seed in ((1,) if quick else (1, 2)):
             img, _ = synth.demo_input(540, 1100, water_type=water, seed=seed)
             compare("renders", f"{water} seed {seed}", img)
-    out = [table(["kind", "input", "WxH", "exhaustive", "fast", "same", "t exh s", "t fast s"], rows)]
+    out = [table(["kind", "input", "WxH", "exhaustive", "fast", "same", "fast + subsampled GF", "t exh s", "t fast s"],
+                 rows)]
     out.append(f"agreement: shared photos {agree['photos'][0]}/{agree['photos'][1]}, "
                f"renders {agree['renders'][0]}/{agree['renders'][1]}")
+    if has_sub:
+        out.append(f"fast + guided_subsample='auto': shared photos {agree['photos'][2]}/{agree['photos'][1]}, "
+                   f"renders {agree['renders'][2]}/{agree['renders'][1]}")
     return out
 
 
@@ -226,6 +236,7 @@ def main(argv=None) -> int:
     import tempfile
 
     has_fast = "selection" in inspect.signature(uw.restore).parameters
+    has_sub = "guided_subsample" in inspect.signature(uw.restore).parameters
     print(f"uwhl_rs {uw.__version__} from {pathlib.Path(uw.__file__).parent}")
     print(f"cores: {os.cpu_count()}, numpy {np.__version__}, fast selection: {'yes' if has_fast else 'no'}")
 
@@ -255,6 +266,8 @@ def main(argv=None) -> int:
             t_base = float("nan")
         t_fast = best_of(lambda: uw.restore(img, selection="fast"), reps) if has_fast else float("nan")
         fast_type = uw.restore(img, selection="fast").water_type if has_fast else "-"
+        fast_sub_kw = {"selection": "fast", "guided_subsample": "auto"}
+        t_fast_sub = best_of(lambda: uw.restore(img, **fast_sub_kw), reps) if has_sub else float("nan")
         t_floor = floor_time(img, best_of)
         if ref_mode == "full":
             t0 = time.perf_counter()
@@ -272,6 +285,7 @@ def main(argv=None) -> int:
             same = "-"
         rows.append([
             label, f"{w}x{h}", f"{t_all:.3f}", f"{t_fast:.3f}" if has_fast else "-",
+            f"{t_fast_sub:.3f}" if has_sub else "-",
             f"{t_base:.3f} ({t_base / t_all:.1f}x)" if args.baseline else "-",
             f"{t_ref:.1f}", ref_note, f"{t_ref / t_all:.0f}x", f"{t_floor * 1e3:.1f}",
             f"{t_all / t_floor:.0f}x", res.water_type, fast_type, same,
@@ -292,15 +306,18 @@ def main(argv=None) -> int:
     seq_kw = {"water_types": [first.water_type], "veiling_light": first.veiling_light}
     uw.restore(img, **seq_kw)
     t_seq = best_of(lambda: uw.restore(img, **seq_kw), 5)
+    t_seq_sub = best_of(lambda: uw.restore(img, guided_subsample="auto", **seq_kw), 5) if has_sub else float("nan")
     t_seq_floor = floor_time(img, best_of)
 
     print()
     print("Whole restore (seconds; reference = tests/reference.py, NumPy/SciPy):")
-    print(table(["size", "WxH", "uwhl_rs all 10", "uwhl_rs fast", "baseline all 10", "reference", "reference run",
+    print(table(["size", "WxH", "uwhl_rs all 10", "uwhl_rs fast", "fast + subsampled GF", "baseline all 10", "reference", "reference run",
                  "speed-up", "floor ms", "x floor", "type", "fast type", "ref type same"], rows))
     print()
     print(f"Sequence mode (1920x1080, water_types=[{first.water_type!r}], veiling_light given): "
           f"{t_seq * 1e3:.1f} ms, {t_seq / t_seq_floor:.0f}x the floor ({t_seq_floor * 1e3:.1f} ms)")
+    if has_sub:
+        print(f"  with guided_subsample='auto': {t_seq_sub * 1e3:.1f} ms")
     print()
     print("Peak resident memory of one call (fresh process; MiB; includes input, outputs, interpreter):")
     print(table(["size", "mode", "input", "before call", "peak", "peak / input", "(peak - before) / input"], mem_rows))
