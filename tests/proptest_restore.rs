@@ -207,7 +207,8 @@ proptest! {
 
     /// Masks, water masks and every parameter of `Params` over their range
     /// and beyond (radius 0 and larger than the image, eps from 1e-12 to 1e6,
-    /// 1 to 700 sphere points, given A including tiny components).
+    /// 1 to 700 sphere points, given A including tiny components, the
+    /// guided filter exact, automatic or subsampled up to past the image size).
     #[test]
     fn masks_and_parameters(
         (h, w) in (4usize..=19, 4usize..=19),
@@ -220,6 +221,7 @@ proptest! {
         eps in prop_oneof![Just(1e-12f64), Just(1e-3), Just(1.0), Just(1e6), 1e-9f64..10.0],
         points in 1usize..=700,
         threads in 1usize..=3,
+        subsample in prop_oneof![3 => Just(1usize), 1 => Just(0usize), 2 => 2usize..=25],
     ) {
         let data = {
             let mut rng = seed;
@@ -237,6 +239,7 @@ proptest! {
             guided_eps: eps,
             sphere_points: points,
             threads: Some(threads),
+            guided_subsample: subsample,
             ..Params::default()
         };
         run(&data, h, w, m.as_deref(), wm.as_deref(), &p)?;
