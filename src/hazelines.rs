@@ -37,8 +37,9 @@ pub struct HazeType {
     pub a: [f32; 3],
     /// (beta_BR, beta_BG) as f32
     pub beta: [f32; 2],
-    /// A_R^-beta_BR, A_G^-beta_BG, 1 / A_B: the lower bound's factors
-    lb_scale: [f32; 3],
+    /// A_R^-beta_BR, A_G^-beta_BG, 1 / A_B: the lower bound's factors, in
+    /// f64 (A_R^-beta_BR reaches 1e63 for A_R = 0.008 and a ratio of 30)
+    lb_scale: [f64; 3],
 }
 
 impl HazeType {
@@ -48,7 +49,11 @@ impl HazeType {
         Self {
             a,
             beta,
-            lb_scale: [a[0].powf(-beta[0]), a[1].powf(-beta[1]), 1.0 / a[2]],
+            lb_scale: [
+                f64::from(a[0]).powf(-f64::from(beta[0])),
+                f64::from(a[1]).powf(-f64::from(beta[1])),
+                1.0 / f64::from(a[2]),
+            ],
         }
     }
 
@@ -64,14 +69,14 @@ impl HazeType {
 
     /// The lower bound t_LB of SPEC 5 from the compensated vector v:
     /// max(1 - I_c/A_c, 0)^beta_c = max(v_c, 0) A_c^-beta_c, floor 0.1.
+    /// Each term is at most 1 in exact arithmetic; the product is formed in
+    /// f64 and capped at 1, so that an extreme type (a large ratio with a
+    /// small A_c, where A_c^-beta_c overflows f32) gives no inf or NaN.
     #[inline(always)]
     pub fn lower_bound(&self, v: [f32; 3]) -> f32 {
-        let [r, g, b] = v;
+        let [r, g, b] = v.map(|x| f64::from(x.max(0.0)));
         let [sr, sg, sb] = self.lb_scale;
-        (r.max(0.0) * sr)
-            .max(g.max(0.0) * sg)
-            .max(b.max(0.0) * sb)
-            .max(LB_FLOOR)
+        ((r * sr).max(g * sg).max(b * sb).min(1.0) as f32).max(LB_FLOOR)
     }
 }
 
@@ -214,6 +219,25 @@ mod tests {
         assert!(
             (v[0] - 0.3).abs() < 1e-6 && (v[1] + 0.2).abs() < 1e-6 && (v[2] - 0.1).abs() < 1e-6
         );
+    }
+
+    #[test]
+    fn lower_bound_of_an_extreme_type_is_finite() {
+        // A_R^-beta_BR = 0.008^-20.15 overflows f32 (found by proptest: the
+        // product gave inf, the guided filter NaN); by hand, I_R = A_R / 2:
+        // (1 - 1/2)^20.15 = 8.8e-7, under the floor, and I = 0: 1 for red
+        let wt = WaterType::new("x", 20.153500771027755, 1e-6).unwrap();
+        let ht = HazeType::new([0.008, 1e-4, 1e-4], &wt);
+        let lb = ht.lower_bound(ht.compensated([0.004, 1e-4, 1e-4]));
+        assert_eq!(lb, LB_FLOOR);
+        let lb0 = ht.lower_bound(ht.compensated([0.0, 1e-4, 1e-4]));
+        // (0.008^20.15 is an f32 subnormal with few significant bits)
+        assert!(lb0.is_finite() && lb0 <= 1.0 && (lb0 - 1.0).abs() < 1e-3, "{lb0}");
+        // an ordinary type: (1 - 0.1/0.5)^0.8 from the green channel
+        let wt = WaterType::new("y", 0.5, 0.8).unwrap();
+        let ht = HazeType::new([0.2, 0.5, 0.6], &wt);
+        let lb = ht.lower_bound(ht.compensated([0.19, 0.1, 0.59]));
+        assert!((lb - 0.8f32.powf(0.8)).abs() < 1e-6, "{lb}");
     }
 
     #[test]

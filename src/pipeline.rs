@@ -79,7 +79,7 @@ pub struct Params {
     pub selection: Selection,
     /// guided-filter subsampling factor s: 1 (default) = the exact filter
     /// of SPEC 6; s >= 2 = He and Sun's fast guided filter, (a, b) computed
-    /// on s x s block means and interpolated back (DECISIONS F4);
+    /// on samples at the centres of s x s blocks and interpolated back (DECISIONS F4);
     /// 0 = automatic, [`auto_subsample`] of the radius
     pub guided_subsample: usize,
 }
