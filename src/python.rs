@@ -73,6 +73,10 @@ pub struct PyRestoration {
     flags: Vec<String>,
     #[pyo3(get)]
     guided_radius: usize,
+    #[pyo3(get)]
+    guided_subsample: usize,
+    #[pyo3(get)]
+    timings: Py<PyDict>,
     wt: WaterType,
     shape: (usize, usize),
 }
@@ -168,7 +172,7 @@ fn mask_slice<'a>(
 #[pyfunction]
 #[pyo3(signature = (image, *, water_types=None, veiling_light=None, water_mask=None, mask=None,
                     guided_radius=None, guided_eps=1e-3, sphere_points=500, threads=None, max_memory=None,
-                    selection="exhaustive"))]
+                    selection="exhaustive", guided_subsample=1))]
 #[allow(clippy::too_many_arguments)]
 fn restore_f32(
     py: Python<'_>,
@@ -183,6 +187,7 @@ fn restore_f32(
     threads: Option<usize>,
     max_memory: Option<u64>,
     selection: &str,
+    guided_subsample: usize,
 ) -> PyResult<PyRestoration> {
     let shape = image.shape();
     if shape.len() != 3 || shape[2] != 3 {
@@ -203,6 +208,7 @@ fn restore_f32(
     params.guided_eps = guided_eps;
     params.sphere_points = sphere_points;
     params.threads = threads;
+    params.guided_subsample = guided_subsample;
     if let Some(m) = max_memory {
         params.max_memory = m;
     }
@@ -234,6 +240,12 @@ fn restore_f32(
     for (n, s) in &res.scores {
         scores.set_item(n, *s)?;
     }
+    // stage names are unique (the core adds repeated laps up), so a dict
+    // keeps every stage, in the order they ran
+    let timings = PyDict::new(py);
+    for (n, s) in &res.timings {
+        timings.set_item(*n, *s)?;
+    }
     let to3 = |v: Vec<f32>| -> PyResult<Py<PyAny>> {
         Ok(PyArray1::from_vec(py, v)
             .reshape([h, w, 3])?
@@ -262,6 +274,8 @@ fn restore_f32(
             .unbind(),
         flags: res.flags,
         guided_radius: res.guided_radius,
+        guided_subsample: res.guided_subsample,
+        timings: timings.unbind(),
         wt: res.water_type,
         shape: (h, w),
     })

@@ -4,7 +4,7 @@
 
 mod common;
 
-use serde_json::Value;
+use serde_json::{json, Value};
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -73,7 +73,7 @@ fn help_documents_the_exit_codes() {
     let o = run(&[&"--help"]);
     assert_eq!(code(&o), 0);
     let text = String::from_utf8_lossy(&o.stdout);
-    for needle in ["Exit codes", "--max-memory", "--stream", "--reuse-estimates", "  6  internal"] {
+    for needle in ["Exit codes", "--max-memory", "--stream", "--reuse-estimates", "--guided-subsample", "  6  internal"] {
         assert!(text.contains(needle), "{needle}");
     }
     let o = run(&[&"--version"]);
@@ -89,6 +89,7 @@ fn bad_arguments_exit_2_with_one_json_error() {
         vec!["x.png", "-o", "o", "--frobnicate"],
         vec!["x.png", "-o", "o", "--water-type", "XI"],
         vec!["x.png", "-o", "o", "--max-memory", "a lot"],
+        vec!["x.png", "-o", "o", "--guided-subsample", "fast"],
     ] {
         let o = bin().args(&args).arg("--json-errors").current_dir(&d).output().unwrap();
         assert_eq!(code(&o), 2, "{args:?}: {}", stderr(&o));
@@ -126,6 +127,7 @@ fn writes_the_contract_files_then_skips_then_overwrites() {
     assert_eq!(side["source"]["kind"], "srgb");
     assert_eq!(side["source"]["processed_width"], 64);
     assert_eq!(side["parameters"]["bits"], 16);
+    assert_eq!((&side["parameters"]["guided_subsample"], &side["guided_subsample"]), (&json!(1), &json!(1)));
     let names: Vec<&str> = side["scores"].as_object().unwrap().keys().map(String::as_str).collect();
     assert_eq!(names, ["I", "IA", "IB", "II", "III", "1C", "3C", "5C", "7C", "9C"]);
     assert!(side["veiling_light"].as_array().unwrap().len() == 3);
@@ -150,6 +152,17 @@ fn writes_the_contract_files_then_skips_then_overwrites() {
     assert_eq!(side["source"]["processed_height"], 24);
     let tif = image::open(out.join("dive.tif")).unwrap();
     assert_eq!((tif.color(), tif.width()), (image::ColorType::Rgb16, 32));
+
+    // the fast guided filter: asked for and used are both recorded; a
+    // factor larger than the (processed) image is the caller's mistake
+    let o = run(&[&img, &"-o", &out, &"--overwrite", &"--guided-subsample", &"3"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let side: Value = serde_json::from_slice(&fs::read(out.join("dive.json")).unwrap()).unwrap();
+    assert_eq!((&side["parameters"]["guided_subsample"], &side["guided_subsample"]), (&json!(3), &json!(3)));
+    let o = run(&[&img, &"-o", &d.join("big"), &"--guided-subsample", &"65"]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("guided_subsample"), "{}", stderr(&o));
+    assert!(files(&d.join("big")).is_empty());
 }
 
 #[test]

@@ -394,6 +394,56 @@ def test_fast_selection_is_deterministic():
 
 
 # ---------------------------------------------------------------------------
+# guided_subsample and timings
+# ---------------------------------------------------------------------------
+
+
+def test_default_is_the_exact_filter_and_timings_are_reported(scene):
+    """By default guided_subsample is 1 (the exact SPEC 6 filter, the same
+    result as asking for 1); timings name every stage once, in order, with
+    non-negative seconds that add up to no more than the call's wall time."""
+    t0 = time.perf_counter()
+    res = uwhl_rs.restore(scene[0])
+    wall = time.perf_counter() - t0
+    assert res.guided_subsample == 1
+    _same(res, uwhl_rs.restore(scene[0], guided_subsample=1))
+    assert isinstance(res.timings, dict) and res.timings
+    for name, sec in res.timings.items():
+        assert isinstance(name, str) and name.strip(), name
+        assert isinstance(sec, float) and 0.0 <= sec < 60.0, (name, sec)
+    assert sum(res.timings.values()) <= wall + 1e-3, (res.timings, wall)
+
+
+def test_auto_subsample_equals_zero_and_resolves_from_the_radius(scene):
+    """"auto" is 0; both resolve to max(1, radius // 32): 1 for the default
+    radius of a 60x80 image, 2 for radius 64 (then bit-identical to asking
+    for 2); an explicit factor is reported back."""
+    img = scene[0]
+    auto = uwhl_rs.restore(img, guided_subsample="auto")
+    assert auto.guided_subsample == max(1, auto.guided_radius // 32) == 1
+    _same(auto, uwhl_rs.restore(img, guided_subsample=0))
+    r64 = uwhl_rs.restore(img, water_types=["III"], guided_radius=64, guided_subsample="auto")
+    assert r64.guided_subsample == 2
+    _same(r64, uwhl_rs.restore(img, water_types=["III"], guided_radius=64, guided_subsample=np.int64(2)))
+    assert uwhl_rs.restore(img, water_types=["III"], guided_subsample=3).guided_subsample == 3
+
+
+@pytest.mark.parametrize("water,seed", [("II", 3), ("5C", 8)])
+def test_subsampled_filter_is_close_to_exact(water, seed):
+    """On rendered 240x320 scenes (radius 60) the fast guided filter with
+    s = 4 changes t_B by less than 6e-3 on average for the scene's own
+    type; and with all ten types it picks the exact filter's type."""
+    img, _ = synth.demo_input(240, 320, water_type=water, seed=seed)
+    exact = uwhl_rs.restore(img, water_types=[water])
+    fast = uwhl_rs.restore(img, water_types=[water], guided_subsample=4)
+    assert fast.guided_subsample == 4 and fast.water_type == exact.water_type == water
+    d = np.abs(fast.transmission - exact.transmission)
+    assert d.mean() < 6e-3 and d.max() < 0.1, (d.mean(), d.max())
+    assert not np.array_equal(fast.transmission, exact.transmission)
+    assert uwhl_rs.restore(img, guided_subsample=4).water_type == uwhl_rs.restore(img).water_type
+
+
+# ---------------------------------------------------------------------------
 # Determinism, the GIL, import hygiene
 # ---------------------------------------------------------------------------
 

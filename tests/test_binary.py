@@ -33,7 +33,7 @@ except ImportError:
     HAVE_PY_CLI = False
 
 ESTIMATES = ["water_type", "scores", "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags",
-             "guided_radius", "beta_ratios"]
+             "guided_radius", "guided_subsample", "beta_ratios"]
 
 
 @pytest.fixture(scope="module")
@@ -127,6 +127,8 @@ CASES = [
                     "--sphere-points", "200", "--guided-eps", "0.01"]),
     ("rotated.png", ["--format", "tiff", "--bits", "8", "--veiling-light", "0.05,0.2,0.3"]),
     ("scene8.png", ["--format", "png", "--selection", "fast"]),
+    ("scene16.tif", ["--guided-subsample", "3", "--format", "png", "--water-type", "II,3C,7C"]),
+    ("scene8.png", ["--guided-subsample", "auto", "--format", "tiff", "--guided-radius", "70", "--water-type", "3C"]),
 ]
 
 

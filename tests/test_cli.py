@@ -22,7 +22,7 @@ from uwhl_rs import io, synth
 SIDECAR_KEYS = {
     "input", "outputs", "uwhl_version", "implementation", "source", "water_type", "scores",
     "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags", "guided_radius",
-    "beta_ratios", "parameters", "seconds",
+    "guided_subsample", "beta_ratios", "parameters", "seconds",
 }
 
 
@@ -59,7 +59,7 @@ def _check_outputs(out, name, fmt="jpg"):
     assert set(side["excluded"]) <= set(side["scores"])
     assert all(0 < v <= 1 for v in side["veiling_light"])
     assert side["implementation"] == "python" and side["uwhl_version"] == uwhl_rs.__version__
-    assert {"preprocess", "format", "guided_eps", "sphere_points", "max_side"} <= set(side["parameters"])
+    assert {"preprocess", "format", "guided_eps", "guided_subsample", "sphere_points", "max_side"} <= set(side["parameters"])
     assert side["seconds"]["total"] >= side["seconds"]["restore"] > 0
     img, meta = io.read_image(out / f"{name}{ext}")
     h, w = side["source"]["processed_height"], side["source"]["processed_width"]
@@ -174,13 +174,14 @@ def test_options_reach_restore(scenes, tmp_path):
     r = uwhl("restore", scenes / "scene_3C.png", "-o", tmp_path / "o", "--water-type", "II,3C", "--water-type", "x:1.2:1.1",
              "--veiling-light", "0.05,0.3,0.4", "--mask", tmp_path / "mask.png", "--guided-radius", "9",
              "--guided-eps", "0.01", "--sphere-points", "300", "--format", "png", "--bits", "16",
-             "--max-side", "64", "--contact-sheet", "--jobs", "2")
+             "--max-side", "64", "--contact-sheet", "--jobs", "2", "--guided-subsample", "2")
     assert r.returncode == 0, r.stderr
     side = json.loads((tmp_path / "o" / "scene_3C.json").read_text())
     assert list(side["scores"]) == ["II", "3C", "x"]
     assert side["veiling_light"] == pytest.approx([0.05, 0.3, 0.4], abs=1e-7)
-    assert side["guided_radius"] == 9
+    assert side["guided_radius"] == 9 and side["guided_subsample"] == 2
     p = side["parameters"]
+    assert p["guided_subsample"] == 2
     assert p["guided_eps"] == 0.01 and p["sphere_points"] == 300 and p["max_side"] == 64 and p["bits"] == 16
     assert p["mask"].endswith("mask.png")
     # 128 wide, max side 64: blocks of 2
@@ -203,12 +204,33 @@ def test_options_reach_restore(scenes, tmp_path):
         (["--bits", "16"], "--bits 16 needs"),
         (["--mask", "/nonexistent/m.png"], "no such file"),
         (["--max-memory", "lots"], "not a size"),
+        (["--guided-subsample", "fast"], "--guided-subsample"),
+        (["--guided-subsample", "-1"], "--guided-subsample"),
+        (["--guided-subsample", "1.5"], "--guided-subsample"),
     ],
 )
 def test_bad_arguments_exit_2_with_a_message(scenes, tmp_path, args, needle):
     r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path, *args)
     assert r.returncode == 2 and needle in r.stderr, r.stderr
     assert not any(tmp_path.iterdir())
+
+
+def test_guided_subsample_in_the_sidecar(scenes, tmp_path):
+    """--guided-subsample auto is recorded as 0 (asked for) and the factor
+    used, max(1, 24 // 32) = 1 at 96x128, and gives restore(guided_subsample=0);
+    the default records 1 and 1; a factor larger than the image fails that
+    input (exit 1) with the parameter named."""
+    r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path / "a", "--guided-subsample", "auto",
+             "--water-type", "II,3C", "--format", "png")
+    assert r.returncode == 0, r.stderr
+    side = json.loads((tmp_path / "a" / "scene_II.json").read_text())
+    assert side["parameters"]["guided_subsample"] == 0 and side["guided_subsample"] == 1
+    img, _ = io.read_image(scenes / "scene_II.png")
+    res = uwhl_rs.restore(img, water_types=["II", "3C"], guided_subsample=0)
+    assert side["water_type"] == res.water_type and side["scores"] == pytest.approx(res.scores, rel=1e-12)
+    r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path / "b", "--guided-subsample", "500", "-q")
+    assert r.returncode == 1 and "guided_subsample" in r.stderr, r.stderr
+    assert not (tmp_path / "b" / "scene_II.json").exists()
 
 
 def test_memory_budget_and_missing_inputs_are_reported(scenes, tmp_path):
@@ -241,7 +263,7 @@ def test_help_and_version():
     r = uwhl("restore", "--help")
     assert r.returncode == 0
     for opt in ["--water-type", "--veiling-light", "--mask", "--water-mask", "--guided-radius", "--guided-eps",
-                "--sphere-points", "--selection", "--max-side", "--jobs", "--overwrite", "--contact-sheet", "--format", "--threads",
+                "--guided-subsample", "--sphere-points", "--selection", "--max-side", "--jobs", "--overwrite", "--contact-sheet", "--format", "--threads",
                 "--max-memory", "--preprocess", "--half-size", "exit status"]:
         assert opt in r.stdout, opt
     assert uwhl("demo", "--help").returncode == 0

@@ -257,6 +257,20 @@ case(
     ParameterError,
     ["guided_radius", "1000000"],
 )
+for _gs, _val in [(-1, "-1"), (True, "True"), (False, "False"), (2.0, "2.0"), ("fast", "fast"), ("AUTO", "AUTO"),
+                 (None, "None"), (np.float32(3), "3"), (2**64, str(2**64))]:
+    case(
+        f"guided_subsample-{_val}",
+        lambda g=_gs: (_base(), {"guided_subsample": g}),
+        ParameterError,
+        ["guided_subsample", _val],
+    )
+case(
+    "guided_subsample-too-large",
+    lambda: (_base(), {"guided_subsample": max(H, W) + 1}),
+    ParameterError,
+    ["guided_subsample", str(max(H, W) + 1), ("larger", "image")],
+)
 case("sphere_points-0", lambda: (_base(), {"sphere_points": 0}), ParameterError, ["sphere_points"])
 case(
     "sphere_points-2**64",

@@ -125,6 +125,19 @@ def _int_param(name: str, value, lo: int):
     return int(value)
 
 
+def _subsample_param(value) -> int:
+    """guided_subsample: an integer >= 0 or "auto" (= 0) -> int."""
+    if isinstance(value, str):
+        if value == "auto":
+            return 0
+        raise ParameterError(f'guided_subsample must be an integer >= 0 or "auto"; got {value!r}')
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(f'guided_subsample must be an integer >= 0 or "auto"; got {value!r}')
+    if not 0 <= int(value) <= _MAX_INT:
+        raise ParameterError(f'guided_subsample must be an integer >= 0 or "auto"; got {value!r}')
+    return int(value)
+
+
 def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     if mask is None:
         return None
@@ -149,6 +162,7 @@ def restore(
     threads: int | None = None,
     max_memory: int | None = None,
     selection: str = "exhaustive",
+    guided_subsample: int | str = 1,
 ) -> Restoration:
     """Restore the colors of one underwater image (SPEC sections 2-10).
 
@@ -193,6 +207,16 @@ def restore(
         resolution, exactly as the exhaustive mode restores it; ``scores``
         are then the copy's. Images whose longer side is at most 1024 px
         are processed exhaustively either way.
+    guided_subsample : int >= 0 or "auto"
+        Guided-filter subsampling factor s. ``1`` (default): the exact
+        filter of SPEC 6. ``s >= 2``: He and Sun's fast guided filter: the
+        coefficients (a, b) are computed on samples at the centres of
+        s x s blocks and interpolated bilinearly back to full resolution.
+        ``"auto"`` (or ``0``): ``max(1, radius // 32)`` for the guided
+        radius in use. Measured at 1920x1080 on a rendered scene with one
+        water type: 270 ms -> 195 ms, t_B mean absolute difference 4e-4,
+        maximum 7.5e-3. Recommended for video / sequence mode; not needed
+        for single photos. Larger than max(H, W) raises ParameterError.
 
     Returns
     -------
@@ -204,7 +228,10 @@ def restore(
         gray-world score, lower is better); ``excluded`` (names ruled out
         by the t_R test of SPEC 9); ``veiling_light`` (A); ``veiling_mask``
         (H, W) bool; ``flags`` (list of fallbacks used, e.g.
-        ``"veiling_fallback"``); ``guided_radius``; ``beta_ratios``;
+        ``"veiling_fallback"``); ``guided_radius``; ``guided_subsample``
+        (the factor used, "auto" resolved); ``timings`` (dict stage name ->
+        wall seconds, in the order the stages ran; for profiling, not
+        reproducible); ``beta_ratios``;
         ``channel_transmissions()`` -> (H, W, 3) t_R, t_G, t_B.
 
     Raises
@@ -239,6 +266,7 @@ def restore(
     max_memory = _int_param("max_memory", max_memory, 0)
     if not isinstance(selection, str) or selection not in ("exhaustive", "fast"):
         raise ParameterError(f'selection must be "exhaustive" or "fast"; got {selection!r}')
+    guided_subsample = _subsample_param(guided_subsample)
     return _core.restore_f32(
         img,
         water_types=water_types,
@@ -251,4 +279,5 @@ def restore(
         threads=threads,
         max_memory=max_memory,
         selection=selection,
+        guided_subsample=guided_subsample,
     )

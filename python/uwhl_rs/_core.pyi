@@ -24,6 +24,8 @@ class Restoration:
     veiling_mask: npt.NDArray[np.bool_]
     flags: list[str]
     guided_radius: int
+    guided_subsample: int
+    timings: dict[str, float]
     def channel_transmissions(self) -> npt.NDArray[np.float32]: ...
 
 WaterTypeSpec = Union[str, tuple[str, float, float]]
@@ -41,4 +43,5 @@ def restore_f32(
     threads: Optional[int] = None,
     max_memory: Optional[int] = None,
     selection: Literal["exhaustive", "fast"] = "exhaustive",
+    guided_subsample: int = 1,
 ) -> Restoration: ...

@@ -81,6 +81,19 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _subsample(text: str) -> int:
+    """--guided-subsample: an integer >= 0 or "auto" (= 0)."""
+    if text.strip() == "auto":
+        return 0
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer >= 0 or auto: {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0 or auto, not {v}")
+    return v
+
+
 def _veiling_light(text: str) -> tuple[float, float, float]:
     parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
     try:
@@ -178,6 +191,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size")
     g.add_argument("--guided-radius", type=_nonneg_int, metavar="N", help="guided-filter radius (default min(H, W)/4)")
     g.add_argument("--guided-eps", type=_positive_float, default=1e-3, metavar="X", help="guided-filter eps (default 1e-3)")
+    g.add_argument("--guided-subsample", type=_subsample, default=1, metavar="S|auto",
+                   help="guided-filter subsampling: 1 (default) exact filter; S >= 2 fast guided filter "
+                   "on S x S blocks (for video/sequences; t_B within ~4e-4 on average); "
+                   "auto (= 0): max(1, radius / 32)")
     g.add_argument("--sphere-points", type=_positive_int, default=500, metavar="N", help="haze-line clusters (default 500)")
     g = r.add_argument_group("resources")
     g.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
@@ -407,6 +424,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         veiling_light=a.veiling_light,
         guided_radius=a.guided_radius,
         guided_eps=a.guided_eps,
+        guided_subsample=a.guided_subsample,
         sphere_points=a.sphere_points,
         selection=a.selection,
         threads=threads,

@@ -192,6 +192,7 @@ def restore_file(
             "vl_fraction": float(res.veiling_mask.mean()),
             "flags": list(res.flags),
             "guided_radius": int(res.guided_radius),
+            "guided_subsample": int(res.guided_subsample),
             "beta_ratios": [float(v) for v in res.beta_ratios],
             "parameters": {
                 "water_types": _jsonable(restore_kwargs.get("water_types")),
@@ -200,6 +201,7 @@ def restore_file(
                 "water_mask": _mask_label(water_mask),
                 "guided_radius": restore_kwargs.get("guided_radius"),
                 "guided_eps": float(restore_kwargs.get("guided_eps", 1e-3)),
+                "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", 1)),
                 "sphere_points": int(restore_kwargs.get("sphere_points", 500)),
                 "threads": restore_kwargs.get("threads"),
                 "max_side": None if max_side is None else int(max_side),
@@ -237,7 +239,13 @@ def restore_file(
     return FileResult(res, meta, paths, sidecar)
 
 
-_KNOWN = {"water_types", "veiling_light", "guided_radius", "guided_eps", "sphere_points", "threads"}
+_KNOWN = {"water_types", "veiling_light", "guided_radius", "guided_eps", "guided_subsample", "sphere_points",
+          "threads"}
+
+
+def _subsample_label(v) -> int:
+    """The requested guided_subsample as the sidecar writes it: "auto" -> 0."""
+    return 0 if isinstance(v, str) and v == "auto" else int(v)
 
 
 def _jsonable(v):
@@ -291,6 +299,12 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
     sub = {k: kw[k] for k in ("guided_eps", "sphere_points", "threads") if k in kw}
     if radius is not None:
         sub["guided_radius"] = max(1, int(round(radius / s)))
+    # the subsampling factor shrinks with the radius, so the thumbnails use
+    # the same filter window in blocks; "auto"/0 resolves on the thumbnail
+    gs = kw.get("guided_subsample")
+    if gs is not None:
+        gs = _subsample_label(gs)
+        sub["guided_subsample"] = gs if gs <= 1 else max(1, int(round(gs / s)))
 
     def label_font(size: int):
         try:

@@ -91,6 +91,9 @@ pub struct Options {
     pub guided_radius: Option<usize>,
     /// `--guided-eps`
     pub guided_eps: f64,
+    /// `--guided-subsample S|auto`: 1 exact filter, S >= 2 fast guided
+    /// filter, 0 (`auto`) max(1, radius / 32)
+    pub guided_subsample: usize,
     /// `--sphere-points`
     pub sphere_points: usize,
     /// `--max-side`
@@ -136,6 +139,7 @@ impl Default for Options {
             water_mask: None,
             guided_radius: None,
             guided_eps: crate::pipeline::DEFAULT_EPS,
+            guided_subsample: 1,
             sphere_points: crate::pipeline::DEFAULT_SPHERE_POINTS,
             max_side: None,
             preprocess: Preprocess::None,
@@ -199,6 +203,9 @@ Options:
       --water-mask PATH    image of the input's size: nonzero = water region (replaces detection)
       --guided-radius N    guided-filter radius (default round(min(H, W) / 4))
       --guided-eps X       guided-filter eps (default 0.001)
+      --guided-subsample S|auto  guided-filter subsampling: 1 (default) the exact filter;
+                           S >= 2 He and Sun's fast guided filter on S x S blocks (for video
+                           and sequences: t_B within ~4e-4 on average); auto = max(1, radius/32)
       --sphere-points N    haze-line clusters (default 500)
       --max-side N         block-average the input so its longer side is at most N (N >= 4);
                            a mask block is used if all its pixels are, a water-mask block is
@@ -371,6 +378,17 @@ where
                     }
                 }
             }
+            Long("guided-subsample") => {
+                let v = text(p.value().map_err(lex)?, "--guided-subsample")?;
+                o.guided_subsample = match v.trim() {
+                    "auto" => 0,
+                    t => t.parse::<usize>().map_err(|_| {
+                        CliError::usage(format!(
+                            "--guided-subsample: {v:?} is not an integer >= 0 or auto"
+                        ))
+                    })?,
+                };
+            }
             Long("sphere-points") => {
                 o.sphere_points = number(p.value().map_err(lex)?, "--sphere-points", 1)?
             }
@@ -497,7 +515,7 @@ mod tests {
             "a.png", "-o", "out", "--water-type", "II,III", "--water-type", "5C",
             "--veiling-light", "0.1 0.2,0.3", "--mask", "m.png", "--guided-radius", "7",
             "--water-type", "mine:0.5:1.1", "--water-mask", "w.png", "--quality", "90",
-            "--guided-eps", "0.01", "--sphere-points", "100", "--max-side", "512",
+            "--guided-eps", "0.01", "--guided-subsample", "3", "--sphere-points", "100", "--max-side", "512",
             "--preprocess", "reference", "--format", "tiff", "--bits", "16", "--overwrite",
             "--threads", "2", "--max-memory", "512M", "--max-pixels", "1000", "--json-errors",
             "b.jpg",
@@ -510,6 +528,7 @@ mod tests {
         assert_eq!((o.bits(), o.quality), (16, 90));
         assert_eq!(o.veiling_light, Some([0.1, 0.2, 0.3]));
         assert_eq!(o.guided_radius, Some(7));
+        assert_eq!(o.guided_subsample, 3);
         assert_eq!(o.max_side, Some(512));
         assert_eq!(o.format, Format::Tiff);
         assert_eq!(o.max_memory, 512 << 20);
@@ -527,6 +546,12 @@ mod tests {
             &["a", "-o", "o", "--veiling-light", "0.1,0.2"],
             &["a", "-o", "o", "--veiling-light", "0,0.2,0.3"],
             &["a", "-o", "o", "--guided-eps", "-1"],
+            &["a", "-o", "o", "--guided-subsample", "-1"],
+            &["a", "-o", "o", "--guided-subsample", "fast"],
+            &["a", "-o", "o", "--guided-subsample", "1.5"],
+            &["a", "-o", "o", "--guided-subsample", ""],
+            &["a", "-o", "o", "--guided-subsample", "AUTO"],
+            &["a", "-o", "o", "--guided-subsample"],
             &["a", "-o", "o", "--bits", "12"],
             &["a", "-o", "o", "--threads", "0"],
             &["a", "-o", "o", "--max-memory", "lots"],
@@ -544,6 +569,16 @@ mod tests {
             let e = run(args).unwrap_err();
             assert_eq!(e.kind, super::super::Kind::Usage, "{args:?}");
         }
+    }
+
+    #[test]
+    fn guided_subsample_values() {
+        assert_eq!(run(&["a", "-o", "o"]).map(|o| o.guided_subsample).ok(), Some(1));
+        assert_eq!(run(&["a", "-o", "o", "--guided-subsample", "auto"]).map(|o| o.guided_subsample).ok(), Some(0));
+        assert_eq!(run(&["a", "-o", "o", "--guided-subsample", "0"]).map(|o| o.guided_subsample).ok(), Some(0));
+        assert_eq!(run(&["a", "-o", "o", "--guided-subsample=4"]).map(|o| o.guided_subsample).ok(), Some(4));
+        let e = run(&["a", "-o", "o", "--guided-subsample", "fast"]).unwrap_err();
+        assert!(e.to_string().contains("--guided-subsample"), "{e}");
     }
 
     #[test]

@@ -325,7 +325,7 @@ pub fn decode_and_restore<R: BufRead + Seek>(
         threads: None,
         max_memory: opts.max_memory,
         selection: opts.selection,
-        guided_subsample: 1,
+        guided_subsample: opts.guided_subsample,
     };
     let input = Input {
         image: ImageRef::new(&data, hp, wp)?,

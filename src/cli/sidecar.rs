@@ -83,6 +83,7 @@ pub fn parameters(o: &Options) -> Value {
         "water_mask": o.water_mask.as_deref().map(path),
         "guided_radius": o.guided_radius,
         "guided_eps": o.guided_eps,
+        "guided_subsample": o.guided_subsample,
         "sphere_points": o.sphere_points,
         "threads": o.threads,
         "max_side": o.max_side,
@@ -155,6 +156,7 @@ pub fn sidecar(
         "vl_fraction": vl_pixels as f64 / n as f64,
         "flags": res.flags,
         "guided_radius": res.guided_radius,
+        "guided_subsample": res.guided_subsample,
         "beta_ratios": [res.water_type.beta_br, res.water_type.beta_bg],
         "parameters": parameters(opts),
         "seconds": {
