@@ -65,8 +65,10 @@ struct DirectionGrid {
     g: usize,
     /// candidates per cell (the longest list)
     width: usize,
-    /// `width` point indices per cell
-    cands: Vec<u16>,
+    /// groups of four candidates per cell: ceil(width / 4)
+    quads: usize,
+    /// `quads` groups of four point indices per cell
+    cands: Vec<[u16; 4]>,
     /// the points again, for the queries
     points: Vec<[f32; 3]>,
     /// mean length of the unpadded lists
@@ -187,15 +189,20 @@ impl DirectionGrid {
         }
         let width = lists.iter().map(Vec::len).max().unwrap_or(1).max(1);
         let mean = lists.iter().map(Vec::len).sum::<usize>() as f64 / lists.len().max(1) as f64;
-        let mut cands = Vec::with_capacity(lists.len() * width);
+        let quads = width.div_ceil(4);
+        let mut cands = Vec::with_capacity(lists.len() * quads);
         for l in &lists {
             // an empty list cannot happen (the nearest point is always in it); pad anyway
             let last = l.last().copied().unwrap_or(0);
-            cands.extend(l.iter().copied().chain(std::iter::repeat(last)).take(width));
+            let mut it = l.iter().copied().chain(std::iter::repeat(last));
+            for _ in 0..quads {
+                cands.push(std::array::from_fn(|_| it.next().unwrap_or(last)));
+            }
         }
         Self {
             g,
             width,
+            quads,
             cands,
             points: points.to_vec(),
             mean,
@@ -207,18 +214,29 @@ impl DirectionGrid {
         let (face, s, t) = face_coords(v);
         let g = self.g;
         let cell = (face * g + cell_1d(s, g)) * g + cell_1d(t, g);
-        let w = self.width;
-        let run = self.cands.get(cell * w..(cell + 1) * w).unwrap_or(&[]);
+        let nq = self.quads;
+        let run = self.cands.get(cell * nq..(cell + 1) * nq).unwrap_or(&[]);
         let pts = &self.points;
-        // strict >: the lowest index wins ties, as the list is in index order
-        // (padding repeats the last entry)
-        let (mut best, mut k) = (f32::NEG_INFINITY, 0u16);
-        for &c in run {
+        let dot = |c: u16| {
             let p = pts.get(c as usize).copied().unwrap_or([f32::NAN; 3]);
-            let d = p[0] * v[0] + p[1] * v[1] + p[2] * v[2];
-            let better = d > best;
-            best = if better { d } else { best };
-            k = if better { c } else { k };
+            p[0] * v[0] + p[1] * v[1] + p[2] * v[2]
+        };
+        // The first largest dot product in list order (the lists are in
+        // index order, padding repeats the last entry): strict > with the
+        // earlier entry kept on ties. Within a group of four, a tournament
+        // (0 vs 1 and 2 vs 3, then the winners) keeps the four products
+        // independent instead of chaining four compare-and-selects.
+        let (mut best, mut k) = (f32::NEG_INFINITY, 0u16);
+        for q in run {
+            let [c0, c1, c2, c3] = *q;
+            let (d0, d1, d2, d3) = (dot(c0), dot(c1), dot(c2), dot(c3));
+            let (da, ka) = if d1 > d0 { (d1, c1) } else { (d0, c0) };
+            let (db, kb) = if d3 > d2 { (d3, c3) } else { (d2, c2) };
+            let (dq, kq) = if db > da { (db, kb) } else { (da, ka) };
+            if dq > best {
+                best = dq;
+                k = kq;
+            }
         }
         k as usize
     }
