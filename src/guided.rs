@@ -198,15 +198,8 @@ impl GuideStats {
                     gb - m1 * m2,
                     bb - m2 * m2 + eps,
                 ];
-                // Positive definite for eps > 0 (a covariance plus eps I), so
-                // every entry of the inverse is at most 1 / eps in magnitude;
-                // a larger one (possible only by cancellation when eps is
-                // far below the covariance's rounding error) or a singular
-                // matrix takes the inverse of eps I, keeping (a, b) finite.
-                let fallback = [1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps];
-                let v = inv_sym3(cov)
-                    .filter(|v| v.iter().all(|x| x.abs() <= 1.0 / eps))
-                    .unwrap_or(fallback);
+                // Positive definite for eps > 0 (a covariance plus eps I).
+                let v = inv_sym3(cov).unwrap_or([1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps]);
                 *d = [
                     m0 as f32, m1 as f32, m2 as f32, v[0] as f32, v[1] as f32, v[2] as f32,
                     v[3] as f32, v[4] as f32, v[5] as f32,
