@@ -1,29 +1,24 @@
 //! Quick wall-clock timing of `restore` on a rendered scene (a development
 //! aid next to the criterion benches; prints medians, asserts nothing).
 //!
-//!     cargo run --release --example timing -- H W MODE [REPS] [THREADS]
+//!     cargo bench --bench timing -- H W MODE [REPS] [THREADS] [SUBSAMPLE]
 //!
 //! MODE: all (ten types, exhaustive), fast (fast selection), seq (one type
-//! with the veiling light given, as in sequence mode).
+//! with the veiling light given, as in sequence mode). SUBSAMPLE is
+//! `guided_subsample` (1 exact, 0 automatic); with a factor above 1 the
+//! result is also compared with the exact filter's. Prints each stage's
+//! share (`Restoration::timings`).
 
 use std::time::Instant;
 use uwhl::pipeline::Selection;
 use uwhl::{restore, ImageRef, Input, Params, WaterType};
 
-trait WithSub {
-    fn clone_with_subsample(&self, s: usize) -> Params;
-}
-impl WithSub for Params {
-    fn clone_with_subsample(&self, s: usize) -> Params {
-        Params { guided_subsample: s, ..self.clone() }
-    }
-}
-
-#[path = "../benches/scene.rs"]
+#[path = "scene.rs"]
 mod scene;
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
+    // cargo bench adds "--bench": keep the positional arguments only
+    let args: Vec<String> = std::env::args().filter(|a| !a.starts_with("--")).collect();
     let get = |i: usize, d: usize| args.get(i).and_then(|s| s.parse().ok()).unwrap_or(d);
     let (h, w) = (get(1, 1340), get(2, 2010));
     let mode = args.get(3).cloned().unwrap_or_else(|| "all".into());
@@ -73,9 +68,9 @@ fn main() {
             &Params {
                 water_types: vec![r.water_type.clone()],
                 veiling_light: Some(r.veiling_light),
+                guided_subsample: 1,
                 ..p.clone()
-            }
-            .clone_with_subsample(1),
+            },
         )
         .unwrap_or_else(|e| panic!("{e}"));
         let diff = |a: &[f32], b: &[f32]| {
@@ -83,6 +78,10 @@ fn main() {
             let mean = a.iter().zip(b).map(|(x, y)| f64::from((x - y).abs())).sum::<f64>() / a.len() as f64;
             (m, mean)
         };
-        println!("  vs exact: t_B max {:.2e} mean {:.2e}; image max {:.2e} mean {:.2e}", diff(&r.transmission, &e.transmission).0, diff(&r.transmission, &e.transmission).1, diff(&r.image, &e.image).0, diff(&r.image, &e.image).1);
+        let (t, i) = (diff(&r.transmission, &e.transmission), diff(&r.image, &e.image));
+        println!(
+            "  vs exact: t_B max {:.2e} mean {:.2e}; image max {:.2e} mean {:.2e}",
+            t.0, t.1, i.0, i.1
+        );
     }
 }
