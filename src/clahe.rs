@@ -187,8 +187,8 @@ mod tests {
             bins: 256,
         };
         let out = c.apply(&ramp, h, w);
-        for x in 0..w {
-            assert!((out[x] - (x as f32 + 1.0) / 256.0).abs() < 1e-6, "x={x}");
+        for (x, v) in out.iter().take(w).enumerate() {
+            assert!((v - (x as f32 + 1.0) / 256.0).abs() < 1e-6, "x={x}");
         }
         // a low-contrast ramp in [0.4, 0.6) is stretched to the full range
         let low: Vec<f32> = (0..h * w)

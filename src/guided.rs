@@ -459,9 +459,9 @@ mod tests {
         let v = inv_sym3(m).unwrap();
         let full = |a: [f64; 6]| [[a[0], a[1], a[2]], [a[1], a[3], a[4]], [a[2], a[4], a[5]]];
         let (a, b) = (full(m), full(v));
-        for i in 0..3 {
+        for (i, row) in a.iter().enumerate() {
             for j in 0..3 {
-                let p: f64 = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+                let p: f64 = row.iter().zip(&b).map(|(x, bk)| x * bk[j]).sum();
                 assert!((p - if i == j { 1.0 } else { 0.0 }).abs() < 1e-12);
             }
         }

@@ -249,10 +249,10 @@ mod tests {
         let wt = WaterType::new("x", 1.0, 1.0).unwrap();
         let ts = [1.0f32, 0.5, 0.25, 0.75];
         let mut d = Vec::new();
-        for y in 0..4 {
+        for t in ts {
             for _ in 0..4 {
                 for c in 0..3 {
-                    d.push(ts[y] * j[c] + (1.0 - ts[y]) * a[c]);
+                    d.push(t * j[c] + (1.0 - t) * a[c]);
                 }
             }
         }
@@ -272,7 +272,7 @@ mod tests {
     #[test]
     fn pixels_equal_to_a_get_one() {
         let a = [0.2f32, 0.3, 0.4];
-        let mut d = vec![0.2f32, 0.3, 0.4].repeat(16);
+        let mut d = [0.2f32, 0.3, 0.4].repeat(16);
         d[0] = 0.9;
         let img = ImageRef::new(&d, 4, 4).unwrap();
         let t = initial_transmission(
