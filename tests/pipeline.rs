@@ -77,6 +77,18 @@ fn pearson(a: &[f64], b: &[f64]) -> f64 {
     cov / (va * vb).sqrt()
 }
 
+/// rho(z, -ln t) over the object pixels (SPEC 11).
+fn rho(s: &Scene, t: &[f32]) -> f64 {
+    let (zz, lt): (Vec<f64>, Vec<f64>) = s
+        .z
+        .iter()
+        .zip(t)
+        .filter(|(z, _)| z.is_finite())
+        .map(|(z, t)| (*z, -(*t as f64).ln()))
+        .unzip();
+    pearson(&zz, &lt)
+}
+
 #[test]
 fn transmission_follows_distance_and_water_is_found() {
     let s = scene(90, 120);
@@ -110,15 +122,7 @@ fn transmission_follows_distance_and_water_is_found() {
             res.veiling_light
         );
     }
-    // rho(z, -ln t) over object pixels (SPEC 11)
-    let (mut zz, mut lt) = (Vec::new(), Vec::new());
-    for i in 0..s.h * s.w {
-        if s.z[i].is_finite() {
-            zz.push(s.z[i]);
-            lt.push(-(res.transmission[i] as f64).ln());
-        }
-    }
-    let rho = pearson(&zz, &lt);
+    let rho = rho(&s, &res.transmission);
     assert!(rho > 0.6, "rho = {rho}");
     assert!(res
         .image
@@ -277,13 +281,6 @@ fn subsampled_guided_filter_stays_close_to_the_exact_one() {
             assert!(max > 0.0, "subsample {sub} changed nothing");
             assert!(max < 0.05 && mean < 6e-3, "subsample {sub}: max {max}, mean {mean}");
         }
-        let (mut zz, mut lt) = (Vec::new(), Vec::new());
-        for i in 0..s.h * s.w {
-            if s.z[i].is_finite() {
-                zz.push(s.z[i]);
-                lt.push(-(r.transmission[i] as f64).ln());
-            }
-        }
-        assert!(pearson(&zz, &lt) > 0.6, "subsample {sub}");
+        assert!(rho(&s, &r.transmission) > 0.6, "subsample {sub}");
     }
 }
