@@ -45,6 +45,13 @@ struct Low {
     cols: Vec<(usize, usize, f32)>,
 }
 
+/// The sampled position of block k (of s) along an axis of length n: the
+/// centre of the block clipped to the axis, rounded down. The samples and
+/// the interpolation back to full resolution both use it.
+fn sample_pos(k: usize, n: usize, s: usize) -> usize {
+    (k * s + ((k + 1) * s).min(n) - 1) / 2
+}
+
 /// Point samples of a plane with `c` interleaved channels at the centres
 /// of its s x s blocks (clipped at the border): ceil(h / s) x ceil(w / s) x c
 /// values. Point samples, not block means: the window statistics of the
@@ -52,11 +59,10 @@ struct Low {
 /// those of the full-resolution pixels, which averaging would shrink.
 pub fn block_samples(src: &[f32], h: usize, w: usize, c: usize, s: usize) -> Vec<f32> {
     let s = s.max(1);
-    let centre = |k: usize, n: usize| (k * s + ((k + 1) * s).min(n) - 1) / 2;
-    let xs: Vec<usize> = (0..w.div_ceil(s)).map(|k| centre(k, w)).collect();
+    let xs: Vec<usize> = (0..w.div_ceil(s)).map(|k| sample_pos(k, w, s)).collect();
     let mut out = vec![0f32; h.div_ceil(s) * xs.len() * c];
     out.par_chunks_mut((xs.len() * c).max(1)).enumerate().for_each(|(by, orow)| {
-        let y = centre(by, h);
+        let y = sample_pos(by, h, s);
         let line = src.get(y * w * c..(y + 1) * w * c).unwrap_or(&[]);
         for (o, &x) in orow.chunks_exact_mut(c.max(1)).zip(&xs) {
             if let Some(px) = line.get(x * c..(x + 1) * c) {
@@ -76,10 +82,11 @@ fn lerp4(a: &[f32; 4], b: &[f32; 4], t: f32) -> [f32; 4] {
 }
 
 /// Interpolation table along one axis of length n for blocks of s: for each
-/// position, the blocks whose centres bracket it and the second one's weight.
+/// position, the samples ([`sample_pos`]) that bracket it and the second
+/// one's weight.
 fn interp_axis(n: usize, s: usize) -> Vec<(usize, usize, f32)> {
     let nb = n.div_ceil(s);
-    let centre = |k: usize| (k * s + ((k + 1) * s).min(n) - 1) as f64 / 2.0;
+    let centre = |k: usize| sample_pos(k, n, s) as f64;
     let mut k = 0usize;
     (0..n)
         .map(|i| {
@@ -505,10 +512,11 @@ mod tests {
         // the interpolation weights bracket each position by block centres
         let t = interp_axis(5, 2);
         assert_eq!(t[0], (0, 0, 0.0));
-        // centres 0.5, 2.5, 4
-        assert_eq!(t[1], (0, 1, 0.25));
-        assert_eq!(t[2], (0, 1, 0.75));
-        assert_eq!(t[3], (1, 2, 1.0 / 3.0));
+        // samples at 0, 2, 4 (the blocks' centres 0.5, 2.5, 4 rounded down):
+        // a sampled position takes its sample alone
+        assert_eq!(t[1], (0, 1, 0.5));
+        assert_eq!(t[2], (1, 1, 0.0));
+        assert_eq!(t[3], (1, 2, 0.5));
         assert_eq!(t[4], (2, 2, 0.0));
     }
 
