@@ -73,6 +73,16 @@ pub fn block_samples(src: &[f32], h: usize, w: usize, c: usize, s: usize) -> Vec
     out
 }
 
+/// The rows of a plane of (a, b), `w` per row, as the f64 source of a box pass.
+fn ab_rows(ab: &[[f32; 4]], w: usize) -> impl Fn(usize, &mut [[f64; 4]]) + Sync + '_ {
+    move |y, row| {
+        let line = ab.get(y * w..(y + 1) * w).unwrap_or(&[]);
+        for (d, v) in row.iter_mut().zip(line) {
+            *d = v.map(f64::from);
+        }
+    }
+}
+
 /// a + t (b - a) per component.
 #[inline(always)]
 fn lerp4(a: &[f32; 4], b: &[f32; 4], t: f32) -> [f32; 4] {
@@ -335,12 +345,7 @@ impl GuideStats {
         }
         let BoxGeom { w, .. } = self.geom;
         let g = &self.guide;
-        let source = |y: usize, row: &mut [[f64; 4]]| {
-            let line = ab.get(y * w..(y + 1) * w).unwrap_or(&[]);
-            for (d, v) in row.iter_mut().zip(line) {
-                *d = v.map(f64::from);
-            }
-        };
+        let source = ab_rows(ab, w);
         let inner = |o: &mut (O, Vec<f32>), y: usize, means: &[[f64; 4]]| {
             let gl = g.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
             for ((q, m), px) in o.1.iter_mut().zip(means).zip(gl.chunks_exact(3)) {
@@ -361,12 +366,7 @@ impl GuideStats {
     fn mean_coefficients(&self, ab: &[[f32; 4]], bounds: [f64; 4]) -> Vec<[f32; 4]> {
         let BoxGeom { h, w, .. } = self.geom;
         let mut out = vec![[0f32; 4]; h * w];
-        let source = |y: usize, row: &mut [[f64; 4]]| {
-            let line = ab.get(y * w..(y + 1) * w).unwrap_or(&[]);
-            for (d, v) in row.iter_mut().zip(line) {
-                *d = v.map(f64::from);
-            }
-        };
+        let source = ab_rows(ab, w);
         let sink = |o: &mut (usize, &mut [[f32; 4]]), y: usize, means: &[[f64; 4]]| {
             let off = (y - o.0) * w;
             if let Some(line) = o.1.get_mut(off..off + w) {
