@@ -136,7 +136,10 @@ where
         .collect()
 }
 
-/// One band, sequentially (see [`box_means`]).
+/// One band, sequentially (see [`box_means`]). Compiled for baseline
+/// x86-64 and for AVX2, picked at run time (the same bits either way:
+/// no fused multiply-add, DECISIONS F6).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn run_band<const C: usize, O, S, K>(
     geom: BoxGeom,
     scale: [f64; C],

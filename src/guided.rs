@@ -83,6 +83,49 @@ fn ab_rows(ab: &[[f32; 4]], w: usize) -> impl Fn(usize, &mut [[f64; 4]]) + Sync 
     }
 }
 
+/// Row source of the first pass: (p, I_R p, I_G p, I_B p) in f64.
+/// The kernels below are compiled for baseline x86-64 and for AVX2, picked
+/// at run time, with the same bits either way (DECISIONS F6).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn products_row(row: &mut [[f64; 4]], p: &[f32], guide: &[[f32; 3]]) {
+    for ((d, &pv), &[r, g, b]) in row.iter_mut().zip(p).zip(guide) {
+        let pv = f64::from(pv);
+        *d = [pv, f64::from(r) * pv, f64::from(g) * pv, f64::from(b) * pv];
+    }
+}
+
+/// Sink of the first pass (SPEC 6): from the window means (p, I p) and the
+/// guide statistics, a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
+/// b = mean_p - a . mean_I; `maxes` gathers max |.| of each of the four.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn ab_from_means(out: &mut [[f32; 4]], means: &[[f64; 4]], stats: &[[f32; 9]], maxes: &mut [f64; 4]) {
+    let mut mx = [0f32; 4];
+    for ((d, m), s) in out.iter_mut().zip(means).zip(stats) {
+        let [mp, mr, mg, mb] = *m;
+        let [u0, u1, u2, i0, i1, i2, i3, i4, i5] = s.map(f64::from);
+        let c = [mr - u0 * mp, mg - u1 * mp, mb - u2 * mp];
+        let ax = i0 * c[0] + i1 * c[1] + i2 * c[2];
+        let ay = i1 * c[0] + i3 * c[1] + i4 * c[2];
+        let az = i2 * c[0] + i4 * c[1] + i5 * c[2];
+        let b = mp - ax * u0 - ay * u1 - az * u2;
+        *d = [ax as f32, ay as f32, az as f32, b as f32];
+        for (x, v) in mx.iter_mut().zip(d.iter()) {
+            *x = x.max(v.abs());
+        }
+    }
+    for (x, v) in maxes.iter_mut().zip(mx) {
+        *x = x.max(f64::from(v));
+    }
+}
+
+/// Sink of the second pass: q = mean(a) . I + mean(b) for one row.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn q_row(q: &mut [f32], means: &[[f64; 4]], guide: &[[f32; 3]]) {
+    for ((q, m), &[r, g, b]) in q.iter_mut().zip(means).zip(guide) {
+        *q = (m[0] * f64::from(r) + m[1] * f64::from(g) + m[2] * f64::from(b) + m[3]) as f32;
+    }
+}
+
 /// a + t (b - a) per component.
 #[inline(always)]
 fn lerp4(a: &[f32; 4], b: &[f32; 4], t: f32) -> [f32; 4] {
@@ -287,12 +330,7 @@ impl GuideStats {
         let source = |y: usize, row: &mut [[f64; 4]]| {
             let pl = p.get(y * w..(y + 1) * w).unwrap_or(&[]);
             let gl = g.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
-            for ((d, &pv), px) in row.iter_mut().zip(pl).zip(gl.chunks_exact(3)) {
-                if let [r, gg, b] = *px {
-                    let pv = pv as f64;
-                    *d = [pv, r as f64 * pv, gg as f64 * pv, b as f64 * pv];
-                }
-            }
+            products_row(row, pl, gl.as_chunks::<3>().0);
         };
         let sink = |o: &mut (usize, &mut [[f32; 4]], [f64; 4]), y: usize, means: &[[f64; 4]]| {
             let off = (y - o.0) * w;
@@ -300,19 +338,7 @@ impl GuideStats {
             else {
                 return;
             };
-            for ((d, m), s) in line.iter_mut().zip(means).zip(sl) {
-                let [mp, mr, mg, mb] = *m;
-                let [u0, u1, u2, i0, i1, i2, i3, i4, i5] = s.map(f64::from);
-                let c = [mr - u0 * mp, mg - u1 * mp, mb - u2 * mp];
-                let ax = i0 * c[0] + i1 * c[1] + i2 * c[2];
-                let ay = i1 * c[0] + i3 * c[1] + i4 * c[2];
-                let az = i2 * c[0] + i4 * c[1] + i5 * c[2];
-                let b = mp - ax * u0 - ay * u1 - az * u2;
-                *d = [ax as f32, ay as f32, az as f32, b as f32];
-                for (mx, v) in o.2.iter_mut().zip(d.iter()) {
-                    *mx = mx.max(v.abs() as f64);
-                }
-            }
+            ab_from_means(line, means, sl, &mut o.2);
         };
         let gb = self.guide_bound;
         let ranges = self.ranges();
@@ -348,11 +374,7 @@ impl GuideStats {
         let source = ab_rows(ab, w);
         let inner = |o: &mut (O, Vec<f32>), y: usize, means: &[[f64; 4]]| {
             let gl = g.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
-            for ((q, m), px) in o.1.iter_mut().zip(means).zip(gl.chunks_exact(3)) {
-                if let [r, gg, b] = *px {
-                    *q = (m[0] * r as f64 + m[1] * gg as f64 + m[2] * b as f64 + m[3]) as f32;
-                }
-            }
+            q_row(&mut o.1, means, gl.as_chunks::<3>().0);
             sink(&mut o.0, y, &o.1);
         };
         let work: Vec<_> = work.into_iter().map(|(r, o)| (r, (o, vec![0f32; w]))).collect();

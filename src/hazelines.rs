@@ -1,5 +1,6 @@
 //! Initial transmission from haze-lines (SPEC 4 / DECISIONS S4).
 
+use crate::fastmath;
 use crate::filters::box_mean;
 use crate::image::ImageRef;
 use crate::matting::LB_FLOOR;
@@ -14,14 +15,10 @@ pub const T_SCALE: f32 = 0.9;
 /// Cluster id (as stored, f32) of pixels that have none (r == 0 or masked out).
 const NO_CLUSTER: f32 = -1.0;
 
-/// sgn(d) |d|^p.
+/// sgn(d) |d|^p (the vectorizable power of [`crate::fastmath`]).
 #[inline(always)]
-pub fn signed_pow(d: f32, p: f32) -> f32 {
-    if d == 0.0 {
-        0.0
-    } else {
-        d.signum() * d.abs().powf(p)
-    }
+pub fn signed_pow(d: f32, p: f64) -> f32 {
+    fastmath::signed_pow(d, p)
 }
 
 /// The medium-compensated vector of SPEC 0 / 4.1 for one pixel.
@@ -35,8 +32,8 @@ pub fn compensated(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> [f32; 3] {
 pub struct HazeType {
     /// veiling light A
     pub a: [f32; 3],
-    /// (beta_BR, beta_BG) as f32
-    pub beta: [f32; 2],
+    /// (beta_BR, beta_BG)
+    pub beta: [f64; 2],
     /// A_R^-beta_BR, A_G^-beta_BG, 1 / A_B: the lower bound's factors, in
     /// f64 (A_R^-beta_BR reaches 1e63 for A_R = 0.008 and a ratio of 30)
     lb_scale: [f64; 3],
@@ -45,13 +42,13 @@ pub struct HazeType {
 impl HazeType {
     /// The constants for water type `wt` and veiling light `a` (each > 0).
     pub fn new(a: [f32; 3], wt: &WaterType) -> Self {
-        let beta = [wt.beta_br as f32, wt.beta_bg as f32];
+        let beta = [wt.beta_br, wt.beta_bg];
         Self {
             a,
             beta,
             lb_scale: [
-                f64::from(a[0]).powf(-f64::from(beta[0])),
-                f64::from(a[1]).powf(-f64::from(beta[1])),
+                f64::from(a[0]).powf(-beta[0]),
+                f64::from(a[1]).powf(-beta[1]),
                 1.0 / f64::from(a[2]),
             ],
         }
@@ -80,6 +77,35 @@ impl HazeType {
     }
 }
 
+/// For one row of pixels: the compensated vectors v (SPEC 4.1), their
+/// radii |v| and the lower bounds t_LB (SPEC 5). Compiled for baseline
+/// x86-64 and for AVX2, picked at run time; the same bits either way
+/// (plain IEEE operations, [`crate::fastmath`]).
+/// Also each v's lookup cell in `index` ([`SphereIndex::cell`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+pub fn compensate_row(ht: &HazeType, index: &SphereIndex, px: &[[f32; 3]], out: &mut [Compensated]) {
+    for (p, o) in px.iter().zip(out.iter_mut()) {
+        let v = ht.compensated(*p);
+        o.v = v;
+        o.r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        o.lb = ht.lower_bound(v);
+        o.cell = index.cell(&v);
+    }
+}
+
+/// What [`compensate_row`] gives for one pixel.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Compensated {
+    /// the compensated vector v (SPEC 4.1)
+    pub v: [f32; 3],
+    /// |v|
+    pub r: f32,
+    /// t_LB (SPEC 5)
+    pub lb: f32,
+    /// v's lookup cell
+    pub cell: u32,
+}
+
 /// Rows per work item of the per-pixel passes.
 pub const CHUNK_ROWS: usize = 8;
 
@@ -105,28 +131,29 @@ pub fn haze_pass(
         .enumerate()
         .map(|(ci, ((rr, aa), px))| {
             let mut m = vec![0f32; k];
-            // per row: first the compensated vectors (the powers), then the
-            // cluster lookups in a loop without calls
-            let mut vs = vec![[0f32; 3]; w];
+            // per row: first the compensated vectors, radii and lower
+            // bounds (a SIMD kernel), then the cluster lookups
+            let mut cs = vec![Compensated::default(); w];
             for (y, ((rr, aa), px)) in rr.chunks_mut(w).zip(aa.chunks_mut(w)).zip(px.chunks(3 * w)).enumerate() {
-                for (v, p) in vs.iter_mut().zip(px.as_chunks::<3>().0) {
-                    *v = ht.compensated(*p);
-                }
+                compensate_row(ht, index, px.as_chunks::<3>().0, &mut cs);
                 let row0 = ci * chunk + y * w;
-                for (x, ((r, a), v)) in rr.iter_mut().zip(aa.iter_mut()).zip(&vs).enumerate() {
-                    let inside = mask.is_none_or(|mk| mk.get(row0 + x).copied().unwrap_or(false));
-                    let rad = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                let mrow = mask.and_then(|mk| mk.get(row0..row0 + w));
+                for (x, ((r, a), c)) in rr.iter_mut().zip(aa.iter_mut()).zip(&cs).enumerate() {
+                    let inside = match mask {
+                        None => true,
+                        Some(_) => mrow.and_then(|mk| mk.get(x)).copied().unwrap_or(false),
+                    };
                     let mut cl = NO_CLUSTER;
-                    if inside && rad > 0.0 && rad.is_finite() {
+                    if inside && c.r > 0.0 && c.r.is_finite() {
                         // the direction of v: no need to normalise it (SphereIndex::nearest)
-                        let c = index.nearest(v);
-                        if let Some(slot) = m.get_mut(c) {
-                            *slot = slot.max(rad);
+                        let k = index.nearest_in_cell(c.cell, &c.v);
+                        if let Some(slot) = m.get_mut(k) {
+                            *slot = slot.max(c.r);
                         }
-                        cl = c as f32;
+                        cl = k as f32;
                     }
-                    *r = if inside { rad } else { 0.0 };
-                    *a = [ht.lower_bound(*v), cl, 0.0, 0.0];
+                    *r = if inside { c.r } else { 0.0 };
+                    *a = [c.lb, cl, 0.0, 0.0];
                 }
             }
             m
@@ -210,6 +237,39 @@ pub fn fill_masked(t: &mut [f32], mask: &[bool], h: usize, w: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn row_kernel_gives_the_per_pixel_bits() {
+        // compensate_row runs its AVX2 build where the CPU has AVX2; the
+        // per-pixel functions called here are the baseline build: the bits
+        // must agree (DECISIONS F6). Values include D = 0, negative D,
+        // tiny and large differences.
+        let noise = crate::util::test_noise(3 * 4099, 7);
+        let special = [0.0f32, 1e-30, 0.5, 1.0, 0.2, 0.3, 0.4, 1e-7, 0.999_999];
+        let px: Vec<[f32; 3]> = noise
+            .chunks_exact(3)
+            .enumerate()
+            .map(|(i, c)| {
+                let pick = |k: usize, v: f32| if i % 5 == 0 { special[(i / 5 + k) % special.len()] } else { v };
+                [pick(0, c[0]), pick(1, c[1]), pick(2, c[2])]
+            })
+            .collect();
+        let idx = SphereIndex::new(500).unwrap();
+        for name in ["I", "III", "3C", "9C"] {
+            let ht = HazeType::new([0.2, 0.3, 0.4], &WaterType::by_name(name).unwrap());
+            let mut out = vec![Compensated::default(); px.len()];
+            compensate_row(&ht, &idx, &px, &mut out);
+            for (p, o) in px.iter().zip(&out) {
+                let v = ht.compensated(*p);
+                assert_eq!(o.v.map(f32::to_bits), v.map(f32::to_bits), "{p:?}");
+                assert_eq!(o.r.to_bits(), (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().to_bits());
+                assert_eq!(o.lb.to_bits(), ht.lower_bound(v).to_bits());
+                if o.r > 0.0 {
+                    assert_eq!(idx.nearest_in_cell(o.cell, &o.v), idx.nearest(&v));
+                }
+            }
+        }
+    }
 
     #[test]
     fn compensated_vector_by_hand() {

@@ -47,7 +47,7 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    boxsum, clahe, color, error, filters, guided, hazelines, image, matting, pipeline, rank, recover, select, sphere, util,
+    boxsum, clahe, color, error, fastmath, filters, guided, hazelines, image, matting, pipeline, rank, recover, select, sphere, util,
     veiling, water,
 }
 

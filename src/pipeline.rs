@@ -14,10 +14,10 @@
 use crate::error::{Error, Result};
 use crate::filters::components8;
 use crate::guided::GuideStats;
-use crate::hazelines::{fill_masked, haze_pass, t_tilde, HazeType, CHUNK_ROWS, T_SCALE};
+use crate::hazelines::{fill_masked, haze_pass, t_tilde, HazeType, CHUNK_ROWS, T_MIN, T_SCALE};
 use crate::image::{check_mask, ImageRef};
 use crate::matting::Matting;
-use crate::recover::{display_limits, ArtifactClamp, Recovery, DISPLAY_QS};
+use crate::recover::{display_limits, recover_values, ArtifactClamp, Recovery, DISPLAY_QS};
 use crate::select::{choose, Choice, SelectionSums, TypeStats, FLAG_RELAXED};
 use crate::sphere::SphereIndex;
 use crate::util::{channel_percentiles, with_threads, ChannelStretch, Normalize};
@@ -339,6 +339,130 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
     });
 }
 
+/// SPEC 4.4-5 for a run of pixels: t~ = clamp(r / r_max, 0.01, 1) from the
+/// radius in `p` and the cluster in `aux` (`rm`: r_max by cluster + 1,
+/// entry 0 for "no cluster", t~ = 1), or t~ as given in `p` when `tilde`
+/// is false; then t = max(0.9 t~, t_LB), blended with t_LB by the matting
+/// weight. Compiled for baseline x86-64 and for AVX2, picked at run time;
+/// the same bits either way (DECISIONS F6).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn blend_row(p: &mut [f32], aux: &[[f32; 4]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
+    let last = rm.len().saturating_sub(1);
+    let tt = |v: f32, x: &[f32; 4]| -> f32 {
+        let t = if tilde {
+            let k = ((x[1] + 1.0).max(0.0) as usize).min(last);
+            match rm.get(k) {
+                Some(&m) if m > 0.0 => (v / m).clamp(T_MIN, 1.0),
+                _ => 1.0,
+            }
+        } else {
+            v
+        };
+        (t * T_SCALE).max(x[0])
+    };
+    match matting {
+        Some(mt) => {
+            for ((v, x), c) in p.iter_mut().zip(aux).zip(px) {
+                let t = tt(*v, x);
+                let wgt = mt.weight(*c);
+                *v = wgt * x[0] + (1.0 - wgt) * t;
+            }
+        }
+        None => {
+            for (v, x) in p.iter_mut().zip(aux) {
+                *v = tt(*v, x);
+            }
+        }
+    }
+}
+
+/// The displayed values of a row of J (SPEC 7 clamp, SPEC 8 stretch).
+/// Compiled for baseline x86-64 and for AVX2, picked at run time; the
+/// same bits either way (DECISIONS F6).
+/// Works on runs of 8 pixels whose 24 values each have their channel's
+/// constants in the same lane, which lets the compiler vectorize across
+/// the interleaved channels.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn stretch_row(sp: &Stretch, j: &[[f32; 3]], out: &mut [[f32; 3]]) {
+    const L: usize = 24;
+    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
+        let l = sp.limits.channel(c);
+        let (lo, inv) = l.unwrap_or((0.0, 1.0));
+        (lo, inv, l.is_some())
+    });
+    let lo: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0));
+    let inv: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1));
+    let on: [bool; L] = std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2));
+    let map = |v: f32, lo: f64, inv: f64, on: bool| -> f32 {
+        let x = sp.norm.apply(sp.clamp.apply(v));
+        let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
+        if on {
+            s
+        } else {
+            x
+        }
+    };
+    let (jf, of) = (j.as_flattened(), out.as_flattened_mut());
+    let (jc, jr) = jf.as_chunks::<L>();
+    let (oc, or) = of.as_chunks_mut::<L>();
+    for (o, v) in oc.iter_mut().zip(jc) {
+        for k in 0..L {
+            if let (Some(d), Some(&x), Some(&l), Some(&i), Some(&f)) = (o.get_mut(k), v.get(k), lo.get(k), inv.get(k), on.get(k)) {
+                *d = map(x, l, i, f);
+            }
+        }
+    }
+    for (k, (d, &x)) in or.iter_mut().zip(jr).enumerate() {
+        *d = sp.apply(k % 3, x);
+    }
+}
+
+/// Adds to `st` one row's statistics: min and max of J over the pixels
+/// inside the mask, sums of t_R and counts over its VL and other pixels.
+/// Accumulates in 8 lanes combined in lane order (the same for any thread
+/// count); compiled for baseline x86-64 and for AVX2, picked at run time,
+/// the same bits either way (DECISIONS F6).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn row_stats(j: &[[f32; 3]], tr: &[f32], inside: &[bool], vl: &[bool], st: &mut RowStats) {
+    const L: usize = 8;
+    let mut lo = [f32::INFINITY; L];
+    let mut hi = [f32::NEG_INFINITY; L];
+    let mut sums = [[0f64; 4]; L];
+    let mut lane = |k: usize, jv: &[f32; 3], t: f32, ins: bool, v: bool| {
+        let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
+        if let (Some(l), Some(h), Some(s)) = (lo.get_mut(k), hi.get_mut(k), sums.get_mut(k)) {
+            *l = l.min(if ins { mn } else { f32::INFINITY });
+            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
+            let t = f64::from(t);
+            let (iv, ic) = (ins && v, ins && !v);
+            s[0] += if iv { t } else { 0.0 };
+            s[1] += if iv { 1.0 } else { 0.0 };
+            s[2] += if ic { t } else { 0.0 };
+            s[3] += if ic { 1.0 } else { 0.0 };
+        }
+    };
+    let (jc, jrest) = j.as_chunks::<L>();
+    let (tc, trest) = tr.as_chunks::<L>();
+    let (ic, irest) = inside.as_chunks::<L>();
+    let (vc, vrest) = vl.as_chunks::<L>();
+    for (((jj, tt), ii), vv) in jc.iter().zip(tc).zip(ic).zip(vc) {
+        for (k, (((jv, &t), &ins), &v)) in jj.iter().zip(tt).zip(ii).zip(vv).enumerate() {
+            lane(k, jv, t, ins, v);
+        }
+    }
+    for (((jv, &t), &ins), &v) in jrest.iter().zip(trest).zip(irest).zip(vrest) {
+        lane(0, jv, t, ins, v);
+    }
+    for ((l, h), s) in lo.iter().zip(&hi).zip(&sums) {
+        st.lo = st.lo.min(*l);
+        st.hi = st.hi.max(*h);
+        st.sums.tr_vl += s[0];
+        st.sums.vl += s[1];
+        st.sums.tr_counted += s[2];
+        st.sums.counted += s[3];
+    }
+}
+
 /// What one pass over a row of recovered pixels gathers (SPEC 7-9).
 #[derive(Debug, Clone, Copy)]
 struct RowStats {
@@ -416,16 +540,6 @@ struct Shared<'a> {
 }
 
 impl Shared<'_> {
-    #[inline(always)]
-    fn masked_in(&self, i: usize) -> bool {
-        self.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false))
-    }
-
-    #[inline(always)]
-    fn in_vl(&self, i: usize) -> bool {
-        self.vl.get(i).copied().unwrap_or(false)
-    }
-
     /// SPEC 4-6 up to the guided filter's first pass: the refined
     /// transmission p = blend(max(t~, t_LB)) into `work.j[..n]`, then (a, b)
     /// into `work.aux`. Returns the bounds of (a, b) for the second pass.
@@ -436,16 +550,9 @@ impl Shared<'_> {
         let (p, _) = j.split_at_mut(n);
         let ht = HazeType::new(self.a, wt);
         let rmax = haze_pass(img, &ht, self.index, self.mask, p, aux);
-        let blend = |tt: f32, lb: f32, px: &[f32; 3]| -> f32 {
-            let tt = tt.max(lb);
-            match &self.matting {
-                Some(m) => {
-                    let wgt = m.weight(*px);
-                    wgt * lb + (1.0 - wgt) * tt
-                }
-                None => tt,
-            }
-        };
+        // r_max by cluster + 1 (0: no cluster, t~ = 1)
+        let rm: Vec<f32> = std::iter::once(0.0).chain(rmax.iter().copied()).collect();
+        let matting = self.matting.as_ref();
         let chunk = w * CHUNK_ROWS;
         if self.holes {
             p.par_iter_mut()
@@ -454,55 +561,38 @@ impl Shared<'_> {
             if let Some(m) = self.mask {
                 fill_masked(p, m, img.height, w);
             }
-            p.par_chunks_mut(chunk)
-                .zip(aux.par_chunks(chunk))
-                .zip(img.data.par_chunks(3 * chunk))
-                .for_each(|((pp, aa), px)| {
-                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.as_chunks::<3>().0) {
-                        *v = blend(*v * T_SCALE, x[0], c);
-                    }
-                });
-        } else {
-            p.par_chunks_mut(chunk)
-                .zip(aux.par_chunks(chunk))
-                .zip(img.data.par_chunks(3 * chunk))
-                .for_each(|((pp, aa), px)| {
-                    for ((v, x), c) in pp.iter_mut().zip(aa).zip(px.as_chunks::<3>().0) {
-                        *v = blend(t_tilde(*v, x[1], &rmax) * T_SCALE, x[0], c);
-                    }
-                });
         }
+        p.par_chunks_mut(chunk)
+            .zip(aux.par_chunks(chunk))
+            .zip(img.data.par_chunks(3 * chunk))
+            .for_each(|((pp, aa), px)| blend_row(pp, aa, px.as_chunks::<3>().0, &rm, matting, !self.holes));
         self.guide.coefficients(p, aux)
     }
 
     /// SPEC 7 for one row: t_B (written to `tb` if given), t_R, t_G and J
     /// before the artifact clamp (to `j`), with the row's statistics.
-    fn recover_row(&self, rec: &Recovery, y: usize, q: &[f32], j: &mut [f32], mut tb: Option<&mut [f32]>) -> RowStats {
+    fn recover_row(&self, rec: &Recovery, y: usize, q: &[f32], j: &mut [f32], tb: Option<&mut [f32]>) -> RowStats {
         let w = self.img.width;
         let mut st = RowStats::default();
         let px = self.img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
-        let pixels = px.as_chunks::<3>().0;
-        for (x, ((qv, o), p)) in q.iter().zip(j.as_chunks_mut::<3>().0.iter_mut()).zip(pixels).enumerate() {
-            let i = y * w + x;
-            let t = rec.clamp_tb(*qv);
-            let tc = rec.channel_t(t);
-            let jv = rec.radiance(*p, tc);
-            *o = jv;
-            if let Some(d) = tb.as_deref_mut().and_then(|b| b.get_mut(x)) {
-                *d = t;
+        let jr = j.as_chunks_mut::<3>().0;
+        let mut tr = vec![0f32; w];
+        let mut tb_own;
+        let tbr = match tb {
+            Some(b) => b,
+            None => {
+                tb_own = vec![0f32; w];
+                &mut tb_own[..]
             }
-            if self.masked_in(i) {
-                st.lo = st.lo.min(jv[0]).min(jv[1]).min(jv[2]);
-                st.hi = st.hi.max(jv[0]).max(jv[1]).max(jv[2]);
-                if self.in_vl(i) {
-                    st.sums.tr_vl += tc[0] as f64;
-                    st.sums.vl += 1.0;
-                } else {
-                    st.sums.tr_counted += tc[0] as f64;
-                    st.sums.counted += 1.0;
-                }
-            }
-        }
+        };
+        recover_values(rec, q, px.as_chunks::<3>().0, jr, tbr, &mut tr);
+        let row = y * w..(y + 1) * w;
+        let inside: Vec<bool> = match self.mask.and_then(|m| m.get(row.clone())) {
+            Some(m) => m.to_vec(),
+            None => vec![self.mask.is_none(); w],
+        };
+        let vl: Vec<bool> = self.vl.get(row).map_or_else(|| vec![false; w], <[bool]>::to_vec);
+        row_stats(jr, &tr, &inside, &vl, &mut st);
         st
     }
 
@@ -586,19 +676,35 @@ impl Shared<'_> {
     }
 
     /// Sums of the three displayed channels over counted pixels (SPEC 9),
-    /// per row, combined in row order. `value(c, v)` maps a stored value.
-    fn channel_sums<F: Fn(usize, f32) -> f32 + Sync>(&self, rgb: &[f32], value: F) -> [f64; 3] {
+    /// per row, combined in row order, of J mapped by `sp` (the values as
+    /// they are without).
+    fn channel_sums(&self, rgb: &[f32], sp: Option<&Stretch>) -> [f64; 3] {
         let w = self.img.width;
         let rows: Vec<[f64; 3]> = rgb
             .par_chunks(3 * w)
             .enumerate()
             .map(|(y, row)| {
+                let mut mapped = vec![[0f32; 3]; w];
+                let px = row.as_chunks::<3>().0;
+                let vals = match sp {
+                    Some(sp) => {
+                        stretch_row(sp, px, &mut mapped);
+                        &mapped[..]
+                    }
+                    None => px,
+                };
                 let mut s = [0f64; 3];
-                for (x, p) in row.chunks_exact(3).enumerate() {
-                    let i = y * w + x;
-                    if self.masked_in(i) && !self.in_vl(i) {
-                        for (c, (acc, v)) in s.iter_mut().zip(p).enumerate() {
-                            *acc += value(c, *v) as f64;
+                let r = y * w..(y + 1) * w;
+                let mrow = self.mask.and_then(|m| m.get(r.clone()));
+                let vrow = self.vl.get(r).unwrap_or(&[]);
+                for (x, p) in vals.iter().enumerate() {
+                    let inside = match self.mask {
+                        None => true,
+                        Some(_) => mrow.and_then(|m| m.get(x)).copied().unwrap_or(false),
+                    };
+                    if inside && !vrow.get(x).copied().unwrap_or(false) {
+                        for (acc, v) in s.iter_mut().zip(p) {
+                            *acc += *v as f64;
                         }
                     }
                 }
@@ -615,7 +721,7 @@ impl Shared<'_> {
         let st = self.recover(wt, bounds, work, None);
         let sp = self.stretch(&work.j, &st);
         let mut sums = st.sums;
-        sums.channels = self.channel_sums(&work.j, |c, v| sp.apply(c, v));
+        sums.channels = self.channel_sums(&work.j, Some(&sp));
         sums.stats()
     }
 }
@@ -652,7 +758,7 @@ fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, clock: &mut Cl
     radiance.par_iter_mut().for_each(|v| *v = sp.clamp.apply(*v));
     let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
     let mut sums = st.sums;
-    sums.channels = shared.channel_sums(&image, |_, v| v);
+    sums.channels = shared.channel_sums(&image, None);
     clock.lap("chosen: outputs");
     Final {
         radiance,
@@ -976,6 +1082,61 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The row kernels (AVX2 builds where the CPU has AVX2) against the
+    /// per-pixel functions (baseline builds here): the same bits
+    /// (DECISIONS F6), and row_stats against a plain loop.
+    #[test]
+    fn row_kernels_match_per_pixel_values() {
+        let n = 1037;
+        let noise = crate::util::test_noise(8 * n, 3);
+        let j: Vec<[f32; 3]> = noise.chunks_exact(3).take(n).map(|c| [c[0] * 1.4 - 0.2, c[1], c[2] * 2.0]).collect();
+        let clamp = ArtifactClamp::new(-0.2, 2.0);
+        let norm = Normalize::new(clamp.apply(-0.2), clamp.apply(2.0));
+        for limits in [
+            [Some((0.1, 0.9)), None, Some((0.0, 0.5))],
+            [None, None, None],
+            [Some((0.2, 0.3)), Some((0.0, 1.0)), Some((0.4, 0.8))],
+        ] {
+            let sp = Stretch { clamp, norm, limits: ChannelStretch::new(limits) };
+            let mut out = vec![[0f32; 3]; n];
+            stretch_row(&sp, &j, &mut out);
+            for (o, v) in out.iter().zip(&j) {
+                for c in 0..3 {
+                    assert_eq!(o[c].to_bits(), sp.apply(c, v[c]).to_bits());
+                }
+            }
+        }
+        // row statistics
+        let tr: Vec<f32> = noise.iter().skip(3 * n).take(n).copied().collect();
+        let inside: Vec<bool> = noise.iter().skip(4 * n).take(n).map(|v| *v > 0.2).collect();
+        let vl: Vec<bool> = noise.iter().skip(5 * n).take(n).map(|v| *v > 0.6).collect();
+        let mut st = RowStats::default();
+        row_stats(&j, &tr, &inside, &vl, &mut st);
+        let (mut lo, mut hi, mut s) = (f32::INFINITY, f32::NEG_INFINITY, [0f64; 4]);
+        for i in 0..n {
+            if inside[i] {
+                lo = lo.min(j[i][0]).min(j[i][1]).min(j[i][2]);
+                hi = hi.max(j[i][0]).max(j[i][1]).max(j[i][2]);
+                let k = if vl[i] { 0 } else { 2 };
+                s[k] += tr[i] as f64;
+                s[k + 1] += 1.0;
+            }
+        }
+        assert_eq!((st.lo, st.hi), (lo, hi));
+        assert_eq!((st.sums.vl, st.sums.counted), (s[1], s[3]));
+        assert!((st.sums.tr_vl - s[0]).abs() < 1e-9 && (st.sums.tr_counted - s[2]).abs() < 1e-9);
+        // blend: t~ from r / r_max, the bound and the matting weight
+        let rm = [0.0f32, 0.5, 0.0, 2.0];
+        let aux: Vec<[f32; 4]> = (0..n).map(|i| [noise[6 * n + i] * 0.5, (i % 4) as f32 - 1.0, 0.0, 0.0]).collect();
+        let r: Vec<f32> = noise.iter().skip(7 * n).take(n).map(|v| v * 2.0).collect();
+        let mut p = r.clone();
+        blend_row(&mut p, &aux, &j, &rm, None, true);
+        for i in 0..n {
+            let t = t_tilde(r[i], aux[i][1], &rm[1..]);
+            assert_eq!(p[i].to_bits(), (t * T_SCALE).max(aux[i][0]).to_bits(), "{i}");
+        }
+    }
 
     fn st(score: f64, d: Option<f64>) -> TypeStats {
         TypeStats { score, tr_diff: d }

@@ -1,6 +1,7 @@
 //! Recovery of the radiance with the artifact clamp (SPEC 7) and the
 //! per-channel display stretch (SPEC 8).
 
+use crate::fastmath::pow_pos;
 use crate::image::ImageRef;
 use crate::util::{channel_percentiles, masked_min_max, ChannelStretch, Normalize};
 use crate::water::WaterType;
@@ -28,7 +29,7 @@ pub struct Recovery {
     /// lower clamp of t_B: 0.1^beta_BR (at most 1)
     tb_lo: f32,
     /// 1 / beta_BR, 1 / beta_BG
-    inv_beta: [f32; 2],
+    inv_beta: [f64; 2],
 }
 
 impl Recovery {
@@ -37,7 +38,7 @@ impl Recovery {
         Self {
             a,
             tb_lo: T_FLOOR.powf(wt.beta_br as f32).min(1.0),
-            inv_beta: [1.0 / wt.beta_br as f32, 1.0 / wt.beta_bg as f32],
+            inv_beta: [1.0 / wt.beta_br, 1.0 / wt.beta_bg],
         }
     }
 
@@ -51,8 +52,8 @@ impl Recovery {
     #[inline(always)]
     pub fn channel_t(&self, tb: f32) -> [f32; 3] {
         [
-            tb.powf(self.inv_beta[0]).clamp(T_FLOOR, 1.0),
-            tb.powf(self.inv_beta[1]).clamp(T_FLOOR, 1.0),
+            pow_pos(tb, self.inv_beta[0]).clamp(T_FLOOR, 1.0),
+            pow_pos(tb, self.inv_beta[1]).clamp(T_FLOOR, 1.0),
             tb,
         ]
     }
@@ -66,6 +67,21 @@ impl Recovery {
             a[1] + (p[1] - a[1]) / t[1],
             a[2] + (p[2] - a[2]) / t[2],
         ]
+    }
+}
+
+/// SPEC 7 for one row: from the refined transmission `q`, the clamped t_B
+/// (to `tb`), t_R (to `tr`) and J before the artifact clamp (to `j`).
+/// Compiled for baseline x86-64 and for AVX2, picked at run time; the
+/// same bits either way ([`crate::fastmath`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+pub fn recover_values(rec: &Recovery, q: &[f32], px: &[[f32; 3]], j: &mut [[f32; 3]], tb: &mut [f32], tr: &mut [f32]) {
+    for (((qv, p), o), (b, r)) in q.iter().zip(px).zip(j.iter_mut()).zip(tb.iter_mut().zip(tr.iter_mut())) {
+        let t = rec.clamp_tb(*qv);
+        let tc = rec.channel_t(t);
+        *o = rec.radiance(*p, tc);
+        *b = t;
+        *r = tc[0];
     }
 }
 
@@ -100,10 +116,8 @@ impl ArtifactClamp {
         // Without a divisor (every masked-in value at or below the shift),
         // masked-out pixels can still be above 1: the final clip to 1 holds
         // for them too (DECISIONS S7; found by the property test).
-        match self.div {
-            Some(d) => (v / d).min(1.0),
-            None => v.min(1.0),
-        }
+        // v / 1 == v: the same values as a branch, and loops vectorize
+        (v / self.div.unwrap_or(1.0)).min(1.0)
     }
 }
 
@@ -170,6 +184,28 @@ pub fn display_stretch(j: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn row_kernel_gives_the_per_pixel_bits() {
+        // recover_values runs its AVX2 build where the CPU has it; the
+        // per-pixel functions here are the baseline build (DECISIONS F6)
+        let n = 4099;
+        let noise = crate::util::test_noise(4 * n, 11);
+        let px: Vec<[f32; 3]> = noise.chunks_exact(3).take(n).map(|c| [c[0], c[1], c[2]]).collect();
+        let q: Vec<f32> = noise.iter().skip(3 * n).map(|v| v * 1.2 - 0.1).collect();
+        for name in ["I", "II", "5C", "9C"] {
+            let rec = Recovery::new([0.1, 0.4, 0.5], &WaterType::by_name(name).unwrap());
+            let (mut j, mut tb, mut tr) = (vec![[0f32; 3]; n], vec![0f32; n], vec![0f32; n]);
+            recover_values(&rec, &q, &px, &mut j, &mut tb, &mut tr);
+            for i in 0..n {
+                let t = rec.clamp_tb(q[i]);
+                let tc = rec.channel_t(t);
+                assert_eq!(tb[i].to_bits(), t.to_bits());
+                assert_eq!(tr[i].to_bits(), tc[0].to_bits());
+                assert_eq!(j[i].map(f32::to_bits), rec.radiance(px[i], tc).map(f32::to_bits));
+            }
+        }
+    }
 
     #[test]
     fn transmissions_by_hand() {

@@ -77,7 +77,7 @@ struct DirectionGrid {
 
 /// Face of the cube and gnomonic coordinates (s, t) in [-1, 1] of a direction.
 #[inline(always)]
-fn face_coords(u: &[f32; 3]) -> (usize, f32, f32) {
+fn face_coords(u: &[f32; 3]) -> (i32, f32, f32) {
     let [x, y, z] = *u;
     let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
     // the major axis, chosen with selects rather than branches (directions
@@ -88,9 +88,9 @@ fn face_coords(u: &[f32; 3]) -> (usize, f32, f32) {
     let s = if fx { y } else { x };
     let t = if fx || fy { z } else { y };
     let neg = if fx { x < 0.0 } else if fy { y < 0.0 } else { z < 0.0 };
-    let axis = usize::from(!fx) + usize::from(!fx && !fy);
+    let axis = i32::from(!fx) + i32::from(!fx && !fy);
     let inv = 1.0 / m;
-    (2 * axis + usize::from(neg), s * inv, t * inv)
+    (2 * axis + i32::from(neg), s * inv, t * inv)
 }
 
 /// The direction (not normalised) of gnomonic point (s, t) on `face`.
@@ -119,12 +119,6 @@ fn chord_angle(c: f64) -> f64 {
 }
 fn angle_chord(a: f64) -> f64 {
     2.0 * (a.min(std::f64::consts::PI) / 2.0).sin()
-}
-
-/// Cell index along one gnomonic coordinate in [-1, 1] (clamped; NaN -> 0).
-#[inline(always)]
-fn cell_1d(s: f32, g: usize) -> usize {
-    ((s + 1.0) * (0.5 * g as f32)).clamp(0.0, (g - 1) as f32) as u32 as usize
 }
 
 impl DirectionGrid {
@@ -209,11 +203,26 @@ impl DirectionGrid {
         }
     }
 
+    /// The grid cell of direction v (gnomonic coordinates in [-1, 1] cut
+    /// into g cells per axis, in i32 arithmetic, which vectorizes).
+    #[inline(always)]
+    fn cell(&self, v: &[f32; 3]) -> usize {
+        let (face, s, t) = face_coords(v);
+        let g = self.g as i32;
+        let (gf, top) = (0.5 * g as f32, (g - 1) as f32);
+        // clamp first (NaN -> 0), then truncate: in [0, g - 1]
+        let c1 = |u: f32| ((u + 1.0) * gf).max(0.0).min(top) as i32;
+        ((face * g + c1(s)) * g + c1(t)) as usize
+    }
+
     #[inline(always)]
     fn nearest(&self, v: &[f32; 3]) -> usize {
-        let (face, s, t) = face_coords(v);
-        let g = self.g;
-        let cell = (face * g + cell_1d(s, g)) * g + cell_1d(t, g);
+        self.nearest_in(self.cell(v), v)
+    }
+
+    /// The nearest point to v among the candidates of `cell` (v's cell).
+    #[inline(always)]
+    fn nearest_in(&self, cell: usize, v: &[f32; 3]) -> usize {
         let nq = self.quads;
         let run = self.cands.get(cell * nq..(cell + 1) * nq).unwrap_or(&[]);
         let pts = &self.points;
@@ -317,6 +326,27 @@ impl SphereIndex {
                     .execute()
                     .item as usize
             }
+        }
+    }
+
+    /// The lookup cell of direction v (for [`SphereIndex::nearest_in_cell`]):
+    /// the first half of [`SphereIndex::nearest`], branch-free, so that a
+    /// loop of it vectorizes; 0 for the k-d tree.
+    #[inline(always)]
+    pub fn cell(&self, v: &[f32; 3]) -> u32 {
+        match &self.lookup {
+            Lookup::Grid(g) => g.cell(v) as u32,
+            Lookup::Tree(_) => 0,
+        }
+    }
+
+    /// [`SphereIndex::nearest`] given v's cell from [`SphereIndex::cell`]
+    /// (the same answer).
+    #[inline(always)]
+    pub fn nearest_in_cell(&self, cell: u32, v: &[f32; 3]) -> usize {
+        match &self.lookup {
+            Lookup::Grid(g) => g.nearest_in(cell as usize, v),
+            Lookup::Tree(_) => self.nearest(v),
         }
     }
 

@@ -106,9 +106,12 @@ impl Normalize {
     /// The normalised value (non-decreasing in v).
     #[inline(always)]
     pub fn apply(&self, v: f32) -> f32 {
-        match self.range {
-            Some(r) => (v - self.lo) / r,
-            None => 0.0,
+        // a select rather than a branch, so that loops of it vectorize
+        let x = (v - self.lo) / self.range.unwrap_or(1.0);
+        if self.range.is_some() {
+            x
+        } else {
+            0.0
         }
     }
 }
@@ -130,12 +133,22 @@ impl ChannelStretch {
         }
     }
 
+    /// Channel c's (lo, 1 / (hi - lo)), or None for "unchanged".
+    pub fn channel(&self, c: usize) -> Option<(f64, f64)> {
+        self.limits.get(c).copied().flatten()
+    }
+
     /// The stretched value of channel c.
     #[inline(always)]
     pub fn apply(&self, c: usize, x: f32) -> f32 {
-        match self.limits.get(c).copied().flatten() {
-            Some((lo, inv)) => ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32,
-            None => x,
+        // a select rather than a branch, so that loops of it vectorize
+        let l = self.limits.get(c).copied().flatten();
+        let (lo, inv) = l.unwrap_or((0.0, 1.0));
+        let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
+        if l.is_some() {
+            s
+        } else {
+            x
         }
     }
 
