@@ -14,6 +14,9 @@
 /// integer (ties to even) held in the low mantissa bits.
 const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0;
 
+/// 2^52.
+const TWO52: f64 = 4_503_599_627_370_496.0;
+
 /// ln 2.
 const LN2: f64 = std::f64::consts::LN_2;
 
@@ -24,40 +27,49 @@ const LN2: f64 = std::f64::consts::LN_2;
 #[inline(always)]
 pub fn log2_pos(x: f64) -> f64 {
     let bits = x.to_bits();
-    let e = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    // the biased exponent as an f64 without an integer conversion (which
+    // AVX2 lacks for 64-bit lanes): 2^52 + biased, minus 2^52
+    let biased = f64::from_bits(0x4330_0000_0000_0000 | ((bits >> 52) & 0x7ff)) - TWO52;
     let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
     // fold m from [1, 2) into [sqrt(1/2), sqrt(2))
     let big = m > std::f64::consts::SQRT_2;
     let m = if big { m * 0.5 } else { m };
-    let e = (e + i64::from(big)) as f64;
+    let e = biased - if big { 1022.0 } else { 1023.0 };
     let t = (m - 1.0) / (m + 1.0);
     let t2 = t * t;
-    let s = 1.0 + t2 * (1.0 / 3.0 + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0 + t2 * (1.0 / 11.0)))));
+    // Estrin's scheme (short dependency chains: the loops are latency bound)
+    let t4 = t2 * t2;
+    let t8 = t4 * t4;
+    let s = (1.0 + t2 * (1.0 / 3.0)) + t4 * (1.0 / 5.0 + t2 * (1.0 / 7.0)) + t8 * (1.0 / 9.0 + t2 * (1.0 / 11.0));
     e + (2.0 / LN2) * t * s
 }
 
 /// 2^y for y in [-200, 200] (clamped to it): 2^n 2^f with n = round(y),
 /// |f| <= 1/2, 2^f = e^(f ln 2) from its Taylor series to degree 9
-/// (truncation below 1e-11 relative). 2^n is built from its exponent bits
-/// in two factors so that every n in the range gives a normal f64.
+/// (truncation below 1e-11 relative); 2^n (a normal f64 for every n in
+/// the range) is built from its exponent bits.
 #[inline(always)]
 pub fn exp2_clamped(y: f64) -> f64 {
     let y = y.clamp(-200.0, 200.0);
     let k = y + ROUND_MAGIC;
     let n = k - ROUND_MAGIC;
     let z = (y - n) * LN2;
-    let p = 1.0
-        + z * (1.0
-            + z * (1.0 / 2.0
-                + z * (1.0 / 6.0
-                    + z * (1.0 / 24.0
-                        + z * (1.0 / 120.0
-                            + z * (1.0 / 720.0 + z * (1.0 / 5040.0 + z * (1.0 / 40320.0 + z * (1.0 / 362_880.0)))))))));
-    // the low bits of k hold 2^51 + n; n in [-200, 200]
-    let ni = (k.to_bits() & 0x000f_ffff_ffff_ffff) as i64 - (1i64 << 51);
-    let half = ni >> 1;
-    let scale = |e: i64| f64::from_bits(((e + 1023) as u64) << 52);
-    p * scale(half) * scale(ni - half)
+    // Estrin's scheme (short dependency chains: the loops are latency bound)
+    let z2 = z * z;
+    let z4 = z2 * z2;
+    let z8 = z4 * z4;
+    let p01 = 1.0 + z;
+    let p23 = 1.0 / 2.0 + z * (1.0 / 6.0);
+    let p45 = 1.0 / 24.0 + z * (1.0 / 120.0);
+    let p67 = 1.0 / 720.0 + z * (1.0 / 5040.0);
+    let p89 = 1.0 / 40320.0 + z * (1.0 / 362_880.0);
+    let p = ((p01 + z2 * p23) + z4 * (p45 + z2 * p67)) + z8 * p89;
+    // the low 52 bits of k hold 2^51 + n, n in [-200, 200]: adding
+    // 1023 - 2^51 leaves n + 1023 there, the biased exponent of 2^n (a
+    // normal f64); the shift drops k's own exponent bits. Unsigned lane
+    // operations only (AVX2 has no 64-bit arithmetic shift).
+    let scale = f64::from_bits(k.to_bits().wrapping_add(1023u64.wrapping_sub(1 << 51)) << 52);
+    p * scale
 }
 
 /// x^p for an f32 x >= 0 and an exponent p > 0 (0^p = 0, 1^p = 1 exactly,

@@ -1,7 +1,7 @@
 //! Recovery of the radiance with the artifact clamp (SPEC 7) and the
 //! per-channel display stretch (SPEC 8).
 
-use crate::fastmath::pow_pos;
+use crate::fastmath::{exp2_clamped, log2_pos};
 use crate::image::ImageRef;
 use crate::util::{channel_percentiles, masked_min_max, ChannelStretch, Normalize};
 use crate::water::WaterType;
@@ -51,11 +51,12 @@ impl Recovery {
     /// (t_R, t_G, t_B) from a clamped t_B: t_c = clamp(t_B^(1/beta_Bc), 0.1, 1).
     #[inline(always)]
     pub fn channel_t(&self, tb: f32) -> [f32; 3] {
-        [
-            pow_pos(tb, self.inv_beta[0]).clamp(T_FLOOR, 1.0),
-            pow_pos(tb, self.inv_beta[1]).clamp(T_FLOOR, 1.0),
-            tb,
-        ]
+        // t_B^(1/beta) = 2^(log2(t_B) / beta): one log2 for both channels
+        // (the values of fastmath::pow_pos for t_B in (0, 1]: t_B >=
+        // 0.1^beta_BR > 0, and 1 gives 1 exactly)
+        let l = log2_pos(f64::from(tb));
+        let pw = |ib: f64| exp2_clamped(ib * l) as f32;
+        [pw(self.inv_beta[0]).clamp(T_FLOOR, 1.0), pw(self.inv_beta[1]).clamp(T_FLOOR, 1.0), tb]
     }
 
     /// J_c = A_c + (I_c - A_c) / t_c before the artifact clamp.

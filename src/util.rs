@@ -55,11 +55,11 @@ where
         let [b0, b1, b2] = b;
         match mask.and_then(|m| m.get(start..end)) {
             None => {
-                for &[r, g, bl] in px.as_chunks::<3>().0 {
-                    b0.push(f32_key(r));
-                    b1.push(f32_key(g));
-                    b2.push(f32_key(bl));
-                }
+                // exact-size extends (no per-value capacity check)
+                let px = px.as_chunks::<3>().0;
+                b0.extend(px.iter().map(|p| f32_key(p[0])));
+                b1.extend(px.iter().map(|p| f32_key(p[1])));
+                b2.extend(px.iter().map(|p| f32_key(p[2])));
             }
             Some(m) => {
                 for (&[r, g, bl], _) in px.as_chunks::<3>().0.iter().zip(m).filter(|(_, &k)| k) {
