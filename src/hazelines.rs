@@ -82,28 +82,43 @@ impl HazeType {
 /// x86-64 and for AVX2, picked at run time; the same bits either way
 /// (plain IEEE operations, [`crate::fastmath`]).
 /// Also each v's lookup cell in `index` ([`SphereIndex::cell`]).
-#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-pub fn compensate_row(ht: &HazeType, index: &SphereIndex, px: &[[f32; 3]], out: &mut [Compensated]) {
-    for (p, o) in px.iter().zip(out.iter_mut()) {
-        let v = ht.compensated(*p);
-        o.v = v;
-        o.r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        o.lb = ht.lower_bound(v);
-        o.cell = index.cell(&v);
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
+pub fn compensate_row(ht: &HazeType, index: &SphereIndex, px: &[[f32; 3]], out: &mut CompensatedRow) {
+    let CompensatedRow { v, r, lb, cell } = out;
+    for ((((p, v), r), lb), cell) in px.iter().zip(v.iter_mut()).zip(r.iter_mut()).zip(lb.iter_mut()).zip(cell.iter_mut()) {
+        let c = ht.compensated(*p);
+        *v = c;
+        *r = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+        *lb = ht.lower_bound(c);
+        *cell = index.cell(&c);
     }
 }
 
-/// What [`compensate_row`] gives for one pixel.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Compensated {
-    /// the compensated vector v (SPEC 4.1)
-    pub v: [f32; 3],
+/// What [`compensate_row`] gives for a row of pixels, one entry per pixel
+/// in each field (separate arrays, so that the lookups of
+/// [`SphereIndex::nearest_row`] read only what they need).
+#[derive(Debug, Clone, Default)]
+pub struct CompensatedRow {
+    /// the compensated vectors v (SPEC 4.1)
+    pub v: Vec<[f32; 3]>,
     /// |v|
-    pub r: f32,
+    pub r: Vec<f32>,
     /// t_LB (SPEC 5)
-    pub lb: f32,
+    pub lb: Vec<f32>,
     /// v's lookup cell
-    pub cell: u32,
+    pub cell: Vec<u32>,
+}
+
+impl CompensatedRow {
+    /// Buffers for rows of `w` pixels.
+    pub fn new(w: usize) -> Self {
+        Self {
+            v: vec![[0.0; 3]; w],
+            r: vec![0.0; w],
+            lb: vec![0.0; w],
+            cell: vec![0; w],
+        }
+    }
 }
 
 /// Rows per work item of the per-pixel passes.
@@ -133,27 +148,29 @@ pub fn haze_pass(
             let mut m = vec![0f32; k];
             // per row: first the compensated vectors, radii and lower
             // bounds (a SIMD kernel), then the cluster lookups
-            let mut cs = vec![Compensated::default(); w];
+            let mut cs = CompensatedRow::new(w);
+            let mut ks = vec![0u32; w];
             for (y, ((rr, aa), px)) in rr.chunks_mut(w).zip(aa.chunks_mut(w)).zip(px.chunks(3 * w)).enumerate() {
                 compensate_row(ht, index, px.as_chunks::<3>().0, &mut cs);
+                // the direction of v: no need to normalise it (SphereIndex::nearest)
+                index.nearest_row(&cs.cell, &cs.v, &mut ks);
                 let row0 = ci * chunk + y * w;
                 let mrow = mask.and_then(|mk| mk.get(row0..row0 + w));
-                for (x, ((r, a), c)) in rr.iter_mut().zip(aa.iter_mut()).zip(&cs).enumerate() {
+                let pix = cs.r.iter().zip(&cs.lb).zip(&ks);
+                for (x, ((r, a), ((&cr, &lb), &k))) in rr.iter_mut().zip(aa.iter_mut()).zip(pix).enumerate() {
                     let inside = match mask {
                         None => true,
                         Some(_) => mrow.and_then(|mk| mk.get(x)).copied().unwrap_or(false),
                     };
                     let mut cl = NO_CLUSTER;
-                    if inside && c.r > 0.0 && c.r.is_finite() {
-                        // the direction of v: no need to normalise it (SphereIndex::nearest)
-                        let k = index.nearest_in_cell(c.cell, &c.v);
-                        if let Some(slot) = m.get_mut(k) {
-                            *slot = slot.max(c.r);
+                    if inside && cr > 0.0 && cr.is_finite() {
+                        if let Some(slot) = m.get_mut(k as usize) {
+                            *slot = slot.max(cr);
                         }
                         cl = k as f32;
                     }
-                    *r = if inside { c.r } else { 0.0 };
-                    *a = [c.lb, cl, 0.0, 0.0];
+                    *r = if inside { cr } else { 0.0 };
+                    *a = [lb, cl, 0.0, 0.0];
                 }
             }
             m
@@ -257,15 +274,18 @@ mod tests {
         let idx = SphereIndex::new(500).unwrap();
         for name in ["I", "III", "3C", "9C"] {
             let ht = HazeType::new([0.2, 0.3, 0.4], &WaterType::by_name(name).unwrap());
-            let mut out = vec![Compensated::default(); px.len()];
+            let mut out = CompensatedRow::new(px.len());
             compensate_row(&ht, &idx, &px, &mut out);
-            for (p, o) in px.iter().zip(&out) {
+            let mut ks = vec![0u32; px.len()];
+            idx.nearest_row(&out.cell, &out.v, &mut ks);
+            for (i, p) in px.iter().enumerate() {
                 let v = ht.compensated(*p);
-                assert_eq!(o.v.map(f32::to_bits), v.map(f32::to_bits), "{p:?}");
-                assert_eq!(o.r.to_bits(), (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().to_bits());
-                assert_eq!(o.lb.to_bits(), ht.lower_bound(v).to_bits());
-                if o.r > 0.0 {
-                    assert_eq!(idx.nearest_in_cell(o.cell, &o.v), idx.nearest(&v));
+                assert_eq!(out.v[i].map(f32::to_bits), v.map(f32::to_bits), "{p:?}");
+                assert_eq!(out.r[i].to_bits(), (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().to_bits());
+                assert_eq!(out.lb[i].to_bits(), ht.lower_bound(v).to_bits());
+                if out.r[i] > 0.0 {
+                    assert_eq!(idx.nearest_in_cell(out.cell[i], &out.v[i]), idx.nearest(&v));
+                    assert_eq!(ks[i] as usize, idx.nearest(&v));
                 }
             }
         }

@@ -73,6 +73,71 @@ struct DirectionGrid {
     points: Vec<[f32; 3]>,
     /// mean length of the unpadded lists
     mean: f64,
+    /// the same lists in fixed-size tables when each fits one group
+    quad: Option<QuadTable>,
+}
+
+/// Cells a [`QuadTable`] holds (6 x 64 x 64 = 24576 fit).
+const QUAD_CELLS: usize = 32_768;
+/// Points a [`QuadTable`] holds: every u16 index.
+const QUAD_POINTS: usize = 65_536;
+
+/// The candidate lists of a grid whose every list fits one group of four,
+/// in tables of fixed size indexed by masked values: no index can be out
+/// of bounds, so a row of lookups compiles to gathers without branches
+/// (see [`SphereIndex::nearest_row`]).
+pub struct QuadTable {
+    cands: Box<[[u16; 4]; QUAD_CELLS]>,
+    points: Box<[[f32; 3]; QUAD_POINTS]>,
+}
+
+impl QuadTable {
+    fn new(cands: &[[u16; 4]], points: &[[f32; 3]]) -> Option<Self> {
+        if cands.len() > QUAD_CELLS || points.len() > QUAD_POINTS {
+            return None;
+        }
+        let mut c = vec![[0u16; 4]; QUAD_CELLS];
+        c.iter_mut().zip(cands).for_each(|(d, s)| *d = *s);
+        let mut p = vec![[f32::NAN; 3]; QUAD_POINTS];
+        p.iter_mut().zip(points).for_each(|(d, s)| *d = *s);
+        Some(Self {
+            cands: c.into_boxed_slice().try_into().ok()?,
+            points: p.into_boxed_slice().try_into().ok()?,
+        })
+    }
+
+    /// [`DirectionGrid::nearest_in`] for a one-group list: the first
+    /// largest dot product of the four candidates (the same tournament,
+    /// the same answer).
+    #[inline(always)]
+    fn nearest(&self, cell: u32, v: &[f32; 3]) -> u32 {
+        let q = self.cands.get(cell as usize % QUAD_CELLS).copied().unwrap_or([0; 4]);
+        let dot = |c: u16| {
+            let p = self.points.get(c as usize).copied().unwrap_or([f32::NAN; 3]);
+            p[0] * v[0] + p[1] * v[1] + p[2] * v[2]
+        };
+        let [c0, c1, c2, c3] = q;
+        let (d0, d1, d2, d3) = (dot(c0), dot(c1), dot(c2), dot(c3));
+        let (da, ka) = if d1 > d0 { (d1, c1) } else { (d0, c0) };
+        let (db, kb) = if d3 > d2 { (d3, c3) } else { (d2, c2) };
+        let (dq, kq) = if db > da { (db, kb) } else { (da, ka) };
+        if dq > f32::NEG_INFINITY {
+            u32::from(kq)
+        } else {
+            0
+        }
+    }
+}
+
+/// The nearest point for each (cell, v) of a row with a [`QuadTable`].
+/// Compiled for AVX-512 (where gathers are fast and the loop vectorizes),
+/// AVX2 and baseline x86-64, picked at run time; integer answers, the same
+/// on every path.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
+fn quad_row(t: &QuadTable, cells: &[u32], vs: &[[f32; 3]], out: &mut [u32]) {
+    for ((o, &c), v) in out.iter_mut().zip(cells).zip(vs) {
+        *o = t.nearest(c, v);
+    }
 }
 
 /// Face of the cube and gnomonic coordinates (s, t) in [-1, 1] of a direction.
@@ -193,6 +258,7 @@ impl DirectionGrid {
                 cands.push(std::array::from_fn(|_| it.next().unwrap_or(last)));
             }
         }
+        let quad = if quads == 1 { QuadTable::new(&cands, points) } else { None };
         Self {
             g,
             width,
@@ -200,6 +266,7 @@ impl DirectionGrid {
             cands,
             points: points.to_vec(),
             mean,
+            quad,
         }
     }
 
@@ -350,6 +417,20 @@ impl SphereIndex {
         }
     }
 
+    /// [`SphereIndex::nearest_in_cell`] for a row: `out[i]` = the nearest
+    /// point to `vs[i]` given its cell `cells[i]` (the same answers, in
+    /// vectorized gathers where the grid's lists fit one group).
+    pub fn nearest_row(&self, cells: &[u32], vs: &[[f32; 3]], out: &mut [u32]) {
+        match &self.lookup {
+            Lookup::Grid(DirectionGrid { quad: Some(t), .. }) => quad_row(t, cells, vs, out),
+            _ => {
+                for ((o, &c), v) in out.iter_mut().zip(cells).zip(vs) {
+                    *o = self.nearest_in_cell(c, v) as u32;
+                }
+            }
+        }
+    }
+
     /// Average number of candidates a grid query scans (None for the k-d tree).
     pub fn mean_candidates(&self) -> Option<f64> {
         match &self.lookup {
@@ -492,6 +573,27 @@ mod tests {
         }
         // the default size scans at most 4 candidates per query
         assert!(SphereIndex::new(500).unwrap().max_candidates() <= Some(4));
+    }
+
+    #[test]
+    fn row_lookups_equal_brute_force() {
+        // nearest_row: the fixed-table gathers (one group per cell, as at
+        // 500 points) and the general path (2000 points) give the
+        // brute-force answers on the hard queries, in rows of odd length
+        for n in [1usize, 37, 500, 2000] {
+            let idx = SphereIndex::new(n).unwrap();
+            let quad = matches!(&idx.lookup, Lookup::Grid(DirectionGrid { quad: Some(_), .. }));
+            assert_eq!(quad, idx.max_candidates() <= Some(4), "n={n}");
+            let qs = hard_queries(&idx, n as u64 + 7);
+            for row in qs.chunks(61) {
+                let cells: Vec<u32> = row.iter().map(|u| idx.cell(u)).collect();
+                let mut out = vec![u32::MAX; row.len()];
+                idx.nearest_row(&cells, row, &mut out);
+                for (u, &k) in row.iter().zip(&out) {
+                    assert_eq!(k as usize, brute(idx.points(), u), "n={n} u={u:?}");
+                }
+            }
+        }
     }
 
     #[test]
