@@ -384,7 +384,7 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
 /// is false; then t = max(0.9 t~, t_LB), blended with t_LB by the matting
 /// weight. Compiled for baseline x86-64 and for AVX2, picked at run time;
 /// the same bits either way (DECISIONS F6).
-#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 fn blend_row(p: &mut [f32], aux: &[[f32; 4]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
     let last = rm.len().saturating_sub(1);
     let tt = |v: f32, x: &[f32; 4]| -> f32 {
