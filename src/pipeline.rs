@@ -206,20 +206,22 @@ pub fn default_radius(h: usize, w: usize) -> usize {
 
 /// Working memory of [`restore`] in bytes beyond the input image, estimated
 /// up front from the image size (documented in the README):
-/// `H W (80 + 21 holes)` bytes, holes = the estimation mask has false pixels.
+/// `H W (88 + 17 holes)` bytes, holes = the estimation mask has false pixels.
 /// Per pixel: 12 B guide + 36 B guide statistics (window means and inverse
 /// covariances, f32) + 1 B water region, image-wide; 12 B (J, first the
 /// refined transmission) + 16 B (t_LB and cluster, then the guided
-/// filter's a, b) for the type being evaluated; 3 B for row buffers,
-/// order-statistics brackets and allocator slack (measured: 79.2 B per
-/// pixel at 12 MP). With masked-out pixels, 4 B for the filtered plane
-/// and 17 B for the fill of SPEC 4.5. The outputs (29 B per pixel) are
-/// allocated after the per-type buffers and the guide statistics are
-/// freed. [`Selection::Fast`] scores its copy before the full-size
-/// buffers exist (the estimate adds the copy's share anyway).
+/// filter's a, b) + 4 B (the filtered plane q) for the type being
+/// evaluated; 4 B for the q kept of the best type so far (so that the
+/// chosen type is not filtered again); 3 B for row buffers,
+/// order-statistics brackets and allocator slack (measured: 87.9 B per
+/// pixel at 12 MP). With masked-out pixels, 17 B for the fill of SPEC
+/// 4.5. The outputs (29 B per pixel) are allocated after the per-type
+/// buffers and the guide statistics are freed. [`Selection::Fast`] scores
+/// its copy before the full-size buffers exist (the estimate adds the
+/// copy's share anyway).
 pub fn memory_estimate(h: usize, w: usize, holes: bool) -> u64 {
     let n = (h as u64).saturating_mul(w as u64);
-    let per_px = 80 + if holes { 21 } else { 0 };
+    let per_px = 88 + if holes { 17 } else { 0 };
     n.saturating_mul(per_px)
 }
 
@@ -536,16 +538,18 @@ struct Work {
     j: Vec<f32>,
     /// t_LB and cluster per pixel (SPEC 4-5), then the guided filter's (a, b)
     aux: Vec<[f32; 4]>,
-    /// the filtered plane q (only with masked-out pixels, for the chart fill)
+    /// the filtered plane q after the chart fill (SPEC 6): what the
+    /// recovery reads, kept so that the chosen type need not be filtered
+    /// again ([`Shared::score`])
     q: Vec<f32>,
 }
 
 impl Work {
-    fn new(n: usize, holes: bool) -> Self {
+    fn new(n: usize) -> Self {
         Self {
             j: vec![0.0; 3 * n],
             aux: vec![[0.0; 4]; n],
-            q: if holes { vec![0.0; n] } else { Vec::new() },
+            q: vec![0.0; n],
         }
     }
 }
@@ -641,10 +645,10 @@ impl Shared<'_> {
     fn recover(&self, wt: &WaterType, bounds: [f64; 4], work: &mut Work, tb: Option<&mut [f32]>) -> RowStats {
         let (h, w) = (self.img.height, self.img.width);
         let rec = Recovery::new(self.a, wt);
-        let Work { j, aux, q } = work;
         let mut rows = vec![RowStats::default(); h];
         let mut tb_buf = tb;
         if !self.holes {
+            let Work { j, aux, q } = &mut *work;
             let ranges = self.guide.ranges();
             let tbs: Vec<Option<&mut [f32]>> = match tb_buf.as_deref_mut() {
                 Some(b) => split_rows(b, w, &ranges).into_iter().map(Some).collect(),
@@ -654,21 +658,26 @@ impl Shared<'_> {
                 .iter()
                 .cloned()
                 .zip(split_rows(j, 3 * w, &ranges).into_iter().zip(tbs).zip(split_rows(&mut rows, 1, &ranges)))
-                .map(|(r, ((jj, tt), rr))| (r.clone(), (r.start, jj, tt, rr)))
+                .zip(split_rows(q, w, &ranges))
+                .map(|((r, ((jj, tt), rr)), qq)| (r.clone(), (r.start, jj, tt, rr, qq)))
                 .collect();
-            type State<'s> = (usize, &'s mut [f32], Option<&'s mut [f32]>, &'s mut [RowStats]);
+            type State<'s> = (usize, &'s mut [f32], Option<&'s mut [f32]>, &'s mut [RowStats], &'s mut [f32]);
             let sink = |o: &mut State<'_>, y: usize, qrow: &[f32]| {
                 let k = y - o.0;
                 let (Some(jr), Some(slot)) = (o.1.get_mut(3 * k * w..3 * (k + 1) * w), o.3.get_mut(k)) else {
                     return;
                 };
+                if let Some(d) = o.4.get_mut(k * w..(k + 1) * w) {
+                    d.copy_from_slice(qrow);
+                }
                 let tr = o.2.as_deref_mut().and_then(|b| b.get_mut(k * w..(k + 1) * w));
                 *slot = self.recover_row(&rec, y, qrow, jr, tr);
             };
             self.guide.apply_rows(aux, bounds, work, &sink);
         } else {
+            let Work { aux, q, .. } = &mut *work;
             let ranges = self.guide.ranges();
-            let work: Vec<_> = ranges
+            let bands: Vec<_> = ranges
                 .iter()
                 .cloned()
                 .zip(split_rows(q, w, &ranges))
@@ -680,21 +689,37 @@ impl Shared<'_> {
                     d.copy_from_slice(qrow);
                 }
             };
-            self.guide.apply_rows(aux, bounds, work, &sink);
+            self.guide.apply_rows(aux, bounds, bands, &sink);
             if let Some(m) = self.mask {
                 chart_fill(q, m, h, w);
             }
-            let tbs: Vec<Option<&mut [f32]>> = match tb_buf {
-                Some(b) => b.chunks_mut(w).map(Some).collect(),
-                None => (0..h).map(|_| None).collect(),
-            };
-            rows.par_iter_mut()
-                .zip(j.par_chunks_mut(3 * w))
-                .zip(q.par_chunks(w))
-                .zip(tbs)
-                .enumerate()
-                .for_each(|(y, (((slot, jr), qr), tr))| *slot = self.recover_row(&rec, y, qr, jr, tr));
+            return self.recover_from_q(wt, work, tb_buf);
         }
+        rows.iter().fold(RowStats::default(), |mut acc, r| {
+            acc.add(r);
+            acc
+        })
+    }
+
+    /// The recovery (SPEC 7) from the filtered plane in `work.q` into
+    /// `work.j` (and t_B into `tb` if given), with the statistics of all
+    /// rows combined in row order: what [`Shared::recover`] gives for the
+    /// q it stored.
+    fn recover_from_q(&self, wt: &WaterType, work: &mut Work, tb: Option<&mut [f32]>) -> RowStats {
+        let (h, w) = (self.img.height, self.img.width);
+        let rec = Recovery::new(self.a, wt);
+        let Work { j, q, .. } = work;
+        let mut rows = vec![RowStats::default(); h];
+        let tbs: Vec<Option<&mut [f32]>> = match tb {
+            Some(b) => b.chunks_mut(w).map(Some).collect(),
+            None => (0..h).map(|_| None).collect(),
+        };
+        rows.par_iter_mut()
+            .zip(j.par_chunks_mut(3 * w))
+            .zip(q.par_chunks(w))
+            .zip(tbs)
+            .enumerate()
+            .for_each(|(y, (((slot, jr), qr), tr))| *slot = self.recover_row(&rec, y, qr, jr, tr));
         rows.iter().fold(RowStats::default(), |mut acc, r| {
             acc.add(r);
             acc
@@ -763,6 +788,34 @@ impl Shared<'_> {
         sums.channels = self.channel_sums(&work.j, Some(&sp));
         sums.stats()
     }
+
+    /// The selection statistics of each type in `types` (in order), and the
+    /// filtered plane q of the one that [`choose`] picks among them, when
+    /// it is known: after each type, only the winner of the types scored
+    /// so far can still win (a later type can only make the exclusion
+    /// threshold stricter, or win itself; whether t_R differences exist
+    /// does not depend on the type), so only its plane is kept.
+    fn score(&self, types: &[&WaterType], work: &mut Work) -> (Vec<TypeStats>, Option<Kept>) {
+        let mut stats = Vec::with_capacity(types.len());
+        let mut kept: Option<Kept> = None;
+        for (i, wt) in types.iter().enumerate() {
+            stats.push(self.evaluate(wt, work));
+            if choose(&stats).winner == i {
+                let spare = kept.take().map_or_else(|| vec![0.0; work.q.len()], |k| k.q);
+                kept = Some(Kept {
+                    index: i,
+                    q: std::mem::replace(&mut work.q, spare),
+                });
+            }
+        }
+        (stats, kept)
+    }
+}
+
+/// The filtered plane q of a scored type (its index among the scored ones).
+struct Kept {
+    index: usize,
+    q: Vec<f32>,
 }
 
 /// Splits a buffer of `row_len` items per row at the row ranges.
@@ -780,15 +833,32 @@ struct Final {
 
 /// Restores the image with one water type (SPEC 4-8): the outputs and the
 /// type's selection statistics, identical to what the evaluation gave.
-fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, clock: &mut Clock) -> Final {
+/// With `q`, the type's filtered plane kept from its scoring, only the
+/// recovery is run again.
+fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, q: Option<Vec<f32>>, clock: &mut Clock) -> Final {
     let n = shared.img.len();
-    let bounds = shared.refine(wt, &mut work);
-    clock.lap("chosen: haze-lines, bounds, guided filter pass 1");
-    // the guide statistics serve only the first pass
-    shared.guide.release_stats();
-    let mut transmission = vec![0f32; n];
-    let st = shared.recover(wt, bounds, &mut work, Some(&mut transmission));
-    clock.lap("chosen: guided filter pass 2, recovery");
+    let st = match q {
+        Some(q) if q.len() == n => {
+            shared.guide.release_stats();
+            drop(std::mem::take(&mut work.aux));
+            work.q = q;
+            let mut transmission = vec![0f32; n];
+            let st = shared.recover_from_q(wt, &mut work, Some(&mut transmission));
+            clock.lap("chosen: recovery from the kept filtered plane");
+            (st, transmission)
+        }
+        _ => {
+            let bounds = shared.refine(wt, &mut work);
+            clock.lap("chosen: haze-lines, bounds, guided filter pass 1");
+            // the guide statistics serve only the first pass
+            shared.guide.release_stats();
+            let mut transmission = vec![0f32; n];
+            let st = shared.recover(wt, bounds, &mut work, Some(&mut transmission));
+            clock.lap("chosen: guided filter pass 2, recovery");
+            (st, transmission)
+        }
+    };
+    let (st, transmission) = st;
     let sp = shared.stretch(&work.j, &st);
     clock.lap("chosen: display stretch limits");
     drop(std::mem::take(&mut work.aux));
@@ -1002,7 +1072,7 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
             index: &index,
             holes: small.mask.as_ref().is_some_and(|m| m.iter().any(|&b| !b)),
         };
-        let mut work = Work::new(simg.len(), sh.holes);
+        let mut work = Work::new(simg.len());
         let stats = types.iter().map(|wt| sh.evaluate(wt, &mut work)).collect();
         clock.lap("fast: scoring on the copy");
         Some(stats)
@@ -1022,9 +1092,10 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         index: &index,
         holes,
     };
-    let mut work = Work::new(img.len(), holes);
+    let mut work = Work::new(img.len());
     clock.lap("work buffers");
     // SPEC 9: which types are scored at full resolution, and the choice
+    let mut kept: Option<Kept> = None;
     let mut sel = match copy {
         Some(copy) => {
             let c = choose(&copy);
@@ -1037,11 +1108,11 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
             let mut stats = copy;
             let mut excluded = c.excluded;
             let (winner, relaxed) = if order.len() > 1 {
-                let full: Vec<TypeStats> = order
-                    .iter()
-                    .filter_map(|&i| types.get(i).map(|wt| shared.evaluate(wt, &mut work)))
-                    .collect();
+                let picked: Vec<&WaterType> = order.iter().filter_map(|&i| types.get(i)).collect();
+                let (full, k) = shared.score(&picked, &mut work);
                 let sub = choose(&full);
+                // the kept plane, by its index among all the types
+                kept = k.and_then(|k| order.get(k.index).map(|&i| Kept { index: i, q: k.q }));
                 for ((&i, st), ex) in order.iter().zip(&full).zip(&sub.excluded) {
                     if let (Some(d), Some(e)) = (stats.get_mut(i), excluded.get_mut(i)) {
                         *d = *st;
@@ -1055,7 +1126,9 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
             Some((stats, Choice { winner, excluded, relaxed, threshold: None }))
         }
         None if types.len() >= 2 => {
-            let stats: Vec<TypeStats> = types.iter().map(|wt| shared.evaluate(wt, &mut work)).collect();
+            let all: Vec<&WaterType> = types.iter().collect();
+            let (stats, k) = shared.score(&all, &mut work);
+            kept = k;
             let ch = choose(&stats);
             Some((stats, ch))
         }
@@ -1067,7 +1140,9 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         .get(winner)
         .ok_or_else(|| Error::Internal("winner out of range".into()))?
         .clone();
-    let out = finish(shared, &wt, work, &mut clock);
+    // the winner's filtered plane, when its scoring kept it
+    let q = kept.filter(|k| k.index == winner).map(|k| k.q);
+    let out = finish(shared, &wt, work, q, &mut clock);
     let (stats, choice) = match sel.take() {
         Some((mut stats, choice)) => {
             // the chosen type's full-resolution statistics (what the copy

@@ -364,6 +364,25 @@ def test_water_mask_covering_everything_is_an_error():
 # ---------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("holes", [False, True])
+def test_chosen_type_restored_from_its_scoring_equals_a_fresh_restoration(scene, holes):
+    """The exhaustive mode keeps the winning type's filtered plane from its
+    scoring and only re-runs the recovery; every output and the winner's
+    score must be bit-identical to restoring with that one type from
+    scratch (with masked-out pixels: the chart-fill path)."""
+    img = scene[0]
+    mask = None
+    if holes:
+        mask = np.ones(img.shape[:2], bool)
+        mask[20:30, 30:45] = False
+    full = uwhl_rs.restore(img, mask=mask)
+    one = uwhl_rs.restore(img, mask=mask, water_types=[full.water_type])
+    for field in ("image", "radiance", "transmission", "veiling_mask"):
+        x, y = getattr(full, field), getattr(one, field)
+        assert np.array_equal(x.view(np.uint8), y.view(np.uint8)), field
+    assert full.scores[full.water_type].hex() == one.scores[full.water_type].hex()
+
+
 @pytest.mark.parametrize("water,seed", [("II", 3), ("III", 5), ("5C", 8)])
 def test_fast_selection_agrees_with_exhaustive(water, seed):
     """On rendered 540x1100 scenes (the copy is 270x550), selection="fast"
