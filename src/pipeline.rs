@@ -265,7 +265,7 @@ pub fn guide_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
 /// step 1) raised to 1/2.2 ([`crate::fastmath::pow_pos`]), 0 where `mask`
 /// is false. Compiled for baseline x86-64 and for AVX2, picked at run
 /// time; the same bits either way (DECISIONS F6).
-#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 fn guide_row(norm: &Normalize, st: &ChannelStretch, src: &[[f32; 3]], out: &mut [[f32; 3]], mask: Option<&[bool]>) {
     const L: usize = 24;
     let gamma = 1.0 / 2.2;
