@@ -267,35 +267,14 @@ pub fn guide_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
 /// time; the same bits either way (DECISIONS F6).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 fn guide_row(norm: &Normalize, st: &ChannelStretch, src: &[[f32; 3]], out: &mut [[f32; 3]], mask: Option<&[bool]>) {
-    const L: usize = 24;
     let gamma = 1.0 / 2.2;
-    // runs of 8 pixels, each of the 24 lanes with its channel's constants
-    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
-        let l = st.channel(c);
-        let (lo, inv) = l.unwrap_or((0.0, 1.0));
-        (lo, inv, l.is_some())
-    });
-    let lo: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0));
-    let inv: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1));
-    let on: [bool; L] = std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2));
     let map = |v: f32, lo: f64, inv: f64, on: bool| -> f32 {
         let x = norm.apply(v);
         let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
         crate::fastmath::pow_pos(if on { s } else { x }, gamma)
     };
-    let (sf, of) = (src.as_flattened(), out.as_flattened_mut());
-    let (sc, sr) = sf.as_chunks::<L>();
-    let (oc, or) = of.as_chunks_mut::<L>();
-    for (o, v) in oc.iter_mut().zip(sc) {
-        for k in 0..L {
-            if let (Some(d), Some(&x), Some(&l), Some(&i), Some(&f)) = (o.get_mut(k), v.get(k), lo.get(k), inv.get(k), on.get(k)) {
-                *d = map(x, l, i, f);
-            }
-        }
-    }
-    for (k, (d, &x)) in or.iter_mut().zip(sr).enumerate() {
-        *d = crate::fastmath::pow_pos(st.apply(k % 3, norm.apply(x)), gamma);
-    }
+    let tail = |c: usize, x: f32| crate::fastmath::pow_pos(st.apply(c, norm.apply(x)), gamma);
+    map_lanes(st, src, out, map, tail);
     if let Some(m) = mask {
         for (o, &k) in out.iter_mut().zip(m) {
             if !k {
@@ -425,15 +404,6 @@ fn blend_row(p: &mut [f32], aux: &[[f32; 4]], px: &[[f32; 3]], rm: &[f32], matti
 /// the interleaved channels.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn stretch_row(sp: &Stretch, j: &[[f32; 3]], out: &mut [[f32; 3]]) {
-    const L: usize = 24;
-    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
-        let l = sp.limits.channel(c);
-        let (lo, inv) = l.unwrap_or((0.0, 1.0));
-        (lo, inv, l.is_some())
-    });
-    let lo: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0));
-    let inv: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1));
-    let on: [bool; L] = std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2));
     let map = |v: f32, lo: f64, inv: f64, on: bool| -> f32 {
         let x = sp.norm.apply(sp.clamp.apply(v));
         let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
@@ -443,18 +413,41 @@ fn stretch_row(sp: &Stretch, j: &[[f32; 3]], out: &mut [[f32; 3]]) {
             x
         }
     };
-    let (jf, of) = (j.as_flattened(), out.as_flattened_mut());
-    let (jc, jr) = jf.as_chunks::<L>();
+    map_lanes(&sp.limits, j, out, map, |c, x| sp.apply(c, x));
+}
+
+/// The loop of [`stretch_row`] and [`guide_row`]: runs of 8 pixels whose
+/// 24 values each get their channel's stretch constants (lo, 1/(hi - lo),
+/// stretched or not) in the same lane, `map(value, lo, inv, on)` on each,
+/// and `tail(channel, value)` on the pixels left over. Inlined into each
+/// caller's builds.
+#[inline(always)]
+fn map_lanes<M, T>(st: &ChannelStretch, src: &[[f32; 3]], out: &mut [[f32; 3]], map: M, tail: T)
+where
+    M: Fn(f32, f64, f64, bool) -> f32,
+    T: Fn(usize, f32) -> f32,
+{
+    const L: usize = 24;
+    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
+        let l = st.channel(c);
+        let (lo, inv) = l.unwrap_or((0.0, 1.0));
+        (lo, inv, l.is_some())
+    });
+    let lo: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0));
+    let inv: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1));
+    let on: [bool; L] = std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2));
+    let (sf, of) = (src.as_flattened(), out.as_flattened_mut());
+    let (sc, sr) = sf.as_chunks::<L>();
     let (oc, or) = of.as_chunks_mut::<L>();
-    for (o, v) in oc.iter_mut().zip(jc) {
+    for (o, v) in oc.iter_mut().zip(sc) {
         for k in 0..L {
             if let (Some(d), Some(&x), Some(&l), Some(&i), Some(&f)) = (o.get_mut(k), v.get(k), lo.get(k), inv.get(k), on.get(k)) {
                 *d = map(x, l, i, f);
             }
         }
     }
-    for (k, (d, &x)) in or.iter_mut().zip(jr).enumerate() {
-        *d = sp.apply(k % 3, x);
+    for (k, (d, &x)) in or.iter_mut().zip(sr).enumerate() {
+        *d = tail(k % 3, x);
     }
 }
 
