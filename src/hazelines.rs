@@ -79,8 +79,8 @@ impl HazeType {
 
 /// For one row of pixels: the compensated vectors v (SPEC 4.1), their
 /// radii |v| and the lower bounds t_LB (SPEC 5). Compiled for baseline
-/// x86-64 and for AVX2, picked at run time; the same bits either way
-/// (plain IEEE operations, [`crate::fastmath`]).
+/// x86-64, AVX2 and AVX-512 (DECISIONS F7), picked at run time; the same
+/// bits on each (plain IEEE operations, [`crate::fastmath`]).
 /// Also each v's lookup cell in `index` ([`SphereIndex::cell`]).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 pub fn compensate_row(ht: &HazeType, index: &SphereIndex, px: &[[f32; 3]], out: &mut CompensatedRow) {

@@ -263,8 +263,8 @@ pub fn guide_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
 
 /// The guide of SPEC 6 for a run of pixels: the stretched input (SPEC 3
 /// step 1) raised to 1/2.2 ([`crate::fastmath::pow_pos`]), 0 where `mask`
-/// is false. Compiled for baseline x86-64 and for AVX2, picked at run
-/// time; the same bits either way (DECISIONS F6).
+/// is false. Compiled for baseline x86-64, AVX2 and AVX-512, picked at
+/// run time; the same bits on each (DECISIONS F6, F7).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 fn guide_row(norm: &Normalize, st: &ChannelStretch, src: &[[f32; 3]], out: &mut [[f32; 3]], mask: Option<&[bool]>) {
     let gamma = 1.0 / 2.2;
@@ -363,8 +363,8 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
 /// radius in `p` and the cluster in `aux` (`rm`: r_max by cluster + 1,
 /// entry 0 for "no cluster", t~ = 1), or t~ as given in `p` when `tilde`
 /// is false; then t = max(0.9 t~, t_LB), blended with t_LB by the matting
-/// weight. Compiled for baseline x86-64 and for AVX2, picked at run time;
-/// the same bits either way (DECISIONS F6).
+/// weight. Compiled for baseline x86-64, AVX2 and AVX-512, picked at run
+/// time; the same bits on each (DECISIONS F6, F7).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 fn blend_row(p: &mut [f32], aux: &[[f32; 4]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
     let last = rm.len().saturating_sub(1);

@@ -116,16 +116,28 @@ impl QuadTable {
             let p = self.points.get(c as usize).copied().unwrap_or([f32::NAN; 3]);
             p[0] * v[0] + p[1] * v[1] + p[2] * v[2]
         };
-        let [c0, c1, c2, c3] = q;
-        let (d0, d1, d2, d3) = (dot(c0), dot(c1), dot(c2), dot(c3));
-        let (da, ka) = if d1 > d0 { (d1, c1) } else { (d0, c0) };
-        let (db, kb) = if d3 > d2 { (d3, c3) } else { (d2, c2) };
-        let (dq, kq) = if db > da { (db, kb) } else { (da, ka) };
+        let (dq, kq) = tournament(q, dot);
         if dq > f32::NEG_INFINITY {
             u32::from(kq)
         } else {
             0
         }
+    }
+}
+
+/// The largest of four candidates' dot products and its candidate, the
+/// first on ties: 0 vs 1 and 2 vs 3, then the winners (independent
+/// comparisons instead of a chain of four).
+#[inline(always)]
+fn tournament(q: [u16; 4], dot: impl Fn(u16) -> f32) -> (f32, u16) {
+    let [c0, c1, c2, c3] = q;
+    let (d0, d1, d2, d3) = (dot(c0), dot(c1), dot(c2), dot(c3));
+    let (da, ka) = if d1 > d0 { (d1, c1) } else { (d0, c0) };
+    let (db, kb) = if d3 > d2 { (d3, c3) } else { (d2, c2) };
+    if db > da {
+        (db, kb)
+    } else {
+        (da, ka)
     }
 }
 
@@ -304,11 +316,7 @@ impl DirectionGrid {
         // independent instead of chaining four compare-and-selects.
         let (mut best, mut k) = (f32::NEG_INFINITY, 0u16);
         for q in run {
-            let [c0, c1, c2, c3] = *q;
-            let (d0, d1, d2, d3) = (dot(c0), dot(c1), dot(c2), dot(c3));
-            let (da, ka) = if d1 > d0 { (d1, c1) } else { (d0, c0) };
-            let (db, kb) = if d3 > d2 { (d3, c3) } else { (d2, c2) };
-            let (dq, kq) = if db > da { (db, kb) } else { (da, ka) };
+            let (dq, kq) = tournament(*q, dot);
             if dq > best {
                 best = dq;
                 k = kq;
