@@ -637,10 +637,10 @@ impl Shared<'_> {
     /// returns the statistics of all rows combined in row order.
     fn recover(&self, wt: &WaterType, bounds: [f64; 4], work: &mut Work, tb: Option<&mut [f32]>) -> RowStats {
         let (h, w) = (self.img.height, self.img.width);
-        let rec = Recovery::new(self.a, wt);
-        let mut rows = vec![RowStats::default(); h];
         let mut tb_buf = tb;
         if !self.holes {
+            let rec = Recovery::new(self.a, wt);
+            let mut rows = vec![RowStats::default(); h];
             let Work { j, aux, q } = &mut *work;
             let ranges = self.guide.ranges();
             let tbs: Vec<Option<&mut [f32]>> = match tb_buf.as_deref_mut() {
@@ -667,6 +667,7 @@ impl Shared<'_> {
                 *slot = self.recover_row(&rec, y, qrow, jr, tr);
             };
             self.guide.apply_rows(aux, bounds, work, &sink);
+            combine(&rows)
         } else {
             let Work { aux, q, .. } = &mut *work;
             let ranges = self.guide.ranges();
@@ -686,12 +687,8 @@ impl Shared<'_> {
             if let Some(m) = self.mask {
                 chart_fill(q, m, h, w);
             }
-            return self.recover_from_q(wt, work, tb_buf);
+            self.recover_from_q(wt, work, tb_buf)
         }
-        rows.iter().fold(RowStats::default(), |mut acc, r| {
-            acc.add(r);
-            acc
-        })
     }
 
     /// The recovery (SPEC 7) from the filtered plane in `work.q` into
@@ -713,10 +710,7 @@ impl Shared<'_> {
             .zip(tbs)
             .enumerate()
             .for_each(|(y, (((slot, jr), qr), tr))| *slot = self.recover_row(&rec, y, qr, jr, tr));
-        rows.iter().fold(RowStats::default(), |mut acc, r| {
-            acc.add(r);
-            acc
-        })
+        combine(&rows)
     }
 
     /// The artifact clamp and display stretch of a recovered J (SPEC 7-8),
@@ -805,6 +799,15 @@ impl Shared<'_> {
     }
 }
 
+/// The statistics of all rows combined in row order (the same for any
+/// thread count).
+fn combine(rows: &[RowStats]) -> RowStats {
+    rows.iter().fold(RowStats::default(), |mut acc, r| {
+        acc.add(r);
+        acc
+    })
+}
+
 /// The filtered plane q of a scored type (its index among the scored ones).
 struct Kept {
     index: usize,
@@ -830,7 +833,7 @@ struct Final {
 /// recovery is run again.
 fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, q: Option<Vec<f32>>, clock: &mut Clock) -> Final {
     let n = shared.img.len();
-    let st = match q {
+    let (st, transmission) = match q {
         Some(q) if q.len() == n => {
             shared.guide.release_stats();
             drop(std::mem::take(&mut work.aux));
@@ -851,7 +854,6 @@ fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, q: Option<Vec<
             (st, transmission)
         }
     };
-    let (st, transmission) = st;
     let sp = shared.stretch(&work.j, &st);
     clock.lap("chosen: display stretch limits");
     drop(std::mem::take(&mut work.aux));
