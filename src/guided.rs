@@ -99,7 +99,6 @@ fn products_row(row: &mut [[f64; 4]], p: &[f32], guide: &[[f32; 3]]) {
 /// b = mean_p - a . mean_I; `maxes` gathers max |.| of each of the four.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn ab_from_means(out: &mut [[f32; 4]], means: &[[f64; 4]], stats: &[[f32; 9]], maxes: &mut [f64; 4]) {
-    let mut mx = [0f32; 4];
     for ((d, m), s) in out.iter_mut().zip(means).zip(stats) {
         let [mp, mr, mg, mb] = *m;
         let [u0, u1, u2, i0, i1, i2, i3, i4, i5] = s.map(f64::from);
@@ -109,12 +108,27 @@ fn ab_from_means(out: &mut [[f32; 4]], means: &[[f64; 4]], stats: &[[f32; 9]], m
         let az = i2 * c[0] + i4 * c[1] + i5 * c[2];
         let b = mp - ax * u0 - ay * u1 - az * u2;
         *d = [ax as f32, ay as f32, az as f32, b as f32];
-        for (x, v) in mx.iter_mut().zip(d.iter()) {
+    }
+    // max |.| per component in separate lanes (a max is exact in any
+    // order; one running max would serialise the loop above)
+    let mut mx = [[0f32; 4]; 4];
+    let (chunks, rest) = out.as_chunks::<4>();
+    for c in chunks {
+        for (l, d) in mx.iter_mut().zip(c) {
+            for (x, v) in l.iter_mut().zip(d) {
+                *x = x.max(v.abs());
+            }
+        }
+    }
+    for d in rest {
+        for (x, v) in mx[0].iter_mut().zip(d) {
             *x = x.max(v.abs());
         }
     }
-    for (x, v) in maxes.iter_mut().zip(mx) {
-        *x = x.max(f64::from(v));
+    for l in &mx {
+        for (x, v) in maxes.iter_mut().zip(l) {
+            *x = x.max(f64::from(*v));
+        }
     }
 }
 

@@ -126,15 +126,15 @@ pub const CHUNK_ROWS: usize = 8;
 
 /// First pass of SPEC 4 (and the lower bound of SPEC 5) over all pixels:
 /// `r_out[i]` = |v| (0 for masked-out pixels), `aux[i]` = (t_LB, cluster
-/// as f32 or -1 for none, 0, 0). Returns r_max per cluster (max is exact
-/// and order-free: the same for any split).
+/// as f32 or -1 for none). Returns r_max per cluster (max is exact and
+/// order-free: the same for any split).
 pub fn haze_pass(
     img: &ImageRef,
     ht: &HazeType,
     index: &SphereIndex,
     mask: Option<&[bool]>,
     r_out: &mut [f32],
-    aux: &mut [[f32; 4]],
+    aux: &mut [[f32; 2]],
 ) -> Vec<f32> {
     let w = img.width;
     let k = index.len();
@@ -150,27 +150,26 @@ pub fn haze_pass(
             // bounds (a SIMD kernel), then the cluster lookups
             let mut cs = CompensatedRow::new(w);
             let mut ks = vec![0u32; w];
+            let all = vec![true; w];
             for (y, ((rr, aa), px)) in rr.chunks_mut(w).zip(aa.chunks_mut(w)).zip(px.chunks(3 * w)).enumerate() {
                 compensate_row(ht, index, px.as_chunks::<3>().0, &mut cs);
                 // the direction of v: no need to normalise it (SphereIndex::nearest)
                 index.nearest_row(&cs.cell, &cs.v, &mut ks);
                 let row0 = ci * chunk + y * w;
-                let mrow = mask.and_then(|mk| mk.get(row0..row0 + w));
-                let pix = cs.r.iter().zip(&cs.lb).zip(&ks);
-                for (x, ((r, a), ((&cr, &lb), &k))) in rr.iter_mut().zip(aa.iter_mut()).zip(pix).enumerate() {
-                    let inside = match mask {
-                        None => true,
-                        Some(_) => mrow.and_then(|mk| mk.get(x)).copied().unwrap_or(false),
-                    };
-                    let mut cl = NO_CLUSTER;
-                    if inside && cr > 0.0 && cr.is_finite() {
-                        if let Some(slot) = m.get_mut(k as usize) {
+                let inside = match mask {
+                    None => &all[..],
+                    Some(mk) => mk.get(row0..row0 + w).unwrap_or(&[]),
+                };
+                let pix = cs.r.iter().zip(&cs.lb).zip(&ks).zip(inside);
+                for ((r, a), (((&cr, &lb), &kc), &ins)) in rr.iter_mut().zip(aa.iter_mut()).zip(pix) {
+                    let ok = ins && cr > 0.0 && cr.is_finite();
+                    if ok {
+                        if let Some(slot) = m.get_mut(kc as usize) {
                             *slot = slot.max(cr);
                         }
-                        cl = k as f32;
                     }
-                    *r = if inside { cr } else { 0.0 };
-                    *a = [lb, cl, 0.0, 0.0];
+                    *r = if ins { cr } else { 0.0 };
+                    *a = [lb, if ok { kc as f32 } else { NO_CLUSTER }];
                 }
             }
             m
@@ -209,7 +208,7 @@ pub fn initial_transmission(
 ) -> Vec<f32> {
     let n = img.len();
     let mut t = vec![0f32; n];
-    let mut aux = vec![[0f32; 4]; n];
+    let mut aux = vec![[0f32; 2]; n];
     let rmax = haze_pass(img, &HazeType::new(a, wt), index, mask, &mut t, &mut aux);
     t.par_iter_mut()
         .zip(aux.par_iter())

@@ -209,7 +209,7 @@ pub fn default_radius(h: usize, w: usize) -> usize {
 /// `H W (88 + 17 holes)` bytes, holes = the estimation mask has false pixels.
 /// Per pixel: 12 B guide + 36 B guide statistics (window means and inverse
 /// covariances, f32) + 1 B water region, image-wide; 12 B (J, first the
-/// refined transmission) + 16 B (t_LB and cluster, then the guided
+/// refined transmission) + 16 B (t_LB and cluster in its first half, then the guided
 /// filter's a, b) + 4 B (the filtered plane q) for the type being
 /// evaluated; 4 B for the q kept of the best type so far (so that the
 /// chosen type is not filtered again); 3 B for row buffers,
@@ -366,9 +366,9 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
 /// weight. Compiled for baseline x86-64, AVX2 and AVX-512, picked at run
 /// time; the same bits on each (DECISIONS F6, F7).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
-fn blend_row(p: &mut [f32], aux: &[[f32; 4]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
+fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
     let last = rm.len().saturating_sub(1);
-    let tt = |v: f32, x: &[f32; 4]| -> f32 {
+    let tt = |v: f32, x: &[f32; 2]| -> f32 {
         let t = if tilde {
             let k = ((x[1] + 1.0).max(0.0) as usize).min(last);
             match rm.get(k) {
@@ -459,41 +459,73 @@ where
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn row_stats(j: &[[f32; 3]], tr: &[f32], inside: &[bool], vl: &[bool], st: &mut RowStats) {
     const L: usize = 8;
+    // one array per statistic, one entry per lane: each lane's values are
+    // accumulated in pixel order, and lanes in lane order, as before
     let mut lo = [f32::INFINITY; L];
     let mut hi = [f32::NEG_INFINITY; L];
-    let mut sums = [[0f64; 4]; L];
-    let mut lane = |k: usize, jv: &[f32; 3], t: f32, ins: bool, v: bool| {
-        let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
-        if let (Some(l), Some(h), Some(s)) = (lo.get_mut(k), hi.get_mut(k), sums.get_mut(k)) {
-            *l = l.min(if ins { mn } else { f32::INFINITY });
-            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
-            let t = f64::from(t);
-            let (iv, ic) = (ins && v, ins && !v);
-            s[0] += if iv { t } else { 0.0 };
-            s[1] += if iv { 1.0 } else { 0.0 };
-            s[2] += if ic { t } else { 0.0 };
-            s[3] += if ic { 1.0 } else { 0.0 };
-        }
-    };
+    let [mut s0, mut s1, mut s2, mut s3] = [[0f64; L]; 4];
     let (jc, jrest) = j.as_chunks::<L>();
     let (tc, trest) = tr.as_chunks::<L>();
     let (ic, irest) = inside.as_chunks::<L>();
     let (vc, vrest) = vl.as_chunks::<L>();
     for (((jj, tt), ii), vv) in jc.iter().zip(tc).zip(ic).zip(vc) {
-        for (k, (((jv, &t), &ins), &v)) in jj.iter().zip(tt).zip(ii).zip(vv).enumerate() {
-            lane(k, jv, t, ins, v);
+        let lanes = lo.iter_mut().zip(hi.iter_mut()).zip(s0.iter_mut().zip(s1.iter_mut()).zip(s2.iter_mut().zip(s3.iter_mut())));
+        for (((l, h), ((a0, a1), (a2, a3))), (((jv, &t), &ins), &v)) in lanes.zip(jj.iter().zip(tt).zip(ii).zip(vv)) {
+            let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
+            *l = l.min(if ins { mn } else { f32::INFINITY });
+            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
+            let t = f64::from(t);
+            let (iv, ic) = (ins && v, ins && !v);
+            *a0 += if iv { t } else { 0.0 };
+            *a1 += if iv { 1.0 } else { 0.0 };
+            *a2 += if ic { t } else { 0.0 };
+            *a3 += if ic { 1.0 } else { 0.0 };
         }
     }
+    // the pixels left over go to lane 0, after its chunk values
     for (((jv, &t), &ins), &v) in jrest.iter().zip(trest).zip(irest).zip(vrest) {
-        lane(0, jv, t, ins, v);
+        let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
+        let t = f64::from(t);
+        let (iv, ic) = (ins && v, ins && !v);
+        let lane0 = (lo.first_mut(), hi.first_mut(), s0.first_mut(), s1.first_mut(), s2.first_mut(), s3.first_mut());
+        if let (Some(l), Some(h), Some(a0), Some(a1), Some(a2), Some(a3)) = lane0 {
+            *l = l.min(if ins { mn } else { f32::INFINITY });
+            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
+            *a0 += if iv { t } else { 0.0 };
+            *a1 += if iv { 1.0 } else { 0.0 };
+            *a2 += if ic { t } else { 0.0 };
+            *a3 += if ic { 1.0 } else { 0.0 };
+        }
     }
-    for ((l, h), s) in lo.iter().zip(&hi).zip(&sums) {
-        st.lo = st.lo.min(*l);
-        st.hi = st.hi.max(*h);
-        st.sums.tr_vl += s[0];
-        st.sums.vl += s[1];
-        st.sums.tr_counted += s[2];
-        st.sums.counted += s[3];
+    for k in 0..L {
+        let get = |a: &[f64; L]| a.get(k).copied().unwrap_or(0.0);
+        st.lo = st.lo.min(lo.get(k).copied().unwrap_or(f32::INFINITY));
+        st.hi = st.hi.max(hi.get(k).copied().unwrap_or(f32::NEG_INFINITY));
+        st.sums.tr_vl += get(&s0);
+        st.sums.vl += get(&s1);
+        st.sums.tr_counted += get(&s2);
+        st.sums.counted += get(&s3);
+    }
+}
+
+/// Row buffers of [`Shared::recover_row`], reused from row to row.
+struct RowScratch {
+    tr: Vec<f32>,
+    tb: Vec<f32>,
+    /// all true
+    yes: Vec<bool>,
+    /// all false
+    no: Vec<bool>,
+}
+
+impl RowScratch {
+    fn new(w: usize) -> Self {
+        Self {
+            tr: vec![0.0; w],
+            tb: vec![0.0; w],
+            yes: vec![true; w],
+            no: vec![false; w],
+        }
     }
 }
 
@@ -585,21 +617,23 @@ impl Shared<'_> {
         let Work { j, aux, .. } = work;
         let (p, _) = j.split_at_mut(n);
         let ht = HazeType::new(self.a, wt);
-        let rmax = haze_pass(img, &ht, self.index, self.mask, p, aux);
+        // (t_LB, cluster) in the first half of the (a, b) buffer
+        let pairs = aux.as_flattened_mut().get_mut(..2 * n).unwrap_or(&mut []).as_chunks_mut::<2>().0;
+        let rmax = haze_pass(img, &ht, self.index, self.mask, p, pairs);
         // r_max by cluster + 1 (0: no cluster, t~ = 1)
         let rm: Vec<f32> = std::iter::once(0.0).chain(rmax.iter().copied()).collect();
         let matting = self.matting.as_ref();
         let chunk = w * CHUNK_ROWS;
         if self.holes {
             p.par_iter_mut()
-                .zip(aux.par_iter())
+                .zip(pairs.par_iter())
                 .for_each(|(v, x)| *v = t_tilde(*v, x[1], &rmax));
             if let Some(m) = self.mask {
                 fill_masked(p, m, img.height, w);
             }
         }
         p.par_chunks_mut(chunk)
-            .zip(aux.par_chunks(chunk))
+            .zip(pairs.par_chunks(chunk))
             .zip(img.data.par_chunks(3 * chunk))
             .for_each(|((pp, aa), px)| blend_row(pp, aa, px.as_chunks::<3>().0, &rm, matting, !self.holes));
         self.guide.coefficients(p, aux)
@@ -607,28 +641,24 @@ impl Shared<'_> {
 
     /// SPEC 7 for one row: t_B (written to `tb` if given), t_R, t_G and J
     /// before the artifact clamp (to `j`), with the row's statistics.
-    fn recover_row(&self, rec: &Recovery, y: usize, q: &[f32], j: &mut [f32], tb: Option<&mut [f32]>) -> RowStats {
+    fn recover_row(&self, rec: &Recovery, y: usize, q: &[f32], j: &mut [f32], tb: Option<&mut [f32]>, sc: &mut RowScratch) -> RowStats {
         let w = self.img.width;
         let mut st = RowStats::default();
         let px = self.img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or(&[]);
         let jr = j.as_chunks_mut::<3>().0;
-        let mut tr = vec![0f32; w];
-        let mut tb_own;
+        let RowScratch { tr, tb: tb_own, yes, no } = sc;
         let tbr = match tb {
             Some(b) => b,
-            None => {
-                tb_own = vec![0f32; w];
-                &mut tb_own[..]
-            }
+            None => &mut tb_own[..],
         };
-        recover_values(rec, q, px.as_chunks::<3>().0, jr, tbr, &mut tr);
+        recover_values(rec, q, px.as_chunks::<3>().0, jr, tbr, tr);
         let row = y * w..(y + 1) * w;
-        let inside: Vec<bool> = match self.mask.and_then(|m| m.get(row.clone())) {
-            Some(m) => m.to_vec(),
-            None => vec![self.mask.is_none(); w],
+        let inside: &[bool] = match self.mask {
+            Some(m) => m.get(row.clone()).unwrap_or(no),
+            None => yes,
         };
-        let vl: Vec<bool> = self.vl.get(row).map_or_else(|| vec![false; w], <[bool]>::to_vec);
-        row_stats(jr, &tr, &inside, &vl, &mut st);
+        let vl: &[bool] = self.vl.get(row).unwrap_or(no);
+        row_stats(jr, tr, inside, vl, &mut st);
         st
     }
 
@@ -652,9 +682,9 @@ impl Shared<'_> {
                 .cloned()
                 .zip(split_rows(j, 3 * w, &ranges).into_iter().zip(tbs).zip(split_rows(&mut rows, 1, &ranges)))
                 .zip(split_rows(q, w, &ranges))
-                .map(|((r, ((jj, tt), rr)), qq)| (r.clone(), (r.start, jj, tt, rr, qq)))
+                .map(|((r, ((jj, tt), rr)), qq)| (r.clone(), (r.start, jj, tt, rr, qq, RowScratch::new(w))))
                 .collect();
-            type State<'s> = (usize, &'s mut [f32], Option<&'s mut [f32]>, &'s mut [RowStats], &'s mut [f32]);
+            type State<'s> = (usize, &'s mut [f32], Option<&'s mut [f32]>, &'s mut [RowStats], &'s mut [f32], RowScratch);
             let sink = |o: &mut State<'_>, y: usize, qrow: &[f32]| {
                 let k = y - o.0;
                 let (Some(jr), Some(slot)) = (o.1.get_mut(3 * k * w..3 * (k + 1) * w), o.3.get_mut(k)) else {
@@ -664,7 +694,7 @@ impl Shared<'_> {
                     d.copy_from_slice(qrow);
                 }
                 let tr = o.2.as_deref_mut().and_then(|b| b.get_mut(k * w..(k + 1) * w));
-                *slot = self.recover_row(&rec, y, qrow, jr, tr);
+                *slot = self.recover_row(&rec, y, qrow, jr, tr, &mut o.5);
             };
             self.guide.apply_rows(aux, bounds, work, &sink);
             combine(&rows)
@@ -709,7 +739,10 @@ impl Shared<'_> {
             .zip(q.par_chunks(w))
             .zip(tbs)
             .enumerate()
-            .for_each(|(y, (((slot, jr), qr), tr))| *slot = self.recover_row(&rec, y, qr, jr, tr));
+            .for_each_init(
+                || RowScratch::new(w),
+                |sc, (y, (((slot, jr), qr), tr))| *slot = self.recover_row(&rec, y, qr, jr, tr, sc),
+            );
         combine(&rows)
     }
 
@@ -1256,7 +1289,7 @@ mod tests {
         assert!((st.sums.tr_vl - s[0]).abs() < 1e-9 && (st.sums.tr_counted - s[2]).abs() < 1e-9);
         // blend: t~ from r / r_max, the bound and the matting weight
         let rm = [0.0f32, 0.5, 0.0, 2.0];
-        let aux: Vec<[f32; 4]> = (0..n).map(|i| [noise[6 * n + i] * 0.5, (i % 4) as f32 - 1.0, 0.0, 0.0]).collect();
+        let aux: Vec<[f32; 2]> = (0..n).map(|i| [noise[6 * n + i] * 0.5, (i % 4) as f32 - 1.0]).collect();
         let r: Vec<f32> = noise.iter().skip(7 * n).take(n).map(|v| v * 2.0).collect();
         let mut p = r.clone();
         blend_row(&mut p, &aux, &j, &rm, None, true);
