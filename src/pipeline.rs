@@ -396,31 +396,12 @@ fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[f32], matti
     }
 }
 
-/// The displayed values of a row of J (SPEC 7 clamp, SPEC 8 stretch).
-/// Compiled for baseline x86-64 and for AVX2, picked at run time; the
-/// same bits either way (DECISIONS F6).
-/// Works on runs of 8 pixels whose 24 values each have their channel's
-/// constants in the same lane, which lets the compiler vectorize across
-/// the interleaved channels.
-#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn stretch_row(sp: &Stretch, j: &[[f32; 3]], out: &mut [[f32; 3]]) {
-    let map = |v: f32, lo: f64, inv: f64, on: bool| -> f32 {
-        let x = sp.norm.apply(sp.clamp.apply(v));
-        let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
-        if on {
-            s
-        } else {
-            x
-        }
-    };
-    map_lanes(&sp.limits, j, out, map, |c, x| sp.apply(c, x));
-}
-
-/// The loop of [`stretch_row`] and [`guide_row`]: runs of 8 pixels whose
-/// 24 values each get their channel's stretch constants (lo, 1/(hi - lo),
-/// stretched or not) in the same lane, `map(value, lo, inv, on)` on each,
-/// and `tail(channel, value)` on the pixels left over. Inlined into each
-/// caller's builds.
+/// The loop of [`guide_row`]: runs of 8 pixels whose 24 values each get
+/// their channel's stretch constants (lo, 1/(hi - lo), stretched or not)
+/// in the same lane (which lets the compiler vectorize across the
+/// interleaved channels), `map(value, lo, inv, on)` on each, and
+/// `tail(channel, value)` on the pixels left over. Inlined into each
+/// caller's builds ([`counted_sums`] has the same lane layout).
 #[inline(always)]
 fn map_lanes<M, T>(st: &ChannelStretch, src: &[[f32; 3]], out: &mut [[f32; 3]], map: M, tail: T)
 where
@@ -449,6 +430,82 @@ where
     for (k, (d, &x)) in or.iter_mut().zip(sr).enumerate() {
         *d = tail(k % 3, x);
     }
+}
+
+/// Sums of the three displayed channels of a row of J (`sp` applied, the
+/// SPEC 7 clamp and SPEC 8 stretch, or the values as they are without)
+/// over the pixels where `counted` is true (SPEC 9's means). Without `sp`
+/// on values mapped by [`Stretch::apply`], the same bits as with `sp` on
+/// the values. Runs of 8 pixels are summed in 24 lanes (one
+/// channel each, as in [`map_lanes`]), each lane in pixel order; a
+/// channel's lanes are combined in lane order, then the pixels left over
+/// are added: the same for any thread count. Compiled for baseline x86-64
+/// and for AVX2, picked at run time; the same bits either way (DECISIONS F6).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn counted_sums(sp: Option<&Stretch>, px: &[[f32; 3]], counted: &[bool]) -> [f64; 3] {
+    match sp {
+        Some(sp) => {
+            let shown = |v: f32, lo: f64, inv: f64, on: bool| -> f32 {
+                let x = sp.norm.apply(sp.clamp.apply(v));
+                let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
+                if on {
+                    s
+                } else {
+                    x
+                }
+            };
+            sum_lanes(&sp.limits, px, counted, shown, |c, x| sp.apply(c, x))
+        }
+        None => sum_lanes(&ChannelStretch::new([None; 3]), px, counted, |v, _, _, _| v, |_, x| x),
+    }
+}
+
+/// The loop of [`counted_sums`] with `map` (and `tail` for the pixels left
+/// over) giving the displayed values; inlined into each of its builds.
+#[inline(always)]
+fn sum_lanes<M, T>(limits: &ChannelStretch, px: &[[f32; 3]], counted: &[bool], map: M, tail: T) -> [f64; 3]
+where
+    M: Fn(f32, f64, f64, bool) -> f32,
+    T: Fn(usize, f32) -> f32,
+{
+    const P: usize = 8;
+    const L: usize = 3 * P;
+    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
+        let l = limits.channel(c);
+        let (lo, inv) = l.unwrap_or((0.0, 1.0));
+        (lo, inv, l.is_some())
+    });
+    let lo: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0));
+    let inv: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1));
+    let on: [bool; L] = std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2));
+    let mut acc = [0f64; L];
+    let (pc, prest) = px.as_chunks::<P>();
+    let (cc, crest) = counted.as_chunks::<P>();
+    for (p, c) in pc.iter().zip(cc) {
+        let v = p.as_flattened();
+        let mut shown = [0f32; L];
+        for k in 0..L {
+            if let (Some(d), Some(&x), Some(&l), Some(&i), Some(&f)) = (shown.get_mut(k), v.get(k), lo.get(k), inv.get(k), on.get(k)) {
+                *d = map(x, l, i, f);
+            }
+        }
+        let flag: [bool; L] = std::array::from_fn(|k| c.get(k / 3).copied().unwrap_or(false));
+        for ((a, &x), &n) in acc.iter_mut().zip(&shown).zip(&flag) {
+            *a += if n { f64::from(x) } else { 0.0 };
+        }
+    }
+    let mut out = [0f64; 3];
+    for (k, a) in acc.iter().enumerate() {
+        if let Some(o) = out.get_mut(k % 3) {
+            *o += *a;
+        }
+    }
+    for (p, &n) in prest.iter().zip(crest) {
+        for (c, (o, &x)) in out.iter_mut().zip(p).enumerate() {
+            *o += if n { f64::from(tail(c, x)) } else { 0.0 };
+        }
+    }
+    out
 }
 
 /// Adds to `st` one row's statistics: min and max of J over the pixels
@@ -767,33 +824,24 @@ impl Shared<'_> {
         let rows: Vec<[f64; 3]> = rgb
             .par_chunks(3 * w)
             .enumerate()
-            .map(|(y, row)| {
-                let mut mapped = vec![[0f32; 3]; w];
-                let px = row.as_chunks::<3>().0;
-                let vals = match sp {
-                    Some(sp) => {
-                        stretch_row(sp, px, &mut mapped);
-                        &mapped[..]
-                    }
-                    None => px,
-                };
-                let mut s = [0f64; 3];
-                let r = y * w..(y + 1) * w;
-                let mrow = self.mask.and_then(|m| m.get(r.clone()));
-                let vrow = self.vl.get(r).unwrap_or(&[]);
-                for (x, p) in vals.iter().enumerate() {
-                    let inside = match self.mask {
-                        None => true,
-                        Some(_) => mrow.and_then(|m| m.get(x)).copied().unwrap_or(false),
-                    };
-                    if inside && !vrow.get(x).copied().unwrap_or(false) {
-                        for (acc, v) in s.iter_mut().zip(p) {
-                            *acc += *v as f64;
+            .map_init(
+                || vec![false; w],
+                |counted, (y, row)| {
+                    // counted: inside the mask (all without one), not in VL
+                    let r = y * w..(y + 1) * w;
+                    let vrow = self.vl.get(r.clone()).filter(|v| v.len() == w);
+                    match (self.mask.map(|m| m.get(r)), vrow) {
+                        (None, Some(v)) => counted.iter_mut().zip(v).for_each(|(c, &b)| *c = !b),
+                        (None, None) => counted.fill(true),
+                        (Some(Some(m)), Some(v)) => {
+                            counted.iter_mut().zip(m).zip(v).for_each(|((c, &i), &b)| *c = i && !b)
                         }
+                        (Some(Some(m)), None) => counted.iter_mut().zip(m).for_each(|(c, &i)| *c = i),
+                        (Some(None), _) => counted.fill(false),
                     }
-                }
-                s
-            })
+                    counted_sums(sp, row.as_chunks::<3>().0, counted)
+                },
+            )
             .collect();
         rows.iter().fold([0f64; 3], |a, r| [a[0] + r[0], a[1] + r[1], a[2] + r[2]])
     }
@@ -1241,11 +1289,19 @@ mod tests {
             [Some((0.2, 0.3)), Some((0.0, 1.0)), Some((0.4, 0.8))],
         ] {
             let sp = Stretch { clamp, norm, limits: ChannelStretch::new(limits) };
-            let mut out = vec![[0f32; 3]; n];
-            stretch_row(&sp, &j, &mut out);
-            for (o, v) in out.iter().zip(&j) {
+            let shown: Vec<[f32; 3]> = j.iter().map(|v| std::array::from_fn(|c| sp.apply(c, v[c]))).collect();
+            let counted: Vec<bool> = (0..n).map(|i| i % 5 != 2 && i % 11 != 0).collect();
+            for len in [0, 5, 8, 13, n] {
+                let (jr, sr, cr) = (&j[..len], &shown[..len], &counted[..len]);
+                // summed from J with the stretch, or from the shown values:
+                // the same bits (scoring and final output agree)
+                let from_j = counted_sums(Some(&sp), jr, cr);
+                let from_shown = counted_sums(None, sr, cr);
+                assert_eq!(from_j.map(f64::to_bits), from_shown.map(f64::to_bits), "len {len}");
+                // and the plain sums, up to the order of the additions
                 for c in 0..3 {
-                    assert_eq!(o[c].to_bits(), sp.apply(c, v[c]).to_bits());
+                    let plain: f64 = sr.iter().zip(cr).filter(|(_, &k)| k).map(|(v, _)| f64::from(v[c])).sum();
+                    assert!((from_j[c] - plain).abs() <= 1e-12 * plain.abs().max(1.0), "len {len} c {c}");
                 }
             }
         }
