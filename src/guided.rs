@@ -174,25 +174,59 @@ fn interp_axis(n: usize, s: usize) -> Vec<(usize, usize, f32)> {
 /// Inverse of a symmetric 3x3 matrix given as (a, b, c, d, e, f) =
 /// [[a b c] [b d e] [c e f]]; None if singular.
 pub fn inv_sym3(m: [f64; 6]) -> Option<[f64; 6]> {
+    let (v, ok) = inv_sym3_select(m);
+    ok.then_some(v)
+}
+
+/// The arithmetic of [`inv_sym3`] without its branch: the cofactors over
+/// the determinant, and whether the determinant is usable (when not, the
+/// values are to be ignored). Inlined into vectorized loops.
+#[inline(always)]
+fn inv_sym3_select(m: [f64; 6]) -> ([f64; 6], bool) {
     let [a, b, c, d, e, f] = m;
     let c00 = d * f - e * e;
     let c01 = c * e - b * f;
     let c02 = b * e - c * d;
     let det = a * c00 + b * c01 + c * c02;
-    if det.abs() < 1e-300 || !det.is_finite() {
-        return None;
-    }
+    let ok = det.abs() >= 1e-300 && det.is_finite();
     let c11 = a * f - c * c;
     let c12 = b * c - a * e;
     let c22 = a * d - b * b;
-    Some([
-        c00 / det,
-        c01 / det,
-        c02 / det,
-        c11 / det,
-        c12 / det,
-        c22 / det,
-    ])
+    ([c00 / det, c01 / det, c02 / det, c11 / det, c12 / det, c22 / det], ok)
+}
+
+/// Sink of the statistics pass (SPEC 6): from the window means of (I,
+/// I I^T), the means and the inverse of Sigma + eps U ([`inv_sym3`]; where
+/// that has no inverse, which eps > 0 rules out, 1/eps U). Branch-free, so
+/// that the loop vectorizes: compiled for baseline x86-64 and for AVX2,
+/// picked at run time, the same bits either way (DECISIONS F6).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn stats_row(out: &mut [[f32; 9]], means: &[[f64; 9]], eps: f64) {
+    for (d, m) in out.iter_mut().zip(means) {
+        let [m0, m1, m2, rr, rg, rb, gg, gb, bb] = *m;
+        let cov = [
+            rr - m0 * m0 + eps,
+            rg - m0 * m1,
+            rb - m0 * m2,
+            gg - m1 * m1 + eps,
+            gb - m1 * m2,
+            bb - m2 * m2 + eps,
+        ];
+        let (v, ok) = inv_sym3_select(cov);
+        let fb = [1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps];
+        let v: [f64; 6] = std::array::from_fn(|k| {
+            let (x, y) = (v.get(k).copied().unwrap_or(0.0), fb.get(k).copied().unwrap_or(0.0));
+            if ok {
+                x
+            } else {
+                y
+            }
+        });
+        *d = [
+            m0 as f32, m1 as f32, m2 as f32, v[0] as f32, v[1] as f32, v[2] as f32, v[3] as f32, v[4] as f32,
+            v[5] as f32,
+        ];
+    }
 }
 
 impl GuideStats {
@@ -259,25 +293,8 @@ impl GuideStats {
         };
         let sink = |o: &mut (usize, &mut [[f32; 9]]), y: usize, means: &[[f64; 9]]| {
             let off = (y - o.0) * w;
-            let Some(line) = o.1.get_mut(off..off + w) else {
-                return;
-            };
-            for (d, m) in line.iter_mut().zip(means) {
-                let [m0, m1, m2, rr, rg, rb, gg, gb, bb] = *m;
-                let cov = [
-                    rr - m0 * m0 + eps,
-                    rg - m0 * m1,
-                    rb - m0 * m2,
-                    gg - m1 * m1 + eps,
-                    gb - m1 * m2,
-                    bb - m2 * m2 + eps,
-                ];
-                // Positive definite for eps > 0 (a covariance plus eps I).
-                let v = inv_sym3(cov).unwrap_or([1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps]);
-                *d = [
-                    m0 as f32, m1 as f32, m2 as f32, v[0] as f32, v[1] as f32, v[2] as f32,
-                    v[3] as f32, v[4] as f32, v[5] as f32,
-                ];
+            if let Some(line) = o.1.get_mut(off..off + w) {
+                stats_row(line, means, eps);
             }
         };
         let gb = self.guide_bound;
@@ -509,6 +526,37 @@ mod tests {
             }
         }
         assert!(inv_sym3([0.0; 6]).is_none());
+    }
+
+    #[test]
+    fn stats_row_matches_the_per_pixel_inverse() {
+        // window means of (I, I I^T): noise, a flat window (covariance 0,
+        // so Sigma + eps U = eps U), and, with a tiny eps, a singular one
+        let noise = crate::util::test_noise(9 * 37, 11);
+        for eps in [1e-3, 1e-120] {
+            let means: Vec<[f64; 9]> = noise
+                .chunks_exact(9)
+                .enumerate()
+                .map(|(i, c)| {
+                    let m = [c[0] as f64, c[1] as f64, c[2] as f64];
+                    let spread = if i % 3 == 0 { 0.0 } else { c[3] as f64 * 0.1 };
+                    [m[0], m[1], m[2], m[0] * m[0] + spread, m[0] * m[1], m[0] * m[2], m[1] * m[1] + spread, m[1] * m[2], m[2] * m[2] + spread]
+                })
+                .collect();
+            let mut out = vec![[0f32; 9]; means.len()];
+            stats_row(&mut out, &means, eps);
+            let mut fallbacks = 0;
+            for (o, m) in out.iter().zip(&means) {
+                let cov = [m[3] - m[0] * m[0] + eps, m[4] - m[0] * m[1], m[5] - m[0] * m[2], m[6] - m[1] * m[1] + eps, m[7] - m[1] * m[2], m[8] - m[2] * m[2] + eps];
+                let v = inv_sym3(cov).unwrap_or_else(|| {
+                    fallbacks += 1;
+                    [1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps]
+                });
+                let want = [m[0], m[1], m[2], v[0], v[1], v[2], v[3], v[4], v[5]].map(|x| (x as f32).to_bits());
+                assert_eq!(o.map(f32::to_bits), want);
+            }
+            assert_eq!(fallbacks > 0, eps < 1e-100, "eps {eps}: {fallbacks} fallbacks");
+        }
     }
 
     #[test]
