@@ -4,7 +4,8 @@
 //!     cargo bench --bench timing -- H W MODE [REPS] [THREADS] [SUBSAMPLE]
 //!
 //! MODE: all (ten types, exhaustive), fast (fast selection), seq (one type
-//! with the veiling light given, as in sequence mode). SUBSAMPLE is
+//! with the veiling light given, as in sequence mode), seqm (seq with the
+//! water region given too). SUBSAMPLE is
 //! `guided_subsample` (1 exact, 0 automatic); with a factor above 1 the
 //! result is also compared with the exact filter's. Prints each stage's
 //! share (`Restoration::timings`).
@@ -26,21 +27,28 @@ fn main() {
     let threads = args.get(5).and_then(|s| s.parse().ok());
     let wt = WaterType::by_name("III").unwrap_or_else(|e| panic!("{e}"));
     let data = scene::render(h, w, &wt, 2);
-    let inp = Input {
+    let mut inp = Input {
         image: ImageRef::new(&data, h, w).unwrap_or_else(|e| panic!("{e}")),
         mask: None,
         water_mask: None,
     };
     let sub: usize = args.get(6).and_then(|s| s.parse().ok()).unwrap_or(1);
     let mut p = Params { threads, guided_subsample: sub, ..Params::default() };
+    // seq: the previous frame's A (and its water region with seqm, as the
+    // README suggests for video) given
+    let mut water = Vec::new();
     match mode.as_str() {
         "fast" => p.selection = Selection::Fast,
-        "seq" => {
-            let a = restore(&inp, &p).unwrap_or_else(|e| panic!("{e}")).veiling_light;
+        "seq" | "seqm" => {
+            let prev = restore(&inp, &p).unwrap_or_else(|e| panic!("{e}"));
             p.water_types = vec![wt.clone()];
-            p.veiling_light = Some(a);
+            p.veiling_light = Some(prev.veiling_light);
+            water = prev.veiling_mask;
         }
         _ => {}
+    }
+    if mode == "seqm" {
+        inp.water_mask = Some(&water);
     }
     let mut ts = Vec::new();
     let mut last = None;

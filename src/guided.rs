@@ -22,8 +22,10 @@ pub struct GuideStats {
     /// max |guide value| (bounds the products I p)
     guide_bound: f64,
     /// per pixel: window means of the three guide channels, then
-    /// (Sigma + eps U)^-1 (symmetric: xx, xy, xz, yy, yz, zz)
-    stats: Vec<[f32; 9]>,
+    /// (Sigma + eps U)^-1 (symmetric: xx, xy, xz, yy, yz, zz); stored by
+    /// row, each row as nine runs of w values (one per quantity), so that
+    /// the per-type solve reads nine contiguous streams
+    stats: Vec<f32>,
     /// parallel row bands of the box passes
     bands: usize,
     /// He and Sun's fast guided filter (subsampling factor > 1): the filter
@@ -95,13 +97,18 @@ fn products_row(row: &mut [[f64; 4]], p: &[f32], guide: &[[f32; 3]]) {
 }
 
 /// Sink of the first pass (SPEC 6): from the window means (p, I p) and the
-/// guide statistics, a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
+/// guide statistics (one row: nine runs of w values), a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
 /// b = mean_p - a . mean_I; `maxes` gathers max |.| of each of the four.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn ab_from_means(out: &mut [[f32; 4]], means: &[[f64; 4]], stats: &[[f32; 9]], maxes: &mut [f64; 4]) {
-    for ((d, m), s) in out.iter_mut().zip(means).zip(stats) {
+fn ab_from_means(out: &mut [[f32; 4]], means: &[[f64; 4]], stats: &[f32], maxes: &mut [f64; 4]) {
+    let w = out.len();
+    let mut runs = stats.chunks_exact(w.max(1));
+    let mut next = || runs.next().unwrap_or(&[]).iter().map(|&v| f64::from(v));
+    let (u0, u1, u2) = (next(), next(), next());
+    let (i0, i1, i2, i3, i4, i5) = (next(), next(), next(), next(), next(), next());
+    let s = u0.zip(u1).zip(u2).zip(i0.zip(i1).zip(i2)).zip(i3.zip(i4).zip(i5));
+    for ((d, m), ((((u0, u1), u2), ((i0, i1), i2)), ((i3, i4), i5))) in out.iter_mut().zip(means).zip(s) {
         let [mp, mr, mg, mb] = *m;
-        let [u0, u1, u2, i0, i1, i2, i3, i4, i5] = s.map(f64::from);
         let c = [mr - u0 * mp, mg - u1 * mp, mb - u2 * mp];
         let ax = i0 * c[0] + i1 * c[1] + i2 * c[2];
         let ay = i1 * c[0] + i3 * c[1] + i4 * c[2];
@@ -196,13 +203,21 @@ fn inv_sym3_select(m: [f64; 6]) -> ([f64; 6], bool) {
 }
 
 /// Sink of the statistics pass (SPEC 6): from the window means of (I,
-/// I I^T), the means and the inverse of Sigma + eps U ([`inv_sym3`]; where
-/// that has no inverse, which eps > 0 rules out, 1/eps U). Branch-free, so
-/// that the loop vectorizes: compiled for baseline x86-64 and for AVX2,
-/// picked at run time, the same bits either way (DECISIONS F6).
+/// I I^T) of one row, the means and the inverse of Sigma + eps U
+/// ([`inv_sym3`]; where that has no inverse, which eps > 0 rules out,
+/// 1/eps U), written as nine runs of w values. Branch-free, so that the
+/// loop vectorizes: compiled for baseline x86-64 and for AVX2, picked at
+/// run time, the same bits either way (DECISIONS F6).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn stats_row(out: &mut [[f32; 9]], means: &[[f64; 9]], eps: f64) {
-    for (d, m) in out.iter_mut().zip(means) {
+fn stats_row(out: &mut [f32], means: &[[f64; 9]], eps: f64) {
+    let w = means.len();
+    let mut runs = out.chunks_exact_mut(w.max(1));
+    let mut next = || runs.next().unwrap_or(&mut []).iter_mut();
+    let (u0, u1, u2) = (next(), next(), next());
+    let (i0, i1, i2, i3, i4, i5) = (next(), next(), next(), next(), next(), next());
+    let outs = u0.zip(u1).zip(u2).zip(i0.zip(i1).zip(i2)).zip(i3.zip(i4).zip(i5));
+    let fb = [1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps];
+    for (m, ((((u0, u1), u2), ((i0, i1), i2)), ((i3, i4), i5))) in means.iter().zip(outs) {
         let [m0, m1, m2, rr, rg, rb, gg, gb, bb] = *m;
         let cov = [
             rr - m0 * m0 + eps,
@@ -213,19 +228,12 @@ fn stats_row(out: &mut [[f32; 9]], means: &[[f64; 9]], eps: f64) {
             bb - m2 * m2 + eps,
         ];
         let (v, ok) = inv_sym3_select(cov);
-        let fb = [1.0 / eps, 0.0, 0.0, 1.0 / eps, 0.0, 1.0 / eps];
-        let v: [f64; 6] = std::array::from_fn(|k| {
+        let [v0, v1, v2, v3, v4, v5] = std::array::from_fn(|k| {
             let (x, y) = (v.get(k).copied().unwrap_or(0.0), fb.get(k).copied().unwrap_or(0.0));
-            if ok {
-                x
-            } else {
-                y
-            }
+            (if ok { x } else { y }) as f32
         });
-        *d = [
-            m0 as f32, m1 as f32, m2 as f32, v[0] as f32, v[1] as f32, v[2] as f32, v[3] as f32, v[4] as f32,
-            v[5] as f32,
-        ];
+        (*u0, *u1, *u2) = (m0 as f32, m1 as f32, m2 as f32);
+        (*i0, *i1, *i2, *i3, *i4, *i5) = (v0, v1, v2, v3, v4, v5);
     }
 }
 
@@ -277,9 +285,9 @@ impl GuideStats {
         self.low.as_ref().map_or(1, |l| l.s)
     }
 
-    fn compute_stats(&self) -> Vec<[f32; 9]> {
+    fn compute_stats(&self) -> Vec<f32> {
         let BoxGeom { h, w, .. } = self.geom;
-        let mut stats = vec![[0f32; 9]; h * w];
+        let mut stats = vec![0f32; 9 * h * w];
         let g = &self.guide;
         let eps = self.eps;
         let source = |y: usize, row: &mut [[f64; 9]]| {
@@ -291,16 +299,16 @@ impl GuideStats {
                 }
             }
         };
-        let sink = |o: &mut (usize, &mut [[f32; 9]]), y: usize, means: &[[f64; 9]]| {
-            let off = (y - o.0) * w;
-            if let Some(line) = o.1.get_mut(off..off + w) {
+        let sink = |o: &mut (usize, &mut [f32]), y: usize, means: &[[f64; 9]]| {
+            let off = 9 * (y - o.0) * w;
+            if let Some(line) = o.1.get_mut(off..off + 9 * w) {
                 stats_row(line, means, eps);
             }
         };
         let gb = self.guide_bound;
         let bounds = [gb, gb, gb, gb * gb, gb * gb, gb * gb, gb * gb, gb * gb, gb * gb];
         let ranges = self.ranges();
-        let work = with_starts(&ranges, split_bands(&mut stats, w, &ranges));
+        let work = with_starts(&ranges, split_bands(&mut stats, 9 * w, &ranges));
         box_means(self.geom, bounds, work, &source, &sink);
         stats
     }
@@ -353,7 +361,7 @@ impl GuideStats {
                 _ => [0.0; 4],
             };
         }
-        if p.len() != n || ab.len() != n || self.stats.len() != n {
+        if p.len() != n || ab.len() != n || self.stats.len() != 9 * n {
             return [0.0; 4];
         }
         let (g, st) = (&self.guide, &self.stats);
@@ -365,7 +373,7 @@ impl GuideStats {
         };
         let sink = |o: &mut (usize, &mut [[f32; 4]], [f64; 4]), y: usize, means: &[[f64; 4]]| {
             let off = (y - o.0) * w;
-            let (Some(line), Some(sl)) = (o.1.get_mut(off..off + w), st.get(y * w..(y + 1) * w))
+            let (Some(line), Some(sl)) = (o.1.get_mut(off..off + w), st.get(9 * y * w..9 * (y + 1) * w))
             else {
                 return;
             };
@@ -543,8 +551,11 @@ mod tests {
                     [m[0], m[1], m[2], m[0] * m[0] + spread, m[0] * m[1], m[0] * m[2], m[1] * m[1] + spread, m[1] * m[2], m[2] * m[2] + spread]
                 })
                 .collect();
-            let mut out = vec![[0f32; 9]; means.len()];
-            stats_row(&mut out, &means, eps);
+            let w = means.len();
+            let mut flat = vec![0f32; 9 * w];
+            stats_row(&mut flat, &means, eps);
+            // back to one entry per pixel from the nine runs of w values
+            let out: Vec<[f32; 9]> = (0..w).map(|x| std::array::from_fn(|c| flat[c * w + x])).collect();
             let mut fallbacks = 0;
             for (o, m) in out.iter().zip(&means) {
                 let cov = [m[3] - m[0] * m[0] + eps, m[4] - m[0] * m[1], m[5] - m[0] * m[2], m[6] - m[1] * m[1] + eps, m[7] - m[1] * m[2], m[8] - m[2] * m[2] + eps];
