@@ -213,7 +213,7 @@ pub fn default_radius(h: usize, w: usize) -> usize {
 /// filter's a, b) + 4 B (the filtered plane q) for the type being
 /// evaluated; 4 B for the q kept of the best type so far (so that the
 /// chosen type is not filtered again); 3 B for row buffers,
-/// order-statistics brackets and allocator slack (measured: 87.9 B per
+/// order-statistics brackets and allocator slack (measured: 86.7 B per
 /// pixel at 12 MP). With masked-out pixels, 17 B for the fill of SPEC
 /// 4.5. The outputs (29 B per pixel) are allocated after the per-type
 /// buffers and the guide statistics are freed. [`Selection::Fast`] scores
