@@ -396,6 +396,26 @@ fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[f32], matti
     }
 }
 
+/// Values per run of [`map_lanes`] and [`sum_lanes`]: 8 pixels of 3 channels.
+const LANES: usize = 24;
+
+/// The stretch constants of a run of [`LANES`] interleaved values (lane k
+/// holds channel k % 3): lo, 1 / (hi - lo), and whether the channel is
+/// stretched (lo 0 and 1 when not).
+#[inline(always)]
+fn lane_constants(st: &ChannelStretch) -> ([f64; LANES], [f64; LANES], [bool; LANES]) {
+    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
+        let l = st.channel(c);
+        let (lo, inv) = l.unwrap_or((0.0, 1.0));
+        (lo, inv, l.is_some())
+    });
+    (
+        std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0)),
+        std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1)),
+        std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2)),
+    )
+}
+
 /// The loop of [`guide_row`]: runs of 8 pixels whose 24 values each get
 /// their channel's stretch constants (lo, 1/(hi - lo), stretched or not)
 /// in the same lane (which lets the compiler vectorize across the
@@ -408,15 +428,8 @@ where
     M: Fn(f32, f64, f64, bool) -> f32,
     T: Fn(usize, f32) -> f32,
 {
-    const L: usize = 24;
-    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
-        let l = st.channel(c);
-        let (lo, inv) = l.unwrap_or((0.0, 1.0));
-        (lo, inv, l.is_some())
-    });
-    let lo: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0));
-    let inv: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1));
-    let on: [bool; L] = std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2));
+    const L: usize = LANES;
+    let (lo, inv, on) = lane_constants(st);
     let (sf, of) = (src.as_flattened(), out.as_flattened_mut());
     let (sc, sr) = sf.as_chunks::<L>();
     let (oc, or) = of.as_chunks_mut::<L>();
@@ -468,16 +481,9 @@ where
     M: Fn(f32, f64, f64, bool) -> f32,
     T: Fn(usize, f32) -> f32,
 {
-    const P: usize = 8;
-    const L: usize = 3 * P;
-    let lanes: [(f64, f64, bool); 3] = std::array::from_fn(|c| {
-        let l = limits.channel(c);
-        let (lo, inv) = l.unwrap_or((0.0, 1.0));
-        (lo, inv, l.is_some())
-    });
-    let lo: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(0.0, |l| l.0));
-    let inv: [f64; L] = std::array::from_fn(|k| lanes.get(k % 3).map_or(1.0, |l| l.1));
-    let on: [bool; L] = std::array::from_fn(|k| lanes.get(k % 3).is_some_and(|l| l.2));
+    const P: usize = LANES / 3;
+    const L: usize = LANES;
+    let (lo, inv, on) = lane_constants(limits);
     let mut acc = [0f64; L];
     let (pc, prest) = px.as_chunks::<P>();
     let (cc, crest) = counted.as_chunks::<P>();
