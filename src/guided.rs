@@ -97,7 +97,8 @@ fn products_row(row: &mut [[f64; 4]], p: &[f32], guide: &[[f32; 3]]) {
 }
 
 /// Sink of the first pass (SPEC 6): from the window means (p, I p) and the
-/// guide statistics (one row: nine runs of w values), a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
+/// guide statistics (one row: nine runs of w values),
+/// a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
 /// b = mean_p - a . mean_I; `maxes` gathers max |.| of each of the four.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn ab_from_means(out: &mut [[f32; 4]], means: &[[f64; 4]], stats: &[f32], maxes: &mut [f64; 4]) {

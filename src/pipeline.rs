@@ -209,8 +209,8 @@ pub fn default_radius(h: usize, w: usize) -> usize {
 /// `H W (88 + 17 holes)` bytes, holes = the estimation mask has false pixels.
 /// Per pixel: 12 B guide + 36 B guide statistics (window means and inverse
 /// covariances, f32) + 1 B water region, image-wide; 12 B (J, first the
-/// refined transmission) + 16 B (t_LB and cluster in its first half, then the guided
-/// filter's a, b) + 4 B (the filtered plane q) for the type being
+/// refined transmission) + 16 B (t_LB and cluster in its first half, then
+/// the guided filter's a, b) + 4 B (the filtered plane q) for the type being
 /// evaluated; 4 B for the q kept of the best type so far (so that the
 /// chosen type is not filtered again); 3 B for row buffers,
 /// order-statistics brackets and allocator slack (measured: 86.7 B per
