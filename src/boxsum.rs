@@ -107,7 +107,7 @@ fn quantize(v: f64, s: f64) -> f64 {
 /// with its own state `O` (typically the band's slices of the output
 /// buffers). `source(y, row)` fills `row` (w entries) with the values of
 /// row y; `sink(state, y, means)` receives the window means of row y
-/// (w entries). Channel c's values must satisfy |v| <= bounds[c] (else sums
+/// (w entries). Channel c's values must satisfy `|v| <= bounds[c]` (else sums
 /// may lose exactness; never a panic). The first band runs downwards, the
 /// last (of two or more) upwards, so both start at an image border where
 /// the window is half empty; bands in between start with a full window.

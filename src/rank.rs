@@ -75,7 +75,7 @@ type Groups<T, const K: usize> = [Vec<(usize, Vec<T>)>; K];
 /// The keys at `ranks[k]` (0-based, ascending) of stream k, for K streams
 /// whose keys `row_values(y, bufs)` pushes row by row (y in 0..rows).
 /// `counts[k]` is the number of keys stream k yields in total; ranks >=
-/// counts[k] are ignored (the output holds one key per valid rank, in the
+/// `counts[k]` are ignored (the output holds one key per valid rank, in the
 /// order asked).
 pub fn order_stats<T, const K: usize, F>(
     rows: usize,
