@@ -715,14 +715,22 @@ impl Shared<'_> {
             None => &mut tb_own[..],
         };
         recover_values(rec, q, px.as_chunks::<3>().0, jr, tbr, tr);
+        let (inside, vl) = self.row_masks(y, yes, no);
+        row_stats(jr, tr, inside, vl, &mut st);
+        st
+    }
+
+    /// Row y of the estimation mask (all true without one) and of the
+    /// water region VL, with `yes` / `no` (w entries, all true / all false)
+    /// standing in for what is absent.
+    fn row_masks<'s>(&'s self, y: usize, yes: &'s [bool], no: &'s [bool]) -> (&'s [bool], &'s [bool]) {
+        let w = self.img.width;
         let row = y * w..(y + 1) * w;
-        let inside: &[bool] = match self.mask {
+        let inside = match self.mask {
             Some(m) => m.get(row.clone()).unwrap_or(no),
             None => yes,
         };
-        let vl: &[bool] = self.vl.get(row).unwrap_or(no);
-        row_stats(jr, tr, inside, vl, &mut st);
-        st
+        (inside, self.vl.get(row).unwrap_or(no))
     }
 
     /// The guided filter's second pass, the chart fill (SPEC 6) and the
@@ -831,20 +839,11 @@ impl Shared<'_> {
             .par_chunks(3 * w)
             .enumerate()
             .map_init(
-                || vec![false; w],
-                |counted, (y, row)| {
-                    // counted: inside the mask (all without one), not in VL
-                    let r = y * w..(y + 1) * w;
-                    let vrow = self.vl.get(r.clone()).filter(|v| v.len() == w);
-                    match (self.mask.map(|m| m.get(r)), vrow) {
-                        (None, Some(v)) => counted.iter_mut().zip(v).for_each(|(c, &b)| *c = !b),
-                        (None, None) => counted.fill(true),
-                        (Some(Some(m)), Some(v)) => {
-                            counted.iter_mut().zip(m).zip(v).for_each(|((c, &i), &b)| *c = i && !b)
-                        }
-                        (Some(Some(m)), None) => counted.iter_mut().zip(m).for_each(|(c, &i)| *c = i),
-                        (Some(None), _) => counted.fill(false),
-                    }
+                || (vec![false; w], RowScratch::new(w)),
+                |(counted, sc), (y, row)| {
+                    // counted: inside the mask and not in VL
+                    let (inside, vl) = self.row_masks(y, &sc.yes, &sc.no);
+                    counted.iter_mut().zip(inside).zip(vl).for_each(|((c, &i), &b)| *c = i & !b);
                     counted_sums(sp, row.as_chunks::<3>().0, counted)
                 },
             )
