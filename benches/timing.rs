@@ -5,14 +5,15 @@
 //!
 //! MODE: all (ten types, exhaustive), fast (fast selection), seq (one type
 //! with the veiling light given, as in sequence mode), seqm (seq with the
-//! water region given too). SUBSAMPLE is
+//! water region given too), seqs (a `Sequence` reusing the estimates and
+//! the water region of a first, untimed frame). SUBSAMPLE is
 //! `guided_subsample` (1 exact, 0 automatic); with a factor above 1 the
 //! result is also compared with the exact filter's. Prints each stage's
 //! share (`Restoration::timings`).
 
 use std::time::Instant;
 use uwhl::pipeline::Selection;
-use uwhl::{restore, ImageRef, Input, Params, WaterType};
+use uwhl::{restore, ImageRef, Input, Params, Sequence, WaterType};
 
 #[path = "scene.rs"]
 mod scene;
@@ -50,11 +51,23 @@ fn main() {
     if mode == "seqm" {
         inp.water_mask = Some(&water);
     }
+    // seqs: a Sequence (estimates on a first, untimed frame, then reused
+    // with its water region; work buffers kept from frame to frame)
+    let mut seq = (mode == "seqs").then(|| {
+        let mut s = Sequence::new(p.clone());
+        s.reuse_water_mask = true;
+        s.restore(&inp).unwrap_or_else(|e| panic!("{e}"));
+        s
+    });
     let mut ts = Vec::new();
     let mut last = None;
     for _ in 0..reps {
         let t0 = Instant::now();
-        last = Some(restore(&inp, &p).unwrap_or_else(|e| panic!("{e}")));
+        last = Some(match seq.as_mut() {
+            Some(s) => s.restore(&inp),
+            None => restore(&inp, &p),
+        }
+        .unwrap_or_else(|e| panic!("{e}")));
         ts.push(t0.elapsed().as_secs_f64());
     }
     ts.sort_by(f64::total_cmp);

@@ -336,6 +336,11 @@ impl GuideStats {
         &self.guide
     }
 
+    /// The guide image, giving up the statistics (for reuse of its buffer).
+    pub fn into_guide(self) -> Vec<f32> {
+        self.guide
+    }
+
     /// Frees the per-pixel statistics once no further plane needs
     /// [`GuideStats::coefficients`] ([`GuideStats::apply_rows`] needs only the guide).
     pub fn release_stats(&mut self) {

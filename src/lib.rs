@@ -47,7 +47,7 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    boxsum, clahe, color, error, fastmath, filters, guided, hazelines, image, matting, pipeline, rank, recover, select, sphere, util,
+    boxsum, clahe, color, error, fastmath, filters, guided, hazelines, image, matting, pipeline, rank, recover, select, sequence, sphere, util,
     veiling, water,
 }
 
@@ -69,4 +69,5 @@ mod python_color;
 pub use crate::error::{Error, Result};
 pub use crate::image::ImageRef;
 pub use crate::pipeline::{restore, Input, Params, Restoration};
+pub use crate::sequence::Sequence;
 pub use crate::water::{jerlov_types, WaterType, JERLOV};

@@ -249,8 +249,15 @@ pub fn stretch_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
 
 /// The guide of SPEC 6: the stretched input raised to 1/2.2, 0 on masked-out pixels.
 pub fn guide_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
+    guide_image_into(data, mask, Vec::new())
+}
+
+/// [`guide_image`] written into `buf` when it has the right length (a
+/// [`Buffers`] plane from an earlier frame: every value is overwritten),
+/// else into a new buffer.
+fn guide_image_into(data: &[f32], mask: Option<&[bool]>, buf: Vec<f32>) -> Vec<f32> {
     let (norm, st) = stretch_limits(data, mask);
-    let mut g = vec![0f32; data.len()];
+    let mut g = reuse(buf, data.len());
     g.par_chunks_mut(3 * 4096)
         .zip(data.par_chunks(3 * 4096))
         .enumerate()
@@ -634,10 +641,64 @@ struct Work {
 
 impl Work {
     fn new(n: usize) -> Self {
+        Self::from_pool(n, &mut Buffers::default())
+    }
+
+    /// The buffers for n pixels, (a, b) and q taken from `pool` when they
+    /// have the right length. No pass reads a value of these buffers that
+    /// it has not written (the types already share them), so old contents
+    /// do not matter.
+    fn from_pool(n: usize, pool: &mut Buffers) -> Self {
         Self {
             j: vec![0.0; 3 * n],
-            aux: vec![[0.0; 4]; n],
-            q: vec![0.0; n],
+            aux: reuse(std::mem::take(&mut pool.aux), n),
+            q: reuse(std::mem::take(&mut pool.q), n),
+        }
+    }
+}
+
+/// `buf` if it holds exactly `n` values, else n default values.
+fn reuse<T: Copy + Default>(buf: Vec<T>, n: usize) -> Vec<T> {
+    if buf.len() == n {
+        buf
+    } else {
+        drop(buf);
+        vec![T::default(); n]
+    }
+}
+
+/// Full-resolution work buffers that a [`crate::sequence::Sequence`] keeps
+/// from one frame to the next (the guide image, the guided filter's (a, b)
+/// and the filtered plane: 32 B per pixel), so that a frame of the same
+/// size reuses their pages instead of having the kernel map and zero new
+/// ones (DECISIONS F10). A plain [`restore`] starts from empty buffers and
+/// frees its planes as early as before (`keep` false).
+#[derive(Debug, Default)]
+pub struct Buffers {
+    guide: Vec<f32>,
+    aux: Vec<[f32; 4]>,
+    q: Vec<f32>,
+    /// keep the planes at the end of a call (else they are freed as soon as
+    /// they are no longer needed)
+    keep: bool,
+}
+
+impl Buffers {
+    /// Buffers that keep their planes between calls.
+    pub fn kept() -> Self {
+        Self { keep: true, ..Self::default() }
+    }
+
+    /// Bytes currently held.
+    pub fn bytes(&self) -> usize {
+        4 * (self.guide.len() + 4 * self.aux.len() + self.q.len())
+    }
+
+    /// Takes back the work planes at the end of a call (drops them unless kept).
+    fn put(&mut self, aux: Vec<[f32; 4]>, q: Vec<f32>) {
+        if self.keep {
+            self.aux = aux;
+            self.q = q;
         }
     }
 }
@@ -917,12 +978,19 @@ struct Final {
 /// type's selection statistics, identical to what the evaluation gave.
 /// With `q`, the type's filtered plane kept from its scoring, only the
 /// recovery is run again.
-fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, q: Option<Vec<f32>>, clock: &mut Clock) -> Final {
+fn finish(
+    mut shared: Shared<'_>,
+    wt: &WaterType,
+    mut work: Work,
+    q: Option<Vec<f32>>,
+    pool: &mut Buffers,
+    clock: &mut Clock,
+) -> Final {
     let n = shared.img.len();
     let (st, transmission) = match q {
         Some(q) if q.len() == n => {
             shared.guide.release_stats();
-            drop(std::mem::take(&mut work.aux));
+            pool.put(std::mem::take(&mut work.aux), Vec::new());
             work.q = q;
             let mut transmission = vec![0f32; n];
             let st = shared.recover_from_q(wt, &mut work, Some(&mut transmission));
@@ -942,13 +1010,19 @@ fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, q: Option<Vec<
     };
     let sp = shared.stretch(&work.j, &st);
     clock.lap("chosen: display stretch limits");
-    drop(std::mem::take(&mut work.aux));
-    drop(std::mem::take(&mut work.q));
+    let aux = match std::mem::take(&mut work.aux) {
+        a if a.is_empty() => std::mem::take(&mut pool.aux),
+        a => a,
+    };
+    pool.put(aux, std::mem::take(&mut work.q));
     let mut radiance = std::mem::take(&mut work.j);
     radiance.par_iter_mut().for_each(|v| *v = sp.clamp.apply(*v));
     let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
     let mut sums = st.sums;
     sums.channels = shared.channel_sums(&image, None);
+    if pool.keep {
+        pool.guide = shared.guide.into_guide();
+    }
     clock.lap("chosen: outputs");
     Final {
         radiance,
@@ -960,7 +1034,13 @@ fn finish(mut shared: Shared<'_>, wt: &WaterType, mut work: Work, q: Option<Vec<
 
 /// The whole method (SPEC 2-10) on one image.
 pub fn restore(input: &Input, params: &Params) -> Result<Restoration> {
-    with_threads(params.threads, || restore_inner(input, params))?
+    restore_with(input, params, &mut Buffers::default())
+}
+
+/// [`restore`] with work buffers taken from, and (when they are kept)
+/// returned to, `pool`; the results are the same bits.
+pub fn restore_with(input: &Input, params: &Params, pool: &mut Buffers) -> Result<Restoration> {
+    with_threads(params.threads, || restore_inner(input, params, pool))?
 }
 
 fn check_params(input: &Input, params: &Params) -> Result<()> {
@@ -1102,7 +1182,7 @@ impl Small {
     }
 }
 
-fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
+fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<Restoration> {
     let mut clock = Clock::new();
     check_params(input, params)?;
     let img = &input.image;
@@ -1127,10 +1207,10 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         0 => auto_subsample(r),
         s => s,
     };
-    let make = |img: ImageRef<'_>, mask: Option<&'_ [bool]>, vl: &'_ [bool], r: usize| {
+    let make = |img: ImageRef<'_>, mask: Option<&'_ [bool]>, vl: &'_ [bool], r: usize, buf: Vec<f32>| {
         (
             Matting::fit(&img, vl),
-            GuideStats::subsampled(guide_image(img.data, mask), img.height, img.width, r, params.guided_eps, sub(r)),
+            GuideStats::subsampled(guide_image_into(img.data, mask, buf), img.height, img.width, r, params.guided_eps, sub(r)),
         )
     };
     let types = &params.water_types;
@@ -1142,7 +1222,7 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         let sr = params
             .guided_radius
             .map_or_else(|| default_radius(small.h, small.w), |r| (r as f64 / s as f64).round() as usize);
-        let (matting, guide) = make(simg, small.mask.as_deref(), &small.vl, sr);
+        let (matting, guide) = make(simg, small.mask.as_deref(), &small.vl, sr, Vec::new());
         let sh = Shared {
             img: simg,
             mask: small.mask.as_deref(),
@@ -1160,7 +1240,7 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
     } else {
         None
     };
-    let (matting, guide) = make(*img, input.mask, &veil.vl, radius);
+    let (matting, guide) = make(*img, input.mask, &veil.vl, radius, std::mem::take(&mut pool.guide));
     clock.lap("matting model, guide and its statistics");
     let matting_skipped = veil.vl_count > 0 && matting.is_none();
     let shared = Shared {
@@ -1173,7 +1253,7 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         index: &index,
         holes,
     };
-    let mut work = Work::new(img.len());
+    let mut work = Work::from_pool(img.len(), pool);
     clock.lap("work buffers");
     // SPEC 9: which types are scored at full resolution, and the choice
     let mut kept: Option<Kept> = None;
@@ -1223,7 +1303,7 @@ fn restore_inner(input: &Input, params: &Params) -> Result<Restoration> {
         .clone();
     // the winner's filtered plane, when its scoring kept it
     let q = kept.filter(|k| k.index == winner).map(|k| k.q);
-    let out = finish(shared, &wt, work, q, &mut clock);
+    let out = finish(shared, &wt, work, q, pool, &mut clock);
     let (stats, choice) = match sel.take() {
         Some((mut stats, choice)) => {
             // the chosen type's full-resolution statistics (what the copy
