@@ -3,7 +3,9 @@
 //! function ([`to_py_err`]). No algorithm code lives here.
 
 use crate::error::Error;
-use crate::pipeline::{restore, Input, Params, Selection};
+use crate::pipeline::{restore, Input, Params, Restoration, Selection};
+use crate::sequence::Sequence;
+use std::sync::Mutex;
 use crate::water::{WaterType, JERLOV};
 use crate::ImageRef;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
@@ -167,20 +169,11 @@ fn mask_slice<'a>(
     }
 }
 
-/// Native entry point behind `uwhl_rs.restore` (which checks dtypes and
-/// converts float64 to float32 first). Releases the GIL while it works.
-#[pyfunction]
-#[pyo3(signature = (image, *, water_types=None, veiling_light=None, water_mask=None, mask=None,
-                    guided_radius=None, guided_eps=1e-3, sphere_points=500, threads=None, max_memory=None,
-                    selection="exhaustive", guided_subsample=1))]
+/// The [`Params`] of the keyword arguments shared by `restore_f32` and `Sequence`.
 #[allow(clippy::too_many_arguments)]
-fn restore_f32(
-    py: Python<'_>,
-    image: PyReadonlyArray3<'_, f32>,
+fn make_params(
     water_types: Option<Bound<'_, PyAny>>,
     veiling_light: Option<(f32, f32, f32)>,
-    water_mask: Option<PyReadonlyArray2<'_, bool>>,
-    mask: Option<PyReadonlyArray2<'_, bool>>,
     guided_radius: Option<usize>,
     guided_eps: f64,
     sphere_points: usize,
@@ -188,17 +181,7 @@ fn restore_f32(
     max_memory: Option<u64>,
     selection: &str,
     guided_subsample: usize,
-) -> PyResult<PyRestoration> {
-    let shape = image.shape();
-    if shape.len() != 3 || shape[2] != 3 {
-        return Err(ImageError::new_err(format!(
-            "image has shape {shape:?}; expected (H, W, 3)"
-        )));
-    }
-    let (h, w) = (shape[0], shape[1]);
-    let data = image
-        .as_slice()
-        .map_err(|_| ImageError::new_err("image must be C-contiguous"))?;
+) -> PyResult<Params> {
     let mut params = Params::default();
     if let Some(t) = water_types {
         params.water_types = parse_types(&t)?;
@@ -221,6 +204,50 @@ fn restore_f32(
             )))
         }
     };
+    Ok(params)
+}
+
+/// The pixels and (H, W) of an (H, W, 3) C-contiguous float32 array.
+fn image_data<'a>(image: &'a PyReadonlyArray3<'a, f32>) -> PyResult<(&'a [f32], usize, usize)> {
+    let shape = image.shape();
+    if shape.len() != 3 || shape[2] != 3 {
+        return Err(ImageError::new_err(format!(
+            "image has shape {shape:?}; expected (H, W, 3)"
+        )));
+    }
+    let data = image
+        .as_slice()
+        .map_err(|_| ImageError::new_err("image must be C-contiguous"))?;
+    Ok((data, shape[0], shape[1]))
+}
+
+/// Native entry point behind `uwhl_rs.restore` (which checks dtypes and
+/// converts float64 to float32 first). Releases the GIL while it works.
+#[pyfunction]
+#[pyo3(signature = (image, *, water_types=None, veiling_light=None, water_mask=None, mask=None,
+                    guided_radius=None, guided_eps=1e-3, sphere_points=500, threads=None, max_memory=None,
+                    selection="exhaustive", guided_subsample=1))]
+#[allow(clippy::too_many_arguments)]
+fn restore_f32(
+    py: Python<'_>,
+    image: PyReadonlyArray3<'_, f32>,
+    water_types: Option<Bound<'_, PyAny>>,
+    veiling_light: Option<(f32, f32, f32)>,
+    water_mask: Option<PyReadonlyArray2<'_, bool>>,
+    mask: Option<PyReadonlyArray2<'_, bool>>,
+    guided_radius: Option<usize>,
+    guided_eps: f64,
+    sphere_points: usize,
+    threads: Option<usize>,
+    max_memory: Option<u64>,
+    selection: &str,
+    guided_subsample: usize,
+) -> PyResult<PyRestoration> {
+    let (data, h, w) = image_data(&image)?;
+    let params = make_params(
+        water_types, veiling_light, guided_radius, guided_eps, sphere_points, threads, max_memory, selection,
+        guided_subsample,
+    )?;
     let wm = mask_slice("water_mask", &water_mask, h, w)?;
     let mk = mask_slice("mask", &mask, h, w)?;
     let res = py
@@ -236,6 +263,13 @@ fn restore_f32(
             )
         })
         .map_err(to_py_err)?;
+    to_py(py, res)
+}
+
+/// A core [`Restoration`] as the Python `Restoration` (arrays handed over
+/// to numpy without copying).
+fn to_py(py: Python<'_>, res: Restoration) -> PyResult<PyRestoration> {
+    let (h, w) = (res.height, res.width);
     let scores = PyDict::new(py);
     for (n, s) in &res.scores {
         scores.set_item(n, *s)?;
@@ -279,6 +313,113 @@ fn restore_f32(
         wt: res.water_type,
         shape: (h, w),
     })
+}
+
+/// Native class behind `uwhl_rs.Sequence` (which checks the arguments
+/// first): a core [`Sequence`] behind a mutex, so that calls from several
+/// Python threads take turns; the GIL is released while a frame is
+/// restored (and while waiting for the mutex).
+#[pyclass(name = "Sequence", module = "uwhl_rs._core", frozen)]
+pub struct PySequence {
+    inner: Mutex<Sequence>,
+}
+
+impl PySequence {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Sequence> {
+        // the core does not panic; a poisoned lock still holds a usable state
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+#[pymethods]
+impl PySequence {
+    #[new]
+    #[pyo3(signature = (*, water_types=None, veiling_light=None, guided_radius=None, guided_eps=1e-3,
+                        sphere_points=500, threads=None, max_memory=None, selection="exhaustive",
+                        guided_subsample=1, refresh_every=0, reuse_water_mask=false))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        water_types: Option<Bound<'_, PyAny>>,
+        veiling_light: Option<(f32, f32, f32)>,
+        guided_radius: Option<usize>,
+        guided_eps: f64,
+        sphere_points: usize,
+        threads: Option<usize>,
+        max_memory: Option<u64>,
+        selection: &str,
+        guided_subsample: usize,
+        refresh_every: usize,
+        reuse_water_mask: bool,
+    ) -> PyResult<Self> {
+        let params = make_params(
+            water_types, veiling_light, guided_radius, guided_eps, sphere_points, threads, max_memory, selection,
+            guided_subsample,
+        )?;
+        let mut seq = Sequence::new(params);
+        seq.refresh_every = refresh_every;
+        seq.reuse_water_mask = reuse_water_mask;
+        Ok(Self { inner: Mutex::new(seq) })
+    }
+
+    /// Restores the next frame (float32 (H, W, 3), C-contiguous).
+    #[pyo3(signature = (image, *, mask=None, water_mask=None))]
+    fn restore(
+        &self,
+        py: Python<'_>,
+        image: PyReadonlyArray3<'_, f32>,
+        mask: Option<PyReadonlyArray2<'_, bool>>,
+        water_mask: Option<PyReadonlyArray2<'_, bool>>,
+    ) -> PyResult<PyRestoration> {
+        let (data, h, w) = image_data(&image)?;
+        let wm = mask_slice("water_mask", &water_mask, h, w)?;
+        let mk = mask_slice("mask", &mask, h, w)?;
+        let res = py
+            .detach(|| {
+                let img = ImageRef::new(data, h, w)?;
+                self.lock().restore(&Input { image: img, mask: mk, water_mask: wm })
+            })
+            .map_err(to_py_err)?;
+        to_py(py, res)
+    }
+
+    /// Forgets the estimates and frees the kept buffers.
+    fn reset(&self, py: Python<'_>) {
+        py.detach(|| self.lock().reset());
+    }
+
+    /// The water type the next frame reuses (None before the first frame).
+    #[getter]
+    fn water_type(&self, py: Python<'_>) -> Option<String> {
+        py.detach(|| self.lock().estimates().map(|e| e.water_type.name.clone()))
+    }
+
+    /// The veiling light A the next frame reuses (None before the first frame).
+    #[getter]
+    fn veiling_light(&self, py: Python<'_>) -> Option<(f32, f32, f32)> {
+        py.detach(|| self.lock().estimates().map(|e| (e.veiling_light[0], e.veiling_light[1], e.veiling_light[2])))
+    }
+
+    /// Whether the next frame runs the estimation (water type and A).
+    #[getter]
+    fn estimates_next(&self, py: Python<'_>) -> bool {
+        py.detach(|| self.lock().estimates_next())
+    }
+
+    /// Bytes of work buffers kept between frames.
+    #[getter]
+    fn buffer_bytes(&self, py: Python<'_>) -> usize {
+        py.detach(|| self.lock().buffer_bytes())
+    }
+
+    #[getter]
+    fn refresh_every(&self, py: Python<'_>) -> usize {
+        py.detach(|| self.lock().refresh_every)
+    }
+
+    #[getter]
+    fn reuse_water_mask(&self, py: Python<'_>) -> bool {
+        py.detach(|| self.lock().reuse_water_mask)
+    }
 }
 
 // ---- Stage entry points, for cross-checking against tests/reference.py ----
@@ -567,6 +708,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
     crate::python_color::register(m)?;
     m.add_class::<PyRestoration>()?;
+    m.add_class::<PySequence>()?;
     m.add_function(wrap_pyfunction!(_after_fork, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_stretch, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_guide, m)?)?;

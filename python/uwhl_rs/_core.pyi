@@ -1,6 +1,7 @@
 """Type stubs of the native module uwhl_rs._core (built from src/python.rs)."""
 
-from typing import Literal, Optional, Sequence, Union
+from typing import Literal, Optional, Union
+from typing import Sequence as _Seq
 
 import numpy as np
 import numpy.typing as npt
@@ -33,7 +34,7 @@ WaterTypeSpec = Union[str, tuple[str, float, float]]
 def restore_f32(
     image: npt.NDArray[np.float32],
     *,
-    water_types: Optional[Sequence[WaterTypeSpec]] = None,
+    water_types: Optional[_Seq[WaterTypeSpec]] = None,
     veiling_light: Optional[tuple[float, float, float]] = None,
     water_mask: Optional[npt.NDArray[np.bool_]] = None,
     mask: Optional[npt.NDArray[np.bool_]] = None,
@@ -45,3 +46,34 @@ def restore_f32(
     selection: Literal["exhaustive", "fast"] = "exhaustive",
     guided_subsample: int = 1,
 ) -> Restoration: ...
+
+class Sequence:
+    def __init__(
+        self,
+        *,
+        water_types: Optional[_Seq[WaterTypeSpec]] = None,
+        veiling_light: Optional[tuple[float, float, float]] = None,
+        guided_radius: Optional[int] = None,
+        guided_eps: float = 1e-3,
+        sphere_points: int = 500,
+        threads: Optional[int] = None,
+        max_memory: Optional[int] = None,
+        selection: Literal["exhaustive", "fast"] = "exhaustive",
+        guided_subsample: int = 1,
+        refresh_every: int = 0,
+        reuse_water_mask: bool = False,
+    ) -> None: ...
+    def restore(
+        self,
+        image: npt.NDArray[np.float32],
+        *,
+        mask: Optional[npt.NDArray[np.bool_]] = None,
+        water_mask: Optional[npt.NDArray[np.bool_]] = None,
+    ) -> Restoration: ...
+    def reset(self) -> None: ...
+    water_type: Optional[str]
+    veiling_light: Optional[tuple[float, float, float]]
+    estimates_next: bool
+    buffer_bytes: int
+    refresh_every: int
+    reuse_water_mask: bool
