@@ -212,12 +212,50 @@ def test_options_reach_restore(scenes, tmp_path):
         (["--guided-subsample", "fast"], "--guided-subsample"),
         (["--guided-subsample", "-1"], "--guided-subsample"),
         (["--guided-subsample", "1.5"], "--guided-subsample"),
+        (["--reuse-estimates", "0"], "--reuse-estimates"),
+        (["--reuse-estimates", "2", "--jobs", "2"], "needs --jobs 1"),
     ],
 )
 def test_bad_arguments_exit_2_with_a_message(scenes, tmp_path, args, needle):
     r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path, *args)
     assert r.returncode == 2 and needle in r.stderr, r.stderr
     assert not any(tmp_path.iterdir())
+
+
+def test_reuse_estimates_restores_a_folder_as_a_sequence(tmp_path):
+    """--reuse-estimates 2 on four frames of one rendered scene (different
+    noise): frames 0 and 2 (in name order) choose the type and estimate A,
+    1 and 3 reuse the previous estimate; every file equals the Python
+    Sequence's result, and the reused frames equal restore() given the
+    estimates."""
+    d = tmp_path / "frames"
+    d.mkdir()
+    sc = synth.scene(80, 112, kind="open_water", seed=4)
+    br, bg = uwhl_rs.WATER_TYPES["5C"]
+    for k in range(4):
+        img = synth.render(sc.clean, sc.distance, (br, bg), noise=0.004, seed=k)
+        io.write_image(d / f"frame_{k:03d}.png", img, encoding="linear")
+    r = uwhl("restore", d, "-o", tmp_path / "out", "--reuse-estimates", "2", "--format", "tiff",
+             "--guided-subsample", "auto")
+    assert r.returncode == 0, r.stderr
+    sides = [json.loads((tmp_path / "out" / f"frame_{k:03d}.json").read_text()) for k in range(4)]
+    assert [s["reused_estimates"] for s in sides] == [False, True, False, True]
+    assert [len(s["scores"]) for s in sides] == [10, 1, 10, 1]
+    assert sides[1]["water_type"] == sides[0]["water_type"] and sides[1]["veiling_light"] == sides[0]["veiling_light"]
+    assert "estimates_reused" in sides[1]["flags"] and "estimates_reused" not in sides[2]["flags"]
+    import tifffile
+
+    seq = uwhl_rs.Sequence(refresh_every=2, guided_subsample="auto")
+    for k, side in enumerate(sides):
+        img, _ = io.read_image(d / f"frame_{k:03d}.png")
+        res = seq.restore(img)
+        assert side["water_type"] == res.water_type and side["scores"] == pytest.approx(res.scores, rel=1e-12)
+        tif = tifffile.imread(tmp_path / "out" / f"frame_{k:03d}.tif")
+        assert np.array_equal(tif, np.floor(io.linear_to_srgb(res.image) * 65535 + 0.5))
+        if side["reused_estimates"]:
+            want = uwhl_rs.restore(img, water_types=[res.water_type], veiling_light=res.veiling_light,
+                                   guided_subsample="auto")
+            assert np.array_equal(want.image, res.image)
 
 
 def test_guided_subsample_in_the_sidecar(scenes, tmp_path):

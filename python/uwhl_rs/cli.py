@@ -196,6 +196,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "on S x S blocks (for video/sequences; t_B within ~4e-4 on average); "
                    "auto (= 0): max(1, radius / 32)")
     g.add_argument("--sphere-points", type=_positive_int, default=500, metavar="N", help="haze-line clusters (default 500)")
+    g.add_argument("--reuse-estimates", type=_positive_int, metavar="N",
+                   help="sequence mode for the frames of one video or dive (inputs in the order listed, "
+                   "folders by name): choose the water type and estimate the veiling light on every N-th "
+                   "restored input and reuse them for the ones in between (one type instead of ten); "
+                   "needs --jobs 1")
     g = r.add_argument_group("resources")
     g.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
                    help="inputs processed at once (default 1): overlaps decoding and writing of one "
@@ -384,6 +389,8 @@ def _describe(e: BaseException) -> str:
 
 def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     """``uwhl restore``: returns the exit status."""
+    import uwhl_rs
+
     from . import files
 
     out = out or sys.stdout
@@ -400,6 +407,9 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         if path is not None and not os.path.isfile(path):
             err.write(f"uwhl restore: error: {flag} {path}: no such file\n")
             return EXIT_USAGE
+    if a.reuse_estimates is not None and a.jobs != 1:
+        err.write("uwhl restore: error: --reuse-estimates restores the inputs in order; it needs --jobs 1\n")
+        return EXIT_USAGE
     jobs, problems = collect_inputs(a.inputs, a.out)
     for item, why in problems:
         err.write(f"uwhl: {item}: {why}\n")
@@ -431,6 +441,13 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     )
     if a.max_memory is not None:
         kwargs["max_memory"] = a.max_memory
+    if a.reuse_estimates is not None:
+        method = {k: kwargs[k] for k in files.METHOD_KEYS if k in kwargs}
+        try:
+            kwargs["sequence"] = uwhl_rs.Sequence(refresh_every=a.reuse_estimates, **method)
+        except uwhl_rs.UwhlError as e:
+            err.write(f"uwhl restore: error: {e}\n")
+            return EXIT_USAGE
     progress = Progress(len(jobs), err, a.quiet)
     outcomes: list[Outcome] = []
 

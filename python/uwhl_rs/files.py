@@ -102,6 +102,7 @@ def restore_file(
     mask=None,
     water_mask=None,
     contact: bool = False,
+    sequence=None,
     **restore_kwargs,
 ) -> FileResult:
     """Restore one photograph and write its outputs (docs/OUTPUTS.md).
@@ -116,6 +117,11 @@ def restore_file(
     contact sheet when ``contact``, and the JSON sidecar last. Every file
     is written atomically; if anything fails, the files already written
     for this input are removed and the error propagates.
+
+    With ``sequence`` (a :class:`uwhl_rs.Sequence`, made with the same
+    method keywords as ``restore_kwargs``, which then only label the
+    sidecar), the image is restored as that sequence's next frame and the
+    sidecar says in ``reused_estimates`` whether it reused the estimates.
 
     Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
     the paths written and the sidecar dict).
@@ -146,7 +152,10 @@ def restore_file(
         m = _shrink_mask(m, s, "all")
         wm = _shrink_mask(wm, s, "half")
     t_read = time.perf_counter()
-    res = uwhl_rs.restore(image, mask=m, water_mask=wm, **restore_kwargs)
+    if sequence is not None:
+        res = sequence.restore(image, mask=m, water_mask=wm)
+    else:
+        res = uwhl_rs.restore(image, mask=m, water_mask=wm, **restore_kwargs)
     t_restore = time.perf_counter()
 
     os.makedirs(out_dir, exist_ok=True)
@@ -194,6 +203,7 @@ def restore_file(
             "guided_radius": int(res.guided_radius),
             "guided_subsample": int(res.guided_subsample),
             "beta_ratios": [float(v) for v in res.beta_ratios],
+            **({"reused_estimates": "estimates_reused" in res.flags} if sequence is not None else {}),
             "parameters": {
                 "water_types": _jsonable(restore_kwargs.get("water_types")),
                 "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
@@ -238,6 +248,10 @@ def restore_file(
         raise
     return FileResult(res, meta, paths, sidecar)
 
+
+#: The keywords of :func:`uwhl_rs.restore` that a :class:`uwhl_rs.Sequence` takes.
+METHOD_KEYS = ("water_types", "veiling_light", "guided_radius", "guided_eps", "sphere_points", "threads",
+               "max_memory", "selection", "guided_subsample")
 
 _KNOWN = {"water_types", "veiling_light", "guided_radius", "guided_eps", "guided_subsample", "sphere_points",
           "threads"}

@@ -13,6 +13,7 @@ use crate::color::{max_side_factor, reference_srgb_stretch};
 use crate::filters::downscale;
 use crate::image::ImageRef;
 use crate::pipeline::{restore, Input, Params};
+use crate::sequence::{Sequence, FLAG_REUSED};
 use crate::water::{jerlov_types, WaterType};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -189,20 +190,11 @@ pub fn load_masks(opts: &Options) -> Result<Masks, CliError> {
     })
 }
 
-/// The water type and veiling light of a restored frame, for `--reuse-estimates`.
-#[derive(Debug, Clone)]
-pub struct Estimates {
-    /// the chosen type
-    pub water_type: WaterType,
-    /// A
-    pub veiling_light: [f32; 3],
-}
-
 /// What happened to one input.
 #[derive(Debug, Clone)]
 pub enum Outcome {
-    /// restored: the sidecar object and the estimates
-    Done(Box<Value>, Estimates),
+    /// restored: the sidecar object
+    Done(Box<Value>),
     /// skipped: its sidecar exists (no `--overwrite`)
     Skipped(PathBuf),
 }
@@ -269,8 +261,24 @@ pub struct Restored {
     pub t_restore: f64,
 }
 
-/// Decodes one file from `reader` and restores it with the options; `reuse`
-/// replaces the water types and the veiling light by a previous frame's.
+/// The core parameters of the options (the candidate types, a given A).
+fn method_params(opts: &Options) -> Params {
+    Params {
+        water_types: water_types(opts),
+        veiling_light: opts.veiling_light.map(|a| a.map(|v| v as f32)),
+        guided_radius: opts.guided_radius,
+        guided_eps: opts.guided_eps,
+        sphere_points: opts.sphere_points,
+        threads: None,
+        max_memory: opts.max_memory,
+        selection: opts.selection,
+        guided_subsample: opts.guided_subsample,
+    }
+}
+
+/// Decodes one file from `reader` and restores it with the options, as the
+/// next frame of `seq` when given (`--reuse-estimates`: its
+/// [`Sequence`] was made with the same options).
 ///
 /// Order (as the Python command): decode (sRGB -> linear unless `--linear`
 /// or `--preprocess reference`; float TIFF as is) -> reference stretch of
@@ -280,13 +288,9 @@ pub fn decode_and_restore<R: BufRead + Seek>(
     reader: R,
     opts: &Options,
     masks: &Masks,
-    reuse: Option<&Estimates>,
+    seq: Option<&mut Sequence>,
 ) -> Result<Restored, CliError> {
     let t0 = Instant::now();
-    let types = match reuse {
-        Some(r) => vec![r.water_type.clone()],
-        None => water_types(opts),
-    };
     let reference = opts.preprocess == Preprocess::Reference;
     let limits = Limits {
         max_pixels: opts.max_pixels,
@@ -312,28 +316,16 @@ pub fn decode_and_restore<R: BufRead + Seek>(
         (data, h, w)
     };
     let t_read = t0.elapsed().as_secs_f64();
-    let params = Params {
-        water_types: types,
-        veiling_light: match (reuse, opts.veiling_light) {
-            (_, Some(a)) => Some(a.map(|v| v as f32)),
-            (Some(r), None) => Some(r.veiling_light),
-            (None, None) => None,
-        },
-        guided_radius: opts.guided_radius,
-        guided_eps: opts.guided_eps,
-        sphere_points: opts.sphere_points,
-        threads: None,
-        max_memory: opts.max_memory,
-        selection: opts.selection,
-        guided_subsample: opts.guided_subsample,
-    };
     let input = Input {
         image: ImageRef::new(&data, hp, wp)?,
         mask: mask.as_deref(),
         water_mask: water.as_deref(),
     };
     let t1 = Instant::now();
-    let res = restore(&input, &params)?;
+    let res = match seq {
+        Some(seq) => seq.restore(&input)?,
+        None => restore(&input, &method_params(opts))?,
+    };
     let t_restore = t1.elapsed().as_secs_f64();
     let source = Source {
         kind: if decoded.is_float || opts.linear { "linear" } else { "srgb" },
@@ -396,7 +388,7 @@ pub fn fuzz_one(data: &[u8]) -> Result<Restored, CliError> {
 }
 
 /// Restores one input and writes its outputs (see [`decode_and_restore`]).
-pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimates>) -> Result<Outcome, CliError> {
+pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>) -> Result<Outcome, CliError> {
     let t0 = Instant::now();
     let sidecar_path = job.dir.join(format!("{}.json", job.name));
     if !opts.overwrite && sidecar_path.exists() {
@@ -415,7 +407,7 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimate
         source,
         t_read,
         t_restore,
-    } = decode_and_restore(BufReader::new(file), opts, masks, reuse)?;
+    } = decode_and_restore(BufReader::new(file), opts, masks, seq)?;
     let (hp, wp) = (source.processed_height, source.processed_width);
 
     let t2 = Instant::now();
@@ -448,7 +440,8 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimate
     let mut side = sidecar(&job.input, &paths, &source, &res, opts, seconds);
     if opts.stream && opts.reuse_estimates.is_some() {
         if let Some(obj) = side.as_object_mut() {
-            obj.insert("reused_estimates".into(), Value::Bool(reuse.is_some()));
+            let reused = res.flags.iter().any(|f| f == FLAG_REUSED);
+            obj.insert("reused_estimates".into(), Value::Bool(reused));
         }
     }
     let mut bytes = serde_json::to_vec_pretty(&side)
@@ -456,13 +449,7 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, reuse: Option<&Estimate
     bytes.push(b'\n');
     write_bytes(&mut tx, &sidecar_path, &bytes)?;
     tx.commit();
-    Ok(Outcome::Done(
-        Box::new(side),
-        Estimates {
-            water_type: res.water_type,
-            veiling_light: res.veiling_light,
-        },
-    ))
+    Ok(Outcome::Done(Box::new(side)))
 }
 
 /// Reports an error on `err`: one JSON object per line with `--json-errors`,
@@ -512,7 +499,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     }
     for job in &jobs {
         match process(job, opts, &masks, None) {
-            Ok(Outcome::Done(side, est)) => {
+            Ok(Outcome::Done(side)) => {
                 if !opts.quiet {
                     let img = side
                         .pointer("/outputs/image")
@@ -525,7 +512,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                         "{} -> {} (water type {}, {secs:.2} s)",
                         job.input.display(),
                         img.display(),
-                        est.water_type.name
+                        side.get("water_type").and_then(Value::as_str).unwrap_or("?")
                     );
                 }
             }
@@ -580,9 +567,13 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
         Ok(m) => m,
         Err(code) => return code,
     };
-    let every = opts.reuse_estimates.unwrap_or(1);
-    let mut last: Option<Estimates> = None;
-    let mut since = 0usize;
+    // --reuse-estimates N: frames 0, N, 2N, ... (counting restored frames)
+    // estimate, the others reuse (core Sequence mode)
+    let mut seq = opts.reuse_estimates.map(|n| {
+        let mut s = Sequence::new(method_params(opts));
+        s.refresh_every = n;
+        s
+    });
     let mut line = Vec::new();
     loop {
         line.clear();
@@ -615,24 +606,15 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
                     input: path.clone(),
                     dir: opts.outdir.clone(),
                 };
-                let reuse = last.as_ref().filter(|_| since < every);
-                match process(&job, opts, &masks, reuse) {
-                    Ok(o) => Ok((job.input, o, reuse.is_some())),
+                match process(&job, opts, &masks, seq.as_mut()) {
+                    Ok(o) => Ok((job.input, o)),
                     Err(e) => Err((Some(job.input), e)),
                 }
             }
         };
         let json = match result {
-            Ok((_, Outcome::Done(side, est), reused)) => {
-                if reused {
-                    since += 1;
-                } else {
-                    last = Some(est);
-                    since = 1;
-                }
-                *side
-            }
-            Ok((p, Outcome::Skipped(s), _)) => serde_json::json!({
+            Ok((_, Outcome::Done(side))) => *side,
+            Ok((p, Outcome::Skipped(s))) => serde_json::json!({
                 "input": p.to_string_lossy(),
                 "skipped": "sidecar exists",
                 "sidecar": s.to_string_lossy(),
