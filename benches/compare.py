@@ -13,7 +13,8 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
 * ``restore``: ``uwhl_rs.restore`` with all ten water types (best of a
   few calls), ``selection="fast"`` where the package has it, and the
   sequence mode (one type and the veiling light of a previous call) at
-  1920x1080; both also with ``guided_subsample="auto"`` (DECISIONS F4)
+  1920x1080; both also with ``guided_subsample="auto"`` (DECISIONS F4);
+  and the frames of a ``uwhl_rs.Sequence`` (DECISIONS F10)
   where the package has it;
 * ``reference``: ``tests/reference.py``'s ``restore`` (imported by path).
   It runs in full where the table says "full"; where it says "scaled from
@@ -308,6 +309,16 @@ def main(argv=None) -> int:
     t_seq = best_of(lambda: uw.restore(img, **seq_kw), 5)
     t_seq_sub = best_of(lambda: uw.restore(img, guided_subsample="auto", **seq_kw), 5) if has_sub else float("nan")
     t_seq_floor = floor_time(img, best_of)
+    # the same frames through uwhl_rs.Sequence (work buffers kept between
+    # frames; with reuse_water_mask the water detection is skipped too)
+    seq_rows = []
+    if hasattr(uw, "Sequence"):
+        for label, kw in [("exact", {}), ("auto", {"guided_subsample": "auto"}),
+                          ("auto, water region reused", {"guided_subsample": "auto", "reuse_water_mask": True})]:
+            seq = uw.Sequence(**kw)
+            seq.restore(img)  # estimates, untimed
+            seq.restore(img)
+            seq_rows.append((label, best_of(lambda: seq.restore(img), 5)))
 
     print()
     print("Whole restore (seconds; reference = tests/reference.py, NumPy/SciPy):")
@@ -318,6 +329,8 @@ def main(argv=None) -> int:
           f"{t_seq * 1e3:.1f} ms, {t_seq / t_seq_floor:.0f}x the floor ({t_seq_floor * 1e3:.1f} ms)")
     if has_sub:
         print(f"  with guided_subsample='auto': {t_seq_sub * 1e3:.1f} ms")
+    for label, t in seq_rows:
+        print(f"  uwhl_rs.Sequence frames ({label}): {t * 1e3:.1f} ms")
     print()
     print("Peak resident memory of one call (fresh process; MiB; includes input, outputs, interpreter):")
     print(table(["size", "mode", "input", "before call", "peak", "peak / input", "(peak - before) / input"], mem_rows))

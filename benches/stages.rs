@@ -1,7 +1,8 @@
 //! Criterion benchmarks: each stage at 2.7 MP (2010 x 1340, the reference
 //! code's working size) and the whole `restore` at 1, 2.7 and 12 MP on
 //! rendered scenes, plus the fast selection mode and the sequence mode
-//! (one type, veiling light given) at 1920 x 1080.
+//! (one type, veiling light given) at 1920 x 1080, also as the frames of a
+//! `Sequence`.
 //!
 //!     cargo bench --bench stages                 # everything (minutes)
 //!     cargo bench --bench stages -- stage/       # only the stages
@@ -111,6 +112,13 @@ fn whole(c: &mut Criterion) {
     };
     g.bench_with_input(BenchmarkId::new("sequence_one_type_given_A", "1080p"), &inp, |b, inp| {
         b.iter(|| restore(inp, &p).expect("restore"))
+    });
+    // the same frames through a Sequence (estimates of a first frame, work
+    // buffers kept between frames)
+    let mut seq = uwhl::Sequence::new(Params::default());
+    seq.restore(&inp).expect("restore");
+    g.bench_with_input(BenchmarkId::new("sequence_frames", "1080p"), &inp, |b, inp| {
+        b.iter(|| seq.restore(inp).expect("restore"))
     });
     g.finish();
 }
