@@ -90,18 +90,24 @@ import sys, time, numpy as np
 sys.path.insert(0, {pkg!r})
 import uwhl_rs
 img = np.load({path!r})
-t = time.perf_counter()
-uwhl_rs.restore(img)
-print(time.perf_counter() - t)
+uwhl_rs.restore(img)  # warm-up: thread pool, sphere index, heap
+best = float("inf")
+for _ in range({reps}):
+    t = time.perf_counter()
+    uwhl_rs.restore(img)
+    best = min(best, time.perf_counter() - t)
+print(best)
 """
 
 
-def time_baseline(pkg: str, img: np.ndarray, tmp: pathlib.Path) -> float:
-    """One all-ten-types call of the package in `pkg`, in a fresh process."""
+def time_in_process(pkg: str, img: np.ndarray, tmp: pathlib.Path, reps: int = 1) -> float:
+    """Best of `reps` all-ten-types calls of the package in `pkg`, in a fresh
+    process, after one untimed warm-up call (the same harness for the
+    current build and the baseline, so that neither is timed cold)."""
     path = tmp / "baseline_input.npy"
     np.save(path, img)
-    out = subprocess.run([sys.executable, "-c", _TIME.format(pkg=str(pathlib.Path(pkg).resolve()), path=str(path))],
-                         capture_output=True, text=True, check=True)
+    code = _TIME.format(pkg=str(pathlib.Path(pkg).resolve()), path=str(path), reps=reps)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -223,8 +229,9 @@ def main(argv=None) -> int:
     ap.add_argument("--reference-crop", type=int, default=1000,
                     help="side of the square crop the reference runs on where it is scaled (default 1000)")
     ap.add_argument("--tmp", default=None, help="directory for the subprocess inputs (default: a temporary one)")
-    ap.add_argument("--baseline", help="also time uwhl_rs from this directory (an older build), in subprocesses "
-                    "alternating with the current package's calls, so both see the same machine load")
+    ap.add_argument("--baseline", help="also time uwhl_rs from this directory (an older build); both builds are then "
+                    "timed in fresh subprocesses (warm-up call, then timed calls), alternating, so both see the "
+                    "same harness and machine load")
     args = ap.parse_args(argv)
 
     uw = _import_package(args.package)
@@ -258,10 +265,13 @@ def main(argv=None) -> int:
         reps = 3 if h * w <= 3_000_000 else 2
         res = uw.restore(img)  # warm-up (and the sphere index)
         if args.baseline:
+            # both builds in fresh processes with the same harness (warm-up,
+            # then timed calls), alternating so that both see the same load
+            here = str(pathlib.Path(uw.__file__).resolve().parent.parent)
             t_all = t_base = float("inf")
             for _ in range(reps):
-                t_all = min(t_all, best_of(lambda: uw.restore(img), 1))
-                t_base = min(t_base, time_baseline(args.baseline, img, tmp))
+                t_all = min(t_all, time_in_process(here, img, tmp))
+                t_base = min(t_base, time_in_process(args.baseline, img, tmp))
         else:
             t_all = best_of(lambda: uw.restore(img), reps)
             t_base = float("nan")

@@ -990,7 +990,10 @@ fn finish(
     let (st, transmission) = match q {
         Some(q) if q.len() == n => {
             shared.guide.release_stats();
-            pool.put(std::mem::take(&mut work.aux), Vec::new());
+            if !pool.keep {
+                // not read from here on: freed early unless kept
+                work.aux = Vec::new();
+            }
             work.q = q;
             let mut transmission = vec![0f32; n];
             let st = shared.recover_from_q(wt, &mut work, Some(&mut transmission));
@@ -1010,11 +1013,7 @@ fn finish(
     };
     let sp = shared.stretch(&work.j, &st);
     clock.lap("chosen: display stretch limits");
-    let aux = match std::mem::take(&mut work.aux) {
-        a if a.is_empty() => std::mem::take(&mut pool.aux),
-        a => a,
-    };
-    pool.put(aux, std::mem::take(&mut work.q));
+    pool.put(std::mem::take(&mut work.aux), std::mem::take(&mut work.q));
     let mut radiance = std::mem::take(&mut work.j);
     radiance.par_iter_mut().for_each(|v| *v = sp.clamp.apply(*v));
     let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
