@@ -14,8 +14,8 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
   few calls), ``selection="fast"`` where the package has it, and the
   sequence mode (one type and the veiling light of a previous call) at
   1920x1080; both also with ``guided_subsample="auto"`` (DECISIONS F4);
-  and the frames of a ``uwhl_rs.Sequence`` (DECISIONS F10)
-  where the package has it;
+  and the frames of a ``uwhl_rs.Sequence`` (DECISIONS F10) where the
+  package has it;
 * ``reference``: ``tests/reference.py``'s ``restore`` (imported by path).
   It runs in full where the table says "full"; where it says "scaled from
   HxW", it ran on a crop of that size and its time is scaled by the pixel
@@ -30,7 +30,12 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
   time (its modules' self times) and what it adds beyond NumPy;
 * ``selection="fast"`` against the exhaustive mode: the chosen water type on
   every shared photo (``../shared/data/images``, when present) and on renders
-  of the ten types.
+  of the ten types;
+* with ``--baseline DIR``: this build and the one in DIR, each timed in
+  fresh processes by the same harness (an untimed warm-up call, then a
+  timed one), alternating; their ratio is the speed-up over the baseline.
+  (Until this harness existed the baseline was timed cold, as a first call,
+  against warm calls of the current build, which overstated the ratio.)
 
 Timings on a shared machine are noisy: compare rows of the same run.
 """
@@ -264,17 +269,16 @@ def main(argv=None) -> int:
         img = np.ascontiguousarray(img, dtype=np.float32)
         reps = 3 if h * w <= 3_000_000 else 2
         res = uw.restore(img)  # warm-up (and the sphere index)
+        t_all = best_of(lambda: uw.restore(img), reps)
+        t_cur = t_base = float("nan")
         if args.baseline:
             # both builds in fresh processes with the same harness (warm-up,
-            # then timed calls), alternating so that both see the same load
+            # then a timed call), alternating so that both see the same load
             here = str(pathlib.Path(uw.__file__).resolve().parent.parent)
-            t_all = t_base = float("inf")
+            t_cur = t_base = float("inf")
             for _ in range(reps):
-                t_all = min(t_all, time_in_process(here, img, tmp))
+                t_cur = min(t_cur, time_in_process(here, img, tmp))
                 t_base = min(t_base, time_in_process(args.baseline, img, tmp))
-        else:
-            t_all = best_of(lambda: uw.restore(img), reps)
-            t_base = float("nan")
         t_fast = best_of(lambda: uw.restore(img, selection="fast"), reps) if has_fast else float("nan")
         fast_type = uw.restore(img, selection="fast").water_type if has_fast else "-"
         fast_sub_kw = {"selection": "fast", "guided_subsample": "auto"}
@@ -297,7 +301,7 @@ def main(argv=None) -> int:
         rows.append([
             label, f"{w}x{h}", f"{t_all:.3f}", f"{t_fast:.3f}" if has_fast else "-",
             f"{t_fast_sub:.3f}" if has_sub else "-",
-            f"{t_base:.3f} ({t_base / t_all:.1f}x)" if args.baseline else "-",
+            f"{t_cur:.3f} / {t_base:.3f} ({t_base / t_cur:.2f}x)" if args.baseline else "-",
             f"{t_ref:.1f}", ref_note, f"{t_ref / t_all:.0f}x", f"{t_floor * 1e3:.1f}",
             f"{t_all / t_floor:.0f}x", res.water_type, fast_type, same,
         ])
@@ -332,7 +336,7 @@ def main(argv=None) -> int:
 
     print()
     print("Whole restore (seconds; reference = tests/reference.py, NumPy/SciPy):")
-    print(table(["size", "WxH", "uwhl_rs all 10", "uwhl_rs fast", "fast + subsampled GF", "baseline all 10", "reference", "reference run",
+    print(table(["size", "WxH", "uwhl_rs all 10", "uwhl_rs fast", "fast + subsampled GF", "this build / baseline, fresh processes", "reference", "reference run",
                  "speed-up", "floor ms", "x floor", "type", "fast type", "ref type same"], rows))
     print()
     print(f"Sequence mode (1920x1080, water_types=[{first.water_type!r}], veiling_light given): "

@@ -169,42 +169,54 @@ fn mask_slice<'a>(
     }
 }
 
-/// The [`Params`] of the keyword arguments shared by `restore_f32` and `Sequence`.
-#[allow(clippy::too_many_arguments)]
-fn make_params(
-    water_types: Option<Bound<'_, PyAny>>,
-    veiling_light: Option<(f32, f32, f32)>,
-    guided_radius: Option<usize>,
-    guided_eps: f64,
-    sphere_points: usize,
-    threads: Option<usize>,
-    max_memory: Option<u64>,
-    selection: &str,
-    guided_subsample: usize,
-) -> PyResult<Params> {
-    let mut params = Params::default();
-    if let Some(t) = water_types {
-        params.water_types = parse_types(&t)?;
-    }
-    params.veiling_light = veiling_light.map(|(r, g, b)| [r, g, b]);
-    params.guided_radius = guided_radius;
-    params.guided_eps = guided_eps;
-    params.sphere_points = sphere_points;
-    params.threads = threads;
-    params.guided_subsample = guided_subsample;
-    if let Some(m) = max_memory {
-        params.max_memory = m;
-    }
-    params.selection = match selection {
-        "exhaustive" => Selection::Exhaustive,
-        "fast" => Selection::Fast,
-        other => {
-            return Err(ParameterError::new_err(format!(
-                "selection must be \"exhaustive\" or \"fast\"; got {other:?}"
-            )))
+/// The method's parameters (core [`Params`]), made once from the keyword
+/// arguments that `uwhl_rs.restore` and `uwhl_rs.Sequence` share (which
+/// check them first) and passed to `restore_f32` or `Sequence`.
+#[pyclass(name = "Params", module = "uwhl_rs._core", frozen)]
+pub struct PyParams(Params);
+
+#[pymethods]
+impl PyParams {
+    #[new]
+    #[pyo3(signature = (*, water_types=None, veiling_light=None, guided_radius=None, guided_eps=1e-3,
+                        sphere_points=500, threads=None, max_memory=None, selection="exhaustive",
+                        guided_subsample=1))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        water_types: Option<Bound<'_, PyAny>>,
+        veiling_light: Option<(f32, f32, f32)>,
+        guided_radius: Option<usize>,
+        guided_eps: f64,
+        sphere_points: usize,
+        threads: Option<usize>,
+        max_memory: Option<u64>,
+        selection: &str,
+        guided_subsample: usize,
+    ) -> PyResult<Self> {
+        let mut params = Params::default();
+        if let Some(t) = water_types {
+            params.water_types = parse_types(&t)?;
         }
-    };
-    Ok(params)
+        params.veiling_light = veiling_light.map(|(r, g, b)| [r, g, b]);
+        params.guided_radius = guided_radius;
+        params.guided_eps = guided_eps;
+        params.sphere_points = sphere_points;
+        params.threads = threads;
+        params.guided_subsample = guided_subsample;
+        if let Some(m) = max_memory {
+            params.max_memory = m;
+        }
+        params.selection = match selection {
+            "exhaustive" => Selection::Exhaustive,
+            "fast" => Selection::Fast,
+            other => {
+                return Err(ParameterError::new_err(format!(
+                    "selection must be \"exhaustive\" or \"fast\"; got {other:?}"
+                )))
+            }
+        };
+        Ok(Self(params))
+    }
 }
 
 /// The pixels and (H, W) of an (H, W, 3) C-contiguous float32 array.
@@ -224,30 +236,16 @@ fn image_data<'a>(image: &'a PyReadonlyArray3<'a, f32>) -> PyResult<(&'a [f32], 
 /// Native entry point behind `uwhl_rs.restore` (which checks dtypes and
 /// converts float64 to float32 first). Releases the GIL while it works.
 #[pyfunction]
-#[pyo3(signature = (image, *, water_types=None, veiling_light=None, water_mask=None, mask=None,
-                    guided_radius=None, guided_eps=1e-3, sphere_points=500, threads=None, max_memory=None,
-                    selection="exhaustive", guided_subsample=1))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (image, params, *, water_mask=None, mask=None))]
 fn restore_f32(
     py: Python<'_>,
     image: PyReadonlyArray3<'_, f32>,
-    water_types: Option<Bound<'_, PyAny>>,
-    veiling_light: Option<(f32, f32, f32)>,
+    params: &PyParams,
     water_mask: Option<PyReadonlyArray2<'_, bool>>,
     mask: Option<PyReadonlyArray2<'_, bool>>,
-    guided_radius: Option<usize>,
-    guided_eps: f64,
-    sphere_points: usize,
-    threads: Option<usize>,
-    max_memory: Option<u64>,
-    selection: &str,
-    guided_subsample: usize,
 ) -> PyResult<PyRestoration> {
     let (data, h, w) = image_data(&image)?;
-    let params = make_params(
-        water_types, veiling_light, guided_radius, guided_eps, sphere_points, threads, max_memory, selection,
-        guided_subsample,
-    )?;
+    let params = &params.0;
     let wm = mask_slice("water_mask", &water_mask, h, w)?;
     let mk = mask_slice("mask", &mask, h, w)?;
     let res = py
@@ -259,7 +257,7 @@ fn restore_f32(
                     mask: mk,
                     water_mask: wm,
                 },
-                &params,
+                params,
             )
         })
         .map_err(to_py_err)?;
@@ -334,27 +332,9 @@ impl PySequence {
 #[pymethods]
 impl PySequence {
     #[new]
-    #[pyo3(signature = (*, water_types=None, veiling_light=None, guided_radius=None, guided_eps=1e-3,
-                        sphere_points=500, threads=None, max_memory=None, selection="exhaustive",
-                        guided_subsample=1, refresh_every=0, reuse_water_mask=false))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        water_types: Option<Bound<'_, PyAny>>,
-        veiling_light: Option<(f32, f32, f32)>,
-        guided_radius: Option<usize>,
-        guided_eps: f64,
-        sphere_points: usize,
-        threads: Option<usize>,
-        max_memory: Option<u64>,
-        selection: &str,
-        guided_subsample: usize,
-        refresh_every: usize,
-        reuse_water_mask: bool,
-    ) -> PyResult<Self> {
-        let params = make_params(
-            water_types, veiling_light, guided_radius, guided_eps, sphere_points, threads, max_memory, selection,
-            guided_subsample,
-        )?;
+    #[pyo3(signature = (params, *, refresh_every=0, reuse_water_mask=false))]
+    fn new(params: &PyParams, refresh_every: usize, reuse_water_mask: bool) -> PyResult<Self> {
+        let params = params.0.clone();
         let mut seq = Sequence::new(params);
         seq.refresh_every = refresh_every;
         seq.reuse_water_mask = reuse_water_mask;
@@ -497,6 +477,9 @@ fn _stage_edge_map<'py>(
 }
 
 /// Veiling light and water region: (A, VL, flags).
+/// A, the water region and the flags of `_stage_veiling`.
+type VeilingOut<'py> = ((f32, f32, f32), Bound<'py, PyAny>, Vec<String>);
+
 #[pyfunction]
 #[pyo3(signature = (image, mask=None, water_mask=None, veiling_light=None))]
 fn _stage_veiling<'py>(
@@ -505,7 +488,7 @@ fn _stage_veiling<'py>(
     mask: Option<PyReadonlyArray2<'py, bool>>,
     water_mask: Option<PyReadonlyArray2<'py, bool>>,
     veiling_light: Option<(f32, f32, f32)>,
-) -> PyResult<((f32, f32, f32), Bound<'py, PyAny>, Vec<String>)> {
+) -> PyResult<VeilingOut<'py>> {
     let img = img_of(&image)?;
     let m = mask_slice("mask", &mask, img.height, img.width)?;
     let wm = mask_slice("water_mask", &water_mask, img.height, img.width)?;
@@ -709,6 +692,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     crate::python_color::register(m)?;
     m.add_class::<PyRestoration>()?;
     m.add_class::<PySequence>()?;
+    m.add_class::<PyParams>()?;
     m.add_function(wrap_pyfunction!(_after_fork, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_stretch, m)?)?;
     m.add_function(wrap_pyfunction!(_stage_guide, m)?)?;

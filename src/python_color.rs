@@ -17,7 +17,7 @@ fn same_shape<'py, T: numpy::Element>(
     v: Vec<T>,
     shape: &[usize],
 ) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
-    Ok(PyArray1::from_vec(py, v).reshape(shape)?)
+    PyArray1::from_vec(py, v).reshape(shape)
 }
 
 fn rgb_shape(shape: &[usize], what: &str) -> PyResult<()> {

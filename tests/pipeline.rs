@@ -1,6 +1,8 @@
 //! End-to-end tests of the Rust API on a scene rendered through the model of
 //! SPEC 0 (I = t J + (1 - t) A) with known water type, distances and water.
 
+mod common;
+
 use uwhl::{restore, Error, ImageRef, Input, Params, WaterType};
 
 struct Scene {
@@ -68,15 +70,6 @@ fn scene(h: usize, w: usize) -> Scene {
     }
 }
 
-fn pearson(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
-    let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
-    let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
-    cov / (va * vb).sqrt()
-}
-
 /// rho(z, -ln t) over the object pixels (SPEC 11).
 fn rho(s: &Scene, t: &[f32]) -> f64 {
     let (zz, lt): (Vec<f64>, Vec<f64>) = s
@@ -86,7 +79,7 @@ fn rho(s: &Scene, t: &[f32]) -> f64 {
         .filter(|(z, _)| z.is_finite())
         .map(|(z, t)| (*z, -(*t as f64).ln()))
         .unzip();
-    pearson(&zz, &lt)
+    common::pearson(&zz, &lt)
 }
 
 #[test]

@@ -38,15 +38,6 @@ fn with_estimates(seq: &Sequence, img: &[f32], h: usize, w: usize, water: Option
     restore(&input(img, h, w, water), &p).unwrap()
 }
 
-fn pearson(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len() as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-    let syy: f64 = y.iter().map(|b| (b - my).powi(2)).sum();
-    sxy / (sxx * syy).sqrt()
-}
-
 #[test]
 fn reused_frames_equal_restore_with_the_estimates() {
     let (h, w) = (60, 90);
@@ -97,7 +88,7 @@ fn reused_frame_recovers_the_rendered_veiling_light_and_distances() {
             d.push(-f64::from(res.transmission[y * w + x]).ln());
         }
     }
-    let rho = pearson(&z, &d);
+    let rho = common::pearson(&z, &d);
     assert!(rho > 0.8, "rho(z, -ln t_B) = {rho}");
 }
 

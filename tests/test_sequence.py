@@ -170,6 +170,11 @@ def test_bad_parameters(kwargs, match):
         seq.restore(synth.demo_input(16, 16)[0])
 
 
+def test_unknown_keyword_is_a_type_error():
+    with pytest.raises(TypeError, match="radius"):
+        uwhl_rs.Sequence(radius=3)
+
+
 @pytest.mark.parametrize(
     "image, match",
     [

@@ -257,23 +257,24 @@ def restore(
         selection=selection,
         guided_subsample=guided_subsample,
     )
-    return _core.restore_f32(img, water_mask=wm, mask=m, **kw)
+    return _core.restore_f32(img, kw, water_mask=wm, mask=m)
 
 
 def _method_params(
     *,
-    water_types,
-    veiling_light,
-    guided_radius,
-    guided_eps,
-    sphere_points,
-    threads,
-    max_memory,
-    selection,
-    guided_subsample,
-) -> dict:
-    """The method's keyword arguments of :func:`restore` and :class:`Sequence`,
-    checked and converted for the core (ParameterError naming a bad one)."""
+    water_types=None,
+    veiling_light=None,
+    guided_radius: int | None = None,
+    guided_eps: float = 1e-3,
+    sphere_points: int = 500,
+    threads: int | None = None,
+    max_memory: int | None = None,
+    selection: str = "exhaustive",
+    guided_subsample: int | str = 1,
+) -> _core.Params:
+    """The method's keyword arguments of :func:`restore` and :class:`Sequence`
+    (defaults: :func:`restore`'s), checked (ParameterError naming a bad one)
+    and converted to the core's parameters."""
     if veiling_light is not None:
         try:
             v = np.asarray(veiling_light, dtype=np.float64)
@@ -291,7 +292,7 @@ def _method_params(
         raise ParameterError(f"guided_eps must be a number > 0; got {guided_eps!r}")
     if not isinstance(selection, str) or selection not in ("exhaustive", "fast"):
         raise ParameterError(f'selection must be "exhaustive" or "fast"; got {selection!r}')
-    return dict(
+    return _core.Params(
         water_types=water_types,
         veiling_light=veiling_light,
         guided_radius=_int_param("guided_radius", guided_radius, 0),
@@ -347,36 +348,12 @@ class Sequence:
         ``max_memory``, ``selection``, ``guided_subsample``).
     """
 
-    def __init__(
-        self,
-        *,
-        refresh_every: int = 0,
-        reuse_water_mask: bool = False,
-        water_types=None,
-        veiling_light=None,
-        guided_radius: int | None = None,
-        guided_eps: float = 1e-3,
-        sphere_points: int = 500,
-        threads: int | None = None,
-        max_memory: int | None = None,
-        selection: str = "exhaustive",
-        guided_subsample: int | str = 1,
-    ):
+    def __init__(self, *, refresh_every: int = 0, reuse_water_mask: bool = False, **kwargs):
         refresh_every = _int_param("refresh_every", refresh_every, 0)
         if not isinstance(reuse_water_mask, (bool, np.bool_)):
             raise ParameterError(f"reuse_water_mask must be True or False; got {reuse_water_mask!r}")
-        kw = _method_params(
-            water_types=water_types,
-            veiling_light=veiling_light,
-            guided_radius=guided_radius,
-            guided_eps=guided_eps,
-            sphere_points=sphere_points,
-            threads=threads,
-            max_memory=max_memory,
-            selection=selection,
-            guided_subsample=guided_subsample,
-        )
-        self._core = _core.Sequence(refresh_every=refresh_every, reuse_water_mask=bool(reuse_water_mask), **kw)
+        params = _method_params(**kwargs)
+        self._core = _core.Sequence(params, refresh_every=refresh_every, reuse_water_mask=bool(reuse_water_mask))
 
     def restore(self, image, *, mask=None, water_mask=None) -> Restoration:
         """Restore the next frame; ``image``, ``mask`` and ``water_mask`` as

@@ -31,23 +31,7 @@ class Restoration:
 
 WaterTypeSpec = Union[str, tuple[str, float, float]]
 
-def restore_f32(
-    image: npt.NDArray[np.float32],
-    *,
-    water_types: Optional[_Seq[WaterTypeSpec]] = None,
-    veiling_light: Optional[tuple[float, float, float]] = None,
-    water_mask: Optional[npt.NDArray[np.bool_]] = None,
-    mask: Optional[npt.NDArray[np.bool_]] = None,
-    guided_radius: Optional[int] = None,
-    guided_eps: float = 1e-3,
-    sphere_points: int = 500,
-    threads: Optional[int] = None,
-    max_memory: Optional[int] = None,
-    selection: Literal["exhaustive", "fast"] = "exhaustive",
-    guided_subsample: int = 1,
-) -> Restoration: ...
-
-class Sequence:
+class Params:
     def __init__(
         self,
         *,
@@ -60,9 +44,18 @@ class Sequence:
         max_memory: Optional[int] = None,
         selection: Literal["exhaustive", "fast"] = "exhaustive",
         guided_subsample: int = 1,
-        refresh_every: int = 0,
-        reuse_water_mask: bool = False,
     ) -> None: ...
+
+def restore_f32(
+    image: npt.NDArray[np.float32],
+    params: Params,
+    *,
+    water_mask: Optional[npt.NDArray[np.bool_]] = None,
+    mask: Optional[npt.NDArray[np.bool_]] = None,
+) -> Restoration: ...
+
+class Sequence:
+    def __init__(self, params: Params, *, refresh_every: int = 0, reuse_water_mask: bool = False) -> None: ...
     def restore(
         self,
         image: npt.NDArray[np.float32],
