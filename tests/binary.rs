@@ -359,3 +359,47 @@ fn stream_mode_survives_bad_frames_and_reuses_estimates() {
     let res = json_lines(&o.stdout);
     assert_eq!(res[0]["skipped"], "sidecar exists");
 }
+
+#[test]
+fn stream_mode_reuses_the_water_region_when_asked() {
+    // frame 0: water in the top third; frame 1: the same scene upside down
+    // (seabed at the top, where SPEC 3 looks for water)
+    let d = tmp("stream_vl");
+    let (h, w) = (30, 40);
+    let f0 = d.join("f0.png");
+    scene_png(&f0, h, w, 21);
+    let lin = common::scene(h, w, 22);
+    let flipped: Vec<f32> = (0..h).rev().flat_map(|y| lin[3 * w * y..3 * w * (y + 1)].to_vec()).collect();
+    let f1 = d.join("f1.png");
+    image::RgbImage::from_raw(w as u32, h as u32, uwhl::color::quantize_u8(&flipped, true))
+        .unwrap()
+        .save(&f1)
+        .unwrap();
+    let run = |extra: &[&str], out: &str| {
+        let mut child = bin()
+            .args(["--stream", "--reuse-estimates", "5"])
+            .args(extra)
+            .arg("-o")
+            .arg(d.join(out))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        {
+            let mut stdin = child.stdin.take().unwrap();
+            writeln!(stdin, "{}\n{}", f0.display(), f1.display()).unwrap();
+        }
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        json_lines(&o.stdout)
+    };
+    let kept = run(&["--reuse-water-mask"], "kept");
+    assert_eq!(kept[1]["reused_estimates"], true);
+    assert!(kept[0]["vl_pixels"].as_u64().unwrap() > 0);
+    assert_eq!(kept[1]["vl_pixels"], kept[0]["vl_pixels"]);
+    let own = run(&[], "own");
+    assert_eq!(own[1]["reused_estimates"], true);
+    assert_ne!(own[1]["vl_pixels"], own[0]["vl_pixels"]);
+    assert_eq!(own[1]["veiling_light"], kept[1]["veiling_light"]);
+}

@@ -214,6 +214,7 @@ def test_options_reach_restore(scenes, tmp_path):
         (["--guided-subsample", "1.5"], "--guided-subsample"),
         (["--reuse-estimates", "0"], "--reuse-estimates"),
         (["--reuse-estimates", "2", "--jobs", "2"], "needs --jobs 1"),
+        (["--reuse-water-mask"], "needs --reuse-estimates"),
     ],
 )
 def test_bad_arguments_exit_2_with_a_message(scenes, tmp_path, args, needle):
@@ -256,6 +257,27 @@ def test_reuse_estimates_restores_a_folder_as_a_sequence(tmp_path):
             want = uwhl_rs.restore(img, water_types=[res.water_type], veiling_light=res.veiling_light,
                                    guided_subsample="auto")
             assert np.array_equal(want.image, res.image)
+
+
+def test_reuse_water_mask_keeps_the_first_region(scenes, tmp_path):
+    """--reuse-estimates 5 --reuse-water-mask: the second input (another
+    scene, in name order) is restored with the first one's water type, A and
+    water region, exactly as the Python Sequence does."""
+    r = uwhl("restore", scenes / "scene_3C.png", scenes / "scene_7C.png", "-o", tmp_path, "--reuse-estimates", "5",
+             "--reuse-water-mask", "--format", "tiff")
+    assert r.returncode == 0, r.stderr
+    first, second = (json.loads((tmp_path / f"scene_{t}.json").read_text()) for t in ("3C", "7C"))
+    assert second["reused_estimates"] and second["vl_pixels"] == first["vl_pixels"]
+    seq = uwhl_rs.Sequence(refresh_every=5, reuse_water_mask=True)
+    a, _ = io.read_image(scenes / "scene_3C.png")
+    b, _ = io.read_image(scenes / "scene_7C.png")
+    ra = seq.restore(a)
+    rb = seq.restore(b)
+    assert np.array_equal(rb.veiling_mask, ra.veiling_mask)
+    import tifffile
+
+    tif = tifffile.imread(tmp_path / "scene_7C.tif")
+    assert np.array_equal(tif, np.floor(io.linear_to_srgb(rb.image) * 65535 + 0.5))
 
 
 def test_guided_subsample_in_the_sidecar(scenes, tmp_path):

@@ -201,6 +201,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "folders by name): choose the water type and estimate the veiling light on every N-th "
                    "restored input and reuse them for the ones in between (one type instead of ten); "
                    "needs --jobs 1")
+    g.add_argument("--reuse-water-mask", action="store_true",
+                   help="with --reuse-estimates: reuse the estimating input's water region too (a camera "
+                   "that holds its attitude; skips the water detection)")
     g = r.add_argument_group("resources")
     g.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
                    help="inputs processed at once (default 1): overlaps decoding and writing of one "
@@ -407,6 +410,9 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         if path is not None and not os.path.isfile(path):
             err.write(f"uwhl restore: error: {flag} {path}: no such file\n")
             return EXIT_USAGE
+    if a.reuse_water_mask and a.reuse_estimates is None:
+        err.write("uwhl restore: error: --reuse-water-mask needs --reuse-estimates N\n")
+        return EXIT_USAGE
     if a.reuse_estimates is not None and a.jobs != 1:
         err.write("uwhl restore: error: --reuse-estimates restores the inputs in order; it needs --jobs 1\n")
         return EXIT_USAGE
@@ -444,7 +450,9 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     if a.reuse_estimates is not None:
         method = {k: kwargs[k] for k in files.METHOD_KEYS if k in kwargs}
         try:
-            kwargs["sequence"] = uwhl_rs.Sequence(refresh_every=a.reuse_estimates, **method)
+            kwargs["sequence"] = uwhl_rs.Sequence(
+                refresh_every=a.reuse_estimates, reuse_water_mask=a.reuse_water_mask, **method
+            )
         except uwhl_rs.UwhlError as e:
             err.write(f"uwhl restore: error: {e}\n")
             return EXIT_USAGE

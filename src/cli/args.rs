@@ -124,6 +124,8 @@ pub struct Options {
     pub stream: bool,
     /// `--reuse-estimates N` (stream mode): re-estimate every N frames
     pub reuse_estimates: Option<usize>,
+    /// `--reuse-water-mask` (with `--reuse-estimates`): reuse the water region too
+    pub reuse_water_mask: bool,
     /// `-q`: no progress lines on stdout (batch mode)
     pub quiet: bool,
 }
@@ -155,6 +157,7 @@ impl Default for Options {
             json_errors: false,
             stream: false,
             reuse_estimates: None,
+            reuse_water_mask: false,
             quiet: false,
         }
     }
@@ -225,6 +228,8 @@ Options:
       --stream             stream mode: one JSON line per frame on stdout, never stops on a bad frame
       --reuse-estimates N  stream mode: estimate water type and veiling light every N frames,
                            reuse them in between
+      --reuse-water-mask   with --reuse-estimates: reuse the estimating frame's water region too
+                           (a camera that holds its attitude; skips the water detection)
   -q, --quiet              no progress lines on stdout
   -h, --help               this text
   -V, --version            the version
@@ -468,6 +473,7 @@ where
             Long("reuse-estimates") => {
                 o.reuse_estimates = Some(number(p.value().map_err(lex)?, "--reuse-estimates", 1)?)
             }
+            Long("reuse-water-mask") => o.reuse_water_mask = true,
             Short('q') | Long("quiet") => o.quiet = true,
             Value(v) => o.inputs.push(v.into()),
             _ => return Err(CliError::usage(arg.unexpected().to_string())),
@@ -484,6 +490,9 @@ where
     }
     if o.reuse_estimates.is_some() && !o.stream {
         return Err(CliError::usage("--reuse-estimates needs --stream"));
+    }
+    if o.reuse_water_mask && o.reuse_estimates.is_none() {
+        return Err(CliError::usage("--reuse-water-mask needs --reuse-estimates N"));
     }
     if o.format == Format::Jpg && o.bits == Some(16) {
         return Err(CliError::usage(
@@ -563,6 +572,7 @@ mod tests {
             &["a", "-o", "o", "--format", "gif"],
             &["a", "-o", "o", "--frobnicate"],
             &["a", "-o", "o", "--reuse-estimates", "3"],
+            &["-o", "o", "--stream", "--reuse-water-mask"],
             &["a", "-o", "o", "--stream"],
             &["a", "-o", "o", "--linear", "--preprocess", "reference"],
         ] {

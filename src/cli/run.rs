@@ -572,6 +572,7 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
     let mut seq = opts.reuse_estimates.map(|n| {
         let mut s = Sequence::new(method_params(opts));
         s.refresh_every = n;
+        s.reuse_water_mask = opts.reuse_water_mask;
         s
     });
     let mut line = Vec::new();
