@@ -49,6 +49,27 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// `uwhl-rs --stream ARGS -o OUT` fed `lines` on stdin.
+fn stream(args: &[&str], out: &Path, lines: &[String]) -> std::process::Output {
+    let mut child = bin()
+        .arg("--stream")
+        .args(args)
+        .arg("-o")
+        .arg(out)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        let mut stdin = child.stdin.take().unwrap();
+        for l in lines {
+            writeln!(stdin, "{l}").unwrap();
+        }
+    }
+    child.wait_with_output().unwrap()
+}
+
 fn json_lines(bytes: &[u8]) -> Vec<Value> {
     String::from_utf8_lossy(bytes)
         .lines()
@@ -313,21 +334,7 @@ fn stream_mode_survives_bad_frames_and_reuses_estimates() {
         frames[2].display().to_string(),
         frames[3].display().to_string(),
     ];
-    let mut child = bin()
-        .args(["--stream", "--reuse-estimates", "2", "--json-errors", "-o"])
-        .arg(&out)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    {
-        let mut stdin = child.stdin.take().unwrap();
-        for l in &lines {
-            writeln!(stdin, "{l}").unwrap();
-        }
-    }
-    let o = child.wait_with_output().unwrap();
+    let o = stream(&["--reuse-estimates", "2", "--json-errors"], &out, &lines);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let res = json_lines(&o.stdout);
     assert_eq!(res.len(), 6, "{}", String::from_utf8_lossy(&o.stdout));
@@ -347,15 +354,7 @@ fn stream_mode_survives_bad_frames_and_reuses_estimates() {
     assert_eq!(res[2]["scores"].as_object().unwrap().len(), 1);
     assert_eq!(json_lines(&o.stderr).len(), 2);
     // the frames are on disk; skipped without --overwrite when sent again
-    let mut child = bin()
-        .args(["--stream", "-o"])
-        .arg(&out)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    writeln!(child.stdin.take().unwrap(), "{}", frames[0].display()).unwrap();
-    let o = child.wait_with_output().unwrap();
+    let o = stream(&[], &out, &[frames[0].display().to_string()]);
     let res = json_lines(&o.stdout);
     assert_eq!(res[0]["skipped"], "sidecar exists");
 }
@@ -375,22 +374,9 @@ fn stream_mode_reuses_the_water_region_when_asked() {
         .unwrap()
         .save(&f1)
         .unwrap();
+    let lines = [f0.display().to_string(), f1.display().to_string()];
     let run = |extra: &[&str], out: &str| {
-        let mut child = bin()
-            .args(["--stream", "--reuse-estimates", "5"])
-            .args(extra)
-            .arg("-o")
-            .arg(d.join(out))
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        {
-            let mut stdin = child.stdin.take().unwrap();
-            writeln!(stdin, "{}\n{}", f0.display(), f1.display()).unwrap();
-        }
-        let o = child.wait_with_output().unwrap();
+        let o = stream(&[&["--reuse-estimates", "5"], extra].concat(), &d.join(out), &lines);
         assert_eq!(code(&o), 0, "{}", stderr(&o));
         json_lines(&o.stdout)
     };
