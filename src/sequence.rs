@@ -36,7 +36,7 @@ pub struct Estimates {
     pub water_type: WaterType,
     /// the veiling light A
     pub veiling_light: [f32; 3],
-    /// the water region, when it is reused too (else empty)
+    /// the water region (reused with `reuse_water_mask`)
     water_mask: Vec<bool>,
     /// the size of the frame it came from
     shape: (usize, usize),
@@ -122,7 +122,7 @@ impl Sequence {
                 self.state = Some(Estimates {
                     water_type: res.water_type.clone(),
                     veiling_light: res.veiling_light,
-                    water_mask: if self.reuse_water_mask { res.veiling_mask.clone() } else { Vec::new() },
+                    water_mask: res.veiling_mask.clone(),
                     shape,
                 });
                 self.since = 1;

@@ -93,6 +93,18 @@ fn reused_frame_recovers_the_rendered_veiling_light_and_distances() {
 }
 
 #[test]
+fn reuse_water_mask_switched_on_after_the_estimating_frame() {
+    // the field is public: turned on after frame 0, frame 1 takes frame 0's region
+    let (h, w) = (40, 60);
+    let mut seq = Sequence::new(Params::default());
+    let first = seq.restore(&input(&common::scene(h, w, 8), h, w, None)).unwrap();
+    seq.reuse_water_mask = true;
+    let f1 = common::scene(h, w, 9);
+    let got = seq.restore(&input(&f1, h, w, None)).unwrap();
+    assert_eq!(bits(&got), bits(&with_estimates(&seq, &f1, h, w, Some(&first.veiling_mask))));
+}
+
+#[test]
 fn refresh_every_n_frames() {
     let (h, w) = (40, 60);
     let img = common::scene(h, w, 7);
