@@ -2,13 +2,14 @@
 //! code's working size) and the whole `restore` at 1, 2.7 and 12 MP on
 //! rendered scenes, plus the fast selection mode and the sequence mode
 //! (one type, veiling light given) at 1920 x 1080, also as the frames of a
-//! `Sequence`.
+//! `Sequence`; and the encoding of a restored 1080p frame's outputs.
 //!
 //!     cargo bench --bench stages                 # everything (minutes)
 //!     cargo bench --bench stages -- stage/       # only the stages
 //!
 //! Timings on a shared machine are noisy: compare runs made together.
 
+use rayon::prelude::*;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use std::hint::black_box;
 use std::time::Duration;
@@ -123,5 +124,25 @@ fn whole(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, stages, whole);
+/// Output encoding of a 1080p frame's restored image: the sRGB quantiser
+/// (code thresholds) against the per-value formula it reproduces, run
+/// side by side as the baseline, and the colour map of t.
+fn outputs(c: &mut Criterion) {
+    let (h, w) = (1080, 1920);
+    let wt = WaterType::by_name("III").expect("type III");
+    let data = scene::render(h, w, &wt, 2);
+    let res = restore(&input(&data, h, w), &Params { water_types: vec![wt], ..Params::default() }).expect("restore");
+    let mut g = c.benchmark_group("outputs");
+    g.sample_size(20).measurement_time(Duration::from_secs(3));
+    g.bench_function("srgb_8bit_formula_per_value", |b| {
+        // as the quantiser was before its tables: the formula per value, in parallel
+        b.iter(|| black_box(&res.image).par_iter().map(|&v| uwhl::color::quantize_one(v, 255.0, true) as u8).collect::<Vec<u8>>())
+    });
+    g.bench_function("srgb_8bit_quantize_u8", |b| b.iter(|| uwhl::color::quantize_u8(black_box(&res.image), true)));
+    g.bench_function("srgb_16bit_quantize_u16", |b| b.iter(|| uwhl::color::quantize_u16(black_box(&res.image), true)));
+    g.bench_function("colormap", |b| b.iter(|| uwhl::color::colormap(black_box(&res.transmission))));
+    g.finish();
+}
+
+criterion_group!(benches, stages, whole, outputs);
 criterion_main!(benches);

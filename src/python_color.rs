@@ -6,6 +6,7 @@ use crate::color;
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyBytes;
 
 fn slice<'a, T: numpy::Element>(a: &'a PyReadonlyArrayDyn<'a, T>, what: &str) -> PyResult<&'a [T]> {
     a.as_slice()
@@ -185,6 +186,61 @@ fn _decode_png<'py>(py: Python<'py>, data: &[u8], max_pixels: u64) -> PyResult<B
     }
 }
 
+/// PNG bytes of an (H, W) or (H, W, 3) image of codes.
+fn png_bytes(samples: &[u8], w: usize, h: usize, rgb: bool, wide: bool) -> Result<Vec<u8>, png::EncodingError> {
+    let mut out = Vec::with_capacity(samples.len() / 2 + 1024);
+    let mut enc = png::Encoder::new(&mut out, w as u32, h as u32);
+    enc.set_color(if rgb { png::ColorType::Rgb } else { png::ColorType::Grayscale });
+    enc.set_depth(if wide { png::BitDepth::Sixteen } else { png::BitDepth::Eight });
+    // fdeflate with per-row adaptive filters: on 1080p transmission maps
+    // 5x faster than zlib level 1 after a Sub filter, at about the same size
+    enc.set_compression(png::Compression::Fast);
+    enc.set_filter(png::Filter::Adaptive);
+    let mut writer = enc.write_header()?;
+    writer.write_image_data(samples)?;
+    writer.finish()?;
+    Ok(out)
+}
+
+/// Encodes an (H, W) or (H, W, 3) C-contiguous uint8 or uint16 array as PNG
+/// bytes (8 or 16 bits, gray or RGB), with the GIL released.
+#[pyfunction]
+fn _encode_png<'py>(py: Python<'py>, a: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyBytes>> {
+    let check = |shape: &[usize]| -> PyResult<(usize, usize, bool)> {
+        match *shape {
+            [h, w] if h > 0 && w > 0 => Ok((h, w, false)),
+            [h, w, 3] if h > 0 && w > 0 => Ok((h, w, true)),
+            _ => Err(PyValueError::new_err(format!("cannot write an array of shape {shape:?} as PNG (need HxW or HxWx3, non-empty)"))),
+        }
+    };
+    let too_big = |h: usize, w: usize| PyValueError::new_err(format!("{w}x{h} is too large for a PNG"));
+    let failed = |e: png::EncodingError| PyValueError::new_err(format!("PNG encoding failed: {e}"));
+    let bytes = if let Ok(arr) = a.cast::<PyArrayDyn<u8>>() {
+        let ro = arr.readonly();
+        let (h, w, rgb) = check(ro.shape())?;
+        if u32::try_from(w.max(h)).is_err() {
+            return Err(too_big(h, w));
+        }
+        let s = slice(&ro, "image")?;
+        py.detach(|| png_bytes(s, w, h, rgb, false)).map_err(failed)?
+    } else if let Ok(arr) = a.cast::<PyArrayDyn<u16>>() {
+        let ro = arr.readonly();
+        let (h, w, rgb) = check(ro.shape())?;
+        if u32::try_from(w.max(h)).is_err() {
+            return Err(too_big(h, w));
+        }
+        let s = slice(&ro, "image")?;
+        py.detach(|| {
+            let be: Vec<u8> = s.iter().flat_map(|v| v.to_be_bytes()).collect();
+            png_bytes(&be, w, h, rgb, true)
+        })
+        .map_err(failed)?
+    } else {
+        return Err(PyValueError::new_err("PNG samples must be a uint8 or uint16 array"));
+    };
+    Ok(PyBytes::new(py, &bytes))
+}
+
 /// Adds the colour functions to `uwhl_rs._core`.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_decode_u8, m)?)?;
@@ -195,5 +251,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_reference_srgb, m)?)?;
     m.add_function(wrap_pyfunction!(_reference_raw, m)?)?;
     m.add_function(wrap_pyfunction!(_decode_png, m)?)?;
+    m.add_function(wrap_pyfunction!(_encode_png, m)?)?;
     Ok(())
 }
