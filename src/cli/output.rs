@@ -6,10 +6,9 @@
 use super::args::Format;
 use super::{CliError, Kind};
 use crate::color::{colormap, quantize_u16, quantize_u8};
-use image::codecs::jpeg::JpegEncoder;
 use image::codecs::png::PngEncoder;
 use image::codecs::tiff::TiffEncoder;
-use image::{ImageBuffer, ImageEncoder, Luma, Pixel, PixelWithColorType, Rgb};
+use image::{ImageBuffer, Luma, Pixel, Rgb};
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -93,19 +92,6 @@ fn buffer<P: Pixel>(w: usize, h: usize, data: Vec<P::Subpixel>) -> Result<ImageB
     .ok_or_else(|| CliError::new(Kind::Internal, format!("buffer does not hold a {w}x{h} image")))
 }
 
-fn encode<P>(
-    path: &Path,
-    img: &ImageBuffer<P, Vec<P::Subpixel>>,
-    encoder: impl ImageEncoder,
-) -> Result<(), CliError>
-where
-    P: Pixel + PixelWithColorType,
-    [P::Subpixel]: image::EncodableLayout,
-{
-    img.write_with_encoder(encoder)
-        .map_err(|e| write_error(path, e))
-}
-
 /// How the restored image is encoded.
 #[derive(Debug, Clone, Copy)]
 pub struct Encoding {
@@ -119,46 +105,62 @@ pub struct Encoding {
     pub quality: u8,
 }
 
-/// Writes the restored image (interleaved RGB in [0, 1]).
-pub fn write_image(tx: &mut Transaction, path: &Path, data: &[f32], h: usize, w: usize, enc: Encoding) -> Result<(), CliError> {
+/// The bytes `fill` encodes into memory (an error names `path`, the file
+/// they are for).
+fn to_bytes(path: &Path, fill: impl FnOnce(&mut Vec<u8>) -> image::ImageResult<()>) -> Result<Vec<u8>, CliError> {
+    let mut out = Vec::new();
+    fill(&mut out).map_err(|e| write_error(path, e))?;
+    Ok(out)
+}
+
+/// The file bytes of the restored image (interleaved RGB in [0, 1]) for `path`.
+pub fn encode_image(path: &Path, data: &[f32], h: usize, w: usize, enc: Encoding) -> Result<Vec<u8>, CliError> {
     let srgb = enc.srgb;
-    match (enc.format, enc.bits) {
-        (Format::Jpg, _) => {
-            let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
-            tx.write(path, |f| encode(path, &img, JpegEncoder::new_with_quality(f, enc.quality)))
+    let wide = enc.bits == 16;
+    match enc.format {
+        Format::Jpg => {
+            let (Ok(w16), Ok(h16)) = (u16::try_from(w), u16::try_from(h)) else {
+                return Err(write_error(path, format!("{w}x{h} is larger than JPEG allows (65535 per side)")));
+            };
+            let codes = quantize_u8(data, srgb);
+            let mut out = Vec::new();
+            jpeg_encoder::Encoder::new(&mut out, enc.quality)
+                .encode(&codes, w16, h16, jpeg_encoder::ColorType::Rgb)
+                .map_err(|e| write_error(path, e))?;
+            Ok(out)
         }
-        (Format::Png, 16) => {
+        Format::Png if wide => {
             let img = buffer::<Rgb<u16>>(w, h, quantize_u16(data, srgb))?;
-            tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+            to_bytes(path, |f| img.write_with_encoder(PngEncoder::new(f)))
         }
-        (Format::Png, _) => {
+        Format::Png => {
             let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
-            tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+            to_bytes(path, |f| img.write_with_encoder(PngEncoder::new(f)))
         }
-        (Format::Tiff, 16) => {
+        Format::Tiff if wide => {
             let img = buffer::<Rgb<u16>>(w, h, quantize_u16(data, srgb))?;
-            tx.write(path, |f| encode(path, &img, TiffEncoder::new(f)))
+            to_bytes(path, |f| img.write_with_encoder(TiffEncoder::new(std::io::Cursor::new(f))))
         }
-        (Format::Tiff, _) => {
+        Format::Tiff => {
             let img = buffer::<Rgb<u8>>(w, h, quantize_u8(data, srgb))?;
-            tx.write(path, |f| encode(path, &img, TiffEncoder::new(f)))
+            to_bytes(path, |f| img.write_with_encoder(TiffEncoder::new(std::io::Cursor::new(f))))
         }
     }
 }
 
-/// Writes t as 16-bit grayscale PNG: `floor(t * 65535 + 0.5)`.
-pub fn write_transmission(tx: &mut Transaction, path: &Path, t: &[f32], h: usize, w: usize) -> Result<(), CliError> {
+/// The file bytes of t as 16-bit grayscale PNG: `floor(t * 65535 + 0.5)`.
+pub fn encode_transmission(path: &Path, t: &[f32], h: usize, w: usize) -> Result<Vec<u8>, CliError> {
     let img = buffer::<Luma<u16>>(w, h, quantize_u16(t, false))?;
-    tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+    to_bytes(path, |f| img.write_with_encoder(PngEncoder::new(f)))
 }
 
-/// Writes t through the colour map as 8-bit RGB PNG.
-pub fn write_transmission_color(tx: &mut Transaction, path: &Path, t: &[f32], h: usize, w: usize) -> Result<(), CliError> {
+/// The file bytes of t through the colour map as 8-bit RGB PNG.
+pub fn encode_transmission_color(path: &Path, t: &[f32], h: usize, w: usize) -> Result<Vec<u8>, CliError> {
     let img = buffer::<Rgb<u8>>(w, h, colormap(t))?;
-    tx.write(path, |f| encode(path, &img, PngEncoder::new(f)))
+    to_bytes(path, |f| img.write_with_encoder(PngEncoder::new(f)))
 }
 
-/// Writes bytes (the sidecar).
+/// Writes bytes (an encoded image, the sidecar).
 pub fn write_bytes(tx: &mut Transaction, path: &Path, bytes: &[u8]) -> Result<(), CliError> {
     tx.write(path, |f| f.write_all(bytes).map_err(|e| write_error(path, e)))
 }

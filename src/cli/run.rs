@@ -5,7 +5,7 @@ use super::args::{Options, Preprocess};
 use super::budget::Plan;
 use super::decode::{decode, decode_mask, Limits};
 use super::output::{
-    write_bytes, write_image, write_transmission, write_transmission_color, Encoding, Transaction,
+    encode_image, encode_transmission, encode_transmission_color, write_bytes, Encoding, Transaction,
 };
 use super::sidecar::{sidecar, OutputPaths, Seconds, Source};
 use super::{CliError, Kind};
@@ -423,9 +423,20 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequen
         srgb: source.linear,
         quality: opts.quality,
     };
-    write_image(&mut tx, &image_path, &res.image, hp, wp, enc)?;
-    write_transmission(&mut tx, &t_path, &res.transmission, hp, wp)?;
-    write_transmission_color(&mut tx, &tc_path, &res.transmission, hp, wp)?;
+    // the three encoders (each single-threaded) run at once; the files are
+    // then written in order
+    let (image_bytes, (t_bytes, tc_bytes)) = rayon::join(
+        || encode_image(&image_path, &res.image, hp, wp, enc),
+        || {
+            rayon::join(
+                || encode_transmission(&t_path, &res.transmission, hp, wp),
+                || encode_transmission_color(&tc_path, &res.transmission, hp, wp),
+            )
+        },
+    );
+    write_bytes(&mut tx, &image_path, &image_bytes?)?;
+    write_bytes(&mut tx, &t_path, &t_bytes?)?;
+    write_bytes(&mut tx, &tc_path, &tc_bytes?)?;
     let paths = OutputPaths {
         image: &image_path,
         transmission: &t_path,
