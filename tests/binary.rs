@@ -241,6 +241,38 @@ fn jpeg_output_is_the_png_output_within_jpeg_error() {
 }
 
 #[test]
+fn a_budget_for_one_input_at_a_time_still_restores_every_input() {
+    // --max-memory that holds one input's plan but not that plus the outputs
+    // of the previous input still being written: the held outputs never
+    // make an input fail (the reading thread waits for the writer instead,
+    // see the gate's unit test), and every input is restored
+    let d = tmp("tight");
+    let out = d.join("out");
+    let (h, w) = (60, 90);
+    let imgs: Vec<PathBuf> = (0..3).map(|k| d.join(format!("f{k}.png"))).collect();
+    for (k, p) in imgs.iter().enumerate() {
+        scene_png(p, h, w, 20 + k as u64);
+    }
+    let plan = uwhl::cli::budget::Plan {
+        height: h,
+        width: w,
+        decoded_bpp: 3,
+        decoded_is_rgb: true,
+        oriented: false,
+        factor: 1,
+        reference: false,
+        masks: 0,
+    };
+    let budget = plan.bytes() + 1;
+    let o = run(&[&imgs[0], &imgs[1], &imgs[2], &"-o", &out, &"--max-memory", &budget.to_string(), &"-q"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    assert_eq!(files(&out).iter().filter(|f| f.ends_with(".json")).count(), 3);
+    // one byte less than the plan: each input is refused, as before
+    let o = run(&[&imgs[0], &"-o", &d.join("out2"), &"--max-memory", &(budget - 2).to_string(), &"-q"]);
+    assert_eq!(code(&o), 4, "{}", stderr(&o));
+}
+
+#[test]
 fn over_budget_is_exit_4_before_decoding() {
     let d = tmp("budget");
     let (img, out) = (d.join("a.png"), d.join("out"));

@@ -31,7 +31,8 @@ fn main() -> ExitCode {
         Ok(Command::Run(opts)) => {
             init_threads(opts.threads);
             if opts.stream {
-                let mut stdin = std::io::stdin().lock();
+                // unlocked (the lock is not Send): lines are read on a second thread
+                let mut stdin = std::io::BufReader::new(std::io::stdin());
                 run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)
             } else {
                 run_batch(&opts, &mut stdout, &mut stderr)

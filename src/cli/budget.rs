@@ -10,10 +10,17 @@
 //! | reference stretch | `12 n` in + `12 n` out + `4 n` one channel's percentile copy |
 //! | downscale | `12 n` + `12 m` |
 //! | restore | `12 m` input + `pipeline::memory_estimate(h, w, k)` |
-//! | write | `12 m` input + the restoration (`29 m`) + one encoded output (`6 m`) |
+//! | write | `12 m` input + the restoration (`29 m`) + the three outputs' codes and encoded files, encoded at once (`16 m`) |
 //!
 //! plus `n` bytes per mask given (`--mask`, `--water-mask`; read once per run)
 //! and `2 m` for their downscaled copies. The plan is the largest phase.
+//!
+//! The batch and stream loops decode and restore an input while the
+//! previous one's outputs are written (`run::overlapped`); that one holds
+//! `45 m'` bytes (its restoration and encoders, `m'` its pixels) until it
+//! is written. An input whose plan does not fit in `--max-memory` beside
+//! them waits until they are written, so the two together stay within the
+//! budget and an input is refused only if its own plan exceeds it.
 
 use crate::pipeline::memory_estimate;
 
@@ -65,7 +72,7 @@ impl Plan {
         };
         let reference = if self.reference { mul(28, n) } else { 0 };
         let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.masks > 0));
-        let write = mul(12 + 29 + 6, m);
+        let write = mul(12 + 29 + 16, m);
         let masks = u64::from(self.masks);
         let mask = mul(masks, n).saturating_add(mul(masks, m));
         [decode, scale, reference, restore, write]

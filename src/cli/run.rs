@@ -20,6 +20,7 @@ use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{BufRead, BufReader, Read, Seek, Write};
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::{channel, sync_channel, Receiver, SyncSender};
 use std::time::Instant;
 
 /// Extensions taken when walking a folder (case-insensitive).
@@ -223,8 +224,11 @@ fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, nee
     Ok(Some(downscale(&plane, h, w, 1, factor).0.iter().map(|&v| v >= need).collect()))
 }
 
-/// The memory plan of one input, checked against `--max-memory` from its header.
-fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks) -> Result<(), CliError> {
+/// The memory plan of one input, checked against `--max-memory` from its
+/// header. With a `gate` (the reader thread of [`overlapped`]), an input
+/// that does not fit beside the previous one's outputs, still being
+/// written, first waits until they are.
+fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, gate: Option<&mut Gate>) -> Result<(), CliError> {
     let plan = Plan {
         height: h.height,
         width: h.width,
@@ -236,6 +240,9 @@ fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks) -> Resul
         masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
     };
     let need = plan.bytes();
+    if let Some(g) = gate {
+        g.make_room(need, opts.max_memory);
+    }
     if need > opts.max_memory {
         return Err(CliError::new(
             Kind::Budget,
@@ -290,6 +297,17 @@ pub fn decode_and_restore<R: BufRead + Seek>(
     masks: &Masks,
     seq: Option<&mut Sequence>,
 ) -> Result<Restored, CliError> {
+    decode_and_restore_gated(reader, opts, masks, seq, None)
+}
+
+/// [`decode_and_restore`], with the memory check waiting at `gate` when given.
+fn decode_and_restore_gated<R: BufRead + Seek>(
+    reader: R,
+    opts: &Options,
+    masks: &Masks,
+    seq: Option<&mut Sequence>,
+    gate: Option<&mut Gate>,
+) -> Result<Restored, CliError> {
     let t0 = Instant::now();
     let reference = opts.preprocess == Preprocess::Reference;
     let limits = Limits {
@@ -297,7 +315,7 @@ pub fn decode_and_restore<R: BufRead + Seek>(
         max_memory: opts.max_memory,
     };
     let decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
-        check_plan(h, opts, masks)
+        check_plan(h, opts, masks, gate)
     })?;
     let (h, w) = (decoded.height, decoded.width);
     // float samples are linear: no reference stretch, sRGB curve on output
@@ -389,10 +407,39 @@ pub fn fuzz_one(data: &[u8]) -> Result<Restored, CliError> {
 
 /// Restores one input and writes its outputs (see [`decode_and_restore`]).
 pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>) -> Result<Outcome, CliError> {
+    match prepare(job, opts, masks, seq, None)? {
+        Prepared::Skipped(s) => Ok(Outcome::Skipped(s)),
+        Prepared::Restored(r) => finish(job, *r, opts),
+    }
+}
+
+/// One input decoded and restored, before anything is written.
+#[derive(Debug)]
+enum Prepared {
+    /// its sidecar exists (no `--overwrite`)
+    Skipped(PathBuf),
+    /// restored, with the time its processing started
+    Restored(Box<(Restored, Instant)>),
+}
+
+impl Prepared {
+    /// Bytes it holds until its outputs are written: the restoration
+    /// (29 B/px, as in [`super::budget`]) and the three encoders' buffers
+    /// (codes and encoded files, at most 16 B/px).
+    fn held_bytes(&self) -> u64 {
+        match self {
+            Prepared::Skipped(_) => 0,
+            Prepared::Restored(r) => (r.0.res.transmission.len() as u64).saturating_mul(29 + 16),
+        }
+    }
+}
+
+/// The first half of [`process`]: the skip check, decoding and `restore`.
+fn prepare(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>, gate: Option<&mut Gate>) -> Result<Prepared, CliError> {
     let t0 = Instant::now();
     let sidecar_path = job.dir.join(format!("{}.json", job.name));
     if !opts.overwrite && sidecar_path.exists() {
-        return Ok(Outcome::Skipped(sidecar_path));
+        return Ok(Prepared::Skipped(sidecar_path));
     }
     if RAW_EXTENSIONS.contains(&extension(&job.input).as_str()) {
         return Err(CliError::new(
@@ -402,12 +449,20 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequen
     }
     let file = File::open(&job.input)
         .map_err(|e| CliError::new(Kind::Input, format!("cannot open: {e}")))?;
+    let restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, gate)?;
+    Ok(Prepared::Restored(Box::new((restored, t0))))
+}
+
+/// The second half of [`process`]: the outputs and the sidecar (written
+/// last), all or nothing.
+fn finish(job: &Job, (restored, t0): (Restored, Instant), opts: &Options) -> Result<Outcome, CliError> {
     let Restored {
         res,
         source,
         t_read,
         t_restore,
-    } = decode_and_restore(BufReader::new(file), opts, masks, seq)?;
+    } = restored;
+    let sidecar_path = job.dir.join(format!("{}.json", job.name));
     let (hp, wp) = (source.processed_height, source.processed_width);
 
     let t2 = Instant::now();
@@ -496,7 +551,93 @@ fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
     })
 }
 
+/// The reading side's view of the writing side in [`overlapped`]: how many
+/// inputs were handed over and how many are written.
+pub struct Gate {
+    acks: Receiver<()>,
+    sent: u64,
+    acked: u64,
+    /// bytes held by the last input handed over, until it is written
+    held: u64,
+}
+
+impl Gate {
+    fn drain(&mut self) {
+        while self.acks.try_recv().is_ok() {
+            self.acked += 1;
+        }
+    }
+
+    /// Waits until the writing side has finished the input it holds when
+    /// `need` more bytes would not fit in `budget` beside it.
+    fn make_room(&mut self, need: u64, budget: u64) {
+        self.drain();
+        if self.acked < self.sent && need.saturating_add(self.held) > budget {
+            while self.acked < self.sent && self.acks.recv().is_ok() {
+                self.acked += 1;
+            }
+        }
+    }
+}
+
+/// The reading side of [`overlapped`]: hands items over, in order.
+pub struct Handoff<T> {
+    tx: SyncSender<T>,
+    /// for the memory check of the next input
+    gate: Gate,
+}
+
+impl<T> Handoff<T> {
+    /// Hands `item` (holding `held` bytes until written) to the writing
+    /// side once it has finished the previous one; false if it is gone.
+    fn hand(&mut self, item: T, held: u64) -> bool {
+        if self.tx.send(item).is_err() {
+            return false;
+        }
+        self.gate.sent += 1;
+        self.gate.held = held;
+        true
+    }
+}
+
+/// Runs `read` (decoding and restoring the inputs, in order) on a second
+/// thread and `write` (encoding and writing them, reporting) on this one,
+/// one input apart: while input k is written, input k + 1 is decoded and
+/// restored. The hand-over waits for the writer (a rendezvous), so at most
+/// one restored input waits to be written, and [`Gate::make_room`] keeps
+/// both within `--max-memory`. Outputs, their order and every byte written
+/// are those of the one-at-a-time loop. Returns an error if the thread
+/// cannot be started (nothing was processed then).
+fn overlapped<T: Send>(read: impl FnOnce(&mut Handoff<T>) + Send, mut write: impl FnMut(T)) -> Result<(), CliError> {
+    let (tx, rx) = sync_channel::<T>(0);
+    let (ack_tx, acks) = channel::<()>();
+    std::thread::scope(|s| {
+        let reader = std::thread::Builder::new().name("uwhl-read".into()).spawn_scoped(s, move || {
+            let mut h = Handoff {
+                tx,
+                gate: Gate {
+                    acks,
+                    sent: 0,
+                    acked: 0,
+                    held: 0,
+                },
+            };
+            read(&mut h);
+        });
+        if let Err(e) = reader {
+            return Err(CliError::new(Kind::Internal, format!("cannot start the reading thread: {e}")));
+        }
+        for item in rx {
+            write(item);
+            let _ = ack_tx.send(());
+        }
+        Ok(())
+    })
+}
+
 /// Batch mode: every input is processed; returns the largest exit code.
+/// The next input is decoded and restored while the outputs of the
+/// previous one are written ([`overlapped`]).
 pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
@@ -508,8 +649,24 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         report(err, opts.json_errors, Some(p), e);
         code = code.max(e.kind.exit_code());
     }
-    for job in &jobs {
-        match process(job, opts, &masks, None) {
+    let read = |h: &mut Handoff<(usize, Result<Prepared, CliError>)>| {
+        for (i, job) in jobs.iter().enumerate() {
+            let r = prepare(job, opts, &masks, None, Some(&mut h.gate));
+            let held = r.as_ref().map_or(0, Prepared::held_bytes);
+            if !h.hand((i, r), held) {
+                break;
+            }
+        }
+    };
+    let write = |(i, r): (usize, Result<Prepared, CliError>)| {
+        let Some(job) = jobs.get(i) else {
+            return;
+        };
+        let outcome = r.and_then(|p| match p {
+            Prepared::Skipped(s) => Ok(Outcome::Skipped(s)),
+            Prepared::Restored(b) => finish(job, *b, opts),
+        });
+        match outcome {
             Ok(Outcome::Done(side)) => {
                 if !opts.quiet {
                     let img = side
@@ -538,6 +695,10 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
             }
         }
         let _ = out.flush();
+    };
+    if let Err(e) = overlapped(read, write) {
+        report(err, opts.json_errors, None, &e);
+        code = code.max(e.kind.exit_code());
     }
     code
 }
@@ -567,13 +728,22 @@ fn read_line(input: &mut dyn BufRead, line: &mut Vec<u8>) -> std::io::Result<Opt
     Ok(Some(true))
 }
 
+/// What the reading side of stream mode hands over: a frame's outcome so
+/// far (the job, if its line named one), or an unreadable stdin (the end).
+enum StreamItem {
+    Frame(Option<Job>, Result<Prepared, CliError>),
+    Fatal(CliError),
+}
+
 /// Stream mode: one image path per line of `input`, one JSON line per frame
 /// on `out` (the sidecar, `{"skipped": ...}` or an error object), flushed at
 /// once; a bad frame never stops the loop. With `--reuse-estimates N` the
 /// water type and veiling light of the last estimating frame are reused for
-/// the next N - 1 frames. Returns 0 at the end of the input (or the code of
-/// a bad `--mask`).
-pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
+/// the next N - 1 frames. The next frame is read, decoded and restored
+/// while the previous one's outputs are written ([`overlapped`]); its line
+/// is printed as soon as they are. Returns 0 at the end of the input (or
+/// the code of a bad `--mask`).
+pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dyn Write, err: &mut dyn Write) -> u8 {
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,
@@ -586,43 +756,68 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
         s.reuse_water_mask = opts.reuse_water_mask;
         s
     });
-    let mut line = Vec::new();
-    loop {
-        line.clear();
-        let too_long = match read_line(input, &mut line) {
-            Ok(None) => break,
-            Ok(Some(too_long)) => too_long,
-            Err(e) => {
-                let e = CliError::new(Kind::Input, format!("cannot read stdin: {e}"));
-                report(err, opts.json_errors, None, &e);
+    let read = |h: &mut Handoff<StreamItem>| {
+        let mut line = Vec::new();
+        loop {
+            line.clear();
+            let too_long = match read_line(input, &mut line) {
+                Ok(None) => break,
+                Ok(Some(too_long)) => too_long,
+                Err(e) => {
+                    let e = CliError::new(Kind::Input, format!("cannot read stdin: {e}"));
+                    h.hand(StreamItem::Fatal(e), 0);
+                    break;
+                }
+            };
+            let item = match std::str::from_utf8(&line) {
+                _ if too_long => StreamItem::Frame(
+                    None,
+                    Err(CliError::new(Kind::Input, format!("input line longer than {MAX_LINE} bytes"))),
+                ),
+                Err(_) => StreamItem::Frame(None, Err(CliError::new(Kind::Input, "input line is not valid UTF-8"))),
+                Ok(s) => {
+                    let s = s.trim_end_matches(['\n', '\r']);
+                    if s.trim().is_empty() {
+                        continue;
+                    }
+                    let path = PathBuf::from(s);
+                    let job = Job {
+                        name: path
+                            .file_stem()
+                            .map(|s| s.to_string_lossy().into_owned())
+                            .unwrap_or_default(),
+                        input: path.clone(),
+                        dir: opts.outdir.clone(),
+                    };
+                    let r = prepare(&job, opts, &masks, seq.as_mut(), Some(&mut h.gate));
+                    StreamItem::Frame(Some(job), r)
+                }
+            };
+            let held = match &item {
+                StreamItem::Frame(_, Ok(p)) => p.held_bytes(),
+                _ => 0,
+            };
+            if !h.hand(item, held) {
                 break;
             }
-        };
-        let result = match std::str::from_utf8(&line) {
-            _ if too_long => Err((
-                None,
-                CliError::new(Kind::Input, format!("input line longer than {MAX_LINE} bytes")),
-            )),
-            Err(_) => Err((None, CliError::new(Kind::Input, "input line is not valid UTF-8"))),
-            Ok(s) => {
-                let s = s.trim_end_matches(['\n', '\r']);
-                if s.trim().is_empty() {
-                    continue;
-                }
-                let path = PathBuf::from(s);
-                let job = Job {
-                    name: path
-                        .file_stem()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_default(),
-                    input: path.clone(),
-                    dir: opts.outdir.clone(),
-                };
-                match process(&job, opts, &masks, seq.as_mut()) {
-                    Ok(o) => Ok((job.input, o)),
-                    Err(e) => Err((Some(job.input), e)),
-                }
+        }
+    };
+    let write = |item: StreamItem| {
+        let (job, r) = match item {
+            StreamItem::Frame(job, r) => (job, r),
+            StreamItem::Fatal(e) => {
+                report(err, opts.json_errors, None, &e);
+                return;
             }
+        };
+        let result = match (job, r) {
+            (Some(job), Ok(Prepared::Skipped(s))) => Ok((job.input, Outcome::Skipped(s))),
+            (Some(job), Ok(Prepared::Restored(b))) => match finish(&job, *b, opts) {
+                Ok(o) => Ok((job.input, o)),
+                Err(e) => Err((Some(job.input), e)),
+            },
+            (job, Err(e)) => Err((job.map(|j| j.input), e)),
+            (None, Ok(_)) => Err((None, CliError::new(Kind::Internal, "a frame without its input"))),
         };
         let json = match result {
             Ok((_, Outcome::Done(side))) => *side,
@@ -638,6 +833,10 @@ pub fn run_stream(opts: &Options, input: &mut dyn BufRead, out: &mut dyn Write, 
         };
         let _ = writeln!(out, "{json}");
         let _ = out.flush();
+    };
+    if let Err(e) = overlapped(read, write) {
+        report(err, opts.json_errors, None, &e);
+        return e.kind.exit_code();
     }
     0
 }
@@ -662,6 +861,61 @@ mod tests {
         assert_eq!(line, b"two");
         line.clear();
         assert_eq!(read_line(&mut input, &mut line).unwrap(), None);
+    }
+
+    #[test]
+    fn gate_waits_for_the_writer_only_when_both_would_not_fit() {
+        let (ack_tx, acks) = channel::<()>();
+        let mut g = Gate {
+            acks,
+            sent: 1,
+            acked: 0,
+            held: 100,
+        };
+        // 10 + 100 <= 120: no wait, the previous input is still held
+        g.make_room(10, 120);
+        assert_eq!(g.acked, 0);
+        // 50 + 100 > 120: waits for the writer's acknowledgement
+        let t = Instant::now();
+        let writer = std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+            ack_tx.send(()).unwrap();
+            ack_tx
+        });
+        g.make_room(50, 120);
+        assert_eq!(g.acked, 1);
+        assert!(t.elapsed() >= std::time::Duration::from_millis(90));
+        // nothing outstanding: never waits, whatever the need
+        g.make_room(1000, 120);
+        drop(writer.join().unwrap());
+        // a writer that is gone does not hang the reader
+        g.sent = 2;
+        g.make_room(1000, 120);
+        assert_eq!(g.acked, 1);
+    }
+
+    #[test]
+    fn overlapped_hands_items_over_in_order_one_ahead_at_most() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let produced = AtomicUsize::new(0);
+        let mut seen = Vec::new();
+        overlapped(
+            |h: &mut Handoff<usize>| {
+                for i in 0..50 {
+                    produced.store(i + 1, Ordering::SeqCst);
+                    if !h.hand(i, 0) {
+                        break;
+                    }
+                }
+            },
+            |i| {
+                // the reader is working on item i + 1 at most
+                assert!(produced.load(Ordering::SeqCst) <= i + 2);
+                seen.push(i);
+            },
+        )
+        .unwrap();
+        assert_eq!(seen, (0..50).collect::<Vec<_>>());
     }
 
     #[test]
