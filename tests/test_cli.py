@@ -123,9 +123,28 @@ def test_bad_files_fail_alone_with_one_clear_line(scenes, tmp_path):
     assert any("c_truncated.jpg" in ln and "truncated" in ln.lower() for ln in lines)
     assert any("d_random.NEF" in ln and "LibRaw" in ln for ln in lines)
     assert "2 done, 0 skipped, 2 failed" in r.stdout
+    # one input is written while the next is restored: the lines stay in order
+    order = [n for ln in r.stderr.splitlines() for n in ("a_good", "c_truncated", "d_random", "e_good") if n in ln]
+    assert order == ["a_good", "c_truncated", "d_random", "e_good"], r.stderr
     names = sorted(os.listdir(out))
     assert not [n for n in names if n.startswith(("c_truncated", "d_random", "."))], names  # nothing partial
     assert {"a_good.json", "e_good.json"} <= set(names)
+
+
+def test_staged_restore_writes_nothing_until_asked(scenes, tmp_path):
+    # the command's --jobs 1 loop restores one input while writing the previous
+    from uwhl_rs import files
+
+    out = tmp_path / "out"
+    write = files._restore_staged(scenes / "scene_3C.png", out, format="png")
+    assert not out.exists()
+    r = write()
+    assert sorted(os.listdir(out)) == ["scene_3C.json", "scene_3C.png", "scene_3C_t.png", "scene_3C_t_color.png"]
+    want = uwhl_rs.restore_file(scenes / "scene_3C.png", tmp_path / "again", format="png")
+    assert np.array_equal(r.restoration.image, want.restoration.image)
+    with pytest.raises(Exception, match="truncated|decode"):
+        (tmp_path / "cut.png").write_bytes((scenes / "scene_3C.png").read_bytes()[:300])
+        files._restore_staged(tmp_path / "cut.png", out)
 
 
 def test_failure_while_writing_leaves_no_partial_outputs(scenes, tmp_path):

@@ -459,31 +459,74 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     progress = Progress(len(jobs), err, a.quiet)
     outcomes: list[Outcome] = []
 
-    def one(job: Job) -> Outcome:
+    def begin(job: Job):
+        """Reads and restores ``job``. Returns the function that settles it
+        (prints its progress line, returns its Outcome) given the result of
+        the function that writes it, and that writer (None when there is
+        nothing to write: skipped or failed)."""
         sidecar = files.output_paths(job.out_dir, job.name, a.format)["sidecar"]
         if not a.overwrite and os.path.exists(sidecar):
-            o = Outcome(job, "skipped", note="already done (sidecar exists; --overwrite redoes it)")
-            progress.finish(f"{job.path}: skipped, already done")
-            return o
+            def skipped(_=None) -> Outcome:
+                progress.finish(f"{job.path}: skipped, already done")
+                return Outcome(job, "skipped", note="already done (sidecar exists; --overwrite redoes it)")
+            return skipped, None
         progress.start(os.path.basename(job.path))
         t0 = time.perf_counter()
-        try:
-            r = files.restore_file(job.path, job.out_dir, name=job.name, **kwargs)
-        except (Exception, MemoryError) as e:  # one bad file never stops the batch
-            o = Outcome(job, "failed", seconds=time.perf_counter() - t0, note=_describe(e))
-            progress.finish(f"uwhl: {job.path}: FAILED: {o.note}", error=True)
+
+        def settle(result) -> Outcome:
+            if isinstance(result, BaseException):
+                o = Outcome(job, "failed", seconds=time.perf_counter() - t0, note=_describe(result))
+                progress.finish(f"uwhl: {job.path}: FAILED: {o.note}", error=True)
+                return o
+            dt = time.perf_counter() - t0
+            flags = ", ".join(result.restoration.flags)
+            o = Outcome(job, "ok", result.restoration.water_type, dt, flags)
+            progress.finish(f"{job.path}: {o.water_type} in {dt:.2f} s" + (f" ({flags})" if flags else ""))
             return o
-        dt = time.perf_counter() - t0
-        flags = ", ".join(r.restoration.flags)
-        o = Outcome(job, "ok", r.restoration.water_type, dt, flags)
-        progress.finish(f"{job.path}: {o.water_type} in {dt:.2f} s" + (f" ({flags})" if flags else ""))
-        return o
+
+        try:
+            write = files._restore_staged(job.path, job.out_dir, name=job.name, **kwargs)
+        except (Exception, MemoryError) as e:  # one bad file never stops the batch
+            return settle, (lambda failure=e: failure)
+
+        def finish():
+            try:
+                return write()
+            except (Exception, MemoryError) as e:
+                return e
+
+        return settle, finish
+
+    def one(job: Job) -> Outcome:
+        settle, finish = begin(job)
+        return settle(finish() if finish else None)
 
     interrupted = False
     try:
         if a.jobs == 1:
-            for job in jobs:
-                outcomes.append(one(job))
+            # one input is written (encoders release the GIL) while the next
+            # is read and restored (the core releases it); lines stay in order
+            with ThreadPoolExecutor(max_workers=1, thread_name_prefix="uwhl-write") as writer:
+                pending = None  # (settle, future of the write) of the previous input
+                try:
+                    for job in jobs:
+                        settle, finish = begin(job)
+                        if pending is not None:
+                            outcomes.append(pending[0](pending[1].result()))
+                            pending = None
+                        if finish is None:
+                            outcomes.append(settle())
+                        else:
+                            pending = (settle, writer.submit(finish))
+                    if pending is not None:
+                        outcomes.append(pending[0](pending[1].result()))
+                        pending = None
+                except KeyboardInterrupt:
+                    # the write in flight finishes (its files appear whole or
+                    # not at all) and counts
+                    if pending is not None:
+                        outcomes.append(pending[0](pending[1].result()))
+                    raise
         else:
             with ThreadPoolExecutor(max_workers=a.jobs) as pool:
                 futures = {pool.submit(one, j): j for j in jobs}

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
@@ -126,6 +127,36 @@ def restore_file(
     Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
     the paths written and the sidecar dict).
     """
+    return _restore_staged(
+        in_path, out_dir, name=name, format=format, bits=bits, quality=quality, preprocess=preprocess,
+        half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask, water_mask=water_mask,
+        contact=contact, sequence=sequence, **restore_kwargs,
+    )()
+
+
+def _restore_staged(
+    in_path: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    *,
+    name: str | None = None,
+    format: str = "jpg",
+    bits: int | None = None,
+    quality: int = 95,
+    preprocess: str = "none",
+    half_size: bool = False,
+    max_side: int | None = None,
+    max_pixels: int = DEFAULT_MAX_PIXELS,
+    mask=None,
+    water_mask=None,
+    contact: bool = False,
+    sequence=None,
+    **restore_kwargs,
+) -> Callable[[], FileResult]:
+    """:func:`restore_file` in two steps: this call reads and restores the
+    input (raising what ``restore_file`` raises for that), and returns the
+    function that writes its outputs (and returns the :class:`FileResult`),
+    so that a caller can write one input while restoring the next.
+    ``seconds.total`` in the sidecar then includes the time between."""
     import uwhl_rs
 
     t_start = time.perf_counter()
@@ -158,95 +189,99 @@ def restore_file(
         res = uwhl_rs.restore(image, mask=m, water_mask=wm, **restore_kwargs)
     t_restore = time.perf_counter()
 
-    os.makedirs(out_dir, exist_ok=True)
-    written: list[str] = []
-    try:
-        shown = _display_linear(res.image, meta)
-        encoding = "linear" if meta.linear else "srgb"
-        # the three encoders (Pillow, zlib) release the GIL: write them at once
-        with ThreadPoolExecutor(max_workers=3) as pool:
-            futures = [
-                pool.submit(write_image, paths["image"], shown, bits=bits, encoding=encoding, quality=quality),
-                pool.submit(write_image, paths["transmission"], res.transmission, bits=16, encoding="srgb"),
-                pool.submit(write_image, paths["transmission_color"], colorize_transmission(res.transmission)),
-            ]
-            wait(futures)
-            written.extend(f.result() for f in futures if f.exception() is None)
-            for f in futures:
-                if f.exception() is not None:
-                    raise f.exception()
-        t_sheet = time.perf_counter()
-        if contact:
-            sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
-            written.append(write_image(paths["contact_sheet"], sheet))
-        t_sheet = time.perf_counter() - t_sheet
-        t_end = time.perf_counter()
-        sidecar = {
-            "input": in_path,
-            "outputs": {k: os.path.basename(v) for k, v in paths.items() if k != "sidecar"},
-            "uwhl_version": uwhl_rs.__version__,
-            "implementation": "python",
-            "source": {
-                **meta.to_dict(),
-                "height": int(full_hw[0]),
-                "width": int(full_hw[1]),
-                "processed_height": int(res.transmission.shape[0]),
-                "processed_width": int(res.transmission.shape[1]),
-            },
-            "water_type": res.water_type,
-            "scores": {k: float(v) for k, v in res.scores.items()},
-            "excluded": list(res.excluded),
-            "veiling_light": [float(v) for v in res.veiling_light],
-            "vl_pixels": int(res.veiling_mask.sum()),
-            "vl_fraction": float(res.veiling_mask.mean()),
-            "flags": list(res.flags),
-            "guided_radius": int(res.guided_radius),
-            "guided_subsample": int(res.guided_subsample),
-            "beta_ratios": [float(v) for v in res.beta_ratios],
-            **({"reused_estimates": "estimates_reused" in res.flags} if sequence is not None else {}),
-            "parameters": {
-                "water_types": _jsonable(restore_kwargs.get("water_types")),
-                "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
-                "mask": _mask_label(mask),
-                "water_mask": _mask_label(water_mask),
-                "guided_radius": restore_kwargs.get("guided_radius"),
-                "guided_eps": float(restore_kwargs.get("guided_eps", 1e-3)),
-                "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", 1)),
-                "sphere_points": int(restore_kwargs.get("sphere_points", 500)),
-                "threads": restore_kwargs.get("threads"),
-                "max_side": None if max_side is None else int(max_side),
-                "max_pixels": int(max_pixels),
-                "preprocess": preprocess,
-                "half_size": bool(half_size),
-                "format": format,
-                "bits": bits,
-                "quality": int(quality),
-                **{k: _jsonable(v) for k, v in restore_kwargs.items() if k not in _KNOWN},
-            },
-            "seconds": {
-                "read": round(t_read - t_start, 4),
-                "restore": round(t_restore - t_read, 4),
-                "write": round(t_end - t_restore - t_sheet, 4),
-                "contact_sheet": round(t_sheet, 4),
-                "total": round(t_end - t_start, 4),
-            },
-        }
-        text = json.dumps(sidecar, indent=2) + "\n"
+    def write() -> FileResult:
+        t_write = time.perf_counter()
+        os.makedirs(out_dir, exist_ok=True)
+        written: list[str] = []
+        try:
+            shown = _display_linear(res.image, meta)
+            encoding = "linear" if meta.linear else "srgb"
+            # the three encoders (Pillow, zlib) release the GIL: write them at once
+            with ThreadPoolExecutor(max_workers=3) as pool:
+                futures = [
+                    pool.submit(write_image, paths["image"], shown, bits=bits, encoding=encoding, quality=quality),
+                    pool.submit(write_image, paths["transmission"], res.transmission, bits=16, encoding="srgb"),
+                    pool.submit(write_image, paths["transmission_color"], colorize_transmission(res.transmission)),
+                ]
+                wait(futures)
+                written.extend(f.result() for f in futures if f.exception() is None)
+                for f in futures:
+                    if f.exception() is not None:
+                        raise f.exception()
+            t_sheet = time.perf_counter()
+            if contact:
+                sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
+                written.append(write_image(paths["contact_sheet"], sheet))
+            t_sheet = time.perf_counter() - t_sheet
+            t_end = time.perf_counter()
+            sidecar = {
+                "input": in_path,
+                "outputs": {k: os.path.basename(v) for k, v in paths.items() if k != "sidecar"},
+                "uwhl_version": uwhl_rs.__version__,
+                "implementation": "python",
+                "source": {
+                    **meta.to_dict(),
+                    "height": int(full_hw[0]),
+                    "width": int(full_hw[1]),
+                    "processed_height": int(res.transmission.shape[0]),
+                    "processed_width": int(res.transmission.shape[1]),
+                },
+                "water_type": res.water_type,
+                "scores": {k: float(v) for k, v in res.scores.items()},
+                "excluded": list(res.excluded),
+                "veiling_light": [float(v) for v in res.veiling_light],
+                "vl_pixels": int(res.veiling_mask.sum()),
+                "vl_fraction": float(res.veiling_mask.mean()),
+                "flags": list(res.flags),
+                "guided_radius": int(res.guided_radius),
+                "guided_subsample": int(res.guided_subsample),
+                "beta_ratios": [float(v) for v in res.beta_ratios],
+                **({"reused_estimates": "estimates_reused" in res.flags} if sequence is not None else {}),
+                "parameters": {
+                    "water_types": _jsonable(restore_kwargs.get("water_types")),
+                    "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
+                    "mask": _mask_label(mask),
+                    "water_mask": _mask_label(water_mask),
+                    "guided_radius": restore_kwargs.get("guided_radius"),
+                    "guided_eps": float(restore_kwargs.get("guided_eps", 1e-3)),
+                    "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", 1)),
+                    "sphere_points": int(restore_kwargs.get("sphere_points", 500)),
+                    "threads": restore_kwargs.get("threads"),
+                    "max_side": None if max_side is None else int(max_side),
+                    "max_pixels": int(max_pixels),
+                    "preprocess": preprocess,
+                    "half_size": bool(half_size),
+                    "format": format,
+                    "bits": bits,
+                    "quality": int(quality),
+                    **{k: _jsonable(v) for k, v in restore_kwargs.items() if k not in _KNOWN},
+                },
+                "seconds": {
+                    "read": round(t_read - t_start, 4),
+                    "restore": round(t_restore - t_read, 4),
+                    "write": round(t_end - t_write - t_sheet, 4),
+                    "contact_sheet": round(t_sheet, 4),
+                    "total": round(t_end - t_start, 4),
+                },
+            }
+            text = json.dumps(sidecar, indent=2) + "\n"
 
-        def put(tmp: str) -> None:
-            with open(tmp, "w", encoding="utf-8") as f:
-                f.write(text)
+            def put(tmp: str) -> None:
+                with open(tmp, "w", encoding="utf-8") as f:
+                    f.write(text)
 
-        atomic_write_bytes(paths["sidecar"], put)
-        written.append(paths["sidecar"])
-    except BaseException:
-        for p in written:
-            try:
-                os.remove(p)
-            except OSError:
-                pass
-        raise
-    return FileResult(res, meta, paths, sidecar)
+            atomic_write_bytes(paths["sidecar"], put)
+            written.append(paths["sidecar"])
+        except BaseException:
+            for p in written:
+                try:
+                    os.remove(p)
+                except OSError:
+                    pass
+            raise
+        return FileResult(res, meta, paths, sidecar)
+
+    return write
 
 
 #: The keywords of :func:`uwhl_rs.restore` that a :class:`uwhl_rs.Sequence` takes.
