@@ -31,6 +31,12 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
 * ``selection="fast"`` against the exhaustive mode: the chosen water type on
   every shared photo (``../shared/data/images``, when present) and on renders
   of the ten types;
+* the commands on a folder of 20 panning 1080p JPEG frames (sequence mode:
+  ``--reuse-estimates``, ``--guided-subsample auto``), reading, restoring
+  and writing every output: ``uwhl restore`` and, where built,
+  ``uwhl-rs --stream`` (``--binary``); with ``--baseline`` /
+  ``--baseline-binary`` the older build's commands on the same frames,
+  alternating;
 * with ``--baseline DIR``: this build and the one in DIR, each timed in
   fresh processes by the same harness (an untimed warm-up call, then a
   timed one), alternating; their ratio is the speed-up over the baseline.
@@ -220,6 +226,49 @@ def fast_agreement(uw, synth, quick: bool, best_of) -> list[str]:
     return out
 
 
+def command_throughput(uw, synth, tmp: pathlib.Path, args) -> list[list[str]]:
+    """Times the commands on a folder of panning 1080p JPEG frames (best of
+    two runs each, builds alternating)."""
+    import imageio.v3 as iio
+
+    frames = tmp / "frames"
+    frames.mkdir(exist_ok=True)
+    n = args.frames
+    wide, _ = synth.demo_input(1080, 1920 + 8 * n, water_type="III", seed=13)
+    for k in range(n):
+        fr = np.clip(wide[:, 8 * k:8 * k + 1920], 0, 1)
+        srgb = np.where(fr <= 0.0031308, 12.92 * fr, 1.055 * np.power(fr, 1 / 2.4) - 0.055)
+        iio.imwrite(frames / f"f{k:03d}.jpg", (srgb * 255 + 0.5).astype(np.uint8), quality=95)
+    paths = "".join(f"{frames / f'f{k:03d}.jpg'}\n" for k in range(n))
+    here = str(pathlib.Path(uw.__file__).resolve().parent.parent)
+    runs = [("uwhl restore", "this", here, None)]
+    if args.baseline:
+        runs.append(("uwhl restore", "baseline", args.baseline, None))
+    if args.binary and os.path.exists(args.binary):
+        runs.append(("uwhl-rs --stream", "this", None, args.binary))
+    if args.baseline_binary:
+        runs.append(("uwhl-rs --stream", "baseline", None, args.baseline_binary))
+    best = {k: float("inf") for k in range(len(runs))}
+    for _ in range(2):
+        for k, (_, _, pkg, binary) in enumerate(runs):
+            out = tmp / f"frames_out_{k}"
+            subprocess.run(["rm", "-rf", str(out)], check=True)
+            t0 = time.perf_counter()
+            if binary:
+                subprocess.run([binary, "--stream", "--reuse-estimates", "1000", "--guided-subsample", "auto",
+                                "-o", str(out)], input=paths, capture_output=True, text=True, check=True)
+            else:
+                env = dict(os.environ, PYTHONPATH=pkg)
+                subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(frames), "-o", str(out),
+                                "--reuse-estimates", "1000", "--guided-subsample", "auto", "-q"],
+                               env=env, capture_output=True, text=True, check=True)
+            best[k] = min(best[k], time.perf_counter() - t0)
+            written = len(list(out.glob("*.json")))
+            if written != n:
+                raise RuntimeError(f"{runs[k][0]} ({runs[k][1]}) wrote {written} of {n} sidecars")
+    return [[cmd, build, f"{best[k]:.2f}", f"{n / best[k]:.1f}"] for k, (cmd, build, _, _) in enumerate(runs)]
+
+
 def table(header, rows) -> str:
     cols = [header] + rows
     wid = [max(len(str(r[i])) for r in cols) for i in range(len(header))]
@@ -237,6 +286,10 @@ def main(argv=None) -> int:
     ap.add_argument("--baseline", help="also time uwhl_rs from this directory (an older build); both builds are then "
                     "timed in fresh subprocesses (warm-up call, then timed calls), alternating, so both see the "
                     "same harness and machine load")
+    ap.add_argument("--binary", default=str(ROOT / "target" / "release" / "uwhl-rs"),
+                    help="the uwhl-rs binary timed on the frame folder (default target/release/uwhl-rs, if built)")
+    ap.add_argument("--baseline-binary", help="an older uwhl-rs timed on the same frames")
+    ap.add_argument("--frames", type=int, default=20, help="frames in the command benchmark (default 20)")
     args = ap.parse_args(argv)
 
     uw = _import_package(args.package)
@@ -345,6 +398,12 @@ def main(argv=None) -> int:
         print(f"  with guided_subsample='auto': {t_seq_sub * 1e3:.1f} ms")
     for label, t in seq_rows:
         print(f"  uwhl_rs.Sequence frames ({label}): {t * 1e3:.1f} ms")
+    frame_rows = command_throughput(uw, synth, tmp, args)
+
+    print()
+    print(f"Commands on {args.frames} panning 1920x1080 JPEG frames (--reuse-estimates, --guided-subsample auto; "
+          "read, restore, write every output):")
+    print(table(["command", "build", "seconds", "frames/s"], frame_rows))
     print()
     print("Peak resident memory of one call (fresh process; MiB; includes input, outputs, interpreter):")
     print(table(["size", "mode", "input", "before call", "peak", "peak / input", "(peak - before) / input"], mem_rows))
