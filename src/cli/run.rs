@@ -553,7 +553,7 @@ fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
 
 /// The reading side's view of the writing side in [`overlapped`]: how many
 /// inputs were handed over and how many are written.
-pub struct Gate {
+struct Gate {
     acks: Receiver<()>,
     sent: u64,
     acked: u64,
@@ -581,7 +581,7 @@ impl Gate {
 }
 
 /// The reading side of [`overlapped`]: hands items over, in order.
-pub struct Handoff<T> {
+struct Handoff<T> {
     tx: SyncSender<T>,
     /// for the memory check of the next input
     gate: Gate,
@@ -637,7 +637,7 @@ fn overlapped<T: Send>(read: impl FnOnce(&mut Handoff<T>) + Send, mut write: imp
 
 /// Batch mode: every input is processed; returns the largest exit code.
 /// The next input is decoded and restored while the outputs of the
-/// previous one are written ([`overlapped`]).
+/// previous one are written (`overlapped`).
 pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
@@ -740,7 +740,7 @@ enum StreamItem {
 /// once; a bad frame never stops the loop. With `--reuse-estimates N` the
 /// water type and veiling light of the last estimating frame are reused for
 /// the next N - 1 frames. The next frame is read, decoded and restored
-/// while the previous one's outputs are written ([`overlapped`]); its line
+/// while the previous one's outputs are written (`overlapped`); its line
 /// is printed as soon as they are. Returns 0 at the end of the input (or
 /// the code of a bad `--mask`).
 pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dyn Write, err: &mut dyn Write) -> u8 {
