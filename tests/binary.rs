@@ -253,16 +253,7 @@ fn a_budget_for_one_input_at_a_time_still_restores_every_input() {
     for (k, p) in imgs.iter().enumerate() {
         scene_png(p, h, w, 20 + k as u64);
     }
-    let plan = uwhl::cli::budget::Plan {
-        height: h,
-        width: w,
-        decoded_bpp: 3,
-        decoded_is_rgb: true,
-        oriented: false,
-        factor: 1,
-        reference: false,
-        masks: 0,
-    };
+    let plan = uwhl::cli::budget::Plan::rgb8(h, w);
     let budget = plan.bytes() + 1;
     let o = run(&[&imgs[0], &imgs[1], &imgs[2], &"-o", &out, &"--max-memory", &budget.to_string(), &"-q"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));

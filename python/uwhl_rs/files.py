@@ -3,6 +3,7 @@ sidecar and the contact sheet (file names and contents: docs/OUTPUTS.md)."""
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import time
@@ -88,24 +89,7 @@ def _max_side_factor(h: int, w: int, n: int | None) -> int:
     return 1 if not n else max(1, -(-max(h, w) // max(1, int(n))))
 
 
-def restore_file(
-    in_path: str | os.PathLike,
-    out_dir: str | os.PathLike,
-    *,
-    name: str | None = None,
-    format: str = "jpg",
-    bits: int | None = None,
-    quality: int = 95,
-    preprocess: str = "none",
-    half_size: bool = False,
-    max_side: int | None = None,
-    max_pixels: int = DEFAULT_MAX_PIXELS,
-    mask=None,
-    water_mask=None,
-    contact: bool = False,
-    sequence=None,
-    **restore_kwargs,
-) -> FileResult:
+def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwargs) -> FileResult:
     """Restore one photograph and write its outputs (docs/OUTPUTS.md).
 
     Reads ``in_path`` (raw or JPEG/PNG/TIFF, see :func:`uwhl_rs.io.read_image`
@@ -127,11 +111,7 @@ def restore_file(
     Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
     the paths written and the sidecar dict).
     """
-    return _restore_staged(
-        in_path, out_dir, name=name, format=format, bits=bits, quality=quality, preprocess=preprocess,
-        half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask, water_mask=water_mask,
-        contact=contact, sequence=sequence, **restore_kwargs,
-    )()
+    return _restore_staged(in_path, out_dir, **kwargs)()
 
 
 def _restore_staged(
@@ -282,6 +262,10 @@ def _restore_staged(
         return FileResult(res, meta, paths, sidecar)
 
     return write
+
+
+# restore_file takes exactly _restore_staged's keywords: show them (help(), IDEs)
+restore_file.__signature__ = inspect.signature(_restore_staged).replace(return_annotation="FileResult")
 
 
 #: The keywords of :func:`uwhl_rs.restore` that a :class:`uwhl_rs.Sequence` takes.

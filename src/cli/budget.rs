@@ -81,16 +81,13 @@ impl Plan {
             .unwrap_or(0)
             .saturating_add(mask)
     }
-}
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn plan(h: usize, w: usize) -> Plan {
+    /// The plan of an 8-bit RGB file of `height` x `width` pixels, upright,
+    /// with no `--max-side`, reference preprocessing or masks.
+    pub fn rgb8(height: usize, width: usize) -> Plan {
         Plan {
-            height: h,
-            width: w,
+            height,
+            width,
             decoded_bpp: 3,
             decoded_is_rgb: true,
             oriented: false,
@@ -98,6 +95,15 @@ mod tests {
             reference: false,
             masks: 0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(h: usize, w: usize) -> Plan {
+        Plan::rgb8(h, w)
     }
 
     #[test]
