@@ -507,26 +507,27 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
             # one input is written (encoders release the GIL) while the next
             # is read and restored (the core releases it); lines stay in order
             with ThreadPoolExecutor(max_workers=1, thread_name_prefix="uwhl-write") as writer:
-                pending = None  # (settle, future of the write) of the previous input
+                pending = []  # (settle, future of the write) of the previous input
+
+                def settle_pending() -> None:
+                    while pending:
+                        settle, written = pending[0]
+                        result = written.result()  # an interrupt here leaves it pending
+                        pending.pop()
+                        outcomes.append(settle(result))
+
                 try:
                     for job in jobs:
                         settle, finish = begin(job)
-                        if pending is not None:
-                            outcomes.append(pending[0](pending[1].result()))
-                            pending = None
+                        settle_pending()
                         if finish is None:
                             outcomes.append(settle())
                         else:
-                            pending = (settle, writer.submit(finish))
-                    if pending is not None:
-                        outcomes.append(pending[0](pending[1].result()))
-                        pending = None
-                except KeyboardInterrupt:
-                    # the write in flight finishes (its files appear whole or
-                    # not at all) and counts
-                    if pending is not None:
-                        outcomes.append(pending[0](pending[1].result()))
-                    raise
+                            pending.append((settle, writer.submit(finish)))
+                finally:
+                    # also on an interrupt: the write in flight finishes (its
+                    # files appear whole or not at all) and counts
+                    settle_pending()
         else:
             with ThreadPoolExecutor(max_workers=a.jobs) as pool:
                 futures = {pool.submit(one, j): j for j in jobs}
