@@ -90,8 +90,8 @@ pub fn quantize_u16(data: &[f32], srgb: bool) -> Vec<u16> {
 const CHUNK: usize = 1 << 14;
 
 /// [`quantize_one`] over `data` in parallel chunks; with the sRGB curve,
-/// through the tables of [`SrgbCodes`] (the same codes, about 10x faster
-/// than a libm power per value).
+/// through the tables of [`SrgbCodes`] (the same codes, 3x faster than a
+/// libm power per value: criterion `outputs/`, 1080p).
 fn quantize_with<C: Copy + Default + Send>(data: &[f32], max: u16, srgb: bool, cast: impl Fn(u16) -> C + Sync) -> Vec<C> {
     let mut out = vec![C::default(); data.len()];
     let table = if srgb { Some(SrgbCodes::get(max)) } else { None };
