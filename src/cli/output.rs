@@ -170,6 +170,23 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_jpeg_wider_than_the_format_allows_is_a_write_error() {
+        let w = 70_000;
+        let data = vec![0.5f32; 3 * w];
+        let jpg = Encoding {
+            format: Format::Jpg,
+            bits: 8,
+            srgb: true,
+            quality: 95,
+        };
+        let e = encode_image(Path::new("wide.jpg"), &data, 1, w, jpg).unwrap_err();
+        assert!(e.message.contains("larger than JPEG allows") && e.message.contains("wide.jpg"), "{}", e.message);
+        // PNG holds it
+        let png = Encoding { format: Format::Png, ..jpg };
+        assert!(encode_image(Path::new("wide.png"), &data, 1, w, png).is_ok());
+    }
+
+    #[test]
     fn uncommitted_transaction_removes_its_files() {
         let dir = std::env::temp_dir().join(format!("uwhl-tx-{}", std::process::id()));
         fs::create_dir_all(&dir).unwrap();
