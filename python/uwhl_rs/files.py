@@ -176,7 +176,7 @@ def _restore_staged(
         try:
             shown = _display_linear(res.image, meta)
             encoding = "linear" if meta.linear else "srgb"
-            # the three encoders (Pillow, zlib) release the GIL: write them at once
+            # the three encoders (Pillow, the core's PNG) release the GIL: write them at once
             with ThreadPoolExecutor(max_workers=3) as pool:
                 futures = [
                     pool.submit(write_image, paths["image"], shown, bits=bits, encoding=encoding, quality=quality),

@@ -24,6 +24,10 @@
 
 use crate::pipeline::memory_estimate;
 
+/// Bytes per processed pixel an input holds while its outputs are written:
+/// the restoration (29) and the three outputs' codes and encoded files (16).
+pub const HELD_WHILE_WRITING: u64 = 29 + 16;
+
 /// Everything the plan needs to know, from the header and the options.
 #[derive(Debug, Clone, Copy)]
 pub struct Plan {
@@ -72,7 +76,7 @@ impl Plan {
         };
         let reference = if self.reference { mul(28, n) } else { 0 };
         let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.masks > 0));
-        let write = mul(12 + 29 + 16, m);
+        let write = mul(12 + HELD_WHILE_WRITING, m);
         let masks = u64::from(self.masks);
         let mask = mul(masks, n).saturating_add(mul(masks, m));
         [decode, scale, reference, restore, write]

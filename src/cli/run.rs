@@ -2,7 +2,7 @@
 //! batch and stream loops around it.
 
 use super::args::{Options, Preprocess};
-use super::budget::Plan;
+use super::budget::{Plan, HELD_WHILE_WRITING};
 use super::decode::{decode, decode_mask, Limits};
 use super::output::{
     encode_image, encode_transmission, encode_transmission_color, write_bytes, Encoding, Transaction,
@@ -407,7 +407,12 @@ pub fn fuzz_one(data: &[u8]) -> Result<Restored, CliError> {
 
 /// Restores one input and writes its outputs (see [`decode_and_restore`]).
 pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>) -> Result<Outcome, CliError> {
-    match prepare(job, opts, masks, seq, None)? {
+    complete(job, prepare(job, opts, masks, seq, None)?, opts)
+}
+
+/// What becomes of a prepared input: skipped, or its outputs written.
+fn complete(job: &Job, p: Prepared, opts: &Options) -> Result<Outcome, CliError> {
+    match p {
         Prepared::Skipped(s) => Ok(Outcome::Skipped(s)),
         Prepared::Restored(r) => finish(job, *r, opts),
     }
@@ -423,13 +428,11 @@ enum Prepared {
 }
 
 impl Prepared {
-    /// Bytes it holds until its outputs are written: the restoration
-    /// (29 B/px, as in [`super::budget`]) and the three encoders' buffers
-    /// (codes and encoded files, at most 16 B/px).
+    /// Bytes it holds until its outputs are written ([`super::budget::HELD_WHILE_WRITING`] per pixel).
     fn held_bytes(&self) -> u64 {
         match self {
             Prepared::Skipped(_) => 0,
-            Prepared::Restored(r) => (r.0.res.transmission.len() as u64).saturating_mul(29 + 16),
+            Prepared::Restored(r) => (r.0.res.transmission.len() as u64).saturating_mul(HELD_WHILE_WRITING),
         }
     }
 }
@@ -662,10 +665,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         let Some(job) = jobs.get(i) else {
             return;
         };
-        let outcome = r.and_then(|p| match p {
-            Prepared::Skipped(s) => Ok(Outcome::Skipped(s)),
-            Prepared::Restored(b) => finish(job, *b, opts),
-        });
+        let outcome = r.and_then(|p| complete(job, p, opts));
         match outcome {
             Ok(Outcome::Done(side)) => {
                 if !opts.quiet {
@@ -729,9 +729,10 @@ fn read_line(input: &mut dyn BufRead, line: &mut Vec<u8>) -> std::io::Result<Opt
 }
 
 /// What the reading side of stream mode hands over: a frame's outcome so
-/// far (the job, if its line named one), or an unreadable stdin (the end).
+/// far, a line that names no frame, or an unreadable stdin (the end).
 enum StreamItem {
-    Frame(Option<Job>, Result<Prepared, CliError>),
+    Frame(Job, Result<Prepared, CliError>),
+    BadLine(CliError),
     Fatal(CliError),
 }
 
@@ -770,11 +771,10 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
                 }
             };
             let item = match std::str::from_utf8(&line) {
-                _ if too_long => StreamItem::Frame(
-                    None,
-                    Err(CliError::new(Kind::Input, format!("input line longer than {MAX_LINE} bytes"))),
-                ),
-                Err(_) => StreamItem::Frame(None, Err(CliError::new(Kind::Input, "input line is not valid UTF-8"))),
+                _ if too_long => {
+                    StreamItem::BadLine(CliError::new(Kind::Input, format!("input line longer than {MAX_LINE} bytes")))
+                }
+                Err(_) => StreamItem::BadLine(CliError::new(Kind::Input, "input line is not valid UTF-8")),
                 Ok(s) => {
                     let s = s.trim_end_matches(['\n', '\r']);
                     if s.trim().is_empty() {
@@ -790,7 +790,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
                         dir: opts.outdir.clone(),
                     };
                     let r = prepare(&job, opts, &masks, seq.as_mut(), Some(&mut h.gate));
-                    StreamItem::Frame(Some(job), r)
+                    StreamItem::Frame(job, r)
                 }
             };
             let held = match &item {
@@ -803,21 +803,16 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         }
     };
     let write = |item: StreamItem| {
-        let (job, r) = match item {
-            StreamItem::Frame(job, r) => (job, r),
+        let result = match item {
+            StreamItem::Frame(job, r) => match r.and_then(|p| complete(&job, p, opts)) {
+                Ok(o) => Ok((job.input, o)),
+                Err(e) => Err((Some(job.input), e)),
+            },
+            StreamItem::BadLine(e) => Err((None, e)),
             StreamItem::Fatal(e) => {
                 report(err, opts.json_errors, None, &e);
                 return;
             }
-        };
-        let result = match (job, r) {
-            (Some(job), Ok(Prepared::Skipped(s))) => Ok((job.input, Outcome::Skipped(s))),
-            (Some(job), Ok(Prepared::Restored(b))) => match finish(&job, *b, opts) {
-                Ok(o) => Ok((job.input, o)),
-                Err(e) => Err((Some(job.input), e)),
-            },
-            (job, Err(e)) => Err((job.map(|j| j.input), e)),
-            (None, Ok(_)) => Err((None, CliError::new(Kind::Internal, "a frame without its input"))),
         };
         let json = match result {
             Ok((_, Outcome::Done(side))) => *side,
