@@ -13,8 +13,8 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
 * ``restore``: ``uwhl_rs.restore`` with all ten water types (best of a
   few calls), ``selection="fast"`` where the package has it, and the
   sequence mode (one type and the veiling light of a previous call) at
-  1920x1080; both also with ``guided_subsample="auto"`` (DECISIONS F4);
-  and the frames of a ``uwhl_rs.Sequence`` (DECISIONS F10) where the
+  1920x1080; both also with ``guided_subsample="auto"`` (METHOD §6, subsampled guided filter);
+  and the frames of a ``uwhl_rs.Sequence`` (METHOD §10, sequence mode) where the
   package has it;
 * ``reference``: ``tests/reference.py``'s ``restore`` (imported by path).
   It runs in full where the table says "full"; where it says "scaled from

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Quality figures of uwhl_rs (SPEC section 11), printed as plain-text tables.
+"""Quality figures of uwhl_rs (METHOD §11), printed as plain-text tables.
 
 Run from the repository root with the package importable, e.g.::
 
@@ -8,14 +8,14 @@ Run from the repository root with the package importable, e.g.::
 
 Sections
 --------
-1. Rendered scenes (``uwhl_rs.synth``, SPEC 0) with known truth, all ten
+1. Rendered scenes (``uwhl_rs.synth``, METHOD §0) with known truth, all ten
    Jerlov types, two noise levels: rho = Pearson(z, -ln t_B) over non-water
    pixels, once with the true water region given (``water_mask``) and once
-   with detection; the gray-world choice of the water type (SPEC 9) with and
+   with detection; the gray-world choice of the water type (METHOD §9) with and
    without the t_R exclusion rule; the veiling-light error |A - A_true|; the
    mean angular color error of non-water pixels before and after.
 2. VL detection on the renders: IoU with the true water region (full, and
-   restricted to the rows VL may occupy, SPEC 3 step 4), and how often the
+   restricted to the rows VL may occupy, METHOD §3.4), and how often the
    looking-down scenes (no water) raise ``veiling_fallback``.
 3. Real photos of ../shared/data/images (sRGB, linearized): VL fraction,
    fallback, A, chosen type, time; one PNG per photo (input with VL tinted |
@@ -130,7 +130,7 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def vl_row_limit(h: int, w: int) -> int:
-    """Rows y < this may hold VL (SPEC 3 step 4 as pinned in DECISIONS S3)."""
+    """Rows y < this may hold VL (METHOD §3.4 as pinned in METHOD §3)."""
     s = max(1, math.ceil(max(h, w) / 512))
     hs = math.ceil(h / s)
     return min(h, s * math.ceil(hs / 4))
@@ -238,11 +238,11 @@ def report_renders(recs: list, args) -> None:
     h, w = args.size
     n_runs = len(args.seeds) * len(args.noise)
     print("=" * 78)
-    print("1. RENDERED SCENES (synth.scene + synth.render, SPEC 0)")
+    print("1. RENDERED SCENES (synth.scene + synth.render, METHOD §0)")
     print("=" * 78)
     print(f"size {h}x{w}, seeds {args.seeds}, noise {args.noise}, beta_b 0.2 (default),")
     print(f"A = synth.default_veiling_light(type); {n_runs} runs per type, kind and mode.")
-    print("rho = Pearson(z, -ln t_B) over non-water pixels (SPEC 11).")
+    print("rho = Pearson(z, -ln t_B) over non-water pixels (METHOD §11).")
     print("'given' = restore(img, water_mask=scene.water); 'detected' = VL detected.")
     print("|A-A_true| = max over channels (linear). Angle = mean per-pixel angle (deg)")
     print("between RGB and the clean radiance over non-water pixels (input / res.image).")
@@ -277,7 +277,7 @@ def report_renders(recs: list, args) -> None:
 
         for mode in ("given", "detected"):
             print()
-            print(f"   {kind}, water-type choice (SPEC 9), VL {mode}: ranks are by score over"
+            print(f"   {kind}, water-type choice (METHOD §9), VL {mode}: ranks are by score over"
                   " all ten types (1 = lowest score)")
             rows = []
             for wt in TYPES:
@@ -311,11 +311,11 @@ def report_renders(recs: list, args) -> None:
     # Section 2: VL detection.
     print()
     print("=" * 78)
-    print("2. VL DETECTION ON RENDERS (VL detected, SPEC 3)")
+    print("2. VL DETECTION ON RENDERS (VL detected, METHOD §3)")
     print("=" * 78)
     lim = vl_row_limit(h, w)
     print(f"IoU of res.veiling_mask with the true water region: 'full' = all of it,"
-          f"\n'top' = restricted to rows < {lim} (the rows VL may occupy, SPEC 3 step 4).")
+          f"\n'top' = restricted to rows < {lim} (the rows VL may occupy, METHOD §3.4).")
     ow = [r for r in recs if r["kind"] == "open_water" and r["mode"] == "detected"]
     rows = []
     for noise in args.noise:
@@ -386,7 +386,7 @@ def save_panel(path: pathlib.Path, srgb: np.ndarray, res, panel: int) -> None:
     for _ in range(k - 1):
         edge = edge | np.roll(edge, 1, 0) | np.roll(edge, 1, 1)
     ov[edge] = tint
-    # the lowest row VL may reach (SPEC 3 step 4): dashed yellow line
+    # the lowest row VL may reach (METHOD §3.4): dashed yellow line
     lim = vl_row_limit(h, w)
     if lim < h:
         dash = (np.arange(w) // max(4, w // 60)) % 2 == 0

@@ -1,5 +1,5 @@
 //! Rendered test scenes for the benchmarks: an object image pushed through
-//! the image formation model of SPEC 0, I = t J + (1 - t) A with
+//! the image formation model of METHOD §0, I = t J + (1 - t) A with
 //! t_c = t_B^(beta_B / beta_c), so that every stage sees realistic data
 //! (a flat water region on top, textured objects at growing distances).
 

@@ -1,4 +1,4 @@
-//! Exact streaming box sums: the clipped-window means of SPEC 6 over
+//! Exact streaming box sums: the clipped-window means of METHOD §6 over
 //! several channels at once, in row bands that run in parallel.
 //!
 //! Every value is first rounded to an integer multiple of 2^-k (a per-channel
@@ -152,7 +152,7 @@ where
 
 /// One band, sequentially (see [`box_means`]). Compiled for baseline
 /// x86-64 and for AVX2, picked at run time (the same bits either way:
-/// no fused multiply-add, DECISIONS F6).
+/// no fused multiply-add, METHOD appendix, same bits on every CPU).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn run_band<const C: usize, O, S, K>(
     geom: BoxGeom,
@@ -260,7 +260,7 @@ fn run_band<const C: usize, O, S, K>(
     }
 }
 
-/// Clipped-window box mean of one plane (SPEC 6) with `bands` parallel
+/// Clipped-window box mean of one plane (METHOD §6) with `bands` parallel
 /// bands; identical for any band count.
 pub fn box_mean_plane(src: &[f32], geom: BoxGeom, bands: usize) -> Vec<f32> {
     let BoxGeom { h, w, .. } = geom;

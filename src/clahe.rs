@@ -1,9 +1,9 @@
 //! Contrast-limited adaptive histogram equalisation in the manner of
 //! MATLAB's `adapthisteq` defaults (8x8 tiles, clip limit 0.01, 256 bins,
-//! uniform distribution), SPEC 3 step 2.
+//! uniform distribution), METHOD §3.2.
 //!
 //! The default water-region detector does NOT use it: the per-channel
-//! stretch and CLAHE of SPEC 3 steps 1-2 amplify sensor noise in flat water
+//! stretch and CLAHE of METHOD §3.1-§3.2 amplify sensor noise in flat water
 //! (worst in a nearly empty red channel), so a gradient of that image marks
 //! water as textured. It is kept, with [`naive_edge_map`], so that this
 //! failure is measured by a test rather than asserted in prose.
@@ -144,7 +144,7 @@ impl Clahe {
     }
 }
 
-/// The edge map of SPEC 3 steps 1-3 without the forest: contrast stretch
+/// The edge map of METHOD §3.1-§3.3 without the forest: contrast stretch
 /// (S3.1), CLAHE per channel, Sobel magnitude / 8, maximum over channels.
 /// Kept to measure why it is not used (see the module docs).
 pub fn naive_edge_map(data: &[f32], h: usize, w: usize) -> Vec<f32> {

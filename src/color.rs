@@ -1,6 +1,6 @@
 //! Pixel conventions of the I/O layers (docs/OUTPUTS.md): the sRGB transfer
 //! curves, quantisation, the colour map of t, the `--max-side` factor and
-//! the optional reference preprocessing of SPEC 2.
+//! the optional reference preprocessing of METHOD §2.
 //!
 //! These are not part of the method (the core takes and returns linear
 //! data); they live in the crate so that the Python package (through
@@ -245,7 +245,7 @@ pub fn max_side_factor(h: usize, w: usize, n: usize) -> usize {
     h.max(w).div_ceil(n.max(1)).max(1)
 }
 
-/// SPEC 2, reference preprocessing of an sRGB input (kept as-is, not
+/// METHOD §2, reference preprocessing of an sRGB input (kept as-is, not
 /// linearised): per channel the 1% and 99% percentiles (over masked-in
 /// pixels), each pulled 80% of the way toward the mean of the three
 /// channels' limits, then a linear stretch clipped to [0, 1]. A channel
@@ -262,7 +262,7 @@ pub fn reference_srgb_stretch(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
     apply_limits(data, pulled)
 }
 
-/// SPEC 2, reference preprocessing of a raw input (already white balanced
+/// METHOD §2, reference preprocessing of a raw input (already white balanced
 /// by the decoder): scale so the 99.999th percentile of the per-pixel
 /// channel maximum is 1, then stretch each channel from 0 to its 99.9th
 /// percentile (clipping the top 0.1%), clipped to [0, 1].

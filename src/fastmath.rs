@@ -3,7 +3,7 @@
 //! libm call, no fused multiply-add). A loop of them compiles to SIMD
 //! code, and because every operation is an exactly specified f64
 //! operation, the SIMD and scalar builds give bit-identical results
-//! (DECISIONS F6).
+//! (METHOD appendix, same bits on every CPU).
 //!
 //! Error: the f64 value before the final rounding to f32 is within 1e-10
 //! (relative) of x^p for every x and p the pipeline forms (|p log2 x| up
@@ -86,7 +86,7 @@ pub fn pow_pos(x: f32, p: f64) -> f32 {
     }
 }
 
-/// sgn(d) |d|^p for p > 0 (SPEC 4.1's compensation), 0 for d = 0.
+/// sgn(d) |d|^p for p > 0 (METHOD §4.1's compensation), 0 for d = 0.
 #[inline(always)]
 pub fn signed_pow(d: f32, p: f64) -> f32 {
     pow_pos(d.abs(), p).copysign(d)

@@ -1,12 +1,12 @@
-//! Image filters shared by the stages: clipped box means (SPEC 6), separable
+//! Image filters shared by the stages: clipped box means (METHOD §6), separable
 //! Gaussian blur, Sobel magnitude, block downscaling and 8-connected
-//! components (SPEC 3). Planes are row-major `h * w` slices; RGB images are
+//! components (METHOD §3). Planes are row-major `h * w` slices; RGB images are
 //! interleaved `h * w * 3` slices.
 
 use crate::boxsum::{box_mean_plane, BoxGeom};
 use rayon::prelude::*;
 
-/// Clipped-window box mean of a plane (SPEC 6): each output is the mean of
+/// Clipped-window box mean of a plane (METHOD §6): each output is the mean of
 /// the input over `[y-r, y+r] x [x-r, x+r]` intersected with the image,
 /// divided by the number of pixels actually in that window. Exact sums of
 /// quantised values ([`crate::boxsum`]): bit-identical for any thread count.
@@ -64,7 +64,7 @@ pub fn convolve_separable(src: &[f32], h: usize, w: usize, c: usize, k: &[f64]) 
 }
 
 /// Sobel gradient magnitude divided by 8 (replicate border) of each channel
-/// of an interleaved `c`-channel image, maximum over channels (SPEC 3).
+/// of an interleaved `c`-channel image, maximum over channels (METHOD §3).
 pub fn sobel_max(src: &[f32], h: usize, w: usize, c: usize) -> Vec<f32> {
     if h == 0 || w == 0 {
         return Vec::new();
@@ -96,7 +96,7 @@ pub fn sobel_max(src: &[f32], h: usize, w: usize, c: usize) -> Vec<f32> {
 }
 
 /// Block-average downscale of an interleaved `c`-channel image by an integer
-/// factor `s` (DECISIONS S3 step 2); partial border blocks average the pixels
+/// factor `s` (METHOD §3 step 2); partial border blocks average the pixels
 /// they hold. Returns the image and its size.
 pub fn downscale(src: &[f32], h: usize, w: usize, c: usize, s: usize) -> (Vec<f32>, usize, usize) {
     downscale_map(src, h, w, c, s, |v| v)

@@ -1,4 +1,4 @@
-//! He et al.'s guided filter with a color guide (SPEC 6). Everything that
+//! He et al.'s guided filter with a color guide (METHOD §6). Everything that
 //! depends only on the guide (window means, inverse regularised covariances)
 //! is computed once per image in [`GuideStats::new`] and reused for every
 //! water type. Filtering a plane takes two streaming box passes
@@ -87,7 +87,7 @@ fn ab_rows(ab: &[[f32; 4]], w: usize) -> impl Fn(usize, &mut [[f64; 4]]) + Sync 
 
 /// Row source of the first pass: (p, I_R p, I_G p, I_B p) in f64.
 /// The kernels below are compiled for baseline x86-64 and for AVX2, picked
-/// at run time, with the same bits either way (DECISIONS F6).
+/// at run time, with the same bits either way (METHOD appendix, same bits on every CPU).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn products_row(row: &mut [[f64; 4]], p: &[f32], guide: &[[f32; 3]]) {
     for ((d, &pv), &[r, g, b]) in row.iter_mut().zip(p).zip(guide) {
@@ -96,7 +96,7 @@ fn products_row(row: &mut [[f64; 4]], p: &[f32], guide: &[[f32; 3]]) {
     }
 }
 
-/// Sink of the first pass (SPEC 6): from the window means (p, I p) and the
+/// Sink of the first pass (METHOD §6): from the window means (p, I p) and the
 /// guide statistics (one row: nine runs of w values),
 /// a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
 /// b = mean_p - a . mean_I; `maxes` gathers max |.| of each of the four.
@@ -203,12 +203,12 @@ fn inv_sym3_select(m: [f64; 6]) -> ([f64; 6], bool) {
     ([c00 / det, c01 / det, c02 / det, c11 / det, c12 / det, c22 / det], ok)
 }
 
-/// Sink of the statistics pass (SPEC 6): from the window means of (I,
+/// Sink of the statistics pass (METHOD §6): from the window means of (I,
 /// I I^T) of one row, the means and the inverse of Sigma + eps U
 /// ([`inv_sym3`]; where that has no inverse, which eps > 0 rules out,
 /// 1/eps U), written as nine runs of w values. Branch-free, so that the
 /// loop vectorizes: compiled for baseline x86-64 and for AVX2, picked at
-/// run time, the same bits either way (DECISIONS F6).
+/// run time, the same bits either way (METHOD appendix, same bits on every CPU).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn stats_row(out: &mut [f32], means: &[[f64; 9]], eps: f64) {
     let w = means.len();
@@ -251,7 +251,7 @@ impl GuideStats {
     /// input sampled at the centres of s x s blocks are filtered exactly at radius
     /// max(1, round(r / s)), and the window means of (a, b) are interpolated
     /// bilinearly back to full resolution, where q = mean(a) . I + mean(b)
-    /// uses the full-resolution guide (DECISIONS F4).
+    /// uses the full-resolution guide (METHOD §6, subsampled guided filter).
     pub fn subsampled(guide: Vec<f32>, h: usize, w: usize, r: usize, eps: f64, s: usize) -> Self {
         let geom = BoxGeom { h, w, r };
         let guide_bound = guide.iter().fold(0f32, |m, v| m.max(v.abs())) as f64;
@@ -350,7 +350,7 @@ impl GuideStats {
         }
     }
 
-    /// First pass (SPEC 6): a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
+    /// First pass (METHOD §6): a = (Sigma + eps U)^-1 (mean(I p) - mean_I mean_p),
     /// b = mean_p - a . mean_I for every pixel, written to `ab` as
     /// (a_R, a_G, a_B, b). Returns max |.| of each of the four, which
     /// bounds the second pass.
@@ -397,7 +397,7 @@ impl GuideStats {
         })
     }
 
-    /// Second pass (SPEC 6): q = mean(a) . I + mean(b) row by row. `work`
+    /// Second pass (METHOD §6): q = mean(a) . I + mean(b) row by row. `work`
     /// pairs each of [`GuideStats::ranges`] with a state; `sink(state, y, q)`
     /// gets row y of q. `bounds` is what [`GuideStats::coefficients`] returned.
     pub fn apply_rows<O, K>(
@@ -495,7 +495,7 @@ impl GuideStats {
             .collect()
     }
 
-    /// Filters the plane `p` (SPEC 6): both passes, q as a plane.
+    /// Filters the plane `p` (METHOD §6): both passes, q as a plane.
     pub fn filter(&self, p: &[f32]) -> Vec<f32> {
         let BoxGeom { h, w, .. } = self.geom;
         let mut ab = vec![[0f32; 4]; h * w];

@@ -1,4 +1,4 @@
-//! Initial transmission from haze-lines (SPEC 4 / DECISIONS S4).
+//! Initial transmission from haze-lines (METHOD §4 / METHOD §4).
 
 use crate::fastmath;
 use crate::filters::box_mean;
@@ -8,9 +8,9 @@ use crate::sphere::SphereIndex;
 use crate::water::WaterType;
 use rayon::prelude::*;
 
-/// Lower clamp of t~ (SPEC 4.4).
+/// Lower clamp of t~ (METHOD §4.4).
 pub const T_MIN: f32 = 0.01;
-/// Factor applied after clustering (SPEC 4.6).
+/// Factor applied after clustering (METHOD §4.6).
 pub const T_SCALE: f32 = 0.9;
 /// Cluster id (as stored, f32) of pixels that have none (r == 0 or masked out).
 const NO_CLUSTER: f32 = -1.0;
@@ -21,13 +21,13 @@ pub fn signed_pow(d: f32, p: f64) -> f32 {
     fastmath::signed_pow(d, p)
 }
 
-/// The medium-compensated vector of SPEC 0 / 4.1 for one pixel.
+/// The medium-compensated vector of METHOD §0 / 4.1 for one pixel.
 #[inline]
 pub fn compensated(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> [f32; 3] {
     HazeType::new(a, wt).compensated(px)
 }
 
-/// Per-type constants of SPEC 4-5 for a given veiling light A.
+/// Per-type constants of METHOD §4-5 for a given veiling light A.
 #[derive(Debug, Clone, Copy)]
 pub struct HazeType {
     /// veiling light A
@@ -54,7 +54,7 @@ impl HazeType {
         }
     }
 
-    /// The medium-compensated vector of SPEC 0 / 4.1 for one pixel.
+    /// The medium-compensated vector of METHOD §0 / 4.1 for one pixel.
     #[inline(always)]
     pub fn compensated(&self, px: [f32; 3]) -> [f32; 3] {
         [
@@ -64,7 +64,7 @@ impl HazeType {
         ]
     }
 
-    /// The lower bound t_LB of SPEC 5 from the compensated vector v:
+    /// The lower bound t_LB of METHOD §5 from the compensated vector v:
     /// max(1 - I_c/A_c, 0)^beta_c = max(v_c, 0) A_c^-beta_c, floor 0.1.
     /// Each term is at most 1 in exact arithmetic; the product is formed in
     /// f64 and capped at 1, so that an extreme type (a large ratio with a
@@ -77,9 +77,9 @@ impl HazeType {
     }
 }
 
-/// For one row of pixels: the compensated vectors v (SPEC 4.1), their
-/// radii |v| and the lower bounds t_LB (SPEC 5). Compiled for baseline
-/// x86-64, AVX2 and AVX-512 (DECISIONS F7), picked at run time; the same
+/// For one row of pixels: the compensated vectors v (METHOD §4.1), their
+/// radii |v| and the lower bounds t_LB (METHOD §5). Compiled for baseline
+/// x86-64, AVX2 and AVX-512 (METHOD appendix, same bits on every CPU), picked at run time; the same
 /// bits on each (plain IEEE operations, [`crate::fastmath`]).
 /// Also each v's lookup cell in `index` ([`SphereIndex::cell`]).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
@@ -99,11 +99,11 @@ pub fn compensate_row(ht: &HazeType, index: &SphereIndex, px: &[[f32; 3]], out: 
 /// [`SphereIndex::nearest_row`] read only what they need).
 #[derive(Debug, Clone, Default)]
 pub struct CompensatedRow {
-    /// the compensated vectors v (SPEC 4.1)
+    /// the compensated vectors v (METHOD §4.1)
     pub v: Vec<[f32; 3]>,
     /// |v|
     pub r: Vec<f32>,
-    /// t_LB (SPEC 5)
+    /// t_LB (METHOD §5)
     pub lb: Vec<f32>,
     /// v's lookup cell
     pub cell: Vec<u32>,
@@ -124,7 +124,7 @@ impl CompensatedRow {
 /// Rows per work item of the per-pixel passes.
 pub const CHUNK_ROWS: usize = 8;
 
-/// First pass of SPEC 4 (and the lower bound of SPEC 5) over all pixels:
+/// First pass of METHOD §4 (and the lower bound of METHOD §5) over all pixels:
 /// `r_out[i]` = |v| (0 for masked-out pixels), `aux[i]` = (t_LB, cluster
 /// as f32 or -1 for none). Returns r_max per cluster (max is exact and
 /// order-free: the same for any split).
@@ -183,7 +183,7 @@ pub fn haze_pass(
         )
 }
 
-/// t~ of one pixel (SPEC 4.4) from its radius, cluster (-1: none) and the
+/// t~ of one pixel (METHOD §4.4) from its radius, cluster (-1: none) and the
 /// clusters' r_max: clamp(r / r_max, 0.01, 1), or 1 without a cluster.
 #[inline(always)]
 pub fn t_tilde(r: f32, cluster: f32, rmax: &[f32]) -> f32 {
@@ -196,7 +196,7 @@ pub fn t_tilde(r: f32, cluster: f32, rmax: &[f32]) -> f32 {
     }
 }
 
-/// t~ for every pixel (SPEC 4.1-4.6): haze-line clusters on masked-in
+/// t~ for every pixel (METHOD §4.1-4.6): haze-line clusters on masked-in
 /// pixels, r / r_max clamped to [0.01, 1], masked-out pixels filled by
 /// [`fill_masked`], then scaled by 0.9.
 pub fn initial_transmission(
@@ -221,7 +221,7 @@ pub fn initial_transmission(
 }
 
 /// Fills masked-out pixels (mask false) by normalised convolution with a
-/// growing radius 1, 2, 4, ... (DECISIONS S4): each still-unfilled pixel
+/// growing radius 1, 2, 4, ... (METHOD §4): each still-unfilled pixel
 /// takes box(w t) / box(w) at the first radius where box(w) > 0.
 pub fn fill_masked(t: &mut [f32], mask: &[bool], h: usize, w: usize) {
     let wts: Vec<f32> = mask.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
@@ -258,7 +258,7 @@ mod tests {
     fn row_kernel_gives_the_per_pixel_bits() {
         // compensate_row runs its AVX2 build where the CPU has AVX2; the
         // per-pixel functions called here are the baseline build: the bits
-        // must agree (DECISIONS F6). Values include D = 0, negative D,
+        // must agree (METHOD appendix, same bits on every CPU). Values include D = 0, negative D,
         // tiny and large differences.
         let noise = crate::util::test_noise(3 * 4099, 7);
         let special = [0.0f32, 1e-30, 0.5, 1.0, 0.2, 0.3, 0.4, 1e-7, 0.999_999];
@@ -322,7 +322,7 @@ mod tests {
     #[test]
     fn one_haze_line_gives_relative_distances() {
         // Pixels on one haze-line: I = t J + (1 - t) A with the same J, so v is
-        // parallel with |v| proportional to t (SPEC 0), up to t_B: r / r_max = t / t_max.
+        // parallel with |v| proportional to t (METHOD §0), up to t_B: r / r_max = t / t_max.
         let a = [0.1f32, 0.4, 0.5];
         let j = [0.8f32, 0.6, 0.2];
         let wt = WaterType::new("x", 1.0, 1.0).unwrap();

@@ -1,4 +1,4 @@
-//! Validated image and mask views (SPEC 2): shape, value and mask checks.
+//! Validated image and mask views (METHOD §2): shape, value and mask checks.
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -75,7 +75,7 @@ impl<'a> ImageRef<'a> {
         }
     }
 
-    /// Every value finite and in [0, 1], and the image not constant (SPEC 2).
+    /// Every value finite and in [0, 1], and the image not constant (METHOD §2).
     /// The first offending value in raster order is reported.
     pub fn validate_values(&self) -> Result<()> {
         let w = self.width;

@@ -2,8 +2,8 @@
 //!
 //! An implementation of Berman, Levy, Avidan & Treibitz, "Underwater Single
 //! Image Color Restoration Using Haze-Lines and a New Quantitative Dataset"
-//! (IEEE TPAMI 2020), following `SPEC.md` (section numbers in the docs
-//! below, "SPEC n") and the choices recorded in `docs/DECISIONS.md`.
+//! (IEEE TPAMI 2020), as `docs/METHOD.md` describes it (its section numbers
+//! are cited in the docs below as "METHOD §n").
 //!
 //! ```
 //! use uwhl::{restore, ImageRef, Input, Params};
@@ -47,7 +47,7 @@ macro_rules! core_modules {
 }
 
 core_modules! {
-    boxsum, clahe, color, error, fastmath, filters, guided, hazelines, image, matting, pipeline, rank, recover, select, sequence, sphere, util,
+    boxsum, clahe, color, error, fastmath, filters, guided, hazelines, image, matting, options, pipeline, rank, recover, select, sequence, sphere, util,
     veiling, water,
 }
 

@@ -1,5 +1,5 @@
 //! The transmission lower bound and the Mahalanobis soft matting with the
-//! water region (SPEC 5 / DECISIONS S5).
+//! water region (METHOD §5 / METHOD §5).
 
 use crate::hazelines::HazeType;
 use crate::image::ImageRef;
@@ -8,17 +8,17 @@ use crate::water::WaterType;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-/// Floor of the lower bound (SPEC 5).
+/// Floor of the lower bound (METHOD §5).
 pub const LB_FLOOR: f32 = 0.1;
 
-/// The lower bound t_LB of SPEC 5 for one pixel.
+/// The lower bound t_LB of METHOD §5 for one pixel.
 #[inline]
 pub fn lower_bound_px(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> f32 {
     let ht = HazeType::new(a, wt);
     ht.lower_bound(ht.compensated(px))
 }
 
-/// t_LB for every pixel (SPEC 5).
+/// t_LB for every pixel (METHOD §5).
 pub fn lower_bound(img: &ImageRef, a: [f32; 3], wt: &WaterType) -> Vec<f32> {
     let ht = HazeType::new(a, wt);
     img.data
@@ -29,7 +29,7 @@ pub fn lower_bound(img: &ImageRef, a: [f32; 3], wt: &WaterType) -> Vec<f32> {
         .collect()
 }
 
-/// The soft matting of SPEC 5 as a model of the water's colors: the VL
+/// The soft matting of METHOD §5 as a model of the water's colors: the VL
 /// pixels' mean and regularised inverse covariance, and the two thresholds
 /// on the squared Mahalanobis distance. Weights are computed per pixel when
 /// needed (no per-pixel plane is stored).
@@ -44,7 +44,7 @@ pub struct Matting {
 }
 
 impl Matting {
-    /// Fits the model to the VL pixels of `img` (DECISIONS S5): mean and
+    /// Fits the model to the VL pixels of `img` (METHOD §5): mean and
     /// covariance (n - 1) of their colors, ridge C + (1e-6 trace(C) / 3 +
     /// 1e-12) I, and over their own distances d: thr_water = m + 2 s,
     /// thr_notwater = M + s. None with fewer than 2 VL pixels or a singular
@@ -118,7 +118,7 @@ impl Matting {
         self.distance_px([p[0] as f64, p[1] as f64, p[2] as f64])
     }
 
-    /// The weight w of SPEC 5 (1 = water, 0 = object) for a distance d:
+    /// The weight w of METHOD §5 (1 = water, 0 = object) for a distance d:
     /// 1 - clamp((d - thr_water) / (thr_notwater - thr_water), 0, 1), or a
     /// hard step at thr_water when the thresholds coincide.
     #[inline(always)]
@@ -140,7 +140,7 @@ impl Matting {
     }
 }
 
-/// The matting thresholds of SPEC 5 from the distances `d(i)` of the VL
+/// The matting thresholds of METHOD §5 from the distances `d(i)` of the VL
 /// pixels: m = mean, s = std (n - 1), M = max; (m + 2 s, M + s).
 pub fn thresholds<F: Fn(usize) -> f64 + Sync>(vl: &[bool], width: usize, d: F) -> (f64, f64) {
     let n = vl.len();
@@ -167,7 +167,7 @@ pub fn mahalanobis_sq(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
     Some(img.data.as_chunks::<3>().0.par_iter().map(|&p| m.distance(p)).collect())
 }
 
-/// Matting weights w of SPEC 5 (1 = water, 0 = object) of every pixel
+/// Matting weights w of METHOD §5 (1 = water, 0 = object) of every pixel
 /// (see [`Matting::weight`]). None with fewer than 2 VL pixels.
 pub fn matting_weights(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
     let m = Matting::fit(img, vl)?;

@@ -1,4 +1,4 @@
-//! Orchestration (SPEC 2-10): per-image work once (validation, veiling
+//! Orchestration (METHOD §2-10): per-image work once (validation, veiling
 //! light and water region, the Mahalanobis matting model, guide
 //! statistics), then the water types one after another, each with every
 //! pass parallel over rows, and the chosen type computed once more to
@@ -6,7 +6,7 @@
 //! transmission / J, the guided filter's (a, b), and with an estimation
 //! mask the filtered plane); no per-type full-resolution image is kept.
 //!
-//! Selection needs from each type only sums over pixels (SPEC 9) and the
+//! Selection needs from each type only sums over pixels (METHOD §9) and the
 //! display stretch's limits, which come from order statistics of J before
 //! the artifact clamp: the clamp and the normalisation are non-decreasing
 //! maps, so they commute with ranking ([`crate::rank`]).
@@ -17,6 +17,7 @@ use crate::guided::GuideStats;
 use crate::hazelines::{fill_masked, haze_pass, t_tilde, HazeType, CHUNK_ROWS, T_MIN, T_SCALE};
 use crate::image::{check_mask, ImageRef};
 use crate::matting::Matting;
+use crate::options::{DEFAULT_EPS, DEFAULT_MAX_MEMORY, DEFAULT_SPHERE_POINTS};
 use crate::recover::{display_limits, recover_values, ArtifactClamp, Recovery, DISPLAY_QS};
 use crate::select::{choose, Choice, SelectionSums, TypeStats, FLAG_RELAXED};
 use crate::sphere::SphereIndex;
@@ -26,31 +27,25 @@ use crate::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
 use std::ops::Range;
 
-/// Default guided-filter regulariser (SPEC 6).
-pub const DEFAULT_EPS: f64 = 1e-3;
-/// Default number of haze-line clusters (SPEC 4.3).
-pub const DEFAULT_SPHERE_POINTS: usize = 500;
-/// Default working-memory limit: 16 GiB.
-pub const DEFAULT_MAX_MEMORY: u64 = 16 << 30;
 /// Longer side (about) of the copy on which [`Selection::Fast`] scores the types.
 pub const FAST_SIDE: usize = 1024;
 /// How many of the copy's best-scoring surviving types [`Selection::Fast`]
 /// scores again at full resolution before choosing.
 pub const FAST_RESCORE: usize = 3;
 
-/// How the water type is chosen (SPEC 9).
+/// How the water type is chosen (METHOD §9).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Selection {
     /// Every candidate type is restored at full resolution and scored
-    /// (SPEC 9 as written).
+    /// (METHOD §9 as written).
     #[default]
     Exhaustive,
     /// The types are scored on a copy whose longer side is about
     /// [`FAST_SIDE`]: one pixel (the centre) of every s x s block, s =
     /// ceil(max(H, W) / 1024), with its water region and mask, and the
-    /// full-resolution veiling light. Where the copy's choice (SPEC 9 on
+    /// full-resolution veiling light. Where the copy's choice (METHOD §9 on
     /// the copy) is uncertain, up to [`FAST_RESCORE`] of its best surviving
-    /// types are scored again at full resolution and SPEC 9 chooses among
+    /// types are scored again at full resolution and METHOD §9 chooses among
     /// them (see [`FAST_SCORE_MARGIN`], [`FAST_EXCLUSION_MARGIN`]); the
     /// chosen type is restored exactly as the exhaustive mode restores it. Reported scores and exclusions are full-resolution ones for the
     /// re-scored types and the copy's for the others. Images whose longer
@@ -58,18 +53,40 @@ pub enum Selection {
     Fast,
 }
 
-/// Parameters of [`restore`]; `Default` gives SPEC.md's defaults.
+impl Selection {
+    /// The name used by both commands, the Python keyword and the sidecar.
+    pub fn name(self) -> &'static str {
+        match self {
+            Selection::Exhaustive => "exhaustive",
+            Selection::Fast => "fast",
+        }
+    }
+
+    /// The selection called `name`; a parameter error naming the choices.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "exhaustive" => Ok(Selection::Exhaustive),
+            "fast" => Ok(Selection::Fast),
+            other => Err(Error::Param {
+                name: "selection",
+                msg: format!("must be \"exhaustive\" or \"fast\"; got {other:?}"),
+            }),
+        }
+    }
+}
+
+/// Parameters of [`restore`]; `Default` gives docs/METHOD.md's defaults.
 #[derive(Debug, Clone)]
 pub struct Params {
-    /// candidate water types (SPEC 1); default: the ten Jerlov types
+    /// candidate water types (METHOD §1); default: the ten Jerlov types
     pub water_types: Vec<WaterType>,
-    /// a given veiling light A (each component in (0, 1]); default: estimated (SPEC 3)
+    /// a given veiling light A (each component in (0, 1]); default: estimated (METHOD §3)
     pub veiling_light: Option<[f32; 3]>,
-    /// guided-filter radius; default round(min(H, W) / 4) (SPEC 6)
+    /// guided-filter radius; default round(min(H, W) / 4) (METHOD §6)
     pub guided_radius: Option<usize>,
-    /// guided-filter eps, > 0; default 1e-3 (SPEC 6)
+    /// guided-filter eps, > 0; default 1e-3 (METHOD §6)
     pub guided_eps: f64,
-    /// number of haze-line clusters; default 500 (SPEC 4.3)
+    /// number of haze-line clusters; default 500 (METHOD §4.3)
     pub sphere_points: usize,
     /// worker threads; None = rayon's global pool (all cores)
     pub threads: Option<usize>,
@@ -78,8 +95,8 @@ pub struct Params {
     /// how the water type is chosen; default exhaustive
     pub selection: Selection,
     /// guided-filter subsampling factor s: 1 (default) = the exact filter
-    /// of SPEC 6; s >= 2 = He and Sun's fast guided filter, (a, b) computed
-    /// on samples at the centres of s x s blocks and interpolated back (DECISIONS F4);
+    /// of METHOD §6; s >= 2 = He and Sun's fast guided filter, (a, b) computed
+    /// on samples at the centres of s x s blocks and interpolated back (METHOD §6, subsampled guided filter);
     /// 0 = automatic, [`auto_subsample`] of the radius
     pub guided_subsample: usize,
 }
@@ -89,7 +106,7 @@ pub const AUTO_SUBSAMPLE_BLOCKS: usize = 32;
 
 /// The automatic guided-filter subsampling factor for radius r:
 /// max(1, floor(r / 32)), so that the subsampled window still spans at
-/// least 65 x 65 blocks (DECISIONS F4).
+/// least 65 x 65 blocks (METHOD §6, subsampled guided filter).
 pub fn auto_subsample(r: usize) -> usize {
     (r / AUTO_SUBSAMPLE_BLOCKS).max(1)
 }
@@ -115,30 +132,30 @@ impl Default for Params {
 pub struct Input<'a> {
     /// linear RGB in [0, 1]
     pub image: ImageRef<'a>,
-    /// true = use the pixel for estimation (SPEC 2); false e.g. on color charts
+    /// true = use the pixel for estimation (METHOD §2); false e.g. on color charts
     pub mask: Option<&'a [bool]>,
-    /// a given water region VL, used instead of detection (SPEC 3)
+    /// a given water region VL, used instead of detection (METHOD §3)
     pub water_mask: Option<&'a [bool]>,
 }
 
-/// Everything [`restore`] returns (SPEC 10).
+/// Everything [`restore`] returns (METHOD §10).
 #[derive(Debug, Clone)]
 pub struct Restoration {
     /// rows
     pub height: usize,
     /// columns
     pub width: usize,
-    /// the white-balanced, display-stretched result of the chosen type (SPEC 8), interleaved RGB
+    /// the white-balanced, display-stretched result of the chosen type (METHOD §8), interleaved RGB
     pub image: Vec<f32>,
-    /// J after the artifact clamp, before the stretch (SPEC 7), interleaved RGB
+    /// J after the artifact clamp, before the stretch (METHOD §7), interleaved RGB
     pub radiance: Vec<f32>,
-    /// t_B of the chosen type (SPEC 7); -ln t_B = beta_B z
+    /// t_B of the chosen type (METHOD §7); -ln t_B = beta_B z
     pub transmission: Vec<f32>,
     /// the chosen water type
     pub water_type: WaterType,
-    /// every evaluated type with its gray-world score, in input order (SPEC 9)
+    /// every evaluated type with its gray-world score, in input order (METHOD §9)
     pub scores: Vec<(String, f64)>,
-    /// names of the types excluded by the t_R rule (SPEC 9)
+    /// names of the types excluded by the t_R rule (METHOD §9)
     pub excluded: Vec<String>,
     /// the veiling light A used
     pub veiling_light: [f32; 3],
@@ -182,13 +199,13 @@ impl Clock {
 }
 
 impl Restoration {
-    /// Per-channel transmission maps (t_R, t_G, t_B) of the chosen type (SPEC 7).
+    /// Per-channel transmission maps (t_R, t_G, t_B) of the chosen type (METHOD §7).
     pub fn channel_transmissions(&self) -> [Vec<f32>; 3] {
         channel_transmissions(&self.transmission, &self.water_type)
     }
 }
 
-/// Per-channel transmission maps (t_R, t_G, t_B) from a clamped t_B (SPEC 7).
+/// Per-channel transmission maps (t_R, t_G, t_B) from a clamped t_B (METHOD §7).
 pub fn channel_transmissions(t_b: &[f32], wt: &WaterType) -> [Vec<f32>; 3] {
     let rec = Recovery::new([1.0; 3], wt);
     let per: Vec<[f32; 3]> = t_b.par_iter().map(|&t| rec.channel_t(t)).collect();
@@ -199,7 +216,7 @@ pub fn channel_transmissions(t_b: &[f32], wt: &WaterType) -> [Vec<f32>; 3] {
     ]
 }
 
-/// Default guided-filter radius: round(min(H, W) / 4), halves away from zero (SPEC 6).
+/// Default guided-filter radius: round(min(H, W) / 4), halves away from zero (METHOD §6).
 pub fn default_radius(h: usize, w: usize) -> usize {
     (h.min(w) as f64 / 4.0).round() as usize
 }
@@ -214,8 +231,8 @@ pub fn default_radius(h: usize, w: usize) -> usize {
 /// evaluated; 4 B for the q kept of the best type so far (so that the
 /// chosen type is not filtered again); 3 B for row buffers,
 /// order-statistics brackets and allocator slack (measured: 86.7 B per
-/// pixel at 12 MP). With masked-out pixels, 17 B for the fill of SPEC
-/// 4.5. The outputs (29 B per pixel) are allocated after the per-type
+/// pixel at 12 MP). With masked-out pixels, 17 B for the fill of METHOD
+/// §4.5. The outputs (29 B per pixel) are allocated after the per-type
 /// buffers and the guide statistics are freed. [`Selection::Fast`] scores
 /// its copy before the full-size buffers exist (the estimate adds the
 /// copy's share anyway).
@@ -225,10 +242,10 @@ pub fn memory_estimate(h: usize, w: usize, holes: bool) -> u64 {
     n.saturating_mul(per_px)
 }
 
-/// Fractions of the guide stretch's percentiles (SPEC 3.1).
+/// Fractions of the guide stretch's percentiles (METHOD §3.1).
 const GUIDE_QS: [f64; 2] = [0.01, 0.99];
 
-/// The normalisation and per-channel limits of SPEC 3.1 (DECISIONS S3.1).
+/// The normalisation and per-channel limits of METHOD §3.1 (METHOD §3.1).
 fn stretch_limits(data: &[f32], mask: Option<&[bool]>) -> (Normalize, ChannelStretch) {
     let norm = Normalize::masked(data, mask);
     let p = channel_percentiles(data, mask, &GUIDE_QS, |_, v| norm.apply(v));
@@ -239,7 +256,7 @@ fn stretch_limits(data: &[f32], mask: Option<&[bool]>) -> (Normalize, ChannelStr
     (norm, ChannelStretch::new(limits))
 }
 
-/// The contrast stretch of SPEC 3.1 (DECISIONS S3.1): global min-max, then
+/// The contrast stretch of METHOD §3.1 (METHOD §3.1): global min-max, then
 /// per channel between its 1% and 99% percentiles, clipped to [0, 1].
 /// Statistics over masked-in pixels (all without a mask), applied to all.
 pub fn stretch_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
@@ -247,7 +264,7 @@ pub fn stretch_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
     st.map_rgb(data, |v| norm.apply(v))
 }
 
-/// The guide of SPEC 6: the stretched input raised to 1/2.2, 0 on masked-out pixels.
+/// The guide of METHOD §6: the stretched input raised to 1/2.2, 0 on masked-out pixels.
 pub fn guide_image(data: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
     guide_image_into(data, mask, Vec::new())
 }
@@ -268,10 +285,10 @@ fn guide_image_into(data: &[f32], mask: Option<&[bool]>, buf: Vec<f32>) -> Vec<f
     g
 }
 
-/// The guide of SPEC 6 for a run of pixels: the stretched input (SPEC 3
+/// The guide of METHOD §6 for a run of pixels: the stretched input (METHOD §3
 /// step 1) raised to 1/2.2 ([`crate::fastmath::pow_pos`]), 0 where `mask`
 /// is false. Compiled for baseline x86-64, AVX2 and AVX-512, picked at
-/// run time; the same bits on each (DECISIONS F6, F7).
+/// run time; the same bits on each (METHOD appendix, same bits on every CPU, F7).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 fn guide_row(norm: &Normalize, st: &ChannelStretch, src: &[[f32; 3]], out: &mut [[f32; 3]], mask: Option<&[bool]>) {
     let gamma = 1.0 / 2.2;
@@ -293,7 +310,7 @@ fn guide_row(norm: &Normalize, st: &ChannelStretch, src: &[[f32; 3]], out: &mut 
 
 /// Gives each masked-out region (8-connected) one value: the mean of `q`
 /// over the masked-in pixels directly below it; if none, directly above; if
-/// none, its masked-in 8-neighbours (SPEC 6, DECISIONS S6).
+/// none, its masked-in 8-neighbours (METHOD §6, METHOD §6).
 pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
     let out: Vec<bool> = mask.iter().map(|&b| !b).collect();
     let (labels, sizes) = components8(&out, h, w);
@@ -366,12 +383,12 @@ pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
     });
 }
 
-/// SPEC 4.4-5 for a run of pixels: t~ = clamp(r / r_max, 0.01, 1) from the
+/// METHOD §4.4-5 for a run of pixels: t~ = clamp(r / r_max, 0.01, 1) from the
 /// radius in `p` and the cluster in `aux` (`rm`: r_max by cluster + 1,
 /// entry 0 for "no cluster", t~ = 1), or t~ as given in `p` when `tilde`
 /// is false; then t = max(0.9 t~, t_LB), blended with t_LB by the matting
 /// weight. Compiled for baseline x86-64, AVX2 and AVX-512, picked at run
-/// time; the same bits on each (DECISIONS F6, F7).
+/// time; the same bits on each (METHOD appendix, same bits on every CPU, F7).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
 fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
     let last = rm.len().saturating_sub(1);
@@ -453,14 +470,14 @@ where
 }
 
 /// Sums of the three displayed channels of a row of J (`sp` applied, the
-/// SPEC 7 clamp and SPEC 8 stretch, or the values as they are without)
-/// over the pixels where `counted` is true (SPEC 9's means). Without `sp`
+/// METHOD §7 clamp and METHOD §8 stretch, or the values as they are without)
+/// over the pixels where `counted` is true (METHOD §9's means). Without `sp`
 /// on values mapped by [`Stretch::apply`], the same bits as with `sp` on
 /// the values. Runs of 8 pixels are summed in 24 lanes (one
 /// channel each, as in [`map_lanes`]), each lane in pixel order; a
 /// channel's lanes are combined in lane order, then the pixels left over
 /// are added: the same for any thread count. Compiled for baseline x86-64
-/// and for AVX2, picked at run time; the same bits either way (DECISIONS F6).
+/// and for AVX2, picked at run time; the same bits either way (METHOD appendix, same bits on every CPU).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn counted_sums(sp: Option<&Stretch>, px: &[[f32; 3]], counted: &[bool]) -> [f64; 3] {
     match sp {
@@ -525,7 +542,7 @@ where
 /// inside the mask, sums of t_R and counts over its VL and other pixels.
 /// Accumulates in 8 lanes combined in lane order (the same for any thread
 /// count); compiled for baseline x86-64 and for AVX2, picked at run time,
-/// the same bits either way (DECISIONS F6).
+/// the same bits either way (METHOD appendix, same bits on every CPU).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn row_stats(j: &[[f32; 3]], tr: &[f32], inside: &[bool], vl: &[bool], st: &mut RowStats) {
     const L: usize = 8;
@@ -599,7 +616,7 @@ impl RowScratch {
     }
 }
 
-/// What one pass over a row of recovered pixels gathers (SPEC 7-9).
+/// What one pass over a row of recovered pixels gathers (METHOD §7-9).
 #[derive(Debug, Clone, Copy)]
 struct RowStats {
     /// min and max of J over the masked-in pixels' channels
@@ -631,9 +648,9 @@ impl RowStats {
 struct Work {
     /// the refined transmission p in the first n entries, then J (3 per pixel)
     j: Vec<f32>,
-    /// t_LB and cluster per pixel (SPEC 4-5), then the guided filter's (a, b)
+    /// t_LB and cluster per pixel (METHOD §4-5), then the guided filter's (a, b)
     aux: Vec<[f32; 4]>,
-    /// the filtered plane q after the chart fill (SPEC 6): what the
+    /// the filtered plane q after the chart fill (METHOD §6): what the
     /// recovery reads, kept so that the chosen type need not be filtered
     /// again ([`Shared::score`])
     q: Vec<f32>,
@@ -671,7 +688,7 @@ fn reuse<T: Copy + Default>(buf: Vec<T>, n: usize) -> Vec<T> {
 /// from one frame to the next (the guide image, the guided filter's (a, b)
 /// and the filtered plane: 32 B per pixel), so that a frame of the same
 /// size reuses their pages instead of having the kernel map and zero new
-/// ones (DECISIONS F10). A plain [`restore`] starts from empty buffers and
+/// ones (METHOD §10, sequence mode). A plain [`restore`] starts from empty buffers and
 /// frees its planes as early as before (`keep` false).
 #[derive(Debug, Default)]
 pub struct Buffers {
@@ -712,7 +729,7 @@ struct Stretch {
 }
 
 impl Stretch {
-    /// The displayed value of channel c of J (SPEC 7 clamp, SPEC 8 stretch).
+    /// The displayed value of channel c of J (METHOD §7 clamp, METHOD §8 stretch).
     #[inline(always)]
     fn apply(&self, c: usize, j: f32) -> f32 {
         self.limits.apply(c, self.norm.apply(self.clamp.apply(j)))
@@ -732,7 +749,7 @@ struct Shared<'a> {
 }
 
 impl Shared<'_> {
-    /// SPEC 4-6 up to the guided filter's first pass: the refined
+    /// METHOD §4-6 up to the guided filter's first pass: the refined
     /// transmission p = blend(max(t~, t_LB)) into `work.j[..n]`, then (a, b)
     /// into `work.aux`. Returns the bounds of (a, b) for the second pass.
     fn refine(&self, wt: &WaterType, work: &mut Work) -> [f64; 4] {
@@ -763,7 +780,7 @@ impl Shared<'_> {
         self.guide.coefficients(p, aux)
     }
 
-    /// SPEC 7 for one row: t_B (written to `tb` if given), t_R, t_G and J
+    /// METHOD §7 for one row: t_B (written to `tb` if given), t_R, t_G and J
     /// before the artifact clamp (to `j`), with the row's statistics.
     fn recover_row(&self, rec: &Recovery, y: usize, q: &[f32], j: &mut [f32], tb: Option<&mut [f32]>, sc: &mut RowScratch) -> RowStats {
         let w = self.img.width;
@@ -794,8 +811,8 @@ impl Shared<'_> {
         (inside, self.vl.get(row).unwrap_or(no))
     }
 
-    /// The guided filter's second pass, the chart fill (SPEC 6) and the
-    /// recovery (SPEC 7) into `work.j` (and t_B into `tb` if given);
+    /// The guided filter's second pass, the chart fill (METHOD §6) and the
+    /// recovery (METHOD §7) into `work.j` (and t_B into `tb` if given);
     /// returns the statistics of all rows combined in row order.
     fn recover(&self, wt: &WaterType, bounds: [f64; 4], work: &mut Work, tb: Option<&mut [f32]>) -> RowStats {
         let (h, w) = (self.img.height, self.img.width);
@@ -853,7 +870,7 @@ impl Shared<'_> {
         }
     }
 
-    /// The recovery (SPEC 7) from the filtered plane in `work.q` into
+    /// The recovery (METHOD §7) from the filtered plane in `work.q` into
     /// `work.j` (and t_B into `tb` if given), with the statistics of all
     /// rows combined in row order: what [`Shared::recover`] gives for the
     /// q it stored.
@@ -878,7 +895,7 @@ impl Shared<'_> {
         combine(&rows)
     }
 
-    /// The artifact clamp and display stretch of a recovered J (SPEC 7-8),
+    /// The artifact clamp and display stretch of a recovered J (METHOD §7-8),
     /// from J's min and max and the order statistics of its channels.
     fn stretch(&self, j: &[f32], st: &RowStats) -> Stretch {
         let clamp = ArtifactClamp::new(st.lo, st.hi);
@@ -891,7 +908,7 @@ impl Shared<'_> {
         }
     }
 
-    /// Sums of the three displayed channels over counted pixels (SPEC 9),
+    /// Sums of the three displayed channels over counted pixels (METHOD §9),
     /// per row, combined in row order, of J mapped by `sp` (the values as
     /// they are without).
     fn channel_sums(&self, rgb: &[f32], sp: Option<&Stretch>) -> [f64; 3] {
@@ -912,7 +929,7 @@ impl Shared<'_> {
         rows.iter().fold([0f64; 3], |a, r| [a[0] + r[0], a[1] + r[1], a[2] + r[2]])
     }
 
-    /// Selection statistics of one type (SPEC 4-9) without keeping any of
+    /// Selection statistics of one type (METHOD §4-9) without keeping any of
     /// its images.
     fn evaluate(&self, wt: &WaterType, work: &mut Work) -> TypeStats {
         let bounds = self.refine(wt, work);
@@ -974,7 +991,7 @@ struct Final {
     stats: TypeStats,
 }
 
-/// Restores the image with one water type (SPEC 4-8): the outputs and the
+/// Restores the image with one water type (METHOD §4-8): the outputs and the
 /// type's selection statistics, identical to what the evaluation gave.
 /// With `q`, the type's filtered plane kept from its scoring, only the
 /// recovery is run again.
@@ -1031,7 +1048,7 @@ fn finish(
     }
 }
 
-/// The whole method (SPEC 2-10) on one image.
+/// The whole method (METHOD §2-10) on one image.
 pub fn restore(input: &Input, params: &Params) -> Result<Restoration> {
     restore_with(input, params, &mut Buffers::default())
 }
@@ -1214,7 +1231,7 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     };
     let types = &params.water_types;
     let s = fast_factor(h, w);
-    // Selection::Fast: scores of every type on the copy (SPEC 9 there)
+    // Selection::Fast: scores of every type on the copy (METHOD §9 there)
     let copy: Option<Vec<TypeStats>> = if types.len() >= 2 && params.selection == Selection::Fast && s > 1 {
         let small = Small::new(img, input.mask, &veil.vl, s);
         let simg = ImageRef::new(&small.data, small.h, small.w)?;
@@ -1254,7 +1271,7 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     };
     let mut work = Work::from_pool(img.len(), pool);
     clock.lap("work buffers");
-    // SPEC 9: which types are scored at full resolution, and the choice
+    // METHOD §9: which types are scored at full resolution, and the choice
     let mut kept: Option<Kept> = None;
     let mut sel = match copy {
         Some(copy) => {
@@ -1359,7 +1376,7 @@ mod tests {
 
     /// The row kernels (AVX2 builds where the CPU has AVX2) against the
     /// per-pixel functions (baseline builds here): the same bits
-    /// (DECISIONS F6), and row_stats against a plain loop.
+    /// (METHOD appendix, same bits on every CPU), and row_stats against a plain loop.
     #[test]
     fn row_kernels_match_per_pixel_values() {
         let n = 1037;
@@ -1389,7 +1406,7 @@ mod tests {
                 }
             }
         }
-        // the guide (SPEC 6): stretched input to the power 1/2.2, 0 where masked out
+        // the guide (METHOD §6): stretched input to the power 1/2.2, 0 where masked out
         let st = ChannelStretch::new([Some((0.1, 0.9)), None, Some((0.05, 0.7))]);
         let gn = Normalize::new(0.0, 1.4);
         let src: Vec<[f32; 3]> = j.iter().map(|v| v.map(|x| x.max(0.0))).collect();

@@ -86,7 +86,7 @@ pub struct PyRestoration {
 #[pymethods]
 impl PyRestoration {
     /// Per-channel transmissions (t_R, t_G, t_B) of the chosen type as an
-    /// HxWx3 float32 array (SPEC 7).
+    /// HxWx3 float32 array (METHOD §7).
     fn channel_transmissions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let arr = self
             .transmission
@@ -177,21 +177,24 @@ pub struct PyParams(Params);
 
 #[pymethods]
 impl PyParams {
+    /// Every argument defaults to the core's default (`crate::options`);
+    /// `selection` becomes the core's enum here, the numbers are checked by
+    /// the core when `restore` runs.
     #[new]
-    #[pyo3(signature = (*, water_types=None, veiling_light=None, guided_radius=None, guided_eps=1e-3,
-                        sphere_points=500, threads=None, max_memory=None, selection="exhaustive",
-                        guided_subsample=1))]
+    #[pyo3(signature = (*, water_types=None, veiling_light=None, guided_radius=None, guided_eps=None,
+                        sphere_points=None, threads=None, max_memory=None, selection=None,
+                        guided_subsample=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         water_types: Option<Bound<'_, PyAny>>,
         veiling_light: Option<(f32, f32, f32)>,
         guided_radius: Option<usize>,
-        guided_eps: f64,
-        sphere_points: usize,
+        guided_eps: Option<f64>,
+        sphere_points: Option<usize>,
         threads: Option<usize>,
         max_memory: Option<u64>,
-        selection: &str,
-        guided_subsample: usize,
+        selection: Option<&str>,
+        guided_subsample: Option<usize>,
     ) -> PyResult<Self> {
         let mut params = Params::default();
         if let Some(t) = water_types {
@@ -199,24 +202,90 @@ impl PyParams {
         }
         params.veiling_light = veiling_light.map(|(r, g, b)| [r, g, b]);
         params.guided_radius = guided_radius;
-        params.guided_eps = guided_eps;
-        params.sphere_points = sphere_points;
         params.threads = threads;
-        params.guided_subsample = guided_subsample;
+        if let Some(v) = guided_eps {
+            params.guided_eps = v;
+        }
+        if let Some(v) = sphere_points {
+            params.sphere_points = v;
+        }
+        if let Some(v) = guided_subsample {
+            params.guided_subsample = v;
+        }
         if let Some(m) = max_memory {
             params.max_memory = m;
         }
-        params.selection = match selection {
-            "exhaustive" => Selection::Exhaustive,
-            "fast" => Selection::Fast,
-            other => {
-                return Err(ParameterError::new_err(format!(
-                    "selection must be \"exhaustive\" or \"fast\"; got {other:?}"
-                )))
-            }
-        };
+        if let Some(name) = selection {
+            params.selection = Selection::from_name(name).map_err(to_py_err)?;
+        }
         Ok(Self(params))
     }
+}
+
+/// The option table (`crate::options::OPTIONS`) as a list of dicts: what
+/// the Python layer builds its command line and keyword defaults from.
+fn options_table(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    use crate::options::{Default as D, Kind as K, OPTIONS};
+    let list = PyList::empty(py);
+    for s in OPTIONS {
+        let d = PyDict::new(py);
+        d.set_item("key", s.key)?;
+        d.set_item("flag", s.flag)?;
+        d.set_item("short", s.short.map(|c| format!("-{c}")))?;
+        d.set_item("metavar", s.metavar)?;
+        d.set_item("kind", s.kind.name())?;
+        match s.kind {
+            K::Int { min, max } => {
+                d.set_item("min", min)?;
+                d.set_item("max", max)?;
+            }
+            K::IntOf(values) => d.set_item("choices", values.to_vec())?,
+            K::Float { gt } => d.set_item("gt", gt)?,
+            K::Choice(names) => d.set_item("choices", names.to_vec())?,
+            _ => {}
+        }
+        match s.default {
+            D::None => d.set_item("default", py.None())?,
+            D::Off => d.set_item("default", false)?,
+            D::Int(n) => d.set_item("default", n)?,
+            D::Float(x) => d.set_item("default", x)?,
+            D::Name(n) => d.set_item("default", n)?,
+        }
+        d.set_item("help", s.help_with_default())?;
+        d.set_item("group", s.group.title())?;
+        d.set_item("faces", s.faces.name())?;
+        d.set_item("method", s.method)?;
+        list.append(d)?;
+    }
+    Ok(list)
+}
+
+/// Parses a command-line value of the option `key` with the core's rules
+/// (the same function `uwhl-rs` uses); ValueError naming the flag.
+#[pyfunction]
+fn parse_option(py: Python<'_>, key: &str, text: &str) -> PyResult<Py<PyAny>> {
+    use crate::options::{spec, Value};
+    let s = spec(key).ok_or_else(|| PyValueError::new_err(format!("unknown option {key:?}")))?;
+    let v = s.parse(text).map_err(PyValueError::new_err)?;
+    Ok(match v {
+        Value::On => true.into_pyobject(py)?.to_owned().into_any().unbind(),
+        Value::Int(n) => n.into_pyobject(py)?.into_any().unbind(),
+        Value::Float(x) => x.into_pyobject(py)?.into_any().unbind(),
+        Value::Text(t) => t.into_pyobject(py)?.into_any().unbind(),
+        Value::Rgb([r, g, b]) => (r, g, b).into_pyobject(py)?.into_any().unbind(),
+    })
+}
+
+/// The `options:` part of a command's `--help` for `face` ("python" or "rust").
+#[pyfunction]
+fn options_help(face: &str) -> PyResult<String> {
+    use crate::options::{help_text, Faces};
+    let f = match face {
+        "python" => Faces::Python,
+        "rust" => Faces::Rust,
+        other => return Err(PyValueError::new_err(format!("face must be python or rust, not {other:?}"))),
+    };
+    Ok(help_text(f, 100))
 }
 
 /// The pixels and (H, W) of an (H, W, 3) C-contiguous float32 array.
@@ -429,7 +498,7 @@ fn img_of<'a>(a: &'a PyReadonlyArray3<'a, f32>) -> PyResult<ImageRef<'a>> {
     ImageRef::new(d, s[0], s[1]).map_err(to_py_err)
 }
 
-/// SPEC 3.1 contrast stretch (statistics over masked-in pixels).
+/// METHOD §3.1 contrast stretch (statistics over masked-in pixels).
 #[pyfunction]
 #[pyo3(signature = (image, mask=None))]
 fn _stage_stretch<'py>(
@@ -447,7 +516,7 @@ fn _stage_stretch<'py>(
     )
 }
 
-/// SPEC 6 guide image.
+/// METHOD §6 guide image.
 #[pyfunction]
 #[pyo3(signature = (image, mask=None))]
 fn _stage_guide<'py>(
@@ -500,7 +569,7 @@ fn _stage_veiling<'py>(
     ))
 }
 
-/// Initial transmission t~ (SPEC 4, after fill and x0.9).
+/// Initial transmission t~ (METHOD §4, after fill and x0.9).
 #[pyfunction]
 #[pyo3(signature = (image, a, beta_br, beta_bg, n_points=500, mask=None))]
 fn _stage_haze_lines<'py>(
@@ -520,7 +589,7 @@ fn _stage_haze_lines<'py>(
     arr2(py, t, img.height, img.width)
 }
 
-/// Lower bound t_LB (SPEC 5).
+/// Lower bound t_LB (METHOD §5).
 #[pyfunction]
 fn _stage_lower_bound<'py>(
     py: Python<'py>,
@@ -539,7 +608,7 @@ fn _stage_lower_bound<'py>(
     )
 }
 
-/// Squared Mahalanobis distances and matting weights (SPEC 5), or None.
+/// Squared Mahalanobis distances and matting weights (METHOD §5), or None.
 #[pyfunction]
 fn _stage_matting<'py>(
     py: Python<'py>,
@@ -563,7 +632,7 @@ fn _stage_matting<'py>(
     }
 }
 
-/// Color guided filter (SPEC 6).
+/// Color guided filter (METHOD §6).
 #[pyfunction]
 fn _stage_guided<'py>(
     py: Python<'py>,
@@ -585,7 +654,7 @@ fn _stage_guided<'py>(
     arr2(py, gs.filter(ps), g.height, g.width)
 }
 
-/// Recovery (SPEC 7): (J after the artifact clamp, clamped t_B).
+/// Recovery (METHOD §7): (J after the artifact clamp, clamped t_B).
 #[pyfunction]
 #[pyo3(signature = (image, a, t, beta_br, beta_bg, mask=None))]
 fn _stage_recover<'py>(
@@ -615,7 +684,7 @@ fn _stage_recover<'py>(
     ))
 }
 
-/// Display stretch (SPEC 8), limits from masked-in pixels.
+/// Display stretch (METHOD §8), limits from masked-in pixels.
 #[pyfunction]
 #[pyo3(signature = (j, mask=None))]
 fn _stage_display_stretch<'py>(
@@ -636,7 +705,7 @@ fn _stage_display_stretch<'py>(
     arr3(py, crate::recover::display_stretch(d, m), s[0], s[1])
 }
 
-/// Chart fill (SPEC 6, last paragraph).
+/// Chart fill (METHOD §6, last paragraph).
 #[pyfunction]
 fn _stage_chart_fill<'py>(
     py: Python<'py>,
@@ -715,5 +784,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }
     m.add("JERLOV_TABLE", table)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("OPTIONS", options_table(py)?)?;
+    m.add("EXIT_CODES", crate::options::EXIT_CODES.to_vec())?;
+    m.add("EXIT_CODES_HELP", crate::options::exit_code_text())?;
+    m.add_function(wrap_pyfunction!(parse_option, m)?)?;
+    m.add_function(wrap_pyfunction!(options_help, m)?)?;
     Ok(())
 }

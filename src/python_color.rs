@@ -106,7 +106,7 @@ fn _downscale<'py>(
     same_shape(py, v, &[hs, ws, c])
 }
 
-/// SPEC 2 reference preprocessing of a non-linearised sRGB image (H, W, 3).
+/// METHOD §2 reference preprocessing of a non-linearised sRGB image (H, W, 3).
 #[pyfunction]
 fn _reference_srgb<'py>(
     py: Python<'py>,
@@ -118,7 +118,7 @@ fn _reference_srgb<'py>(
     same_shape(py, v, image.shape())
 }
 
-/// SPEC 2 reference preprocessing of a white-balanced linear raw image (H, W, 3).
+/// METHOD §2 reference preprocessing of a white-balanced linear raw image (H, W, 3).
 #[pyfunction]
 fn _reference_raw<'py>(
     py: Python<'py>,

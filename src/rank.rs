@@ -1,5 +1,5 @@
 //! Exact order statistics of large value streams without copying or
-//! sorting them (percentiles of DECISIONS "P", medians of S3).
+//! sorting them (percentiles of METHOD conventions, percentiles, medians of S3).
 //!
 //! A strided sample of the rows brackets each wanted rank between two
 //! sample values; one parallel pass then counts the values below each
@@ -283,7 +283,7 @@ pub fn ranks_for(n: usize, qs: &[f64]) -> Vec<usize> {
     out
 }
 
-/// Percentiles (DECISIONS "P", NumPy's "linear" method) at the fractions
+/// Percentiles (METHOD conventions, percentiles, NumPy's "linear" method) at the fractions
 /// `qs` of `n` values from their order statistics: position h = q (n - 1),
 /// x_floor(h) + (h - floor(h)) (x_floor(h)+1 - x_floor(h)). `stats` holds
 /// the values at [`ranks_for`]`(n, qs)` in that order (already mapped: a

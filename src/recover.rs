@@ -1,5 +1,5 @@
-//! Recovery of the radiance with the artifact clamp (SPEC 7) and the
-//! per-channel display stretch (SPEC 8).
+//! Recovery of the radiance with the artifact clamp (METHOD §7) and the
+//! per-channel display stretch (METHOD §8).
 
 use crate::fastmath::{exp2_clamped, log2_pos};
 use crate::image::ImageRef;
@@ -7,22 +7,22 @@ use crate::util::{channel_percentiles, masked_min_max, ChannelStretch, Normalize
 use crate::water::WaterType;
 use rayon::prelude::*;
 
-/// Lowest transmission of any channel (SPEC 7).
+/// Lowest transmission of any channel (METHOD §7).
 pub const T_FLOOR: f32 = 0.1;
 
-/// t_B clamped to [0.1^beta_BR, 1] (SPEC 7) for one refined value.
+/// t_B clamped to [0.1^beta_BR, 1] (METHOD §7) for one refined value.
 #[inline]
 pub fn clamp_tb(t: f32, wt: &WaterType) -> f32 {
     Recovery::new([1.0; 3], wt).clamp_tb(t)
 }
 
-/// Per-channel transmissions (t_R, t_G, t_B) from a clamped t_B (SPEC 7).
+/// Per-channel transmissions (t_R, t_G, t_B) from a clamped t_B (METHOD §7).
 #[inline]
 pub fn channel_t(tb: f32, wt: &WaterType) -> [f32; 3] {
     Recovery::new([1.0; 3], wt).channel_t(tb)
 }
 
-/// The per-pixel recovery of SPEC 7 for one water type and veiling light.
+/// The per-pixel recovery of METHOD §7 for one water type and veiling light.
 #[derive(Debug, Clone, Copy)]
 pub struct Recovery {
     a: [f32; 3],
@@ -71,7 +71,7 @@ impl Recovery {
     }
 }
 
-/// SPEC 7 for one row: from the refined transmission `q`, the clamped t_B
+/// METHOD §7 for one row: from the refined transmission `q`, the clamped t_B
 /// (to `tb`), t_R (to `tr`) and J before the artifact clamp (to `j`).
 /// Compiled for baseline x86-64 and for AVX2, picked at run time; the
 /// same bits either way ([`crate::fastmath`]).
@@ -86,7 +86,7 @@ pub fn recover_values(rec: &Recovery, q: &[f32], px: &[[f32; 3]], j: &mut [[f32;
     }
 }
 
-/// The artifact clamp of SPEC 7's last line with the statistics over the
+/// The artifact clamp of METHOD §7's last line with the statistics over the
 /// masked-in pixels' channels:
 /// J -= max(min J, -0.08); J = max(J, 0); J /= min(max J, 1.6); J = min(J, 1).
 /// A non-decreasing map of J (so it commutes with ranking).
@@ -116,13 +116,13 @@ impl ArtifactClamp {
         let v = (v - self.shift).max(0.0);
         // Without a divisor (every masked-in value at or below the shift),
         // masked-out pixels can still be above 1: the final clip to 1 holds
-        // for them too (DECISIONS S7; found by the property test).
+        // for them too (METHOD §7; found by the property test).
         // v / 1 == v: the same values as a branch, and loops vectorize
         (v / self.div.unwrap_or(1.0)).min(1.0)
     }
 }
 
-/// Recovers J = A + (I - A) / t_c (SPEC 7) from the refined transmission and
+/// Recovers J = A + (I - A) / t_c (METHOD §7) from the refined transmission and
 /// applies the artifact clamp (statistics over masked-in pixels). Returns
 /// (J interleaved, clamped t_B).
 pub fn recover(
@@ -148,17 +148,17 @@ pub fn recover(
     (j, tb)
 }
 
-/// SPEC 7's artifact clamp in place (see [`ArtifactClamp`]).
+/// METHOD §7's artifact clamp in place (see [`ArtifactClamp`]).
 pub fn artifact_clamp(j: &mut [f32], mask: Option<&[bool]>) {
     let (lo, hi) = masked_min_max(j, mask);
     let ac = ArtifactClamp::new(lo, hi);
     j.par_iter_mut().for_each(|v| *v = ac.apply(*v));
 }
 
-/// Fractions of the display stretch's percentiles (SPEC 8).
+/// Fractions of the display stretch's percentiles (METHOD §8).
 pub const DISPLAY_QS: [f64; 2] = [0.001, 0.999];
 
-/// The stretch limits of SPEC 8 from the 0.1% and 99.9% percentiles of
+/// The stretch limits of METHOD §8 from the 0.1% and 99.9% percentiles of
 /// each channel: lo = min(p0.1, 0.2), hi = max(p99.9, 0.8 (0.9 for red)).
 pub fn display_limits(pcts: &[Vec<f64>; 3]) -> ChannelStretch {
     let mut c = 0;
@@ -171,7 +171,7 @@ pub fn display_limits(pcts: &[Vec<f64>; 3]) -> ChannelStretch {
     }))
 }
 
-/// The display stretch of SPEC 8: global min-max, then per channel a linear
+/// The display stretch of METHOD §8: global min-max, then per channel a linear
 /// stretch between its 0.1% and 99.9% percentiles with the upper limit at
 /// least 0.8 (0.9 for red) and the lower at most 0.2, clipped to [0, 1].
 /// Limits come from the masked-in pixels (all without a mask), so that a
@@ -189,7 +189,7 @@ mod tests {
     #[test]
     fn row_kernel_gives_the_per_pixel_bits() {
         // recover_values runs its AVX2 build where the CPU has it; the
-        // per-pixel functions here are the baseline build (DECISIONS F6)
+        // per-pixel functions here are the baseline build (METHOD appendix, same bits on every CPU)
         let n = 4099;
         let noise = crate::util::test_noise(4 * n, 11);
         let px: Vec<[f32; 3]> = noise.chunks_exact(3).take(n).map(|c| [c[0], c[1], c[2]]).collect();

@@ -1,8 +1,8 @@
-//! Choosing the water type by the gray-world assumption (SPEC 9 / DECISIONS S9).
+//! Choosing the water type by the gray-world assumption (METHOD §9 / METHOD §9).
 
 use crate::util::{det_sums, REDUCE_ROWS};
 
-/// Initial exclusion threshold on the t_R difference (SPEC 9).
+/// Initial exclusion threshold on the t_R difference (METHOD §9).
 pub const EXCLUDE_THRESHOLD: f64 = 0.1;
 /// Halvings of the threshold tried before giving up on exclusion.
 pub const MAX_HALVINGS: usize = 30;
@@ -20,7 +20,7 @@ pub struct TypeStats {
 }
 
 /// Sums over the pixels of one type's result that selection needs
-/// (SPEC 9): over counted pixels (masked-in, not VL) the three channels of
+/// (METHOD §9): over counted pixels (masked-in, not VL) the three channels of
 /// the stretched image, t_R and their number; over VL pixels t_R and their
 /// number.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -47,7 +47,7 @@ impl SelectionSums {
         self.vl += o.vl;
     }
 
-    /// Score and t_R difference (SPEC 9): the sample std (n - 1) of the
+    /// Score and t_R difference (METHOD §9): the sample std (n - 1) of the
     /// three channel means; mean t_R over counted minus over VL pixels.
     pub fn stats(&self) -> TypeStats {
         let cnt = self.counted.max(1.0);
@@ -62,7 +62,7 @@ impl SelectionSums {
     }
 }
 
-/// Score and t_R difference for one type (SPEC 9). `stretched` is
+/// Score and t_R difference for one type (METHOD §9). `stretched` is
 /// interleaved RGB, `t_red` per pixel; counted pixels are masked-in and
 /// not in VL.
 pub fn type_stats(
@@ -112,7 +112,7 @@ pub struct Choice {
     pub threshold: Option<f64>,
 }
 
-/// SPEC 9: exclude types whose t_R difference is below the threshold
+/// METHOD §9: exclude types whose t_R difference is below the threshold
 /// (halving it while none survives), then the lowest score wins; ties go
 /// to the first type. Empty `stats` gives winner 0.
 pub fn choose(stats: &[TypeStats]) -> Choice {

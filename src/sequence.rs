@@ -2,7 +2,7 @@
 //! the water type and the veiling light A estimated on one frame and reused
 //! for the next ones (the water does not change from frame to frame; a
 //! frame then costs one type instead of ten), and the full-resolution work
-//! buffers kept from frame to frame ([`Buffers`], DECISIONS F10).
+//! buffers kept from frame to frame ([`Buffers`], METHOD §10, sequence mode).
 //!
 //! ```
 //! use uwhl::sequence::Sequence;
@@ -48,8 +48,8 @@ pub struct Estimates {
 /// runs the whole method with the given [`Params`] (water type selection,
 /// water region and A estimated unless given) when k is a multiple of
 /// `refresh_every` (only k = 0 when it is 0, the default); every other
-/// frame uses the last such frame's water type and A (SPEC 9 and SPEC 3 are
-/// skipped; SPEC 4-8 run on the frame) and, with `reuse_water_mask`, its
+/// frame uses the last such frame's water type and A (METHOD §9 and METHOD §3 are
+/// skipped; METHOD §4-8 run on the frame) and, with `reuse_water_mask`, its
 /// water region (a frame of another size detects its own). A failed frame
 /// changes nothing. The same frames give the same bits as [`crate::restore`]
 /// called with those estimates.

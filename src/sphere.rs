@@ -1,4 +1,4 @@
-//! Points on the unit sphere and an exact nearest-neighbour index (SPEC 4.3).
+//! Points on the unit sphere and an exact nearest-neighbour index (METHOD §4.3).
 
 use crate::error::{Error, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 pub const MAX_POINTS: usize = 1_000_000;
 
 /// `n` near-uniform points on the unit sphere: the Fibonacci lattice
-/// (DECISIONS S4): z = 1 - (2i + 1)/n, phi = i * pi * (3 - sqrt 5).
+/// (METHOD §4): z = 1 - (2i + 1)/n, phi = i * pi * (3 - sqrt 5).
 pub fn fibonacci_points(n: usize) -> Vec<[f64; 3]> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     (0..n)
@@ -30,7 +30,7 @@ pub const GRID_MAX_POINTS: usize = 20_000;
 /// and of the stored points, which are below 1e-6 rad.
 const CELL_MARGIN: f64 = 1e-4;
 
-/// The cluster centres of SPEC 4.3 with an exact nearest-neighbour query.
+/// The cluster centres of METHOD §4.3 with an exact nearest-neighbour query.
 ///
 /// "Nearest" to a direction v (any length) means the largest dot product
 /// computed in f32 as `p0 v0 + p1 v1 + p2 v2`, ties to the lowest index:
@@ -482,7 +482,7 @@ mod tests {
             nn.push(best);
         }
         let mean = nn.iter().sum::<f64>() / nn.len() as f64;
-        // SPEC 4.3: nearest-neighbour spacing about 0.16 for 500 points.
+        // METHOD §4.3: nearest-neighbour spacing about 0.16 for 500 points.
         assert!((0.14..0.18).contains(&mean), "mean spacing {mean}");
         let min = nn.iter().copied().fold(f64::INFINITY, f64::min);
         assert!(min > 0.1, "two points too close: {min}");

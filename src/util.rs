@@ -1,4 +1,4 @@
-//! Small shared tools: percentiles (DECISIONS "P"), deterministic parallel
+//! Small shared tools: percentiles (METHOD conventions, percentiles), deterministic parallel
 //! reductions, per-count thread pools.
 
 use crate::error::{Error, Result};
@@ -38,7 +38,7 @@ pub fn masked_count(n: usize, mask: Option<&[bool]>) -> usize {
 }
 
 /// Per channel c of an interleaved RGB buffer: the percentiles at `qs`
-/// (DECISIONS "P") of `map(c, v)` over the masked-in pixels. `map` must be
+/// (METHOD conventions, percentiles) of `map(c, v)` over the masked-in pixels. `map` must be
 /// non-decreasing in v (it then commutes with taking order statistics, so
 /// only the few values at the wanted ranks are mapped).
 pub fn channel_percentiles<M>(rgb: &[f32], mask: Option<&[bool]>, qs: &[f64], map: M) -> [Vec<f64>; 3]
@@ -78,7 +78,7 @@ where
     })
 }
 
-/// The global min-max normalisation of SPEC 3.1 / SPEC 8 (first half):
+/// The global min-max normalisation of METHOD §3.1 / METHOD §8 (first half):
 /// x = (v - lo) / (hi - lo) in f32, or 0 everywhere when hi - lo is not a
 /// finite number > 0.
 #[derive(Debug, Clone, Copy)]

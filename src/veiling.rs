@@ -1,4 +1,4 @@
-//! Veiling light A and the water region VL (SPEC 3, DECISIONS S3).
+//! Veiling light A and the water region VL (METHOD §3, METHOD §3).
 //!
 //! The reference uses a pretrained edge forest; here the edge strength is a
 //! deterministic, noise-aware map computed on a downscaled, globally
@@ -16,9 +16,9 @@ use crate::rank::{f32_key, f64_key, key_f32, order_stats};
 use crate::util::{percentiles, Normalize};
 use rayon::prelude::*;
 
-/// Longer side of the working copy for the edge map (SPEC 3 variant).
+/// Longer side of the working copy for the edge map (METHOD §3 variant).
 pub const EDGE_SIDE: usize = 512;
-/// Fixed part of the textureless threshold (SPEC 3).
+/// Fixed part of the textureless threshold (METHOD §3).
 pub const EDGE_THRESHOLD: f64 = 0.005;
 /// Noise multiple of the threshold: for Gaussian noise of std sigma, 99.9%
 /// of the edge map lies below 0.58 sigma (measured).
@@ -28,9 +28,9 @@ pub const K_NOISE: f64 = 0.6;
 /// threshold may rise at most to 4x its fixed part (noise std up to 0.033
 /// of the image range).
 pub const EDGE_THRESHOLD_MAX: f64 = 0.02;
-/// Fraction of the top rows where VL may lie (SPEC 3 step 4).
+/// Fraction of the top rows where VL may lie (METHOD §3.4).
 pub const TOP_FRACTION_DEN: usize = 4;
-/// Below this fraction of the pixels VL counts as empty (SPEC 3).
+/// Below this fraction of the pixels VL counts as empty (METHOD §3).
 pub const MIN_VL_FRACTION: f64 = 0.001;
 /// The lower quartile of |Z| for a standard normal Z.
 pub const HALF_NORMAL_Q25: f64 = 0.318_639_363_964_375_2;
@@ -78,7 +78,7 @@ pub struct Veiling {
     pub flags: Vec<&'static str>,
 }
 
-/// Immerkaer's robust noise estimate (DECISIONS S3 step 5): per channel
+/// Immerkaer's robust noise estimate (METHOD §3 step 5): per channel
 /// the lower quartile of |M * x| over interior pixels (M the Laplacian-
 /// difference kernel, whose response to white noise of std sigma has std
 /// 6 sigma) divided by 6 * 0.31864 (the lower quartile of a half-normal
@@ -116,7 +116,7 @@ pub fn edge_scale(h: usize, w: usize) -> usize {
     h.max(w).div_ceil(EDGE_SIDE).max(1)
 }
 
-/// The edge-strength map of DECISIONS S3 steps 1-5.
+/// The edge-strength map of METHOD §3 steps 1-5.
 pub fn edge_map(img: &ImageRef) -> EdgeMap {
     let (h, w) = (img.height, img.width);
     let norm = Normalize::masked(img.data, None);
@@ -136,7 +136,7 @@ pub fn edge_map(img: &ImageRef) -> EdgeMap {
     }
 }
 
-/// The detected water region at full size (DECISIONS S3 steps 6-8), before
+/// The detected water region at full size (METHOD §3 steps 6-8), before
 /// the size check of step 9.
 pub fn detect_region(img: &ImageRef, mask: Option<&[bool]>) -> Vec<bool> {
     let em = edge_map(img);
@@ -205,7 +205,7 @@ pub fn veiling_from_region(img: &ImageRef, vl: &[bool]) -> Option<[f32; 3]> {
     img.data.as_chunks::<3>().0.get(i).copied()
 }
 
-/// The fallback A (DECISIONS S3): the brightest 0.1% of a heavily blurred,
+/// The fallback A (METHOD §3): the brightest 0.1% of a heavily blurred,
 /// downscaled copy of the input, in its top half.
 pub fn veiling_fallback(img: &ImageRef) -> [f32; 3] {
     let (h, w) = (img.height, img.width);
@@ -236,7 +236,7 @@ pub fn veiling_fallback(img: &ImageRef) -> [f32; 3] {
     ]
 }
 
-/// Veiling light and water region (SPEC 3 / DECISIONS S3). `water_mask`
+/// Veiling light and water region (METHOD §3 / METHOD §3). `water_mask`
 /// replaces detection, `given_a` replaces the estimate of A.
 pub fn estimate(
     img: &ImageRef,
@@ -262,7 +262,7 @@ pub fn estimate(
         if let Some(cand) = from_region {
             // A flat region far darker than the scene is a shadow, not the
             // water at infinity: every object pixel would be brighter than
-            // its own asymptote (DECISIONS S3 step 9).
+            // its own asymptote (METHOD §3 step 9).
             if luminance(cand) < DARK_REGION_RATIO * median_luminance(img, mask) {
                 from_region = None;
             }

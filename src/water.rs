@@ -1,4 +1,4 @@
-//! Water types: the search space of the two attenuation ratios (SPEC 1).
+//! Water types: the search space of the two attenuation ratios (METHOD §1).
 
 use crate::error::{Error, Result};
 
@@ -14,13 +14,13 @@ pub struct WaterType {
 }
 
 /// Largest ratio accepted for a custom type (the Jerlov table stays below
-/// 2.1). Beyond it the powers in SPEC 4 and 7 lose all meaning for data in
-/// [0, 1], and SPEC 7's floor of t_B, 0.1^beta_BR, is no longer a normal f32
+/// 2.1). Beyond it the powers in METHOD §4 and 7 lose all meaning for data in
+/// [0, 1], and METHOD §7's floor of t_B, 0.1^beta_BR, is no longer a normal f32
 /// (at 45 it underflows to 0 and t_B = 0 reaches the output; found by the
 /// property tests).
 pub const MAX_RATIO: f64 = 30.0;
 
-/// The Jerlov (1968) table of SPEC 1: (name, beta_BR, beta_BG).
+/// The Jerlov (1968) table of METHOD §1: (name, beta_BR, beta_BG).
 pub const JERLOV: [(&str, f64, f64); 10] = [
     ("I", 0.1118, 0.4566),
     ("IA", 0.1452, 0.5499),
@@ -56,7 +56,7 @@ impl WaterType {
         })
     }
 
-    /// A type of the Jerlov table by its name (case-sensitive, as in SPEC 1).
+    /// A type of the Jerlov table by its name (case-sensitive, as in METHOD §1).
     pub fn by_name(name: &str) -> Result<Self> {
         JERLOV
             .iter()
@@ -115,7 +115,7 @@ mod tests {
         assert_eq!(t.len(), 10);
         assert_eq!(t[0].name, "I");
         assert_eq!(t[9].name, "9C");
-        // 5C is where red and blue attenuate alike (SPEC 1).
+        // 5C is where red and blue attenuate alike (METHOD §1).
         assert_eq!(WaterType::by_name("5C").unwrap().beta_br, 1.0);
     }
 
@@ -130,7 +130,7 @@ mod tests {
         assert!(WaterType::new("", 1.0, 1.0).is_err());
         assert!(WaterType::new("x", MAX_RATIO, 1.0).is_ok());
         assert!(WaterType::new("x", MAX_RATIO * 1.01, 1.0).is_err());
-        // the t_B floor of SPEC 7 stays a normal f32 for every accepted ratio
+        // the t_B floor of METHOD §7 stays a normal f32 for every accepted ratio
         assert!(0.1f32.powf(MAX_RATIO as f32) >= f32::MIN_POSITIVE);
         assert!(validate_types(&[]).is_err());
         let a = WaterType::new("a", 1.0, 1.0).unwrap();

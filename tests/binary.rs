@@ -94,7 +94,7 @@ fn help_documents_the_exit_codes() {
     let o = run(&[&"--help"]);
     assert_eq!(code(&o), 0);
     let text = String::from_utf8_lossy(&o.stdout);
-    for needle in ["Exit codes", "--max-memory", "--stream", "--reuse-estimates", "--guided-subsample", "  6  internal"] {
+    for needle in ["exit codes", "--max-memory", "--stream", "--reuse-estimates", "--guided-subsample", "  6    internal", "  130  interrupted", "uwhl-rs restore"] {
         assert!(text.contains(needle), "{needle}");
     }
     let o = run(&[&"--version"]);
@@ -411,7 +411,7 @@ fn stream_mode_survives_bad_frames_and_reuses_estimates() {
 #[test]
 fn stream_mode_reuses_the_water_region_when_asked() {
     // frame 0: water in the top third; frame 1: the same scene upside down
-    // (seabed at the top, where SPEC 3 looks for water)
+    // (seabed at the top, where METHOD §3 looks for water)
     let d = tmp("stream_vl");
     let (h, w) = (30, 40);
     let f0 = d.join("f0.png");

@@ -1,5 +1,5 @@
 //! End-to-end tests of the Rust API on a scene rendered through the model of
-//! SPEC 0 (I = t J + (1 - t) A) with known water type, distances and water.
+//! METHOD §0 (I = t J + (1 - t) A) with known water type, distances and water.
 
 mod common;
 
@@ -70,7 +70,7 @@ fn scene(h: usize, w: usize) -> Scene {
     }
 }
 
-/// rho(z, -ln t) over the object pixels (SPEC 11).
+/// rho(z, -ln t) over the object pixels (METHOD §11).
 fn rho(s: &Scene, t: &[f32]) -> f64 {
     let (zz, lt): (Vec<f64>, Vec<f64>) = s
         .z
@@ -250,7 +250,7 @@ fn errors_not_panics() {
 fn subsampled_guided_filter_stays_close_to_the_exact_one() {
     // He and Sun's approximation on the rendered scene: the same water type,
     // t_B within a small distance of the exact filter's, the distance
-    // correlation kept (SPEC 11)
+    // correlation kept (METHOD §11)
     let s = scene(240, 320);
     let input = Input {
         image: ImageRef::new(&s.img, s.h, s.w).unwrap(),

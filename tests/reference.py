@@ -1,8 +1,8 @@
 """Independent NumPy/SciPy reference implementation of uwhl.
 
 Underwater single-image color restoration with haze-lines (Berman, Levy,
-Avidan & Treibitz, TPAMI 2020), following ../shared/SPEC.md and every
-detail pinned down in docs/DECISIONS.md.  Written for clarity, not speed:
+Avidan & Treibitz, TPAMI 2020), following ../shared/docs/METHOD.md and every
+detail pinned down in docs/METHOD.md.  Written for clarity, not speed:
 it is the cross-check for the Rust core and the performance baseline.
 
 Conventions: images are H x W x 3 float arrays (R, G, B), masks are bool
@@ -73,7 +73,7 @@ def _as_mask(mask, shape):
 # ---------------------------------------------------------------------------
 
 def pct(values, q):
-    """Linear-interpolation percentile for a fraction q (DECISIONS "P")."""
+    """Linear-interpolation percentile for a fraction q (METHOD conventions, percentiles)."""
     x = np.sort(np.asarray(values, dtype=np.float64).ravel())
     n = x.size
     if n == 0:
@@ -100,7 +100,7 @@ def _global_minmax(img):
 
 def _masked_minmax(x, m):
     """Global min-max normalisation with min and max taken over the pixels
-    where m is True (DECISIONS: statistics over masked-in pixels)."""
+    where m is True (METHOD conventions, masks)."""
     sel = x[m]
     lo, hi = sel.min(), sel.max()
     if hi == lo:
@@ -376,7 +376,7 @@ def detect_veiling(img, mask=None, water_mask=None, veiling_light=None):
         order = np.lexsort((idx, y))
         region_a = pix[order[(len(order) - 1) // 2]].copy()
         if water_mask is None:
-            # DECISIONS S3 step 9: a detected region darker than 0.2 x the
+            # METHOD §3 step 9: a detected region darker than 0.2 x the
             # median luminance of the masked-in pixels is a shadow.
             ym = luminance(img[m].reshape(-1, 3))
             med = np.sort(ym)[(ym.size - 1) // 2]

@@ -1,7 +1,7 @@
 """The Python API contract of ``uwhl_rs.restore`` and ``Restoration``.
 
-Expected values are known independently of the code under test: the SPEC 1
-table typed in again, formulas of SPEC 6/7 and DECISIONS S3 computed here
+Expected values are known independently of the code under test: the METHOD §1
+table typed in again, formulas of METHOD §6/7 and METHOD §3 computed here
 with NumPy, the truth of scenes rendered by ``uwhl_rs.synth``, and
 comparisons of the library with itself under changes that must not matter
 (dtype, memory layout, thread count, repetition).
@@ -24,7 +24,7 @@ from uwhl_rs import synth
 
 import reference
 
-# SPEC section 1 as typed in, independently of the core, by tests/reference.py.
+# METHOD §1 as typed in, independently of the core, by tests/reference.py.
 SPEC_TABLE = list(reference.WATER_TYPES)
 NAMES = [n for n, _, _ in SPEC_TABLE]
 RATIOS = {n: (br, bg) for n, br, bg in SPEC_TABLE}
@@ -34,7 +34,7 @@ CHART = (slice(40, 50), slice(20, 40))  # a "color chart" on the seabed, rows 40
 
 
 def _half_away(x: float) -> int:
-    """round() with halves away from zero (SPEC 6 default radius), not Python's banker's rounding."""
+    """round() with halves away from zero (METHOD §6 default radius), not Python's banker's rounding."""
     return int(math.floor(x + 0.5))
 
 
@@ -72,7 +72,7 @@ def _same(a, b):
 
 
 def test_water_types_table_equals_spec():
-    """uwhl_rs.WATER_TYPES is exactly the SPEC 1 table, in table order."""
+    """uwhl_rs.WATER_TYPES is exactly the METHOD §1 table, in table order."""
     assert list(uwhl_rs.WATER_TYPES) == NAMES
     assert uwhl_rs.WATER_TYPES == {n: (br, bg) for n, br, bg in SPEC_TABLE}
     for n, br, bg in SPEC_TABLE:
@@ -91,7 +91,7 @@ def test_restoration_images(result):
     assert t.dtype == np.float32 and t.shape == (H, W)
     assert np.isfinite(t).all()
     assert t.min() > 0.0 and t.max() <= 1.0
-    # SPEC 7: t_B is clamped to [0.1**beta_BR, 1] of the chosen type.
+    # METHOD §7: t_B is clamped to [0.1**beta_BR, 1] of the chosen type.
     br, _ = RATIOS[result.water_type]
     assert t.min() >= np.float32(0.1**br) * (1 - 1e-6)
 
@@ -106,7 +106,7 @@ def test_restoration_estimates(result):
     assert isinstance(result.excluded, list)
     assert set(result.excluded) <= set(NAMES)
     assert result.water_type not in result.excluded
-    # The winner has the lowest score among the survivors (SPEC 9).
+    # The winner has the lowest score among the survivors (METHOD §9).
     survivors = [n for n in NAMES if n not in result.excluded]
     assert result.scores[result.water_type] == min(result.scores[n] for n in survivors)
     assert tuple(result.beta_ratios) == RATIOS[result.water_type]
@@ -125,7 +125,7 @@ def test_estimates_match_the_rendered_truth(scene, result):
     _, truth = scene
     vm = result.veiling_mask
     assert vm.any()
-    assert not vm[math.ceil(H / 4):].any()  # SPEC 3 step 4: top 25% rows only
+    assert not vm[math.ceil(H / 4):].any()  # METHOD §3.4: top 25% rows only
     assert (vm & truth["water"]).sum() >= 0.95 * vm.sum()
     np.testing.assert_allclose(result.veiling_light, truth["veiling_light"], atol=0.01)
     assert "veiling_fallback" not in result.flags
@@ -181,7 +181,7 @@ def test_water_types_subset(scene):
 
 
 def test_subset_scores_equal_full_run_scores(scene, result):
-    """A type's score does not depend on which other types are evaluated (SPEC 9 per type)."""
+    """A type's score does not depend on which other types are evaluated (METHOD §9 per type)."""
     res = uwhl_rs.restore(scene[0], water_types=["5C", "II"])
     assert res.scores["II"] == result.scores["II"]
     assert res.scores["5C"] == result.scores["5C"]
@@ -201,7 +201,7 @@ def test_custom_type_mixed_with_names(scene):
     res = uwhl_rs.restore(scene[0], water_types=["II", ("copy-of-II", 0.2773, 0.7937)])
     assert list(res.scores) == ["II", "copy-of-II"]
     assert res.scores["II"] == res.scores["copy-of-II"]
-    assert res.water_type == "II"  # ties go to the first in the list (DECISIONS S9)
+    assert res.water_type == "II"  # ties go to the first in the list (METHOD §9)
 
 
 def test_given_veiling_light_is_returned_exactly(scene):
@@ -227,7 +227,7 @@ def test_given_water_mask_is_returned(scene):
         vl = wm if m is None else wm & m
         assert np.array_equal(res.veiling_mask, vl)
         assert "veiling_fallback" not in res.flags
-        # DECISIONS S3: order VL pixels by (luminance, raster index), take index (n-1)//2.
+        # METHOD §3: order VL pixels by (luminance, raster index), take index (n-1)//2.
         px = img[vl].astype(np.float64)
         idx = np.flatnonzero(vl.ravel())
         y = 0.2126 * px[:, 0] + 0.7152 * px[:, 1] + 0.0722 * px[:, 2]
@@ -253,7 +253,7 @@ CHART_COLORS = [(0.9, 0.05, 0.05), (0.05, 0.9, 0.1), (0.95, 0.95, 0.95), (0.02, 
 
 
 def test_chart_gets_one_transmission(scene):
-    """A masked-out rectangle gets one constant transmission: the mean of t just below it (SPEC 6)."""
+    """A masked-out rectangle gets one constant transmission: the mean of t just below it (METHOD §6)."""
     img, mask = _chart(scene[0], (0.9, 0.05, 0.05))
     res = uwhl_rs.restore(img, mask=mask)
     t = res.transmission
@@ -261,7 +261,7 @@ def test_chart_gets_one_transmission(scene):
     assert np.unique(inside).size == 1
     below = t[CHART[0].stop, CHART[1]].astype(np.float64)  # row 50, columns 20-39
     lo = 0.1 ** RATIOS[res.water_type][0]
-    # the clamp of SPEC 7 comes after the fill: compare only where it did not act
+    # the clamp of METHOD §7 comes after the fill: compare only where it did not act
     assert below.min() > lo * (1 + 1e-5) and below.max() < 1.0
     assert inside[0, 0] == pytest.approx(below.mean(), rel=1e-5)
     # masked-out pixels are never water
@@ -294,7 +294,7 @@ def test_chart_colors_do_not_change_water_type(scene):
 
 
 def test_channel_transmissions(result):
-    """channel_transmissions(): (H, W, 3) float32, t_B == transmission, t_R/t_G by SPEC 7 from the table."""
+    """channel_transmissions(): (H, W, 3) float32, t_B == transmission, t_R/t_G by METHOD §7 from the table."""
     ct = result.channel_transmissions()
     assert isinstance(ct, np.ndarray) and ct.dtype == np.float32 and ct.shape == (H, W, 3)
     tb = result.transmission
@@ -317,7 +317,7 @@ def test_channel_transmissions_custom_type(scene):
 
 
 def test_no_water_image_has_small_or_no_water_region():
-    """An image with no water (synth.scene(kind='looking_down')): SPEC 3 asks that VL be empty
+    """An image with no water (synth.scene(kind='looking_down')): METHOD §3 asks that VL be empty
     or small. Measured: the largest flat patch of the procedural seabed in the top quarter
     covers 0.2-1.3% of such images, so VL is sometimes a small sand patch rather than empty;
     whenever it is empty, 'no_water_region' and 'veiling_fallback' are raised. Known weakness:
@@ -418,7 +418,7 @@ def test_fast_selection_is_deterministic():
 
 
 def test_default_is_the_exact_filter_and_timings_are_reported(scene):
-    """By default guided_subsample is 1 (the exact SPEC 6 filter, the same
+    """By default guided_subsample is 1 (the exact METHOD §6 filter, the same
     result as asking for 1); timings name every stage once, in order, with
     non-negative seconds that add up to no more than the call's wall time."""
     t0 = time.perf_counter()

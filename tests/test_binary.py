@@ -2,9 +2,7 @@
 (docs/OUTPUTS.md): for the same PNG/TIFF input and options both write the
 same pixels (image, t, colour-mapped t) and the same sidecar estimates.
 
-The binary is built with ``cargo build --profile test --features cli``,
-which reuses what ``cargo test --features cli`` (the CI command) compiled;
-``UWHL_RS_BIN`` points the test at another build. JPEG inputs are left out
+The binary comes from the ``binary`` fixture of ``conftest.py``. JPEG inputs are left out
 on purpose: Pillow (libjpeg-turbo) and the image crate (zune-jpeg) decode
 the same file to slightly different pixels.
 """
@@ -34,28 +32,6 @@ except ImportError:
 
 ESTIMATES = ["water_type", "scores", "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags",
              "guided_radius", "guided_subsample", "beta_ratios"]
-
-
-@pytest.fixture(scope="module")
-def binary():
-    path = os.environ.get("UWHL_RS_BIN")
-    if path:
-        return path
-    cargo = shutil.which("cargo")
-    if cargo is None:
-        pytest.skip("cargo is not installed: cannot build the uwhl-rs binary")
-    r = subprocess.run(
-        [cargo, "build", "--profile", "test", "--features", "cli", "--bin", "uwhl-rs",
-         "--message-format=json-render-diagnostics"],
-        cwd=ROOT, capture_output=True, text=True, timeout=1800,
-    )
-    assert r.returncode == 0, r.stderr[-3000:]
-    for line in r.stdout.splitlines():
-        msg = json.loads(line)
-        if msg.get("reason") == "compiler-artifact" and msg.get("executable") and \
-                msg["target"]["name"] == "uwhl-rs":
-            return msg["executable"]
-    pytest.fail("cargo built no uwhl-rs executable")
 
 
 def _env() -> dict:

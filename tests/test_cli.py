@@ -117,8 +117,8 @@ def test_bad_files_fail_alone_with_one_clear_line(scenes, tmp_path):
     (src / "e_good.png").write_bytes(good)
     out = tmp_path / "out"
     r = uwhl("restore", src, "-o", out)
-    assert r.returncode == 1
-    lines = [ln for ln in r.stderr.splitlines() if "FAILED" in ln]
+    assert r.returncode == 3  # unreadable input (docs/CLI.md)
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("uwhl: ") and "input(s) failed" not in ln]
     assert len(lines) == 2, r.stderr
     assert any("c_truncated.jpg" in ln and "truncated" in ln.lower() for ln in lines)
     assert any("d_random.NEF" in ln and "LibRaw" in ln for ln in lines)
@@ -152,7 +152,7 @@ def test_failure_while_writing_leaves_no_partial_outputs(scenes, tmp_path):
     # last write fails, and the files already written for the input are removed
     (tmp_path / "scene_II.json").mkdir()
     r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path, "--overwrite")
-    assert r.returncode == 1 and "scene_II.png: FAILED" in r.stderr
+    assert r.returncode == 5 and "scene_II.png: " in r.stderr  # unwritable output
     assert sorted(os.listdir(tmp_path)) == ["scene_II.json"]
 
 
@@ -223,11 +223,17 @@ def test_options_reach_restore(scenes, tmp_path):
         (["--water-type", "XX"], "unknown"),
         (["--veiling-light", "0.1,0.2"], "R,G,B"),
         (["--veiling-light", "0,0.2,0.3"], "(0, 1]"),
-        (["--max-side", "0"], "at least 1"),
-        (["--format", "bmp"], "invalid choice"),
+        (["--max-side", "0"], ">= 4"),
+        (["--max-side", "3"], ">= 4"),
+        (["--quality", "0"], "1..100"),
+        (["--quality", "101"], "1..100"),
+        (["--quality", "-5"], "1..100"),
+        (["--threads", "0"], "1..1024"),
+        (["--bits", "12"], "one of 8, 16"),
+        (["--format", "bmp"], "one of jpg, png, tiff"),
         (["--bits", "16"], "--bits 16 needs"),
         (["--mask", "/nonexistent/m.png"], "no such file"),
-        (["--max-memory", "lots"], "not a size"),
+        (["--max-memory", "lots"], "not a byte count"),
         (["--guided-subsample", "fast"], "--guided-subsample"),
         (["--guided-subsample", "-1"], "--guided-subsample"),
         (["--guided-subsample", "1.5"], "--guided-subsample"),
@@ -303,7 +309,7 @@ def test_guided_subsample_in_the_sidecar(scenes, tmp_path):
     """--guided-subsample auto is recorded as 0 (asked for) and the factor
     used, max(1, 24 // 32) = 1 at 96x128, and gives restore(guided_subsample=0);
     the default records 1 and 1; a factor larger than the image fails that
-    input (exit 1) with the parameter named."""
+    input (exit 2, a parameter error) with the parameter named."""
     r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path / "a", "--guided-subsample", "auto",
              "--water-type", "II,3C", "--format", "png")
     assert r.returncode == 0, r.stderr
@@ -313,14 +319,14 @@ def test_guided_subsample_in_the_sidecar(scenes, tmp_path):
     res = uwhl_rs.restore(img, water_types=["II", "3C"], guided_subsample=0)
     assert side["water_type"] == res.water_type and side["scores"] == pytest.approx(res.scores, rel=1e-12)
     r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path / "b", "--guided-subsample", "500", "-q")
-    assert r.returncode == 1 and "guided_subsample" in r.stderr, r.stderr
+    assert r.returncode == 2 and "guided_subsample" in r.stderr, r.stderr  # a parameter error
     assert not (tmp_path / "b" / "scene_II.json").exists()
 
 
 def test_memory_budget_and_missing_inputs_are_reported(scenes, tmp_path):
     r = uwhl("restore", scenes / "scene_II.png", tmp_path / "nope.jpg", str(tmp_path / "*.tif"), "-o", tmp_path / "o",
              "--max-memory", "100K")
-    assert r.returncode == 1
+    assert r.returncode == 4  # over budget outranks the missing inputs (3)
     assert "nope.jpg: no such file" in r.stderr and "matches no image file" in r.stderr
     assert "over the memory budget" in r.stderr
 
@@ -348,7 +354,7 @@ def test_help_and_version():
     assert r.returncode == 0
     for opt in ["--water-type", "--veiling-light", "--mask", "--water-mask", "--guided-radius", "--guided-eps",
                 "--guided-subsample", "--sphere-points", "--selection", "--max-side", "--jobs", "--overwrite", "--contact-sheet", "--format", "--threads",
-                "--max-memory", "--preprocess", "--half-size", "exit status"]:
+                "--max-memory", "--preprocess", "--half-size", "exit codes"]:
         assert opt in r.stdout, opt
     assert uwhl("demo", "--help").returncode == 0
     r = uwhl("--version")

@@ -1,6 +1,6 @@
 """Cross-check of every Rust stage (uwhl_rs._core._stage_*) and of the whole
 uwhl_rs.restore against the independent NumPy/SciPy reference
-(tests/reference.py), which follows SPEC.md and docs/DECISIONS.md.
+(tests/reference.py), which follows docs/METHOD.md and docs/METHOD.md.
 
 Inputs are small scenes rendered with uwhl_rs.synth and seeded random
 images, always float32 and C-contiguous; the reference gets the very same
@@ -309,7 +309,7 @@ def test_veiling_tiny_water_mask_falls_back():
 
 
 def test_veiling_dark_region_is_a_shadow():
-    """DECISIONS S3 step 9: a detected flat region darker than 0.2 x the
+    """METHOD §3 step 9: a detected flat region darker than 0.2 x the
     median luminance is rejected (both), while the same region given as a
     water_mask is kept (both)."""
     img = np.array(rendered(48, 64, "open_water", 1))
@@ -545,7 +545,7 @@ def test_chart_fill_neighbours_single_band():
 
 def test_chart_fill_neighbours_shared_by_two_regions():
     """Two full-height regions separated by one masked-in column: each gets the
-    mean over the SET of its masked-in 8-neighbours (DECISIONS S6), so the
+    mean over the SET of its masked-in 8-neighbours (METHOD §6), so the
     shared column counts once per pixel for each region."""
     h, w = 20, 24
     q = random_image(h, w, 0)[..., 0]

@@ -2,7 +2,7 @@
 
 Every unusable input must raise the documented exception (ImageError or
 ParameterError, both ValueError subclasses; MemoryError over the memory
-budget) with a message naming the problem (SPEC 2; docstring of
+budget) with a message naming the problem (METHOD §2; docstring of
 ``uwhl_rs.restore``). The expected exception classes and message key words
 come from the SPEC, the docstring and the brief, never from running the code.
 """

@@ -364,7 +364,7 @@ def test_raw_half_size_and_metadata():
     assert "white_level_below_data" in meta.notes and np.mean(img >= 1.0) < 0.05
     plain, _ = io.read_image(RAW_DIR / "RAW_KODAK_DC50.KDC")
     img, meta = io.read_image(RAW_DIR / "RAW_KODAK_DC50.KDC", preprocess="reference")
-    # SPEC 2 reference: top 0.1% of each channel clipped to 1, the rest scaled up
+    # METHOD §2 reference: top 0.1% of each channel clipped to 1, the rest scaled up
     assert meta.preprocess == "reference" and img.max() == 1.0
     assert all(np.mean(img[..., c] >= 1.0) >= 0.001 for c in range(3))
     assert np.median(img) > np.median(plain)

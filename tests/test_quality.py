@@ -1,6 +1,6 @@
-"""End-to-end quality checks of ``uwhl_rs.restore`` (SPEC section 11).
+"""End-to-end quality checks of ``uwhl_rs.restore`` (METHOD §11).
 
-Rendered scenes (``uwhl_rs.synth``, SPEC 0) give known truth: distance z,
+Rendered scenes (``uwhl_rs.synth``, METHOD §0) give known truth: distance z,
 clean radiance, water region, water type and veiling light. Every threshold
 below comes from measurements of exactly these runs (200 x 260 px, scene
 seeds 0-3, noise 0.002, noise seed 100 * seed + type index), quoted next to
@@ -42,7 +42,7 @@ def _iou(a, b) -> float:
 
 
 def _vl_row_limit(h: int, w: int) -> int:
-    """Rows y < this may hold VL (SPEC 3 step 4, as pinned in DECISIONS S3)."""
+    """Rows y < this may hold VL (METHOD §3.4, as pinned in METHOD §3)."""
     s = max(1, math.ceil(max(h, w) / 512))
     return min(h, s * math.ceil(math.ceil(h / s) / 4))
 
@@ -113,7 +113,7 @@ def _sel(runs, given=None, wt=None):
 
 
 # --------------------------------------------------------------------------
-# Transmission vs distance (SPEC 11)
+# Transmission vs distance (METHOD §11)
 # --------------------------------------------------------------------------
 
 
@@ -138,7 +138,7 @@ def test_rho_with_detected_vl(open_runs):
 
 
 # --------------------------------------------------------------------------
-# VL detection and the veiling light (SPEC 3)
+# VL detection and the veiling light (METHOD §3)
 # --------------------------------------------------------------------------
 
 
@@ -175,7 +175,7 @@ def test_looking_down_vl_is_tiny_or_absent(down_runs):
 @pytest.mark.xfail(strict=True, reason=(
     "known gap: on looking_down renders, uniform seabed patches in the top quarter "
     "(green algae, dark rubble: clean-radiance std < 0.03) are textureless to the "
-    "edge map (DECISIONS S3) and exceed the 0.1% minimum, so "
+    "edge map (METHOD §3) and exceed the 0.1% minimum, so "
     "'veiling_fallback' is raised in only 19/40 runs at 200x260 and 0/40 at 360x480"))
 def test_looking_down_always_raises_veiling_fallback(down_runs):
     missing = [(r["seed"], r["type"], round(100 * r["vl_frac"], 2))
@@ -184,7 +184,7 @@ def test_looking_down_always_raises_veiling_fallback(down_runs):
 
 
 # --------------------------------------------------------------------------
-# Color (SPEC 11: error of J against the clean image)
+# Color (METHOD §11: error of J against the clean image)
 # --------------------------------------------------------------------------
 
 
@@ -207,7 +207,7 @@ def test_restored_colors_improve_on_average(open_runs):
 
 
 # --------------------------------------------------------------------------
-# Water-type choice (SPEC 9, gray world)
+# Water-type choice (METHOD §9, gray world)
 # --------------------------------------------------------------------------
 #
 # Ranks are by gray-world score over all ten types (1 = lowest score), so
@@ -222,14 +222,14 @@ def test_restored_colors_improve_on_average(open_runs):
 # Where gray world misses, and why:
 # - II and III rank 4-5 in every run; the lowest scores go to types with a
 #   SMALLER beta_BR (I, IA, IB), i.e. more red gain. With beta_b = 0.2 the
-#   true t_R of the far seabed is far below 0.1, but SPEC 7 clamps t_R at
+#   true t_R of the far seabed is far below 0.1, but METHOD §7 clamps t_R at
 #   0.1 and the far pixels' red is at the noise level anyway, so under the
 #   true type the restored red mean is too low and gray world prefers a type
 #   that over-amplifies the red of the near pixels.
-# - I, IA, IB rank well by score but are (almost) never CHOSEN: the SPEC 9
+# - I, IA, IB rank well by score but are (almost) never CHOSEN: the METHOD §9
 #   exclusion removes them. t_R = t_B^(1/beta_BR) with 1/beta_BR = 5.7-8.9,
 #   so any t_B below ~0.7-0.77 gives t_R at its 0.1 clamp, the value it also
-#   has on water; the estimated t_B is at most 0.9 (SPEC 4.6) and the seabed
+#   has on water; the estimated t_B is at most 0.9 (METHOD §4.6) and the seabed
 #   lies 1.5-11 m away, so the mean t_R difference stays under 0.1. The
 #   bench: true type excluded in 4/4 runs for each of I, IA, IB. This is not
 #   an artifact of the renders' strong attenuation: with beta_b = 0.05
@@ -270,7 +270,7 @@ def test_chosen_type_is_a_known_type(open_runs, down_runs):
 #
 # Photos are reduced by block averaging (linear data) by the integer factor
 # s = ceil(max(H, W) / 512): the same reduction the detector applies
-# (DECISIONS S3 step 2), so VL matches the full-size run closely (fractions
+# (METHOD §3 step 2), so VL matches the full-size run closely (fractions
 # within ~2 points, same fallbacks; uieb_880 7.3% full size vs 1.8% here) at
 # a tenth of the time.
 
@@ -345,7 +345,7 @@ def test_photo_open_water_vl_found_in_upper_part(name):
     # measured (at this size) 0.6% (lcm_sample_5) .. 24% of the pixels
     assert vm.mean() > 0.003, vm.mean()
     rows = np.flatnonzero(vm.any(axis=1))
-    assert rows[-1] < 0.3 * h  # SPEC 3 step 4: the top quarter only
+    assert rows[-1] < 0.3 * h  # METHOD §3.4: the top quarter only
     # water color: red is the weakest component of A in every measured photo
     a = np.asarray(res.veiling_light)
     assert a[0] < a[1] and a[0] < a[2], a

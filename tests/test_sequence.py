@@ -1,6 +1,6 @@
 """Sequence mode, ``uwhl_rs.Sequence``: frames of a rendered "video" (a camera
 panning over a scene of known water type, veiling light and distances,
-SPEC 0), the equality of a reused frame with ``restore`` given the same
+METHOD §0), the equality of a reused frame with ``restore`` given the same
 estimates, the refresh schedule, threads, and every error path.
 """
 

@@ -1,4 +1,4 @@
-"""Tests of uwhl_rs.synth: the model renderer (SPEC section 0) and scenes.
+"""Tests of uwhl_rs.synth: the model renderer (METHOD §0) and scenes.
 
 Expected values are computed here independently (hand formulas, the SPEC
 table typed in again), never by calling the code under test twice.
@@ -20,7 +20,7 @@ from uwhl_rs import synth
 
 import reference
 
-# SPEC section 1 as typed in, independently of the core, by tests/reference.py.
+# METHOD §1 as typed in, independently of the core, by tests/reference.py.
 SPEC_TABLE = list(reference.WATER_TYPES)
 TYPES = [row[0] for row in SPEC_TABLE]
 
@@ -49,7 +49,7 @@ def test_jerlov_table_matches_spec_in_order():
 
 
 # --------------------------------------------------------------------------
-# render / transmissions (SPEC section 0)
+# render / transmissions (METHOD §0)
 # --------------------------------------------------------------------------
 
 

@@ -38,6 +38,7 @@ __all__ = [
     "ImageMeta",
     "ImageReadError",
     "FileResult",
+    "DEFAULTS",
     "__version__",
 ]
 
@@ -49,7 +50,11 @@ __version__: str = _core.__version__
 if hasattr(_os, "register_at_fork"):
     _os.register_at_fork(after_in_child=_core._after_fork)
 
-#: The Jerlov water types of SPEC section 1: ``{name: (beta_BR, beta_BG)}``
+#: The defaults of the method's keyword arguments, read from the core's one
+#: option table (docs/CLI.md): ``{keyword: default}``.
+DEFAULTS: dict = {o["key"]: o["default"] for o in _core.OPTIONS if o["method"]}
+
+#: The Jerlov water types of METHOD §1: ``{name: (beta_BR, beta_BG)}``
 #: in table order (clear oceanic I ... turbid coastal 9C).
 WATER_TYPES: dict[str, tuple[float, float]] = {n: (br, bg) for n, br, bg in _core.JERLOV_TABLE}
 
@@ -139,6 +144,10 @@ def _subsample_param(value) -> int:
     return int(value)
 
 
+def _choices(key: str) -> str:
+    return ", ".join(f'"{c}"' for c in next(o for o in _core.OPTIONS if o["key"] == key)["choices"])
+
+
 def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     if mask is None:
         return None
@@ -157,15 +166,15 @@ def restore(
     veiling_light=None,
     water_mask=None,
     mask=None,
-    guided_radius: int | None = None,
-    guided_eps: float = 1e-3,
-    sphere_points: int = 500,
-    threads: int | None = None,
-    max_memory: int | None = None,
-    selection: str = "exhaustive",
-    guided_subsample: int | str = 1,
+    guided_radius: int | None = DEFAULTS["guided_radius"],
+    guided_eps: float = DEFAULTS["guided_eps"],
+    sphere_points: int = DEFAULTS["sphere_points"],
+    threads: int | None = DEFAULTS["threads"],
+    max_memory: int | None = DEFAULTS["max_memory"],
+    selection: str = DEFAULTS["selection"],
+    guided_subsample: int | str = DEFAULTS["guided_subsample"],
 ) -> Restoration:
-    """Restore the colors of one underwater image (SPEC sections 2-10).
+    """Restore the colors of one underwater image (METHOD §2-§10).
 
     Parameters
     ----------
@@ -177,22 +186,22 @@ def restore(
         Candidate water types: names from :data:`WATER_TYPES` and/or
         ``(name, beta_BR, beta_BG)`` tuples with ratios in (0, 30] (above ~45
         the t_B floor 0.1^beta_BR underflows in float32).
-        Default: all ten Jerlov types (SPEC 1).
+        Default: all ten Jerlov types (METHOD §1).
     veiling_light : 3 floats in (0, 1], optional
         A given veiling light A; default: estimated from the water region
-        (SPEC 3), or by the documented fallback when there is none.
+        (METHOD §3), or by the documented fallback when there is none.
     water_mask : bool ndarray (H, W), optional
-        A given water region VL, used instead of detection (SPEC 3).
+        A given water region VL, used instead of detection (METHOD §3).
     mask : bool ndarray (H, W), optional
         False = do not use this pixel for estimation (e.g. a color chart);
-        such regions are filled (SPEC 4.5) and get one transmission each
-        (SPEC 6). At least one pixel must be True.
+        such regions are filled (METHOD §4.5) and get one transmission each
+        (METHOD §6). At least one pixel must be True.
     guided_radius : int, optional
-        Guided-filter radius; default ``round(min(H, W) / 4)`` (SPEC 6).
+        Guided-filter radius; default ``round(min(H, W) / 4)`` (METHOD §6).
     guided_eps : float
-        Guided-filter regulariser, > 0; default 1e-3 (SPEC 6).
+        Guided-filter regulariser, > 0; default 1e-3 (METHOD §6).
     sphere_points : int
-        Number of haze-line clusters; default 500 (SPEC 4.3).
+        Number of haze-line clusters; default 500 (METHOD §4.3).
     threads : int, optional
         Worker threads; default all cores. Results are bit-identical for
         any value.
@@ -200,7 +209,7 @@ def restore(
         Working-memory limit in bytes (default 16 GiB); a larger image
         raises MemoryError before anything large is allocated.
     selection : {"exhaustive", "fast"}
-        How the water type is chosen (SPEC 9). ``"exhaustive"`` (default)
+        How the water type is chosen (METHOD §9). ``"exhaustive"`` (default)
         restores every candidate type at full resolution and scores it.
         ``"fast"`` scores the types on a block-averaged copy whose longer
         side is about 1024 px (with the full-resolution veiling light and
@@ -210,7 +219,7 @@ def restore(
         are processed exhaustively either way.
     guided_subsample : int >= 0 or "auto"
         Guided-filter subsampling factor s. ``1`` (default): the exact
-        filter of SPEC 6. ``s >= 2``: He and Sun's fast guided filter: the
+        filter of METHOD §6. ``s >= 2``: He and Sun's fast guided filter: the
         coefficients (a, b) are computed on samples at the centres of
         s x s blocks and interpolated bilinearly back to full resolution.
         ``"auto"`` (or ``0``): ``max(1, radius // 32)`` for the guided
@@ -222,12 +231,12 @@ def restore(
     Returns
     -------
     Restoration
-        ``image`` (H, W, 3) float32: the white-balanced result (SPEC 8);
+        ``image`` (H, W, 3) float32: the white-balanced result (METHOD §8);
         ``radiance`` (H, W, 3) float32: J before the display stretch
-        (SPEC 7); ``transmission`` (H, W) float32: t_B, whose ``-log`` is
+        (METHOD §7); ``transmission`` (H, W) float32: t_B, whose ``-log`` is
         a distance proxy; ``water_type`` (str); ``scores`` (dict name ->
         gray-world score, lower is better); ``excluded`` (names ruled out
-        by the t_R test of SPEC 9); ``veiling_light`` (A); ``veiling_mask``
+        by the t_R test of METHOD §9); ``veiling_light`` (A); ``veiling_mask``
         (H, W) bool; ``flags`` (list of fallbacks used, e.g.
         ``"veiling_fallback"``); ``guided_radius``; ``guided_subsample``
         (the factor used, "auto" resolved); ``timings`` (dict stage name ->
@@ -264,13 +273,13 @@ def _method_params(
     *,
     water_types=None,
     veiling_light=None,
-    guided_radius: int | None = None,
-    guided_eps: float = 1e-3,
-    sphere_points: int = 500,
-    threads: int | None = None,
-    max_memory: int | None = None,
-    selection: str = "exhaustive",
-    guided_subsample: int | str = 1,
+    guided_radius: int | None = DEFAULTS["guided_radius"],
+    guided_eps: float = DEFAULTS["guided_eps"],
+    sphere_points: int = DEFAULTS["sphere_points"],
+    threads: int | None = DEFAULTS["threads"],
+    max_memory: int | None = DEFAULTS["max_memory"],
+    selection: str = DEFAULTS["selection"],
+    guided_subsample: int | str = DEFAULTS["guided_subsample"],
 ) -> _core.Params:
     """The method's keyword arguments of :func:`restore` and :class:`Sequence`
     (defaults: :func:`restore`'s), checked (ParameterError naming a bad one)
@@ -290,8 +299,8 @@ def _method_params(
         )
     if isinstance(guided_eps, (bool, np.bool_)) or not isinstance(guided_eps, (int, float, np.integer, np.floating)):
         raise ParameterError(f"guided_eps must be a number > 0; got {guided_eps!r}")
-    if not isinstance(selection, str) or selection not in ("exhaustive", "fast"):
-        raise ParameterError(f'selection must be "exhaustive" or "fast"; got {selection!r}')
+    if not isinstance(selection, str):
+        raise ParameterError(f'selection must be one of {_choices("selection")}; got {selection!r}')
     return _core.Params(
         water_types=water_types,
         veiling_light=veiling_light,
@@ -312,8 +321,8 @@ class Sequence:
     it) runs the whole method with the keyword arguments given here, which
     are those of :func:`restore`: the water type is chosen among
     ``water_types`` and the veiling light A estimated. The frames in
-    between reuse that water type and A (one type instead of ten; SPEC 3
-    and 9 are skipped, SPEC 4-8 run on the frame), and with
+    between reuse that water type and A (one type instead of ten; METHOD §3
+    and 9 are skipped, METHOD §4-8 run on the frame), and with
     ``reuse_water_mask=True`` also its water region (right for a camera
     that holds its attitude; a frame of another size detects its own).
     The full-resolution work buffers (32 bytes per pixel) are kept from

@@ -8,6 +8,15 @@ import numpy.typing as npt
 
 __version__: str
 JERLOV_TABLE: list[tuple[str, float, float]]
+#: the one option table (src/options.rs): dicts with key, flag, short, metavar,
+#: kind, min/max/gt/choices, default, help, group, faces, method
+OPTIONS: list[dict]
+#: (code, name, meaning) of both commands' exit codes
+EXIT_CODES: list[tuple[int, str, str]]
+EXIT_CODES_HELP: str
+
+def parse_option(key: str, text: str) -> object: ...
+def options_help(face: Literal["python", "rust"]) -> str: ...
 
 class UwhlError(ValueError): ...
 class ImageError(UwhlError): ...
@@ -38,12 +47,12 @@ class Params:
         water_types: Optional[_Seq[WaterTypeSpec]] = None,
         veiling_light: Optional[tuple[float, float, float]] = None,
         guided_radius: Optional[int] = None,
-        guided_eps: float = 1e-3,
-        sphere_points: int = 500,
+        guided_eps: Optional[float] = None,
+        sphere_points: Optional[int] = None,
         threads: Optional[int] = None,
         max_memory: Optional[int] = None,
-        selection: Literal["exhaustive", "fast"] = "exhaustive",
-        guided_subsample: int = 1,
+        selection: Optional[Literal["exhaustive", "fast"]] = None,
+        guided_subsample: Optional[int] = None,
     ) -> None: ...
 
 def restore_f32(

@@ -19,10 +19,14 @@ import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 
-#: exit statuses
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+from . import _core
 
-_EPILOG_RESTORE = """\
+#: exit statuses, shared with uwhl-rs (docs/CLI.md): {name: code}
+EXIT = {name: code for code, name, _ in _core.EXIT_CODES}
+EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED = EXIT["ok"], EXIT["bad_arguments"], EXIT["interrupted"]
+
+_EPILOG_RESTORE = _core.EXIT_CODES_HELP + """
+
 outputs (per input NAME, in OUTDIR, mirroring sub-folders of folder inputs):
   NAME.jpg|.tif|.png   the corrected photo (sRGB)
   NAME_t.png           transmission t_B, 16-bit gray (-ln t_B is a distance proxy)
@@ -33,9 +37,6 @@ outputs (per input NAME, in OUTDIR, mirroring sub-folders of folder inputs):
 Inputs whose sidecar exists are skipped unless --overwrite, so an interrupted
 run resumes where it stopped. Every file is written atomically.
 
-exit status: 0 all inputs done or skipped; 1 at least one input failed (the
-others are still processed); 2 bad arguments; 130 interrupted.
-
 examples:
   uwhl restore dive_042/ -o corrected/ --jobs 2
   uwhl restore 'dive_*/**/*.NEF' -o out --format tiff --max-side 3000
@@ -43,66 +44,34 @@ examples:
 """
 
 
-def _parse_size(text: str) -> int:
-    """'8G', '512M', '1000000' -> bytes."""
-    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([kKmMgGtT]?)i?[bB]?\s*", text)
-    if not m:
-        raise argparse.ArgumentTypeError(f"not a size: {text!r} (examples: 8G, 512M, 1000000)")
-    mult = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}[m.group(2).lower()]
-    return int(float(m.group(1)) * mult)
+def _option_type(key: str):
+    """An argparse type: the core's parser of option ``key`` (the one uwhl-rs uses)."""
 
-
-def _int_at_least(lo: int):
-    """An argparse type: an integer >= lo."""
-
-    def parse(text: str) -> int:
+    def parse(text: str):
         try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-        if v < lo:
-            raise argparse.ArgumentTypeError(f"must be at least {lo}, not {v}")
-        return v
+            return _core.parse_option(key, text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e).split(": ", 1)[-1]) from None
 
     return parse
 
 
-_positive_int = _int_at_least(1)
-_nonneg_int = _int_at_least(0)
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v > 0 and v < float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, not {text}")
-    return v
-
-
-def _subsample(text: str) -> int:
-    """--guided-subsample: an integer >= 0 or "auto" (= 0)."""
-    if text.strip() == "auto":
-        return 0
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer >= 0 or auto: {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0 or auto, not {v}")
-    return v
-
-
-def _veiling_light(text: str) -> tuple[float, float, float]:
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    try:
-        v = tuple(float(p) for p in parts)
-    except ValueError:
-        v = ()
-    if len(v) != 3 or not all(0 < x <= 1 for x in v):
-        raise argparse.ArgumentTypeError(f"expected R,G,B with each value in (0, 1], not {text!r}")
-    return v  # type: ignore[return-value]
+def _add_options(parser: argparse.ArgumentParser) -> None:
+    """The options of the core's table that the Python command takes, grouped."""
+    groups: dict[str, argparse._ArgumentGroup] = {}
+    for o in _core.OPTIONS:
+        if o["faces"] == "rust":
+            continue
+        g = groups.get(o["group"]) or groups.setdefault(o["group"], parser.add_argument_group(o["group"]))
+        names = [o["flag"]] + ([o["short"]] if o["short"] else [])
+        kw = dict(dest=o["key"], help=o["help"].replace("%", "%%"))
+        if o["kind"] == "flag":
+            kw["action"] = "store_true"
+        elif o["kind"] == "water_types":
+            kw.update(action="append", metavar=o["metavar"])
+        else:
+            kw.update(type=_option_type(o["key"]), metavar=o["metavar"], default=o["default"])
+        g.add_argument(*names, **kw)
 
 
 def _water_types(values: list[str] | None):
@@ -155,64 +124,9 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     r.add_argument("inputs", nargs="+", metavar="INPUT", help="image files, folders or glob patterns")
-    r.add_argument("-o", "--out", required=True, metavar="OUTDIR", help="output folder (created if needed)")
-    g = r.add_argument_group("output")
-    g.add_argument("--format", choices=["jpg", "tiff", "png"], default="jpg",
-                   help="corrected photo as JPEG (default, 8-bit, quality 95), 16-bit TIFF, or PNG")
-    g.add_argument("--bits", type=int, choices=[8, 16], default=None,
-                   help="bits per sample for png/tiff (default: png 8, tiff 16)")
-    g.add_argument("--quality", type=int, default=95, metavar="Q", help="JPEG quality 1-100 (default 95)")
-    g.add_argument("--contact-sheet", action="store_true",
-                   help="also write NAME_sheet.png: every water type's restoration side by side, "
-                   "labelled with its score, the chosen one framed, the water region overlaid on the input")
-    g.add_argument("--overwrite", action="store_true", help="redo inputs that already have a sidecar (default: skip them)")
-    g = r.add_argument_group("input")
-    g.add_argument("--preprocess", choices=["none", "reference"], default="none",
-                   help="none (default): linear data, sRGB decoded through the inverse sRGB curve; "
-                   "reference: the reference code's preprocessing of SPEC 2 (sRGB not linearised)")
-    g.add_argument("--half-size", action="store_true", help="raw files: demosaic at half size (4x faster)")
-    g.add_argument("--max-side", type=_positive_int, metavar="N",
-                   help="shrink (block average) so the longer side is at most N before processing")
-    g.add_argument("--max-pixels", type=_positive_int, default=300_000_000, metavar="N",
-                   help="refuse images with more pixels (default 300000000)")
-    g.add_argument("--mask", metavar="PATH",
-                   help="image of the input's size: nonzero = use the pixel for estimation, "
-                   "zero = ignore it (e.g. a color chart)")
-    g.add_argument("--water-mask", metavar="PATH",
-                   help="image of the input's size: nonzero = water region VL (replaces detection)")
-    g = r.add_argument_group("method (defaults from SPEC.md)")
-    g.add_argument("--water-type", action="append", metavar="TYPE",
-                   help="candidate water type(s): names (I IA IB II III 1C 3C 5C 7C 9C), comma lists, "
-                   "repeatable, or NAME:BETA_BR:BETA_BG; default all ten Jerlov types")
-    g.add_argument("--veiling-light", type=_veiling_light, metavar="R,G,B",
-                   help="a known veiling light A (linear, each in (0, 1]); default: estimated")
-    g.add_argument("--selection", choices=["exhaustive", "fast"], default="exhaustive",
-                   help="exhaustive (default): every water type restored and scored at full resolution; "
-                   "fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size")
-    g.add_argument("--guided-radius", type=_nonneg_int, metavar="N", help="guided-filter radius (default min(H, W)/4)")
-    g.add_argument("--guided-eps", type=_positive_float, default=1e-3, metavar="X", help="guided-filter eps (default 1e-3)")
-    g.add_argument("--guided-subsample", type=_subsample, default=1, metavar="S|auto",
-                   help="guided-filter subsampling: 1 (default) exact filter; S >= 2 fast guided filter "
-                   "on S x S blocks (for video/sequences; t_B within ~4e-4 on average); "
-                   "auto (= 0): max(1, radius / 32)")
-    g.add_argument("--sphere-points", type=_positive_int, default=500, metavar="N", help="haze-line clusters (default 500)")
-    g.add_argument("--reuse-estimates", type=_positive_int, metavar="N",
-                   help="sequence mode for the frames of one video or dive (inputs in the order listed, "
-                   "folders by name): choose the water type and estimate the veiling light on every N-th "
-                   "restored input and reuse them for the ones in between (one type instead of ten); "
-                   "needs --jobs 1")
-    g.add_argument("--reuse-water-mask", action="store_true",
-                   help="with --reuse-estimates: reuse the estimating input's water region too (a camera "
-                   "that holds its attitude; skips the water detection)")
-    g = r.add_argument_group("resources")
-    g.add_argument("--jobs", "-j", type=_positive_int, default=1, metavar="N",
-                   help="inputs processed at once (default 1): overlaps decoding and writing of one "
-                   "input with the restoration of another")
-    g.add_argument("--threads", type=_positive_int, metavar="N",
-                   help="threads per restore (default: all cores, one pool shared by the jobs)")
-    g.add_argument("--max-memory", type=_parse_size, metavar="BYTES",
-                   help="working-memory limit per restore, e.g. 8G (default 16G)")
-    g.add_argument("--quiet", "-q", action="store_true", help="no progress and no summary table; errors still shown")
+    r.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR",
+                   help="output folder (created if needed)")
+    _add_options(r)
 
     d = sub.add_parser(
         "demo",
@@ -347,19 +261,20 @@ class Progress:
         self.stream.write(line.ljust(110)[:110])
         self.stream.flush()
 
-    def finish(self, message: str, error: bool = False) -> None:
-        """One input finished; ``message`` is logged (errors always)."""
+    def finish(self, message: str, error: bool = False, report=None) -> None:
+        """One input finished: ``message`` is its progress line; an error
+        is reported by ``report()`` (always, also with --quiet)."""
         with self.lock:
             self.done += 1
-            if self.tty:
-                if error or not self.quiet:
-                    self.stream.write("\r" + " " * 110 + "\r")
-                if error:
-                    self.stream.write(message + "\n")
-                if not self.quiet:
-                    self._draw()
-            elif error or not self.quiet:
+            if self.tty and (error or not self.quiet):
+                self.stream.write("\r" + " " * 110 + "\r")
+            if error:
+                self.stream.flush()
+                report()
+            elif not self.quiet and not self.tty:
                 self.stream.write(f"[{self.done}/{self.total}] {message}\n")
+            if self.tty and not self.quiet:
+                self._draw()
             self.stream.flush()
 
     def close(self) -> None:
@@ -380,6 +295,7 @@ class Outcome:
     water_type: str = ""
     seconds: float = 0.0
     note: str = ""
+    code: int = 0  # the exit code of this input (docs/CLI.md)
 
 
 def _describe(e: BaseException) -> str:
@@ -388,6 +304,34 @@ def _describe(e: BaseException) -> str:
     if isinstance(e, OSError) and e.strerror:
         return f"{e.strerror}" + (f": {e.filename}" if e.filename else "")
     return str(e) or type(e).__name__
+
+
+def _error_kind(e: BaseException, writing: bool) -> str:
+    """The kind of a failure, as uwhl-rs classifies it (docs/CLI.md)."""
+    import uwhl_rs
+    from .io import ImageReadError, ImageTooLargeError
+
+    if isinstance(e, (MemoryError, ImageTooLargeError)):
+        return "over_budget"
+    if isinstance(e, (ImageReadError, uwhl_rs.ImageError)):
+        return "unreadable_input"
+    if isinstance(e, uwhl_rs.ParameterError):
+        return "bad_arguments"
+    if isinstance(e, OSError):
+        return "write_failed" if writing else "unreadable_input"
+    return "internal"
+
+
+def _report(err, json_errors: bool, item: str | None, kind: str, message: str) -> None:
+    """One error line on stderr: ``uwhl: INPUT: MESSAGE`` or, with
+    --json-errors, the JSON object uwhl-rs writes."""
+    if json_errors:
+        import json
+
+        err.write(json.dumps({"error": kind, "input": item, "message": message, "exit_code": EXIT[kind]}) + "\n")
+    else:
+        err.write(f"uwhl: {item}: {message}\n" if item is not None else f"uwhl: {message}\n")
+    err.flush()
 
 
 def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
@@ -399,29 +343,32 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     out = out or sys.stdout
     err = err or sys.stderr
     try:
-        water_types = _water_types(a.water_type)
+        water_types = _water_types(a.water_types)
     except ValueError as e:
-        err.write(f"uwhl restore: error: {e}\n")
+        _report(err, a.json_errors, None, "bad_arguments", str(e))
         return EXIT_USAGE
     if a.format == "jpg" and a.bits == 16:
-        err.write("uwhl restore: error: --bits 16 needs --format png or tiff (JPEG holds 8 bits)\n")
+        _report(err, a.json_errors, None, "bad_arguments", "--bits 16 needs --format png or tiff (JPEG holds 8 bits)")
         return EXIT_USAGE
     for flag, path in (("--mask", a.mask), ("--water-mask", a.water_mask)):
         if path is not None and not os.path.isfile(path):
-            err.write(f"uwhl restore: error: {flag} {path}: no such file\n")
+            _report(err, a.json_errors, None, "bad_arguments", f"{flag} {path}: no such file")
             return EXIT_USAGE
     if a.reuse_water_mask and a.reuse_estimates is None:
-        err.write("uwhl restore: error: --reuse-water-mask needs --reuse-estimates N\n")
+        _report(err, a.json_errors, None, "bad_arguments", "--reuse-water-mask needs --reuse-estimates N")
         return EXIT_USAGE
     if a.reuse_estimates is not None and a.jobs != 1:
-        err.write("uwhl restore: error: --reuse-estimates restores the inputs in order; it needs --jobs 1\n")
+        _report(err, a.json_errors, None, "bad_arguments",
+                "--reuse-estimates restores the inputs in order; it needs --jobs 1")
         return EXIT_USAGE
     jobs, problems = collect_inputs(a.inputs, a.out)
     for item, why in problems:
-        err.write(f"uwhl: {item}: {why}\n")
+        _report(err, a.json_errors, item, "unreadable_input", why)
     if not jobs:
-        err.write("uwhl restore: nothing to do\n")
-        return EXIT_FAILED
+        if problems:
+            return EXIT["unreadable_input"]
+        err.write("uwhl: nothing to do\n")
+        return EXIT_OK
     # threads=None: every job works in the one global pool; a fixed count
     # per job would make concurrent jobs queue on one cached pool
     threads = a.threads
@@ -454,7 +401,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
                 refresh_every=a.reuse_estimates, reuse_water_mask=a.reuse_water_mask, **method
             )
         except uwhl_rs.UwhlError as e:
-            err.write(f"uwhl restore: error: {e}\n")
+            _report(err, a.json_errors, None, "bad_arguments", str(e))
             return EXIT_USAGE
     progress = Progress(len(jobs), err, a.quiet)
     outcomes: list[Outcome] = []
@@ -467,33 +414,34 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         sidecar = files.output_paths(job.out_dir, job.name, a.format)["sidecar"]
         if not a.overwrite and os.path.exists(sidecar):
             def skipped(_=None) -> Outcome:
-                progress.finish(f"{job.path}: skipped, already done")
+                progress.finish(f"{job.path}: skipped ({sidecar} exists)")
                 return Outcome(job, "skipped", note="already done (sidecar exists; --overwrite redoes it)")
             return skipped, None
         progress.start(os.path.basename(job.path))
         t0 = time.perf_counter()
 
         def settle(result) -> Outcome:
-            if isinstance(result, BaseException):
-                o = Outcome(job, "failed", seconds=time.perf_counter() - t0, note=_describe(result))
-                progress.finish(f"uwhl: {job.path}: FAILED: {o.note}", error=True)
+            if isinstance(result, tuple):  # (kind, exception)
+                kind, e = result
+                o = Outcome(job, "failed", seconds=time.perf_counter() - t0, note=_describe(e), code=EXIT[kind])
+                progress.finish(f"{job.path}: {o.note}", error=True,
+                                report=lambda: _report(err, a.json_errors, job.path, kind, o.note))
                 return o
             dt = time.perf_counter() - t0
-            flags = ", ".join(result.restoration.flags)
-            o = Outcome(job, "ok", result.restoration.water_type, dt, flags)
-            progress.finish(f"{job.path}: {o.water_type} in {dt:.2f} s" + (f" ({flags})" if flags else ""))
+            o = Outcome(job, "ok", result.restoration.water_type, dt, ", ".join(result.restoration.flags))
+            progress.finish(f"{job.path} -> {result.paths['image']} (water type {o.water_type}, {dt:.2f} s)")
             return o
 
         try:
             write = files._restore_staged(job.path, job.out_dir, name=job.name, **kwargs)
         except (Exception, MemoryError) as e:  # one bad file never stops the batch
-            return settle, (lambda failure=e: failure)
+            return settle, (lambda failure=(_error_kind(e, False), e): failure)
 
         def finish():
             try:
                 return write()
             except (Exception, MemoryError) as e:
-                return e
+                return _error_kind(e, True), e
 
         return settle, finish
 
@@ -544,18 +492,19 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     order = {id(j): k for k, j in enumerate(jobs)}
     outcomes.sort(key=lambda o: order[id(o.job)])
     # inputs that matched nothing count as failed in the summary too
-    outcomes = [Outcome(Job(item, "", ""), "failed", note=why) for item, why in problems] + outcomes
+    outcomes = [Outcome(Job(item, "", ""), "failed", note=why, code=EXIT["unreadable_input"])
+                for item, why in problems] + outcomes
     failed = [o for o in outcomes if o.status == "failed"]
     if not a.quiet:
         _summary(outcomes, out, time.perf_counter() - progress.t0)
     if interrupted:
-        err.write(f"uwhl: interrupted after {len(outcomes)} of {len(jobs)} inputs; "
-                  "run the same command again to resume\n")
+        _report(err, a.json_errors, None, "interrupted",
+                f"interrupted after {len(outcomes) - len(problems)} of {len(jobs)} inputs; "
+                "run the same command again to resume")
         return EXIT_INTERRUPTED
-    if failed:
+    if failed and not a.json_errors:
         err.write(f"uwhl: {len(failed)} input(s) failed\n")
-        return EXIT_FAILED
-    return EXIT_OK
+    return max((o.code for o in outcomes), default=EXIT_OK)
 
 
 def _summary(outcomes: list[Outcome], out, total: float) -> None:

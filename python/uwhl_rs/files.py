@@ -28,6 +28,12 @@ from .io import (
 
 __all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "FORMATS"]
 
+#: Every option's default, from the core's one table (docs/CLI.md).
+_D = {o["key"]: o["default"] for o in _core.OPTIONS}
+
+#: The keywords of :func:`uwhl_rs.restore` (and of :class:`uwhl_rs.Sequence`).
+METHOD_KEYS = tuple(o["key"] for o in _core.OPTIONS if o["method"])
+
 #: --format -> (extension, default bits)
 FORMATS = {"jpg": (".jpg", 8), "tiff": (".tif", 16), "png": (".png", 8)}
 
@@ -119,13 +125,13 @@ def _restore_staged(
     out_dir: str | os.PathLike,
     *,
     name: str | None = None,
-    format: str = "jpg",
-    bits: int | None = None,
-    quality: int = 95,
-    preprocess: str = "none",
-    half_size: bool = False,
-    max_side: int | None = None,
-    max_pixels: int = DEFAULT_MAX_PIXELS,
+    format: str = _D["format"],
+    bits: int | None = _D["bits"],
+    quality: int = _D["quality"],
+    preprocess: str = _D["preprocess"],
+    half_size: bool = _D["half_size"],
+    max_side: int | None = _D["max_side"],
+    max_pixels: int = _D["max_pixels"],
     mask=None,
     water_mask=None,
     contact: bool = False,
@@ -217,25 +223,9 @@ def _restore_staged(
                 "guided_subsample": int(res.guided_subsample),
                 "beta_ratios": [float(v) for v in res.beta_ratios],
                 **({"reused_estimates": "estimates_reused" in res.flags} if sequence is not None else {}),
-                "parameters": {
-                    "water_types": _jsonable(restore_kwargs.get("water_types")),
-                    "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
-                    "mask": _mask_label(mask),
-                    "water_mask": _mask_label(water_mask),
-                    "guided_radius": restore_kwargs.get("guided_radius"),
-                    "guided_eps": float(restore_kwargs.get("guided_eps", 1e-3)),
-                    "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", 1)),
-                    "sphere_points": int(restore_kwargs.get("sphere_points", 500)),
-                    "threads": restore_kwargs.get("threads"),
-                    "max_side": None if max_side is None else int(max_side),
-                    "max_pixels": int(max_pixels),
-                    "preprocess": preprocess,
-                    "half_size": bool(half_size),
-                    "format": format,
-                    "bits": bits,
-                    "quality": int(quality),
-                    **{k: _jsonable(v) for k, v in restore_kwargs.items() if k not in _KNOWN},
-                },
+                "parameters": _parameters(restore_kwargs, mask=mask, water_mask=water_mask, max_side=max_side,
+                                          max_pixels=max_pixels, preprocess=preprocess, half_size=half_size,
+                                          format=format, bits=bits, quality=quality),
                 "seconds": {
                     "read": round(t_read - t_start, 4),
                     "restore": round(t_restore - t_read, 4),
@@ -268,12 +258,29 @@ def _restore_staged(
 restore_file.__signature__ = inspect.signature(_restore_staged).replace(return_annotation="FileResult")
 
 
-#: The keywords of :func:`uwhl_rs.restore` that a :class:`uwhl_rs.Sequence` takes.
-METHOD_KEYS = ("water_types", "veiling_light", "guided_radius", "guided_eps", "sphere_points", "threads",
-               "max_memory", "selection", "guided_subsample")
-
-_KNOWN = {"water_types", "veiling_light", "guided_radius", "guided_eps", "guided_subsample", "sphere_points",
-          "threads"}
+def _parameters(restore_kwargs: dict, **given) -> dict:
+    """The sidecar's ``parameters``: every option as asked for (defaults
+    filled in from the core's table), then any other keyword passed."""
+    p = {
+        "water_types": _jsonable(restore_kwargs.get("water_types")),
+        "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
+        "mask": _mask_label(given["mask"]),
+        "water_mask": _mask_label(given["water_mask"]),
+        "guided_radius": restore_kwargs.get("guided_radius"),
+        "guided_eps": float(restore_kwargs.get("guided_eps", _D["guided_eps"])),
+        "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", _D["guided_subsample"])),
+        "sphere_points": int(restore_kwargs.get("sphere_points", _D["sphere_points"])),
+        "threads": restore_kwargs.get("threads"),
+        "max_side": None if given["max_side"] is None else int(given["max_side"]),
+        "max_pixels": int(given["max_pixels"]),
+        "preprocess": given["preprocess"],
+        "half_size": bool(given["half_size"]),
+        "format": given["format"],
+        "bits": given["bits"],
+        "quality": int(given["quality"]),
+    }
+    p.update({k: _jsonable(v) for k, v in restore_kwargs.items() if k not in p})
+    return p
 
 
 def _subsample_label(v) -> int:

@@ -2,7 +2,7 @@
 and TIFF (imageio), the sRGB transfer curves and the camera matrix.
 
 Everything here converts between files and the LINEAR float32 HxWx3
-arrays that :func:`uwhl_rs.restore` takes (SPEC 2) and returns (SPEC 10).
+arrays that :func:`uwhl_rs.restore` takes (METHOD §2) and returns (METHOD §10).
 The pixel conventions (curves, rounding, colour map) are shared with the
 ``uwhl-rs`` binary through ``uwhl_rs._core`` and documented in
 ``docs/OUTPUTS.md``. rawpy and imageio are imported on first use only.
@@ -46,11 +46,11 @@ RAW_EXTENSIONS = frozenset(
 #: Extensions read through imageio as sRGB-encoded images.
 IMAGE_EXTENSIONS = frozenset({".jpg", ".jpeg", ".png", ".tif", ".tiff"})
 #: ``none``: linear data (sRGB decoded through the inverse curve; raw as
-#: decoded). ``reference``: the reference code's preprocessing (SPEC 2).
+#: decoded). ``reference``: the reference code's preprocessing (METHOD §2).
 PREPROCESS_MODES = ("none", "reference")
 #: Refuse images with more pixels than this unless told otherwise (a
 #: 300 MP frame needs ~3.6 GB as float32 before any processing).
-DEFAULT_MAX_PIXELS = 300_000_000
+DEFAULT_MAX_PIXELS: int = next(o["default"] for o in _core.OPTIONS if o["key"] == "max_pixels")
 
 # linear sRGB (D65) -> CIE XYZ, IEC 61966-2-1
 _SRGB_TO_XYZ = np.array(
@@ -63,6 +63,11 @@ _FLIP_TO_EXIF = {0: 1, 3: 3, 5: 8, 6: 6}
 class ImageReadError(ValueError):
     """A file could not be read as an image (missing, truncated, corrupt,
     unsupported or too large). The message names the file and the reason."""
+
+
+class ImageTooLargeError(ImageReadError):
+    """The image is over the pixel budget (``max_pixels``); the commands
+    report it as over budget, not as unreadable."""
 
 
 @dataclass(frozen=True)
@@ -142,7 +147,7 @@ def read_image(
     curve with the EXIF orientation applied; float TIFFs are taken as
     linear. Gray is replicated to three channels, alpha dropped.
 
-    ``preprocess="reference"`` applies SPEC 2's reference preprocessing
+    ``preprocess="reference"`` applies METHOD §2's reference preprocessing
     instead: raw is scaled so the 99.999th percentile of the channel
     maximum is 1 and each channel stretched to clip its top 0.1%; sRGB is
     NOT linearised and gets the reference's pulled 1%/99% stretch
@@ -182,7 +187,7 @@ def read_image(
 
 def _check_pixels(path: str, h: int, w: int, max_pixels: int) -> None:
     if h * w > max_pixels:
-        raise ImageReadError(f"{path}: {w}x{h} pixels is over the limit of {max_pixels} (max_pixels)")
+        raise ImageTooLargeError(f"{path}: {w}x{h} pixels is over the limit of {max_pixels} (max_pixels)")
     if h < 1 or w < 1:
         raise ImageReadError(f"{path}: the image is empty ({w}x{h})")
 

@@ -1,9 +1,9 @@
 """Synthetic underwater images with known truth.
 
-This module renders the image-formation model of SPEC section 0 from a
+This module renders the image-formation model of METHOD §0 from a
 clean (object radiance) image, a distance map and a water type, and builds
 procedural test scenes for it. Tests use it to check the restoration
-pipeline against known truth (SPEC section 11, "Synthetic"), and the README
+pipeline against known truth (METHOD §11, "Synthetic"), and the README
 demo uses it to make its built-in input, so no data is ever downloaded.
 
 Everything is deterministic given a seed, depends only on NumPy, and works
@@ -12,11 +12,11 @@ on LINEAR RGB data (channel order R, G, B).
 Public API
 ----------
 JERLOV
-    The ten Jerlov water types of SPEC section 1: ``{name: (beta_BR, beta_BG)}``.
+    The ten Jerlov water types of METHOD §1: ``{name: (beta_BR, beta_BG)}``.
 render
-    Apply SPEC section 0 to a clean image and a distance map.
+    Apply METHOD §0 to a clean image and a distance map.
 transmissions
-    The per-channel transmission maps (t_R, t_G, t_B) of SPEC section 0.
+    The per-channel transmission maps (t_R, t_G, t_B) of METHOD §0.
 default_veiling_light
     A plausible linear water color for a water type.
 scene
@@ -46,7 +46,7 @@ __all__ = [
     "transmissions",
 ]
 
-#: Jerlov water types and their attenuation ratios (SPEC section 1), in
+#: Jerlov water types and their attenuation ratios (METHOD §1), in
 #: table order: ``name -> (beta_BR, beta_BG)`` with
 #: ``beta_BR = beta_B / beta_R`` and ``beta_BG = beta_B / beta_G``.
 JERLOV: dict[str, tuple[float, float]] = dict(WATER_TYPES)  # the core's own table
@@ -126,12 +126,12 @@ def _table_position(beta_br: float) -> float:
 
 
 def default_veiling_light(water_type: Any = "II") -> tuple[float, float, float]:
-    """A plausible linear veiling-light color (A of SPEC section 0) for a type.
+    """A plausible linear veiling-light color (A of METHOD §0) for a type.
 
     Oceanic types (I .. III) give a deep blue, coastal types (7C, 9C) a
     green, with a small red component throughout: type I is about
     (0.02, 0.20, 0.40) and type 9C about (0.04, 0.30, 0.18). The color is a
-    smooth function of the position along the Jerlov table (SPEC section 1);
+    smooth function of the position along the Jerlov table (METHOD §1);
     custom types are placed on the table by their beta_BR (clamped to the
     table's range).
 
@@ -161,7 +161,7 @@ def default_veiling_light(water_type: Any = "II") -> tuple[float, float, float]:
 
 
 # --------------------------------------------------------------------------
-# Image formation (SPEC section 0)
+# Image formation (METHOD §0)
 # --------------------------------------------------------------------------
 
 
@@ -177,7 +177,7 @@ def _check_distance(distance: Any) -> np.ndarray:
 def transmissions(
     distance: Any, water_type: Any, beta_b: float = 0.2
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-channel transmission maps of SPEC section 0.
+    """Per-channel transmission maps of METHOD §0.
 
     ``t_B = exp(-beta_b * z)``, ``t_R = t_B ** (1 / beta_BR)``,
     ``t_G = t_B ** (1 / beta_BG)`` (since ``t_c = exp(-beta_c z)`` and
@@ -224,7 +224,7 @@ def render(
     noise: float = 0.0,
     seed: Any = 0,
 ) -> np.ndarray:
-    """Render an underwater image with the model of SPEC section 0.
+    """Render an underwater image with the model of METHOD §0.
 
     Per channel c, on LINEAR data::
 
@@ -243,7 +243,7 @@ def render(
     distance : array_like, H x W
         Distance z in meters, ``>= 0``, ``+inf`` for open water, no NaN.
     water_type : str or tuple, default "II"
-        A name of :data:`JERLOV` (SPEC section 1), a tuple
+        A name of :data:`JERLOV` (METHOD §1), a tuple
         ``(name, beta_BR, beta_BG)`` or a pair ``(beta_BR, beta_BG)``.
     veiling_light : sequence of 3 float, optional
         A = linear (R, G, B) in [0, 1]; ``None`` uses
@@ -550,7 +550,7 @@ class Scene:
     ----------
     clean : ndarray, float32, H x W x 3
         Linear object radiance J in [0.02, 0.95] (water pixels hold a neutral
-        gray that the model of SPEC section 0 never shows, since t = 0 there).
+        gray that the model of METHOD §0 never shows, since t = 0 there).
     distance : ndarray, float32, H x W
         Distance z in meters; ``np.inf`` on open water.
     water : ndarray, bool, H x W
@@ -768,7 +768,7 @@ def scene(
     The radiance is textured (value noise) with diverse hues (sand, dark
     rock, green algae, red/yellow/purple/blue corals and fish), kept in
     [0.02, 0.95], and rescaled per channel so that its mean over non-water
-    pixels is gray (the gray-world assumption behind SPEC section 9).
+    pixels is gray (the gray-world assumption behind METHOD §9).
 
     Parameters
     ----------
@@ -829,7 +829,7 @@ def demo_input(
     """A rendered open-water scene and its ground truth.
 
     The scene is ``scene(height, width, kind="open_water", seed=seed)``,
-    rendered with :func:`render` (SPEC section 0) with the default veiling
+    rendered with :func:`render` (METHOD §0) with the default veiling
     light of the water type, ``beta_b = 0.2`` and Gaussian noise of std
     ``noise`` (seeded with ``seed``).
 

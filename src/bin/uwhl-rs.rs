@@ -12,8 +12,8 @@
 
 use std::io::Write;
 use std::process::ExitCode;
-use uwhl::cli::args::{parse, Command, HELP};
-use uwhl::cli::run::{init_threads, report, run_batch, run_stream};
+use uwhl::cli::args::{help, parse, Command};
+use uwhl::cli::run::{init_threads, install_interrupt_handler, report, run_batch, run_stream};
 
 fn main() -> ExitCode {
     let json_errors = std::env::args_os().any(|a| a == "--json-errors");
@@ -21,7 +21,7 @@ fn main() -> ExitCode {
     let mut stderr = std::io::stderr().lock();
     let code = match parse(std::env::args_os().skip(1)) {
         Ok(Command::Help) => {
-            let _ = stdout.write_all(HELP.as_bytes());
+            let _ = stdout.write_all(help().as_bytes());
             0
         }
         Ok(Command::Version) => {
@@ -35,6 +35,9 @@ fn main() -> ExitCode {
                 let mut stdin = std::io::BufReader::new(std::io::stdin());
                 run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)
             } else {
+                if let Err(e) = install_interrupt_handler() {
+                    let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT ({e}); an interrupt ends the run at once");
+                }
                 run_batch(&opts, &mut stdout, &mut stderr)
             }
         }

@@ -2,7 +2,9 @@
 //! the Python command `uwhl restore` (docs/OUTPUTS.md); the values are
 //! checked here so that a bad option is a usage error before any input is read.
 
-use super::CliError;
+use super::{CliError, Kind};
+use crate::options::{exit_code_text, help_text, Faces, Kind as OptKind, Value as Val, OPTIONS};
+use crate::pipeline::Selection;
 use crate::water::WaterType;
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -38,12 +40,12 @@ impl Format {
     }
 }
 
-/// Input preprocessing (`--preprocess`, SPEC 2).
+/// Input preprocessing (`--preprocess`, METHOD §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Preprocess {
     /// decode sRGB to linear (the default; physically right)
     None,
-    /// SPEC 2 reference: keep sRGB values as they are, mild pulled stretch
+    /// METHOD §2 reference: keep sRGB values as they are, mild pulled stretch
     Reference,
 }
 
@@ -56,12 +58,6 @@ impl Preprocess {
         }
     }
 }
-
-/// Default `--max-pixels`: 300 megapixels (as the Python command).
-pub const DEFAULT_MAX_PIXELS: u64 = 300_000_000;
-
-/// The smallest `--max-side` (the method needs 4x4 pixels).
-pub const MIN_MAX_SIDE: usize = 4;
 
 /// One `--water-type` entry: a Jerlov name or a custom `NAME:BETA_BR:BETA_BG`.
 #[derive(Debug, Clone, PartialEq)]
@@ -140,20 +136,20 @@ impl Default for Options {
             mask: None,
             water_mask: None,
             guided_radius: None,
-            guided_eps: crate::pipeline::DEFAULT_EPS,
+            guided_eps: crate::options::DEFAULT_EPS,
             guided_subsample: 1,
-            sphere_points: crate::pipeline::DEFAULT_SPHERE_POINTS,
+            sphere_points: crate::options::DEFAULT_SPHERE_POINTS,
             max_side: None,
             preprocess: Preprocess::None,
             selection: crate::pipeline::Selection::Exhaustive,
             linear: false,
             format: Format::Jpg,
             bits: None,
-            quality: 95,
+            quality: crate::options::DEFAULT_QUALITY as u8,
             overwrite: false,
             threads: None,
-            max_memory: crate::pipeline::DEFAULT_MAX_MEMORY,
-            max_pixels: DEFAULT_MAX_PIXELS,
+            max_memory: crate::options::DEFAULT_MAX_MEMORY,
+            max_pixels: crate::options::DEFAULT_MAX_PIXELS,
             json_errors: false,
             stream: false,
             reuse_estimates: None,
@@ -185,124 +181,32 @@ pub enum Command {
     Version,
 }
 
-/// The `--help` text, with the exit codes.
-pub const HELP: &str = "\
-uwhl-rs: underwater colour restoration with haze-lines (Berman et al., TPAMI 2020)
+/// The `--help` text: usage, the options of the table (`crate::options`)
+/// that this command takes, and the exit codes.
+pub fn help() -> String {
+    format!(
+        "uwhl-rs: underwater colour restoration with haze-lines (Berman et al., TPAMI 2020)
 
-Usage:
-  uwhl-rs [OPTIONS] INPUT... -o OUTDIR     restore files and folders (PNG, JPEG, TIFF)
-  uwhl-rs --stream [OPTIONS] -o OUTDIR     read image paths from stdin, one per line
+usage:
+  uwhl-rs restore [OPTIONS] INPUT... -o OUTDIR   restore files and folders (PNG, JPEG, TIFF)
+  uwhl-rs restore --stream [OPTIONS] -o OUTDIR   read image paths from stdin, one per line
+  uwhl-rs [OPTIONS] INPUT... -o OUTDIR           the same as 'uwhl-rs restore'
 
 For INPUT NAME.EXT writes OUTDIR/NAME.jpg (or .png/.tif), NAME_t.png (16-bit t_B),
 NAME_t_color.png (colour-mapped t_B) and NAME.json (sidecar, written last).
-Inputs are sRGB (decoded to linear) unless --linear.
+Inputs are sRGB (decoded to linear) unless --linear. The options, outputs and exit
+codes are those of the Python command 'uwhl restore' (docs/CLI.md).
 
-Options:
-  -o, --output DIR         output folder (created if missing)
-      --water-type TYPES   candidate water types: Jerlov names (I IA IB II III 1C 3C 5C 7C 9C)
-                           or NAME:BETA_BR:BETA_BG; repeatable or comma list (default: all ten)
-      --veiling-light R,G,B  given veiling light A (linear), each in (0, 1]
-      --mask PATH          image of the input's size: nonzero = use the pixel for estimation
-      --water-mask PATH    image of the input's size: nonzero = water region (replaces detection)
-      --guided-radius N    guided-filter radius (default round(min(H, W) / 4))
-      --guided-eps X       guided-filter eps (default 0.001)
-      --guided-subsample S|auto  guided-filter subsampling: 1 (default) the exact filter;
-                           S >= 2 He and Sun's fast guided filter on S x S blocks (for video
-                           and sequences: t_B within ~4e-4 on average); auto = max(1, radius/32)
-      --sphere-points N    haze-line clusters (default 500)
-      --max-side N         block-average the input so its longer side is at most N (N >= 4);
-                           a mask block is used if all its pixels are, a water-mask block is
-                           water if at least half its pixels are
-      --preprocess MODE    none (default) | reference (SPEC 2: sRGB kept, pulled stretch)
-      --selection MODE     exhaustive (default: every type at full resolution) | fast (types
-                           scored on a ~1024 px copy, uncertain ones re-scored at full size)
-      --linear             the input values are already linear (float TIFFs always are)
-      --format FMT         jpg (default) | png | tiff
-      --bits 8|16          png/tiff bits per sample (default: png 8, tiff 16; jpg is 8)
-      --quality Q          JPEG quality 1-100 (default 95)
-      --overwrite          process inputs whose sidecar exists (default: skip them)
-      --threads N          worker threads (default: all cores); results do not depend on N
-      --max-memory BYTES   memory budget, checked before decoding (suffixes K, M, G; default 16G)
-      --max-pixels N       largest accepted input in pixels (default 300000000)
-      --json-errors        report each error as one JSON object on stderr
-      --stream             stream mode: one JSON line per frame on stdout, never stops on a bad frame
-      --reuse-estimates N  stream mode: estimate water type and veiling light every N frames,
-                           reuse them in between
-      --reuse-water-mask   with --reuse-estimates: reuse the estimating frame's water region too
-                           (a camera that holds its attitude; skips the water detection)
-  -q, --quiet              no progress lines on stdout
-  -h, --help               this text
-  -V, --version            the version
+  -o, --out DIR              output folder (created if missing; --output is the same)
+{}  -h, --help                 this text
+  -V, --version              the version
 
-Exit codes (with several inputs, every input is processed and the largest code is returned):
-  0  every input restored (or skipped because its sidecar exists)
-  2  bad arguments or option values
-  3  an input could not be read, decoded or restored (corrupt, unsupported, constant...)
-  4  an input is over --max-pixels or --max-memory
-  5  an output could not be written
-  6  internal error (a bug; please report)
-In stream mode the exit code is 0 at the end of stdin unless the arguments were bad (2).
-";
-
-fn text(v: OsString, opt: &str) -> Result<String, CliError> {
-    v.into_string()
-        .map_err(|v| CliError::usage(format!("{opt}: {v:?} is not valid UTF-8")))
-}
-
-fn number<T>(v: OsString, opt: &str, min: T) -> Result<T, CliError>
-where
-    T: std::str::FromStr + PartialOrd + std::fmt::Display,
-{
-    let s = text(v, opt)?;
-    match s.trim().parse::<T>() {
-        Ok(n) if n >= min => Ok(n),
-        _ => Err(CliError::usage(format!(
-            "{opt}: {s:?} is not an integer >= {min}"
-        ))),
-    }
-}
-
-/// Parses a byte count with an optional suffix K, M, G, T (powers of 1024;
-/// `KiB`, `MB` and the like are read the same way).
-pub fn parse_bytes(s: &str) -> Option<u64> {
-    let s = s.trim();
-    let split = s
-        .find(|c: char| !c.is_ascii_digit())
-        .unwrap_or(s.len());
-    let (digits, suffix) = s.split_at(split);
-    let n: u64 = digits.parse().ok()?;
-    let shift = match suffix.trim().to_ascii_uppercase().as_str() {
-        "" | "B" => 0,
-        "K" | "KB" | "KIB" => 10,
-        "M" | "MB" | "MIB" => 20,
-        "G" | "GB" | "GIB" => 30,
-        "T" | "TB" | "TIB" => 40,
-        _ => return None,
-    };
-    n.checked_mul(1u64 << shift)
-}
-
-fn triple(s: &str, opt: &str) -> Result<[f64; 3], CliError> {
-    let parts: Vec<&str> = s
-        .split(|c: char| c == ',' || c.is_whitespace())
-        .filter(|p| !p.is_empty())
-        .collect();
-    let bad = || CliError::usage(format!("{opt}: {s:?} is not three numbers R,G,B"));
-    match parts.as_slice() {
-        [r, g, b] => {
-            let mut out = [0.0f64; 3];
-            for (o, p) in out.iter_mut().zip([r, g, b]) {
-                *o = p.parse().map_err(|_| bad())?;
-            }
-            if out.iter().any(|v| !(v.is_finite() && *v > 0.0 && *v <= 1.0)) {
-                return Err(CliError::usage(format!(
-                    "{opt}: every component of {s:?} must be in (0, 1]"
-                )));
-            }
-            Ok(out)
-        }
-        _ => Err(bad()),
-    }
+{}In stream mode the exit code is 0 at the end of stdin unless the arguments were bad (2)
+or the run was interrupted (130).
+",
+        help_text(Faces::Rust, 100),
+        exit_code_text()
+    )
 }
 
 /// One `--water-type` item: a Jerlov name, or `NAME:BETA_BR:BETA_BG`.
@@ -330,7 +234,88 @@ fn water_choice(item: &str) -> Result<WaterChoice, CliError> {
     })
 }
 
-/// Parses the command line (without the program name).
+/// One `--water-type` value: its comma-separated items appended to `list`.
+fn water_types(list: &mut Vec<WaterChoice>, v: &str) -> Result<(), CliError> {
+    for item in v.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+        let choice = water_choice(item)?;
+        if list.iter().any(|c| c.water_type.name == choice.water_type.name) {
+            return Err(CliError::usage(format!(
+                "--water-type: {:?} is listed twice",
+                choice.water_type.name
+            )));
+        }
+        list.push(choice);
+    }
+    if list.is_empty() {
+        return Err(CliError::usage("--water-type: no type named"));
+    }
+    Ok(())
+}
+
+impl Options {
+    /// Sets the option `key` of the table to its parsed value: the one
+    /// place where a row of `crate::options::OPTIONS` meets this struct.
+    fn set(&mut self, key: &str, v: Val) -> Result<(), CliError> {
+        let int = |v: &Val| match v {
+            Val::Int(n) => Ok(*n),
+            other => Err(CliError::new(Kind::Internal, format!("{key}: {other:?} is not an integer"))),
+        };
+        let usize_of = |v: &Val| int(v).map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+        let text = |v: Val| match v {
+            Val::Text(t) => Ok(t),
+            other => Err(CliError::new(Kind::Internal, format!("{key}: {other:?} is not text"))),
+        };
+        match key {
+            "format" => {
+                self.format = match text(v)?.as_str() {
+                    "png" => Format::Png,
+                    "tiff" => Format::Tiff,
+                    _ => Format::Jpg,
+                }
+            }
+            "bits" => self.bits = Some(int(&v)?.min(16) as u8),
+            "quality" => self.quality = int(&v)?.min(100) as u8,
+            "overwrite" => self.overwrite = true,
+            "preprocess" => {
+                self.preprocess = if text(v)? == "reference" { Preprocess::Reference } else { Preprocess::None }
+            }
+            "linear" => self.linear = true,
+            "max_side" => self.max_side = Some(usize_of(&v)?),
+            "max_pixels" => self.max_pixels = int(&v)?,
+            "mask" => self.mask = Some(text(v)?.into()),
+            "water_mask" => self.water_mask = Some(text(v)?.into()),
+            "water_types" => water_types(self.water_types.get_or_insert_with(Vec::new), &text(v)?)?,
+            "veiling_light" => {
+                if let Val::Rgb(rgb) = v {
+                    self.veiling_light = Some(rgb);
+                }
+            }
+            "selection" => {
+                self.selection = Selection::from_name(&text(v)?).map_err(CliError::from)?
+            }
+            "guided_radius" => self.guided_radius = Some(usize_of(&v)?),
+            "guided_eps" => {
+                if let Val::Float(x) = v {
+                    self.guided_eps = x;
+                }
+            }
+            "guided_subsample" => self.guided_subsample = usize_of(&v)?,
+            "sphere_points" => self.sphere_points = usize_of(&v)?,
+            "reuse_estimates" => self.reuse_estimates = Some(usize_of(&v)?),
+            "reuse_water_mask" => self.reuse_water_mask = true,
+            "threads" => self.threads = Some(usize_of(&v)?),
+            "max_memory" => self.max_memory = int(&v)?,
+            "stream" => self.stream = true,
+            "json_errors" => self.json_errors = true,
+            "quiet" => self.quiet = true,
+            other => return Err(CliError::new(Kind::Internal, format!("option {other} has no field"))),
+        }
+        Ok(())
+    }
+}
+
+/// Parses the command line (without the program name): `restore` and its
+/// options, or the same options without the subcommand.
 pub fn parse<I>(args: I) -> Result<Command, CliError>
 where
     I: IntoIterator,
@@ -341,143 +326,51 @@ where
     let mut outdir: Option<PathBuf> = None;
     let mut p = lexopt::Parser::from_args(args);
     let lex = |e: lexopt::Error| CliError::usage(e.to_string());
+    let mut first = true;
     while let Some(arg) = p.next().map_err(lex)? {
-        match arg {
+        let is_first = std::mem::replace(&mut first, false);
+        let spec = match &arg {
             Short('h') | Long("help") => return Ok(Command::Help),
             Short('V') | Long("version") => return Ok(Command::Version),
-            Short('o') | Long("output") => outdir = Some(p.value().map_err(lex)?.into()),
-            Long("water-type") => {
-                let v = text(p.value().map_err(lex)?, "--water-type")?;
-                let list = o.water_types.get_or_insert_with(Vec::new);
-                for item in v.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-                    let choice = water_choice(item)?;
-                    if list.iter().any(|c| c.water_type.name == choice.water_type.name) {
-                        return Err(CliError::usage(format!(
-                            "--water-type: {:?} is listed twice",
-                            choice.water_type.name
-                        )));
-                    }
-                    list.push(choice);
-                }
-                if list.is_empty() {
-                    return Err(CliError::usage("--water-type: no type named"));
-                }
+            Short('o') | Long("out") | Long("output") => {
+                outdir = Some(p.value().map_err(lex)?.into());
+                continue;
             }
-            Long("veiling-light") => {
-                let v = text(p.value().map_err(lex)?, "--veiling-light")?;
-                o.veiling_light = Some(triple(&v, "--veiling-light")?);
+            Value(v) if is_first && v == "restore" => continue,
+            Value(v) if is_first && (v == "demo" || v == "evaluate" || v == "report") => {
+                return Err(CliError::usage(format!(
+                    "'{}' is a subcommand of the Python command only: run 'uwhl {}' (docs/CLI.md)",
+                    v.to_string_lossy(),
+                    v.to_string_lossy()
+                )))
             }
-            Long("mask") => o.mask = Some(p.value().map_err(lex)?.into()),
-            Long("water-mask") => o.water_mask = Some(p.value().map_err(lex)?.into()),
-            Long("guided-radius") => {
-                o.guided_radius = Some(number(p.value().map_err(lex)?, "--guided-radius", 0)?)
+            Value(v) => {
+                o.inputs.push(v.into());
+                continue;
             }
-            Long("guided-eps") => {
-                let v = text(p.value().map_err(lex)?, "--guided-eps")?;
-                match v.trim().parse::<f64>() {
-                    Ok(x) if x.is_finite() && x > 0.0 => o.guided_eps = x,
-                    _ => {
-                        return Err(CliError::usage(format!(
-                            "--guided-eps: {v:?} is not a number > 0"
-                        )))
-                    }
-                }
+            Long(name) => OPTIONS.iter().find(|s| s.flag.strip_prefix("--") == Some(*name)),
+            Short(c) => OPTIONS.iter().find(|s| s.short == Some(*c)),
+        };
+        let spec = match spec {
+            Some(s) if s.faces != Faces::Python => s,
+            Some(s) => {
+                return Err(CliError::usage(format!(
+                    "{} is an option of the Python command only: run 'uwhl restore' (docs/CLI.md)",
+                    s.flag
+                )))
             }
-            Long("guided-subsample") => {
-                let v = text(p.value().map_err(lex)?, "--guided-subsample")?;
-                o.guided_subsample = match v.trim() {
-                    "auto" => 0,
-                    t => t.parse::<usize>().map_err(|_| {
-                        CliError::usage(format!(
-                            "--guided-subsample: {v:?} is not an integer >= 0 or auto"
-                        ))
-                    })?,
-                };
-            }
-            Long("sphere-points") => {
-                o.sphere_points = number(p.value().map_err(lex)?, "--sphere-points", 1)?
-            }
-            Long("max-side") => {
-                o.max_side = Some(number(p.value().map_err(lex)?, "--max-side", MIN_MAX_SIDE)?)
-            }
-            Long("preprocess") => {
-                o.preprocess = match text(p.value().map_err(lex)?, "--preprocess")?.as_str() {
-                    "none" => Preprocess::None,
-                    "reference" => Preprocess::Reference,
-                    v => {
-                        return Err(CliError::usage(format!(
-                            "--preprocess: {v:?} is not none or reference"
-                        )))
-                    }
-                }
-            }
-            Long("selection") => {
-                o.selection = match text(p.value().map_err(lex)?, "--selection")?.as_str() {
-                    "exhaustive" => crate::pipeline::Selection::Exhaustive,
-                    "fast" => crate::pipeline::Selection::Fast,
-                    v => {
-                        return Err(CliError::usage(format!(
-                            "--selection: {v:?} is not exhaustive or fast"
-                        )))
-                    }
-                }
-            }
-            Long("linear") => o.linear = true,
-            Long("format") => {
-                o.format = match text(p.value().map_err(lex)?, "--format")?
-                    .to_ascii_lowercase()
-                    .as_str()
-                {
-                    "jpg" | "jpeg" => Format::Jpg,
-                    "png" => Format::Png,
-                    "tif" | "tiff" => Format::Tiff,
-                    v => {
-                        return Err(CliError::usage(format!(
-                            "--format: {v:?} is not jpg, png or tiff"
-                        )))
-                    }
-                }
-            }
-            Long("bits") => {
-                o.bits = match number::<u8>(p.value().map_err(lex)?, "--bits", 0)? {
-                    b @ (8 | 16) => Some(b),
-                    b => return Err(CliError::usage(format!("--bits: {b} is not 8 or 16"))),
-                }
-            }
-            Long("quality") => {
-                let q = number::<u8>(p.value().map_err(lex)?, "--quality", 1)?;
-                if q > 100 {
-                    return Err(CliError::usage(format!("--quality: {q} is not in 1..100")));
-                }
-                o.quality = q;
-            }
-            Long("overwrite") => o.overwrite = true,
-            Long("threads") => {
-                let n = number(p.value().map_err(lex)?, "--threads", 1)?;
-                if n > 1024 {
-                    return Err(CliError::usage(format!("--threads: {n} is more than 1024")));
-                }
-                o.threads = Some(n);
-            }
-            Long("max-memory") => {
-                let v = text(p.value().map_err(lex)?, "--max-memory")?;
-                o.max_memory = parse_bytes(&v).filter(|&b| b > 0).ok_or_else(|| {
-                    CliError::usage(format!(
-                        "--max-memory: {v:?} is not a byte count > 0 (e.g. 2000000000, 512M, 4G)"
-                    ))
-                })?;
-            }
-            Long("max-pixels") => o.max_pixels = number(p.value().map_err(lex)?, "--max-pixels", 1)?,
-            Long("json-errors") => o.json_errors = true,
-            Long("stream") => o.stream = true,
-            Long("reuse-estimates") => {
-                o.reuse_estimates = Some(number(p.value().map_err(lex)?, "--reuse-estimates", 1)?)
-            }
-            Long("reuse-water-mask") => o.reuse_water_mask = true,
-            Short('q') | Long("quiet") => o.quiet = true,
-            Value(v) => o.inputs.push(v.into()),
-            _ => return Err(CliError::usage(arg.unexpected().to_string())),
-        }
+            None => return Err(CliError::usage(arg.unexpected().to_string())),
+        };
+        let value = if spec.kind == OptKind::Flag {
+            Val::On
+        } else {
+            let raw = p.value().map_err(lex)?;
+            let t = raw
+                .into_string()
+                .map_err(|v| CliError::usage(format!("{}: {v:?} is not valid UTF-8", spec.flag)))?;
+            spec.parse(&t).map_err(CliError::usage)?
+        };
+        o.set(spec.key, value)?;
     }
     o.outdir = outdir.ok_or_else(|| CliError::usage("-o OUTDIR is required"))?;
     if o.stream && !o.inputs.is_empty() {
@@ -487,9 +380,6 @@ where
     }
     if !o.stream && o.inputs.is_empty() {
         return Err(CliError::usage("no INPUT given (or use --stream)"));
-    }
-    if o.reuse_estimates.is_some() && !o.stream {
-        return Err(CliError::usage("--reuse-estimates needs --stream"));
     }
     if o.reuse_water_mask && o.reuse_estimates.is_none() {
         return Err(CliError::usage("--reuse-water-mask needs --reuse-estimates N"));
@@ -501,7 +391,7 @@ where
     }
     if o.linear && o.preprocess == Preprocess::Reference {
         return Err(CliError::usage(
-            "--preprocess reference is the SPEC 2 treatment of sRGB inputs; it cannot be used with --linear",
+            "--preprocess reference is the METHOD §2 treatment of sRGB inputs; it cannot be used with --linear",
         ));
     }
     Ok(Command::Run(Box::new(o)))
@@ -571,7 +461,9 @@ mod tests {
             &["a", "-o", "o", "--water-type", "x:0:1"],
             &["a", "-o", "o", "--format", "gif"],
             &["a", "-o", "o", "--frobnicate"],
-            &["a", "-o", "o", "--reuse-estimates", "3"],
+            &["a", "-o", "o", "--quality", "0"],
+            &["a", "-o", "o", "--jobs", "2"],
+            &["demo", "-o", "o"],
             &["-o", "o", "--stream", "--reuse-water-mask"],
             &["a", "-o", "o", "--stream"],
             &["a", "-o", "o", "--linear", "--preprocess", "reference"],
@@ -592,11 +484,30 @@ mod tests {
     }
 
     #[test]
-    fn byte_suffixes() {
-        assert_eq!(parse_bytes("1024"), Some(1024));
-        assert_eq!(parse_bytes("2K"), Some(2048));
-        assert_eq!(parse_bytes("3GiB"), Some(3 << 30));
-        assert_eq!(parse_bytes("1x"), None);
-        assert_eq!(parse_bytes("99999999999T"), None);
+    fn restore_subcommand_and_out_spellings() {
+        for args in [
+            &["restore", "a.png", "-o", "out"][..],
+            &["a.png", "--out", "out"],
+            &["restore", "a.png", "--output", "out"],
+            &["restore", "a.png", "--out=out"],
+        ] {
+            let o = run(args).unwrap();
+            assert_eq!((o.inputs, o.outdir), (vec![PathBuf::from("a.png")], PathBuf::from("out")), "{args:?}");
+        }
+        // a file named "restore" after the first position is an input
+        assert_eq!(run(&["a.png", "restore", "-o", "o"]).unwrap().inputs.len(), 2);
+        // --reuse-estimates is accepted in batch mode too
+        assert_eq!(run(&["a", "b", "-o", "o", "--reuse-estimates", "3"]).unwrap().reuse_estimates, Some(3));
+    }
+
+    #[test]
+    fn help_has_every_option_and_exit_code() {
+        let h = help();
+        for s in OPTIONS.iter().filter(|s| s.faces != Faces::Python) {
+            assert!(h.contains(s.flag), "{}", s.flag);
+        }
+        for (code, _, _) in crate::options::EXIT_CODES {
+            assert!(h.contains(&format!("  {code} ")), "{code}");
+        }
     }
 }

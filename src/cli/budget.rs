@@ -43,7 +43,7 @@ pub struct Plan {
     pub oriented: bool,
     /// `--max-side` block size (1 = none)
     pub factor: usize,
-    /// SPEC 2 reference stretch
+    /// METHOD §2 reference stretch
     pub reference: bool,
     /// masks given (0, 1 or 2)
     pub masks: u8,

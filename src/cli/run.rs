@@ -289,7 +289,7 @@ fn method_params(opts: &Options) -> Params {
 ///
 /// Order (as the Python command): decode (sRGB -> linear unless `--linear`
 /// or `--preprocess reference`; float TIFF as is) -> reference stretch of
-/// SPEC 2 (integer inputs with `--preprocess reference`, whole image, no
+/// METHOD §2 (integer inputs with `--preprocess reference`, whole image, no
 /// mask) -> `--max-side` block average (masks: see `--help`) -> `restore`.
 pub fn decode_and_restore<R: BufRead + Seek>(
     reader: R,
@@ -507,7 +507,7 @@ fn finish(job: &Job, (restored, t0): (Restored, Instant), opts: &Options) -> Res
         total: t0.elapsed().as_secs_f64(),
     };
     let mut side = sidecar(&job.input, &paths, &source, &res, opts, seconds);
-    if opts.stream && opts.reuse_estimates.is_some() {
+    if opts.reuse_estimates.is_some() {
         if let Some(obj) = side.as_object_mut() {
             let reused = res.flags.iter().any(|f| f == FLAG_REUSED);
             obj.insert("reused_estimates".into(), Value::Bool(reused));
@@ -638,6 +638,38 @@ fn overlapped<T: Send>(read: impl FnOnce(&mut Handoff<T>) + Send, mut write: imp
     })
 }
 
+static INTERRUPT: std::sync::OnceLock<std::sync::Arc<std::sync::atomic::AtomicBool>> = std::sync::OnceLock::new();
+
+/// Batch mode's SIGINT handling: the first SIGINT lets the input being
+/// written finish and stops the batch with exit 130 (docs/CLI.md); a second
+/// one ends the process at once. Stream mode keeps the default (the process
+/// ends at once; a shell reports 130).
+pub fn install_interrupt_handler() -> std::io::Result<()> {
+    use signal_hook::consts::SIGINT;
+    let flag = INTERRUPT.get_or_init(Default::default).clone();
+    signal_hook::flag::register_conditional_default(SIGINT, flag.clone())?;
+    signal_hook::flag::register(SIGINT, flag)?;
+    Ok(())
+}
+
+fn interrupted() -> bool {
+    INTERRUPT.get().is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
+}
+
+/// The exit code of an interrupted run.
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+/// The core sequence of `--reuse-estimates N`: restored inputs 0, N, 2N,
+/// ... estimate the water type and veiling light, the others reuse them.
+fn sequence(opts: &Options) -> Option<Sequence> {
+    opts.reuse_estimates.map(|n| {
+        let mut s = Sequence::new(method_params(opts));
+        s.refresh_every = n;
+        s.reuse_water_mask = opts.reuse_water_mask;
+        s
+    })
+}
+
 /// Batch mode: every input is processed; returns the largest exit code.
 /// The next input is decoded and restored while the outputs of the
 /// previous one are written (`overlapped`).
@@ -652,22 +684,33 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         report(err, opts.json_errors, Some(p), e);
         code = code.max(e.kind.exit_code());
     }
+    // --reuse-estimates N: the inputs are the frames of one sequence, in order
+    let mut seq = sequence(opts);
     let read = |h: &mut Handoff<(usize, Result<Prepared, CliError>)>| {
         for (i, job) in jobs.iter().enumerate() {
-            let r = prepare(job, opts, &masks, None, Some(&mut h.gate));
+            if interrupted() {
+                break;
+            }
+            let r = prepare(job, opts, &masks, seq.as_mut(), Some(&mut h.gate));
             let held = r.as_ref().map_or(0, Prepared::held_bytes);
             if !h.hand((i, r), held) {
                 break;
             }
         }
     };
+    let t0 = Instant::now();
+    let total = jobs.len();
+    // done, skipped, failed (the inputs that matched nothing count as failed)
+    let mut counts = [0usize, 0, errors.len()];
     let write = |(i, r): (usize, Result<Prepared, CliError>)| {
         let Some(job) = jobs.get(i) else {
             return;
         };
         let outcome = r.and_then(|p| complete(job, p, opts));
+        let k = i + 1;
         match outcome {
             Ok(Outcome::Done(side)) => {
+                counts[0] += 1;
                 if !opts.quiet {
                     let img = side
                         .pointer("/outputs/image")
@@ -677,7 +720,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                     let secs = side.pointer("/seconds/total").and_then(Value::as_f64).unwrap_or(0.0);
                     let _ = writeln!(
                         out,
-                        "{} -> {} (water type {}, {secs:.2} s)",
+                        "[{k}/{total}] {} -> {} (water type {}, {secs:.2} s)",
                         job.input.display(),
                         img.display(),
                         side.get("water_type").and_then(Value::as_str).unwrap_or("?")
@@ -685,11 +728,13 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                 }
             }
             Ok(Outcome::Skipped(s)) => {
+                counts[1] += 1;
                 if !opts.quiet {
-                    let _ = writeln!(out, "{}: skipped ({} exists)", job.input.display(), s.display());
+                    let _ = writeln!(out, "[{k}/{total}] {}: skipped ({} exists)", job.input.display(), s.display());
                 }
             }
             Err(e) => {
+                counts[2] += 1;
                 report(err, opts.json_errors, Some(&job.input), &e);
                 code = code.max(e.kind.exit_code());
             }
@@ -699,6 +744,26 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     if let Err(e) = overlapped(read, write) {
         report(err, opts.json_errors, None, &e);
         code = code.max(e.kind.exit_code());
+    }
+    let [done, skipped, failed] = counts;
+    if !opts.quiet {
+        let _ = writeln!(out, "{done} done, {skipped} skipped, {failed} failed in {:.1} s", t0.elapsed().as_secs_f64());
+    }
+    if interrupted() {
+        let message = format!(
+            "interrupted after {} of {total} inputs; run the same command again to resume",
+            done + skipped + failed - errors.len()
+        );
+        let _ = if opts.json_errors {
+            let obj = serde_json::json!({"error": "interrupted", "input": null, "message": message, "exit_code": EXIT_INTERRUPTED});
+            writeln!(err, "{obj}")
+        } else {
+            writeln!(err, "uwhl-rs: {message}")
+        };
+        return EXIT_INTERRUPTED;
+    }
+    if failed > 0 && !opts.json_errors {
+        let _ = writeln!(err, "uwhl-rs: {failed} input(s) failed");
     }
     code
 }
@@ -749,14 +814,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         Ok(m) => m,
         Err(code) => return code,
     };
-    // --reuse-estimates N: frames 0, N, 2N, ... (counting restored frames)
-    // estimate, the others reuse (core Sequence mode)
-    let mut seq = opts.reuse_estimates.map(|n| {
-        let mut s = Sequence::new(method_params(opts));
-        s.refresh_every = n;
-        s.reuse_water_mask = opts.reuse_water_mask;
-        s
-    });
+    let mut seq = sequence(opts);
     let read = |h: &mut Handoff<StreamItem>| {
         let mut line = Vec::new();
         loop {

@@ -89,10 +89,7 @@ pub fn parameters(o: &Options) -> Value {
         "max_side": o.max_side,
         "max_pixels": o.max_pixels,
         "preprocess": o.preprocess.name(),
-        "selection": match o.selection {
-            crate::pipeline::Selection::Exhaustive => "exhaustive",
-            crate::pipeline::Selection::Fast => "fast",
-        },
+        "selection": o.selection.name(),
         "half_size": false,
         "format": o.format.name(),
         "bits": o.bits(),

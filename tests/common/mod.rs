@@ -1,5 +1,5 @@
 //! Shared helpers of the integration tests: a small rendered underwater
-//! scene (SPEC 0 model) and a seeded generator.
+//! scene (METHOD §0 model) and a seeded generator.
 #![allow(dead_code)]
 
 /// A seeded 64-bit LCG: uniform values in [0, 1).
@@ -41,7 +41,7 @@ pub fn scene(h: usize, w: usize, seed: u64) -> Vec<f32> {
     out
 }
 
-/// Pearson correlation of two samples (SPEC 11's rho).
+/// Pearson correlation of two samples (METHOD §11's rho).
 pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len() as f64;
     let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);

@@ -1,0 +1,217 @@
+"""One command-line contract (docs/CLI.md): ``uwhl restore`` and ``uwhl-rs
+restore`` run over the same table of cases (good inputs, corrupt ones, bad
+flags, over budget, unwritable output, interrupted, sequences) and must
+agree on the exit code, the files written and the sidecars' fields.
+
+The expected codes come from the contract's table, not from either
+command: 0 ok, 2 bad arguments, 3 unreadable input, 4 over budget, 5
+unwritable output, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import uwhl_rs
+from uwhl_rs import _core, synth
+
+CONTRACT = {"ok": 0, "bad_arguments": 2, "unreadable_input": 3, "over_budget": 4, "write_failed": 5,
+            "internal": 6, "interrupted": 130}
+
+# fields of the sidecar both commands must write alike (the estimates and the
+# options that are not face-specific)
+SAME_FIELDS = ["water_type", "scores", "excluded", "veiling_light", "vl_pixels", "flags", "guided_radius",
+               "guided_subsample", "beta_ratios", "outputs", "reused_estimates"]
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    pkg = os.path.dirname(os.path.dirname(os.path.abspath(uwhl_rs.__file__)))
+    env["PYTHONPATH"] = os.pathsep.join(p for p in [pkg, env.get("PYTHONPATH", "")] if p)
+    return env
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("parity_inputs")
+    for k, wt in enumerate(["II", "3C", "7C"]):
+        img, _ = synth.demo_input(60, 80, water_type=wt, seed=k)
+        uwhl_rs.io.write_image(d / f"f{k}.png", img, bits=8, encoding="linear")
+    good = (d / "f0.png").read_bytes()
+    (d / "truncated.png").write_bytes(good[: len(good) // 3])
+    (d / "garbage.jpg").write_bytes(b"\xff\xd8\xff\xe0 not really a jpeg" * 10)
+    (d / "a_file").write_text("not a folder")
+    return d
+
+
+def _cmd(face: str, binary: str, args: list[str]) -> list[str]:
+    if face == "python":
+        return [sys.executable, "-m", "uwhl_rs", "restore", *args]
+    return [binary, "restore", *args]
+
+
+def _outputs(out) -> dict:
+    if not os.path.isdir(out):
+        return {}
+    res = {}
+    for dp, _, fs in os.walk(out):
+        for f in fs:
+            p = os.path.join(dp, f)
+            rel = os.path.relpath(p, out)
+            res[rel] = json.load(open(p)) if f.endswith(".json") else os.path.getsize(p)
+    return res
+
+
+def _run(face, binary, args, tmp, stdin=None):
+    r = subprocess.run(_cmd(face, binary, args), capture_output=True, text=True, timeout=600, env=_env(),
+                       input=stdin, cwd=tmp)
+    return r
+
+
+# (id, arguments with {d} = input folder and {o} = output folder, expected kind, expected output names)
+CASES = [
+    ("good", ["{d}/f0.png", "{d}/f1.png", "-o", "{o}", "--format", "png"], "ok",
+     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json", "f1.png", "f1_t.png", "f1_t_color.png", "f1.json"}),
+    ("out spelled --out", ["{d}/f0.png", "--out", "{o}", "--format", "png"], "ok",
+     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json"}),
+    ("out spelled --output", ["{d}/f0.png", "--output", "{o}", "--format", "png"], "ok",
+     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json"}),
+    ("truncated beside good", ["{d}/truncated.png", "{d}/f2.png", "-o", "{o}", "--format", "png"],
+     "unreadable_input", {"f2.png", "f2_t.png", "f2_t_color.png", "f2.json"}),
+    ("garbage jpeg", ["{d}/garbage.jpg", "-o", "{o}"], "unreadable_input", set()),
+    ("missing input", ["{d}/nope.png", "-o", "{o}"], "unreadable_input", set()),
+    ("quality 0", ["{d}/f0.png", "-o", "{o}", "--quality", "0"], "bad_arguments", set()),
+    ("quality 101", ["{d}/f0.png", "-o", "{o}", "--quality", "101"], "bad_arguments", set()),
+    ("unknown flag", ["{d}/f0.png", "-o", "{o}", "--frobnicate"], "bad_arguments", set()),
+    ("bad water type", ["{d}/f0.png", "-o", "{o}", "--water-type", "XI"], "bad_arguments", set()),
+    ("bad eps", ["{d}/f0.png", "-o", "{o}", "--guided-eps", "-1"], "bad_arguments", set()),
+    ("bits 16 with jpg", ["{d}/f0.png", "-o", "{o}", "--bits", "16"], "bad_arguments", set()),
+    ("bits 12", ["{d}/f0.png", "-o", "{o}", "--format", "png", "--bits", "12"], "bad_arguments", set()),
+    ("reuse mask without reuse", ["{d}/f0.png", "-o", "{o}", "--reuse-water-mask"], "bad_arguments", set()),
+    ("no output folder", ["{d}/f0.png"], "bad_arguments", set()),
+    ("over max-pixels", ["{d}/f0.png", "-o", "{o}", "--max-pixels", "100"], "over_budget", set()),
+    ("over max-memory", ["{d}/f0.png", "-o", "{o}", "--max-memory", "64K"], "over_budget", set()),
+    ("output is a file", ["{d}/f0.png", "-o", "{d}/a_file"], "write_failed", set()),
+    ("sequence", ["{d}/f0.png", "{d}/f1.png", "{d}/f2.png", "-o", "{o}", "--format", "png",
+                  "--reuse-estimates", "2", "--guided-subsample", "auto"], "ok",
+     {f"f{k}{s}" for k in range(3) for s in (".png", "_t.png", "_t_color.png", ".json")}),
+]
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
+def test_both_commands_keep_one_contract(binary, files, tmp_path, case):
+    name, args, kind, names = case
+    seen = {}
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        a = [x.format(d=files, o=out) for x in args]
+        r = _run(face, binary, a, tmp_path)
+        assert r.returncode == CONTRACT[kind], (face, r.returncode, r.stderr[-2000:])
+        got = _outputs(out)
+        assert set(got) == names, (face, sorted(got))
+        if kind != "ok" and not (kind == "unreadable_input" and names):
+            assert r.stderr.strip(), face  # a message names the problem
+        seen[face] = got
+    for f in names:
+        if f.endswith(".json"):
+            py, rs = seen["python"][f], seen["rust"][f]
+            for key in SAME_FIELDS:
+                assert py.get(key) == rs.get(key), (f, key)
+            for key, value in py["parameters"].items():
+                if key not in ("threads", "half_size"):
+                    assert rs["parameters"].get(key) == value, (f, key)
+
+
+def test_json_errors_are_the_same_objects(binary, files, tmp_path):
+    objs = {}
+    for face in ("python", "rust"):
+        r = _run(face, binary, [str(files / "garbage.jpg"), "-o", str(tmp_path / face), "--json-errors"], tmp_path)
+        assert r.returncode == CONTRACT["unreadable_input"], r.stderr
+        lines = [json.loads(x) for x in r.stderr.splitlines() if x.strip()]  # nothing but JSON
+        assert len(lines) == 1, r.stderr
+        objs[face] = lines[0]
+    for o in objs.values():
+        assert set(o) == {"error", "input", "message", "exit_code"}
+        assert (o["error"], o["exit_code"]) == ("unreadable_input", 3)
+        assert o["input"].endswith("garbage.jpg") and o["message"]
+
+
+def test_progress_skip_and_summary_lines_agree(binary, files, tmp_path):
+    lines = {}
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        args = [str(files / "f0.png"), str(files / "f1.png"), "-o", str(out), "--format", "png"]
+        first = _run(face, binary, args, tmp_path)
+        again = _run(face, binary, args, tmp_path)
+        assert (first.returncode, again.returncode) == (0, 0)
+        text = first.stdout + first.stderr
+        assert "[1/2] " in text and "[2/2] " in text and " -> " in text and "(water type " in text, text
+        assert "2 done, 0 skipped, 0 failed in " in first.stdout, first.stdout
+        text = again.stdout + again.stderr
+        assert f"{files / 'f0.png'}: skipped ({out / 'f0.json'} exists)" in text, text
+        assert "0 done, 2 skipped, 0 failed in " in again.stdout, again.stdout
+        lines[face] = sorted(ln.split(" (water type")[0] for ln in text.splitlines() if ln.startswith("[")) 
+    assert lines["python"] == [ln.replace("/rust/", "/python/") for ln in lines["rust"]]
+
+
+def test_rust_only_and_python_only_options_are_refused_with_a_pointer(binary, files, tmp_path):
+    r = _run("rust", binary, [str(files / "f0.png"), "-o", str(tmp_path / "o"), "--contact-sheet"], tmp_path)
+    assert r.returncode == 2 and "Python command" in r.stderr
+    r = subprocess.run([binary, "demo"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "uwhl demo" in r.stderr
+    r = _run("python", binary, [str(files / "f0.png"), "-o", str(tmp_path / "o"), "--stream"], tmp_path)
+    assert r.returncode == 2
+
+
+def test_help_of_both_lists_the_shared_options_and_exit_codes(binary):
+    py = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", "--help"], capture_output=True, text=True,
+                        env=_env(), timeout=60).stdout
+    rs = subprocess.run([binary, "--help"], capture_output=True, text=True, timeout=60).stdout
+    for o in _core.OPTIONS:
+        if o["faces"] in ("both", "python"):
+            assert o["flag"] in py, o["flag"]
+        if o["faces"] in ("both", "rust"):
+            assert o["flag"] in rs, o["flag"]
+    for code, name, _ in _core.EXIT_CODES:
+        assert CONTRACT[name] == code
+        assert f"  {code} " in py and f"  {code} " in rs, code
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGINT"), reason="no SIGINT")
+def test_interrupt_is_130_and_resumes(binary, files, tmp_path):
+    """SIGINT mid-batch: exit 130, every sidecar written has its outputs,
+    and the same command run again finishes the rest with exit 0."""
+    many = tmp_path / "many"
+    many.mkdir()
+    for k in range(30):
+        os.link(files / f"f{k % 3}.png", many / f"m{k:02d}.png")
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        args = _cmd(face, binary, [str(many), "-o", str(out), "--format", "png", "--max-side", "40"])
+        p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(),
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        deadline = time.time() + 120
+        while time.time() < deadline and not (out.exists() and any(f.endswith(".json") for f in os.listdir(out))):
+            time.sleep(0.02)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=120)
+        done = [f for f in os.listdir(out) if f.endswith(".json")]
+        if len(done) == 30:
+            pytest.skip(f"{face}: the run finished before the interrupt")
+        assert p.returncode == CONTRACT["interrupted"], (face, p.returncode, err[-1000:])
+        for f in done:
+            stem = f[:-5]
+            for s in (".png", "_t.png", "_t_color.png"):
+                assert (out / f"{stem}{s}").exists(), (face, stem, s)
+        again = subprocess.run(args, capture_output=True, text=True, env=_env(), timeout=600)
+        assert again.returncode == 0, again.stderr
+        assert len([f for f in os.listdir(out) if f.endswith(".json")]) == 30
+        assert f"{len(done)} skipped" in again.stdout
