@@ -16,7 +16,7 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
   1920x1080; both also with ``guided_subsample="auto"`` (METHOD §6, subsampled guided filter);
   and the frames of a ``uwhl_rs.Sequence`` (METHOD §10, sequence mode) where the
   package has it;
-* ``reference``: ``tests/reference.py``'s ``restore`` (imported by path).
+* ``reference``: ``tests/python/reference.py``'s ``restore`` (imported by path).
   It runs in full where the table says "full"; where it says "scaled from
   HxW", it ran on a crop of that size and its time is scaled by the pixel
   count (it is linear in the pixel count);
@@ -75,7 +75,7 @@ def _import_package(pkg_dir: str | None):
 
 
 def _reference():
-    spec = importlib.util.spec_from_file_location("uwhl_reference", ROOT / "tests" / "reference.py")
+    spec = importlib.util.spec_from_file_location("uwhl_reference", ROOT / "tests" / "python" / "reference.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -395,7 +395,7 @@ def main(argv=None) -> int:
             seq_rows.append((label, best_of(lambda: seq.restore(img), 5)))
 
     print()
-    print("Whole restore (seconds; reference = tests/reference.py, NumPy/SciPy):")
+    print("Whole restore (seconds; reference = tests/python/reference.py, NumPy/SciPy):")
     print(table(["size", "WxH", "uwhl_rs all 10", "uwhl_rs fast", "fast + subsampled GF", "this build / baseline, fresh processes", "reference", "reference run",
                  "speed-up", "floor ms", "x floor", "type", "fast type", "ref type same"], rows))
     print()

@@ -15,6 +15,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 fn status_kb(key: &str) -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
@@ -32,28 +35,9 @@ fn reset_peak() -> u64 {
     status_kb("VmRSS:")
 }
 
-/// A deterministic underwater-looking scene (water on top, a textured
-/// seabed fading with distance), linear RGB.
+/// The scene of the tests (tests/common).
 fn scene(h: usize, w: usize) -> Vec<f32> {
-    let a = [0.04f32, 0.22, 0.30];
-    let mut v = Vec::with_capacity(h * w * 3);
-    for y in 0..h {
-        for x in 0..w {
-            let tb = if y < h / 3 {
-                0.0
-            } else {
-                (-2.5 * (h - y) as f32 / h as f32).exp()
-            };
-            let t = [tb.powf(2.47), tb.powf(1.05), tb];
-            let k = ((x / 7) ^ (y / 5)) % 4;
-            let j = [0.2 + 0.2 * k as f32, 0.7 - 0.1 * k as f32, 0.3 + 0.15 * (k % 2) as f32];
-            let n = ((x * 7919 + y * 104729) % 1000) as f32 / 1000.0 * 0.004 - 0.002;
-            for c in 0..3 {
-                v.push((t[c] * j[c] + (1.0 - t[c]) * a[c] + n).clamp(0.0, 1.0));
-            }
-        }
-    }
-    v
+    common::scene(h, w, 1)
 }
 
 fn child_core(h: usize, w: usize, threads: usize) {
@@ -147,7 +131,7 @@ fn main() {
         let png = dir.join(format!("scene_{h}x{w}.png"));
         write_png(&png, h, w);
         for threads in [1usize, 2] {
-            let est = uwhl::pipeline::memory_estimate(h, w, false) as f64;
+            let est = uwhl::memory_estimate(h, w, false) as f64;
             for what in ["core", "binary"] {
                 let a: Vec<String> = match what {
                     "core" => vec!["--child-core".into(), h.to_string(), w.to_string(), threads.to_string()],

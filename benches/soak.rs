@@ -10,6 +10,9 @@
 //! more than 8 MiB above RSS after call 100 (allocator warm-up done).
 //! Not part of CI (several minutes). Linux only.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 fn rss_kb() -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
@@ -22,21 +25,9 @@ fn rss_kb() -> u64 {
         .unwrap_or(0)
 }
 
+/// The scene of the tests (tests/common), seed `seed`.
 fn scene(h: usize, w: usize, seed: usize) -> Vec<f32> {
-    let mut v = Vec::with_capacity(h * w * 3);
-    for y in 0..h {
-        for x in 0..w {
-            let tb = if y < h / 3 { 0.0 } else { (-2.0 * (h - y) as f32 / h as f32).exp() };
-            let k = ((x / 6) ^ (y / 4) ^ seed) % 4;
-            let j = [0.2 + 0.2 * k as f32, 0.6 - 0.1 * k as f32, 0.35];
-            let a = [0.05f32, 0.2, 0.3];
-            let t = [tb.powf(2.5), tb.powf(1.05), tb];
-            for c in 0..3 {
-                v.push((t[c] * j[c] + (1.0 - t[c]) * a[c]).clamp(0.0, 1.0));
-            }
-        }
-    }
-    v
+    common::scene(h, w, seed as u64)
 }
 
 fn soak(name: &str, calls: usize, mut f: impl FnMut(usize)) -> bool {

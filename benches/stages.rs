@@ -16,15 +16,15 @@ use std::time::Duration;
 use uwhl::guided::GuideStats;
 use uwhl::hazelines::initial_transmission;
 use uwhl::matting::Matting;
-use uwhl::pipeline::{default_radius, guide_image, Selection};
+use uwhl::stretch::guide_image;
 use uwhl::recover::{display_stretch, recover};
 use uwhl::select::{choose, type_stats};
 use uwhl::sphere::SphereIndex;
 use uwhl::veiling::estimate;
-use uwhl::{restore, ImageRef, Input, Params, WaterType};
+use uwhl::{default_radius, restore, ImageRef, Input, Params, Selection, WaterType};
 
-#[path = "scene.rs"]
-mod scene;
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 /// The reference code's working size.
 const REF: (usize, usize) = (1340, 2010);
@@ -40,7 +40,7 @@ fn input(data: &[f32], h: usize, w: usize) -> Input<'_> {
 fn stages(c: &mut Criterion) {
     let (h, w) = REF;
     let wt = WaterType::by_name("III").expect("type III");
-    let data = scene::render(h, w, &wt, 1);
+    let data = common::render(h, w, &wt, 1).img;
     let img = ImageRef::new(&data, h, w).expect("bench image");
     let veil = estimate(&img, None, None, None);
     let index = SphereIndex::new(500).expect("index");
@@ -86,7 +86,7 @@ fn whole(c: &mut Criterion) {
     let mut g = c.benchmark_group("restore");
     g.sample_size(10).measurement_time(Duration::from_secs(10));
     for (name, (h, w)) in [("1MP", (1000, 1000)), ("2.7MP", REF), ("12MP", (3000, 4000))] {
-        let data = scene::render(h, w, &wt, 2);
+        let data = common::render(h, w, &wt, 2).img;
         let inp = input(&data, h, w);
         g.bench_with_input(BenchmarkId::new("all_ten_types", name), &inp, |b, inp| {
             b.iter(|| restore(inp, &Params::default()).expect("restore"))
@@ -103,7 +103,7 @@ fn whole(c: &mut Criterion) {
     }
     // sequence mode: the type and the veiling light of a previous frame
     let (h, w) = (1080, 1920);
-    let data = scene::render(h, w, &wt, 3);
+    let data = common::render(h, w, &wt, 3).img;
     let inp = input(&data, h, w);
     let a = restore(&inp, &Params::default()).expect("restore").veiling_light;
     let p = Params {
@@ -130,7 +130,7 @@ fn whole(c: &mut Criterion) {
 fn outputs(c: &mut Criterion) {
     let (h, w) = (1080, 1920);
     let wt = WaterType::by_name("III").expect("type III");
-    let data = scene::render(h, w, &wt, 2);
+    let data = common::render(h, w, &wt, 2).img;
     let res = restore(&input(&data, h, w), &Params { water_types: vec![wt], ..Params::default() }).expect("restore");
     let mut g = c.benchmark_group("outputs");
     g.sample_size(20).measurement_time(Duration::from_secs(3));

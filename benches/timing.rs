@@ -12,11 +12,10 @@
 //! share (`Restoration::timings`).
 
 use std::time::Instant;
-use uwhl::pipeline::Selection;
-use uwhl::{restore, ImageRef, Input, Params, Sequence, WaterType};
+use uwhl::{restore, ImageRef, Input, Params, Selection, Sequence, WaterType};
 
-#[path = "scene.rs"]
-mod scene;
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 fn main() {
     // cargo bench adds "--bench": keep the positional arguments only
@@ -27,7 +26,7 @@ fn main() {
     let reps = get(4, 3);
     let threads = args.get(5).and_then(|s| s.parse().ok());
     let wt = WaterType::by_name("III").unwrap_or_else(|e| panic!("{e}"));
-    let data = scene::render(h, w, &wt, 2);
+    let data = common::render(h, w, &wt, 2).img;
     let mut inp = Input {
         image: ImageRef::new(&data, h, w).unwrap_or_else(|e| panic!("{e}")),
         mask: None,

@@ -9,6 +9,7 @@
 use crate::boxsum::{band_ranges, box_means, split_bands, with_starts, BoxGeom};
 use rayon::prelude::*;
 use std::ops::Range;
+use crate::filters::components8;
 
 /// Rows a band of the box passes has at least.
 const MIN_BAND_ROWS: usize = 16;
@@ -179,6 +180,7 @@ fn interp_axis(n: usize, s: usize) -> Vec<(usize, usize, f32)> {
         .collect()
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Inverse of a symmetric 3x3 matrix given as (a, b, c, d, e, f) =
 /// [[a b c] [b d e] [c e f]]; None if singular.
 pub fn inv_sym3(m: [f64; 6]) -> Option<[f64; 6]> {
@@ -281,6 +283,7 @@ impl GuideStats {
         gs
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// The subsampling factor (1: the exact filter).
     pub fn subsample(&self) -> usize {
         self.low.as_ref().map_or(1, |l| l.s)
@@ -314,6 +317,7 @@ impl GuideStats {
         stats
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Sets the number of parallel row bands of the box passes (results do
     /// not depend on it); 1 when the caller already runs several filters in
     /// parallel.
@@ -326,11 +330,13 @@ impl GuideStats {
         band_ranges(self.geom.h, self.bands, MIN_BAND_ROWS)
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// The radius the statistics were computed for.
     pub fn radius(&self) -> usize {
         self.geom.r
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// The guide image (interleaved RGB).
     pub fn guide(&self) -> &[f32] {
         &self.guide
@@ -495,6 +501,7 @@ impl GuideStats {
             .collect()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Filters the plane `p` (METHOD §6): both passes, q as a plane.
     pub fn filter(&self, p: &[f32]) -> Vec<f32> {
         let BoxGeom { h, w, .. } = self.geom;
@@ -512,6 +519,82 @@ impl GuideStats {
         q
     }
 }
+
+/// Gives each masked-out region (8-connected) one value: the mean of `q`
+/// over the masked-in pixels directly below it; if none, directly above; if
+/// none, its masked-in 8-neighbours (METHOD §6, METHOD §6).
+pub fn chart_fill(q: &mut [f32], mask: &[bool], h: usize, w: usize) {
+    let out: Vec<bool> = mask.iter().map(|&b| !b).collect();
+    let (labels, sizes) = components8(&out, h, w);
+    if sizes.is_empty() {
+        return;
+    }
+    let nl = sizes.len();
+    // Per region, the SET of its neighbour pixels at the given offsets: (label,
+    // pixel) pairs, sorted and deduplicated, then summed in that order.
+    let collect = |offsets: &[(isize, isize)]| -> (Vec<f64>, Vec<f64>) {
+        let mut pairs: Vec<(u32, usize)> = Vec::new();
+        for (i, &l) in labels.iter().enumerate() {
+            if l == 0 {
+                continue;
+            }
+            let (y, x) = ((i / w) as isize, (i % w) as isize);
+            for &(dy, dx) in offsets {
+                let (ny, nx) = (y + dy, x + dx);
+                if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
+                    continue;
+                }
+                let j = ny as usize * w + nx as usize;
+                if mask.get(j).copied().unwrap_or(false) {
+                    pairs.push((l, j));
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut sum = vec![0f64; nl];
+        let mut cnt = vec![0f64; nl];
+        for (l, j) in pairs {
+            // labels are 1..=nl (0 was skipped above)
+            let k = l as usize - 1;
+            if let (Some(s), Some(c), Some(&qj)) = (sum.get_mut(k), cnt.get_mut(k), q.get(j)) {
+                *s += qj as f64;
+                *c += 1.0;
+            }
+        }
+        (sum, cnt)
+    };
+    let below = collect(&[(1, 0)]);
+    let above = collect(&[(-1, 0)]);
+    let around = collect(&[
+        (-1, -1),
+        (-1, 0),
+        (-1, 1),
+        (0, -1),
+        (0, 1),
+        (1, -1),
+        (1, 0),
+        (1, 1),
+    ]);
+    let value: Vec<Option<f32>> = (0..nl)
+        .map(|k| {
+            [&below, &above, &around]
+                .iter()
+                .find_map(|(s, c)| match (s.get(k), c.get(k)) {
+                    (Some(&s), Some(&c)) if c > 0.0 => Some((s / c) as f32),
+                    _ => None,
+                })
+        })
+        .collect();
+    q.par_iter_mut().zip(labels.par_iter()).for_each(|(v, &l)| {
+        if l > 0 {
+            if let Some(&Some(x)) = value.get(l as usize - 1) {
+                *v = x;
+            }
+        }
+    });
+}
+
 
 #[cfg(test)]
 mod tests {

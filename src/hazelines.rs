@@ -3,7 +3,6 @@
 use crate::fastmath;
 use crate::filters::box_mean;
 use crate::image::ImageRef;
-use crate::matting::LB_FLOOR;
 use crate::sphere::SphereIndex;
 use crate::water::WaterType;
 use rayon::prelude::*;
@@ -21,6 +20,7 @@ pub fn signed_pow(d: f32, p: f64) -> f32 {
     fastmath::signed_pow(d, p)
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// The medium-compensated vector of METHOD §0 / 4.1 for one pixel.
 #[inline]
 pub fn compensated(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> [f32; 3] {
@@ -121,6 +121,30 @@ impl CompensatedRow {
     }
 }
 
+/// Floor of the lower bound (METHOD §5).
+pub const LB_FLOOR: f32 = 0.1;
+
+/// The lower bound t_LB of METHOD §5 for one pixel.
+#[cfg(any(test, feature = "internals"))]
+#[inline]
+pub fn lower_bound_px(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> f32 {
+    let ht = HazeType::new(a, wt);
+    ht.lower_bound(ht.compensated(px))
+}
+
+/// t_LB for every pixel (METHOD §5), through the per-pixel functions of
+/// the haze-lines pass.
+#[cfg(any(test, feature = "internals"))]
+pub fn lower_bound(img: &ImageRef, a: [f32; 3], wt: &WaterType) -> Vec<f32> {
+    let ht = HazeType::new(a, wt);
+    img.data
+        .as_chunks::<3>()
+        .0
+        .par_iter()
+        .map(|&p| ht.lower_bound(ht.compensated(p)))
+        .collect()
+}
+
 /// Rows per work item of the per-pixel passes.
 pub const CHUNK_ROWS: usize = 8;
 
@@ -196,6 +220,7 @@ pub fn t_tilde(r: f32, cluster: f32, rmax: &[f32]) -> f32 {
     }
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// t~ for every pixel (METHOD §4.1-4.6): haze-line clusters on masked-in
 /// pixels, r / r_max clamped to [0.01, 1], masked-out pixels filled by
 /// [`fill_masked`], then scaled by 0.9.
@@ -253,6 +278,17 @@ pub fn fill_masked(t: &mut [f32], mask: &[bool], h: usize, w: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lower_bound_by_hand() {
+        // I = (0.05, 0.2, 0.3), A = (0.1, 0.4, 0.6), betas (0.5, 2):
+        // R: (1 - 0.5)^0.5 = 0.7071; G: (0.5)^2 = 0.25; B: 0.5 -> 0.7071
+        let wt = WaterType::new("x", 0.5, 2.0).unwrap();
+        let v = lower_bound_px([0.05, 0.2, 0.3], [0.1, 0.4, 0.6], &wt);
+        assert!((v - 0.5f32.sqrt()).abs() < 1e-6);
+        // brighter than A in every channel: the floor 0.1
+        assert_eq!(lower_bound_px([0.5, 0.5, 0.7], [0.1, 0.4, 0.6], &wt), 0.1);
+    }
 
     #[test]
     fn row_kernel_gives_the_per_pixel_bits() {

@@ -37,19 +37,38 @@
     )
 )]
 
-/// Declares the core modules: every one forbids unsafe code even when the
-/// pyo3 bindings (which expand to unsafe code) are built into the crate, and
-/// all are under the crate's panic lints above.
-macro_rules! core_modules {
+/// Declares the stage modules: every one forbids unsafe code even when the
+/// pyo3 bindings (which expand to unsafe code) are built into the crate,
+/// and all are under the crate's panic lints above. They are private: the
+/// API is the `pub use` list below. The feature `internals` (benches,
+/// fuzzing, the Python cross-check hooks; never in release wheels) makes
+/// them public.
+macro_rules! stage_modules {
     ($($m:ident),* $(,)?) => {
-        $(#[forbid(unsafe_code)] pub mod $m;)*
+        $(
+            #[cfg(feature = "internals")]
+            #[forbid(unsafe_code)]
+            #[allow(missing_docs)]
+            pub mod $m;
+            #[cfg(not(feature = "internals"))]
+            #[forbid(unsafe_code)]
+            mod $m;
+        )*
     };
 }
 
-core_modules! {
-    boxsum, clahe, color, error, fastmath, filters, guided, hazelines, image, matting, options, pipeline, rank, recover, select, sequence, sphere, util,
-    veiling, water,
+stage_modules! {
+    boxsum, error, fastmath, filters, guided, hazelines, image, matting, params, pipeline, rank, recover,
+    select, sequence, sphere, stretch, util, veiling, water,
 }
+
+/// sRGB curves, quantisation and the transmission colour map of
+/// docs/OUTPUTS.md, shared by both commands.
+#[forbid(unsafe_code)]
+pub mod color;
+/// The one table of parameters and command options (docs/CLI.md).
+#[forbid(unsafe_code)]
+pub mod options;
 
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
 /// outputs and sidecar, batch and stream modes.
@@ -65,9 +84,13 @@ mod python;
 #[cfg(feature = "python")]
 #[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 mod python_color;
+#[cfg(all(feature = "python", feature = "internals"))]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
+mod python_hooks;
 
 pub use crate::error::{Error, Result};
 pub use crate::image::ImageRef;
-pub use crate::pipeline::{restore, Input, Params, Restoration};
-pub use crate::sequence::Sequence;
+pub use crate::params::{channel_transmissions, default_radius, memory_estimate, Flag, Input, Params, Restoration, Selection, Stage};
+pub use crate::pipeline::restore;
+pub use crate::sequence::{Estimates, Sequence};
 pub use crate::water::{jerlov_types, WaterType, JERLOV};

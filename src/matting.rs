@@ -1,33 +1,13 @@
-//! The transmission lower bound and the Mahalanobis soft matting with the
-//! water region (METHOD §5 / METHOD §5).
+//! The Mahalanobis soft matting with the water region (METHOD §5) and the
+//! blend of the initial transmission with its lower bound (METHOD §4.6,
+//! §5). The lower bound itself is computed in the haze-lines pass
+//! ([`crate::hazelines`]).
 
-use crate::hazelines::HazeType;
+use crate::hazelines::{T_MIN, T_SCALE};
 use crate::image::ImageRef;
 use crate::util::{det_sum, det_sums, REDUCE_ROWS};
-use crate::water::WaterType;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
-
-/// Floor of the lower bound (METHOD §5).
-pub const LB_FLOOR: f32 = 0.1;
-
-/// The lower bound t_LB of METHOD §5 for one pixel.
-#[inline]
-pub fn lower_bound_px(px: [f32; 3], a: [f32; 3], wt: &WaterType) -> f32 {
-    let ht = HazeType::new(a, wt);
-    ht.lower_bound(ht.compensated(px))
-}
-
-/// t_LB for every pixel (METHOD §5).
-pub fn lower_bound(img: &ImageRef, a: [f32; 3], wt: &WaterType) -> Vec<f32> {
-    let ht = HazeType::new(a, wt);
-    img.data
-        .as_chunks::<3>()
-        .0
-        .par_iter()
-        .map(|&p| ht.lower_bound(ht.compensated(p)))
-        .collect()
-}
 
 /// The soft matting of METHOD §5 as a model of the water's colors: the VL
 /// pixels' mean and regularised inverse covariance, and the two thresholds
@@ -159,6 +139,7 @@ pub fn thresholds<F: Fn(usize) -> f64 + Sync>(vl: &[bool], width: usize, d: F) -
     (mean + 2.0 * sd, max + sd)
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Squared Mahalanobis distances (as MATLAB's `mahal`) of every pixel to the
 /// colors of the VL pixels (see [`Matting::fit`]). None with fewer than 2
 /// VL pixels.
@@ -167,6 +148,7 @@ pub fn mahalanobis_sq(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
     Some(img.data.as_chunks::<3>().0.par_iter().map(|&p| m.distance(p)).collect())
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Matting weights w of METHOD §5 (1 = water, 0 = object) of every pixel
 /// (see [`Matting::weight`]). None with fewer than 2 VL pixels.
 pub fn matting_weights(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
@@ -174,20 +156,47 @@ pub fn matting_weights(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
     Some(img.data.as_chunks::<3>().0.par_iter().map(|&p| m.weight(p)).collect())
 }
 
+/// METHOD §4.4-5 for a run of pixels: t~ = clamp(r / r_max, 0.01, 1) from the
+/// radius in `p` and the cluster in `aux` (`rm`: r_max by cluster + 1,
+/// entry 0 for "no cluster", t~ = 1), or t~ as given in `p` when `tilde`
+/// is false; then t = max(0.9 t~, t_LB), blended with t_LB by the matting
+/// weight. Compiled for baseline x86-64, AVX2 and AVX-512, picked at run
+/// time; the same bits on each (METHOD appendix, same bits on every CPU, F7).
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
+pub(crate) fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
+    let last = rm.len().saturating_sub(1);
+    let tt = |v: f32, x: &[f32; 2]| -> f32 {
+        let t = if tilde {
+            let k = ((x[1] + 1.0).max(0.0) as usize).min(last);
+            match rm.get(k) {
+                Some(&m) if m > 0.0 => (v / m).clamp(T_MIN, 1.0),
+                _ => 1.0,
+            }
+        } else {
+            v
+        };
+        (t * T_SCALE).max(x[0])
+    };
+    match matting {
+        Some(mt) => {
+            for ((v, x), c) in p.iter_mut().zip(aux).zip(px) {
+                let t = tt(*v, x);
+                let wgt = mt.weight(*c);
+                *v = wgt * x[0] + (1.0 - wgt) * t;
+            }
+        }
+        None => {
+            for (v, x) in p.iter_mut().zip(aux) {
+                *v = tt(*v, x);
+            }
+        }
+    }
+}
+
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn lower_bound_by_hand() {
-        // I = (0.05, 0.2, 0.3), A = (0.1, 0.4, 0.6), betas (0.5, 2):
-        // R: (1 - 0.5)^0.5 = 0.7071; G: (0.5)^2 = 0.25; B: 0.5 -> 0.7071
-        let wt = WaterType::new("x", 0.5, 2.0).unwrap();
-        let v = lower_bound_px([0.05, 0.2, 0.3], [0.1, 0.4, 0.6], &wt);
-        assert!((v - 0.5f32.sqrt()).abs() < 1e-6);
-        // brighter than A in every channel: the floor 0.1
-        assert_eq!(lower_bound_px([0.5, 0.5, 0.7], [0.1, 0.4, 0.6], &wt), 0.1);
-    }
 
     #[test]
     fn mahalanobis_by_hand() {

@@ -2,20 +2,26 @@
 //! per-channel display stretch (METHOD §8).
 
 use crate::fastmath::{exp2_clamped, log2_pos};
-use crate::image::ImageRef;
-use crate::util::{channel_percentiles, masked_min_max, ChannelStretch, Normalize};
+use crate::util::{ChannelStretch, Normalize};
 use crate::water::WaterType;
-use rayon::prelude::*;
+#[cfg(any(test, feature = "internals"))]
+use {
+    crate::image::ImageRef,
+    crate::util::{channel_percentiles, masked_min_max},
+    rayon::prelude::*,
+};
 
 /// Lowest transmission of any channel (METHOD §7).
 pub const T_FLOOR: f32 = 0.1;
 
+#[cfg(any(test, feature = "internals"))]
 /// t_B clamped to [0.1^beta_BR, 1] (METHOD §7) for one refined value.
 #[inline]
 pub fn clamp_tb(t: f32, wt: &WaterType) -> f32 {
     Recovery::new([1.0; 3], wt).clamp_tb(t)
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Per-channel transmissions (t_R, t_G, t_B) from a clamped t_B (METHOD §7).
 #[inline]
 pub fn channel_t(tb: f32, wt: &WaterType) -> [f32; 3] {
@@ -122,9 +128,11 @@ impl ArtifactClamp {
     }
 }
 
-/// Recovers J = A + (I - A) / t_c (METHOD §7) from the refined transmission and
-/// applies the artifact clamp (statistics over masked-in pixels). Returns
-/// (J interleaved, clamped t_B).
+#[cfg(any(test, feature = "internals"))]
+/// Recovers J = A + (I - A) / t_c (METHOD §7) from the refined transmission
+/// through the row kernel `restore` runs ([`recover_values`]) and applies
+/// the artifact clamp (statistics over masked-in pixels). Returns (J
+/// interleaved, clamped t_B).
 pub fn recover(
     img: &ImageRef,
     a: [f32; 3],
@@ -133,21 +141,22 @@ pub fn recover(
     mask: Option<&[bool]>,
 ) -> (Vec<f32>, Vec<f32>) {
     let rec = Recovery::new(a, wt);
-    let tb: Vec<f32> = t_refined.par_iter().map(|&t| rec.clamp_tb(t)).collect();
+    let w = img.width.max(1);
     let mut j = vec![0f32; img.data.len()];
-    // pixels as [f32; 3]: the image holds 3 * h * w values (ImageRef::new)
-    j.as_chunks_mut::<3>()
-        .0
-        .par_iter_mut()
-        .zip(img.data.as_chunks::<3>().0.par_iter())
-        .zip(tb.par_iter())
-        .for_each(|((o, p), &t)| {
-            *o = rec.radiance(*p, rec.channel_t(t));
+    let mut tb = vec![0f32; t_refined.len()];
+    let mut tr = vec![0f32; t_refined.len()];
+    j.par_chunks_mut(3 * w)
+        .zip(tb.par_chunks_mut(w))
+        .zip(tr.par_chunks_mut(w))
+        .zip(t_refined.par_chunks(w).zip(img.data.par_chunks(3 * w)))
+        .for_each(|(((jr, br), rr), (q, px))| {
+            recover_values(&rec, q, px.as_chunks::<3>().0, jr.as_chunks_mut::<3>().0, br, rr);
         });
     artifact_clamp(&mut j, mask);
     (j, tb)
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// METHOD §7's artifact clamp in place (see [`ArtifactClamp`]).
 pub fn artifact_clamp(j: &mut [f32], mask: Option<&[bool]>) {
     let (lo, hi) = masked_min_max(j, mask);
@@ -171,6 +180,7 @@ pub fn display_limits(pcts: &[Vec<f64>; 3]) -> ChannelStretch {
     }))
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// The display stretch of METHOD §8: global min-max, then per channel a linear
 /// stretch between its 0.1% and 99.9% percentiles with the upper limit at
 /// least 0.8 (0.9 for red) and the lower at most 0.2, clipped to [0, 1].
@@ -181,6 +191,23 @@ pub fn display_stretch(j: &[f32], mask: Option<&[bool]>) -> Vec<f32> {
     let pcts = channel_percentiles(j, mask, &DISPLAY_QS, |_, v| norm.apply(v));
     display_limits(&pcts).map_rgb(j, |v| norm.apply(v))
 }
+
+/// A type's restored image before its final form: J before the artifact
+/// clamp, and the maps that make the outputs from it.
+pub(crate) struct Stretch {
+    pub(crate) clamp: ArtifactClamp,
+    pub(crate) norm: Normalize,
+    pub(crate) limits: ChannelStretch,
+}
+
+impl Stretch {
+    /// The displayed value of channel c of J (METHOD §7 clamp, METHOD §8 stretch).
+    #[inline(always)]
+    pub(crate) fn apply(&self, c: usize, j: f32) -> f32 {
+        self.limits.apply(c, self.norm.apply(self.clamp.apply(j)))
+    }
+}
+
 
 #[cfg(test)]
 mod tests {

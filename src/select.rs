@@ -1,13 +1,14 @@
 //! Choosing the water type by the gray-world assumption (METHOD §9 / METHOD §9).
 
-use crate::util::{det_sums, REDUCE_ROWS};
+use crate::recover::Stretch;
+use crate::stretch::{lane_constants, LANES};
+use crate::util::ChannelStretch;
 
 /// Initial exclusion threshold on the t_R difference (METHOD §9).
 pub const EXCLUDE_THRESHOLD: f64 = 0.1;
 /// Halvings of the threshold tried before giving up on exclusion.
 pub const MAX_HALVINGS: usize = 30;
 /// Flag: no threshold left any type, so none was excluded.
-pub const FLAG_RELAXED: &str = "exclusion_relaxed";
 
 /// What selection needs from one water type's result.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,9 +63,11 @@ impl SelectionSums {
     }
 }
 
-/// Score and t_R difference for one type (METHOD §9). `stretched` is
-/// interleaved RGB, `t_red` per pixel; counted pixels are masked-in and
-/// not in VL.
+#[cfg(any(test, feature = "internals"))]
+/// Score and t_R difference for one type (METHOD §9) from its displayed
+/// image (`stretched`, interleaved RGB) and t_R, through the row kernels
+/// that `restore` runs ([`row_stats`], [`counted_sums`]), rows combined in
+/// row order. Counted pixels are masked-in and not in VL.
 pub fn type_stats(
     stretched: &[f32],
     t_red: &[f32],
@@ -72,31 +75,27 @@ pub fn type_stats(
     mask: Option<&[bool]>,
     width: usize,
 ) -> TypeStats {
-    let n = t_red.len();
-    let s = det_sums::<7, _>(n, width.max(1) * REDUCE_ROWS, |i, acc| {
-        if mask.is_some_and(|m| !m.get(i).copied().unwrap_or(false)) {
-            return;
-        }
-        let t = t_red.get(i).copied().unwrap_or(0.0) as f64;
-        if vl.get(i).copied().unwrap_or(false) {
-            acc[5] += t;
-            acc[6] += 1.0;
-        } else {
-            if let Some(p) = stretched.get(3 * i..3 * i + 3) {
-                acc.iter_mut().zip(p).for_each(|(a, v)| *a += *v as f64);
-            }
-            acc[3] += t;
-            acc[4] += 1.0;
-        }
-    });
-    SelectionSums {
-        channels: [s[0], s[1], s[2]],
-        tr_counted: s[3],
-        counted: s[4],
-        tr_vl: s[5],
-        vl: s[6],
-    }
-    .stats()
+    let w = width.max(1);
+    let (yes, no) = (vec![true; w], vec![false; w]);
+    let rows: Vec<(RowStats, [f64; 3])> = t_red
+        .chunks(w)
+        .zip(stretched.chunks(3 * w))
+        .enumerate()
+        .map(|(y, (tr, px))| {
+            let row = y * w..(y + 1) * w;
+            let inside = mask.map_or(&yes[..], |m| m.get(row.clone()).unwrap_or(&no));
+            let vlr = vl.get(row).unwrap_or(&no);
+            let px = px.as_chunks::<3>().0;
+            let mut st = RowStats::default();
+            row_stats(px, tr, inside, vlr, &mut st);
+            let counted: Vec<bool> = inside.iter().zip(vlr).map(|(&i, &v)| i & !v).collect();
+            (st, counted_sums(None, px, &counted))
+        })
+        .collect();
+    let st = combine(&rows.iter().map(|r| r.0).collect::<Vec<_>>());
+    let mut sums = st.sums;
+    sums.channels = rows.iter().fold([0f64; 3], |a, r| [a[0] + r.1[0], a[1] + r.1[1], a[2] + r.1[2]]);
+    sums.stats()
 }
 
 /// The outcome of [`choose`].
@@ -154,6 +153,170 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
         threshold,
     }
 }
+
+/// Sums of the three displayed channels of a row of J (`sp` applied, the
+/// METHOD §7 clamp and METHOD §8 stretch, or the values as they are without)
+/// over the pixels where `counted` is true (METHOD §9's means). Without `sp`
+/// on values mapped by [`Stretch::apply`], the same bits as with `sp` on
+/// the values. Runs of 8 pixels are summed in 24 lanes (one
+/// channel each, as in [`map_lanes`]), each lane in pixel order; a
+/// channel's lanes are combined in lane order, then the pixels left over
+/// are added: the same for any thread count. Compiled for baseline x86-64
+/// and for AVX2, picked at run time; the same bits either way (METHOD appendix, same bits on every CPU).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+pub(crate) fn counted_sums(sp: Option<&Stretch>, px: &[[f32; 3]], counted: &[bool]) -> [f64; 3] {
+    match sp {
+        Some(sp) => {
+            let shown = |v: f32, lo: f64, inv: f64, on: bool| -> f32 {
+                let x = sp.norm.apply(sp.clamp.apply(v));
+                let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
+                if on {
+                    s
+                } else {
+                    x
+                }
+            };
+            sum_lanes(&sp.limits, px, counted, shown, |c, x| sp.apply(c, x))
+        }
+        None => sum_lanes(&ChannelStretch::new([None; 3]), px, counted, |v, _, _, _| v, |_, x| x),
+    }
+}
+
+/// The loop of [`counted_sums`] with `map` (and `tail` for the pixels left
+/// over) giving the displayed values; inlined into each of its builds.
+#[inline(always)]
+pub(crate) fn sum_lanes<M, T>(limits: &ChannelStretch, px: &[[f32; 3]], counted: &[bool], map: M, tail: T) -> [f64; 3]
+where
+    M: Fn(f32, f64, f64, bool) -> f32,
+    T: Fn(usize, f32) -> f32,
+{
+    const P: usize = LANES / 3;
+    const L: usize = LANES;
+    let (lo, inv, on) = lane_constants(limits);
+    let mut acc = [0f64; L];
+    let (pc, prest) = px.as_chunks::<P>();
+    let (cc, crest) = counted.as_chunks::<P>();
+    for (p, c) in pc.iter().zip(cc) {
+        let v = p.as_flattened();
+        let mut shown = [0f32; L];
+        for k in 0..L {
+            if let (Some(d), Some(&x), Some(&l), Some(&i), Some(&f)) = (shown.get_mut(k), v.get(k), lo.get(k), inv.get(k), on.get(k)) {
+                *d = map(x, l, i, f);
+            }
+        }
+        let flag: [bool; L] = std::array::from_fn(|k| c.get(k / 3).copied().unwrap_or(false));
+        for ((a, &x), &n) in acc.iter_mut().zip(&shown).zip(&flag) {
+            *a += if n { f64::from(x) } else { 0.0 };
+        }
+    }
+    let mut out = [0f64; 3];
+    for (k, a) in acc.iter().enumerate() {
+        if let Some(o) = out.get_mut(k % 3) {
+            *o += *a;
+        }
+    }
+    for (p, &n) in prest.iter().zip(crest) {
+        for (c, (o, &x)) in out.iter_mut().zip(p).enumerate() {
+            *o += if n { f64::from(tail(c, x)) } else { 0.0 };
+        }
+    }
+    out
+}
+
+/// Adds to `st` one row's statistics: min and max of J over the pixels
+/// inside the mask, sums of t_R and counts over its VL and other pixels.
+/// Accumulates in 8 lanes combined in lane order (the same for any thread
+/// count); compiled for baseline x86-64 and for AVX2, picked at run time,
+/// the same bits either way (METHOD appendix, same bits on every CPU).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+pub(crate) fn row_stats(j: &[[f32; 3]], tr: &[f32], inside: &[bool], vl: &[bool], st: &mut RowStats) {
+    const L: usize = 8;
+    // one array per statistic, one entry per lane: each lane's values are
+    // accumulated in pixel order, and lanes in lane order, as before
+    let mut lo = [f32::INFINITY; L];
+    let mut hi = [f32::NEG_INFINITY; L];
+    let [mut s0, mut s1, mut s2, mut s3] = [[0f64; L]; 4];
+    let (jc, jrest) = j.as_chunks::<L>();
+    let (tc, trest) = tr.as_chunks::<L>();
+    let (ic, irest) = inside.as_chunks::<L>();
+    let (vc, vrest) = vl.as_chunks::<L>();
+    for (((jj, tt), ii), vv) in jc.iter().zip(tc).zip(ic).zip(vc) {
+        let lanes = lo.iter_mut().zip(hi.iter_mut()).zip(s0.iter_mut().zip(s1.iter_mut()).zip(s2.iter_mut().zip(s3.iter_mut())));
+        for (((l, h), ((a0, a1), (a2, a3))), (((jv, &t), &ins), &v)) in lanes.zip(jj.iter().zip(tt).zip(ii).zip(vv)) {
+            let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
+            *l = l.min(if ins { mn } else { f32::INFINITY });
+            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
+            let t = f64::from(t);
+            let (iv, ic) = (ins && v, ins && !v);
+            *a0 += if iv { t } else { 0.0 };
+            *a1 += if iv { 1.0 } else { 0.0 };
+            *a2 += if ic { t } else { 0.0 };
+            *a3 += if ic { 1.0 } else { 0.0 };
+        }
+    }
+    // the pixels left over go to lane 0, after its chunk values
+    for (((jv, &t), &ins), &v) in jrest.iter().zip(trest).zip(irest).zip(vrest) {
+        let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
+        let t = f64::from(t);
+        let (iv, ic) = (ins && v, ins && !v);
+        let lane0 = (lo.first_mut(), hi.first_mut(), s0.first_mut(), s1.first_mut(), s2.first_mut(), s3.first_mut());
+        if let (Some(l), Some(h), Some(a0), Some(a1), Some(a2), Some(a3)) = lane0 {
+            *l = l.min(if ins { mn } else { f32::INFINITY });
+            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
+            *a0 += if iv { t } else { 0.0 };
+            *a1 += if iv { 1.0 } else { 0.0 };
+            *a2 += if ic { t } else { 0.0 };
+            *a3 += if ic { 1.0 } else { 0.0 };
+        }
+    }
+    for k in 0..L {
+        let get = |a: &[f64; L]| a.get(k).copied().unwrap_or(0.0);
+        st.lo = st.lo.min(lo.get(k).copied().unwrap_or(f32::INFINITY));
+        st.hi = st.hi.max(hi.get(k).copied().unwrap_or(f32::NEG_INFINITY));
+        st.sums.tr_vl += get(&s0);
+        st.sums.vl += get(&s1);
+        st.sums.tr_counted += get(&s2);
+        st.sums.counted += get(&s3);
+    }
+}
+
+/// What one pass over a row of recovered pixels gathers (METHOD §7-9).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RowStats {
+    /// min and max of J over the masked-in pixels' channels
+    pub(crate) lo: f32,
+    pub(crate) hi: f32,
+    /// t_R sums over counted and VL pixels (the channel sums come later)
+    pub(crate) sums: SelectionSums,
+}
+
+impl Default for RowStats {
+    fn default() -> Self {
+        Self {
+            lo: f32::INFINITY,
+            hi: f32::NEG_INFINITY,
+            sums: SelectionSums::default(),
+        }
+    }
+}
+
+impl RowStats {
+    pub(crate) fn add(&mut self, o: &Self) {
+        self.lo = self.lo.min(o.lo);
+        self.hi = self.hi.max(o.hi);
+        self.sums.add(&o.sums);
+    }
+}
+
+/// The statistics of all rows combined in row order (the same for any
+/// thread count).
+pub(crate) fn combine(rows: &[RowStats]) -> RowStats {
+    rows.iter().fold(RowStats::default(), |mut acc, r| {
+        acc.add(r);
+        acc
+    })
+}
+
 
 #[cfg(test)]
 mod tests {

@@ -23,11 +23,10 @@
 //! ```
 
 use crate::error::Result;
-use crate::pipeline::{restore_with, Buffers, Input, Params, Restoration};
+use crate::params::{Flag, Input, Params, Restoration};
+use crate::pipeline::{restore_with, Buffers};
 use crate::water::WaterType;
 
-/// The flag of a [`Restoration`] made with reused estimates.
-pub const FLAG_REUSED: &str = "estimates_reused";
 
 /// What a frame's estimation gave, reused for the following frames.
 #[derive(Debug, Clone)]
@@ -143,7 +142,7 @@ impl Sequence {
             state.shape = shape;
         }
         self.since += 1;
-        res.flags.push(FLAG_REUSED.to_string());
+        res.flags.push(Flag::EstimatesReused);
         Ok(res)
     }
 }

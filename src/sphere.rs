@@ -63,7 +63,8 @@ enum Lookup {
 struct DirectionGrid {
     /// cells per face side
     g: usize,
-    /// candidates per cell (the longest list)
+    /// candidates per cell (the longest list; the statistics of the grid)
+    #[cfg_attr(not(any(test, feature = "internals")), allow(dead_code))]
     width: usize,
     /// groups of four candidates per cell: ceil(width / 4)
     quads: usize,
@@ -72,6 +73,7 @@ struct DirectionGrid {
     /// the points again, for the queries
     points: Vec<[f32; 3]>,
     /// mean length of the unpadded lists
+    #[cfg_attr(not(any(test, feature = "internals")), allow(dead_code))]
     mean: f64,
     /// the same lists in fixed-size tables when each fits one group
     quad: Option<QuadTable>,
@@ -377,11 +379,13 @@ impl SphereIndex {
         self.points.len()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Never true for a built index.
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// The points, as stored (f32).
     pub fn points(&self) -> &[[f32; 3]] {
         &self.points
@@ -439,6 +443,7 @@ impl SphereIndex {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Average number of candidates a grid query scans (None for the k-d tree).
     pub fn mean_candidates(&self) -> Option<f64> {
         match &self.lookup {
@@ -447,6 +452,7 @@ impl SphereIndex {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// Largest number of candidates a grid query scans (None for the k-d tree).
     pub fn max_candidates(&self) -> Option<usize> {
         match &self.lookup {

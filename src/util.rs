@@ -261,6 +261,7 @@ static GENERATION: AtomicUsize = AtomicUsize::new(0);
 /// with `os.register_at_fork`): rayon's global pool and every cached pool
 /// lost their threads in the fork, so from now on each call runs on a fresh
 /// pool of this process.
+#[cfg_attr(not(feature = "python"), allow(dead_code))]
 pub fn after_fork() {
     GENERATION.fetch_add(1, Ordering::SeqCst);
 }
@@ -326,6 +327,16 @@ pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f:
 }
 
 /// Deterministic pseudo-random values in [0, 1) for tests (a 64-bit LCG).
+/// `buf` if it holds exactly `n` values, else n default values.
+pub fn reuse<T: Copy + Default>(buf: Vec<T>, n: usize) -> Vec<T> {
+    if buf.len() == n {
+        buf
+    } else {
+        drop(buf);
+        vec![T::default(); n]
+    }
+}
+
 #[cfg(test)]
 pub(crate) fn test_noise(n: usize, seed: u64) -> Vec<f32> {
     let mut s = seed;

@@ -12,6 +12,7 @@ use crate::filters::{
     convolve_separable, downscale, downscale_map, gaussian_kernel, largest_component, sobel_max,
 };
 use crate::image::ImageRef;
+use crate::params::Flag;
 use crate::rank::{f32_key, f64_key, key_f32, order_stats};
 use crate::util::{percentiles, Normalize};
 use rayon::prelude::*;
@@ -37,16 +38,9 @@ pub const HALF_NORMAL_Q25: f64 = 0.318_639_363_964_375_2;
 /// Lower bound for every component of A, so that I / A is defined.
 pub const MIN_A: f32 = 1e-4;
 
-/// Flag: no usable water region (none found, too small, or rejected as a
-/// dark shadow); the matting and the exclusion rule are skipped.
-pub const FLAG_NO_REGION: &str = "no_water_region";
 /// A detected region whose median-luminance color is darker than this
 /// fraction of the image's median luminance is rejected (a shadow).
 pub const DARK_REGION_RATIO: f64 = 0.2;
-/// Flag: A came from the fallback, not from a water region.
-pub const FLAG_FALLBACK: &str = "veiling_fallback";
-/// Flag: a component of A was raised to [`MIN_A`].
-pub const FLAG_CLAMPED: &str = "veiling_light_clamped";
 
 /// The edge-strength map at working size, with what produced it.
 #[derive(Debug, Clone)]
@@ -60,6 +54,7 @@ pub struct EdgeMap {
     /// integer downscale factor
     pub scale: usize,
     /// the robust noise estimate (in normalised units)
+    #[cfg_attr(not(any(test, feature = "internals")), allow(dead_code))]
     pub sigma: f64,
     /// the threshold used: E < tau is textureless
     pub tau: f64,
@@ -75,7 +70,7 @@ pub struct Veiling {
     /// number of true entries of `vl`
     pub vl_count: usize,
     /// flags raised
-    pub flags: Vec<&'static str>,
+    pub flags: Vec<Flag>,
 }
 
 /// Immerkaer's robust noise estimate (METHOD §3 step 5): per channel
@@ -272,18 +267,18 @@ pub fn estimate(
         vl.iter_mut().for_each(|b| *b = false);
         vl_count = 0;
         from_region = None;
-        flags.push(FLAG_NO_REGION);
+        flags.push(Flag::NoWaterRegion);
     }
     let mut a = match (given_a, from_region) {
         (Some(a), _) => a,
         (None, Some(a)) => a,
         (None, None) => {
-            flags.push(FLAG_FALLBACK);
+            flags.push(Flag::VeilingFallback);
             veiling_fallback(img)
         }
     };
     if a.iter().any(|&v| v < MIN_A) {
-        flags.push(FLAG_CLAMPED);
+        flags.push(Flag::VeilingLightClamped);
         a.iter_mut().for_each(|v| *v = v.max(MIN_A));
     }
     Veiling {
@@ -337,7 +332,7 @@ mod tests {
         let img = ImageRef::new(&d, h, w).unwrap();
         let v = estimate(&img, None, None, None);
         assert_eq!(v.vl_count, 0);
-        assert_eq!(v.flags, vec![FLAG_NO_REGION, FLAG_FALLBACK]);
+        assert_eq!(v.flags, vec![Flag::NoWaterRegion, Flag::VeilingFallback]);
         assert!(v.a.iter().all(|&x| x > 0.0 && x <= 1.0));
     }
 
@@ -351,7 +346,7 @@ mod tests {
         let v = estimate(&img, None, Some(&wm), Some([0.2, 0.3, 0.0]));
         assert_eq!(v.vl, wm);
         assert_eq!(v.a, [0.2, 0.3, MIN_A]);
-        assert_eq!(v.flags, vec![FLAG_CLAMPED]);
+        assert_eq!(v.flags, vec![Flag::VeilingLightClamped]);
     }
 
     #[test]
@@ -365,7 +360,7 @@ mod tests {
         let img = ImageRef::new(&d, h, w).unwrap();
         let v = estimate(&img, None, None, None);
         assert_eq!(v.vl_count, 0);
-        assert_eq!(v.flags, vec![FLAG_NO_REGION, FLAG_FALLBACK]);
+        assert_eq!(v.flags, vec![Flag::NoWaterRegion, Flag::VeilingFallback]);
         // the same region given as a water mask is the user's word: kept
         let mut wm = vec![false; h * w];
         wm[..10 * w].iter_mut().for_each(|b| *b = true);

@@ -1,9 +1,12 @@
-//! Determinism: `restore` gives bit-identical results for 1, 2 and 8
-//! threads and across repeated runs in one process, with and without a mask.
+//! The Rust API's determinism test: `restore` gives bit-identical results
+//! for 1, 2 and 8 threads and across repeated runs in one process, for the
+//! plain scene, with an estimation mask, with the subsampled guided filter
+//! and with fast selection. (The binary and the Python face have one each:
+//! tests/binary.rs, tests/python/test_api.py.)
 
 mod common;
 
-use uwhl::{restore, ImageRef, Input, Params, Restoration};
+use uwhl::{restore, ImageRef, Input, Params, Restoration, Selection};
 
 /// Every output of a restoration: its f32 values as bits, the scores as
 /// bits, the water region, and the names (type, flags, excluded).
@@ -19,50 +22,26 @@ fn fingerprint(r: &Restoration) -> Fingerprint {
     )
 }
 
-fn check(h: usize, w: usize, mask: Option<&[bool]>) {
-    check_with(h, w, mask, 1);
-}
-
-fn check_with(h: usize, w: usize, mask: Option<&[bool]>, guided_subsample: usize) {
-    let img = common::scene(h, w, 99);
-    let input = Input {
-        image: ImageRef::new(&img, h, w).unwrap(),
-        mask,
-        water_mask: None,
-    };
-    let run = |n: usize| {
-        let p = Params {
-            threads: Some(n),
-            guided_subsample,
-            ..Params::default()
-        };
-        fingerprint(&restore(&input, &p).unwrap())
-    };
-    let base = run(1);
-    for n in [2, 8, 1, 8, 2, 1] {
-        assert!(
-            run(n) == base,
-            "{h}x{w}, subsample {guided_subsample}: {n} threads differ from 1 thread"
-        );
-    }
-}
-
 #[test]
 fn bit_identical_for_1_2_8_threads_and_repeated_runs() {
-    check(97, 131, None);
-}
-
-#[test]
-fn bit_identical_with_a_mask() {
     let (h, w) = (64, 90);
-    let mask: Vec<bool> = (0..h * w)
+    let chart: Vec<bool> = (0..h * w)
         .map(|i| !((40..55).contains(&(i / w)) && (10..40).contains(&(i % w))))
         .collect();
-    check(h, w, Some(&mask));
-}
-
-#[test]
-fn bit_identical_with_the_subsampled_guided_filter() {
-    check_with(97, 131, None, 3);
-    check_with(150, 170, None, 5);
+    let cases: [(usize, usize, Option<&[bool]>, Params); 5] = [
+        (97, 131, None, Params::default()),
+        (h, w, Some(&chart), Params::default()),
+        (97, 131, None, Params { guided_subsample: 3, ..Params::default() }),
+        (150, 170, None, Params { guided_subsample: 5, ..Params::default() }),
+        (300, 1100, None, Params { selection: Selection::Fast, ..Params::default() }),
+    ];
+    for (h, w, mask, params) in cases {
+        let img = common::scene(h, w, 99);
+        let input = Input { image: ImageRef::new(&img, h, w).unwrap(), mask, water_mask: None };
+        let run = |n: usize| fingerprint(&restore(&input, &Params { threads: Some(n), ..params.clone() }).unwrap());
+        let base = run(1);
+        for n in [2, 8, 1, 8, 2] {
+            assert!(run(n) == base, "{h}x{w} {params:?}: {n} threads differ from 1 thread");
+        }
+    }
 }

@@ -6,8 +6,8 @@
 
 mod common;
 
-use uwhl::sequence::FLAG_REUSED;
-use uwhl::{restore, ImageRef, Input, Params, Restoration, Sequence};
+use uwhl::Flag;
+use uwhl::{restore, ImageRef, Input, Params, Restoration, Sequence, WaterType};
 
 fn input<'a>(img: &'a [f32], h: usize, w: usize, water: Option<&'a [bool]>) -> Input<'a> {
     Input {
@@ -53,7 +53,7 @@ fn reused_frames_equal_restore_with_the_estimates() {
             // the estimating frame is a plain restore
             assert_eq!(bits(&first), bits(&restore(&input(&frames[0], h, w, None), &params).unwrap()));
             assert_eq!(first.scores.len(), 10);
-            assert!(!first.flags.iter().any(|f| f == FLAG_REUSED));
+            assert!(!first.flags.contains(&Flag::EstimatesReused));
             assert_eq!(seq.buffer_bytes(), 32 * h * w);
             for f in &frames[1..] {
                 let got = seq.restore(&input(f, h, w, None)).unwrap();
@@ -63,7 +63,7 @@ fn reused_frames_equal_restore_with_the_estimates() {
                 assert_eq!(got.water_type.name, first.water_type.name);
                 assert_eq!(got.veiling_light, first.veiling_light);
                 assert_eq!(got.scores.len(), 1);
-                assert!(got.flags.iter().any(|f| f == FLAG_REUSED));
+                assert!(got.flags.contains(&Flag::EstimatesReused));
             }
         }
     }
@@ -71,23 +71,24 @@ fn reused_frames_equal_restore_with_the_estimates() {
 
 #[test]
 fn reused_frame_recovers_the_rendered_veiling_light_and_distances() {
-    // common::scene: A = (0.04, 0.22, 0.30), t_B = exp(-0.25 z) on the
-    // seabed, z = 2 + 8 (h - y) / h; water in the top third
+    // the rendered truth: A and the distances of the object pixels
     let (h, w) = (90, 120);
+    let iii = WaterType::by_name("III").unwrap();
     let mut seq = Sequence::new(Params::default());
     seq.restore(&input(&common::scene(h, w, 5), h, w, None)).unwrap();
-    let res = seq.restore(&input(&common::scene(h, w, 6), h, w, None)).unwrap();
+    let truth = common::render(h, w, &iii, 6);
+    let res = seq.restore(&input(&truth.img, h, w, None)).unwrap();
     let a = res.veiling_light;
-    for (got, want) in a.iter().zip([0.04f32, 0.22, 0.30]) {
-        assert!((got - want).abs() < 0.02, "A {a:?}");
+    for (got, want) in a.iter().zip(truth.a) {
+        assert!((got - want).abs() < 0.02, "A {a:?}, true {:?}", truth.a);
     }
-    let (mut z, mut d) = (Vec::new(), Vec::new());
-    for y in h / 3 + 2..h {
-        for x in 0..w {
-            z.push(2.0 + 8.0 * (h - y) as f64 / h as f64);
-            d.push(-f64::from(res.transmission[y * w + x]).ln());
-        }
-    }
+    let (z, d): (Vec<f64>, Vec<f64>) = truth
+        .z
+        .iter()
+        .zip(&res.transmission)
+        .filter(|(z, _)| z.is_finite())
+        .map(|(z, t)| (*z, -f64::from(*t).ln()))
+        .unzip();
     let rho = common::pearson(&z, &d);
     assert!(rho > 0.8, "rho(z, -ln t_B) = {rho}");
 }
@@ -113,7 +114,7 @@ fn refresh_every_n_frames() {
     let pattern: Vec<(usize, bool)> = (0..5)
         .map(|_| {
             let r = seq.restore(&input(&img, h, w, None)).unwrap();
-            (r.scores.len(), r.flags.iter().any(|f| f == FLAG_REUSED))
+            (r.scores.len(), r.flags.contains(&Flag::EstimatesReused))
         })
         .collect();
     assert_eq!(pattern, vec![(10, false), (1, true), (10, false), (1, true), (10, false)]);
@@ -152,7 +153,7 @@ fn a_failed_frame_changes_nothing_and_reset_forgets() {
     assert!(seq.restore(&input(&bad, h, w, None)).is_err());
     assert_eq!(seq.estimates().unwrap().veiling_light, a);
     let next = seq.restore(&input(&good, h, w, None)).unwrap();
-    assert!(next.flags.iter().any(|f| f == FLAG_REUSED));
+    assert!(next.flags.contains(&Flag::EstimatesReused));
     assert_eq!(next.water_type.name, first.water_type.name);
     seq.reset();
     assert!(seq.estimates().is_none() && seq.estimates_next());

@@ -14,6 +14,9 @@ OPTIONS: list[dict]
 #: (code, name, meaning) of both commands' exit codes
 EXIT_CODES: list[tuple[int, str, str]]
 EXIT_CODES_HELP: str
+#: the stable names of Restoration.flags and Restoration.timings (docs/OUTPUTS.md)
+FLAGS: list[str]
+STAGES: list[str]
 
 def parse_option(key: str, text: str) -> object: ...
 def options_help(face: Literal["python", "rust"]) -> str: ...

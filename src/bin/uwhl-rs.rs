@@ -12,8 +12,7 @@
 
 use std::io::Write;
 use std::process::ExitCode;
-use uwhl::cli::args::{help, parse, Command};
-use uwhl::cli::run::{init_threads, install_interrupt_handler, report, run_batch, run_stream};
+use uwhl::cli::{help, init_threads, install_interrupt_handler, parse, report, run_batch, run_stream, Command};
 
 fn main() -> ExitCode {
     let json_errors = std::env::args_os().any(|a| a == "--json-errors");

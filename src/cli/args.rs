@@ -4,7 +4,7 @@
 
 use super::{CliError, Kind};
 use crate::options::{exit_code_text, help_text, Faces, Kind as OptKind, Value as Val, OPTIONS};
-use crate::pipeline::Selection;
+use crate::params::Selection;
 use crate::water::WaterType;
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -97,7 +97,7 @@ pub struct Options {
     /// `--preprocess`
     pub preprocess: Preprocess,
     /// `--selection`: how the water type is chosen
-    pub selection: crate::pipeline::Selection,
+    pub selection: crate::params::Selection,
     /// `--linear`: the input is already linear (no sRGB decoding)
     pub linear: bool,
     /// `--format`
@@ -141,7 +141,7 @@ impl Default for Options {
             sphere_points: crate::options::DEFAULT_SPHERE_POINTS,
             max_side: None,
             preprocess: Preprocess::None,
-            selection: crate::pipeline::Selection::Exhaustive,
+            selection: crate::params::Selection::Exhaustive,
             linear: false,
             format: Format::Jpg,
             bits: None,

@@ -9,7 +9,7 @@
 //! | decode | `b n` decoded + `b n` rotated copy (EXIF orientation) or RGB conversion + `12 n` f32 (while the RGB buffer is alive) |
 //! | reference stretch | `12 n` in + `12 n` out + `4 n` one channel's percentile copy |
 //! | downscale | `12 n` + `12 m` |
-//! | restore | `12 m` input + `pipeline::memory_estimate(h, w, k)` |
+//! | restore | `12 m` input + `params::memory_estimate(h, w, k)` |
 //! | write | `12 m` input + the restoration (`29 m`) + the three outputs' codes and encoded files, encoded at once (`16 m`) |
 //!
 //! plus `n` bytes per mask given (`--mask`, `--water-mask`; read once per run)
@@ -22,7 +22,7 @@
 //! them waits until they are written, so the two together stay within the
 //! budget and an input is refused only if its own plan exceeds it.
 
-use crate::pipeline::memory_estimate;
+use crate::params::memory_estimate;
 
 /// Bytes per processed pixel an input holds while its outputs are written:
 /// the restoration (29) and the three outputs' codes and encoded files (16).
@@ -86,6 +86,7 @@ impl Plan {
             .saturating_add(mask)
     }
 
+    #[cfg(any(test, feature = "internals"))]
     /// The plan of an 8-bit RGB file of `height` x `width` pixels, upright,
     /// with no `--max-side`, reference preprocessing or masks.
     pub fn rgb8(height: usize, width: usize) -> Plan {

@@ -7,12 +7,21 @@
 //! Nothing here panics on data from outside: every failure is a
 //! [`CliError`](crate::cli::CliError) of one [`Kind`](crate::cli::Kind), and each kind has its own exit code.
 
-pub mod args;
-pub mod budget;
-pub mod decode;
-pub mod output;
-pub mod run;
-pub mod sidecar;
+macro_rules! cli_modules {
+    ($($m:ident),* $(,)?) => {
+        $(
+            #[cfg(feature = "internals")]
+            pub mod $m;
+            #[cfg(not(feature = "internals"))]
+            mod $m;
+        )*
+    };
+}
+
+cli_modules!(args, budget, decode, output, run, sidecar);
+
+pub use args::{help, parse, Command, Format, Options, Preprocess, WaterChoice};
+pub use run::{init_threads, install_interrupt_handler, report, run_batch, run_stream};
 
 use std::fmt;
 

@@ -12,8 +12,10 @@ use super::{CliError, Kind};
 use crate::color::{max_side_factor, reference_srgb_stretch};
 use crate::filters::downscale;
 use crate::image::ImageRef;
-use crate::pipeline::{restore, Input, Params};
-use crate::sequence::{Sequence, FLAG_REUSED};
+use crate::params::{Input, Params};
+use crate::pipeline::restore;
+use crate::params::Flag;
+use crate::sequence::Sequence;
 use crate::water::{jerlov_types, WaterType};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -259,7 +261,7 @@ fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, gate: Op
 #[derive(Debug, Clone)]
 pub struct Restored {
     /// the result of `restore`
-    pub res: crate::pipeline::Restoration,
+    pub res: crate::params::Restoration,
     /// where it came from (the sidecar's `source`)
     pub source: Source,
     /// seconds spent decoding and preprocessing
@@ -283,6 +285,7 @@ fn method_params(opts: &Options) -> Params {
     }
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Decodes one file from `reader` and restores it with the options, as the
 /// next frame of `seq` when given (`--reuse-estimates`: its
 /// [`Sequence`] was made with the same options).
@@ -365,6 +368,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     })
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// The fuzz target's body (`fuzz/`) and its regression test: the first byte
 /// picks options (bit 0 reference preprocessing, bit 1 `--linear`, bit 2
 /// `--max-side 16`, bit 3 two water types), the rest is a file decoded and
@@ -405,6 +409,7 @@ pub fn fuzz_one(data: &[u8]) -> Result<Restored, CliError> {
     Ok(r)
 }
 
+#[cfg(any(test, feature = "internals"))]
 /// Restores one input and writes its outputs (see [`decode_and_restore`]).
 pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>) -> Result<Outcome, CliError> {
     complete(job, prepare(job, opts, masks, seq, None)?, opts)
@@ -509,7 +514,7 @@ fn finish(job: &Job, (restored, t0): (Restored, Instant), opts: &Options) -> Res
     let mut side = sidecar(&job.input, &paths, &source, &res, opts, seconds);
     if opts.reuse_estimates.is_some() {
         if let Some(obj) = side.as_object_mut() {
-            let reused = res.flags.iter().any(|f| f == FLAG_REUSED);
+            let reused = res.flags.contains(&Flag::EstimatesReused);
             obj.insert("reused_estimates".into(), Value::Bool(reused));
         }
     }

@@ -3,7 +3,7 @@
 //! as Python's `float(np.float32(x))` does, so both commands write equal numbers.
 
 use super::args::{Options, Preprocess};
-use crate::pipeline::Restoration;
+use crate::params::Restoration;
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -151,7 +151,7 @@ pub fn sidecar(
         "veiling_light": a,
         "vl_pixels": vl_pixels,
         "vl_fraction": vl_pixels as f64 / n as f64,
-        "flags": res.flags,
+        "flags": res.flags.iter().map(|f| f.name()).collect::<Vec<_>>(),
         "guided_radius": res.guided_radius,
         "guided_subsample": res.guided_subsample,
         "beta_ratios": [res.water_type.beta_br, res.water_type.beta_bg],

@@ -14,13 +14,13 @@ import time
 import numpy as np
 import pytest
 
-_SYNTH_PATH = pathlib.Path(__file__).resolve().parents[1] / "python" / "uwhl_rs" / "synth.py"
+_SYNTH_PATH = pathlib.Path(__file__).resolve().parents[2] / "python" / "uwhl_rs" / "synth.py"
 
 from uwhl_rs import synth
 
 import reference
 
-# METHOD §1 as typed in, independently of the core, by tests/reference.py.
+# METHOD §1 as typed in, independently of the core, by tests/python/reference.py.
 SPEC_TABLE = list(reference.WATER_TYPES)
 TYPES = [row[0] for row in SPEC_TABLE]
 

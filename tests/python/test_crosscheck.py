@@ -1,6 +1,9 @@
 """Cross-check of every Rust stage (uwhl_rs._core._stage_*) and of the whole
 uwhl_rs.restore against the independent NumPy/SciPy reference
-(tests/reference.py), which follows docs/METHOD.md and docs/METHOD.md.
+(tests/python/reference.py), which follows docs/METHOD.md. The `_stage_*`
+entry points run the code `restore` runs (the same row kernels); they exist
+in wheels built with the `internals` feature (the test command of the
+README builds it).
 
 Inputs are small scenes rendered with uwhl_rs.synth and seeded random
 images, always float32 and C-contiguous; the reference gets the very same
@@ -20,11 +23,16 @@ sys.path.insert(0, os.path.dirname(__file__))
 try:
     import uwhl_rs
 except ImportError:  # not installed: use the in-tree package with the built .so
-    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "python"))
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "python"))
     import uwhl_rs
 
 import reference as ref
 from uwhl_rs import _core, synth
+
+pytestmark = pytest.mark.skipif(
+    not hasattr(_core, "_stage_stretch"),
+    reason='the wheel was built without the internals feature (MATURIN_PEP517_ARGS="--features python,pyo3/extension-module,internals")',
+)
 
 # ---------------------------------------------------------------------------
 # Tolerances (Rust stores f32 and often computes in f32; the reference is f64)

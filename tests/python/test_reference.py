@@ -1,4 +1,4 @@
-"""Self-checks of tests/reference.py against independently known answers."""
+"""Self-checks of tests/python/reference.py against independently known answers."""
 
 import math
 

@@ -21,7 +21,7 @@ import pytest
 import uwhl_rs
 from uwhl_rs import _core, synth
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 try:
     import uwhl_rs.cli  # noqa: F401  (the Python command under comparison)

@@ -24,7 +24,7 @@ from uwhl_rs import synth
 
 import reference
 
-# METHOD §1 as typed in, independently of the core, by tests/reference.py.
+# METHOD §1 as typed in, independently of the core, by tests/python/reference.py.
 SPEC_TABLE = list(reference.WATER_TYPES)
 NAMES = [n for n, _, _ in SPEC_TABLE]
 RATIOS = {n: (br, bg) for n, br, bg in SPEC_TABLE}
@@ -406,12 +406,6 @@ def test_fast_selection_on_small_images_is_exhaustive(scene, result):
     _same(uwhl_rs.restore(scene[0], selection="fast"), result)
 
 
-def test_fast_selection_is_deterministic():
-    """selection="fast" is bit-identical for 1 and 3 threads."""
-    img, _ = synth.demo_input(300, 1100, water_type="1C", seed=2)
-    _same(uwhl_rs.restore(img, selection="fast", threads=1), uwhl_rs.restore(img, selection="fast", threads=3))
-
-
 # ---------------------------------------------------------------------------
 # guided_subsample and timings
 # ---------------------------------------------------------------------------
@@ -468,23 +462,21 @@ def test_subsampled_filter_is_close_to_exact(water, seed):
 
 
 def test_bit_identical_for_any_thread_count(scene, result):
-    """threads=1, 2, 4 and a repeated call give bit-identical image, radiance, transmission, scores."""
+    """The Python face's determinism test: threads=1, 2, 3, 4 and repeated
+    calls give bit-identical outputs, scores and flags, for the plain
+    scene, with a chart mask (the fill paths), with fast selection on an
+    image large enough to have a sampled copy, and with the subsampled
+    guided filter. (The Rust API and the binary have one each:
+    tests/determinism.rs, tests/binary.rs.)"""
     img = scene[0]
-    runs = [uwhl_rs.restore(img, threads=n) for n in (1, 2, 4)]
-    runs.append(uwhl_rs.restore(img, threads=1))
-    runs.append(uwhl_rs.restore(img))
-    for r in runs:
+    for r in [uwhl_rs.restore(img, threads=n) for n in (1, 2, 4)] + [uwhl_rs.restore(img)]:
         _same(r, result)
-
-
-def test_bit_identical_with_mask_and_threads(scene):
-    """Determinism also holds with a chart mask (the fill and chart paths)."""
-    img, mask = _chart(scene[0], (0.9, 0.05, 0.05))
-    a = uwhl_rs.restore(img, mask=mask, threads=1)
-    b = uwhl_rs.restore(img, mask=mask, threads=3)
-    c = uwhl_rs.restore(img, mask=mask, threads=3)
-    _same(a, b)
-    _same(b, c)
+    chart, mask = _chart(img, (0.9, 0.05, 0.05))
+    big, _ = synth.demo_input(300, 1100, water_type="1C", seed=2)
+    for image, kw in [(chart, {"mask": mask}), (big, {"selection": "fast"}), (img, {"guided_subsample": 3})]:
+        first = uwhl_rs.restore(image, threads=1, **kw)
+        for n in (3, 2, 1):
+            _same(uwhl_rs.restore(image, threads=n, **kw), first)
 
 
 def _count_while_alive(target) -> tuple[int, float]:
