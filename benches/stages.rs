@@ -135,7 +135,7 @@ fn outputs(c: &mut Criterion) {
     let mut g = c.benchmark_group("outputs");
     g.sample_size(20).measurement_time(Duration::from_secs(3));
     g.bench_function("srgb_8bit_formula_per_value", |b| {
-        // as the quantiser was before its tables: the formula per value, in parallel
+        // the baseline: the formula per value, in parallel (the quantiser settles table estimates instead)
         b.iter(|| black_box(&res.image).par_iter().map(|&v| uwhl::color::quantize_one(v, 255.0, true) as u8).collect::<Vec<u8>>())
     });
     g.bench_function("srgb_8bit_quantize_u8", |b| b.iter(|| uwhl::color::quantize_u8(black_box(&res.image), true)));

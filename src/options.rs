@@ -463,6 +463,30 @@ fn wrap(text: &str, width: usize) -> Vec<String> {
     lines
 }
 
+/// The checks that concern several options at once, made by both commands
+/// before any input is read; the error is the usage message.
+pub fn check_combination(
+    format: &str,
+    bits: Option<u64>,
+    reuse_estimates: Option<u64>,
+    reuse_water_mask: bool,
+    linear: bool,
+    preprocess: &str,
+) -> Result<(), String> {
+    if reuse_water_mask && reuse_estimates.is_none() {
+        return Err("--reuse-water-mask needs --reuse-estimates N".into());
+    }
+    if format == "jpg" && bits == Some(16) {
+        return Err("--bits 16 needs --format png or tiff (JPEG holds 8 bits)".into());
+    }
+    if linear && preprocess == "reference" {
+        return Err(
+            "--preprocess reference is the METHOD §2 treatment of sRGB inputs; it cannot be used with --linear".into(),
+        );
+    }
+    Ok(())
+}
+
 /// The exit codes of both commands (docs/CLI.md): with several inputs,
 /// every input is processed and the largest code is returned.
 pub const EXIT_CODES: &[(u8, &str, &str)] = &[

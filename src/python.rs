@@ -277,6 +277,35 @@ fn parse_option(py: Python<'_>, key: &str, text: &str) -> PyResult<Py<PyAny>> {
     })
 }
 
+/// The checks of several options at once (`crate::options::check_combination`);
+/// ValueError with the usage message.
+#[pyfunction]
+#[pyo3(signature = (format, bits, reuse_estimates, reuse_water_mask, linear, preprocess))]
+fn check_combination(
+    format: &str,
+    bits: Option<u64>,
+    reuse_estimates: Option<u64>,
+    reuse_water_mask: bool,
+    linear: bool,
+    preprocess: &str,
+) -> PyResult<()> {
+    crate::options::check_combination(format, bits, reuse_estimates, reuse_water_mask, linear, preprocess)
+        .map_err(PyValueError::new_err)
+}
+
+/// The jobs of a batch (`crate::jobs::collect_jobs`): `(jobs, problems)`,
+/// jobs as `(input, output folder, name)`, problems as `(input, reason)`.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn collect_jobs(
+    py: Python<'_>,
+    inputs: Vec<std::path::PathBuf>,
+    out_dir: std::path::PathBuf,
+) -> (Vec<(std::path::PathBuf, std::path::PathBuf, String)>, Vec<(std::path::PathBuf, String)>) {
+    let (jobs, problems) = py.detach(|| crate::jobs::collect_jobs(&inputs, &out_dir));
+    (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
+}
+
 /// The `options:` part of a command's `--help` for `face` ("python" or "rust").
 #[pyfunction]
 fn options_help(face: &str) -> PyResult<String> {
@@ -507,5 +536,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("EXIT_CODES_HELP", crate::options::exit_code_text())?;
     m.add_function(wrap_pyfunction!(parse_option, m)?)?;
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
+    m.add_function(wrap_pyfunction!(check_combination, m)?)?;
+    m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
+    m.add("IMAGE_EXTENSIONS", crate::jobs::IMAGE_EXTENSIONS.to_vec())?;
+    m.add("RAW_EXTENSIONS", crate::jobs::RAW_EXTENSIONS.to_vec())?;
     Ok(())
 }

@@ -232,7 +232,7 @@ where
 pub(crate) fn row_stats(j: &[[f32; 3]], tr: &[f32], inside: &[bool], vl: &[bool], st: &mut RowStats) {
     const L: usize = 8;
     // one array per statistic, one entry per lane: each lane's values are
-    // accumulated in pixel order, and lanes in lane order, as before
+    // accumulated in pixel order, and lanes combined in lane order
     let mut lo = [f32::INFINITY; L];
     let mut hi = [f32::NEG_INFINITY; L];
     let [mut s0, mut s1, mut s2, mut s3] = [[0f64; L]; 4];

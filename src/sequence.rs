@@ -137,7 +137,7 @@ impl Sequence {
         let frame = Input { water_mask: input.water_mask.or(kept), ..*input };
         let mut res = restore_with(&frame, &params, &mut self.pool)?;
         if self.reuse_water_mask && kept.is_none() && input.water_mask.is_none() {
-            // a frame of another size: its own water region from now on
+            // a frame of another size: its own water region, for this and later frames
             state.water_mask = res.veiling_mask.clone();
             state.shape = shape;
         }

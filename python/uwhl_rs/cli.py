@@ -166,60 +166,26 @@ def _supported(path: str) -> bool:
 def collect_inputs(inputs: list[str], out_dir: str) -> tuple[list[Job], list[tuple[str, str]]]:
     """Expand files, folders (recursive) and globs into jobs.
 
-    Returns (jobs, problems): problems are (input, reason) for inputs that
-    match nothing. Files under ``out_dir`` are never taken as inputs; the
-    same file named twice is processed once; two inputs that would share
-    an output name get ``NAME_ext`` (then ``NAME_ext_2``, ... if still shared).
+    Glob patterns are expanded here; the rest is the core's one discovery
+    and naming, which uwhl-rs uses too (``_core.collect_jobs``): files under
+    ``out_dir`` are never taken as inputs, the same file named twice is
+    processed once, and two inputs that would share an output name get
+    ``NAME_ext`` (then ``NAME_ext_2``, ... if still shared). Returns (jobs,
+    problems): problems are (input, reason) for inputs that match nothing.
     """
-    out_real = os.path.realpath(out_dir)
-    found: list[tuple[str, str]] = []  # (file, output sub-folder)
-    problems = []
+    items: list[str] = []
+    problems: list[tuple[str, str]] = []
     for item in inputs:
-        if os.path.isdir(item):
-            n0 = len(found)
-            for root, dirs, files in os.walk(item):
-                dirs[:] = sorted(d for d in dirs if not d.startswith(".")
-                                 and os.path.realpath(os.path.join(root, d)) != out_real)
-                for f in sorted(files):
-                    if f.startswith(".") or not _supported(f):
-                        continue
-                    rel = os.path.relpath(root, item)
-                    found.append((os.path.join(root, f), "" if rel == "." else rel))
-            if len(found) == n0:
-                problems.append((item, "folder holds no JPEG, PNG, TIFF or raw file"))
-        elif os.path.exists(item):
-            found.append((item, ""))
-        elif _GLOB_CHARS.search(item):
+        if not os.path.exists(item) and _GLOB_CHARS.search(item):
             hits = sorted(h for h in glob.glob(item, recursive=True) if os.path.isfile(h) and _supported(h))
             if not hits:
                 problems.append((item, "pattern matches no image file"))
-            found.extend((h, "") for h in hits)
+            items.extend(hits)
         else:
-            problems.append((item, "no such file or folder"))
-    seen = set()
-    unique = []
-    for path, sub in found:
-        real = os.path.realpath(path)
-        if real in seen or real.startswith(out_real + os.sep):
-            continue
-        seen.add(real)
-        unique.append((path, sub))
-    stems: dict[tuple[str, str], int] = {}
-    for path, sub in unique:
-        key = (sub, os.path.splitext(os.path.basename(path))[0])
-        stems[key] = stems.get(key, 0) + 1
-    jobs = []
-    taken: set[tuple[str, str]] = set()
-    for path, sub in unique:
-        stem, ext = os.path.splitext(os.path.basename(path))
-        name = stem if stems[(sub, stem)] == 1 else f"{stem}_{ext.lstrip('.').lower()}"
-        base, k = name, 1
-        while (sub, name) in taken:  # same stem and extension from two folders
-            k += 1
-            name = f"{base}_{k}"
-        taken.add((sub, name))
-        jobs.append(Job(path, os.path.join(out_dir, sub), name))
-    return jobs, problems
+            items.append(item)
+    found, missing = _core.collect_jobs(items, out_dir)
+    problems += [(str(p), why) for p, why in missing]
+    return [Job(str(p), str(d), name) for p, d, name in found], problems
 
 
 # ---------------------------------------------------------------- progress
@@ -347,16 +313,15 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     except ValueError as e:
         _report(err, a.json_errors, None, "bad_arguments", str(e))
         return EXIT_USAGE
-    if a.format == "jpg" and a.bits == 16:
-        _report(err, a.json_errors, None, "bad_arguments", "--bits 16 needs --format png or tiff (JPEG holds 8 bits)")
+    try:
+        _core.check_combination(a.format, a.bits, a.reuse_estimates, a.reuse_water_mask, False, a.preprocess)
+    except ValueError as e:
+        _report(err, a.json_errors, None, "bad_arguments", str(e))
         return EXIT_USAGE
     for flag, path in (("--mask", a.mask), ("--water-mask", a.water_mask)):
         if path is not None and not os.path.isfile(path):
             _report(err, a.json_errors, None, "bad_arguments", f"{flag} {path}: no such file")
             return EXIT_USAGE
-    if a.reuse_water_mask and a.reuse_estimates is None:
-        _report(err, a.json_errors, None, "bad_arguments", "--reuse-water-mask needs --reuse-estimates N")
-        return EXIT_USAGE
     if a.reuse_estimates is not None and a.jobs != 1:
         _report(err, a.json_errors, None, "bad_arguments",
                 "--reuse-estimates restores the inputs in order; it needs --jobs 1")

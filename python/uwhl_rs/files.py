@@ -31,6 +31,9 @@ __all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "FORMA
 #: Every option's default, from the core's one table (docs/CLI.md).
 _D = {o["key"]: o["default"] for o in _core.OPTIONS}
 
+#: The smallest max_side (the core's table).
+_MIN_SIDE = next(o["min"] for o in _core.OPTIONS if o["key"] == "max_side")
+
 #: The keywords of :func:`uwhl_rs.restore` (and of :class:`uwhl_rs.Sequence`).
 METHOD_KEYS = tuple(o["key"] for o in _core.OPTIONS if o["method"])
 
@@ -154,8 +157,8 @@ def _restore_staged(
     bits = default_bits if bits is None else int(bits)
     if bits not in (8, 16) or (format == "jpg" and bits != 8):
         raise ValueError(f"bits={bits} is not possible for {format} (jpg: 8; png, tiff: 8 or 16)")
-    if max_side is not None and int(max_side) < 4:
-        raise ValueError(f"max_side must be at least 4, not {max_side}")
+    if max_side is not None and int(max_side) < _MIN_SIDE:
+        raise ValueError(f"max_side must be at least {_MIN_SIDE}, not {max_side}")
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     paths = output_paths(out_dir, name, format, contact)
 

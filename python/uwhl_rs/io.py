@@ -38,13 +38,10 @@ __all__ = [
 
 #: Extensions read through LibRaw (every format LibRaw reads; other names
 #: are sniffed: anything that is not JPEG/PNG/TIFF is offered to LibRaw).
-RAW_EXTENSIONS = frozenset(
-    ".3fr .ari .arw .bay .braw .cap .cr2 .cr3 .crw .cs1 .dc2 .dcr .dcs .dng .drf .eip .erf .fff "
-    ".gpr .iiq .k25 .kdc .mdc .mef .mos .mrw .nef .nrw .orf .ori .pef .ptx .pxn .qtk .r3d .raf "
-    ".raw .rdc .rw2 .rwl .rwz .sr2 .srf .srw .sti .x3f".split()
-)
-#: Extensions read through imageio as sRGB-encoded images.
-IMAGE_EXTENSIONS = frozenset({".jpg", ".jpeg", ".png", ".tif", ".tiff"})
+#: The list is the core's, which both commands' folder walks use.
+RAW_EXTENSIONS = frozenset("." + e for e in _core.RAW_EXTENSIONS)
+#: Extensions read through imageio as sRGB-encoded images (the core's list).
+IMAGE_EXTENSIONS = frozenset("." + e for e in _core.IMAGE_EXTENSIONS)
 #: ``none``: linear data (sRGB decoded through the inverse curve; raw as
 #: decoded). ``reference``: the reference code's preprocessing (METHOD §2).
 PREPROCESS_MODES = ("none", "reference")

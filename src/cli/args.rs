@@ -381,19 +381,15 @@ where
     if !o.stream && o.inputs.is_empty() {
         return Err(CliError::usage("no INPUT given (or use --stream)"));
     }
-    if o.reuse_water_mask && o.reuse_estimates.is_none() {
-        return Err(CliError::usage("--reuse-water-mask needs --reuse-estimates N"));
-    }
-    if o.format == Format::Jpg && o.bits == Some(16) {
-        return Err(CliError::usage(
-            "--bits 16 needs --format png or tiff (JPEG holds 8 bits)",
-        ));
-    }
-    if o.linear && o.preprocess == Preprocess::Reference {
-        return Err(CliError::usage(
-            "--preprocess reference is the METHOD §2 treatment of sRGB inputs; it cannot be used with --linear",
-        ));
-    }
+    crate::options::check_combination(
+        o.format.name(),
+        o.bits.map(u64::from),
+        o.reuse_estimates.map(|n| n as u64),
+        o.reuse_water_mask,
+        o.linear,
+        o.preprocess.name(),
+    )
+    .map_err(CliError::usage)?;
     Ok(Command::Run(Box::new(o)))
 }
 

@@ -117,7 +117,7 @@ mod tests {
         assert_eq!(p.bytes(), 12_000_000 + memory_estimate(1000, 1000, false));
         let small = Plan { factor: 4, ..p };
         assert_eq!(small.processed(), (250, 250));
-        // the decode phase now dominates: 3 n + 12 n
+        // with the image shrunk 4x the decode phase dominates: 3 n + 12 n
         assert!(small.bytes() >= 15_000_000 && small.bytes() < p.bytes());
     }
 

@@ -61,7 +61,7 @@ impl Work {
 /// and the filtered plane: 32 B per pixel), so that a frame of the same
 /// size reuses their pages instead of having the kernel map and zero new
 /// ones (METHOD §10, sequence mode). A plain [`restore`] starts from empty buffers and
-/// frees its planes as early as before (`keep` false).
+/// frees each plane as soon as it is no longer read (`keep` false).
 #[derive(Debug, Default)]
 pub struct Buffers {
     pub(crate) guide: Vec<f32>,

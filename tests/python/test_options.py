@@ -35,6 +35,11 @@ def test_restore_file_defaults_are_the_tables():
     assert set(files.METHOD_KEYS) == {k for k, o in TABLE.items() if o["method"]}
 
 
+def test_formats_are_the_tables_choices():
+    assert sorted(files.FORMATS) == sorted(TABLE["format"]["choices"])
+    assert {b for _, b in files.FORMATS.values()} <= set(TABLE["bits"]["choices"])
+
+
 def test_the_tables_defaults_are_the_cores():
     """A restore with every default given explicitly is the restore with none."""
     img, _ = synth.demo_input(48, 64, seed=1)

@@ -1,0 +1,134 @@
+//! Discovery and naming of a batch's inputs, one implementation for both
+//! commands (docs/CLI.md, docs/OUTPUTS.md): files as given, folders walked
+//! recursively in name order, the output folder never searched, the same
+//! file taken once, and output names that never collide. `uwhl restore`
+//! expands its glob patterns, then calls this through `uwhl_rs._core`.
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+/// Extensions taken when walking a folder (case-insensitive).
+pub const IMAGE_EXTENSIONS: [&str; 5] = ["png", "jpg", "jpeg", "tif", "tiff"];
+
+/// Raw extensions (those the Python command reads through LibRaw): taken
+/// when walking a folder, so that output names agree with the Python
+/// command, and refused with an input error here.
+pub const RAW_EXTENSIONS: [&str; 46] = [
+    "3fr", "ari", "arw", "bay", "braw", "cap", "cr2", "cr3", "crw", "cs1", "dc2", "dcr", "dcs",
+    "dng", "drf", "eip", "erf", "fff", "gpr", "iiq", "k25", "kdc", "mdc", "mef", "mos", "mrw",
+    "nef", "nrw", "orf", "ori", "pef", "ptx", "pxn", "qtk", "r3d", "raf", "raw", "rdc", "rw2",
+    "rwl", "rwz", "sr2", "srf", "srw", "sti", "x3f",
+];
+
+/// The lower-case extension of `p` ("" for none).
+pub fn extension(p: &Path) -> String {
+    p.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
+}
+
+/// Whether a folder walk takes `p` (an image or raw extension).
+pub fn supported(p: &Path) -> bool {
+    let ext = extension(p);
+    IMAGE_EXTENSIONS.contains(&ext.as_str()) || RAW_EXTENSIONS.contains(&ext.as_str())
+}
+
+/// One input and where its outputs go.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Job {
+    /// the input path as given (or as found under a given folder)
+    pub input: PathBuf,
+    /// the output folder of this input
+    pub dir: PathBuf,
+    /// the output base name (`NAME`)
+    pub name: String,
+}
+
+fn walk(dir: &Path, rel: &Path, skip: &Path, found: &mut Vec<(PathBuf, PathBuf)>) -> Result<(), String> {
+    let rd = fs::read_dir(dir).map_err(|e| format!("cannot list {}: {e}", dir.display()))?;
+    let mut entries: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    entries.sort();
+    for p in entries {
+        let Some(fname) = p.file_name().map(|f| f.to_os_string()) else {
+            continue;
+        };
+        if fname.to_string_lossy().starts_with('.') {
+            continue;
+        }
+        if p.is_dir() {
+            // the output folder is never searched (nor are symlink cycles followed twice)
+            if fs::canonicalize(&p).is_ok_and(|c| c == skip) {
+                continue;
+            }
+            if fs::symlink_metadata(&p).is_ok_and(|m| m.file_type().is_symlink()) {
+                continue;
+            }
+            walk(&p, &rel.join(&fname), skip, found)?;
+        } else if supported(&p) && p.is_file() {
+            found.push((p, rel.to_path_buf()));
+        }
+    }
+    Ok(())
+}
+
+/// The jobs of a batch, named as the Python command names them: files as
+/// given, folders walked recursively (sorted, hidden entries and the output
+/// folder skipped, JPEG/PNG/TIFF and raw extensions taken), outputs in
+/// `outdir/<path relative to the folder>/`. The same file given twice is
+/// processed once; files under `outdir` are never inputs. Inputs that would
+/// share a `NAME` in one folder get `NAME_ext` (lower-case extension), then
+/// `NAME_ext_2`, ... Returns the jobs and the inputs that matched nothing.
+pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path) -> (Vec<Job>, Vec<(PathBuf, String)>) {
+    let out_real = fs::canonicalize(outdir).unwrap_or_else(|_| outdir.to_path_buf());
+    let mut found: Vec<(PathBuf, PathBuf)> = Vec::new();
+    let mut errors = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let before = found.len();
+            match walk(input, Path::new(""), &out_real, &mut found) {
+                Err(e) => errors.push((input.clone(), e)),
+                Ok(()) if found.len() == before => {
+                    errors.push((input.clone(), "folder holds no JPEG, PNG, TIFF or raw file".into()))
+                }
+                Ok(()) => {}
+            }
+        } else if input.exists() {
+            found.push((input.clone(), PathBuf::new()));
+        } else {
+            errors.push((input.clone(), "no such file or folder".into()));
+        }
+    }
+    let mut seen = std::collections::HashSet::new();
+    found.retain(|(p, _)| {
+        let real = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        !real.starts_with(&out_real) && seen.insert(real)
+    });
+    let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let mut count: BTreeMap<(PathBuf, String), usize> = BTreeMap::new();
+    for (p, rel) in &found {
+        *count.entry((rel.clone(), stem(p))).or_insert(0) += 1;
+    }
+    let mut taken = std::collections::HashSet::new();
+    let jobs = found
+        .into_iter()
+        .map(|(p, rel)| {
+            let s = stem(&p);
+            let shared = count.get(&(rel.clone(), s.clone())).copied().unwrap_or(0) > 1;
+            let base = if shared { format!("{s}_{}", extension(&p)) } else { s };
+            let mut name = base.clone();
+            let mut k = 1;
+            while !taken.insert((rel.clone(), name.clone())) {
+                k += 1;
+                name = format!("{base}_{k}");
+            }
+            Job {
+                input: p,
+                dir: outdir.join(&rel),
+                name,
+            }
+        })
+        .collect();
+    (jobs, errors)
+}
+
