@@ -269,21 +269,16 @@ def restore(
     return _core.restore_f32(img, kw, water_mask=wm, mask=m)
 
 
-def _method_params(
-    *,
-    water_types=None,
-    veiling_light=None,
-    guided_radius: int | None = DEFAULTS["guided_radius"],
-    guided_eps: float = DEFAULTS["guided_eps"],
-    sphere_points: int = DEFAULTS["sphere_points"],
-    threads: int | None = DEFAULTS["threads"],
-    max_memory: int | None = DEFAULTS["max_memory"],
-    selection: str = DEFAULTS["selection"],
-    guided_subsample: int | str = DEFAULTS["guided_subsample"],
-) -> _core.Params:
+def _method_params(**kw) -> _core.Params:
     """The method's keyword arguments of :func:`restore` and :class:`Sequence`
     (defaults: :func:`restore`'s), checked (ParameterError naming a bad one)
     and converted to the core's parameters."""
+    unknown = sorted(set(kw) - set(DEFAULTS))
+    if unknown:
+        raise TypeError(f"unexpected keyword argument(s) {', '.join(unknown)}; the method's are {', '.join(DEFAULTS)}")
+    kw = {**DEFAULTS, **kw}
+    water_types, veiling_light, guided_eps, selection = (kw[k] for k in ("water_types", "veiling_light", "guided_eps",
+                                                                          "selection"))
     if veiling_light is not None:
         try:
             v = np.asarray(veiling_light, dtype=np.float64)
@@ -304,13 +299,13 @@ def _method_params(
     return _core.Params(
         water_types=water_types,
         veiling_light=veiling_light,
-        guided_radius=_int_param("guided_radius", guided_radius, 0),
+        guided_radius=_int_param("guided_radius", kw["guided_radius"], 0),
         guided_eps=float(guided_eps),
-        sphere_points=_int_param("sphere_points", sphere_points, 0),
-        threads=_int_param("threads", threads, 0),
-        max_memory=_int_param("max_memory", max_memory, 0),
+        sphere_points=_int_param("sphere_points", kw["sphere_points"], 0),
+        threads=_int_param("threads", kw["threads"], 0),
+        max_memory=_int_param("max_memory", kw["max_memory"], 0),
         selection=selection,
-        guided_subsample=_subsample_param(guided_subsample),
+        guided_subsample=_subsample_param(kw["guided_subsample"]),
     )
 
 

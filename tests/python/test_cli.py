@@ -156,41 +156,6 @@ def test_failure_while_writing_leaves_no_partial_outputs(scenes, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["scene_II.json"]
 
 
-def test_an_interrupted_run_resumes_without_redoing_finished_files(tmp_path):
-    src = tmp_path / "in"
-    src.mkdir()
-    n = 6
-    for k in range(n):
-        img, _ = synth.demo_input(240, 320, water_type="3C", seed=k)
-        io.write_image(src / f"f{k}.png", img, encoding="linear")
-    out = tmp_path / "out"
-    # SIGINT back to its default in the child: a shell that starts the suite
-    # in the background (`cmd &`, nohup) passes it on ignored, and Python then
-    # installs no KeyboardInterrupt handler (the run would finish and skip)
-    proc = subprocess.Popen([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "--threads", "1"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(),
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    deadline = time.time() + 300
-    while time.time() < deadline and not (out.is_dir() and any(f.endswith(".json") for f in os.listdir(out))):
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=300)
-    done = sorted(f for f in os.listdir(out) if f.endswith(".json"))
-    if proc.returncode == 0:
-        pytest.skip("the run finished before it could be interrupted")
-    assert proc.returncode == 130 and "run the same command again to resume" in err
-    assert 1 <= len(done) < n
-    assert not [f for f in os.listdir(out) if f.startswith(".")]  # no temporaries
-    stamps = {f: os.stat(out / f).st_mtime_ns for f in done}
-    r = uwhl("restore", src, "-o", out, "--threads", "1")
-    assert r.returncode == 0, r.stderr
-    assert f"{n - len(done)} done, {len(done)} skipped, 0 failed" in r.stdout
-    assert {f: os.stat(out / f).st_mtime_ns for f in done} == stamps  # untouched
-    assert len([f for f in os.listdir(out) if f.endswith(".json")]) == n
-    r = uwhl("restore", src / "f0.png", "-o", out, "--overwrite")
-    assert "1 done, 0 skipped" in r.stdout
-
-
 def test_options_reach_restore(scenes, tmp_path):
     mask = np.ones((96, 128), np.uint8) * 255
     mask[60:80, 10:40] = 0  # a "chart" to ignore

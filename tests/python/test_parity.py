@@ -187,8 +187,11 @@ def test_help_of_both_lists_the_shared_options_and_exit_codes(binary):
 
 @pytest.mark.skipif(not hasattr(signal, "SIGINT"), reason="no SIGINT")
 def test_interrupt_is_130_and_resumes(binary, files, tmp_path):
-    """SIGINT mid-batch: exit 130, every sidecar written has its outputs,
-    and the same command run again finishes the rest with exit 0."""
+    """SIGINT mid-batch: exit 130 with the resume hint, no temporaries, every
+    sidecar written has its outputs, and the same command run again
+    finishes the rest with exit 0 without touching the finished inputs.
+    SIGINT goes back to its default in the child: a shell that starts the
+    suite in the background passes it on ignored."""
     many = tmp_path / "many"
     many.mkdir()
     for k in range(30):
@@ -207,11 +210,15 @@ def test_interrupt_is_130_and_resumes(binary, files, tmp_path):
         if len(done) == 30:
             pytest.skip(f"{face}: the run finished before the interrupt")
         assert p.returncode == CONTRACT["interrupted"], (face, p.returncode, err[-1000:])
+        assert "run the same command again to resume" in err, (face, err)
+        assert not [f for f in os.listdir(out) if f.startswith(".")], face  # no temporaries
         for f in done:
             stem = f[:-5]
             for s in (".png", "_t.png", "_t_color.png"):
                 assert (out / f"{stem}{s}").exists(), (face, stem, s)
+        stamps = {f: os.stat(out / f).st_mtime_ns for f in done}
         again = subprocess.run(args, capture_output=True, text=True, env=_env(), timeout=600)
         assert again.returncode == 0, again.stderr
         assert len([f for f in os.listdir(out) if f.endswith(".json")]) == 30
         assert f"{len(done)} skipped" in again.stdout
+        assert {f: os.stat(out / f).st_mtime_ns for f in done} == stamps, face  # finished inputs untouched
