@@ -222,6 +222,35 @@ impl std::fmt::Display for Stage {
     }
 }
 
+impl Params {
+    /// Sets the method parameter `key` (a row of `crate::options::OPTIONS`
+    /// with `method: true`, other than `water_types`) to a value of its
+    /// kind: the one place where a parameter's value reaches `Params`, for
+    /// the Python keywords and the binary's flags alike. Ranges that depend
+    /// on the image are checked by [`check_params`] when `restore` runs.
+    pub fn set(&mut self, key: &str, v: &crate::options::Value) -> Result<()> {
+        use crate::options::Value as V;
+        let bad = || Error::Param {
+            name: crate::options::spec(key).map_or("parameter", |s| s.key),
+            msg: format!("{v:?} is not a value of this parameter"),
+        };
+        let size = |n: u64| usize::try_from(n).unwrap_or(usize::MAX);
+        match (key, v) {
+            ("veiling_light", V::Rgb(a)) => self.veiling_light = Some(a.map(|x| x as f32)),
+            ("guided_radius", V::Int(n)) => self.guided_radius = Some(size(*n)),
+            ("guided_eps", V::Float(x)) => self.guided_eps = *x,
+            ("guided_eps", V::Int(n)) => self.guided_eps = *n as f64,
+            ("sphere_points", V::Int(n)) => self.sphere_points = size(*n),
+            ("threads", V::Int(n)) => self.threads = Some(size(*n)),
+            ("max_memory", V::Int(n)) => self.max_memory = *n,
+            ("selection", V::Text(t)) => self.selection = Selection::from_name(t)?,
+            ("guided_subsample", V::Int(n)) => self.guided_subsample = size(*n),
+            _ => return Err(bad()),
+        }
+        Ok(())
+    }
+}
+
 /// The image and its optional masks.
 #[derive(Debug, Clone, Copy)]
 pub struct Input<'a> {

@@ -3,7 +3,7 @@
 //! function ([`to_py_err`]). No algorithm code lives here.
 
 use crate::error::Error;
-use crate::params::{Input, Params, Restoration, Selection};
+use crate::params::{Input, Params, Restoration};
 use crate::pipeline::restore;
 use crate::sequence::Sequence;
 use std::sync::Mutex;
@@ -178,46 +178,44 @@ pub struct PyParams(Params);
 
 #[pymethods]
 impl PyParams {
-    /// Every argument defaults to the core's default (`crate::options`);
-    /// `selection` becomes the core's enum here, the numbers are checked by
-    /// the core when `restore` runs.
+    /// The method's keywords (the rows of the option table with `method`),
+    /// each None or absent for the core's default; a value of the wrong
+    /// kind is a ParameterError naming the keyword, an unknown keyword a
+    /// TypeError.
     #[new]
-    #[pyo3(signature = (*, water_types=None, veiling_light=None, guided_radius=None, guided_eps=None,
-                        sphere_points=None, threads=None, max_memory=None, selection=None,
-                        guided_subsample=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        water_types: Option<Bound<'_, PyAny>>,
-        veiling_light: Option<(f32, f32, f32)>,
-        guided_radius: Option<usize>,
-        guided_eps: Option<f64>,
-        sphere_points: Option<usize>,
-        threads: Option<usize>,
-        max_memory: Option<u64>,
-        selection: Option<&str>,
-        guided_subsample: Option<usize>,
-    ) -> PyResult<Self> {
+    #[pyo3(signature = (**kwargs))]
+    fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        use crate::options::{spec, Kind, Value};
         let mut params = Params::default();
-        if let Some(t) = water_types {
-            params.water_types = parse_types(&t)?;
-        }
-        params.veiling_light = veiling_light.map(|(r, g, b)| [r, g, b]);
-        params.guided_radius = guided_radius;
-        params.threads = threads;
-        if let Some(v) = guided_eps {
-            params.guided_eps = v;
-        }
-        if let Some(v) = sphere_points {
-            params.sphere_points = v;
-        }
-        if let Some(v) = guided_subsample {
-            params.guided_subsample = v;
-        }
-        if let Some(m) = max_memory {
-            params.max_memory = m;
-        }
-        if let Some(name) = selection {
-            params.selection = Selection::from_name(name).map_err(to_py_err)?;
+        let Some(kwargs) = kwargs else {
+            return Ok(Self(params));
+        };
+        for (k, v) in kwargs.iter() {
+            let key: String = k.extract()?;
+            let s = spec(&key).filter(|s| s.method).ok_or_else(|| {
+                pyo3::exceptions::PyTypeError::new_err(format!("unexpected keyword argument {key:?}"))
+            })?;
+            if v.is_none() {
+                continue;
+            }
+            let wrong = |what: &str| ParameterError::new_err(format!("{key} must be {what}; got {v}"));
+            let value = match s.kind {
+                Kind::WaterTypes => {
+                    params.water_types = parse_types(&v)?;
+                    continue;
+                }
+                Kind::Int { .. } | Kind::Bytes | Kind::Subsample | Kind::IntOf(_) => {
+                    Value::Int(v.extract().map_err(|_| wrong("an integer >= 0"))?)
+                }
+                Kind::Float { .. } => Value::Float(v.extract().map_err(|_| wrong("a number"))?),
+                Kind::Choice(names) => Value::Text(v.extract().map_err(|_| wrong(&names.join(" or ")))?),
+                Kind::Rgb => {
+                    let (r, g, b): (f64, f64, f64) = v.extract().map_err(|_| wrong("3 numbers (R, G, B)"))?;
+                    Value::Rgb([r, g, b])
+                }
+                Kind::Flag | Kind::Path => return Err(wrong("a value of this keyword")),
+            };
+            params.set(s.key, &value).map_err(to_py_err)?;
         }
         Ok(Self(params))
     }

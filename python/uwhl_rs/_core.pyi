@@ -54,19 +54,10 @@ class Restoration:
 WaterTypeSpec = Union[str, tuple[str, float, float]]
 
 class Params:
-    def __init__(
-        self,
-        *,
-        water_types: Optional[_Seq[WaterTypeSpec]] = None,
-        veiling_light: Optional[tuple[float, float, float]] = None,
-        guided_radius: Optional[int] = None,
-        guided_eps: Optional[float] = None,
-        sphere_points: Optional[int] = None,
-        threads: Optional[int] = None,
-        max_memory: Optional[int] = None,
-        selection: Optional[Literal["exhaustive", "fast"]] = None,
-        guided_subsample: Optional[int] = None,
-    ) -> None: ...
+    """The method's keywords: the rows of OPTIONS with "method" true
+    (water_types, veiling_light, guided_radius, guided_eps, sphere_points,
+    threads, max_memory, selection, guided_subsample); None = default."""
+    def __init__(self, **kwargs: object) -> None: ...
 
 def restore_f32(
     image: npt.NDArray[np.float32],
