@@ -14,8 +14,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 @pytest.fixture(scope="session")
 def binary():
     """The ``uwhl-rs`` executable: built with ``cargo build --profile test
-    --features cli``, which reuses what ``cargo test --features cli`` (the CI
-    command) compiled; ``UWHL_RS_BIN`` points the tests at another build."""
+    --features cli,internals``, which reuses what ``cargo test --features
+    cli,internals`` (the CI command) compiled; ``UWHL_RS_BIN`` points the tests at another build."""
     path = os.environ.get("UWHL_RS_BIN")
     if path:
         return path
@@ -23,7 +23,7 @@ def binary():
     if cargo is None:
         pytest.skip("cargo is not installed: cannot build the uwhl-rs binary")
     r = subprocess.run(
-        [cargo, "build", "--profile", "test", "--features", "cli", "--bin", "uwhl-rs",
+        [cargo, "build", "--profile", "test", "--features", "cli,internals", "--bin", "uwhl-rs",
          "--message-format=json-render-diagnostics"],
         cwd=ROOT, capture_output=True, text=True, timeout=1800,
     )
