@@ -85,5 +85,35 @@ pub enum Error {
     Internal(String),
 }
 
+/// Whose problem an [`Error`] is: the one classification that the Python
+/// exceptions and both commands' exit codes follow (docs/CLI.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Category {
+    /// the image cannot be restored (Python `ImageError`; exit 3)
+    UnreadableInput,
+    /// a parameter, mask or water type is invalid (Python `ParameterError`; exit 2)
+    BadArguments,
+    /// over the memory budget (Python `MemoryError`; exit 4)
+    OverBudget,
+    /// a bug (Python `RuntimeError`; exit 6)
+    Internal,
+}
+
+impl Error {
+    /// The category of this error.
+    pub fn category(&self) -> Category {
+        match self {
+            Error::Shape(_)
+            | Error::TooSmall { .. }
+            | Error::NonFinite { .. }
+            | Error::OutOfRange { .. }
+            | Error::Constant(_) => Category::UnreadableInput,
+            Error::Mask { .. } | Error::WaterType(_) | Error::Param { .. } => Category::BadArguments,
+            Error::Memory { .. } => Category::OverBudget,
+            Error::Internal(_) => Category::Internal,
+        }
+    }
+}
+
 /// Result alias of the core.
 pub type Result<T> = std::result::Result<T, Error>;

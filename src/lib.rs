@@ -70,6 +70,11 @@ pub mod color;
 #[forbid(unsafe_code)]
 pub mod options;
 
+/// The rendered scene of `uwhl-rs demo` (and, included by path, of the Rust tests).
+#[cfg(feature = "cli")]
+#[forbid(unsafe_code)]
+mod scene;
+
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
 /// outputs and sidecar, batch and stream modes.
 #[cfg(feature = "cli")]

@@ -499,6 +499,13 @@ pub const EXIT_CODES: &[(u8, &str, &str)] = &[
     (130, "interrupted", "interrupted (SIGINT); run the same command again to resume"),
 ];
 
+/// The exit code of the failure kind `name` of [`EXIT_CODES`] (that of
+/// `internal` for a name the table lacks).
+pub fn exit_code(name: &str) -> u8 {
+    let find = |n: &str| EXIT_CODES.iter().find(|(_, k, _)| *k == n).map(|(c, _, _)| *c);
+    find(name).or_else(|| find("internal")).unwrap_or(1)
+}
+
 /// The exit-code table as `--help` prints it.
 pub fn exit_code_text() -> String {
     let mut s = String::from("exit codes (with several inputs, every input is processed and the largest code is returned):\n");
@@ -564,6 +571,15 @@ mod tests {
         let m = spec("max_memory").unwrap();
         assert_eq!(m.parse("512M").ok(), Some(Value::Int(512 << 20)));
         assert!(m.parse("0").is_err() && m.parse("lots").is_err());
+    }
+
+    #[test]
+    fn exit_codes_are_distinct_and_found_by_name() {
+        for (i, (c, n, _)) in EXIT_CODES.iter().enumerate() {
+            assert_eq!(exit_code(n), *c);
+            assert!(EXIT_CODES[i + 1..].iter().all(|(c2, n2, _)| c2 != c && n2 != n));
+        }
+        assert_eq!((exit_code("ok"), exit_code("interrupted"), exit_code("no such kind")), (0, 130, 6));
     }
 
     #[test]

@@ -110,15 +110,15 @@ impl Default for Params {
 /// (docs/OUTPUTS.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Flag {
-    /// no water region was detected (METHOD §3)
+    /// the water region VL is empty: none found, too small, or rejected as a shadow (METHOD §3)
     NoWaterRegion,
-    /// A came from the fallback of METHOD §3 (no usable water region)
+    /// A comes from the fallback of METHOD §3
     VeilingFallback,
-    /// a component of A was raised to its floor (METHOD §3)
+    /// a component of A was raised to 1e-4 (METHOD §3)
     VeilingLightClamped,
-    /// the t_R exclusion threshold was halved until a type survived (METHOD §9)
+    /// no exclusion threshold (0.1, halved up to 30 times) left a type, so none was excluded (METHOD §9)
     ExclusionRelaxed,
-    /// the water region could not fit the matting model; no soft matting (METHOD §5)
+    /// VL exists but its colour covariance has no inverse: no soft matting (METHOD §5)
     MattingSkipped,
     /// a sequence frame reused the water type and A of an earlier frame (METHOD §10)
     EstimatesReused,

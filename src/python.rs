@@ -36,18 +36,13 @@ create_exception!(
 
 /// The one place where core errors become Python exceptions.
 pub(crate) fn to_py_err(e: Error) -> PyErr {
+    use crate::error::Category as C;
     let msg = e.to_string();
-    match e {
-        Error::Shape(_)
-        | Error::TooSmall { .. }
-        | Error::NonFinite { .. }
-        | Error::OutOfRange { .. }
-        | Error::Constant(_) => ImageError::new_err(msg),
-        Error::Mask { .. } | Error::WaterType(_) | Error::Param { .. } => {
-            ParameterError::new_err(msg)
-        }
-        Error::Memory { .. } => PyMemoryError::new_err(msg),
-        Error::Internal(_) => PyRuntimeError::new_err(msg),
+    match e.category() {
+        C::UnreadableInput => ImageError::new_err(msg),
+        C::BadArguments => ParameterError::new_err(msg),
+        C::OverBudget => PyMemoryError::new_err(msg),
+        C::Internal => PyRuntimeError::new_err(msg),
     }
 }
 

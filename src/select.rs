@@ -8,8 +8,6 @@ use crate::util::ChannelStretch;
 pub const EXCLUDE_THRESHOLD: f64 = 0.1;
 /// Halvings of the threshold tried before giving up on exclusion.
 pub const MAX_HALVINGS: usize = 30;
-/// Flag: no threshold left any type, so none was excluded.
-
 /// What selection needs from one water type's result.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TypeStats {

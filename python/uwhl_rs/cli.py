@@ -134,7 +134,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render the package's synthetic underwater scene (nothing is downloaded), restore it, "
         "write input/restored/transmission/clean_truth PNGs and report true vs estimated water type and A.",
     )
-    d.add_argument("-o", "--out", default="uwhl_demo", help="output folder (default: ./uwhl_demo)")
+    d.add_argument("-o", "--out", "--output", dest="out", default="uwhl_demo", help="output folder (default: ./uwhl_demo)")
     d.add_argument("--water-type", default="III", choices=list(uwhl_rs.WATER_TYPES), help="water type to render (default III)")
     d.add_argument("--size", default="480x640", help="HxW of the scene (default 480x640)")
     d.add_argument("--seed", type=int, default=7, help="scene seed (default 7)")

@@ -12,7 +12,7 @@
 
 use std::io::Write;
 use std::process::ExitCode;
-use uwhl::cli::{help, init_threads, install_interrupt_handler, parse, report, run_batch, run_stream, Command};
+use uwhl::cli::{help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_stream, Command};
 
 fn main() -> ExitCode {
     let json_errors = std::env::args_os().any(|a| a == "--json-errors");
@@ -27,6 +27,13 @@ fn main() -> ExitCode {
             let _ = writeln!(stdout, "uwhl-rs {}", env!("CARGO_PKG_VERSION"));
             0
         }
+        Ok(Command::Demo(d)) => match run_demo(&d, &mut stdout) {
+            Ok(code) => code,
+            Err(e) => {
+                report(&mut stderr, false, None, &e);
+                e.kind.exit_code()
+            }
+        },
         Ok(Command::Run(opts)) => {
             init_threads(opts.threads);
             if opts.stream {

@@ -175,6 +175,8 @@ impl Options {
 pub enum Command {
     /// restore (batch or stream)
     Run(Box<Options>),
+    /// `demo`: the built-in rendered scene
+    Demo(Demo),
     /// `--help`
     Help,
     /// `--version`
@@ -191,6 +193,8 @@ usage:
   uwhl-rs restore [OPTIONS] INPUT... -o OUTDIR   restore files and folders (PNG, JPEG, TIFF)
   uwhl-rs restore --stream [OPTIONS] -o OUTDIR   read image paths from stdin, one per line
   uwhl-rs [OPTIONS] INPUT... -o OUTDIR           the same as 'uwhl-rs restore'
+  uwhl-rs demo [-o DIR] [--water-type T] [--size HxW] [--seed N]
+                                                 restore the built-in rendered scene
 
 For INPUT NAME.EXT writes OUTDIR/NAME.jpg (or .png/.tif), NAME_t.png (16-bit t_B),
 NAME_t_color.png (colour-mapped t_B) and NAME.json (sidecar, written last).
@@ -207,6 +211,56 @@ or the run was interrupted (130).
         help_text(Faces::Rust, 100),
         exit_code_text()
     )
+}
+
+/// The options of `demo` (as `uwhl demo`'s).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Demo {
+    /// `-o DIR` (default `uwhl_demo`)
+    pub out: PathBuf,
+    /// `--water-type`: the Jerlov type to render (default III)
+    pub water_type: WaterType,
+    /// `--size HxW` (default 480x640)
+    pub size: (usize, usize),
+    /// `--seed` (default 7)
+    pub seed: u64,
+}
+
+/// Parses `demo`'s options (after the subcommand).
+fn parse_demo(p: &mut lexopt::Parser) -> Result<Command, CliError> {
+    use lexopt::prelude::*;
+    let lex = |e: lexopt::Error| CliError::usage(e.to_string());
+    let text = |v: OsString, flag: &str| v.into_string().map_err(|v| CliError::usage(format!("{flag}: {v:?} is not valid UTF-8")));
+    let mut d = Demo {
+        out: PathBuf::from("uwhl_demo"),
+        water_type: WaterType::by_name("III").map_err(|e| CliError::new(Kind::Internal, e.to_string()))?,
+        size: (480, 640),
+        seed: 7,
+    };
+    while let Some(arg) = p.next().map_err(lex)? {
+        match arg {
+            Short('h') | Long("help") => return Ok(Command::Help),
+            Short('o') | Long("out") | Long("output") => d.out = p.value().map_err(lex)?.into(),
+            Long("water-type") => {
+                let v = text(p.value().map_err(lex)?, "--water-type")?;
+                d.water_type = WaterType::by_name(v.trim()).map_err(|e| CliError::usage(format!("--water-type: {e}")))?;
+            }
+            Long("size") => {
+                let v = text(p.value().map_err(lex)?, "--size")?;
+                let hw: Vec<usize> = v.to_ascii_lowercase().split('x').filter_map(|t| t.trim().parse().ok()).collect();
+                d.size = match hw.as_slice() {
+                    [h, w] if *h >= 4 && *w >= 4 && h.saturating_mul(*w) <= 50_000_000 => (*h, *w),
+                    _ => return Err(CliError::usage(format!("--size: {v:?} is not HxW with sides >= 4 (e.g. 480x640)"))),
+                };
+            }
+            Long("seed") => {
+                let v = text(p.value().map_err(lex)?, "--seed")?;
+                d.seed = v.trim().parse().map_err(|_| CliError::usage(format!("--seed: {v:?} is not an integer >= 0")))?;
+            }
+            _ => return Err(CliError::usage(arg.unexpected().to_string())),
+        }
+    }
+    Ok(Command::Demo(d))
 }
 
 /// One `--water-type` item: a Jerlov name, or `NAME:BETA_BR:BETA_BG`.
@@ -337,7 +391,8 @@ where
                 continue;
             }
             Value(v) if is_first && v == "restore" => continue,
-            Value(v) if is_first && (v == "demo" || v == "evaluate" || v == "report") => {
+            Value(v) if is_first && v == "demo" => return parse_demo(&mut p),
+            Value(v) if is_first && (v == "evaluate" || v == "report") => {
                 return Err(CliError::usage(format!(
                     "'{}' is a subcommand of the Python command only: run 'uwhl {}' (docs/CLI.md)",
                     v.to_string_lossy(),
@@ -459,7 +514,10 @@ mod tests {
             &["a", "-o", "o", "--frobnicate"],
             &["a", "-o", "o", "--quality", "0"],
             &["a", "-o", "o", "--jobs", "2"],
-            &["demo", "-o", "o"],
+            &["evaluate", "-o", "o"],
+            &["demo", "--size", "3x9"],
+            &["demo", "--water-type", "XI"],
+            &["demo", "--frobnicate"],
             &["-o", "o", "--stream", "--reuse-water-mask"],
             &["a", "-o", "o", "--stream"],
             &["a", "-o", "o", "--linear", "--preprocess", "reference"],

@@ -18,9 +18,10 @@ macro_rules! cli_modules {
     };
 }
 
-cli_modules!(args, budget, decode, output, run, sidecar);
+cli_modules!(args, budget, decode, demo, output, run, sidecar);
 
-pub use args::{help, parse, Command, Format, Options, Preprocess, WaterChoice};
+pub use args::{help, parse, Command, Demo, Format, Options, Preprocess, WaterChoice};
+pub use demo::run_demo;
 pub use run::{init_threads, install_interrupt_handler, report, run_batch, run_stream};
 
 use std::fmt;
@@ -44,13 +45,7 @@ pub enum Kind {
 impl Kind {
     /// The process exit code of this kind; larger is more severe.
     pub fn exit_code(self) -> u8 {
-        match self {
-            Kind::Usage => 2,
-            Kind::Input => 3,
-            Kind::Budget => 4,
-            Kind::Write => 5,
-            Kind::Internal => 6,
-        }
+        crate::options::exit_code(self.name())
     }
 
     /// The machine-readable name used in `--json-errors` objects.
@@ -67,16 +62,12 @@ impl Kind {
     /// The kind of an error of the core: bad parameters are the caller's,
     /// bad data the input's, over-budget the budget's.
     pub fn of_core(e: &crate::Error) -> Kind {
-        use crate::Error as E;
-        match e {
-            E::Shape(_)
-            | E::TooSmall { .. }
-            | E::NonFinite { .. }
-            | E::OutOfRange { .. }
-            | E::Constant(_) => Kind::Input,
-            E::Mask { .. } | E::WaterType(_) | E::Param { .. } => Kind::Usage,
-            E::Memory { .. } => Kind::Budget,
-            E::Internal(_) => Kind::Internal,
+        use crate::error::Category as C;
+        match e.category() {
+            C::UnreadableInput => Kind::Input,
+            C::BadArguments => Kind::Usage,
+            C::OverBudget => Kind::Budget,
+            C::Internal => Kind::Internal,
         }
     }
 }
@@ -126,5 +117,31 @@ impl std::error::Error for CliError {}
 impl From<crate::Error> for CliError {
     fn from(e: crate::Error) -> Self {
         Self::new(Kind::of_core(&e), e.to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kind_is_in_the_exit_code_table() {
+        for k in [Kind::Usage, Kind::Input, Kind::Budget, Kind::Write, Kind::Internal] {
+            assert!(crate::options::EXIT_CODES.iter().any(|(c, n, _)| *n == k.name() && *c == k.exit_code()), "{k:?}");
+        }
+        assert_eq!(
+            [Kind::Usage, Kind::Input, Kind::Budget, Kind::Write, Kind::Internal].map(Kind::exit_code),
+            [2, 3, 4, 5, 6]
+        );
+    }
+
+    #[test]
+    fn core_errors_keep_their_category() {
+        let param = crate::Error::Param { name: "guided_eps", msg: "x".into() };
+        let memory = crate::Error::Memory { height: 1, width: 1, needed: 2, limit: 1 };
+        assert_eq!(Kind::of_core(&param), Kind::Usage);
+        assert_eq!(Kind::of_core(&memory), Kind::Budget);
+        assert_eq!(Kind::of_core(&crate::Error::Constant(0.5)), Kind::Input);
+        assert_eq!(Kind::of_core(&crate::Error::Internal("x".into())), Kind::Internal);
     }
 }

@@ -544,8 +544,10 @@ fn interrupted() -> bool {
     INTERRUPT.get().is_some_and(|f| f.load(std::sync::atomic::Ordering::Relaxed))
 }
 
-/// The exit code of an interrupted run.
-pub const EXIT_INTERRUPTED: u8 = 130;
+/// The exit code of an interrupted run (docs/CLI.md).
+fn exit_interrupted() -> u8 {
+    crate::options::exit_code("interrupted")
+}
 
 /// The core sequence of `--reuse-estimates N`: restored inputs 0, N, 2N,
 /// ... estimate the water type and veiling light, the others reuse them.
@@ -644,12 +646,12 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
             done + skipped + failed - errors.len()
         );
         let _ = if opts.json_errors {
-            let obj = serde_json::json!({"error": "interrupted", "input": null, "message": message, "exit_code": EXIT_INTERRUPTED});
+            let obj = serde_json::json!({"error": "interrupted", "input": null, "message": message, "exit_code": exit_interrupted()});
             writeln!(err, "{obj}")
         } else {
             writeln!(err, "uwhl-rs: {message}")
         };
-        return EXIT_INTERRUPTED;
+        return exit_interrupted();
     }
     if failed > 0 && !opts.json_errors {
         let _ = writeln!(err, "uwhl-rs: {failed} input(s) failed");

@@ -165,8 +165,8 @@ def test_progress_skip_and_summary_lines_agree(binary, files, tmp_path):
 def test_rust_only_and_python_only_options_are_refused_with_a_pointer(binary, files, tmp_path):
     r = _run("rust", binary, [str(files / "f0.png"), "-o", str(tmp_path / "o"), "--contact-sheet"], tmp_path)
     assert r.returncode == 2 and "Python command" in r.stderr
-    r = subprocess.run([binary, "demo"], capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2 and "uwhl demo" in r.stderr
+    r = subprocess.run([binary, "evaluate"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "uwhl evaluate" in r.stderr
     r = _run("python", binary, [str(files / "f0.png"), "-o", str(tmp_path / "o"), "--stream"], tmp_path)
     assert r.returncode == 2
 
@@ -222,3 +222,28 @@ def test_interrupt_is_130_and_resumes(binary, files, tmp_path):
         assert len([f for f in os.listdir(out) if f.endswith(".json")]) == 30
         assert f"{len(done)} skipped" in again.stdout
         assert {f: os.stat(out / f).st_mtime_ns for f in done} == stamps, face  # finished inputs untouched
+
+
+def test_demo_in_both_commands(binary, tmp_path):
+    """`demo` in both: the same options, the same four files of the scene's
+    size, the same report lines; each renders its own scene with the water
+    type asked for and restores it (docs/CLI.md)."""
+    from PIL import Image
+
+    for face, cmd in (("python", [sys.executable, "-m", "uwhl_rs"]), ("rust", [binary])):
+        out = tmp_path / face
+        r = subprocess.run([*cmd, "demo", "-o", str(out), "--water-type", "1C", "--size", "90x120", "--seed", "3"],
+                           capture_output=True, text=True, env=_env(), timeout=300)
+        assert r.returncode == 0, (face, r.stderr)
+        assert sorted(os.listdir(out)) == ["clean_truth.png", "input.png", "restored.png", "transmission.png"]
+        for f in os.listdir(out):
+            assert Image.open(out / f).size == (120, 90), (face, f)
+        lines = r.stdout.splitlines()
+        assert "true water type:      1C" in lines, (face, r.stdout)
+        for start in ("estimated water type: ", "veiling light A: true (", "water region: ", "rho(true distance, -ln t_B) = "):
+            assert any(ln.startswith(start) for ln in lines), (face, start, r.stdout)
+        rho = float(next(ln for ln in lines if ln.startswith("rho(")).split("= ")[1])
+        assert rho > 0.5, (face, rho)  # the transmission follows the rendered distances
+        bad = subprocess.run([*cmd, "demo", "--size", "3x9", "-o", str(tmp_path / "x")], capture_output=True,
+                             text=True, env=_env(), timeout=60)
+        assert bad.returncode == 2 and not (tmp_path / "x").exists(), face
