@@ -35,6 +35,18 @@ fn img_of<'a>(a: &'a PyReadonlyArray3<'a, f32>) -> PyResult<ImageRef<'a>> {
     ImageRef::new(d, s[0], s[1]).map_err(to_py_err)
 }
 
+/// An (H, W, 3) stage of the image and its mask: `f(data, mask)`.
+fn rgb_stage<'py>(
+    py: Python<'py>,
+    image: &PyReadonlyArray3<'py, f32>,
+    mask: &Option<PyReadonlyArray2<'py, bool>>,
+    f: fn(&[f32], Option<&[bool]>) -> Vec<f32>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let img = img_of(image)?;
+    let m = mask_slice("mask", mask, img.height, img.width)?;
+    arr3(py, f(img.data, m), img.height, img.width)
+}
+
 /// METHOD §3.1 contrast stretch (statistics over masked-in pixels).
 #[pyfunction]
 #[pyo3(signature = (image, mask=None))]
@@ -43,14 +55,7 @@ fn _stage_stretch<'py>(
     image: PyReadonlyArray3<'py, f32>,
     mask: Option<PyReadonlyArray2<'py, bool>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let img = img_of(&image)?;
-    let m = mask_slice("mask", &mask, img.height, img.width)?;
-    arr3(
-        py,
-        crate::stretch::stretch_image(img.data, m),
-        img.height,
-        img.width,
-    )
+    rgb_stage(py, &image, &mask, crate::stretch::stretch_image)
 }
 
 /// METHOD §6 guide image.
@@ -61,14 +66,7 @@ fn _stage_guide<'py>(
     image: PyReadonlyArray3<'py, f32>,
     mask: Option<PyReadonlyArray2<'py, bool>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let img = img_of(&image)?;
-    let m = mask_slice("mask", &mask, img.height, img.width)?;
-    arr3(
-        py,
-        crate::stretch::guide_image(img.data, m),
-        img.height,
-        img.width,
-    )
+    rgb_stage(py, &image, &mask, crate::stretch::guide_image)
 }
 
 /// Edge map: (E at working size, tau, scale, sigma).

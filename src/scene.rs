@@ -112,3 +112,15 @@ pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
     let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
     cov / (va * vb).sqrt()
 }
+
+/// rho(z, -ln t_B) over the object pixels of a rendered scene (METHOD §11).
+pub fn rho(r: &Rendered, t: &[f32]) -> f64 {
+    let (z, lt): (Vec<f64>, Vec<f64>) = r
+        .z
+        .iter()
+        .zip(t)
+        .filter(|(z, _)| z.is_finite())
+        .map(|(z, t)| (*z, -f64::from(*t).ln()))
+        .unzip();
+    pearson(&z, &lt)
+}

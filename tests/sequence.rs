@@ -82,14 +82,7 @@ fn reused_frame_recovers_the_rendered_veiling_light_and_distances() {
     for (got, want) in a.iter().zip(truth.a) {
         assert!((got - want).abs() < 0.02, "A {a:?}, true {:?}", truth.a);
     }
-    let (z, d): (Vec<f64>, Vec<f64>) = truth
-        .z
-        .iter()
-        .zip(&res.transmission)
-        .filter(|(z, _)| z.is_finite())
-        .map(|(z, t)| (*z, -f64::from(*t).ln()))
-        .unzip();
-    let rho = common::pearson(&z, &d);
+    let rho = common::rho(&truth, &res.transmission);
     assert!(rho > 0.8, "rho(z, -ln t_B) = {rho}");
 }
 

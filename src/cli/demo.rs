@@ -46,14 +46,7 @@ pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
     let mut ranking: Vec<&(String, f64)> = res.scores.iter().collect();
     ranking.sort_by(|a, b| a.1.total_cmp(&b.1));
     let names = |v: &[&(String, f64)]| v.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(" ");
-    let (z, lt): (Vec<f64>, Vec<f64>) = scene
-        .z
-        .iter()
-        .zip(&res.transmission)
-        .filter(|(z, _)| z.is_finite())
-        .map(|(z, t)| (*z, -f64::from(*t).ln()))
-        .unzip();
-    let rho = crate::scene::pearson(&z, &lt);
+    let rho = crate::scene::rho(&scene, &res.transmission);
     let vl = res.veiling_mask.iter().filter(|&&b| b).count() as f64 / (h * w) as f64;
     let flags: Vec<&str> = res.flags.iter().map(|f| f.name()).collect();
     let a3 = |a: [f32; 3]| format!("({:.4}, {:.4}, {:.4})", a[0], a[1], a[2]);
