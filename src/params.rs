@@ -6,7 +6,6 @@
 use crate::error::{Error, Result};
 use crate::image::{check_mask, ImageRef};
 use crate::options::{DEFAULT_EPS, DEFAULT_MAX_MEMORY, DEFAULT_SPHERE_POINTS};
-use crate::pipeline::fast::fast_factor;
 use crate::recover::Recovery;
 use crate::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
@@ -19,12 +18,13 @@ pub enum Selection {
     #[default]
     Exhaustive,
     /// The types are scored on a copy whose longer side is about
-    /// [`FAST_SIDE`]: one pixel (the centre) of every s x s block, s =
+    /// `FAST_SIDE` (see `fast_factor`): one pixel (the centre) of every s x s block, s =
     /// ceil(max(H, W) / 1024), with its water region and mask, and the
     /// full-resolution veiling light. Where the copy's choice (METHOD §9 on
-    /// the copy) is uncertain, up to [`FAST_RESCORE`] of its best surviving
+    /// the copy) is uncertain, up to 3 of its best surviving
     /// types are scored again at full resolution and METHOD §9 chooses among
-    /// them (see [`FAST_SCORE_MARGIN`], [`FAST_EXCLUSION_MARGIN`]); the
+    /// them (within 1.5x of the copy's best score, or within 0.03 of the
+    /// exclusion threshold: METHOD §9, fast selection); the
     /// chosen type is restored exactly as the exhaustive mode restores it. Reported scores and exclusions are full-resolution ones for the
     /// re-scored types and the copy's for the others. Images whose longer
     /// side is at most 1024 are processed exhaustively.
@@ -53,7 +53,15 @@ impl Selection {
     }
 }
 
-/// Parameters of [`restore`]; `Default` gives docs/METHOD.md's defaults.
+/// Longer side (about) of the copy on which [`Selection::Fast`] scores the types.
+pub const FAST_SIDE: usize = 1024;
+
+/// Block factor of the copy [`Selection::Fast`] scores on (1: no copy).
+pub fn fast_factor(h: usize, w: usize) -> usize {
+    h.max(w).div_ceil(FAST_SIDE).max(1)
+}
+
+/// Parameters of [`restore`](crate::restore); `Default` gives docs/METHOD.md's defaults.
 #[derive(Debug, Clone)]
 pub struct Params {
     /// candidate water types (METHOD §1); default: the ten Jerlov types
@@ -75,7 +83,7 @@ pub struct Params {
     /// guided-filter subsampling factor s: 1 (default) = the exact filter
     /// of METHOD §6; s >= 2 = He and Sun's fast guided filter, (a, b) computed
     /// on samples at the centres of s x s blocks and interpolated back (METHOD §6, subsampled guided filter);
-    /// 0 = automatic, [`auto_subsample`] of the radius
+    /// 0 = automatic, `auto_subsample` of the radius
     pub guided_subsample: usize,
 }
 
@@ -227,7 +235,7 @@ impl Params {
     /// with `method: true`, other than `water_types`) to a value of its
     /// kind: the one place where a parameter's value reaches `Params`, for
     /// the Python keywords and the binary's flags alike. Ranges that depend
-    /// on the image are checked by [`check_params`] when `restore` runs.
+    /// on the image are checked by `check_params` when `restore` runs.
     pub fn set(&mut self, key: &str, v: &crate::options::Value) -> Result<()> {
         use crate::options::Value as V;
         let bad = || Error::Param {
@@ -262,7 +270,7 @@ pub struct Input<'a> {
     pub water_mask: Option<&'a [bool]>,
 }
 
-/// Everything [`restore`] returns (METHOD §10).
+/// Everything [`restore`](crate::restore) returns (METHOD §10).
 #[derive(Debug, Clone)]
 pub struct Restoration {
     /// rows
@@ -319,7 +327,7 @@ pub fn default_radius(h: usize, w: usize) -> usize {
     (h.min(w) as f64 / 4.0).round() as usize
 }
 
-/// Working memory of [`restore`] in bytes beyond the input image, estimated
+/// Working memory of [`restore`](crate::restore) in bytes beyond the input image, estimated
 /// up front from the image size (documented in the README):
 /// `H W (88 + 17 holes)` bytes, holes = the estimation mask has false pixels.
 /// Per pixel: 12 B guide + 36 B guide statistics (window means and inverse

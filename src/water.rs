@@ -35,7 +35,7 @@ pub const JERLOV: [(&str, f64, f64); 10] = [
 ];
 
 impl WaterType {
-    /// A custom water type; both ratios must be finite, > 0 and <= [`MAX_RATIO`].
+    /// A custom water type; both ratios must be finite, > 0 and <= `MAX_RATIO`.
     pub fn new(name: &str, beta_br: f64, beta_bg: f64) -> Result<Self> {
         for (label, v) in [("beta_BR", beta_br), ("beta_BG", beta_bg)] {
             if !v.is_finite() || v <= 0.0 || v > MAX_RATIO {

@@ -6,14 +6,12 @@ use super::evaluate::{Scored, Shared};
 use super::work::{Kept, Work};
 use crate::error::Result;
 use crate::image::ImageRef;
-use crate::params::{default_radius, Params};
+use crate::params::{default_radius, fast_factor, Params};
 use crate::select::{choose, Choice, TypeStats};
 use crate::sphere::SphereIndex;
 use crate::veiling::Veiling;
 use crate::water::WaterType;
 
-/// Longer side (about) of the copy on which [`Selection::Fast`](crate::params::Selection::Fast) scores the types.
-pub const FAST_SIDE: usize = 1024;
 /// How many of the copy's best-scoring surviving types fast selection
 /// scores again at full resolution before choosing.
 pub const FAST_RESCORE: usize = 3;
@@ -53,10 +51,6 @@ pub(crate) fn rescore_candidates(order: &[usize], copy: &[TypeStats], threshold:
     out
 }
 
-/// Block factor of the copy [`Selection::Fast`] scores on (1: no copy).
-pub fn fast_factor(h: usize, w: usize) -> usize {
-    h.max(w).div_ceil(FAST_SIDE).max(1)
-}
 
 /// The copy of the image with its masks that [`Selection::Fast`] scores
 /// the types on: every s-th pixel of every s-th row (the centre of each
