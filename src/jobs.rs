@@ -34,6 +34,18 @@ pub fn supported(p: &Path) -> bool {
     IMAGE_EXTENSIONS.contains(&ext.as_str()) || RAW_EXTENSIONS.contains(&ext.as_str())
 }
 
+/// Ok when `path` is a regular file (after symlinks); else why it is
+/// refused. FIFOs, sockets and devices are never opened: opening a FIFO
+/// blocks until a writer comes.
+pub fn regular_file(path: &Path) -> Result<(), String> {
+    match fs::metadata(path) {
+        Ok(m) if m.is_file() => Ok(()),
+        Ok(m) if m.is_dir() => Err("is a folder".into()),
+        Ok(_) => Err("is not a regular file (a FIFO, socket or device): not opened".into()),
+        Err(_) => Err("no such file or folder".into()),
+    }
+}
+
 /// One input and where its outputs go.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Job {
@@ -93,16 +105,21 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path) -> (Vec<Job>, Vec<(PathBu
                 }
                 Ok(()) => {}
             }
-        } else if input.exists() {
-            found.push((input.clone(), PathBuf::new()));
         } else {
-            errors.push((input.clone(), "no such file or folder".into()));
+            match regular_file(input) {
+                Ok(()) => found.push((input.clone(), PathBuf::new())),
+                Err(why) => errors.push((input.clone(), why)),
+            }
         }
     }
     let mut seen = std::collections::HashSet::new();
     found.retain(|(p, _)| {
         let real = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-        !real.starts_with(&out_real) && seen.insert(real)
+        if real.starts_with(&out_real) {
+            errors.push((p.clone(), format!("is inside the output folder {}: not taken as an input", outdir.display())));
+            return false;
+        }
+        seen.insert(real)
     });
     let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let mut count: BTreeMap<(PathBuf, String), usize> = BTreeMap::new();
@@ -132,3 +149,37 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path) -> (Vec<Job>, Vec<(PathBu
     (jobs, errors)
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_never_collide_and_the_output_folder_is_never_an_input() {
+        let d = std::env::temp_dir().join(format!("uwhl-names-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        for f in ["in/a/x.png", "in/a/x.JPG", "in/b/y.tif", "in/b/.hidden.png", "in/b/notes.txt", "in/raw.NEF", "out/old.png"] {
+            let p = d.join(f);
+            fs::create_dir_all(p.parent().unwrap()).unwrap();
+            fs::write(&p, b"").unwrap();
+        }
+        let out = d.join("out");
+        // a FIFO named like an image, given and in a walked folder: refused, never opened
+        let fifo = d.join("in/b/pipe.jpg");
+        assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+        let inputs = [d.join("in"), d.join("in/a/x.png"), d.join("in/raw.NEF"), d.join("out/old.png"), d.join("none.png")];
+        let (jobs, errors) = collect_jobs(&inputs, &out);
+        let got: Vec<(String, String)> = jobs
+            .iter()
+            .map(|j| (j.dir.strip_prefix(&out).unwrap().display().to_string(), j.name.clone()))
+            .collect();
+        let want = [("a", "x_jpg"), ("a", "x_png"), ("b", "y"), ("", "raw")];
+        assert_eq!(got, want.map(|(a, b)| (a.to_string(), b.to_string())));
+        assert_eq!(errors.len(), 2, "{errors:?}");
+        assert!(errors[0].0.ends_with("none.png") && errors[0].1 == "no such file or folder");
+        assert!(errors[1].0.ends_with("out/old.png") && errors[1].1.contains("inside the output folder"));
+        let (jobs, errors) = collect_jobs(&[fifo.clone()], &out);
+        assert!(jobs.is_empty() && errors.len() == 1 && errors[0].1.contains("FIFO"), "{errors:?}");
+        fs::remove_dir_all(&d).unwrap();
+    }
+}

@@ -424,8 +424,10 @@ def atomic_write_bytes(path: str | os.PathLike, write) -> None:
     ``path`` is untouched."""
     path = os.fspath(path)
     folder = os.path.dirname(path) or "."
-    base, ext = os.path.splitext(os.path.basename(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=f".tmp{ext}", dir=folder)
+    ext = os.path.splitext(os.path.basename(path))[1]
+    # a short name whatever the output's (the binary's scheme), created
+    # exclusively by mkstemp; the extension tells the writers the format
+    fd, tmp = tempfile.mkstemp(prefix=f".uwhl-{os.getpid()}-", suffix=f".tmp{ext}", dir=folder)
     os.close(fd)
     try:
         write(tmp)

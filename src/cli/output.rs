@@ -17,6 +17,29 @@ fn write_error(path: &Path, e: impl std::fmt::Display) -> CliError {
     CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display()))
 }
 
+/// Temporary files made by this process so far (their names' counter).
+static TEMPS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Creates a new temporary file beside `path`, exclusively (`O_EXCL`: a
+/// file or symlink already at that name is never opened, so a planted link
+/// cannot redirect the write), under a short name `.uwhl-PID-N.tmp` that
+/// fits whatever the length of the output's name (the same scheme as the
+/// Python command's).
+fn create_temp(path: &Path) -> Result<(PathBuf, File), CliError> {
+    let pid = std::process::id();
+    let mut last = None;
+    for _ in 0..1000 {
+        let n = TEMPS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tmp = path.with_file_name(format!(".uwhl-{pid}-{n}.tmp"));
+        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
+            Err(e) => return Err(write_error(&tmp, e)),
+        }
+    }
+    Err(write_error(path, last.map_or_else(|| "no temporary name is free".to_string(), |e| e.to_string())))
+}
+
 /// The files of one input written so far; dropped without [`Transaction::commit`]
 /// it removes them.
 #[derive(Debug, Default)]
@@ -38,20 +61,11 @@ impl Transaction {
         path: &Path,
         body: impl FnOnce(&mut BufWriter<File>) -> Result<(), CliError>,
     ) -> Result<(), CliError> {
-        let name = path
-            .file_name()
-            .ok_or_else(|| CliError::new(Kind::Internal, format!("no file name in {}", path.display())))?;
-        let mut tmp_name = std::ffi::OsString::from(".");
-        tmp_name.push(name);
-        tmp_name.push(format!(".{}.tmp", std::process::id()));
-        let tmp = path.with_file_name(tmp_name);
+        if path.file_name().is_none() {
+            return Err(CliError::new(Kind::Internal, format!("no file name in {}", path.display())));
+        }
+        let (tmp, file) = create_temp(path)?;
         let result = (|| {
-            let file = OpenOptions::new()
-                .write(true)
-                .create(true)
-                .truncate(true)
-                .open(&tmp)
-                .map_err(|e| write_error(&tmp, e))?;
             let mut out = BufWriter::new(file);
             body(&mut out)?;
             out.flush().map_err(|e| write_error(&tmp, e))?;
@@ -168,6 +182,28 @@ pub fn write_bytes(tx: &mut Transaction, path: &Path, bytes: &[u8]) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn temporaries_are_created_exclusively_under_short_names() {
+        let d = std::env::temp_dir().join(format!("uwhl-tmpnames-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        fs::create_dir_all(&d).unwrap();
+        // links planted at the next temporary names point outside the folder
+        let victim = d.join("victim");
+        fs::write(&victim, b"keep").unwrap();
+        let next = TEMPS.load(std::sync::atomic::Ordering::Relaxed);
+        for k in next..next + 5 {
+            std::os::unix::fs::symlink(&victim, d.join(format!(".uwhl-{}-{k}.tmp", std::process::id()))).unwrap();
+        }
+        // an output name of 250 bytes: its temporary name still fits
+        let long = d.join(format!("{}.png", "x".repeat(246)));
+        let mut tx = Transaction::new();
+        tx.write(&long, |f| f.write_all(b"data").map_err(|e| write_error(&long, e))).unwrap();
+        tx.commit();
+        assert_eq!(fs::read(&long).unwrap(), b"data");
+        assert_eq!(fs::read(&victim).unwrap(), b"keep");
+        let _ = fs::remove_dir_all(&d);
+    }
 
     #[test]
     fn a_jpeg_wider_than_the_format_allows_is_a_write_error() {

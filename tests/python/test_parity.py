@@ -49,6 +49,7 @@ def files(tmp_path_factory):
     (d / "truncated.png").write_bytes(good[: len(good) // 3])
     (d / "garbage.jpg").write_bytes(b"\xff\xd8\xff\xe0 not really a jpeg" * 10)
     (d / "a_file").write_text("not a folder")
+    os.mkfifo(d / "fifo.jpg")  # opening it for reading would block
     return d
 
 
@@ -71,7 +72,8 @@ def _outputs(out) -> dict:
 
 
 def _run(face, binary, args, tmp, stdin=None):
-    r = subprocess.run(_cmd(face, binary, args), capture_output=True, text=True, timeout=600, env=_env(),
+    # a hang (an input opened that never ends) fails the test instead of the suite
+    r = subprocess.run(_cmd(face, binary, args), capture_output=True, text=True, timeout=120, env=_env(),
                        input=stdin, cwd=tmp)
     return r
 
@@ -100,6 +102,8 @@ CASES = [
     ("over max-pixels", ["{d}/f0.png", "-o", "{o}", "--max-pixels", "100"], "over_budget", set()),
     ("over max-memory", ["{d}/f0.png", "-o", "{o}", "--max-memory", "64K"], "over_budget", set()),
     ("output is a file", ["{d}/f0.png", "-o", "{d}/a_file"], "write_failed", set()),
+    ("FIFO named like an image", ["{d}/fifo.jpg", "{d}/f0.png", "-o", "{o}", "--format", "png"], "unreadable_input",
+     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json"}),
     ("sequence", ["{d}/f0.png", "{d}/f1.png", "{d}/f2.png", "-o", "{o}", "--format", "png",
                   "--reuse-estimates", "2", "--guided-subsample", "auto"], "ok",
      {f"f{k}{s}" for k in range(3) for s in (".png", "_t.png", "_t_color.png", ".json")}),
@@ -247,3 +251,54 @@ def test_demo_in_both_commands(binary, tmp_path):
         bad = subprocess.run([*cmd, "demo", "--size", "3x9", "-o", str(tmp_path / "x")], capture_output=True,
                              text=True, env=_env(), timeout=60)
         assert bad.returncode == 2 and not (tmp_path / "x").exists(), face
+
+
+def test_an_input_inside_the_output_folder_is_refused_with_a_message(binary, files, tmp_path):
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        out.mkdir()
+        (out / "x.png").write_bytes((files / "f0.png").read_bytes())
+        r = _run(face, binary, [str(out / "x.png"), "-o", str(out)], tmp_path)
+        assert r.returncode == CONTRACT["unreadable_input"], (face, r.returncode, r.stderr)
+        assert "inside the output folder" in r.stderr, (face, r.stderr)
+        assert sorted(os.listdir(out)) == ["x.png"], face
+
+
+def test_stream_refuses_a_fifo_line_and_goes_on(binary, files, tmp_path):
+    lines = f"{files / 'fifo.jpg'}\n{files / 'f1.png'}\n"
+    r = subprocess.run([binary, "restore", "--stream", "-o", str(tmp_path / "o"), "--format", "png"], input=lines,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    objs = [json.loads(x) for x in r.stdout.splitlines() if x.strip()]
+    assert objs[0]["error"] == "unreadable_input" and "FIFO" in objs[0]["message"], objs[0]
+    assert objs[1]["water_type"] and os.path.exists(tmp_path / "o" / "f1.json")
+
+
+def test_long_file_names_fit_their_temporaries(binary, files, tmp_path):
+    """An input stem of 240 bytes: NAME_t_color.png is 252 bytes, within the
+    255 a name may have; the temporary names are short in both commands."""
+    src = tmp_path / ("n" * 240 + ".png")
+    src.write_bytes((files / "f2.png").read_bytes())
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        r = _run(face, binary, [str(src), "-o", str(out), "--format", "png"], tmp_path)
+        assert r.returncode == 0, (face, r.stderr)
+        assert len(os.listdir(out)) == 4 and not [f for f in os.listdir(out) if f.startswith(".")], face
+
+
+def test_stream_stops_when_its_output_is_gone(binary, files, tmp_path):
+    """stdout on a full disk: uwhl-rs --stream stops with exit 5 and a
+    message, instead of restoring every frame while its lines are lost."""
+    src = tmp_path / "frames"
+    src.mkdir()
+    for k in range(12):
+        os.link(files / f"f{k % 3}.png", src / f"m{k:02d}.png")
+    lines = "".join(f"{src / f'm{k:02d}.png'}\n" for k in range(12))
+    out = tmp_path / "o"
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([binary, "restore", "--stream", "-o", str(out), "--format", "png", "--max-side", "40"],
+                           input=lines, stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert r.returncode == CONTRACT["write_failed"], r.stderr
+    assert "cannot write the frame lines to stdout" in r.stderr
+    done = [f for f in os.listdir(out) if f.endswith(".json")] if out.exists() else []
+    assert len(done) <= 3, done  # the frame in flight and the one read ahead at most
