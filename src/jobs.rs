@@ -46,6 +46,32 @@ pub fn regular_file(path: &Path) -> Result<(), String> {
     }
 }
 
+/// Removes from `dir` the temporary files (`.uwhl-PID-...`, the names both
+/// commands write through) of processes that no longer run: what a killed
+/// run left. Those of a live process (a concurrent run) stay. Returns how
+/// many were removed; without `/proc` (no way to tell) none.
+pub fn remove_stale_temps(dir: &Path) -> usize {
+    let proc_fs = Path::new("/proc/self");
+    let Ok(rd) = fs::read_dir(dir) else { return 0 };
+    if !proc_fs.exists() {
+        return 0;
+    }
+    let own = std::process::id();
+    let mut removed = 0;
+    for e in rd.flatten() {
+        let name = e.file_name();
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(".uwhl-")) else { continue };
+        let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else { continue };
+        if !rest.contains(".tmp") || pid == own || Path::new("/proc").join(pid.to_string()).exists() {
+            continue;
+        }
+        if e.file_type().is_ok_and(|t| t.is_file()) && fs::remove_file(e.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
 /// One input and where its outputs go.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Job {
@@ -153,6 +179,24 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path) -> (Vec<Job>, Vec<(PathBu
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stale_temporaries_of_dead_processes_go_live_ones_stay() {
+        let d = std::env::temp_dir().join(format!("uwhl-stale-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        fs::create_dir_all(&d).unwrap();
+        // a pid above the kernel's largest (4194304) never runs
+        let dead = d.join(".uwhl-4194399-7.tmp");
+        let dead_py = d.join(".uwhl-4194399-ab12cd.tmp.png");
+        let live = d.join(format!(".uwhl-{}-1.tmp", std::process::id()));
+        let other = d.join(".uwhl-notes");
+        for p in [&dead, &dead_py, &live, &other] {
+            fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temps(&d), 2);
+        assert!(!dead.exists() && !dead_py.exists() && live.exists() && other.exists());
+        fs::remove_dir_all(&d).unwrap();
+    }
 
     #[test]
     fn names_never_collide_and_the_output_folder_is_never_an_input() {

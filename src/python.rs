@@ -299,6 +299,13 @@ fn collect_jobs(
     (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
 }
 
+/// Removes the temporaries that dead processes left in `dir`
+/// (`crate::jobs::remove_stale_temps`); returns how many.
+#[pyfunction]
+fn remove_stale_temps(py: Python<'_>, dir: std::path::PathBuf) -> usize {
+    py.detach(|| crate::jobs::remove_stale_temps(&dir))
+}
+
 /// The `options:` part of a command's `--help` for `face` ("python" or "rust").
 #[pyfunction]
 fn options_help(face: &str) -> PyResult<String> {
@@ -531,6 +538,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
+    m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
     m.add("IMAGE_EXTENSIONS", crate::jobs::IMAGE_EXTENSIONS.to_vec())?;
     m.add("RAW_EXTENSIONS", crate::jobs::RAW_EXTENSIONS.to_vec())?;
     Ok(())

@@ -26,6 +26,7 @@ RAW_EXTENSIONS: list[str]
 def collect_jobs(
     inputs: list[str], out_dir: str
 ) -> tuple[list[tuple[str, str, str]], list[tuple[str, str]]]: ...
+def remove_stale_temps(dir: str) -> int: ...
 def check_combination(
     format: str, bits: Optional[int], reuse_estimates: Optional[int], reuse_water_mask: bool, linear: bool,
     preprocess: str,

@@ -334,6 +334,9 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
             return EXIT["unreadable_input"]
         err.write("uwhl: nothing to do\n")
         return EXIT_OK
+    # what a killed run left in the output folders goes first
+    for d in sorted({j.out_dir for j in jobs}):
+        _core.remove_stale_temps(d)
     # threads=None: every job works in the one global pool; a fixed count
     # per job would make concurrent jobs queue on one cached pool
     threads = a.threads

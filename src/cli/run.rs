@@ -579,6 +579,11 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     }
     // --reuse-estimates N: the inputs are the frames of one sequence, in order
     let mut seq = sequence(opts);
+    // what a killed run left in the output folders goes first
+    let dirs: std::collections::BTreeSet<&Path> = jobs.iter().map(|j| j.dir.as_path()).collect();
+    for d in dirs {
+        crate::jobs::remove_stale_temps(d);
+    }
     let read = |h: &mut Handoff<(usize, Result<Prepared, CliError>)>| {
         for (i, job) in jobs.iter().enumerate() {
             if interrupted() {
@@ -708,6 +713,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         Err(code) => return code,
     };
     let mut seq = sequence(opts);
+    crate::jobs::remove_stale_temps(&opts.outdir);
     // stdout gone (closed pipe, full disk): the frames' lines cannot be
     // reported, so the loop stops instead of restoring frames nobody hears of
     let gone = std::sync::atomic::AtomicBool::new(false);

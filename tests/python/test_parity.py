@@ -302,3 +302,18 @@ def test_stream_stops_when_its_output_is_gone(binary, files, tmp_path):
     assert "cannot write the frame lines to stdout" in r.stderr
     done = [f for f in os.listdir(out) if f.endswith(".json")] if out.exists() else []
     assert len(done) <= 3, done  # the frame in flight and the one read ahead at most
+
+
+def test_a_rerun_removes_the_temporaries_a_killed_run_left(binary, files, tmp_path):
+    """Temporaries of a dead process (a pid above the kernel's largest) go
+    at the start of a run; those of a live one (this test) stay."""
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        out.mkdir()
+        dead = [out / ".uwhl-4194399-3.tmp", out / ".uwhl-4194399-x1y2z3.tmp.png"]
+        live = out / f".uwhl-{os.getpid()}-0.tmp"
+        for p in dead + [live]:
+            p.write_bytes(b"left behind")
+        r = _run(face, binary, [str(files / "f0.png"), "-o", str(out), "--format", "png"], tmp_path)
+        assert r.returncode == 0, (face, r.stderr)
+        assert not any(p.exists() for p in dead) and live.exists(), (face, sorted(os.listdir(out)))
