@@ -231,11 +231,21 @@ impl std::fmt::Display for Stage {
 }
 
 impl Params {
+    /// The guided-filter subsampling factor used at radius `r` (METHOD §6):
+    /// `guided_subsample`, with 0 resolved by [`auto_subsample`].
+    pub fn subsample_at(&self, r: usize) -> usize {
+        match self.guided_subsample {
+            0 => auto_subsample(r),
+            s => s,
+        }
+    }
+
     /// Sets the method parameter `key` (a row of `crate::options::OPTIONS`
     /// with `method: true`, other than `water_types`) to a value of its
-    /// kind: the one place where a parameter's value reaches `Params`, for
-    /// the Python keywords and the binary's flags alike. Ranges that depend
-    /// on the image are checked by `check_params` when `restore` runs.
+    /// kind: where a Python keyword's value reaches `Params` (the binary's
+    /// parsed options fill `Params` in `cli::run::method_params`). Ranges
+    /// that depend on the image are checked by `check_params` when
+    /// `restore` runs.
     pub fn set(&mut self, key: &str, v: &crate::options::Value) -> Result<()> {
         use crate::options::Value as V;
         let bad = || Error::Param {

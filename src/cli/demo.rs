@@ -2,25 +2,12 @@
 //! water type, restores it and reports true against estimated, as
 //! `uwhl demo` does with the Python package's scene.
 
-use super::args::Demo;
-use super::output::{write_bytes, Transaction};
+use super::args::{Demo, Format};
+use super::output::{encode_image, encode_transmission_color, write_bytes, Encoding, Transaction};
 use super::{CliError, Kind};
-use crate::color::{colormap, quantize_u8};
 use crate::{restore, ImageRef, Input, Params};
-use image::codecs::png::PngEncoder;
-use image::{ExtendedColorType, ImageEncoder};
 use std::io::Write;
-use std::path::Path;
 use std::time::Instant;
-
-fn png(path: &Path, rgb: &[u8], h: usize, w: usize) -> Result<Vec<u8>, CliError> {
-    let mut out = Vec::new();
-    let (w32, h32) = (u32::try_from(w).unwrap_or(u32::MAX), u32::try_from(h).unwrap_or(u32::MAX));
-    PngEncoder::new(&mut out)
-        .write_image(rgb, w32, h32, ExtendedColorType::Rgb8)
-        .map_err(|e| CliError::new(Kind::Write, format!("{}: {e}", path.display())))?;
-    Ok(out)
-}
 
 /// Runs the demo; returns the exit code.
 pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
@@ -33,15 +20,14 @@ pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
     std::fs::create_dir_all(&d.out)
         .map_err(|e| CliError::new(Kind::Write, format!("cannot create {}: {e}", d.out.display())))?;
     let mut tx = Transaction::new();
-    for (name, rgb) in [
-        ("input.png", quantize_u8(&scene.img, true)),
-        ("restored.png", quantize_u8(&res.image, true)),
-        ("transmission.png", colormap(&res.transmission)),
-        ("clean_truth.png", quantize_u8(&scene.clean, true)),
-    ] {
+    // the output files' own encoders: 8-bit sRGB PNGs and the colour map
+    let png = Encoding { format: Format::Png, bits: 8, srgb: true, quality: 95 };
+    for (name, linear) in [("input.png", &scene.img), ("restored.png", &res.image), ("clean_truth.png", &scene.clean)] {
         let path = d.out.join(name);
-        write_bytes(&mut tx, &path, &png(&path, &rgb, h, w)?)?;
+        write_bytes(&mut tx, &path, &encode_image(&path, linear, h, w, png)?)?;
     }
+    let path = d.out.join("transmission.png");
+    write_bytes(&mut tx, &path, &encode_transmission_color(&path, &res.transmission, h, w)?)?;
     tx.commit();
     let mut ranking: Vec<&(String, f64)> = res.scores.iter().collect();
     ranking.sort_by(|a, b| a.1.total_cmp(&b.1));

@@ -148,24 +148,18 @@ pub struct Restored {
 
 /// The core parameters of the options (the candidate types, a given A).
 fn method_params(opts: &Options) -> Params {
-    use crate::options::Value as V;
-    let mut p = Params { water_types: water_types(opts), ..Params::default() };
-    // every value was checked by the parser: set cannot fail here
-    let given = [
-        ("veiling_light", opts.veiling_light.map(V::Rgb)),
-        ("guided_radius", opts.guided_radius.map(|r| V::Int(r as u64))),
-        ("guided_eps", Some(V::Float(opts.guided_eps))),
-        ("sphere_points", Some(V::Int(opts.sphere_points as u64))),
-        ("max_memory", Some(V::Int(opts.max_memory))),
-        ("selection", Some(V::Text(opts.selection.name().into()))),
-        ("guided_subsample", Some(V::Int(opts.guided_subsample as u64))),
-    ];
-    for (key, v) in given {
-        if let Some(v) = v {
-            let _ = p.set(key, &v);
-        }
+    Params {
+        water_types: water_types(opts),
+        veiling_light: opts.veiling_light.map(|a| a.map(|v| v as f32)),
+        guided_radius: opts.guided_radius,
+        guided_eps: opts.guided_eps,
+        sphere_points: opts.sphere_points,
+        // the binary sizes rayon's global pool once (init_threads)
+        threads: None,
+        max_memory: opts.max_memory,
+        selection: opts.selection,
+        guided_subsample: opts.guided_subsample,
     }
-    p
 }
 
 #[cfg(any(test, feature = "internals"))]

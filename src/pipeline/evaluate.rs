@@ -9,7 +9,7 @@ use crate::image::ImageRef;
 use crate::params::Stage;
 use crate::matting::{blend_row, Matting};
 use crate::recover::{display_limits, recover_values, ArtifactClamp, Recovery, Stretch, DISPLAY_QS};
-use crate::params::{auto_subsample, Params};
+use crate::params::Params;
 use crate::select::{choose, combine, counted_sums, row_stats, Choice, RowStats, TypeStats};
 use crate::stretch::guide_image_into;
 use crate::veiling::Veiling;
@@ -78,10 +78,7 @@ impl<'a> Shared<'a> {
         params: &Params,
         buf: Vec<f32>,
     ) -> Self {
-        let s = match params.guided_subsample {
-            0 => auto_subsample(r),
-            s => s,
-        };
+        let s = params.subsample_at(r);
         Self {
             img,
             mask,

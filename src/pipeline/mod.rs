@@ -16,7 +16,7 @@ pub(crate) mod fast;
 pub(crate) mod work;
 
 use crate::error::{Error, Result};
-use crate::params::{auto_subsample, check_params, default_radius, Flag, Input, Params, Restoration, Selection, Stage};
+use crate::params::{check_params, default_radius, Flag, Input, Params, Restoration, Selection, Stage};
 use crate::select::choose;
 use crate::sphere::SphereIndex;
 use crate::util::with_threads;
@@ -147,17 +147,9 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
         veiling_mask: vl,
         flags,
         guided_radius: radius,
-        guided_subsample: shared_subsample(params, radius),
+        guided_subsample: params.subsample_at(radius),
         timings: clock.laps,
     })
-}
-
-/// The guided-filter subsampling factor used at radius `r` (METHOD §6).
-fn shared_subsample(params: &Params, r: usize) -> usize {
-    match params.guided_subsample {
-        0 => auto_subsample(r),
-        s => s,
-    }
 }
 
 /// A water region that covers every pixel used for estimation leaves no
