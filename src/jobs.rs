@@ -116,8 +116,12 @@ fn walk(dir: &Path, rel: &Path, skip: &Path, found: &mut Vec<(PathBuf, PathBuf)>
 /// `outdir/<path relative to the folder>/`. The same file given twice is
 /// processed once; files under `outdir` are never inputs. Inputs that would
 /// share a `NAME` in one folder get `NAME_ext` (lower-case extension), then
-/// `NAME_ext_2`, ... Returns the jobs and the inputs that matched nothing.
-pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path) -> (Vec<Job>, Vec<(PathBuf, String)>) {
+/// `NAME_ext_2`, ...; an input one of whose output files (`NAME` + each of
+/// `suffixes`, and `NAME.json`) is another input's output file gets
+/// `NAME_2`, ... (inputs `a.jpg` and `a_t.jpg` written as PNG: `a_t.png` is
+/// a's transmission, so the second is `a_t_2`). Returns the jobs and the
+/// inputs that matched nothing.
+pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path, suffixes: &[String]) -> (Vec<Job>, Vec<(PathBuf, String)>) {
     let out_real = fs::canonicalize(outdir).unwrap_or_else(|_| outdir.to_path_buf());
     let mut found: Vec<(PathBuf, PathBuf)> = Vec::new();
     let mut errors = Vec::new();
@@ -159,12 +163,21 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path) -> (Vec<Job>, Vec<(PathBu
             let s = stem(&p);
             let shared = count.get(&(rel.clone(), s.clone())).copied().unwrap_or(0) > 1;
             let base = if shared { format!("{s}_{}", extension(&p)) } else { s };
+            let files = |name: &str| -> Vec<(PathBuf, String)> {
+                suffixes
+                    .iter()
+                    .map(String::as_str)
+                    .chain(std::iter::once(".json"))
+                    .map(|s| (rel.clone(), format!("{name}{s}")))
+                    .collect()
+            };
             let mut name = base.clone();
             let mut k = 1;
-            while !taken.insert((rel.clone(), name.clone())) {
+            while files(&name).iter().any(|f| taken.contains(f)) {
                 k += 1;
                 name = format!("{base}_{k}");
             }
+            taken.extend(files(&name));
             Job {
                 input: p,
                 dir: outdir.join(&rel),
@@ -212,7 +225,8 @@ mod tests {
         let fifo = d.join("in/b/pipe.jpg");
         assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
         let inputs = [d.join("in"), d.join("in/a/x.png"), d.join("in/raw.NEF"), d.join("out/old.png"), d.join("none.png")];
-        let (jobs, errors) = collect_jobs(&inputs, &out);
+        let suffixes = [".png".to_string(), "_t.png".into()];
+        let (jobs, errors) = collect_jobs(&inputs, &out, &suffixes);
         let got: Vec<(String, String)> = jobs
             .iter()
             .map(|j| (j.dir.strip_prefix(&out).unwrap().display().to_string(), j.name.clone()))
@@ -222,8 +236,21 @@ mod tests {
         assert_eq!(errors.len(), 2, "{errors:?}");
         assert!(errors[0].0.ends_with("none.png") && errors[0].1 == "no such file or folder");
         assert!(errors[1].0.ends_with("out/old.png") && errors[1].1.contains("inside the output folder"));
-        let (jobs, errors) = collect_jobs(&[fifo.clone()], &out);
+        let (jobs, errors) = collect_jobs(&[fifo.clone()], &out, &suffixes);
         assert!(jobs.is_empty() && errors.len() == 1 && errors[0].1.contains("FIFO"), "{errors:?}");
+        // outputs of different roles never share a file: a_t.png is a's transmission
+        for f in ["in2/a.jpg", "in2/a_t.jpg", "in2/a_t_2.jpg"] {
+            let p = d.join(f);
+            fs::create_dir_all(p.parent().unwrap()).unwrap();
+            fs::write(&p, b"").unwrap();
+        }
+        let (jobs, _) = collect_jobs(&[d.join("in2")], &out, &suffixes);
+        let names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
+        assert_eq!(names, ["a", "a_t_2", "a_t_2_2"]);
+        let (jobs, _) = collect_jobs(&[d.join("in2")], &out, &[".jpg".to_string(), "_t.png".into()]);
+        let names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
+        // as JPEG: a_t.jpg's own image is a_t.jpg, no output of a; a_t's _t.png is a_t_t.png
+        assert_eq!(names, ["a", "a_t", "a_t_2"]);
         fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -75,6 +75,13 @@ pub mod options;
 #[forbid(unsafe_code)]
 mod scene;
 
+#[cfg(all(any(feature = "cli", feature = "python"), feature = "internals"))]
+#[forbid(unsafe_code)]
+pub mod commit;
+#[cfg(all(any(feature = "cli", feature = "python"), not(feature = "internals")))]
+#[forbid(unsafe_code)]
+mod commit;
+
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
 /// outputs and sidecar, batch and stream modes.
 #[cfg(feature = "cli")]

@@ -286,7 +286,8 @@ fn check_combination(
         .map_err(PyValueError::new_err)
 }
 
-/// The jobs of a batch (`crate::jobs::collect_jobs`): `(jobs, problems)`,
+/// The jobs of a batch (`crate::jobs::collect_jobs`, output files `NAME` +
+/// each suffix): `(jobs, problems)`,
 /// jobs as `(input, output folder, name)`, problems as `(input, reason)`.
 #[pyfunction]
 #[allow(clippy::type_complexity)]
@@ -294,9 +295,103 @@ fn collect_jobs(
     py: Python<'_>,
     inputs: Vec<std::path::PathBuf>,
     out_dir: std::path::PathBuf,
+    suffixes: Vec<String>,
 ) -> (Vec<(std::path::PathBuf, std::path::PathBuf, String)>, Vec<(std::path::PathBuf, String)>) {
-    let (jobs, problems) = py.detach(|| crate::jobs::collect_jobs(&inputs, &out_dir));
+    let (jobs, problems) = py.detach(|| crate::jobs::collect_jobs(&inputs, &out_dir, &suffixes));
     (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
+}
+
+/// An input's claimed output names (`crate::commit::Claim`): temporaries
+/// to write the outputs into, then one commit that puts them in place with
+/// the sidecar last. Released (temporaries and claim removed) by
+/// `release()` or when collected without a commit.
+#[pyclass(name = "Claim", module = "uwhl_rs._core", frozen)]
+struct PyClaim {
+    inner: Mutex<Option<crate::commit::Claim>>,
+}
+
+impl PyClaim {
+    fn with<T>(&self, f: impl FnOnce(&mut crate::commit::Claim) -> PyResult<T>) -> PyResult<T> {
+        let mut g = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        match g.as_mut() {
+            Some(c) => f(c),
+            None => Err(PyRuntimeError::new_err("this claim is committed or released")),
+        }
+    }
+}
+
+#[pymethods]
+impl PyClaim {
+    /// The name the outputs are written under.
+    #[getter]
+    fn name(&self) -> PyResult<String> {
+        self.with(|c| Ok(c.name().to_string()))
+    }
+
+    /// The output paths in the order of the suffixes, the sidecar last.
+    #[getter]
+    fn paths(&self) -> PyResult<Vec<std::path::PathBuf>> {
+        self.with(|c| Ok(c.paths().to_vec()))
+    }
+
+    /// A new empty temporary file (created exclusively) for output `index`.
+    fn temp(&self, index: usize) -> PyResult<std::path::PathBuf> {
+        self.with(|c| Ok(c.temp(index)?.0))
+    }
+
+    /// Puts the written temporaries (one per path) in place, sidecar last.
+    fn commit(&self, py: Python<'_>, temps: Vec<std::path::PathBuf>) -> PyResult<()> {
+        let claim = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take();
+        let claim = claim.ok_or_else(|| PyRuntimeError::new_err("this claim is committed or released"))?;
+        py.detach(|| claim.commit(&temps)).map_err(PyErr::from)
+    }
+
+    /// Gives the names up: removes the temporaries and the claim file.
+    fn release(&self) {
+        drop(self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take());
+    }
+}
+
+/// Claims output names for an input (`crate::commit::claim`): returns
+/// `(status, sidecar, pid, claim)` with status "claimed" (claim set),
+/// "done" (its sidecar exists), "busy" (process pid restores it) or
+/// "in_flight" (this process restores it now).
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn claim_outputs(
+    py: Python<'_>,
+    dir: std::path::PathBuf,
+    base: String,
+    input: std::path::PathBuf,
+    suffixes: Vec<String>,
+    overwrite: bool,
+    rename: bool,
+) -> PyResult<(&'static str, std::path::PathBuf, Option<u32>, Option<PyClaim>)> {
+    use crate::commit::Resolution;
+    let request = crate::commit::Request { dir: &dir, base: &base, input: &input, suffixes: &suffixes, overwrite, rename };
+    Ok(match py.detach(|| crate::commit::claim(&request))? {
+        Resolution::Claimed(c) => {
+            let side = c.paths().last().cloned().unwrap_or_default();
+            ("claimed", side, None, Some(PyClaim { inner: Mutex::new(Some(c)) }))
+        }
+        Resolution::Done(s) => ("done", s, None, None),
+        Resolution::Busy(pid, s) => ("busy", s, Some(pid), None),
+        Resolution::InFlight(s) => ("in_flight", s, None, None),
+    })
+}
+
+/// A new empty temporary file beside `path`'s folder, created exclusively
+/// under a short name with `path`'s extension (`crate::commit::create_temp`).
+#[pyfunction]
+fn create_temp(path: std::path::PathBuf) -> PyResult<std::path::PathBuf> {
+    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    Ok(crate::commit::create_temp(crate::commit::folder_of(&path), &ext)?.0)
+}
+
+/// Puts a written temporary in place of `path` durably (`crate::commit::place`).
+#[pyfunction]
+fn place(py: Python<'_>, tmp: std::path::PathBuf, path: std::path::PathBuf) -> PyResult<()> {
+    py.detach(|| crate::commit::place(&tmp, &path)).map_err(PyErr::from)
 }
 
 /// Removes the temporaries that dead processes left in `dir`
@@ -539,6 +634,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
+    m.add_class::<PyClaim>()?;
+    m.add_function(wrap_pyfunction!(claim_outputs, m)?)?;
+    m.add_function(wrap_pyfunction!(create_temp, m)?)?;
+    m.add_function(wrap_pyfunction!(place, m)?)?;
     m.add("IMAGE_EXTENSIONS", crate::jobs::IMAGE_EXTENSIONS.to_vec())?;
     m.add("RAW_EXTENSIONS", crate::jobs::RAW_EXTENSIONS.to_vec())?;
     Ok(())

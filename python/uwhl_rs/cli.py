@@ -163,14 +163,16 @@ def _supported(path: str) -> bool:
     return ext in IMAGE_EXTENSIONS or ext in RAW_EXTENSIONS
 
 
-def collect_inputs(inputs: list[str], out_dir: str) -> tuple[list[Job], list[tuple[str, str]]]:
+def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",
+                   contact: bool = False) -> tuple[list[Job], list[tuple[str, str]]]:
     """Expand files, folders (recursive) and globs into jobs.
 
     Glob patterns are expanded here; the rest is the core's one discovery
     and naming, which uwhl-rs uses too (``_core.collect_jobs``): files under
     ``out_dir`` are never taken as inputs, the same file named twice is
     processed once, and two inputs that would share an output name get
-    ``NAME_ext`` (then ``NAME_ext_2``, ... if still shared). Returns (jobs,
+    ``NAME_ext`` (then ``NAME_ext_2``, ... if still shared), and no output
+    file of one input (``fmt``, ``contact``) is another's. Returns (jobs,
     problems): problems are (input, reason) for inputs that match nothing.
     """
     items: list[str] = []
@@ -183,7 +185,9 @@ def collect_inputs(inputs: list[str], out_dir: str) -> tuple[list[Job], list[tup
             items.extend(hits)
         else:
             items.append(item)
-    found, missing = _core.collect_jobs(items, out_dir)
+    from .files import output_suffixes
+
+    found, missing = _core.collect_jobs(items, out_dir, output_suffixes(fmt, contact))
     problems += [(str(p), why) for p, why in missing]
     return [Job(str(p), str(d), name) for p, d, name in found], problems
 
@@ -326,7 +330,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         _report(err, a.json_errors, None, "bad_arguments",
                 "--reuse-estimates restores the inputs in order; it needs --jobs 1")
         return EXIT_USAGE
-    jobs, problems = collect_inputs(a.inputs, a.out)
+    jobs, problems = collect_inputs(a.inputs, a.out, a.format, a.contact_sheet)
     for item, why in problems:
         _report(err, a.json_errors, item, "unreadable_input", why)
     if not jobs:
@@ -379,11 +383,29 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         (prints its progress line, returns its Outcome) given the result of
         the function that writes it, and that writer (None when there is
         nothing to write: skipped or failed)."""
-        sidecar = files.output_paths(job.out_dir, job.name, a.format)["sidecar"]
-        if not a.overwrite and os.path.exists(sidecar):
+        try:
+            status, sidecar, pid, claim = files.claim_outputs(job.out_dir, job.name, job.path, a.format,
+                                                              a.contact_sheet, overwrite=a.overwrite, rename=True)
+        except OSError as e:
+            failure = ("write_failed", OSError(e.errno, f"cannot claim output names in {job.out_dir}: {e}"))
+
+            def settle_claim(result=failure) -> Outcome:
+                kind, e = result
+                o = Outcome(job, "failed", note=_describe(e), code=EXIT[kind])
+                progress.finish(f"{job.path}: {o.note}", error=True,
+                                report=lambda: _report(err, a.json_errors, job.path, kind, o.note))
+                return o
+            return settle_claim, None
+        if status != "claimed":
+            why, note = {
+                "done": (f"{sidecar} exists", "already done (sidecar exists; --overwrite redoes it)"),
+                "busy": (f"being restored by process {pid}", f"being restored by process {pid}"),
+                "in_flight": ("given twice: restored once", "given twice: restored once"),
+            }[status]
+
             def skipped(_=None) -> Outcome:
-                progress.finish(f"{job.path}: skipped ({sidecar} exists)")
-                return Outcome(job, "skipped", note="already done (sidecar exists; --overwrite redoes it)")
+                progress.finish(f"{job.path}: skipped ({why})")
+                return Outcome(job, "skipped", note=note)
             return skipped, None
         progress.start(os.path.basename(job.path))
         t0 = time.perf_counter()
@@ -401,7 +423,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
             return o
 
         try:
-            write = files._restore_staged(job.path, job.out_dir, name=job.name, **kwargs)
+            write = files._restore_staged(job.path, job.out_dir, name=job.name, _claim=claim, **kwargs)
         except (Exception, MemoryError) as e:  # one bad file never stops the batch
             return settle, (lambda failure=(_error_kind(e, False), e): failure)
 

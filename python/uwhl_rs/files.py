@@ -19,7 +19,7 @@ from .io import (
     ImageMeta,
     ImageReadError,
     _display_linear,
-    atomic_write_bytes,
+    _write_image_temp,
     colorize_transmission,
     read_image,
     to_srgb,
@@ -50,6 +50,21 @@ class FileResult:
     #: role ("image", "transmission", "transmission_color", "contact_sheet", "sidecar") -> path
     paths: dict = field(default_factory=dict)
     sidecar: dict = field(default_factory=dict)
+
+
+def output_suffixes(fmt: str = "jpg", contact: bool = False) -> list[str]:
+    """What follows ``NAME`` in the names of an input's outputs, in writing
+    order, without the sidecar's ``.json`` (the claim of ``_core`` adds it)."""
+    if fmt not in FORMATS:
+        raise ValueError(f"format must be one of {sorted(FORMATS)}, not {fmt!r}")
+    return [FORMATS[fmt][0], "_t.png", "_t_color.png"] + (["_sheet.png"] if contact else [])
+
+
+def claim_outputs(out_dir: str, name: str, in_path: str, fmt: str, contact: bool, *, overwrite: bool, rename: bool):
+    """Claims ``name`` (or, with ``rename``, the first free ``name_2``, ...) for
+    ``in_path``'s outputs in ``out_dir`` (``_core.claim_outputs``; the rules
+    are in docs/OUTPUTS.md): ``(status, sidecar, pid, claim)``."""
+    return _core.claim_outputs(out_dir, name, in_path, output_suffixes(fmt, contact), overwrite, rename)
 
 
 def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = False) -> dict:
@@ -139,15 +154,18 @@ def _restore_staged(
     water_mask=None,
     contact: bool = False,
     sequence=None,
+    _claim=None,
     **restore_kwargs,
 ) -> Callable[[], FileResult]:
     """:func:`restore_file` in two steps: this call reads and restores the
     input (raising what ``restore_file`` raises for that), and returns the
     function that writes its outputs (and returns the :class:`FileResult`),
     so that a caller can write one input while restoring the next.
-    ``seconds.total`` in the sidecar then includes the time between."""
-    import uwhl_rs
+    ``seconds.total`` in the sidecar then includes the time between.
 
+    ``_claim`` (the command's): the ``_core.Claim`` of the output names,
+    made by :func:`claim_outputs`; without, ``name`` in ``out_dir`` is
+    claimed here and whatever is there replaced (the caller chose it)."""
     t_start = time.perf_counter()
     in_path = os.fspath(in_path)
     out_dir = os.fspath(out_dir)
@@ -160,8 +178,30 @@ def _restore_staged(
     if max_side is not None and int(max_side) < _MIN_SIDE:
         raise ValueError(f"max_side must be at least {_MIN_SIDE}, not {max_side}")
     name = name or os.path.splitext(os.path.basename(in_path))[0]
-    paths = output_paths(out_dir, name, format, contact)
+    if _claim is None:
+        status, sidecar_path, pid, _claim = claim_outputs(out_dir, name, in_path, format, contact,
+                                                          overwrite=True, rename=False)
+        if status != "claimed":
+            who = f"process {pid}" if status == "busy" else "this process"
+            raise OSError(f"{sidecar_path} is being written by {who}")
+    claim = _claim
+    try:
+        staged = _read_and_restore(in_path, out_dir, claim, format=format, bits=bits, quality=quality, preprocess=preprocess,
+                                   half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask,
+                                   water_mask=water_mask, contact=contact, sequence=sequence,
+                                   restore_kwargs=restore_kwargs, t_start=t_start)
+    except BaseException:
+        claim.release()
+        raise
+    return staged
 
+
+def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preprocess, half_size, max_side, max_pixels, mask,
+                      water_mask, contact, sequence, restore_kwargs, t_start) -> Callable[[], FileResult]:
+    """The body of :func:`_restore_staged` once the names are claimed."""
+    import uwhl_rs
+
+    paths = output_paths(out_dir, claim.name, format, contact)
     image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels)
     full_hw = image.shape[:2]
     m = _read_mask(mask, full_hw, "mask")
@@ -180,27 +220,28 @@ def _restore_staged(
 
     def write() -> FileResult:
         t_write = time.perf_counter()
-        os.makedirs(out_dir, exist_ok=True)
-        written: list[str] = []
         try:
             shown = _display_linear(res.image, meta)
             encoding = "linear" if meta.linear else "srgb"
             # the three encoders (Pillow, the core's PNG) release the GIL: write them at once
             with ThreadPoolExecutor(max_workers=3) as pool:
                 futures = [
-                    pool.submit(write_image, paths["image"], shown, bits=bits, encoding=encoding, quality=quality),
-                    pool.submit(write_image, paths["transmission"], res.transmission, bits=16, encoding="srgb"),
-                    pool.submit(write_image, paths["transmission_color"], colorize_transmission(res.transmission)),
+                    pool.submit(_write_image_temp, claim, 0, paths["image"], shown, bits=bits, encoding=encoding,
+                                quality=quality),
+                    pool.submit(_write_image_temp, claim, 1, paths["transmission"], res.transmission, bits=16,
+                                encoding="srgb"),
+                    pool.submit(_write_image_temp, claim, 2, paths["transmission_color"],
+                                colorize_transmission(res.transmission)),
                 ]
                 wait(futures)
-                written.extend(f.result() for f in futures if f.exception() is None)
                 for f in futures:
                     if f.exception() is not None:
                         raise f.exception()
+                temps = [f.result() for f in futures]
             t_sheet = time.perf_counter()
             if contact:
                 sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
-                written.append(write_image(paths["contact_sheet"], sheet))
+                temps.append(_write_image_temp(claim, 3, paths["contact_sheet"], sheet))
             t_sheet = time.perf_counter() - t_sheet
             t_end = time.perf_counter()
             sidecar = {
@@ -238,27 +279,31 @@ def _restore_staged(
                 },
             }
             text = json.dumps(sidecar, indent=2) + "\n"
-
-            def put(tmp: str) -> None:
+            tmp = os.fspath(claim.temp(len(temps)))
+            try:
                 with open(tmp, "w", encoding="utf-8") as f:
                     f.write(text)
-
-            atomic_write_bytes(paths["sidecar"], put)
-            written.append(paths["sidecar"])
-        except BaseException:
-            for p in written:
-                try:
-                    os.remove(p)
-                except OSError:
-                    pass
-            raise
+            except OSError as e:
+                raise OSError(e.errno, f"cannot write {paths['sidecar']}: {e.strerror or e}") from None
+            temps.append(tmp)
+            try:
+                claim.commit(temps)
+            except OSError as e:
+                raise OSError(e.errno, f"cannot write the outputs of {in_path} in {out_dir}: {e.strerror or e}") from None
+        finally:
+            # committed: nothing left to release; failed: the temporaries go
+            claim.release()
         return FileResult(res, meta, paths, sidecar)
 
     return write
 
 
 # restore_file takes exactly _restore_staged's keywords: show them (help(), IDEs)
-restore_file.__signature__ = inspect.signature(_restore_staged).replace(return_annotation="FileResult")
+_signature = inspect.signature(_restore_staged)
+restore_file.__signature__ = _signature.replace(
+    parameters=[p for p in _signature.parameters.values() if not p.name.startswith("_")],
+    return_annotation="FileResult",
+)
 
 
 def _parameters(restore_kwargs: dict, **given) -> dict:

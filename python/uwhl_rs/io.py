@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
 import threading
 from dataclasses import asdict, dataclass, field
 
@@ -406,39 +405,62 @@ def quantize(image: np.ndarray, bits: int, *, encoding: str) -> np.ndarray:
     return _core._quantize(np.ascontiguousarray(image, dtype=np.float32), bits, encoding == "linear")
 
 
-def _current_umask() -> int:
-    old = os.umask(0)
-    os.umask(old)
-    return old
-
-
-# mkstemp creates files readable by the owner only; outputs get the usual
-# permissions (0666 minus the umask), read once at import.
-_FILE_MODE = 0o666 & ~_current_umask()
-
-
 def atomic_write_bytes(path: str | os.PathLike, write) -> None:
-    """Create ``path`` atomically: ``write(tmp_path)`` fills a temporary
-    file in the same folder, which is then renamed over ``path``. On any
-    failure (full disk, interrupt) the temporary file is removed and
-    ``path`` is untouched."""
+    """Create ``path`` atomically and durably: ``write(tmp_path)`` fills a
+    temporary file of the same folder (created exclusively under a short
+    name with ``path``'s extension), which is then synced, renamed over
+    ``path``, and the folder synced (``_core.place``). On any failure (full
+    disk, interrupt) the temporary file is removed and ``path`` is
+    untouched."""
     path = os.fspath(path)
-    folder = os.path.dirname(path) or "."
-    ext = os.path.splitext(os.path.basename(path))[1]
-    # a short name whatever the output's (the binary's scheme), created
-    # exclusively by mkstemp; the extension tells the writers the format
-    fd, tmp = tempfile.mkstemp(prefix=f".uwhl-{os.getpid()}-", suffix=f".tmp{ext}", dir=folder)
-    os.close(fd)
+    tmp = os.fspath(_core.create_temp(path))
     try:
         write(tmp)
-        os.chmod(tmp, _FILE_MODE)
-        os.replace(tmp, path)
     except BaseException:
         try:
             os.remove(tmp)
         except OSError:
             pass
         raise
+    _core.place(tmp, path)
+
+
+def _encodable(path: str, image: np.ndarray, bits: int, encoding: str) -> tuple[str, np.ndarray]:
+    """The extension and the integer samples :func:`write_image` writes (or ValueError)."""
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in IMAGE_EXTENSIONS:
+        raise ValueError(f"{path}: cannot write {ext or 'a file without extension'}; use .jpg, .png or .tif")
+    a = np.asarray(image)
+    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] != 3) or a.size == 0:
+        raise ValueError(f"{path}: cannot write an array of shape {a.shape} (need HxW or HxWx3, non-empty)")
+    if a.dtype.kind == "f":
+        if bits not in (8, 16):
+            raise ValueError(f"bits must be 8 or 16, not {bits}")
+        a = quantize(a, bits, encoding=encoding)
+    elif a.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"{path}: cannot write samples of type {a.dtype} (float, uint8 or uint16)")
+    if ext in (".jpg", ".jpeg") and a.dtype != np.uint8:
+        raise ValueError(f"{path}: JPEG holds 8 bits per sample; use .png or .tif for 16 bits")
+    return ext, a
+
+
+def _encode_into(target: str, ext: str, a: np.ndarray, quality: int) -> None:
+    """Writes samples ``a`` into the file ``target`` in the format of ``ext``."""
+    if ext == ".png":
+        with open(target, "wb") as f:
+            f.write(_png_bytes(a))
+    elif ext in (".tif", ".tiff"):
+        import tifffile
+
+        tifffile.imwrite(target, a, photometric="rgb" if a.ndim == 3 else "minisblack", compression="zlib")
+    else:
+        import imageio.v3 as iio
+
+        iio.imwrite(target, a, extension=ext, quality=int(quality))
+
+
+def _os_error(path: str, e: OSError) -> OSError:
+    return OSError(e.errno, f"cannot write {path}: {e.strerror or e}")
 
 
 def write_image(
@@ -455,42 +477,30 @@ def write_image(
     ``bits`` (8, or 16 for PNG/TIFF) — ``encoding="linear"`` means they are
     linear and get the sRGB curve, ``"srgb"`` that they are already
     encoded — while uint8/uint16 arrays are written as they are. The file
-    appears complete or not at all. Returns the path.
+    appears complete or not at all, and is synced (with its folder) before
+    this returns. Returns the path.
     """
     path = os.fspath(path)
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in IMAGE_EXTENSIONS:
-        raise ValueError(f"{path}: cannot write {ext or 'a file without extension'}; use .jpg, .png or .tif")
-    a = np.asarray(image)
-    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] != 3) or a.size == 0:
-        raise ValueError(f"{path}: cannot write an array of shape {a.shape} (need HxW or HxWx3, non-empty)")
-    if a.dtype.kind == "f":
-        if bits not in (8, 16):
-            raise ValueError(f"bits must be 8 or 16, not {bits}")
-        a = quantize(a, bits, encoding=encoding)
-    elif a.dtype not in (np.uint8, np.uint16):
-        raise ValueError(f"{path}: cannot write samples of type {a.dtype} (float, uint8 or uint16)")
-    if ext in (".jpg", ".jpeg") and a.dtype != np.uint8:
-        raise ValueError(f"{path}: JPEG holds 8 bits per sample; use .png or .tif for 16 bits")
-
-    def write(tmp: str) -> None:
-        if ext == ".png":
-            with open(tmp, "wb") as f:
-                f.write(_png_bytes(a))
-        elif ext in (".tif", ".tiff"):
-            import tifffile
-
-            tifffile.imwrite(tmp, a, photometric="rgb" if a.ndim == 3 else "minisblack", compression="zlib")
-        else:
-            import imageio.v3 as iio
-
-            iio.imwrite(tmp, a, extension=ext, quality=int(quality))
-
+    ext, a = _encodable(path, image, bits, encoding)
     try:
-        atomic_write_bytes(path, write)
+        atomic_write_bytes(path, lambda tmp: _encode_into(tmp, ext, a, quality))
     except OSError as e:
-        raise OSError(e.errno, f"cannot write {path}: {e.strerror or e}") from None
+        raise _os_error(path, e) from None
     return path
+
+
+def _write_image_temp(claim, index: int, path: str, image: np.ndarray, *, bits: int = 8,
+                      encoding: str = "srgb", quality: int = 95) -> str:
+    """Writes output ``index`` of a claim (``_core.Claim``) into a new
+    temporary, as :func:`write_image` would write ``path``; returns the
+    temporary's path, which the claim's commit puts in place."""
+    ext, a = _encodable(path, image, bits, encoding)
+    try:
+        tmp = os.fspath(claim.temp(index))
+        _encode_into(tmp, ext, a, quality)
+    except OSError as e:
+        raise _os_error(path, e) from None
+    return tmp
 
 
 def _png_bytes(a: np.ndarray) -> bytes:

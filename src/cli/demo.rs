@@ -3,11 +3,16 @@
 //! `uwhl demo` does with the Python package's scene.
 
 use super::args::{Demo, Format};
-use super::output::{encode_image, encode_transmission_color, write_bytes, Encoding, Transaction};
+use super::output::{encode_image, encode_transmission_color, Encoding};
 use super::{CliError, Kind};
 use crate::{restore, ImageRef, Input, Params};
 use std::io::Write;
 use std::time::Instant;
+
+fn put(path: &std::path::Path, bytes: &[u8]) -> Result<(), CliError> {
+    crate::commit::write_file(path, bytes)
+        .map_err(|e| CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display())))
+}
 
 /// Runs the demo; returns the exit code.
 pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
@@ -19,16 +24,14 @@ pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
     let secs = t0.elapsed().as_secs_f64();
     std::fs::create_dir_all(&d.out)
         .map_err(|e| CliError::new(Kind::Write, format!("cannot create {}: {e}", d.out.display())))?;
-    let mut tx = Transaction::new();
     // the output files' own encoders: 8-bit sRGB PNGs and the colour map
     let png = Encoding { format: Format::Png, bits: 8, srgb: true, quality: 95 };
     for (name, linear) in [("input.png", &scene.img), ("restored.png", &res.image), ("clean_truth.png", &scene.clean)] {
         let path = d.out.join(name);
-        write_bytes(&mut tx, &path, &encode_image(&path, linear, h, w, png)?)?;
+        put(&path, &encode_image(&path, linear, h, w, png)?)?;
     }
     let path = d.out.join("transmission.png");
-    write_bytes(&mut tx, &path, &encode_transmission_color(&path, &res.transmission, h, w)?)?;
-    tx.commit();
+    put(&path, &encode_transmission_color(&path, &res.transmission, h, w)?)?;
     let mut ranking: Vec<&(String, f64)> = res.scores.iter().collect();
     ranking.sort_by(|a, b| a.1.total_cmp(&b.1));
     let names = |v: &[&(String, f64)]| v.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(" ");

@@ -1,7 +1,5 @@
-//! Writing the outputs of docs/OUTPUTS.md: every file goes to a temporary
-//! name in its folder and is renamed into place; a [`Transaction`] that is
-//! not committed removes the files it already renamed, so a failed input
-//! leaves nothing behind.
+//! Encoding the outputs of docs/OUTPUTS.md into memory; `crate::commit`
+//! puts them in place (temporaries, sidecar last, synced).
 
 use super::args::Format;
 use super::{CliError, Kind};
@@ -9,92 +7,10 @@ use crate::color::{colormap, quantize_u16, quantize_u8};
 use image::codecs::png::PngEncoder;
 use image::codecs::tiff::TiffEncoder;
 use image::{ImageBuffer, Luma, Pixel, Rgb};
-use std::fs::{self, File, OpenOptions};
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 fn write_error(path: &Path, e: impl std::fmt::Display) -> CliError {
     CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display()))
-}
-
-/// Temporary files made by this process so far (their names' counter).
-static TEMPS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-
-/// Creates a new temporary file beside `path`, exclusively (`O_EXCL`: a
-/// file or symlink already at that name is never opened, so a planted link
-/// cannot redirect the write), under a short name `.uwhl-PID-N.tmp` that
-/// fits whatever the length of the output's name (the same scheme as the
-/// Python command's).
-fn create_temp(path: &Path) -> Result<(PathBuf, File), CliError> {
-    let pid = std::process::id();
-    let mut last = None;
-    for _ in 0..1000 {
-        let n = TEMPS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let tmp = path.with_file_name(format!(".uwhl-{pid}-{n}.tmp"));
-        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => return Ok((tmp, f)),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
-            Err(e) => return Err(write_error(&tmp, e)),
-        }
-    }
-    Err(write_error(path, last.map_or_else(|| "no temporary name is free".to_string(), |e| e.to_string())))
-}
-
-/// The files of one input written so far; dropped without [`Transaction::commit`]
-/// it removes them.
-#[derive(Debug, Default)]
-pub struct Transaction {
-    done: Vec<PathBuf>,
-    committed: bool,
-}
-
-impl Transaction {
-    /// A transaction with nothing written.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Writes `path` through `body` into a temporary file of the same folder,
-    /// syncs it and renames it into place.
-    pub fn write(
-        &mut self,
-        path: &Path,
-        body: impl FnOnce(&mut BufWriter<File>) -> Result<(), CliError>,
-    ) -> Result<(), CliError> {
-        if path.file_name().is_none() {
-            return Err(CliError::new(Kind::Internal, format!("no file name in {}", path.display())));
-        }
-        let (tmp, file) = create_temp(path)?;
-        let result = (|| {
-            let mut out = BufWriter::new(file);
-            body(&mut out)?;
-            out.flush().map_err(|e| write_error(&tmp, e))?;
-            let file = out.into_inner().map_err(|e| write_error(&tmp, e.error()))?;
-            file.sync_all().map_err(|e| write_error(&tmp, e))?;
-            fs::rename(&tmp, path).map_err(|e| write_error(path, e))
-        })();
-        if result.is_err() {
-            let _ = fs::remove_file(&tmp);
-        } else {
-            self.done.push(path.to_path_buf());
-        }
-        result
-    }
-
-    /// Keeps the written files.
-    pub fn commit(mut self) {
-        self.committed = true;
-    }
-}
-
-impl Drop for Transaction {
-    fn drop(&mut self) {
-        if !self.committed {
-            for p in &self.done {
-                let _ = fs::remove_file(p);
-            }
-        }
-    }
 }
 
 fn buffer<P: Pixel>(w: usize, h: usize, data: Vec<P::Subpixel>) -> Result<ImageBuffer<P, Vec<P::Subpixel>>, CliError> {
@@ -174,36 +90,9 @@ pub fn encode_transmission_color(path: &Path, t: &[f32], h: usize, w: usize) -> 
     to_bytes(path, |f| img.write_with_encoder(PngEncoder::new(f)))
 }
 
-/// Writes bytes (an encoded image, the sidecar).
-pub fn write_bytes(tx: &mut Transaction, path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    tx.write(path, |f| f.write_all(bytes).map_err(|e| write_error(path, e)))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn temporaries_are_created_exclusively_under_short_names() {
-        let d = std::env::temp_dir().join(format!("uwhl-tmpnames-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&d);
-        fs::create_dir_all(&d).unwrap();
-        // links planted at the next temporary names point outside the folder
-        let victim = d.join("victim");
-        fs::write(&victim, b"keep").unwrap();
-        let next = TEMPS.load(std::sync::atomic::Ordering::Relaxed);
-        for k in next..next + 5 {
-            std::os::unix::fs::symlink(&victim, d.join(format!(".uwhl-{}-{k}.tmp", std::process::id()))).unwrap();
-        }
-        // an output name of 250 bytes: its temporary name still fits
-        let long = d.join(format!("{}.png", "x".repeat(246)));
-        let mut tx = Transaction::new();
-        tx.write(&long, |f| f.write_all(b"data").map_err(|e| write_error(&long, e))).unwrap();
-        tx.commit();
-        assert_eq!(fs::read(&long).unwrap(), b"data");
-        assert_eq!(fs::read(&victim).unwrap(), b"keep");
-        let _ = fs::remove_dir_all(&d);
-    }
 
     #[test]
     fn a_jpeg_wider_than_the_format_allows_is_a_write_error() {
@@ -220,27 +109,5 @@ mod tests {
         // PNG holds it
         let png = Encoding { format: Format::Png, ..jpg };
         assert!(encode_image(Path::new("wide.png"), &data, 1, w, png).is_ok());
-    }
-
-    #[test]
-    fn uncommitted_transaction_removes_its_files() {
-        let dir = std::env::temp_dir().join(format!("uwhl-tx-{}", std::process::id()));
-        fs::create_dir_all(&dir).unwrap();
-        let (a, b) = (dir.join("a.txt"), dir.join("b.txt"));
-        {
-            let mut tx = Transaction::new();
-            write_bytes(&mut tx, &a, b"1").unwrap();
-            let e = tx.write(&b, |_| Err(CliError::new(Kind::Write, "disk full")));
-            assert!(e.is_err());
-            assert!(a.exists() && !b.exists());
-        }
-        assert!(!a.exists());
-        let mut tx = Transaction::new();
-        write_bytes(&mut tx, &a, b"2").unwrap();
-        tx.commit();
-        assert_eq!(fs::read(&a).unwrap(), b"2");
-        // no temporary file is left
-        assert_eq!(fs::read_dir(&dir).unwrap().count(), 1);
-        fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -4,9 +4,8 @@
 use super::args::{Options, Preprocess};
 use super::budget::{Plan, HELD_WHILE_WRITING};
 use super::decode::{decode, decode_mask, Limits};
-use super::output::{
-    encode_image, encode_transmission, encode_transmission_color, write_bytes, Encoding, Transaction,
-};
+use super::output::{encode_image, encode_transmission, encode_transmission_color, Encoding};
+use crate::commit::{claim, Claim, Request, Resolution};
 use super::sidecar::{sidecar, OutputPaths, Seconds, Source};
 use super::{CliError, Kind};
 use crate::color::{max_side_factor, reference_srgb_stretch};
@@ -19,7 +18,7 @@ use crate::params::Flag;
 use crate::sequence::Sequence;
 use crate::water::{jerlov_types, WaterType};
 use serde_json::Value;
-use std::fs::{self, File};
+use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Seek, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, sync_channel, Receiver, SyncSender};
@@ -74,8 +73,9 @@ pub fn load_masks(opts: &Options) -> Result<Masks, CliError> {
 pub enum Outcome {
     /// restored: the sidecar object
     Done(Box<Value>),
-    /// skipped: its sidecar exists (no `--overwrite`)
-    Skipped(PathBuf),
+    /// skipped: the sidecar path and why (its sidecar exists and no
+    /// `--overwrite`; another process restores it; given twice)
+    Skipped(PathBuf, String),
 }
 
 fn water_types(opts: &Options) -> Vec<WaterType> {
@@ -295,7 +295,7 @@ pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequen
 /// What becomes of a prepared input: skipped, or its outputs written.
 fn complete(job: &Job, p: Prepared, opts: &Options) -> Result<Outcome, CliError> {
     match p {
-        Prepared::Skipped(s) => Ok(Outcome::Skipped(s)),
+        Prepared::Skipped(s, why) => Ok(Outcome::Skipped(s, why)),
         Prepared::Restored(r) => finish(job, *r, opts),
     }
 }
@@ -303,29 +303,49 @@ fn complete(job: &Job, p: Prepared, opts: &Options) -> Result<Outcome, CliError>
 /// One input decoded and restored, before anything is written.
 #[derive(Debug)]
 enum Prepared {
-    /// its sidecar exists (no `--overwrite`)
-    Skipped(PathBuf),
-    /// restored, with the time its processing started
-    Restored(Box<(Restored, Instant)>),
+    /// not restored: the sidecar path and why ([`Outcome::Skipped`])
+    Skipped(PathBuf, String),
+    /// restored, with its claimed output names and the time its processing started
+    Restored(Box<(Restored, Claim, Instant)>),
 }
 
 impl Prepared {
     /// Bytes it holds until its outputs are written ([`super::budget::HELD_WHILE_WRITING`] per pixel).
     fn held_bytes(&self) -> u64 {
         match self {
-            Prepared::Skipped(_) => 0,
+            Prepared::Skipped(..) => 0,
             Prepared::Restored(r) => (r.0.res.transmission.len() as u64).saturating_mul(HELD_WHILE_WRITING),
         }
     }
 }
 
-/// The first half of [`process`]: the skip check, decoding and `restore`.
+/// The suffixes of an input's outputs after `NAME`, in writing order (the
+/// sidecar comes last, added by `crate::commit`).
+fn output_suffixes(opts: &Options) -> Vec<String> {
+    vec![format!(".{}", opts.format.extension()), "_t.png".into(), "_t_color.png".into()]
+}
+
+/// The first half of [`process`]: the output names claimed (or the input
+/// skipped), decoding and `restore`.
 fn prepare(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>, gate: Option<&mut Gate>) -> Result<Prepared, CliError> {
     let t0 = Instant::now();
-    let sidecar_path = job.dir.join(format!("{}.json", job.name));
-    if !opts.overwrite && sidecar_path.exists() {
-        return Ok(Prepared::Skipped(sidecar_path));
-    }
+    let suffixes = output_suffixes(opts);
+    let request = Request {
+        dir: &job.dir,
+        base: &job.name,
+        input: &job.input,
+        suffixes: &suffixes,
+        overwrite: opts.overwrite,
+        rename: true,
+    };
+    let claimed = claim(&request)
+        .map_err(|e| CliError::new(Kind::Write, format!("cannot claim output names in {}: {e}", job.dir.display())))?;
+    let claimed = match claimed {
+        Resolution::Claimed(c) => c,
+        Resolution::Done(s) => return Ok(Prepared::Skipped(s, "sidecar exists".into())),
+        Resolution::Busy(pid, s) => return Ok(Prepared::Skipped(s, format!("being restored by process {pid}"))),
+        Resolution::InFlight(s) => return Ok(Prepared::Skipped(s, "given twice: restored once".into())),
+    };
     if RAW_EXTENSIONS.contains(&extension(&job.input).as_str()) {
         return Err(CliError::new(
             Kind::Input,
@@ -337,28 +357,24 @@ fn prepare(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>,
     let file = File::open(&job.input)
         .map_err(|e| CliError::new(Kind::Input, format!("cannot open: {e}")))?;
     let restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, gate)?;
-    Ok(Prepared::Restored(Box::new((restored, t0))))
+    Ok(Prepared::Restored(Box::new((restored, claimed, t0))))
 }
 
-/// The second half of [`process`]: the outputs and the sidecar (written
-/// last), all or nothing.
-fn finish(job: &Job, (restored, t0): (Restored, Instant), opts: &Options) -> Result<Outcome, CliError> {
+/// The second half of [`process`]: the outputs and the sidecar, through
+/// the claim (written to temporaries, then put in place with the sidecar
+/// last: all or nothing).
+fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), opts: &Options) -> Result<Outcome, CliError> {
     let Restored {
         res,
         source,
         t_read,
         t_restore,
     } = restored;
-    let sidecar_path = job.dir.join(format!("{}.json", job.name));
     let (hp, wp) = (source.processed_height, source.processed_width);
 
     let t2 = Instant::now();
-    fs::create_dir_all(&job.dir)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot create {}: {e}", job.dir.display())))?;
-    let image_path = job.dir.join(format!("{}.{}", job.name, opts.format.extension()));
-    let t_path = job.dir.join(format!("{}_t.png", job.name));
-    let tc_path = job.dir.join(format!("{}_t_color.png", job.name));
-    let mut tx = Transaction::new();
+    let [image_path, t_path, tc_path, sidecar_path] = <[PathBuf; 4]>::try_from(claimed.paths().to_vec())
+        .map_err(|_| CliError::new(Kind::Internal, "a claim of four outputs was expected"))?;
     let enc = Encoding {
         format: opts.format,
         bits: opts.bits(),
@@ -376,9 +392,10 @@ fn finish(job: &Job, (restored, t0): (Restored, Instant), opts: &Options) -> Res
             )
         },
     );
-    write_bytes(&mut tx, &image_path, &image_bytes?)?;
-    write_bytes(&mut tx, &t_path, &t_bytes?)?;
-    write_bytes(&mut tx, &tc_path, &tc_bytes?)?;
+    let mut temps = Vec::with_capacity(4);
+    for (i, (path, bytes)) in [(&image_path, image_bytes?), (&t_path, t_bytes?), (&tc_path, tc_bytes?)].into_iter().enumerate() {
+        temps.push(write_temp(&mut claimed, i, path, &bytes)?);
+    }
     let paths = OutputPaths {
         image: &image_path,
         transmission: &t_path,
@@ -400,9 +417,21 @@ fn finish(job: &Job, (restored, t0): (Restored, Instant), opts: &Options) -> Res
     let mut bytes = serde_json::to_vec_pretty(&side)
         .map_err(|e| CliError::new(Kind::Internal, format!("sidecar: {e}")))?;
     bytes.push(b'\n');
-    write_bytes(&mut tx, &sidecar_path, &bytes)?;
-    tx.commit();
+    temps.push(write_temp(&mut claimed, 3, &sidecar_path, &bytes)?);
+    claimed
+        .commit(&temps)
+        .map_err(|e| CliError::new(Kind::Write, format!("cannot write the outputs of {} in {}: {e}", job.input.display(), job.dir.display())))?;
     Ok(Outcome::Done(Box::new(side)))
+}
+
+/// Writes `bytes` into a new temporary of output `index` of the claim.
+fn write_temp(claimed: &mut Claim, index: usize, path: &Path, bytes: &[u8]) -> Result<PathBuf, CliError> {
+    let (tmp, mut f) = claimed
+        .temp(index)
+        .map_err(|e| CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display())))?;
+    f.write_all(bytes)
+        .map_err(|e| CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display())))?;
+    Ok(tmp)
 }
 
 /// Reports an error on `err`: one JSON object per line with `--json-errors`,
@@ -564,7 +593,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         Ok(m) => m,
         Err(code) => return code,
     };
-    let (jobs, errors) = collect_jobs(&opts.inputs, &opts.outdir);
+    let (jobs, errors) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
     let errors: Vec<(PathBuf, CliError)> = errors.into_iter().map(|(p, m)| (p, CliError::new(Kind::Input, m))).collect();
     let mut code = 0u8;
     for (p, e) in &errors {
@@ -619,10 +648,11 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                     );
                 }
             }
-            Ok(Outcome::Skipped(s)) => {
+            Ok(Outcome::Skipped(s, why)) => {
                 counts[1] += 1;
                 if !opts.quiet {
-                    let _ = writeln!(out, "[{k}/{total}] {}: skipped ({} exists)", job.input.display(), s.display());
+                    let why = if why == "sidecar exists" { format!("{} exists", s.display()) } else { why };
+                    let _ = writeln!(out, "[{k}/{total}] {}: skipped ({why})", job.input.display());
                 }
             }
             Err(e) => {
@@ -774,9 +804,9 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         };
         let json = match result {
             Ok((_, Outcome::Done(side))) => *side,
-            Ok((p, Outcome::Skipped(s))) => serde_json::json!({
+            Ok((p, Outcome::Skipped(s, why))) => serde_json::json!({
                 "input": p.to_string_lossy(),
-                "skipped": "sidecar exists",
+                "skipped": why,
                 "sidecar": s.to_string_lossy(),
             }),
             Err((p, e)) => {

@@ -137,7 +137,8 @@ def test_staged_restore_writes_nothing_until_asked(scenes, tmp_path):
 
     out = tmp_path / "out"
     write = files._restore_staged(scenes / "scene_3C.png", out, format="png")
-    assert not out.exists()
+    # only the claim of the name (docs/OUTPUTS.md) is there until the outputs are written
+    assert [p.name[:12] for p in out.iterdir()] == [".uwhl-claim-"]
     r = write()
     assert sorted(os.listdir(out)) == ["scene_3C.json", "scene_3C.png", "scene_3C_t.png", "scene_3C_t_color.png"]
     want = uwhl_rs.restore_file(scenes / "scene_3C.png", tmp_path / "again", format="png")
@@ -147,13 +148,15 @@ def test_staged_restore_writes_nothing_until_asked(scenes, tmp_path):
         files._restore_staged(tmp_path / "cut.png", out)
 
 
-def test_failure_while_writing_leaves_no_partial_outputs(scenes, tmp_path):
-    # the output folder holds a directory where the sidecar should go: the
-    # last write fails, and the files already written for the input are removed
+def test_something_foreign_at_the_sidecars_name_is_kept(scenes, tmp_path):
+    # a folder where the sidecar would go is not this input's: kept, even
+    # with --overwrite, and the outputs go under the next free name
     (tmp_path / "scene_II.json").mkdir()
     r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path, "--overwrite")
-    assert r.returncode == 5 and "scene_II.png: " in r.stderr  # unwritable output
-    assert sorted(os.listdir(tmp_path)) == ["scene_II.json"]
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "scene_II.json").is_dir()
+    assert sorted(os.listdir(tmp_path)) == ["scene_II.json", "scene_II_2.jpg", "scene_II_2.json",
+                                            "scene_II_2_t.png", "scene_II_2_t_color.png"]
 
 
 def test_options_reach_restore(scenes, tmp_path):
