@@ -76,6 +76,8 @@ pub struct Request<'a> {
 #[derive(Debug)]
 pub struct Claim {
     dir: PathBuf,
+    // read by the Python command (the binary takes the paths)
+    #[cfg_attr(not(feature = "python"), allow(dead_code))]
     name: String,
     /// outputs in the order of the suffixes, the sidecar last
     paths: Vec<PathBuf>,
@@ -293,6 +295,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
 
 impl Claim {
     /// The name the outputs are written under.
+    #[cfg_attr(not(feature = "python"), allow(dead_code))]
     pub fn name(&self) -> &str {
         &self.name
     }
@@ -473,6 +476,24 @@ mod tests {
         c.commit(&temps).unwrap();
         assert_eq!(fs::read_to_string(d.join("a.png")).unwrap(), "output 0");
         assert!(!claim_file.exists());
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn temporaries_are_created_exclusively_under_short_names() {
+        let d = folder("tmpnames");
+        // links planted at the next temporary names point outside the folder
+        let victim = d.join("victim");
+        fs::write(&victim, b"keep").unwrap();
+        let next = TEMPS.load(Ordering::Relaxed);
+        for k in next..next + 5 {
+            std::os::unix::fs::symlink(&victim, d.join(format!(".uwhl-{}-{k}.tmp.png", std::process::id()))).unwrap();
+        }
+        // an output name of 250 bytes: its temporary's name still fits
+        let long = d.join(format!("{}.png", "x".repeat(246)));
+        write_file(&long, b"data").unwrap();
+        assert_eq!(fs::read(&long).unwrap(), b"data");
+        assert_eq!(fs::read(&victim).unwrap(), b"keep");
         fs::remove_dir_all(&d).unwrap();
     }
 

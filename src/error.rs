@@ -80,6 +80,17 @@ pub enum Error {
         /// configured limit
         limit: u64,
     },
+    /// The system would not give the working memory now (free memory, a
+    /// cgroup limit, `ulimit -v`), though it is within `max_memory`.
+    #[error("image of {height}x{width} pixels needs about {needed} bytes of working memory, which the system cannot give now (free memory, a container limit or ulimit -v); downscale the image or free memory")]
+    Unavailable {
+        /// rows
+        height: usize,
+        /// columns
+        width: usize,
+        /// estimated bytes
+        needed: u64,
+    },
     /// A bug: a state the core believes impossible. Reported, never a panic.
     #[error("internal error (please report): {0}")]
     Internal(String),
@@ -109,7 +120,7 @@ impl Error {
             | Error::OutOfRange { .. }
             | Error::Constant(_) => Category::UnreadableInput,
             Error::Mask { .. } | Error::WaterType(_) | Error::Param { .. } => Category::BadArguments,
-            Error::Memory { .. } => Category::OverBudget,
+            Error::Memory { .. } | Error::Unavailable { .. } => Category::OverBudget,
             Error::Internal(_) => Category::Internal,
         }
     }

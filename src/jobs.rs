@@ -236,7 +236,7 @@ mod tests {
         assert_eq!(errors.len(), 2, "{errors:?}");
         assert!(errors[0].0.ends_with("none.png") && errors[0].1 == "no such file or folder");
         assert!(errors[1].0.ends_with("out/old.png") && errors[1].1.contains("inside the output folder"));
-        let (jobs, errors) = collect_jobs(&[fifo.clone()], &out, &suffixes);
+        let (jobs, errors) = collect_jobs(std::slice::from_ref(&fifo), &out, &suffixes);
         assert!(jobs.is_empty() && errors.len() == 1 && errors[0].1.contains("FIFO"), "{errors:?}");
         // outputs of different roles never share a file: a_t.png is a's transmission
         for f in ["in2/a.jpg", "in2/a_t.jpg", "in2/a_t_2.jpg"] {

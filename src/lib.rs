@@ -58,7 +58,7 @@ macro_rules! stage_modules {
 }
 
 stage_modules! {
-    boxsum, error, fastmath, filters, guided, hazelines, image, jobs, matting, params, pipeline, rank, recover,
+    boxsum, budget, error, fastmath, filters, guided, hazelines, image, jobs, matting, params, pipeline, rank, recover,
     select, sequence, sphere, stretch, util, veiling, water,
 }
 

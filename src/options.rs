@@ -249,8 +249,8 @@ restored input and reuse them in between",
         default: Default::None, help: "worker threads per restore (default: all cores); results do not depend on N",
         group: Group::Resources, faces: Faces::Both, method: true },
     Spec { key: "max_memory", flag: "--max-memory", short: None, metavar: "BYTES", kind: Kind::Bytes,
-        default: Default::Int(DEFAULT_MAX_MEMORY), help: "working-memory budget per input, checked before \
-decoding (suffixes K, M, G)",
+        default: Default::None, help: "peak memory of the process per input, checked from the header before \
+decoding (suffixes K, M, G; default: 16G, or what the machine, its cgroup or ulimit -v gives if less)",
         group: Group::Resources, faces: Faces::Both, method: true },
     Spec { key: "jobs", flag: "--jobs", short: Some('j'), metavar: "N", kind: Kind::Int { min: 1, max: 1024 },
         default: Default::Int(1), help: "inputs restored at once (1: one input is written while the next is restored)",
@@ -543,7 +543,8 @@ mod tests {
                 assert!(s.parse(&d).is_ok(), "{}: default {d:?} does not parse", s.key);
             }
         }
-        assert_eq!(spec("max_memory").map(Spec::default_text).as_deref(), Some("16G"));
+        // the default follows the machine (crate::budget::default_max_memory)
+        assert_eq!(spec("max_memory").map(Spec::default_text).as_deref(), Some(""));
         assert_eq!(spec("guided_eps").map(Spec::default_text).as_deref(), Some("0.001"));
     }
 
@@ -604,6 +605,6 @@ mod tests {
             };
             assert_eq!((n(&rust), n(&py)), (want_r, want_p), "{}", s.flag);
         }
-        assert!(rust.contains("(default 0.001)") && rust.contains("(default 16G)"));
+        assert!(rust.contains("(default 0.001)") && rust.contains("default: 16G, or what the machine"));
     }
 }

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::image::{check_mask, ImageRef};
-use crate::options::{DEFAULT_EPS, DEFAULT_MAX_MEMORY, DEFAULT_SPHERE_POINTS};
+use crate::options::{DEFAULT_EPS, DEFAULT_SPHERE_POINTS};
 use crate::recover::Recovery;
 use crate::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
@@ -106,7 +106,7 @@ impl Default for Params {
             guided_eps: DEFAULT_EPS,
             sphere_points: DEFAULT_SPHERE_POINTS,
             threads: None,
-            max_memory: DEFAULT_MAX_MEMORY,
+            max_memory: crate::budget::default_max_memory(),
             selection: Selection::Exhaustive,
             guided_subsample: 1,
         }
@@ -412,6 +412,15 @@ pub(crate) fn check_params(input: &Input, params: &Params) -> Result<()> {
             width: img.width,
             needed,
             limit: params.max_memory,
+        });
+    }
+    // within the budget but more than the system gives (a budget set above
+    // the machine): an error for this image, not an aborted process
+    if !crate::budget::can_allocate(needed) {
+        return Err(Error::Unavailable {
+            height: img.height,
+            width: img.width,
+            needed,
         });
     }
     Ok(())

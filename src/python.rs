@@ -394,6 +394,46 @@ fn place(py: Python<'_>, tmp: std::path::PathBuf, path: std::path::PathBuf) -> P
     py.detach(|| crate::commit::place(&tmp, &path)).map_err(PyErr::from)
 }
 
+/// The bytes the whole input needs at its peak (`crate::budget::Plan`):
+/// decoding, `max_side`, `restore`, the outputs; the plan both commands
+/// check from the header.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra = 0))]
+fn input_plan(
+    height: usize,
+    width: usize,
+    decoded_bpp: u64,
+    decoded_is_rgb: bool,
+    oriented: bool,
+    factor: usize,
+    reference: bool,
+    masks: u8,
+    write_extra: u64,
+) -> u64 {
+    crate::budget::Plan { height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra }
+        .bytes()
+}
+
+/// What the process holds before its first input plus a margin
+/// (`crate::budget::process_base`), measured at the first call.
+#[pyfunction]
+fn process_base() -> u64 {
+    crate::budget::process_base()
+}
+
+/// The default memory budget (`crate::budget::default_max_memory`).
+#[pyfunction]
+fn default_max_memory() -> u64 {
+    crate::budget::default_max_memory()
+}
+
+/// Whether the system would give `bytes` now (`crate::budget::can_allocate`).
+#[pyfunction]
+fn can_allocate(bytes: u64) -> bool {
+    crate::budget::can_allocate(bytes)
+}
+
 /// Removes the temporaries that dead processes left in `dir`
 /// (`crate::jobs::remove_stale_temps`); returns how many.
 #[pyfunction]
@@ -635,6 +675,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
     m.add_class::<PyClaim>()?;
+    m.add_function(wrap_pyfunction!(input_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(process_base, m)?)?;
+    m.add_function(wrap_pyfunction!(default_max_memory, m)?)?;
+    m.add_function(wrap_pyfunction!(can_allocate, m)?)?;
     m.add_function(wrap_pyfunction!(claim_outputs, m)?)?;
     m.add_function(wrap_pyfunction!(create_temp, m)?)?;
     m.add_function(wrap_pyfunction!(place, m)?)?;

@@ -170,7 +170,7 @@ def restore(
     guided_eps: float = DEFAULTS["guided_eps"],
     sphere_points: int = DEFAULTS["sphere_points"],
     threads: int | None = DEFAULTS["threads"],
-    max_memory: int | None = DEFAULTS["max_memory"],
+    max_memory: int | None = None,
     selection: str = DEFAULTS["selection"],
     guided_subsample: int | str = DEFAULTS["guided_subsample"],
 ) -> Restoration:
@@ -206,8 +206,11 @@ def restore(
         Worker threads; default all cores. Results are bit-identical for
         any value.
     max_memory : int, optional
-        Working-memory limit in bytes (default 16 GiB); a larger image
-        raises MemoryError before anything large is allocated.
+        Working-memory limit in bytes of this call (default: 16 GiB, or
+        what the machine, its cgroup or ``ulimit -v`` gives if less,
+        ``_core.default_max_memory()``); a larger image raises MemoryError
+        before anything large is allocated, and so does one the system
+        would not give the memory for now.
     selection : {"exhaustive", "fast"}
         How the water type is chosen (METHOD §9). ``"exhaustive"`` (default)
         restores every candidate type at full resolution and scores it.

@@ -366,6 +366,15 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     )
     if a.max_memory is not None:
         kwargs["max_memory"] = a.max_memory
+    # --max-memory bounds the process's peak: what it holds before the
+    # first input (the interpreter, numpy, the codecs, imported now so that
+    # they are counted here and not while the first input is written) counts
+    import imageio.v3  # noqa: F401
+    import tifffile  # noqa: F401
+    from PIL import Image  # noqa: F401
+
+    # (and 4 MiB for the three writer threads' stacks and allocator arenas)
+    kwargs["_base"] = _core.process_base() + (4 << 20)
     if a.reuse_estimates is not None:
         method = {k: kwargs[k] for k in files.METHOD_KEYS if k in kwargs}
         try:

@@ -18,6 +18,7 @@ from .io import (
     DEFAULT_MAX_PIXELS,
     ImageMeta,
     ImageReadError,
+    ImageTooLargeError,
     _display_linear,
     _write_image_temp,
     colorize_transmission,
@@ -155,6 +156,7 @@ def _restore_staged(
     contact: bool = False,
     sequence=None,
     _claim=None,
+    _base: int = 0,
     **restore_kwargs,
 ) -> Callable[[], FileResult]:
     """:func:`restore_file` in two steps: this call reads and restores the
@@ -165,7 +167,13 @@ def _restore_staged(
 
     ``_claim`` (the command's): the ``_core.Claim`` of the output names,
     made by :func:`claim_outputs`; without, ``name`` in ``out_dir`` is
-    claimed here and whatever is there replaced (the caller chose it)."""
+    claimed here and whatever is there replaced (the caller chose it).
+
+    From the header, before decoding, the whole input's memory plan
+    (decoding, ``max_side``, ``restore``, the outputs: the binary's plan,
+    ``_core.input_plan``) plus ``_base`` (the command: what the process
+    holds anyway, ``_core.process_base()``) is checked against
+    ``max_memory`` (default ``_core.default_max_memory()``)."""
     t_start = time.perf_counter()
     in_path = os.fspath(in_path)
     out_dir = os.fspath(out_dir)
@@ -189,7 +197,7 @@ def _restore_staged(
         staged = _read_and_restore(in_path, out_dir, claim, format=format, bits=bits, quality=quality, preprocess=preprocess,
                                    half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask,
                                    water_mask=water_mask, contact=contact, sequence=sequence,
-                                   restore_kwargs=restore_kwargs, t_start=t_start)
+                                   restore_kwargs=restore_kwargs, t_start=t_start, base=_base)
     except BaseException:
         claim.release()
         raise
@@ -197,12 +205,32 @@ def _restore_staged(
 
 
 def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preprocess, half_size, max_side, max_pixels, mask,
-                      water_mask, contact, sequence, restore_kwargs, t_start) -> Callable[[], FileResult]:
+                      water_mask, contact, sequence, restore_kwargs, t_start, base) -> Callable[[], FileResult]:
     """The body of :func:`_restore_staged` once the names are claimed."""
     import uwhl_rs
 
     paths = output_paths(out_dir, claim.name, format, contact)
-    image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels)
+    budget = restore_kwargs.get("max_memory") or _core.default_max_memory()
+    masks = int(mask is not None) + int(water_mask is not None)
+
+    def plan(h: int, w: int, bpp: int, oriented: bool) -> None:
+        if half_size:
+            h, w = (h + 1) // 2, (w + 1) // 2
+        s = _max_side_factor(h, w, max_side)
+        # Pillow's or LibRaw's buffer and its numpy copy are both alive: never "already RGB"
+        # ... and, writing, the display copy of the image and Pillow's copy of its codes
+        plan = _core.input_plan(h, w, bpp, False, oriented, s, preprocess == "reference", masks, 20)
+        # the contact sheet: four cells of at most 360 px a side, and their labels
+        need = plan + base + ((8 << 20) if contact else 0)
+        if need > budget:
+            raise ImageTooLargeError(f"{in_path}: {w}x{h} pixels need about {need} bytes, over max_memory {budget} "
+                                     "(use max_side or raise max_memory)")
+        if not _core.can_allocate(plan):
+            raise ImageTooLargeError(f"{in_path}: {w}x{h} pixels need about {need} bytes, more than the system "
+                                     "gives now (free memory, a container limit or ulimit -v); use max_side")
+
+    image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels,
+                             _on_header=plan)
     full_hw = image.shape[:2]
     m = _read_mask(mask, full_hw, "mask")
     wm = _read_mask(water_mask, full_hw, "water_mask")
@@ -319,6 +347,7 @@ def _parameters(restore_kwargs: dict, **given) -> dict:
         "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", _D["guided_subsample"])),
         "sphere_points": int(restore_kwargs.get("sphere_points", _D["sphere_points"])),
         "threads": restore_kwargs.get("threads"),
+        "max_memory": int(restore_kwargs.get("max_memory") or _core.default_max_memory()),
         "max_side": None if given["max_side"] is None else int(given["max_side"]),
         "max_pixels": int(given["max_pixels"]),
         "preprocess": given["preprocess"],

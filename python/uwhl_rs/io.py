@@ -62,8 +62,9 @@ class ImageReadError(ValueError):
 
 
 class ImageTooLargeError(ImageReadError):
-    """The image is over the pixel budget (``max_pixels``); the commands
-    report it as over budget, not as unreadable."""
+    """The image is over the pixel budget (``max_pixels``), the memory
+    budget, or what the system gives; the commands report it as over
+    budget, not as unreadable."""
 
 
 @dataclass(frozen=True)
@@ -132,6 +133,7 @@ def read_image(
     preprocess: str = "none",
     half_size: bool = False,
     max_pixels: int = DEFAULT_MAX_PIXELS,
+    _on_header=None,
 ) -> tuple[np.ndarray, ImageMeta]:
     """Read a photograph as the linear float32 HxWx3 image ``restore`` takes.
 
@@ -152,6 +154,10 @@ def read_image(
     Returns ``(image, meta)``. Raises :class:`ImageReadError` naming the
     file and the reason (missing, truncated, corrupt, unsupported, or more
     than ``max_pixels`` pixels).
+
+    ``_on_header(height, width, decoded_bytes_per_pixel, oriented)`` (the
+    commands' memory plan) is called from the header, before decoding;
+    what it raises propagates.
     """
     path = os.fspath(path)
     if preprocess not in PREPROCESS_MODES:
@@ -171,24 +177,30 @@ def read_image(
         raise ImageReadError(f"{path}: empty file")
     try:
         if kind is None:
-            return _read_raw(path, preprocess, half_size, max_pixels)
-        return _read_encoded(path, kind, preprocess, max_pixels)
+            return _read_raw(path, preprocess, half_size, max_pixels, _on_header)
+        return _read_encoded(path, kind, preprocess, max_pixels, _on_header)
     except ImageReadError:
         raise
     except MemoryError:
-        raise ImageReadError(f"{path}: not enough memory to decode") from None
+        raise ImageTooLargeError(f"{path}: not enough memory to decode") from None
     except Exception as e:  # decoders raise many types; name the file and the reason
         raise ImageReadError(f"{path}: cannot decode {kind or 'raw'} ({type(e).__name__}: {e})") from None
 
 
-def _check_pixels(path: str, h: int, w: int, max_pixels: int) -> None:
+def _check_pixels(path: str, h: int, w: int, max_pixels: int, on_header=None, bpp: int = 3,
+                  oriented: bool = False) -> None:
+    """The header's checks: the pixel limit, a non-empty image, and the
+    caller's ``on_header`` (see :func:`read_image`)."""
     if h * w > max_pixels:
         raise ImageTooLargeError(f"{path}: {w}x{h} pixels is over the limit of {max_pixels} (max_pixels)")
     if h < 1 or w < 1:
         raise ImageReadError(f"{path}: the image is empty ({w}x{h})")
+    if on_header is not None:
+        on_header(h, w, bpp, oriented)
 
 
-def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int) -> tuple[np.ndarray, ImageMeta]:
+def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
+                  on_header=None) -> tuple[np.ndarray, ImageMeta]:
     from PIL import Image
 
     orientation = 1
@@ -197,6 +209,9 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int) -> tup
             _check_pixels(path, im.height, im.width, max_pixels)
             orientation = int(im.getexif().get(0x0112, 1) or 1)
             mode = im.mode
+            wide = kind == "PNG" and _png_bit_depth(path) == 16
+            if on_header is not None:
+                on_header(im.height, im.width, len(im.getbands()) * (2 if wide else 1), orientation != 1)
     if kind == "PNG" and _png_bit_depth(path) == 16:
         with open(path, "rb") as f:
             codes = _core._decode_png(f.read(), max_pixels)
@@ -210,11 +225,14 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int) -> tup
             h, w = (shape[0], shape[1]) if len(shape) >= 2 else (0, 0)
             if page.samplesperpixel > 1 and page.planarconfig == 2:  # planar: (C, H, W)
                 h, w = shape[-2], shape[-1]
-            _check_pixels(path, h, w, max_pixels)
             orientation = int(page.tags.get("Orientation").value) if "Orientation" in page.tags else 1
+            bpp = int(page.samplesperpixel) * page.dtype.itemsize
+            _check_pixels(path, h, w, max_pixels, on_header, bpp, orientation != 1)
             codes = page.asarray()
             if page.samplesperpixel > 1 and page.planarconfig == 2:
                 codes = np.moveaxis(codes, 0, -1)
+            if page.photometric == 5:  # separated: CMYK
+                codes = _cmyk_to_rgb(path, codes, page)
         codes = _orient(codes, orientation)
     else:
         import imageio.v3 as iio
@@ -316,7 +334,25 @@ def _camera_matrix(raw) -> tuple[np.ndarray | None, list[str]]:
     return None, ["no_camera_matrix"]
 
 
-def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int) -> tuple[np.ndarray, ImageMeta]:
+def _cmyk_to_rgb(path: str, codes: np.ndarray, page) -> np.ndarray:
+    """CMYK samples (TIFF photometric "separated", ink set CMYK) as RGB:
+    each of R, G, B is (max - C) (1 - K / max), truncated, with max the
+    samples' largest code (255 or 65535): the conversion without a colour
+    profile that uwhl-rs' decoder (the image crate) makes, so that both
+    commands read such a file alike."""
+    inkset = page.tags.get("InkSet")
+    if codes.ndim != 3 or codes.shape[2] < 4 or (inkset is not None and int(inkset.value) != 1):
+        raise ImageReadError(f"{path}: a separated (non-CMYK) TIFF of shape {codes.shape} is not supported")
+    if codes.dtype not in (np.uint8, np.uint16):
+        raise ImageReadError(f"{path}: CMYK samples of type {codes.dtype} are not supported (8 or 16 bits)")
+    top = np.float32(np.iinfo(codes.dtype).max)
+    c = codes[:, :, :4].astype(np.float32)
+    kf = 1.0 - c[:, :, 3:4] / top
+    return ((top - c[:, :, :3]) * kf).astype(codes.dtype)
+
+
+def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
+              on_header=None) -> tuple[np.ndarray, ImageMeta]:
     try:
         import rawpy
     except ImportError:  # pragma: no cover - rawpy is a dependency
@@ -329,7 +365,8 @@ def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int) -> t
         raise ImageReadError(f"{path}: not {what} ({type(e).__name__}: {e})") from None
     with raw:
         s = raw.sizes
-        _check_pixels(path, s.height, s.width, max_pixels)
+        # the mosaic (2 bytes a pixel) and LibRaw's 16-bit RGB output
+        _check_pixels(path, s.height, s.width, max_pixels, on_header, 8, int(s.flip) != 0)
         notes: list[str] = []
         # Some files declare a white level below their own data (the shared
         # Nikon NEF: 255 vs 54998): every pixel would clip. Use the data's

@@ -148,7 +148,7 @@ impl Default for Options {
             quality: crate::options::DEFAULT_QUALITY as u8,
             overwrite: false,
             threads: None,
-            max_memory: crate::options::DEFAULT_MAX_MEMORY,
+            max_memory: crate::budget::default_max_memory(),
             max_pixels: crate::options::DEFAULT_MAX_PIXELS,
             json_errors: false,
             stream: false,

@@ -186,7 +186,9 @@ fn open_reader<R: BufRead + Seek>(
         height: height as usize,
         width: width as usize,
         bpp: u64::from(ct.bytes_per_pixel()),
-        is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F),
+        // a JPEG decoder holds its component planes (as many bytes again)
+        // beside the interleaved output while it works
+        is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && format != "JPEG",
         oriented: code != 1,
     })?;
     let mut img = DynamicImage::from_decoder(decoder).map_err(image_error)?;

@@ -2,7 +2,7 @@
 //! batch and stream loops around it.
 
 use super::args::{Options, Preprocess};
-use super::budget::{Plan, HELD_WHILE_WRITING};
+use crate::budget::{Plan, HELD_WHILE_WRITING};
 use super::decode::{decode, decode_mask, Limits};
 use super::output::{encode_image, encode_transmission, encode_transmission_color, Encoding};
 use crate::commit::{claim, Claim, Request, Resolution};
@@ -116,8 +116,10 @@ fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, gate: Op
         factor: opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n)),
         reference: opts.preprocess == Preprocess::Reference,
         masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
+        write_extra: 0,
     };
-    let need = plan.bytes();
+    // the budget bounds the process's peak: what it holds anyway counts
+    let need = plan.bytes().saturating_add(crate::budget::process_base());
     if let Some(g) = gate {
         g.make_room(need, opts.max_memory);
     }
@@ -127,6 +129,16 @@ fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, gate: Op
             format!(
                 "{}x{} pixels need about {need} bytes, over --max-memory {} (use --max-side or raise --max-memory)",
                 h.height, h.width, opts.max_memory
+            ),
+        ));
+    }
+    if !crate::budget::can_allocate(plan.bytes()) {
+        return Err(CliError::new(
+            Kind::Budget,
+            format!(
+                "{}x{} pixels need about {need} bytes, more than the system gives now (free memory, a container \
+                 limit or ulimit -v); use --max-side",
+                h.height, h.width
             ),
         ));
     }
@@ -589,6 +601,8 @@ fn sequence(opts: &Options) -> Option<Sequence> {
 /// The next input is decoded and restored while the outputs of the
 /// previous one are written (`overlapped`).
 pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
+    // measured before any input is read: the part of --max-memory the process holds anyway
+    crate::budget::process_base();
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,
@@ -732,6 +746,7 @@ enum StreamItem {
 /// is printed as soon as they are. Returns 0 at the end of the input (or
 /// the code of a bad `--mask`).
 pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dyn Write, err: &mut dyn Write) -> u8 {
+    crate::budget::process_base();
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,

@@ -317,3 +317,274 @@ def test_a_rerun_removes_the_temporaries_a_killed_run_left(binary, files, tmp_pa
         r = _run(face, binary, [str(files / "f0.png"), "-o", str(out), "--format", "png"], tmp_path)
         assert r.returncode == 0, (face, r.stderr)
         assert not any(p.exists() for p in dead) and live.exists(), (face, sorted(os.listdir(out)))
+
+
+def _summary_counts(stdout: str) -> tuple[int, int, int]:
+    import re
+
+    m = re.search(r"(\d+) done, (\d+) skipped, (\d+) failed", stdout)
+    assert m, stdout
+    return tuple(int(g) for g in m.groups())
+
+
+def _limited(fsize: int):
+    """A child whose files cannot grow past ``fsize`` bytes (a disk that
+    fills mid-input): writes past it fail with EFBIG instead of SIGXFSZ."""
+    import resource
+
+    def pre():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+    return pre
+
+
+def test_overwrite_on_a_full_disk_keeps_the_earlier_outputs(binary, files, tmp_path):
+    """Item 1 of issue 20: an --overwrite whose later output cannot be
+    written leaves the earlier run's outputs and sidecar whole (the image
+    is not removed under a sidecar that still lists it), and a rerun
+    without --overwrite skips an input that is complete."""
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        args = [str(files / "f1.png"), "-o", str(out), "--format", "jpg", "--quality", "5"]
+        assert _run(face, binary, args, tmp_path).returncode == 0
+        before = {f: (out / f).read_bytes() for f in os.listdir(out)}
+        sizes = {f: len(b) for f, b in before.items()}
+        # the image (written first) fits, the transmission (written next) does not
+        limit = sizes["f1.jpg"] + 16
+        assert sizes["f1_t.png"] > limit, sizes
+        r = subprocess.run(_cmd(face, binary, [*args, "--overwrite"]), capture_output=True, text=True, timeout=120,
+                           env=_env(), cwd=tmp_path, preexec_fn=_limited(limit), restore_signals=False)
+        assert r.returncode == CONTRACT["write_failed"], (face, r.returncode, r.stderr)
+        assert "f1_t.png" in r.stderr or "File too large" in r.stderr, (face, r.stderr)
+        after = {f: (out / f).read_bytes() for f in os.listdir(out)}
+        assert after == before, (face, sorted(after))  # nothing half-replaced, no temporary left
+        side = json.loads(after["f1.json"])
+        assert all((out / f).exists() for f in side["outputs"].values()), face
+        r = _run(face, binary, args, tmp_path)
+        assert r.returncode == 0 and "skipped" in r.stdout + r.stderr, (face, r.stdout, r.stderr)
+
+
+def test_stream_frames_with_one_name_keep_both(binary, files, tmp_path):
+    """Item 2: camA/frame.png and camB/frame.png on consecutive lines: camB's
+    outputs go under frame_2, camA's are kept; the same path on two
+    consecutive lines is restored once."""
+    for cam, k in (("camA", 0), ("camB", 1)):
+        (tmp_path / cam).mkdir()
+        os.link(files / f"f{k}.png", tmp_path / cam / "frame.png")
+    a, b = tmp_path / "camA" / "frame.png", tmp_path / "camB" / "frame.png"
+    out = tmp_path / "o"
+    r = subprocess.run([binary, "restore", "--stream", "-o", str(out), "--format", "png"],
+                       input=f"{a}\n{a}\n{b}\n", capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    objs = [json.loads(x) for x in r.stdout.splitlines() if x.strip()]
+    assert len(objs) == 3 and "skipped" in objs[1], objs
+    assert json.load(open(out / "frame.json"))["input"] == str(a)
+    assert json.load(open(out / "frame_2.json"))["input"] == str(b)
+    assert objs[2]["outputs"]["image"] == "frame_2.png"
+    # camA's restoration is still the one under frame.png
+    assert sorted(f for f in os.listdir(out)) == ["frame.json", "frame.png", "frame_2.json", "frame_2.png",
+                                                   "frame_2_t.png", "frame_2_t_color.png", "frame_t.png",
+                                                   "frame_t_color.png"]
+    # a rerun of the same lines does nothing more
+    r = subprocess.run([binary, "restore", "--stream", "-o", str(out), "--format", "png"],
+                       input=f"{a}\n{b}\n", capture_output=True, text=True, timeout=120)
+    assert [json.loads(x).get("skipped") for x in r.stdout.splitlines()] == ["sidecar exists"] * 2, r.stdout
+
+
+def test_output_names_of_different_roles_never_collide(binary, files, tmp_path):
+    """Item 3: inputs a.png and a_t.png written as PNG (a_t.png is a's
+    transmission) get distinct names, the same in both commands; a file
+    already in the output folder under an output's name is kept."""
+    src = tmp_path / "in"
+    src.mkdir()
+    os.link(files / "f0.png", src / "a.png")
+    os.link(files / "f1.png", src / "a_t.png")
+    os.link(files / "f2.png", src / "x.png")
+    got = {}
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        out.mkdir()
+        (out / "x_t.png").write_bytes(b"someone's own file")
+        r = _run(face, binary, [str(src), "-o", str(out), "--format", "png"], tmp_path)
+        assert r.returncode == 0, (face, r.stderr)
+        sides = {f: json.load(open(out / f)) for f in os.listdir(out) if f.endswith(".json")}
+        got[face] = {f: (os.path.basename(s["input"]), s["outputs"]) for f, s in sides.items()}
+        assert (out / "x_t.png").read_bytes() == b"someone's own file", face
+        # every file a sidecar lists is that input's: no two sidecars share one
+        listed = [v for s in sides.values() for v in s["outputs"].values()]
+        assert len(listed) == len(set(listed)), (face, listed)
+    assert got["python"] == got["rust"]
+    names = {inp: f for f, (inp, _) in got["rust"].items()}
+    assert names == {"a.png": "a.json", "a_t.png": "a_t_2.json", "x.png": "x_2.json"}, names
+
+
+def test_two_processes_on_one_folder_restore_each_input_once(binary, files, tmp_path):
+    """Item 11: two runs on the same output folder at once (one of each
+    command) share the inputs: each is restored by one of them, the other
+    skips it (done, or being restored by the other)."""
+    src = tmp_path / "in"
+    src.mkdir()
+    img, _ = synth.demo_input(240, 320, water_type="3C", seed=5)
+    uwhl_rs.io.write_image(src / "base.png", img, bits=8, encoding="linear")
+    for k in range(8):
+        os.link(src / "base.png", src / f"p{k}.png")
+    (src / "base.png").unlink()
+    out = tmp_path / "out"
+    args = [str(src), "-o", str(out), "--format", "png"]
+    procs = [subprocess.Popen(_cmd(face, binary, args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              env=_env(), cwd=tmp_path) for face in ("rust", "python")]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], outs
+    counts = [_summary_counts(o) for o, _ in outs]
+    assert sum(c[0] for c in counts) == 8 and sum(c[1] for c in counts) == 8, (counts, outs)
+    sides = [json.load(open(out / f"p{k}.json")) for k in range(8)]
+    assert sorted(os.path.basename(s["input"]) for s in sides) == [f"p{k}.png" for k in range(8)]
+    assert not [f for f in os.listdir(out) if f.startswith(".")], os.listdir(out)
+
+
+def _big_png(path, h: int, w: int) -> None:
+    """A PNG of h x w black RGB pixels written row by row (a few hundred
+    kB on disk whatever its size; never held in memory whole)."""
+    import struct
+    import zlib
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+
+    z = zlib.compressobj(9)
+    row = b"\x00" * (1 + 3 * w)
+    body = b"".join(z.compress(row) for _ in range(h)) + z.flush()
+    with open(path, "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+                + chunk(b"IDAT", body) + chunk(b"IEND", b""))
+
+
+def _address_space(limit: int):
+    import resource
+
+    def pre():
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    return pre
+
+
+def test_memory_the_system_will_not_give_fails_one_input_not_the_process(binary, files, tmp_path):
+    """Item 6: a 12000 x 12000 PNG under `ulimit -v` 3 GB: refused with exit
+    4 (by the default budget, which follows the limit, and, with a budget
+    set above it, by the allocation probe) while the next input is
+    restored; the stream goes on to the next frame."""
+    big = tmp_path / "big.png"
+    _big_png(big, 12000, 12000)
+    assert big.stat().st_size < 1 << 20
+    limit = 3 << 30
+    for face in ("python", "rust"):
+        for extra, why in (([], "over --max-memory|over max_memory"), (["--max-memory", "60G"], "system gives")):
+            out = tmp_path / f"{face}{len(extra)}"
+            r = subprocess.run(_cmd(face, binary, [str(big), str(files / "f0.png"), "-o", str(out), "--format", "png",
+                                                   *extra]), capture_output=True, text=True, timeout=120,
+                               env=_env(), cwd=tmp_path, preexec_fn=_address_space(limit))
+            assert r.returncode == CONTRACT["over_budget"], (face, extra, r.returncode, r.stderr[-2000:])
+            import re
+
+            assert re.search(why, r.stderr), (face, extra, r.stderr)
+            assert sorted(os.listdir(out)) == ["f0.json", "f0.png", "f0_t.png", "f0_t_color.png"], (face, extra)
+    r = subprocess.run([binary, "restore", "--stream", "-o", str(tmp_path / "s"), "--format", "png", "--max-memory",
+                        "60G"], input=f"{big}\n{files / 'f1.png'}\n", capture_output=True, text=True, timeout=120,
+                       preexec_fn=_address_space(limit))
+    objs = [json.loads(x) for x in r.stdout.splitlines() if x.strip()]
+    assert r.returncode == 0 and len(objs) == 2, (r.returncode, r.stderr)
+    assert objs[0]["error"] == "over_budget" and objs[1]["water_type"], objs
+
+
+# Runs argv[1:] and prints its peak resident bytes. A child's peak counts
+# the pages of the process it was forked from until it execs, so the
+# command is started from this small launcher and not from pytest.
+_LAUNCHER = """
+import os, sys
+pid = os.posix_spawn(sys.argv[1], sys.argv[1:], os.environ)
+_, status, usage = os.wait4(pid, 0)
+print(os.waitstatus_to_exitcode(status), usage.ru_maxrss * 1024)
+"""
+
+
+def _peak_rss(cmd: list[str], stdin: str | None = None) -> tuple[int, int, str]:
+    """Runs cmd; returns its exit code, its peak resident bytes (the
+    kernel's count) and its stderr."""
+    r = subprocess.run([sys.executable, "-c", _LAUNCHER, *cmd], input=stdin, capture_output=True, text=True,
+                       timeout=300, env=_env())
+    code, peak = r.stdout.split()[-2:]
+    return int(code), int(peak), r.stderr
+
+
+def test_peak_memory_stays_under_max_memory(binary, tmp_path):
+    """Item 7: at the tightest budget a command accepts (the need it reports
+    when refusing, plus the margin that absorbs run-to-run changes of the
+    process's own size), the peak resident memory of the whole process,
+    measured by the kernel, stays under --max-memory: one input, and a
+    stream of 6 frames (binary)."""
+    import re
+
+    src = tmp_path / "in"
+    src.mkdir()
+    for k in range(6):
+        img, _ = synth.demo_input(480, 640, water_type="3C", seed=k)
+        uwhl_rs.io.write_image(src / f"m{k}.png", img, bits=8, encoding="linear")
+    margin = {"rust": 1 << 20, "python": 4 << 20}
+    for face in ("rust", "python"):
+        args = [str(src / "m0.png"), "-o", str(tmp_path / face), "--format", "png", "--overwrite"]
+        code, _, err = _peak_rss(_cmd(face, binary, [*args, "--max-memory", "1M"]))
+        assert code == CONTRACT["over_budget"], err
+        budget = int(re.search(r"need about (\d+) bytes", err).group(1)) + margin[face]
+        code, peak, err = _peak_rss(_cmd(face, binary, [*args, "--max-memory", str(budget)]))
+        assert code == 0, (face, err)
+        assert peak <= budget, (face, peak, budget)
+    lines = "".join(f"{src / f'm{k}.png'}\n" for k in range(6))
+    code, _, err = _peak_rss([binary, "restore", "--stream", "-o", str(tmp_path / "s"), "--max-memory", "1M"], lines)
+    assert code == 0, err
+    budget = int(re.search(r"need about (\d+) bytes", err).group(1)) + margin["rust"]
+    code, peak, err = _peak_rss([binary, "restore", "--stream", "-o", str(tmp_path / "s"), "--max-memory",
+                                 str(budget)], lines)
+    assert code == 0 and len(os.listdir(tmp_path / "s")) == 24, err
+    assert peak <= budget, (peak, budget)
+
+
+def test_a_cmyk_tiff_is_read_as_its_colors_in_both(binary, tmp_path):
+    """Item 4: a CMYK TIFF (photometric "separated") is converted to RGB by
+    the Python command as by uwhl-rs: pure cyan, magenta, yellow and black
+    inks decode to their RGB colours, and both commands write the same
+    restoration."""
+    import tifffile
+
+    rng = np.random.default_rng(3)
+    cmyk = rng.integers(0, 256, size=(48, 64, 4), dtype=np.uint8)
+    cmyk[:4, :4] = [0, 255, 255, 0]  # red
+    cmyk[:4, 4:8] = [255, 0, 255, 0]  # green
+    cmyk[:4, 8:12] = [0, 0, 0, 255]  # black
+    path = tmp_path / "cmyk.tif"
+    tifffile.imwrite(path, cmyk, photometric="separated")
+    img, meta = uwhl_rs.io.read_image(path, preprocess="reference")  # codes / 255, no curve
+    assert np.allclose(img[0, 0], [1, 0, 0]) and np.allclose(img[0, 5], [0, 1, 0]) and np.allclose(img[0, 9], 0)
+    got = {}
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        r = _run(face, binary, [str(path), "-o", str(out), "--format", "png"], tmp_path)
+        assert r.returncode == 0, (face, r.stderr)
+        got[face] = (out / "cmyk.png").read_bytes()
+    assert got["python"] == got["rust"]
+
+
+def test_non_utf8_names_are_named_alike_by_both(binary, files, tmp_path):
+    """Item 13: a file name that is not UTF-8 gets the same output names
+    from both commands (U+FFFD for the byte that is not), and two such names
+    that differ only there do not collide."""
+    src = os.path.join(os.fsencode(tmp_path), b"in")
+    os.mkdir(src)
+    for b, k in ((b"caf\xe9.png", 0), (b"caf\xe8.png", 1)):
+        os.link(files / f"f{k}.png", os.path.join(src, b))
+    names = {}
+    for face in ("python", "rust"):
+        out = tmp_path / face
+        r = subprocess.run(_cmd(face, binary, [os.fsdecode(src), "-o", str(out), "--format", "png"]),
+                           capture_output=True, timeout=120, env=_env(), cwd=tmp_path)
+        assert r.returncode == 0, (face, r.stderr)
+        names[face] = sorted(os.listdir(os.fsencode(out)))
+    assert names["python"] == names["rust"] and len(names["rust"]) == 8, names
