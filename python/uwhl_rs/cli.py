@@ -268,12 +268,17 @@ class Outcome:
     code: int = 0  # the exit code of this input (docs/CLI.md)
 
 
-def _describe(e: BaseException) -> str:
+def _describe(e: BaseException, path: str | None = None) -> str:
+    """The message of a failure; the input's path is said once, by the
+    line that reports it, so a leading ``path: `` is left out."""
     if isinstance(e, MemoryError):
         return f"over the memory budget: {e}"
     if isinstance(e, OSError) and e.strerror:
         return f"{e.strerror}" + (f": {e.filename}" if e.filename else "")
-    return str(e) or type(e).__name__
+    text = str(e) or type(e).__name__
+    if path is not None and text.startswith(f"{path}: "):
+        text = text[len(path) + 2:]
+    return text
 
 
 def _error_kind(e: BaseException, writing: bool) -> str:
@@ -400,7 +405,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
 
             def settle_claim(result=failure) -> Outcome:
                 kind, e = result
-                o = Outcome(job, "failed", note=_describe(e), code=EXIT[kind])
+                o = Outcome(job, "failed", note=_describe(e, job.path), code=EXIT[kind])
                 progress.finish(f"{job.path}: {o.note}", error=True,
                                 report=lambda: _report(err, a.json_errors, job.path, kind, o.note))
                 return o
@@ -422,7 +427,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         def settle(result) -> Outcome:
             if isinstance(result, tuple):  # (kind, exception)
                 kind, e = result
-                o = Outcome(job, "failed", seconds=time.perf_counter() - t0, note=_describe(e), code=EXIT[kind])
+                o = Outcome(job, "failed", seconds=time.perf_counter() - t0, note=_describe(e, job.path), code=EXIT[kind])
                 progress.finish(f"{job.path}: {o.note}", error=True,
                                 report=lambda: _report(err, a.json_errors, job.path, kind, o.note))
                 return o
