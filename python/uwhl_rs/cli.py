@@ -56,11 +56,12 @@ def _option_type(key: str):
     return parse
 
 
-def _add_options(parser: argparse.ArgumentParser) -> None:
-    """The options of the core's table that the Python command takes, grouped."""
+def _add_options(parser: argparse.ArgumentParser, method_only: bool = False) -> None:
+    """The options of the core's table that the Python command takes,
+    grouped (``method_only``: those of the method, for ``uwhl evaluate``)."""
     groups: dict[str, argparse._ArgumentGroup] = {}
     for o in _core.OPTIONS:
-        if o["faces"] == "rust":
+        if o["faces"] == "rust" or (method_only and not o["method"]):
             continue
         g = groups.get(o["group"]) or groups.setdefault(o["group"], parser.add_argument_group(o["group"]))
         names = [o["flag"]] + ([o["short"]] if o["short"] else [])
@@ -138,6 +139,26 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--water-type", default="III", choices=list(uwhl_rs.WATER_TYPES), help="water type to render (default III)")
     d.add_argument("--size", default="480x640", help="HxW of the scene (default 480x640)")
     d.add_argument("--seed", type=int, default=7, help="scene seed (default 7)")
+
+    from .evaluate import METHODS
+
+    e = sub.add_parser(
+        "evaluate",
+        help="the paper's colour and distance metrics on annotated photos, beside baselines",
+        description="Evaluate the method on the photos of a manifest (docs/EVALUATE.md): the mean angle of "
+        "chart gray patches from gray (psi-bar), rho of -ln t against distance maps, the water type against "
+        "a known one; beside the input, a contrast stretch, gray world and every candidate type. Writes "
+        "results.json, results.csv and report.html.",
+    )
+    e.add_argument("manifest", metavar="MANIFEST", help="the manifest (JSON; paths relative to it)")
+    e.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR",
+                   help="output folder (created if needed)")
+    e.add_argument("--method", default=METHODS[0], choices=METHODS, help="the profile evaluated (default paper)")
+    e.add_argument("--mask-charts", action="store_true",
+                   help="exclude the charts' regions from estimation (the mask of restore), as the paper does")
+    e.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
+    e.add_argument("-q", "--quiet", action="store_true", help="no progress lines and no summary")
+    _add_options(e, method_only=True)
     return p
 
 
@@ -573,4 +594,72 @@ def main(argv: list[str] | None = None) -> int:
         if h < 4 or w < 4:
             p.error(f"--size must be at least 4x4, not {a.size!r}")
         return run_demo(a.out, a.water_type, (h, w), a.seed)
+    if a.cmd == "evaluate":
+        return run_evaluate(a)
     return run_restore(a)
+
+
+def run_evaluate(a: argparse.Namespace, out=None, err=None) -> int:
+    """``uwhl evaluate``: returns the exit status (docs/CLI.md's codes)."""
+    from . import evaluate as ev
+
+    out = out or sys.stdout
+    err = err or sys.stderr
+    try:
+        water_types = _water_types(a.water_types)
+    except ValueError as e:
+        _report(err, a.json_errors, None, "bad_arguments", str(e))
+        return EXIT_USAGE
+    kwargs = {o["key"]: getattr(a, o["key"]) for o in _core.OPTIONS
+              if o["method"] and o["faces"] != "rust" and o["key"] != "water_types" and getattr(a, o["key"]) is not None}
+    if water_types is not None:
+        kwargs["water_types"] = water_types
+    try:
+        entries, problems = ev.load_manifest(a.manifest)
+    except ev.ManifestError as e:
+        _report(err, a.json_errors, a.manifest, "unreadable_input", str(e))
+        return EXIT["unreadable_input"]
+    code = EXIT_OK
+    for p in problems:
+        _report(err, a.json_errors, a.manifest, "unreadable_input", p)
+        code = max(code, EXIT["unreadable_input"])
+    results = []
+    t0 = time.perf_counter()
+    for k, entry in enumerate(entries, 1):
+        t = time.perf_counter()
+        try:
+            r = ev.evaluate_entry(entry, a.method, a.mask_charts, **kwargs)
+        except (Exception, MemoryError) as e:
+            kind = "unreadable_input" if isinstance(e, ev.ManifestError) else _error_kind(e, False)
+            _report(err, a.json_errors, entry.label, kind, _describe(e, entry.path))
+            problems.append(f"{entry.label}: {_describe(e, entry.path)}")
+            code = max(code, EXIT[kind])
+            continue
+        results.append(r)
+        if not a.quiet:
+            psi = [row["psi_deg"] for row in r["charts"] if row["method"] == a.method]
+            rho = r["rho"].get(a.method, {}).get("rho_B")
+            out.write(f"[{k}/{len(entries)}] {entry.label}: water type {r['water_type']}"
+                      + (f", psi-bar {', '.join(f'{v:.1f}' for v in psi if v is not None)} deg" if psi else "")
+                      + (f", rho {rho:.3f}" if rho is not None else "") + f" ({time.perf_counter() - t:.1f} s)\n")
+            out.flush()
+    try:
+        parameters = {"method": a.method, "mask_charts": a.mask_charts,
+                      **{k: v if not isinstance(v, tuple) else list(v) for k, v in kwargs.items()}}
+        doc = ev.write_results(a.out, a.manifest, results, problems, parameters)
+        ev.write_report(a.out, doc, results, entries, a.method)
+    except OSError as e:
+        _report(err, a.json_errors, a.out, "write_failed", _describe(e))
+        return EXIT["write_failed"]
+    if not a.quiet:
+        out.write(f"\n{'method':<12} {'psi-bar':>8} {'rho t_B':>8}\n")
+        for m, v in doc["summary"].items():
+            if m == "water_type":
+                continue
+            out.write(f"{m:<12} {ev._fmt(v['psi_deg']):>8} {ev._fmt(v['rho_B']):>8}\n")
+        if "water_type" in doc["summary"]:
+            wt = doc["summary"]["water_type"]
+            out.write(f"water type: {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step\n")
+        out.write(f"{len(results)} of {len(entries)} images evaluated in {time.perf_counter() - t0:.1f} s; "
+                  f"{os.path.join(a.out, 'report.html')}\n")
+    return code
