@@ -330,6 +330,18 @@ def _report(err, json_errors: bool, item: str | None, kind: str, message: str) -
     err.flush()
 
 
+_BAD = object()
+
+
+def _water_types_or_report(a: argparse.Namespace, err):
+    """The parsed --water-type values, or ``_BAD`` after reporting why not."""
+    try:
+        return _water_types(a.water_types)
+    except ValueError as e:
+        _report(err, a.json_errors, None, "bad_arguments", str(e))
+        return _BAD
+
+
 def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     """``uwhl restore``: returns the exit status."""
     import uwhl_rs
@@ -338,10 +350,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
 
     out = out or sys.stdout
     err = err or sys.stderr
-    try:
-        water_types = _water_types(a.water_types)
-    except ValueError as e:
-        _report(err, a.json_errors, None, "bad_arguments", str(e))
+    water_types = _water_types_or_report(a, err)
+    if water_types is _BAD:
         return EXIT_USAGE
     try:
         _core.check_combination(a.format, a.bits, a.reuse_estimates, a.reuse_water_mask, False, a.preprocess)
@@ -605,10 +615,8 @@ def run_evaluate(a: argparse.Namespace, out=None, err=None) -> int:
 
     out = out or sys.stdout
     err = err or sys.stderr
-    try:
-        water_types = _water_types(a.water_types)
-    except ValueError as e:
-        _report(err, a.json_errors, None, "bad_arguments", str(e))
+    water_types = _water_types_or_report(a, err)
+    if water_types is _BAD:
         return EXIT_USAGE
     kwargs = {o["key"]: getattr(a, o["key"]) for o in _core.OPTIONS
               if o["method"] and o["faces"] != "rust" and o["key"] != "water_types" and getattr(a, o["key"]) is not None}
