@@ -43,13 +43,40 @@ static TEMPS: AtomicU64 = AtomicU64::new(0);
 pub enum Resolution {
     /// the outputs go under this claimed name
     Claimed(Claim),
-    /// this input's sidecar exists (and `overwrite` was not asked): skip it
-    Done(PathBuf),
-    /// another running process (its pid) restores this input under the sidecar path
-    Busy(u32, PathBuf),
-    /// this process has the same input in flight under the sidecar path
-    /// (given twice: a stream naming one file on two lines)
-    InFlight(PathBuf),
+    /// not to be restored now, and the sidecar path it is (or will be) under
+    Skipped(Skip, PathBuf),
+}
+
+/// Why an input is skipped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Skip {
+    /// its sidecar exists (and `overwrite` was not asked)
+    Done,
+    /// another running process (its pid) restores it
+    Busy(u32),
+    /// this process has the same input in flight (given twice: a stream
+    /// naming one file on two lines)
+    InFlight,
+}
+
+impl Skip {
+    /// The reason both commands print (a stream line's `skipped`).
+    pub fn reason(self) -> String {
+        match self {
+            Skip::Done => "sidecar exists".into(),
+            Skip::Busy(pid) => format!("being restored by process {pid}"),
+            Skip::InFlight => "given twice: restored once".into(),
+        }
+    }
+
+    /// Its name for the Python command: "done", "busy" or "in_flight".
+    pub fn name(self) -> &'static str {
+        match self {
+            Skip::Done => "done",
+            Skip::Busy(_) => "busy",
+            Skip::InFlight => "in_flight",
+        }
+    }
 }
 
 /// What to claim.
@@ -94,12 +121,6 @@ fn name_hash(name: &str) -> u64 {
 /// The input as compared: links resolved when it exists.
 fn input_key(p: &Path) -> PathBuf {
     fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
-}
-
-/// Whether a process runs (`/proc/PID`); without `/proc` every process is
-/// taken to run, so no claim is ever taken over.
-pub fn process_runs(pid: u32) -> bool {
-    !Path::new("/proc/self").exists() || Path::new("/proc").join(pid.to_string()).exists()
 }
 
 /// The `input` recorded in a sidecar; None if it cannot be read.
@@ -150,7 +171,7 @@ pub fn create_temp(dir: &Path, ext: &str) -> io::Result<(PathBuf, File)> {
 }
 
 /// The folder of `path` (`.` for a bare name).
-pub fn folder_of(path: &Path) -> &Path {
+fn folder_of(path: &Path) -> &Path {
     match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -173,11 +194,17 @@ pub fn place(tmp: &Path, path: &Path) -> io::Result<()> {
     sync_dir(folder_of(path))
 }
 
+/// A new exclusive temporary ([`create_temp`]) in `path`'s folder, with
+/// `path`'s extension: where a single file for `path` is written first.
+pub fn create_temp_for(path: &Path) -> io::Result<(PathBuf, File)> {
+    create_temp(folder_of(path), &dotted_extension(path))
+}
+
 /// Writes `bytes` to `path` durably and atomically (an exclusive
 /// temporary, then [`place`]). For single files written outside a claim
 /// (the demo's files).
 pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let (tmp, mut f) = create_temp(folder_of(path), &dotted_extension(path))?;
+    let (tmp, mut f) = create_temp_for(path)?;
     if let Err(e) = f.write_all(bytes) {
         let _ = fs::remove_file(&tmp);
         return Err(e);
@@ -205,7 +232,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
             paths.iter().find_map(|p| m.get(p)).map(|owner| *owner == key)
         });
         match busy_here {
-            Some(true) => return Ok(Resolution::InFlight(sidecar)),
+            Some(true) => return Ok(Resolution::Skipped(Skip::InFlight, sidecar)),
             Some(false) if req.rename => continue,
             Some(false) => return Err(io::Error::other(format!("{} is being written by this process", sidecar.display()))),
             None => {}
@@ -214,48 +241,46 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
         // this name while it is looked at
         let claim_file = req.dir.join(format!(".uwhl-claim-{:016x}", name_hash(&name)));
         let mut stale = false;
-        loop {
+        // true once this process holds the claim file; false when another
+        // live process holds it for another input
+        let owned = loop {
             match OpenOptions::new().write(true).create_new(true).open(&claim_file) {
                 Ok(mut f) => {
                     writeln!(f, "{own}\n{name}\n{}", key.display())?;
-                    break;
+                    break true;
                 }
-                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
-                    match read_claim(&claim_file) {
-                        Some((pid, holder)) if pid != own && process_runs(pid) => {
-                            if holder == key {
-                                return Ok(Resolution::Busy(pid, sidecar));
-                            }
-                            if !req.rename {
-                                return Err(io::Error::other(format!(
-                                    "{} is being written by process {pid}",
-                                    sidecar.display()
-                                )));
-                            }
-                            stale = false;
-                            break;
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => match read_claim(&claim_file) {
+                    Some((pid, holder)) if pid != own && crate::jobs::process_runs(pid) => {
+                        if holder == key {
+                            return Ok(Resolution::Skipped(Skip::Busy(pid), sidecar));
                         }
-                        // a dead process's claim (or one being written this
-                        // instant: read again after removing nothing)
-                        Some(_) => {
+                        if !req.rename {
+                            return Err(io::Error::other(format!(
+                                "{} is being written by process {pid}",
+                                sidecar.display()
+                            )));
+                        }
+                        break false;
+                    }
+                    // the claim of a process that no longer runs (or an
+                    // earlier one with this process's pid): taken over
+                    Some(_) => {
+                        stale = true;
+                        let _ = fs::remove_file(&claim_file);
+                    }
+                    None => {
+                        // a claim being written this instant, or one cut short by a crash
+                        std::thread::sleep(std::time::Duration::from_millis(20));
+                        if read_claim(&claim_file).is_none() {
                             stale = true;
                             let _ = fs::remove_file(&claim_file);
                         }
-                        None => {
-                            // a claim being written, or one cut short by a crash
-                            std::thread::sleep(std::time::Duration::from_millis(20));
-                            if read_claim(&claim_file).is_none() {
-                                stale = true;
-                                let _ = fs::remove_file(&claim_file);
-                            }
-                        }
                     }
-                }
+                },
                 Err(e) => return Err(e),
             }
-        }
-        if !claim_file.exists() || read_claim(&claim_file).is_none_or(|(pid, _)| pid != own) {
-            // held by another live process for another input
+        };
+        if !owned {
             continue;
         }
         let release = |claim_file: &Path| {
@@ -265,7 +290,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
             let mine = sidecar_input(&sidecar).is_some_and(|i| i == req.input || input_key(&i) == key);
             if mine && !req.overwrite {
                 release(&claim_file);
-                return Ok(Resolution::Done(sidecar));
+                return Ok(Resolution::Skipped(Skip::Done, sidecar));
             }
             if !mine && req.rename {
                 // another input's outputs (another camera's frame.jpg): never replaced
@@ -419,7 +444,7 @@ mod tests {
         c.commit(&temps).unwrap();
         assert_eq!(fs::read_to_string(d.join("frame.png")).unwrap(), "output 0");
         // the same input again: done
-        assert!(matches!(claim(&request(&d, "frame", &a, &s, false)).unwrap(), Resolution::Done(p) if p == d.join("frame.json")));
+        assert!(matches!(claim(&request(&d, "frame", &a, &s, false)).unwrap(), Resolution::Skipped(Skip::Done, p) if p == d.join("frame.json")));
         // another camera's frame.jpg: never over camA's, even with overwrite
         for overwrite in [false, true] {
             let c = claimed(claim(&request(&d, "frame", &b, &s, overwrite)).unwrap());
@@ -438,7 +463,7 @@ mod tests {
         let a = d.join("a.jpg");
         let first = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
         // the same input while the first is in flight: not restored twice
-        assert!(matches!(claim(&request(&d, "a", &a, &s, false)).unwrap(), Resolution::InFlight(_)));
+        assert!(matches!(claim(&request(&d, "a", &a, &s, false)).unwrap(), Resolution::Skipped(Skip::InFlight, _)));
         // another input whose outputs would share a path (a_t.jpg as png: a_t.png)
         let s2 = vec!["_t.png".into()];
         let other = claimed(claim(&request(&d, "a", &d.join("b.jpg"), &s2, false)).unwrap());
@@ -466,7 +491,7 @@ mod tests {
         let claim_file = d.join(format!(".uwhl-claim-{:016x}", name_hash("a")));
         // pid 1 runs on every Linux system
         fs::write(&claim_file, format!("1\na\n{}\n", key.display())).unwrap();
-        assert!(matches!(claim(&request(&d, "a", &a, &s, false)).unwrap(), Resolution::Busy(1, _)));
+        assert!(matches!(claim(&request(&d, "a", &a, &s, false)).unwrap(), Resolution::Skipped(Skip::Busy(1), _)));
         // a dead process left its claim and one renamed output: taken over, replaced
         fs::write(&claim_file, format!("4194399\na\n{}\n", key.display())).unwrap();
         fs::write(d.join("a.png"), b"half of a killed run").unwrap();

@@ -46,23 +46,26 @@ pub fn regular_file(path: &Path) -> Result<(), String> {
     }
 }
 
+/// Whether a process runs (`/proc/PID`); without `/proc` (no way to tell)
+/// every process is taken to run, so nothing of another is removed or
+/// taken over.
+pub fn process_runs(pid: u32) -> bool {
+    !Path::new("/proc/self").exists() || Path::new("/proc").join(pid.to_string()).exists()
+}
+
 /// Removes from `dir` the temporary files (`.uwhl-PID-...`, the names both
 /// commands write through) of processes that no longer run: what a killed
 /// run left. Those of a live process (a concurrent run) stay. Returns how
 /// many were removed; without `/proc` (no way to tell) none.
 pub fn remove_stale_temps(dir: &Path) -> usize {
-    let proc_fs = Path::new("/proc/self");
     let Ok(rd) = fs::read_dir(dir) else { return 0 };
-    if !proc_fs.exists() {
-        return 0;
-    }
     let own = std::process::id();
     let mut removed = 0;
     for e in rd.flatten() {
         let name = e.file_name();
         let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(".uwhl-")) else { continue };
         let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else { continue };
-        if !rest.contains(".tmp") || pid == own || Path::new("/proc").join(pid.to_string()).exists() {
+        if !rest.contains(".tmp") || pid == own || process_runs(pid) {
             continue;
         }
         if e.file_type().is_ok_and(|t| t.is_file()) && fs::remove_file(e.path()).is_ok() {

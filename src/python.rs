@@ -353,9 +353,10 @@ impl PyClaim {
 }
 
 /// Claims output names for an input (`crate::commit::claim`): returns
-/// `(status, sidecar, pid, claim)` with status "claimed" (claim set),
-/// "done" (its sidecar exists), "busy" (process pid restores it) or
-/// "in_flight" (this process restores it now).
+/// `(status, sidecar, reason, claim)` with status "claimed" (claim set),
+/// "done" (its sidecar exists), "busy" (another process restores it) or
+/// "in_flight" (this process restores it now), and the reason the commands
+/// print for a skip (`crate::commit::Skip::reason`).
 #[pyfunction]
 #[allow(clippy::type_complexity)]
 fn claim_outputs(
@@ -366,7 +367,7 @@ fn claim_outputs(
     suffixes: Vec<String>,
     overwrite: bool,
     rename: bool,
-) -> PyResult<(&'static str, std::path::PathBuf, Option<u32>, Option<PyClaim>)> {
+) -> PyResult<(&'static str, std::path::PathBuf, Option<String>, Option<PyClaim>)> {
     use crate::commit::Resolution;
     let request = crate::commit::Request { dir: &dir, base: &base, input: &input, suffixes: &suffixes, overwrite, rename };
     Ok(match py.detach(|| crate::commit::claim(&request))? {
@@ -374,18 +375,15 @@ fn claim_outputs(
             let side = c.paths().last().cloned().unwrap_or_default();
             ("claimed", side, None, Some(PyClaim { inner: Mutex::new(Some(c)) }))
         }
-        Resolution::Done(s) => ("done", s, None, None),
-        Resolution::Busy(pid, s) => ("busy", s, Some(pid), None),
-        Resolution::InFlight(s) => ("in_flight", s, None, None),
+        Resolution::Skipped(why, s) => (why.name(), s, Some(why.reason()), None),
     })
 }
 
-/// A new empty temporary file beside `path`'s folder, created exclusively
-/// under a short name with `path`'s extension (`crate::commit::create_temp`).
+/// A new empty temporary file in `path`'s folder, created exclusively
+/// under a short name with `path`'s extension (`crate::commit::create_temp_for`).
 #[pyfunction]
 fn create_temp(path: std::path::PathBuf) -> PyResult<std::path::PathBuf> {
-    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
-    Ok(crate::commit::create_temp(crate::commit::folder_of(&path), &ext)?.0)
+    Ok(crate::commit::create_temp_for(&path)?.0)
 }
 
 /// Puts a written temporary in place of `path` durably (`crate::commit::place`).

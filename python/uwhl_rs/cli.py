@@ -429,8 +429,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         the function that writes it, and that writer (None when there is
         nothing to write: skipped or failed)."""
         try:
-            status, sidecar, pid, claim = files.claim_outputs(job.out_dir, job.name, job.path, a.format,
-                                                              a.contact_sheet, overwrite=a.overwrite, rename=True)
+            status, sidecar, reason, claim = files.claim_outputs(job.out_dir, job.name, job.path, a.format,
+                                                                 a.contact_sheet, overwrite=a.overwrite, rename=True)
         except OSError as e:
             failure = ("write_failed", OSError(e.errno, f"cannot claim output names in {job.out_dir}: {e}"))
 
@@ -442,11 +442,9 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
                 return o
             return settle_claim, None
         if status != "claimed":
-            why, note = {
-                "done": (f"{sidecar} exists", "already done (sidecar exists; --overwrite redoes it)"),
-                "busy": (f"being restored by process {pid}", f"being restored by process {pid}"),
-                "in_flight": ("given twice: restored once", "given twice: restored once"),
-            }[status]
+            # the core's reason, as uwhl-rs prints it; a done input names its sidecar
+            why = f"{sidecar} exists" if status == "done" else reason
+            note = "already done (sidecar exists; --overwrite redoes it)" if status == "done" else reason
 
             def skipped(_=None) -> Outcome:
                 progress.finish(f"{job.path}: skipped ({why})")

@@ -417,13 +417,13 @@ def _png_data_uri(img: np.ndarray, max_side: int = 480) -> str:
     """An sRGB PNG data URI of a linear HxWx3 image or an 8-bit one, shrunk to max_side."""
     import base64
 
-    from .io import linear_to_srgb
+    from .io import quantize
 
     h, w = img.shape[:2]
     s = max(1, math.ceil(max(h, w) / max_side))
     small = img[::s, ::s]
     if small.dtype != np.uint8:
-        small = (np.clip(linear_to_srgb(np.clip(small, 0, 1)), 0, 1) * 255 + 0.5).astype(np.uint8)
+        small = quantize(small, 8, encoding="linear")
     return "data:image/png;base64," + base64.b64encode(_core._encode_png(np.ascontiguousarray(small))).decode()
 
 

@@ -69,16 +69,10 @@ def claim_outputs(out_dir: str, name: str, in_path: str, fmt: str, contact: bool
 
 
 def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = False) -> dict:
-    """The files written for an input whose outputs are called ``name``."""
-    if fmt not in FORMATS:
-        raise ValueError(f"format must be one of {sorted(FORMATS)}, not {fmt!r}")
-    p = {
-        "image": os.path.join(out_dir, name + FORMATS[fmt][0]),
-        "transmission": os.path.join(out_dir, name + "_t.png"),
-        "transmission_color": os.path.join(out_dir, name + "_t_color.png"),
-    }
-    if contact:
-        p["contact_sheet"] = os.path.join(out_dir, name + "_sheet.png")
+    """The files written for an input whose outputs are called ``name``:
+    role -> path, in writing order (:func:`output_suffixes`), the sidecar last."""
+    roles = ["image", "transmission", "transmission_color"] + (["contact_sheet"] if contact else [])
+    p = {role: os.path.join(out_dir, name + s) for role, s in zip(roles, output_suffixes(fmt, contact))}
     p["sidecar"] = os.path.join(out_dir, name + ".json")
     return p
 
@@ -187,11 +181,11 @@ def _restore_staged(
         raise ValueError(f"max_side must be at least {_MIN_SIDE}, not {max_side}")
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     if _claim is None:
-        status, sidecar_path, pid, _claim = claim_outputs(out_dir, name, in_path, format, contact,
-                                                          overwrite=True, rename=False)
+        status, sidecar_path, reason, _claim = claim_outputs(out_dir, name, in_path, format, contact,
+                                                             overwrite=True, rename=False)
         if status != "claimed":
-            who = f"process {pid}" if status == "busy" else "this process"
-            raise OSError(f"{sidecar_path} is being written by {who}")
+            who = reason if status == "busy" else "being written by this process"
+            raise OSError(f"{sidecar_path} is {who}")
     claim = _claim
     try:
         staged = _read_and_restore(in_path, out_dir, claim, format=format, bits=bits, quality=quality, preprocess=preprocess,

@@ -5,7 +5,7 @@ use super::args::{Options, Preprocess};
 use crate::budget::{Plan, HELD_WHILE_WRITING};
 use super::decode::{decode, decode_mask, Limits};
 use super::output::{encode_image, encode_transmission, encode_transmission_color, Encoding};
-use crate::commit::{claim, Claim, Request, Resolution};
+use crate::commit::{claim, Claim, Request, Resolution, Skip};
 use super::sidecar::{sidecar, OutputPaths, Seconds, Source};
 use super::{CliError, Kind};
 use crate::color::{max_side_factor, reference_srgb_stretch};
@@ -73,9 +73,8 @@ pub fn load_masks(opts: &Options) -> Result<Masks, CliError> {
 pub enum Outcome {
     /// restored: the sidecar object
     Done(Box<Value>),
-    /// skipped: the sidecar path and why (its sidecar exists and no
-    /// `--overwrite`; another process restores it; given twice)
-    Skipped(PathBuf, String),
+    /// skipped: the sidecar path and why
+    Skipped(PathBuf, Skip),
 }
 
 fn water_types(opts: &Options) -> Vec<WaterType> {
@@ -316,7 +315,7 @@ fn complete(job: &Job, p: Prepared, opts: &Options) -> Result<Outcome, CliError>
 #[derive(Debug)]
 enum Prepared {
     /// not restored: the sidecar path and why ([`Outcome::Skipped`])
-    Skipped(PathBuf, String),
+    Skipped(PathBuf, Skip),
     /// restored, with its claimed output names and the time its processing started
     Restored(Box<(Restored, Claim, Instant)>),
 }
@@ -354,9 +353,7 @@ fn prepare(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>,
         .map_err(|e| CliError::new(Kind::Write, format!("cannot claim output names in {}: {e}", job.dir.display())))?;
     let claimed = match claimed {
         Resolution::Claimed(c) => c,
-        Resolution::Done(s) => return Ok(Prepared::Skipped(s, "sidecar exists".into())),
-        Resolution::Busy(pid, s) => return Ok(Prepared::Skipped(s, format!("being restored by process {pid}"))),
-        Resolution::InFlight(s) => return Ok(Prepared::Skipped(s, "given twice: restored once".into())),
+        Resolution::Skipped(why, s) => return Ok(Prepared::Skipped(s, why)),
     };
     if RAW_EXTENSIONS.contains(&extension(&job.input).as_str()) {
         return Err(CliError::new(
@@ -665,7 +662,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
             Ok(Outcome::Skipped(s, why)) => {
                 counts[1] += 1;
                 if !opts.quiet {
-                    let why = if why == "sidecar exists" { format!("{} exists", s.display()) } else { why };
+                    let why = if why == Skip::Done { format!("{} exists", s.display()) } else { why.reason() };
                     let _ = writeln!(out, "[{k}/{total}] {}: skipped ({why})", job.input.display());
                 }
             }
@@ -821,7 +818,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
             Ok((_, Outcome::Done(side))) => *side,
             Ok((p, Outcome::Skipped(s, why))) => serde_json::json!({
                 "input": p.to_string_lossy(),
-                "skipped": why,
+                "skipped": why.reason(),
                 "sidecar": s.to_string_lossy(),
             }),
             Err((p, e)) => {
