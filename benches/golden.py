@@ -3,6 +3,12 @@ refactoring changed nothing.
 
     python3 benches/golden.py record golden.json   # before the change
     python3 benches/golden.py check golden.json    # after: exit 1 on any difference
+    python3 benches/golden.py check golden.json --method paper   # one profile (METHOD §12)
+
+With `--method M`, every call and command runs with that profile: a
+record made before the profiles existed is checked against
+`--method paper`, which must reproduce it bit for bit (the sidecars then
+also list the profile's steps and `t_scale`, which the check ignores).
 
 Each case records sha256 digests of the image, radiance and transmission
 arrays (float32 bytes), the veiling mask, the exact scores (repr of the
@@ -30,6 +36,12 @@ import uwhl_rs
 from uwhl_rs import io as uio
 from uwhl_rs import synth
 
+#: keywords added to every restore call and flags to every command (--method)
+_EXTRA: dict = {}
+_FLAGS: list = []
+#: sidecar parameters that a record from before the profiles lacks
+_NEW_PARAMETERS = {"method", "white_balance", "type_choice", "haze_floor", "t_scale"}
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DATA = os.path.join(ROOT, "..", "shared", "data")
 BINARY = os.path.join(ROOT, "target", "release", "uwhl-rs")
@@ -54,6 +66,10 @@ def _fingerprint(res) -> dict:
         "guided_radius": int(res.guided_radius),
         "guided_subsample": int(res.guided_subsample),
     }
+
+
+def _restore(*a, **kw):
+    return uwhl_rs.restore(*a, **{**_EXTRA, **kw})
 
 
 def _photo(name: str, max_side: int | None = None):
@@ -88,22 +104,22 @@ def api_cases():
     @add("demo_III_default")
     def _():
         img, _ = synth.demo_input()
-        return _fingerprint(uwhl_rs.restore(img))
+        return _fingerprint(_restore(img))
 
     @add("render_open_1C_threads1")
     def _():
         img, _ = _render("open_water", "1C", 200, 260, 3)
-        return _fingerprint(uwhl_rs.restore(img, threads=1))
+        return _fingerprint(_restore(img, threads=1))
 
     @add("render_looking_down_II")
     def _():
         img, _ = _render("looking_down", "II", 180, 240, 5)
-        return _fingerprint(uwhl_rs.restore(img))
+        return _fingerprint(_restore(img))
 
     @add("render_open_7C_water_mask_given")
     def _():
         img, sc = _render("open_water", "7C", 200, 240, 11)
-        return _fingerprint(uwhl_rs.restore(img, water_mask=sc.water))
+        return _fingerprint(_restore(img, water_mask=sc.water))
 
     @add("render_open_3C_chart_mask")
     def _():
@@ -111,33 +127,33 @@ def api_cases():
         m = np.ones(img.shape[:2], bool)
         m[120:170, 40:100] = False
         img[120:170, 40:100] = np.float32(0.4)
-        return _fingerprint(uwhl_rs.restore(img, mask=m))
+        return _fingerprint(_restore(img, mask=m))
 
     @add("render_open_IB_fast_selection_1500")
     def _():
         img, _ = _render("open_water", "IB", 1100, 1500, 17)
-        return _fingerprint(uwhl_rs.restore(img, selection="fast"))
+        return _fingerprint(_restore(img, selection="fast"))
 
     @add("render_open_II_subsample_auto")
     def _():
         img, _ = _render("open_water", "II", 540, 720, 19)
-        return _fingerprint(uwhl_rs.restore(img, guided_subsample="auto"))
+        return _fingerprint(_restore(img, guided_subsample="auto"))
 
     @add("render_open_5C_subsample3_params")
     def _():
         img, _ = _render("open_water", "5C", 240, 300, 23)
-        return _fingerprint(uwhl_rs.restore(img, guided_subsample=3, guided_radius=20, guided_eps=5e-3,
+        return _fingerprint(_restore(img, guided_subsample=3, guided_radius=20, guided_eps=5e-3,
                                             sphere_points=300))
 
     @add("render_custom_types_given_A")
     def _():
         img, _ = _render("open_water", "III", 200, 240, 29)
-        return _fingerprint(uwhl_rs.restore(img, water_types=["II", ("mine", 3.1, 1.7), "9C"],
+        return _fingerprint(_restore(img, water_types=["II", ("mine", 3.1, 1.7), "9C"],
                                             veiling_light=(0.05, 0.3, 0.45)))
 
     @add("sequence_3_frames_refresh2_reuse_mask")
     def _():
-        seq = uwhl_rs.Sequence(refresh_every=2, reuse_water_mask=True, guided_subsample="auto")
+        seq = uwhl_rs.Sequence(**_EXTRA, refresh_every=2, reuse_water_mask=True, guided_subsample="auto")
         out = {}
         sc = synth.scene(240, 320, kind="open_water", seed=31)
         for k in range(3):
@@ -159,7 +175,7 @@ def api_cases():
             img = _photo(name, ms)
             if img is None:
                 return None
-            return _fingerprint(uwhl_rs.restore(img, **extra))
+            return _fingerprint(_restore(img, **extra))
         cases.append((f"photo_{name}", thunk))
     return cases
 
@@ -170,6 +186,8 @@ _VOLATILE = {"seconds", "uwhl_version", "timings"}
 def _sidecar(path: str) -> dict:
     with open(path) as f:
         d = json.load(f)
+    if _EXTRA and isinstance(d.get("parameters"), dict):
+        d["parameters"] = {k: v for k, v in d["parameters"].items() if k not in _NEW_PARAMETERS}
     return {k: v for k, v in d.items() if k not in _VOLATILE}
 
 
@@ -204,7 +222,7 @@ def command_cases():
         def py(flags=flags):
             with tempfile.TemporaryDirectory() as d:
                 out = os.path.join(d, "out")
-                r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", *srcs, "-o", out, "-q", *flags],
+                r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", *srcs, "-o", out, "-q", *flags, *_FLAGS],
                                    capture_output=True, text=True)
                 return {"exit": r.returncode, "files": _tree(out)}
         cases.append((f"uwhl_{tag}", py))
@@ -214,7 +232,7 @@ def command_cases():
                 return None
             with tempfile.TemporaryDirectory() as d:
                 out = os.path.join(d, "out")
-                r = subprocess.run([BINARY, *srcs, "-o", out, "-q", *flags], capture_output=True, text=True)
+                r = subprocess.run([BINARY, *srcs, "-o", out, "-q", *flags, *_FLAGS], capture_output=True, text=True)
                 return {"exit": r.returncode, "files": _tree(out)}
         cases.append((f"uwhl-rs_{tag}", rs))
 
@@ -225,7 +243,7 @@ def command_cases():
             out = os.path.join(d, "out")
             lines = "".join(s + "\n" for s in srcs)
             r = subprocess.run([BINARY, "--stream", "--reuse-estimates", "2", "-o", out, "--max-side", "400",
-                                "--format", "png"], input=lines, capture_output=True, text=True)
+                                "--format", "png", *_FLAGS], input=lines, capture_output=True, text=True)
             return {"exit": r.returncode, "files": _tree(out)}
     cases.append(("uwhl-rs_stream_reuse2", seq_rs))
 
@@ -233,7 +251,7 @@ def command_cases():
         with tempfile.TemporaryDirectory() as d:
             out = os.path.join(d, "out")
             r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", *srcs, "-o", out, "-q",
-                                "--reuse-estimates", "2", "--max-side", "400", "--format", "png"],
+                                "--reuse-estimates", "2", "--max-side", "400", "--format", "png", *_FLAGS],
                                capture_output=True, text=True)
             return {"exit": r.returncode, "files": _tree(out)}
     cases.append(("uwhl_reuse2", seq_py))
@@ -243,7 +261,7 @@ def command_cases():
             with tempfile.TemporaryDirectory() as d:
                 out = os.path.join(d, "out")
                 r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", raw, "-o", out, "-q",
-                                    "--format", "png", "--max-side", "600"], capture_output=True, text=True)
+                                    "--format", "png", "--max-side", "600", *_FLAGS], capture_output=True, text=True)
                 return {"exit": r.returncode, "files": _tree(out)}
         cases.append(("uwhl_raw_dng", raw_py))
     return cases
@@ -287,6 +305,10 @@ def _diff(a, b, path=""):
 
 
 def main(argv: list[str]) -> int:
+    if len(argv) == 4 and argv[2] == "--method":
+        _EXTRA["method"] = argv[3]
+        _FLAGS.extend(["--method", argv[3]])
+        argv = argv[:2]
     if len(argv) != 2 or argv[0] not in ("record", "check"):
         print(__doc__, file=sys.stderr)
         return 2

@@ -9,8 +9,10 @@ use rayon::prelude::*;
 
 /// Lower clamp of t~ (METHOD §4.4).
 pub const T_MIN: f32 = 0.01;
-/// Factor applied after clustering (METHOD §4.6).
-pub const T_SCALE: f32 = 0.9;
+/// Factor applied after clustering by default (METHOD §4.6; `t_scale`):
+/// the whole-image stage functions of the cross-check hooks use it.
+#[cfg(any(test, feature = "internals"))]
+pub const T_SCALE: f32 = crate::options::DEFAULT_T_SCALE as f32;
 /// Cluster id (as stored, f32) of pixels that have none (r == 0 or masked out).
 const NO_CLUSTER: f32 = -1.0;
 

@@ -69,6 +69,9 @@ pub mod color;
 /// The one table of parameters and command options (docs/CLI.md).
 #[forbid(unsafe_code)]
 pub mod options;
+/// Method profiles and their steps (METHOD §12).
+#[forbid(unsafe_code)]
+pub mod profile;
 
 /// The rendered scene of `uwhl-rs demo` (and, included by path, of the Rust tests).
 #[cfg(feature = "cli")]
@@ -104,5 +107,6 @@ pub use crate::error::{Error, Result};
 pub use crate::image::ImageRef;
 pub use crate::params::{channel_transmissions, default_radius, memory_estimate, Flag, Input, Params, Restoration, Selection, Stage};
 pub use crate::pipeline::restore;
+pub use crate::profile::{Method, TypeChoice, WhiteBalance};
 pub use crate::sequence::{Estimates, Sequence};
 pub use crate::water::{jerlov_types, WaterType, JERLOV};

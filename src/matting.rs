@@ -3,7 +3,7 @@
 //! §5). The lower bound itself is computed in the haze-lines pass
 //! ([`crate::hazelines`]).
 
-use crate::hazelines::{T_MIN, T_SCALE};
+use crate::hazelines::T_MIN;
 use crate::image::ImageRef;
 use crate::util::{det_sum, det_sums, REDUCE_ROWS};
 use nalgebra::Matrix3;
@@ -159,11 +159,11 @@ pub fn matting_weights(img: &ImageRef, vl: &[bool]) -> Option<Vec<f32>> {
 /// METHOD §4.4-5 for a run of pixels: t~ = clamp(r / r_max, 0.01, 1) from the
 /// radius in `p` and the cluster in `aux` (`rm`: r_max by cluster + 1,
 /// entry 0 for "no cluster", t~ = 1), or t~ as given in `p` when `tilde`
-/// is false; then t = max(0.9 t~, t_LB), blended with t_LB by the matting
+/// is false; then t = max(scale t~, t_LB) (scale: `t_scale`, METHOD §4.6), blended with t_LB by the matting
 /// weight. Compiled for baseline x86-64, AVX2 and AVX-512, picked at run
 /// time; the same bits on each (METHOD appendix, same bits on every CPU, F7).
 #[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512bw+avx512dq+avx2+fma", "x86_64+avx2+fma"))]
-pub(crate) fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool) {
+pub(crate) fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[f32], matting: Option<&Matting>, tilde: bool, scale: f32) {
     let last = rm.len().saturating_sub(1);
     let tt = |v: f32, x: &[f32; 2]| -> f32 {
         let t = if tilde {
@@ -175,7 +175,7 @@ pub(crate) fn blend_row(p: &mut [f32], aux: &[[f32; 2]], px: &[[f32; 3]], rm: &[
         } else {
             v
         };
-        (t * T_SCALE).max(x[0])
+        (t * scale).max(x[0])
     };
     match matting {
         Some(mt) => {

@@ -11,6 +11,8 @@
 
 /// Default guided-filter regulariser (METHOD §6).
 pub const DEFAULT_EPS: f64 = 1e-3;
+/// Default scale of t~ (METHOD §4.6).
+pub const DEFAULT_T_SCALE: f64 = 0.9;
 /// Default number of haze-line clusters (METHOD §4.3).
 pub const DEFAULT_SPHERE_POINTS: usize = 500;
 /// Default working-memory limit: 16 GiB.
@@ -65,6 +67,8 @@ pub enum Kind {
     Float {
         /// exclusive lower bound
         gt: f64,
+        /// inclusive upper bound (infinity: none)
+        le: f64,
     },
     /// one of the names
     Choice(&'static [&'static str]),
@@ -218,6 +222,30 @@ zero = ignore it (e.g. a color chart)",
     Spec { key: "veiling_light", flag: "--veiling-light", short: None, metavar: "R,G,B", kind: Kind::Rgb,
         default: Default::None, help: "a given veiling light A (linear, each in (0, 1]); default: estimated",
         group: Group::Method, faces: Faces::Both, method: true },
+    Spec { key: "t_scale", flag: "--t-scale", short: None, metavar: "X", kind: Kind::Float { gt: 0.0, le: 1.0 },
+        default: Default::Float(DEFAULT_T_SCALE), help: "scale of the haze-line transmission t~ (METHOD §4.6): t_B of the \
+nearest object of each haze-line; in (0, 1]",
+        group: Group::Method, faces: Faces::Both, method: true },
+    Spec { key: "method", flag: "--method", short: None, metavar: "PROFILE", kind: Kind::Choice(&["revised", "paper"]),
+        default: Default::Name("revised"), help: "revised: white balance of the restored radiance and the \
+shades-of-gray type choice (METHOD §12); paper: the paper's display stretch and gray-world choice, bit for bit",
+        group: Group::Method, faces: Faces::Both, method: true },
+    Spec { key: "white_balance", flag: "--white-balance", short: None, metavar: "WB",
+        kind: Kind::Choice(&["stretch", "gray_world", "shades_of_gray", "white_patch"]),
+        default: Default::None, help: "how the radiance is displayed: stretch (METHOD §8), or gains from the \
+object pixels' gray_world / shades_of_gray / white_patch color, then exposure (METHOD §12.1); default: the profile's",
+        group: Group::Method, faces: Faces::Both, method: true },
+    Spec { key: "type_choice", flag: "--type-choice", short: None, metavar: "RULE",
+        kind: Kind::Choice(&["gray_world", "shades_of_gray"]),
+        default: Default::None, help: "how the water type is chosen: gray_world of the stretched image with the \
+t_R rule (METHOD §9) or the least chromatic shades_of_gray color of the radiance (METHOD §12.2); default: the profile's",
+        group: Group::Method, faces: Faces::Both, method: true },
+    Spec { key: "haze_floor", flag: "--haze-floor", short: None, metavar: "TYPE",
+        kind: Kind::Choice(&["none", "I", "IA", "IB", "II", "III", "1C", "3C", "5C", "7C", "9C"]),
+        default: Default::None, help: "estimate the transmission with ratios at least this Jerlov type's \
+(clearer types' haze-lines are dominated by red noise; the recovery keeps each type's own, METHOD §12.3); \
+none: each type's own; default: the profile's (revised 3C, paper none)",
+        group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "selection", flag: "--selection", short: None, metavar: "MODE", kind: Kind::Choice(&["exhaustive", "fast"]),
         default: Default::Name("exhaustive"), help: "exhaustive: every type restored and scored at full resolution; \
 fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size",
@@ -225,7 +253,7 @@ fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size",
     Spec { key: "guided_radius", flag: "--guided-radius", short: None, metavar: "N", kind: Kind::Int { min: 0, max: u32::MAX as u64 },
         default: Default::None, help: "guided-filter radius (default round(min(H, W) / 4))",
         group: Group::Method, faces: Faces::Both, method: true },
-    Spec { key: "guided_eps", flag: "--guided-eps", short: None, metavar: "X", kind: Kind::Float { gt: 0.0 },
+    Spec { key: "guided_eps", flag: "--guided-eps", short: None, metavar: "X", kind: Kind::Float { gt: 0.0, le: f64::INFINITY },
         default: Default::Float(DEFAULT_EPS), help: "guided-filter regulariser",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "guided_subsample", flag: "--guided-subsample", short: None, metavar: "S|auto", kind: Kind::Subsample,
@@ -328,8 +356,9 @@ impl Spec {
                     values.iter().map(u64::to_string).collect::<Vec<_>>().join(", ")
                 ))),
             },
-            Kind::Float { gt } => match t.parse::<f64>() {
-                Ok(x) if x.is_finite() && x > gt => Ok(Value::Float(x)),
+            Kind::Float { gt, le } => match t.parse::<f64>() {
+                Ok(x) if x.is_finite() && x > gt && x <= le => Ok(Value::Float(x)),
+                _ if le.is_finite() => Err(bad(format!("is not a number in ({gt}, {le}]"))),
                 _ => Err(bad(format!("is not a finite number > {gt}"))),
             },
             Kind::Choice(names) => {
@@ -341,7 +370,7 @@ impl Spec {
                 };
                 names
                     .iter()
-                    .find(|n| **n == alias)
+                    .find(|n| n.eq_ignore_ascii_case(alias))
                     .map(|n| Value::Text((*n).to_string()))
                     .ok_or_else(|| bad(format!("is not one of {}", names.join(", "))))
             }

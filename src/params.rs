@@ -6,6 +6,7 @@
 use crate::error::{Error, Result};
 use crate::image::{check_mask, ImageRef};
 use crate::options::{DEFAULT_EPS, DEFAULT_SPHERE_POINTS};
+use crate::profile::{Method, TypeChoice, WhiteBalance};
 use crate::recover::Recovery;
 use crate::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
@@ -85,6 +86,18 @@ pub struct Params {
     /// on samples at the centres of s x s blocks and interpolated back (METHOD §6, subsampled guided filter);
     /// 0 = automatic, `auto_subsample` of the radius
     pub guided_subsample: usize,
+    /// the scale of t~, in (0, 1]: the t_B of the nearest object of each
+    /// haze-line; default 0.9 (METHOD §4.6)
+    pub t_scale: f64,
+    /// the profile whose steps are used where none is given (METHOD §12); default revised
+    pub method: Method,
+    /// how the radiance is displayed; default the profile's (METHOD §8, §12.1)
+    pub white_balance: Option<WhiteBalance>,
+    /// how the water type is chosen; default the profile's (METHOD §9, §12.2)
+    pub type_choice: Option<TypeChoice>,
+    /// the haze-line floor: Some(None) none, Some(Some(name)) a Jerlov type;
+    /// default the profile's (METHOD §12.3)
+    pub haze_floor: Option<Option<&'static str>>,
 }
 
 /// Window radius, in blocks, that [`auto_subsample`] keeps at least.
@@ -109,6 +122,11 @@ impl Default for Params {
             max_memory: crate::budget::default_max_memory(),
             selection: Selection::Exhaustive,
             guided_subsample: 1,
+            t_scale: crate::options::DEFAULT_T_SCALE,
+            method: Method::default(),
+            white_balance: None,
+            type_choice: None,
+            haze_floor: None,
         }
     }
 }
@@ -231,6 +249,39 @@ impl std::fmt::Display for Stage {
 }
 
 impl Params {
+    /// The white balance used: the one given, else the profile's.
+    pub fn white_balance_used(&self) -> WhiteBalance {
+        self.white_balance.unwrap_or_else(|| self.method.white_balance())
+    }
+
+    /// The type choice used: the one given, else the profile's.
+    pub fn type_choice_used(&self) -> TypeChoice {
+        self.type_choice.unwrap_or_else(|| self.method.type_choice())
+    }
+
+    /// The haze-line floor used, by name (None: none): the one given, else
+    /// the profile's (METHOD §12.3).
+    pub fn haze_floor_used(&self) -> Option<&'static str> {
+        self.haze_floor.unwrap_or_else(|| self.method.haze_floor())
+    }
+
+    /// The ratios of [`Params::haze_floor_used`].
+    pub fn haze_floor_ratios(&self) -> Option<[f64; 2]> {
+        let name = self.haze_floor_used()?;
+        crate::water::JERLOV.iter().find(|t| t.0 == name).map(|t| [t.1, t.2])
+    }
+
+    /// The profile and the steps used, as (keyword, name) pairs: what the
+    /// sidecar and the evaluation record (METHOD §12).
+    pub fn steps(&self) -> [(&'static str, &'static str); 4] {
+        [
+            ("method", self.method.name()),
+            ("white_balance", self.white_balance_used().name()),
+            ("type_choice", self.type_choice_used().name()),
+            ("haze_floor", self.haze_floor_used().unwrap_or("none")),
+        ]
+    }
+
     /// The guided-filter subsampling factor used at radius `r` (METHOD §6):
     /// `guided_subsample`, with 0 resolved by [`auto_subsample`].
     pub fn subsample_at(&self, r: usize) -> usize {
@@ -263,10 +314,28 @@ impl Params {
             ("max_memory", V::Int(n)) => self.max_memory = *n,
             ("selection", V::Text(t)) => self.selection = Selection::from_name(t)?,
             ("guided_subsample", V::Int(n)) => self.guided_subsample = size(*n),
+            ("t_scale", V::Float(x)) => self.t_scale = *x,
+            ("t_scale", V::Int(n)) => self.t_scale = *n as f64,
+            ("t_scale", _) => return Err(bad()),
+            ("method", V::Text(t)) => self.method = Method::from_name(t)?,
+            ("white_balance", V::Text(t)) => self.white_balance = Some(WhiteBalance::from_name(t)?),
+            ("type_choice", V::Text(t)) => self.type_choice = Some(TypeChoice::from_name(t)?),
+            ("haze_floor", V::Text(t)) => self.haze_floor = Some(haze_floor_from_name(t)?),
             _ => return Err(bad()),
         }
         Ok(())
     }
+}
+
+/// The haze-line floor called `name`: "none" or a Jerlov type (METHOD §12.3).
+pub fn haze_floor_from_name(name: &str) -> Result<Option<&'static str>> {
+    if name == "none" {
+        return Ok(None);
+    }
+    crate::water::JERLOV.iter().find(|t| t.0 == name).map(|t| Some(t.0)).ok_or_else(|| Error::Param {
+        name: "haze_floor",
+        msg: format!("must be \"none\" or a Jerlov type (I IA IB II III 1C 3C 5C 7C 9C); got {name:?}"),
+    })
 }
 
 /// The image and its optional masks.
@@ -368,6 +437,12 @@ pub(crate) fn check_params(input: &Input, params: &Params) -> Result<()> {
         return Err(Error::Param {
             name: "guided_eps",
             msg: format!("{} is not a finite number > 0", params.guided_eps),
+        });
+    }
+    if !(params.t_scale.is_finite() && params.t_scale > 0.0 && params.t_scale <= 1.0) {
+        return Err(Error::Param {
+            name: "t_scale",
+            msg: format!("{} is not a number in (0, 1]", params.t_scale),
         });
     }
     if let Some(a) = params.veiling_light {

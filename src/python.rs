@@ -214,6 +214,11 @@ impl PyParams {
         }
         Ok(Self(params))
     }
+
+    /// The profile and the steps used, as (keyword, name) pairs (METHOD §12).
+    fn steps(&self) -> Vec<(&'static str, &'static str)> {
+        self.0.steps().to_vec()
+    }
 }
 
 /// The option table (`crate::options::OPTIONS`) as a list of dicts: what
@@ -234,7 +239,10 @@ fn options_table(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
                 d.set_item("max", max)?;
             }
             K::IntOf(values) => d.set_item("choices", values.to_vec())?,
-            K::Float { gt } => d.set_item("gt", gt)?,
+            K::Float { gt, le } => {
+                d.set_item("gt", gt)?;
+                d.set_item("le", le)?;
+            }
             K::Choice(names) => d.set_item("choices", names.to_vec())?,
             _ => {}
         }

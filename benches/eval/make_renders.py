@@ -5,6 +5,13 @@ type, and the manifest `renders.json` beside them.
 
     python3 benches/eval/make_renders.py OUTDIR [--size 240x320]
     uwhl evaluate OUTDIR/renders.json -o OUTDIR/results --mask-charts
+    uwhl evaluate OUTDIR/renders_given.json -o OUTDIR/results_given --mask-charts
+
+`renders.json` leaves the water region and the veiling light to the
+method; `renders_given.json` gives the true water region where the scene
+has one (open water, as a mask image) and the true veiling light where it
+has none (the looking-down kinds), so the type choice is measured apart
+from the veiling-light estimate.
 
 Kinds: `open_water` (a seabed receding to the horizon under open water),
 `looking_down` (a seabed from above) and `depth_steps` (the looking-down
@@ -67,7 +74,7 @@ def main() -> int:
     a = ap.parse_args()
     h, w = (int(v) for v in a.size.split("x"))
     os.makedirs(a.out, exist_ok=True)
-    images = []
+    images, given = [], []
     for kind in ("open_water", "looking_down", "depth_steps"):
         for t, (name, _, _) in enumerate(uwhl_rs._core.JERLOV_TABLE):
             seed = 100 + t
@@ -83,9 +90,21 @@ def main() -> int:
                 np.save(os.path.join(a.out, stem + ".npy"), d)
                 images.append({"path": stem + ".png", "distance": stem + ".npy", "water_type": name,
                                "charts": [{"name": "gray chart", "gray_patches": boxes, "region": region}]})
+                entry = dict(images[-1])
+                water = ~np.isfinite(distance)
+                if water.any():
+                    uwhl_rs.io.write_image(os.path.join(a.out, stem + "_water.png"),
+                                           np.repeat(water[:, :, None], 3, axis=2).astype(np.float32), bits=8,
+                                           encoding="linear")
+                    entry["water_mask"] = stem + "_water.png"
+                else:
+                    entry["restore"] = {"veiling_light": [float(v) for v in synth.default_veiling_light(name)]}
+                given.append(entry)
     with open(os.path.join(a.out, "renders.json"), "w") as f:
         json.dump({"images": images}, f, indent=1)
-    print(f"{len(images)} renders and renders.json in {a.out}")
+    with open(os.path.join(a.out, "renders_given.json"), "w") as f:
+        json.dump({"images": given}, f, indent=1)
+    print(f"{len(images)} renders, renders.json and renders_given.json in {a.out}")
     return 0
 
 

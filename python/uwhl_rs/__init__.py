@@ -173,6 +173,11 @@ def restore(
     max_memory: int | None = None,
     selection: str = DEFAULTS["selection"],
     guided_subsample: int | str = DEFAULTS["guided_subsample"],
+    t_scale: float = DEFAULTS["t_scale"],
+    method: str = DEFAULTS["method"],
+    white_balance: str | None = DEFAULTS["white_balance"],
+    type_choice: str | None = DEFAULTS["type_choice"],
+    haze_floor: str | None = DEFAULTS["haze_floor"],
 ) -> Restoration:
     """Restore the colors of one underwater image (METHOD §2-§10).
 
@@ -230,6 +235,29 @@ def restore(
         water type: 144 ms -> 98 ms, t_B mean absolute difference 4e-4,
         maximum 7.6e-3. Recommended for video / sequence mode; not needed
         for single photos. Larger than max(H, W) raises ParameterError.
+    t_scale : float in (0, 1]
+        Scale of the haze-line transmission t~: the t_B given to the
+        nearest object of each haze-line; default 0.9 (METHOD §4.6).
+    method : {"revised", "paper"}
+        The profile (METHOD §12): the steps used where ``white_balance`` or
+        ``type_choice`` is not given. ``"revised"`` (default): the
+        radiance white-balanced on the object pixels and the water type
+        with the least chromatic shades-of-gray color (METHOD §12.1-12.2).
+        ``"paper"``: METHOD §2-10 exactly (display stretch of METHOD §8,
+        gray world with the t_R rule of METHOD §9).
+    white_balance : {"stretch", "gray_world", "shades_of_gray", "white_patch"}, optional
+        How the radiance is displayed: the stretch of METHOD §8, or
+        per-channel gains from the object pixels' mean, 4-norm mean or
+        (masked-in pixels) 99th percentile, then one exposure (METHOD §12.1).
+        Default: the profile's.
+    type_choice : {"gray_world", "shades_of_gray"}, optional
+        How the water type is chosen: METHOD §9 or METHOD §12.2. Default:
+        the profile's.
+    haze_floor : "none" or a Jerlov type name, optional
+        The transmission of a type clearer than this one is estimated with
+        this type's ratios (its haze-lines are otherwise dominated by noise
+        in the red channel); the recovery keeps each type's own ratios
+        (METHOD §12.3). Default: the profile's (revised "3C", paper "none").
 
     Returns
     -------
@@ -268,6 +296,11 @@ def restore(
         max_memory=max_memory,
         selection=selection,
         guided_subsample=guided_subsample,
+        t_scale=t_scale,
+        method=method,
+        white_balance=white_balance,
+        type_choice=type_choice,
+        haze_floor=haze_floor,
     )
     return _core.restore_f32(img, kw, water_mask=wm, mask=m)
 
@@ -309,7 +342,36 @@ def _method_params(**kw) -> _core.Params:
         max_memory=_int_param("max_memory", kw["max_memory"], 0),
         selection=selection,
         guided_subsample=_subsample_param(kw["guided_subsample"]),
+        t_scale=_float_param("t_scale", kw["t_scale"]),
+        **{k: _choice_param(k, kw[k]) for k in STEP_KEYS},
     )
+
+
+def _float_param(key: str, value):
+    """A number (None: the default); booleans and text are refused."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"{key} must be a number; got {value!r}")
+    return float(value)
+
+
+#: The keywords that name a profile and its steps (METHOD §12).
+STEP_KEYS = ("method", "white_balance", "type_choice", "haze_floor")
+
+
+def _choice_param(key: str, value):
+    """A name among the option table's choices for ``key`` (None: the default)."""
+    if value is None or isinstance(value, str):
+        return value
+    raise ParameterError(f"{key} must be one of {_choices(key)}; got {value!r}")
+
+
+def method_steps(**kw) -> dict:
+    """The profile and the steps that ``restore(**kw)`` uses, by keyword
+    (``method``, ``white_balance``, ``type_choice``, ``haze_floor``), defaults resolved:
+    what the sidecar and ``uwhl evaluate`` record."""
+    return dict(_core.Params(**{k: _choice_param(k, kw.get(k)) for k in STEP_KEYS}).steps())
 
 
 class Sequence:

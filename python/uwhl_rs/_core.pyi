@@ -77,8 +77,10 @@ WaterTypeSpec = Union[str, tuple[str, float, float]]
 class Params:
     """The method's keywords: the rows of OPTIONS with "method" true
     (water_types, veiling_light, guided_radius, guided_eps, sphere_points,
-    threads, max_memory, selection, guided_subsample); None = default."""
+    threads, max_memory, selection, guided_subsample, method,
+    white_balance, type_choice, haze_floor); None = default."""
     def __init__(self, **kwargs: object) -> None: ...
+    def steps(self) -> list[tuple[str, str]]: ...
 
 def restore_f32(
     image: npt.NDArray[np.float32],

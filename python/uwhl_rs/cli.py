@@ -140,20 +140,18 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--size", default="480x640", help="HxW of the scene (default 480x640)")
     d.add_argument("--seed", type=int, default=7, help="scene seed (default 7)")
 
-    from .evaluate import METHODS
-
     e = sub.add_parser(
         "evaluate",
         help="the paper's colour and distance metrics on annotated photos, beside baselines",
         description="Evaluate the method on the photos of a manifest (docs/EVALUATE.md): the mean angle of "
         "chart gray patches from gray (psi-bar), rho of -ln t against distance maps, the water type against "
-        "a known one; beside the input, a contrast stretch, gray world and every candidate type. Writes "
+        "a known one; beside every other profile (--method), the input, a contrast stretch, gray world and "
+        "every candidate type. Writes "
         "results.json, results.csv and report.html.",
     )
     e.add_argument("manifest", metavar="MANIFEST", help="the manifest (JSON; paths relative to it)")
     e.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR",
                    help="output folder (created if needed)")
-    e.add_argument("--method", default=METHODS[0], choices=METHODS, help="the profile evaluated (default paper)")
     e.add_argument("--mask-charts", action="store_true",
                    help="exclude the charts' regions from estimation (the mask of restore), as the paper does")
     e.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
@@ -398,6 +396,11 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         guided_subsample=a.guided_subsample,
         sphere_points=a.sphere_points,
         selection=a.selection,
+        t_scale=a.t_scale,
+        method=a.method,
+        white_balance=a.white_balance,
+        type_choice=a.type_choice,
+        haze_floor=a.haze_floor,
         threads=threads,
     )
     if a.max_memory is not None:
@@ -617,7 +620,8 @@ def run_evaluate(a: argparse.Namespace, out=None, err=None) -> int:
     if water_types is _BAD:
         return EXIT_USAGE
     kwargs = {o["key"]: getattr(a, o["key"]) for o in _core.OPTIONS
-              if o["method"] and o["faces"] != "rust" and o["key"] != "water_types" and getattr(a, o["key"]) is not None}
+              if o["method"] and o["faces"] != "rust" and o["key"] not in ("water_types", "method")
+              and getattr(a, o["key"]) is not None}
     if water_types is not None:
         kwargs["water_types"] = water_types
     try:
@@ -650,10 +654,14 @@ def run_evaluate(a: argparse.Namespace, out=None, err=None) -> int:
                       + (f", rho {rho:.3f}" if rho is not None else "") + f" ({time.perf_counter() - t:.1f} s)\n")
             out.flush()
     try:
+        import uwhl_rs
+
         parameters = {"method": a.method, "mask_charts": a.mask_charts,
-                      **{k: v if not isinstance(v, tuple) else list(v) for k, v in kwargs.items()}}
+                      **{k: v if not isinstance(v, tuple) else list(v) for k, v in kwargs.items()},
+                      "profiles": {m: uwhl_rs.method_steps(**({**kwargs, "method": m} if m == a.method else {"method": m}))
+                                   for m in ev.METHODS}}
         doc = ev.write_results(a.out, a.manifest, results, problems, parameters)
-        ev.write_report(a.out, doc, results, entries, a.method)
+        ev.write_report(a.out, doc, results, entries, a.method, ev.METHODS)
     except OSError as e:
         _report(err, a.json_errors, a.out, "write_failed", _describe(e))
         return EXIT["write_failed"]
@@ -664,8 +672,8 @@ def run_evaluate(a: argparse.Namespace, out=None, err=None) -> int:
                 continue
             out.write(f"{m:<12} {ev._fmt(v['psi_deg']):>8} {ev._fmt(v['rho_B']):>8}\n")
         if "water_type" in doc["summary"]:
-            wt = doc["summary"]["water_type"]
-            out.write(f"water type: {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step\n")
+            for m, wt in doc["summary"]["water_type"].items():
+                out.write(f"water type ({m}): {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step\n")
         out.write(f"{len(results)} of {len(entries)} images evaluated in {time.perf_counter() - t0:.1f} s; "
                   f"{os.path.join(a.out, 'report.html')}\n")
     return code

@@ -11,8 +11,9 @@ Metrics:
 - per image with a true water type: whether the chosen type is it, or
   within one step of it in the table order.
 
-Evaluated: the method (``--method``, with any option of ``restore``), and
-the baselines ``input`` (the linear input), ``stretch`` (a global
+Evaluated: the method (``--method``, with any option of ``restore``),
+every other profile of METHOD §12 with its own defaults (so the revised
+profile and the paper's are always side by side), and the baselines ``input`` (the linear input), ``stretch`` (a global
 per-channel 1%/99% contrast stretch of it), ``grayworld`` (gray-world white
 balance of it) and ``type:NAME`` for every candidate water type (restored
 with that type alone and the method's veiling light).
@@ -30,10 +31,10 @@ import numpy as np
 
 from . import _core
 
-#: Profiles ``--method`` can name: today the method as the paper defines it.
-METHODS = ("paper",)
+#: Profiles ``--method`` can name (METHOD §12), the default first.
+METHODS = tuple(next(o["choices"] for o in _core.OPTIONS if o["key"] == "method"))
 
-_ENTRY_KEYS = {"path", "distance", "water_type", "charts", "restore"}
+_ENTRY_KEYS = {"path", "distance", "water_type", "water_mask", "charts", "restore"}
 _CHART_KEYS = {"name", "gray_patches", "region"}
 _TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
 _METHOD_KEYS = {o["key"] for o in _core.OPTIONS if o["method"]}
@@ -62,6 +63,7 @@ class Entry:
     water_type: str | None = None
     charts: list[Chart] = field(default_factory=list)
     restore: dict = field(default_factory=dict)
+    water_mask: str | None = None
 
 
 def _box(v, what: str) -> tuple[int, int, int, int]:
@@ -95,6 +97,13 @@ def _entry(k: int, raw, folder: str) -> Entry:
         distance = os.path.join(folder, distance)
         if not os.path.isfile(distance):
             raise ManifestError(f"{label}: no such distance file {distance}")
+    water_mask = raw.get("water_mask")
+    if water_mask is not None:
+        if not isinstance(water_mask, str):
+            raise ManifestError(f"{label}: 'water_mask' is a file path, not {water_mask!r}")
+        water_mask = os.path.join(folder, water_mask)
+        if not os.path.isfile(water_mask):
+            raise ManifestError(f"{label}: no such water-mask file {water_mask}")
     wt = raw.get("water_type")
     if wt is not None and wt not in _TYPE_ORDER:
         raise ManifestError(f"{label}: water_type {wt!r} is not one of {_TYPE_ORDER}")
@@ -121,7 +130,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
     unknown = sorted(set(restore) - _METHOD_KEYS)
     if unknown:
         raise ManifestError(f"{label}: unknown restore keyword(s) {unknown} (known: {sorted(_METHOD_KEYS)})")
-    return Entry(label, path, distance, wt, charts, dict(restore))
+    return Entry(label, path, distance, wt, charts, dict(restore), water_mask)
 
 
 def load_manifest(path: str) -> tuple[list[Entry], list[str]]:
@@ -277,8 +286,11 @@ def _finite(x):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else x
 
 
-def evaluate_entry(entry: Entry, method: str = "paper", mask_charts: bool = False, **restore_kwargs) -> dict:
-    """Every metric of one image for the method and the baselines (see the
+def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = False, compare=None,
+                   **restore_kwargs) -> dict:
+    """Every metric of one image for the method, the profiles in
+    ``compare`` (default: every other profile; each with its own step
+    defaults and the other keywords given) and the baselines (see the
     module documentation). Raises :class:`ManifestError` for a box outside
     the image or an unreadable distance map, and what ``restore`` raises."""
     import uwhl_rs
@@ -286,6 +298,7 @@ def evaluate_entry(entry: Entry, method: str = "paper", mask_charts: bool = Fals
 
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, not {method!r}")
+    compare = [m for m in METHODS if m != method] if compare is None else [m for m in compare if m != method]
     img, meta = read_image(entry.path)
     h, w = img.shape[:2]
     for ch in entry.charts:
@@ -300,10 +313,24 @@ def evaluate_entry(entry: Entry, method: str = "paper", mask_charts: bool = Fals
         for ch in entry.charts:
             for x0, y0, x1, y1 in ch.region:
                 mask[y0:y1, x0:x1] = False
-    kwargs = {**restore_kwargs, **entry.restore}
+    kwargs = {**restore_kwargs, **entry.restore, "method": method}
+    if entry.water_mask:
+        from .files import _read_mask
+
+        try:
+            kwargs["water_mask"] = _read_mask(entry.water_mask, (h, w), "water_mask")
+        except ValueError as e:
+            raise ManifestError(f"{entry.label}: {e}") from None
     res = uwhl_rs.restore(img, mask=mask, **kwargs)
     images = {"input": img, "stretch": stretch(img), "grayworld": grayworld(img), method: res.image}
     restorations = {method: res}
+    steps = {method: uwhl_rs.method_steps(**kwargs)}
+    for m in compare:
+        other = {k: v for k, v in kwargs.items() if k not in uwhl_rs.STEP_KEYS}
+        other["method"] = m
+        restorations[m] = uwhl_rs.restore(img, mask=mask, **other)
+        images[m] = restorations[m].image
+        steps[m] = uwhl_rs.method_steps(**other)
     types = {}
     for name in res.scores:
         one = {**kwargs, "water_types": [name], "veiling_light": tuple(res.veiling_light)}
@@ -322,16 +349,24 @@ def evaluate_entry(entry: Entry, method: str = "paper", mask_charts: bool = Fals
         for m, r in restorations.items():
             rho[m] = _rho_pair(distance, r)
     truth = None
-    if entry.water_type:
-        steps = type_steps(res.water_type, entry.water_type)
-        truth = {"true": entry.water_type, "chosen": res.water_type, "exact": res.water_type == entry.water_type,
-                 "within_one": steps is not None and steps <= 1}
+    profiles = {}
+    for m in [method, *compare]:
+        r = restorations[m]
+        t = None
+        if entry.water_type:
+            n = type_steps(r.water_type, entry.water_type)
+            t = {"true": entry.water_type, "chosen": r.water_type, "exact": r.water_type == entry.water_type,
+                 "within_one": n is not None and n <= 1}
+        profiles[m] = {"water_type": r.water_type, "veiling_light": [float(v) for v in r.veiling_light],
+                       "steps": steps[m], "truth": t}
+    truth = profiles[method]["truth"]
     for name in types:
         types[name]["psi_deg"] = _finite(_mean([r["psi_deg"] for r in rows if r["method"] == f"type:{name}"]))
     return {
         "image": entry.label, "path": entry.path, "width": w, "height": h, "orientation": meta.orientation,
         "water_type": res.water_type, "veiling_light": [float(v) for v in res.veiling_light],
         "flags": list(res.flags), "charts": rows, "rho": rho, "water_type_truth": truth, "types": types,
+        "method": method, "profiles": profiles,
         "_images": images, "_transmission": res.transmission, "_distance": distance,
     }
 
@@ -356,10 +391,15 @@ def summarize(results: list[dict]) -> dict:
     out = {m: {"psi_deg": _finite(_mean(v["psi"])), "charts": sum(x is not None for x in v["psi"]),
                "rho_B": _finite(_mean(v["rho_B"])), "rho_R": _finite(_mean(v["rho_R"])),
                "images_with_distance": sum(x is not None for x in v["rho_B"])} for m, v in methods.items()}
-    truths = [r["water_type_truth"] for r in results if r["water_type_truth"]]
-    if truths:
-        out["water_type"] = {"images": len(truths), "exact": sum(t["exact"] for t in truths) / len(truths),
-                             "within_one": sum(t["within_one"] for t in truths) / len(truths)}
+    by_method: dict[str, list] = {}
+    for r in results:
+        for m, p in r.get("profiles", {}).items():
+            if p["truth"]:
+                by_method.setdefault(m, []).append(p["truth"])
+    if by_method:
+        out["water_type"] = {m: {"images": len(t), "exact": sum(x["exact"] for x in t) / len(t),
+                                 "within_one": sum(x["within_one"] for x in t) / len(t)}
+                             for m, t in by_method.items()}
     return out
 
 
@@ -390,14 +430,20 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
                 truth = r["water_type_truth"] or {}
                 chosen = r["water_type"]
                 seen = set()
+                profiles = r.get("profiles", {})
+
+                def chosen_by(m):
+                    # a profile's own choice; baselines and type:NAME rows show the method's
+                    return profiles[m]["water_type"] if m in profiles else chosen
+
                 for row in r["charts"]:
                     rho = r["rho"].get(row["method"], {})
                     seen.add(row["method"])
                     wr.writerow([r["image"], row["chart"], row["method"], _fmt(row["psi_deg"]), _fmt(rho.get("rho_B")),
-                                 _fmt(rho.get("rho_R")), chosen, truth.get("true", "")])
+                                 _fmt(rho.get("rho_R")), chosen_by(row["method"]), truth.get("true", "")])
                 for m, rho in r["rho"].items():
                     if m not in seen:
-                        wr.writerow([r["image"], "", m, "", _fmt(rho["rho_B"]), _fmt(rho["rho_R"]), chosen,
+                        wr.writerow([r["image"], "", m, "", _fmt(rho["rho_B"]), _fmt(rho["rho_R"]), chosen_by(m),
                                      truth.get("true", "")])
                 if not r["charts"] and not r["rho"]:
                     wr.writerow([r["image"], "", "", "", "", "", chosen, truth.get("true", "")])
@@ -501,7 +547,8 @@ def _boxes_svg(entry_charts: list[Chart], w: int, h: int, uri: str) -> str:
             f'<image href="{uri}" width="{w * s:.0f}" height="{h * s:.0f}"/>{"".join(rects)}</svg>')
 
 
-def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Entry], method: str) -> str:
+def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Entry], method: str,
+                 compare=()) -> str:
     """Writes ``report.html``: one self-contained page (images inline, no
     network) with the summary table and, per image, the input with its
     chart boxes, the restored image, t_B, the distance map, the psi-bar bars,
@@ -509,7 +556,7 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
     from .io import atomic_write_bytes
 
     by_label = {e.label: e for e in entries}
-    methods = ["input", "stretch", "grayworld", method]
+    methods = ["input", "stretch", "grayworld", method, *[m for m in compare if m != method]]
     parts = ['<!doctype html><html><head><meta charset="utf-8"><title>uwhl evaluate</title><style>'
              'body{font:13px sans-serif;margin:16px}table{border-collapse:collapse}td,th{border:1px solid #ccc;'
              'padding:2px 6px;text-align:right}th{background:#eee}.row{display:flex;gap:8px;flex-wrap:wrap;'
@@ -528,10 +575,9 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
         parts.append(f"<tr><td>{_esc(m)}</td><td>{_fmt(v['psi_deg'])}</td><td>{v['charts']}</td>"
                      f"<td>{_fmt(v['rho_B'])}</td><td>{_fmt(v['rho_R'])}</td><td>{v['images_with_distance']}</td></tr>")
     parts.append("</table>")
-    if "water_type" in summ:
-        wt = summ["water_type"]
-        parts.append(f"<p>Water type: {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step "
-                     f"({wt['images']} images with a true type).</p>")
+    for m, wt in summ.get("water_type", {}).items():
+        parts.append(f'<p class="water-type">Water type ({_esc(m)}): {wt["exact"]:.0%} exact, '
+                     f'{wt["within_one"]:.0%} within one step ({wt["images"]} images with a true type).</p>')
     for r in results:
         e = by_label[r["image"]]
         imgs = r["_images"]
@@ -540,8 +586,11 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
                      + f', A = {", ".join(f"{v:.3f}" for v in r["veiling_light"])}</p><div class="row">')
         parts.append(f"<figure>{_boxes_svg(e.charts, r['width'], r['height'], _png_data_uri(imgs['input']))}"
                      "<figcaption>input, charts (blue) and gray patches (orange)</figcaption></figure>")
-        parts.append(f'<figure><img src="{_png_data_uri(imgs[method])}"><figcaption>restored ({_esc(method)})'
-                     "</figcaption></figure>")
+        for m in methods[3:]:
+            if m in imgs:
+                p = r.get("profiles", {}).get(m, {})
+                parts.append(f'<figure><img src="{_png_data_uri(imgs[m])}"><figcaption>restored ({_esc(m)}, '
+                             f'{_esc(p.get("water_type", ""))})</figcaption></figure>')
         parts.append(f'<figure><img src="{_map_uri(r["_transmission"])}"><figcaption>t_B</figcaption></figure>')
         if r["_distance"] is not None:
             parts.append(f'<figure><img src="{_map_uri(r["_distance"])}"><figcaption>distance</figcaption></figure>')

@@ -331,13 +331,17 @@ restore_file.__signature__ = _signature.replace(
 def _parameters(restore_kwargs: dict, **given) -> dict:
     """The sidecar's ``parameters``: every option as asked for (defaults
     filled in from the core's table), then any other keyword passed."""
+    from . import method_steps
+
     p = {
+        **method_steps(**restore_kwargs),
         "water_types": _jsonable(restore_kwargs.get("water_types")),
         "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
         "mask": _mask_label(given["mask"]),
         "water_mask": _mask_label(given["water_mask"]),
         "guided_radius": restore_kwargs.get("guided_radius"),
         "guided_eps": float(restore_kwargs.get("guided_eps", _D["guided_eps"])),
+        "t_scale": float(restore_kwargs.get("t_scale", _D["t_scale"])),
         "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", _D["guided_subsample"])),
         "sphere_points": int(restore_kwargs.get("sphere_points", _D["sphere_points"])),
         "threads": restore_kwargs.get("threads"),

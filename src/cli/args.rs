@@ -98,6 +98,16 @@ pub struct Options {
     pub preprocess: Preprocess,
     /// `--selection`: how the water type is chosen
     pub selection: crate::params::Selection,
+    /// `--t-scale` (METHOD §4.6)
+    pub t_scale: f64,
+    /// `--method`: the profile (METHOD §12)
+    pub method: crate::profile::Method,
+    /// `--white-balance` (None: the profile's)
+    pub white_balance: Option<crate::profile::WhiteBalance>,
+    /// `--type-choice` (None: the profile's)
+    pub type_choice: Option<crate::profile::TypeChoice>,
+    /// `--haze-floor` (None: the profile's)
+    pub haze_floor: Option<Option<&'static str>>,
     /// `--linear`: the input is already linear (no sRGB decoding)
     pub linear: bool,
     /// `--format`
@@ -142,6 +152,11 @@ impl Default for Options {
             max_side: None,
             preprocess: Preprocess::None,
             selection: crate::params::Selection::Exhaustive,
+            t_scale: crate::options::DEFAULT_T_SCALE,
+            method: crate::profile::Method::default(),
+            white_balance: None,
+            type_choice: None,
+            haze_floor: None,
             linear: false,
             format: Format::Jpg,
             bits: None,
@@ -347,10 +362,25 @@ impl Options {
             "selection" => {
                 self.selection = Selection::from_name(&text(v)?).map_err(CliError::from)?
             }
+            "method" => self.method = crate::profile::Method::from_name(&text(v)?).map_err(CliError::from)?,
+            "white_balance" => {
+                self.white_balance = Some(crate::profile::WhiteBalance::from_name(&text(v)?).map_err(CliError::from)?)
+            }
+            "haze_floor" => {
+                self.haze_floor = Some(crate::params::haze_floor_from_name(&text(v)?).map_err(CliError::from)?)
+            }
+            "type_choice" => {
+                self.type_choice = Some(crate::profile::TypeChoice::from_name(&text(v)?).map_err(CliError::from)?)
+            }
             "guided_radius" => self.guided_radius = Some(usize_of(&v)?),
             "guided_eps" => {
                 if let Val::Float(x) = v {
                     self.guided_eps = x;
+                }
+            }
+            "t_scale" => {
+                if let Val::Float(x) = v {
+                    self.t_scale = x;
                 }
             }
             "guided_subsample" => self.guided_subsample = usize_of(&v)?,

@@ -158,7 +158,7 @@ pub struct Restored {
 }
 
 /// The core parameters of the options (the candidate types, a given A).
-fn method_params(opts: &Options) -> Params {
+pub(crate) fn method_params(opts: &Options) -> Params {
     Params {
         water_types: water_types(opts),
         veiling_light: opts.veiling_light.map(|a| a.map(|v| v as f32)),
@@ -170,6 +170,11 @@ fn method_params(opts: &Options) -> Params {
         max_memory: opts.max_memory,
         selection: opts.selection,
         guided_subsample: opts.guided_subsample,
+        t_scale: opts.t_scale,
+        method: opts.method,
+        white_balance: opts.white_balance,
+        type_choice: opts.type_choice,
+        haze_floor: opts.haze_floor,
     }
 }
 

@@ -76,13 +76,20 @@ pub fn parameters(o: &Options) -> Value {
             })
             .collect::<Vec<_>>()
     });
+    let steps = crate::cli::run::method_params(o).steps();
+    let step = |k: &str| steps.iter().find(|s| s.0 == k).map(|s| s.1);
     json!({
+        "method": step("method"),
+        "white_balance": step("white_balance"),
+        "type_choice": step("type_choice"),
+        "haze_floor": step("haze_floor"),
         "water_types": types,
         "veiling_light": o.veiling_light,
         "mask": o.mask.as_deref().map(path),
         "water_mask": o.water_mask.as_deref().map(path),
         "guided_radius": o.guided_radius,
         "guided_eps": o.guided_eps,
+        "t_scale": o.t_scale,
         "guided_subsample": o.guided_subsample,
         "sphere_points": o.sphere_points,
         "threads": o.threads,

@@ -16,6 +16,7 @@ use crate::veiling::Veiling;
 use crate::sphere::SphereIndex;
 use crate::util::{channel_percentiles, Normalize};
 use crate::water::WaterType;
+use crate::profile::{conditioned, gains_from, PowerSums, TypeChoice, WhiteBalance, SOG_P, WHITE_PATCH_Q};
 use rayon::prelude::*;
 
 /// Per-image state shared by every water type.
@@ -28,6 +29,14 @@ pub(crate) struct Shared<'a> {
     pub(crate) guide: GuideStats,
     pub(crate) index: &'a SphereIndex,
     pub(crate) holes: bool,
+    /// the type choice used (METHOD §9 or §12.2)
+    pub(crate) choice: TypeChoice,
+    /// the white balance used (METHOD §8 or §12.1)
+    pub(crate) balance: WhiteBalance,
+    /// the scale of t~ (METHOD §4.6)
+    pub(crate) t_scale: f32,
+    /// the haze-line floor's ratios (METHOD §12.3)
+    pub(crate) floor: Option<[f64; 2]>,
 }
 
 /// The selection statistics of the scored types, the choice among them,
@@ -88,6 +97,10 @@ impl<'a> Shared<'a> {
             guide: GuideStats::subsampled(guide_image_into(img.data, mask, buf), img.height, img.width, r, params.guided_eps, s),
             index,
             holes: mask.is_some_and(|m| m.iter().any(|&b| !b)),
+            choice: params.type_choice_used(),
+            balance: params.white_balance_used(),
+            t_scale: params.t_scale as f32,
+            floor: params.haze_floor_ratios(),
         }
     }
 
@@ -106,7 +119,8 @@ impl<'a> Shared<'a> {
         let (n, w) = (img.len(), img.width);
         let Work { j, aux, .. } = work;
         let (p, _) = j.split_at_mut(n);
-        let ht = HazeType::new(self.a, wt);
+        // METHOD §12.3: the transmission with the floor's ratios where a type's are smaller
+        let ht = HazeType::new(self.a, &conditioned(wt, self.floor));
         // (t_LB, cluster) in the first half of the (a, b) buffer
         let pairs = aux.as_flattened_mut().get_mut(..2 * n).unwrap_or(&mut []).as_chunks_mut::<2>().0;
         let rmax = haze_pass(img, &ht, self.index, self.mask, p, pairs);
@@ -125,7 +139,7 @@ impl<'a> Shared<'a> {
         p.par_chunks_mut(chunk)
             .zip(pairs.par_chunks(chunk))
             .zip(img.data.par_chunks(3 * chunk))
-            .for_each(|((pp, aa), px)| blend_row(pp, aa, px.as_chunks::<3>().0, &rm, matting, !self.holes));
+            .for_each(|((pp, aa), px)| blend_row(pp, aa, px.as_chunks::<3>().0, &rm, matting, !self.holes, self.t_scale));
         self.guide.coefficients(p, aux)
     }
 
@@ -278,15 +292,99 @@ impl<'a> Shared<'a> {
         rows.iter().fold([0f64; 3], |a, r| [a[0] + r[0], a[1] + r[1], a[2] + r[2]])
     }
 
-    /// Selection statistics of one type (METHOD §4-9) without keeping any of
+    /// The transmission output of a type below the haze-line floor
+    /// (METHOD §12.3): the refined plane q clamped as the conditioned
+    /// type's t_B, not to the type's own (higher) t_B floor 0.1^beta_BR,
+    /// which serves only the recovery. Unchanged for other types.
+    pub(crate) fn floor_transmission(&self, wt: &WaterType, q: &[f32], transmission: &mut [f32]) {
+        let cond = conditioned(wt, self.floor);
+        if cond.beta_br == wt.beta_br || q.len() != transmission.len() {
+            return;
+        }
+        let rec = Recovery::new(self.a, &cond);
+        transmission.par_iter_mut().zip(q.par_iter()).for_each(|(t, &v)| *t = rec.clamp_tb(v));
+    }
+
+    /// The power sums of METHOD §12 over the object pixels (masked-in, not
+    /// VL) of J mapped by `clamp` (the values as they are without), per
+    /// row, combined in row order.
+    pub(crate) fn object_sums(&self, rgb: &[f32], clamp: Option<&ArtifactClamp>) -> PowerSums {
+        let w = self.img.width;
+        let rows: Vec<PowerSums> = rgb
+            .par_chunks(3 * w)
+            .enumerate()
+            .map_init(
+                || RowScratch::new(w),
+                |sc, (y, row)| {
+                    let (inside, vl) = self.row_masks(y, &sc.yes, &sc.no);
+                    let mut s = PowerSums::default();
+                    for ((px, &i), &b) in row.as_chunks::<3>().0.iter().zip(inside).zip(vl) {
+                        if i && !b {
+                            s.push(clamp.map_or(*px, |c| px.map(|v| c.apply(v))));
+                        }
+                    }
+                    s
+                },
+            )
+            .collect();
+        rows.iter().fold(PowerSums::default(), |mut a, r| {
+            a.add(r);
+            a
+        })
+    }
+
+    /// The selection statistics of a recovered J (before the artifact
+    /// clamp) with row statistics `st`, by the type choice in use:
+    /// METHOD §9 (gray world of the stretched image, t_R differences) or
+    /// METHOD §12.2 (shades-of-gray spread of the clamped radiance, no
+    /// exclusion).
+    pub(crate) fn type_stats(&self, j: &[f32], st: &RowStats) -> TypeStats {
+        match self.choice {
+            TypeChoice::GrayWorld => {
+                let sp = self.stretch(j, st);
+                let mut sums = st.sums;
+                sums.channels = self.channel_sums(j, Some(&sp));
+                sums.stats()
+            }
+            TypeChoice::ShadesOfGray => TypeStats {
+                score: self.object_sums(j, Some(&ArtifactClamp::new(st.lo, st.hi))).spread(),
+                tr_diff: None,
+            },
+        }
+    }
+
+    /// Selection statistics of one type (METHOD §4-9, §12.2) without keeping any of
     /// its images.
     pub(crate) fn evaluate(&self, wt: &WaterType, work: &mut Work) -> TypeStats {
         let bounds = self.refine(wt, work);
         let st = self.recover(wt, bounds, work, None);
-        let sp = self.stretch(&work.j, &st);
-        let mut sums = st.sums;
-        sums.channels = self.channel_sums(&work.j, Some(&sp));
-        sums.stats()
+        self.type_stats(&work.j, &st)
+    }
+
+    /// The displayed image of METHOD §12.1 from the clamped radiance:
+    /// per-channel gains that make the object pixels' color (gray world,
+    /// shades of gray) or the masked-in pixels' [`WHITE_PATCH_Q`]
+    /// percentile (white patch) gray, then one exposure that maps the
+    /// largest balanced channel's [`WHITE_PATCH_Q`] percentile to 1, clipped to
+    /// [0, 1]. `sums` are the object pixels' power sums of `radiance`.
+    /// The exposure is the display mapping, kept apart from the color
+    /// correction: the gains alone set the colors.
+    pub(crate) fn balance_image(&self, radiance: &[f32], sums: &PowerSums) -> Vec<f32> {
+        let pct = channel_percentiles(radiance, self.mask, &[WHITE_PATCH_Q], |_, v| v);
+        let at = |c: usize| pct.get(c).and_then(|v| v.first()).copied().unwrap_or(1.0);
+        let estimate = match self.balance {
+            WhiteBalance::GrayWorld => sums.color(1.0),
+            WhiteBalance::WhitePatch => [at(0), at(1), at(2)],
+            WhiteBalance::ShadesOfGray | WhiteBalance::Stretch => sums.color(SOG_P),
+        };
+        let gains = gains_from(estimate);
+        let top = (0..3).map(|c| gains[c] * at(c)).fold(0.0f64, f64::max);
+        let scale = if top > 0.0 { 1.0 / top } else { 1.0 };
+        let k: [f32; 3] = gains.map(|g| (g * scale) as f32);
+        radiance
+            .par_chunks(3)
+            .flat_map_iter(|p| (0..3).map(move |c| (p.get(c).copied().unwrap_or(0.0) * k[c]).clamp(0.0, 1.0)))
+            .collect()
     }
 
     /// The selection statistics of each type in `types` (in order), and the
@@ -333,7 +431,7 @@ pub(crate) fn finish(
     clock: &mut Clock,
 ) -> Final {
     let n = shared.img.len();
-    let (st, transmission) = match q {
+    let (st, mut transmission) = match q {
         Some(q) if q.len() == n => {
             shared.guide.release_stats();
             if !pool.keep {
@@ -357,6 +455,23 @@ pub(crate) fn finish(
             (st, transmission)
         }
     };
+    if shared.balance != WhiteBalance::Stretch {
+        shared.floor_transmission(wt, &work.q, &mut transmission);
+        // METHOD §12.1: the choice's statistics from J as scoring saw it
+        let stats = shared.type_stats(&work.j, &st);
+        clock.lap(Stage::ChosenStretch);
+        pool.put(std::mem::take(&mut work.aux), std::mem::take(&mut work.q));
+        let mut radiance = std::mem::take(&mut work.j);
+        let clamp = ArtifactClamp::new(st.lo, st.hi);
+        radiance.par_iter_mut().for_each(|v| *v = clamp.apply(*v));
+        let image = shared.balance_image(&radiance, &shared.object_sums(&radiance, None));
+        if pool.keep {
+            pool.guide = shared.guide.into_guide();
+        }
+        clock.lap(Stage::ChosenOutputs);
+        return Final { radiance, transmission, image, stats };
+    }
+    shared.floor_transmission(wt, &work.q, &mut transmission);
     let sp = shared.stretch(&work.j, &st);
     clock.lap(Stage::ChosenStretch);
     pool.put(std::mem::take(&mut work.aux), std::mem::take(&mut work.q));
@@ -364,7 +479,15 @@ pub(crate) fn finish(
     radiance.par_iter_mut().for_each(|v| *v = sp.clamp.apply(*v));
     let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
     let mut sums = st.sums;
-    sums.channels = shared.channel_sums(&image, None);
+    sums.channels = match shared.choice {
+        TypeChoice::GrayWorld => shared.channel_sums(&image, None),
+        TypeChoice::ShadesOfGray => [0.0; 3],
+    };
+    let stats = match shared.choice {
+        TypeChoice::GrayWorld => sums.stats(),
+        // METHOD §12.2 with the stretch of METHOD §8 for display
+        TypeChoice::ShadesOfGray => TypeStats { score: shared.object_sums(&radiance, None).spread(), tr_diff: None },
+    };
     if pool.keep {
         pool.guide = shared.guide.into_guide();
     }
@@ -373,7 +496,7 @@ pub(crate) fn finish(
         radiance,
         transmission,
         image,
-        stats: sums.stats(),
+        stats,
     }
 }
 

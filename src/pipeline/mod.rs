@@ -249,7 +249,7 @@ mod tests {
         let aux: Vec<[f32; 2]> = (0..n).map(|i| [noise[6 * n + i] * 0.5, (i % 4) as f32 - 1.0]).collect();
         let r: Vec<f32> = noise.iter().skip(7 * n).take(n).map(|v| v * 2.0).collect();
         let mut p = r.clone();
-        blend_row(&mut p, &aux, &j, &rm, None, true);
+        blend_row(&mut p, &aux, &j, &rm, None, true, T_SCALE);
         for i in 0..n {
             let t = t_tilde(r[i], aux[i][1], &rm[1..]);
             assert_eq!(p[i].to_bits(), (t * T_SCALE).max(aux[i][0]).to_bits(), "{i}");

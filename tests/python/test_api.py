@@ -91,8 +91,9 @@ def test_restoration_images(result):
     assert t.dtype == np.float32 and t.shape == (H, W)
     assert np.isfinite(t).all()
     assert t.min() > 0.0 and t.max() <= 1.0
-    # METHOD §7: t_B is clamped to [0.1**beta_BR, 1] of the chosen type.
-    br, _ = RATIOS[result.water_type]
+    # METHOD §7 and §12.3: t_B is clamped to [0.1**beta_BR, 1] of the chosen
+    # type, or of the haze floor (3C by default) where that is murkier
+    br = max(RATIOS[result.water_type][0], RATIOS["3C"][0])
     assert t.min() >= np.float32(0.1**br) * (1 - 1e-6)
 
 

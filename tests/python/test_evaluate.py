@@ -164,17 +164,22 @@ def test_end_to_end_on_a_rendered_scene(tmp_path):
                        timeout=300)
     assert r.returncode == 0, r.stderr
     doc = json.load(open(out / "results.json"))
-    assert doc["parameters"]["method"] == "paper" and doc["parameters"]["mask_charts"] is True
+    assert doc["parameters"]["method"] == "revised" and doc["parameters"]["mask_charts"] is True
+    assert doc["parameters"]["profiles"]["paper"]["white_balance"] == "stretch"
     for img in doc["images"]:
         methods = {row["method"] for row in img["charts"]}
-        assert methods == {"input", "stretch", "grayworld", "paper"} | {f"type:{t}" for t in types}
-        assert img["rho"]["paper"]["rho_B"] > 0.5  # -ln t_B grows with the rendered distance
-        assert img["water_type_truth"]["true"] in types
+        assert methods == {"input", "stretch", "grayworld", "revised", "paper"} | {f"type:{t}" for t in types}
+        for m in ("revised", "paper"):
+            assert img["rho"][m]["rho_B"] > 0.5  # -ln t_B grows with the rendered distance
+            assert img["profiles"][m]["truth"]["true"] == img["water_type_truth"]["true"] in types
+            assert img["profiles"][m]["steps"]["method"] == m
     summ = doc["summary"]
-    assert 0 <= summ["water_type"]["exact"] <= 1 and summ["paper"]["charts"] == 2
+    assert set(summ["water_type"]) == {"revised", "paper"}
+    assert all(0 <= v["exact"] <= v["within_one"] <= 1 for v in summ["water_type"].values())
+    assert summ["paper"]["charts"] == summ["revised"]["charts"] == 2
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert {"image", "chart", "method", "psi_deg", "rho_B"} <= set(rows[0])
-    assert {r["method"] for r in rows} >= {"input", "stretch", "grayworld", "paper", "type:3C"}
+    assert {r["method"] for r in rows} >= {"input", "stretch", "grayworld", "revised", "paper", "type:3C"}
     page = open(out / "report.html").read()
     assert "http://" not in page and "https://" not in page  # self-contained
     for e in doc["images"]:

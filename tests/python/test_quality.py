@@ -63,7 +63,7 @@ def _rank(scores: dict, name: str) -> int:
 
 def _run(kind: str, seed: int, ti: int, wt: str, sc, given: bool) -> dict:
     img = synth.render(sc.clean, sc.distance, wt, noise=NOISE, seed=100 * seed + ti)
-    res = uwhl_rs.restore(img, water_mask=sc.water if given else None)
+    res = uwhl_rs.restore(img, water_mask=sc.water if given else None, method="paper")
     nonwater = ~sc.water
     top = sc.water.copy()
     top[_vl_row_limit(H, W):] = False
