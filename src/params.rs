@@ -364,7 +364,7 @@ pub struct Restoration {
     pub transmission: Vec<f32>,
     /// the chosen water type
     pub water_type: WaterType,
-    /// every evaluated type with its gray-world score, in input order (METHOD §9)
+    /// every evaluated type with its score (METHOD §9 or §12.2, lower is better), in input order
     pub scores: Vec<(String, f64)>,
     /// names of the types excluded by the t_R rule (METHOD §9)
     pub excluded: Vec<String>,

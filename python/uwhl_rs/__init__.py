@@ -266,7 +266,7 @@ def restore(
         ``radiance`` (H, W, 3) float32: J before the display stretch
         (METHOD §7); ``transmission`` (H, W) float32: t_B, whose ``-log`` is
         a distance proxy; ``water_type`` (str); ``scores`` (dict name ->
-        gray-world score, lower is better); ``excluded`` (names ruled out
+        score of the type choice in use, lower is better); ``excluded`` (names ruled out
         by the t_R test of METHOD §9); ``veiling_light`` (A); ``veiling_mask``
         (H, W) bool; ``flags`` (list of fallbacks used, e.g.
         ``"veiling_fallback"``); ``guided_radius``; ``guided_subsample``

@@ -583,7 +583,7 @@ def run_demo(out_dir: str, water_type: str, size: tuple[int, int], seed: int) ->
     ranking = sorted(res.scores, key=res.scores.get)
     print(f"uwhl_rs {uwhl_rs.__version__}: built-in synthetic scene {w}x{h}, seed {seed}")
     print(f"true water type:      {truth['water_type']}")
-    print(f"estimated water type: {res.water_type}   (types by gray-world score: {' '.join(ranking)};"
+    print(f"estimated water type: {res.water_type}   (types by score, best first: {' '.join(ranking)};"
           f" excluded by the t_R rule: {', '.join(res.excluded) or 'none'})")
     print(f"veiling light A: true {tuple(round(v, 4) for v in truth['veiling_light'])},"
           f" estimated {tuple(round(v, 4) for v in res.veiling_light)}")

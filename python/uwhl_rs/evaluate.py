@@ -561,7 +561,8 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
              'body{font:13px sans-serif;margin:16px}table{border-collapse:collapse}td,th{border:1px solid #ccc;'
              'padding:2px 6px;text-align:right}th{background:#eee}.row{display:flex;gap:8px;flex-wrap:wrap;'
              'align-items:flex-start}figure{margin:0}figcaption{font-size:11px;color:#555}'
-             'section{border-top:2px solid #444;margin-top:18px;padding-top:6px}</style></head><body>',
+             'section{border-top:2px solid #444;margin-top:18px;padding-top:6px}'
+             '.sheet figure.chosen img{outline:3px solid #2a2}</style></head><body>',
              f'<h1>uwhl evaluate</h1><p>{_esc(doc["manifest"])} &middot; uwhl_rs {_esc(doc["uwhl_version"])} '
              f'&middot; method {_esc(method)}</p>']
     if doc["problems"]:
@@ -607,7 +608,15 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
             mark = " &#10003;" if name == r["water_type"] else ""
             parts.append(f"<tr><td>{_esc(name)}{mark}</td><td>{t['score']:.4f}</td><td>{'yes' if t['excluded'] else ''}"
                          f"</td><td>{_fmt(t['psi_deg'])}</td><td>{_fmt(rho)}</td></tr>")
-        parts.append("</table></section>")
+        parts.append("</table>")
+        # the contact sheet: every candidate type restored with the method's A
+        sheet = [f'<figure class="type{" chosen" if name == r["water_type"] else ""}">'
+                 f'<img src="{_png_data_uri(imgs[f"type:{name}"], 200)}"><figcaption>{_esc(name)}'
+                 f'{" &#10003;" if name == r["water_type"] else ""} {t["score"]:.3f}</figcaption></figure>'
+                 for name, t in r["types"].items() if f"type:{name}" in imgs]
+        if sheet:
+            parts.append('<div class="row sheet">' + "".join(sheet) + "</div>")
+        parts.append("</section>")
     parts.append("</body></html>\n")
     page = "".join(parts)
 

@@ -43,7 +43,7 @@ pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
         format!("uwhl-rs {}: built-in rendered scene {w}x{h}, seed {}", env!("CARGO_PKG_VERSION"), d.seed),
         format!("true water type:      {}", d.water_type.name),
         format!(
-            "estimated water type: {}   (types by gray-world score: {}; excluded by the t_R rule: {})",
+            "estimated water type: {}   (types by score, best first: {}; excluded by the t_R rule: {})",
             res.water_type.name,
             names(&ranking),
             if res.excluded.is_empty() { "none".to_string() } else { res.excluded.join(", ") }

@@ -75,6 +75,9 @@ def test_the_report_renders_in_chromium(tmp_path):
         assert e["path"] in page and e["charts"][0]["name"] in page, e["path"]
     # every image is inline and decodes: the browser keeps data: URIs, no file or network fetch
     assert page.count("data:image/png;base64,") >= 2 * 4
+    # both profiles side by side, and each image's contact sheet of the three types with the choice framed
+    assert "Water type (revised)" in page and "Water type (paper)" in page
+    assert page.count('<figure class="type') == 2 * 3 and page.count('class="type chosen"') == 2
     errors = [line for line in dom.stderr.splitlines()
               if "Uncaught" in line or "ERR_" in line or "Failed to load resource" in line]
     assert not errors, errors
