@@ -30,13 +30,8 @@ from uwhl_rs import synth
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "data", "images")
 
 
-def best_of(f, n: int) -> float:
-    best = float("inf")
-    for _ in range(n):
-        t = time.perf_counter()
-        f()
-        best = min(best, time.perf_counter() - t)
-    return best
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from quality import best_of  # noqa: E402
 
 
 def timing(sizes, repeat: int) -> None:

@@ -93,7 +93,7 @@ fn whole(c: &mut Criterion) {
         });
         if h * w > 2_000_000 {
             let p = Params {
-                selection: Selection::Fast,
+                selection: Some(Selection::Fast),
                 ..Params::default()
             };
             g.bench_with_input(BenchmarkId::new("fast_selection", name), &inp, |b, inp| {

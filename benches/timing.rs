@@ -38,7 +38,7 @@ fn main() {
     // README suggests for video) given
     let mut water = Vec::new();
     match mode.as_str() {
-        "fast" => p.selection = Selection::Fast,
+        "fast" => p.selection = Some(Selection::Fast),
         "seq" | "seqm" => {
             let prev = restore(&inp, &p).unwrap_or_else(|e| panic!("{e}"));
             p.water_types = vec![wt.clone()];

@@ -70,6 +70,7 @@ impl Skip {
     }
 
     /// Its name for the Python command: "done", "busy" or "in_flight".
+    #[cfg_attr(not(feature = "python"), allow(dead_code))]
     pub fn name(self) -> &'static str {
         match self {
             Skip::Done => "done",

@@ -247,8 +247,9 @@ t_R rule (METHOD §9) or the least chromatic shades_of_gray color of the radianc
 none: each type's own; default: the profile's (revised 3C, paper none)",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "selection", flag: "--selection", short: None, metavar: "MODE", kind: Kind::Choice(&["exhaustive", "fast"]),
-        default: Default::Name("exhaustive"), help: "exhaustive: every type restored and scored at full resolution; \
-fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size",
+        default: Default::None, help: "exhaustive: every type restored and scored at full resolution; \
+fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size; default: the profile's \
+(revised fast, paper exhaustive)",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "guided_radius", flag: "--guided-radius", short: None, metavar: "N", kind: Kind::Int { min: 0, max: u32::MAX as u64 },
         default: Default::None, help: "guided-filter radius (default round(min(H, W) / 4))",

@@ -79,8 +79,9 @@ pub struct Params {
     pub threads: Option<usize>,
     /// working-memory limit in bytes, checked before anything large is allocated
     pub max_memory: u64,
-    /// how the water type is chosen; default exhaustive
-    pub selection: Selection,
+    /// how the candidate types are scored, exhaustive or fast; default the
+    /// profile's (revised fast, paper exhaustive; METHOD §9, §12)
+    pub selection: Option<Selection>,
     /// guided-filter subsampling factor s: 1 (default) = the exact filter
     /// of METHOD §6; s >= 2 = He and Sun's fast guided filter, (a, b) computed
     /// on samples at the centres of s x s blocks and interpolated back (METHOD §6, subsampled guided filter);
@@ -120,7 +121,7 @@ impl Default for Params {
             sphere_points: DEFAULT_SPHERE_POINTS,
             threads: None,
             max_memory: crate::budget::default_max_memory(),
-            selection: Selection::Exhaustive,
+            selection: None,
             guided_subsample: 1,
             t_scale: crate::options::DEFAULT_T_SCALE,
             method: Method::default(),
@@ -259,6 +260,11 @@ impl Params {
         self.type_choice.unwrap_or_else(|| self.method.type_choice())
     }
 
+    /// The selection used: the one given, else the profile's.
+    pub fn selection_used(&self) -> Selection {
+        self.selection.unwrap_or_else(|| self.method.selection())
+    }
+
     /// The haze-line floor used, by name (None: none): the one given, else
     /// the profile's (METHOD §12.3).
     pub fn haze_floor_used(&self) -> Option<&'static str> {
@@ -273,9 +279,10 @@ impl Params {
 
     /// The profile and the steps used, as (keyword, name) pairs: what the
     /// sidecar and the evaluation record (METHOD §12).
-    pub fn steps(&self) -> [(&'static str, &'static str); 4] {
+    pub fn steps(&self) -> [(&'static str, &'static str); 5] {
         [
             ("method", self.method.name()),
+            ("selection", self.selection_used().name()),
             ("white_balance", self.white_balance_used().name()),
             ("type_choice", self.type_choice_used().name()),
             ("haze_floor", self.haze_floor_used().unwrap_or("none")),
@@ -312,7 +319,7 @@ impl Params {
             ("sphere_points", V::Int(n)) => self.sphere_points = size(*n),
             ("threads", V::Int(n)) => self.threads = Some(size(*n)),
             ("max_memory", V::Int(n)) => self.max_memory = *n,
-            ("selection", V::Text(t)) => self.selection = Selection::from_name(t)?,
+            ("selection", V::Text(t)) => self.selection = Some(Selection::from_name(t)?),
             ("guided_subsample", V::Int(n)) => self.guided_subsample = size(*n),
             ("t_scale", V::Float(x)) => self.t_scale = *x,
             ("t_scale", V::Int(n)) => self.t_scale = *n as f64,
@@ -356,17 +363,18 @@ pub struct Restoration {
     pub height: usize,
     /// columns
     pub width: usize,
-    /// the white-balanced, display-stretched result of the chosen type (METHOD §8), interleaved RGB
+    /// the displayed result of the chosen type: white-balanced and exposed
+    /// (METHOD §12.1) or display-stretched (METHOD §8), interleaved RGB
     pub image: Vec<f32>,
-    /// J after the artifact clamp, before the stretch (METHOD §7), interleaved RGB
+    /// J after the artifact clamp, before the display (METHOD §7), interleaved RGB
     pub radiance: Vec<f32>,
-    /// t_B of the chosen type (METHOD §7); -ln t_B = beta_B z
+    /// t_B of the chosen type (METHOD §7; with a haze floor, METHOD §12.3); -ln t_B = beta_B z
     pub transmission: Vec<f32>,
     /// the chosen water type
     pub water_type: WaterType,
     /// every evaluated type with its score (METHOD §9 or §12.2, lower is better), in input order
     pub scores: Vec<(String, f64)>,
-    /// names of the types excluded by the t_R rule (METHOD §9)
+    /// names of the types excluded by the t_R rule (METHOD §9; none under METHOD §12.2)
     pub excluded: Vec<String>,
     /// the veiling light A used
     pub veiling_light: [f32; 3],
@@ -419,8 +427,8 @@ pub fn default_radius(h: usize, w: usize) -> usize {
 /// pixel at 12 MP). With masked-out pixels, 17 B for the fill of METHOD
 /// §4.5. The outputs (29 B per pixel) are allocated after the per-type
 /// buffers and the guide statistics are freed. [`Selection::Fast`] scores
-/// its copy before the full-size buffers exist (the estimate adds the
-/// copy's share anyway).
+/// its copy before the full-size buffers exist (`check_params` adds the
+/// copy's share anyway, where there is a copy).
 pub fn memory_estimate(h: usize, w: usize, holes: bool) -> u64 {
     let n = (h as u64).saturating_mul(w as u64);
     let per_px = 88 + if holes { 17 } else { 0 };
@@ -477,8 +485,9 @@ pub(crate) fn check_params(input: &Input, params: &Params) -> Result<()> {
     check_mask("water_mask", input.water_mask, img.len(), 0)?;
     let holes = input.mask.is_some_and(|m| m.iter().any(|&b| !b));
     let mut needed = memory_estimate(img.height, img.width, holes);
-    if params.selection == Selection::Fast {
-        let s = fast_factor(img.height, img.width);
+    let s = fast_factor(img.height, img.width);
+    // a copy exists only for several types on an image larger than it
+    if params.selection_used() == Selection::Fast && s > 1 && params.water_types.len() >= 2 {
         needed += memory_estimate(img.height.div_ceil(s), img.width.div_ceil(s), holes);
     }
     if needed > params.max_memory {

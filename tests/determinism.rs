@@ -33,7 +33,7 @@ fn bit_identical_for_1_2_8_threads_and_repeated_runs() {
         (h, w, Some(&chart), Params::default()),
         (97, 131, None, Params { guided_subsample: 3, ..Params::default() }),
         (150, 170, None, Params { guided_subsample: 5, ..Params::default() }),
-        (300, 1100, None, Params { selection: Selection::Fast, ..Params::default() }),
+        (300, 1100, None, Params { selection: Some(Selection::Fast), ..Params::default() }),
     ];
     for (h, w, mask, params) in cases {
         let img = common::scene(h, w, 99);

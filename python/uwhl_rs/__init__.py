@@ -171,7 +171,7 @@ def restore(
     sphere_points: int = DEFAULTS["sphere_points"],
     threads: int | None = DEFAULTS["threads"],
     max_memory: int | None = None,
-    selection: str = DEFAULTS["selection"],
+    selection: str | None = DEFAULTS["selection"],
     guided_subsample: int | str = DEFAULTS["guided_subsample"],
     t_scale: float = DEFAULTS["t_scale"],
     method: str = DEFAULTS["method"],
@@ -216,8 +216,9 @@ def restore(
         ``_core.default_max_memory()``); a larger image raises MemoryError
         before anything large is allocated, and so does one the system
         would not give the memory for now.
-    selection : {"exhaustive", "fast"}
-        How the water type is chosen (METHOD §9). ``"exhaustive"`` (default)
+    selection : {"exhaustive", "fast"}, optional
+        How the candidate types are scored (METHOD §9); default: the
+        profile's (revised ``"fast"``, paper ``"exhaustive"``). ``"exhaustive"``
         restores every candidate type at full resolution and scores it.
         ``"fast"`` scores the types on a block-averaged copy whose longer
         side is about 1024 px (with the full-resolution veiling light and
@@ -262,9 +263,9 @@ def restore(
     Returns
     -------
     Restoration
-        ``image`` (H, W, 3) float32: the white-balanced result (METHOD §8);
-        ``radiance`` (H, W, 3) float32: J before the display stretch
-        (METHOD §7); ``transmission`` (H, W) float32: t_B, whose ``-log`` is
+        ``image`` (H, W, 3) float32: the displayed result (METHOD §12.1, or
+        §8 with ``white_balance="stretch"``); ``radiance`` (H, W, 3)
+        float32: J before the display (METHOD §7); ``transmission`` (H, W) float32: t_B, whose ``-log`` is
         a distance proxy; ``water_type`` (str); ``scores`` (dict name ->
         score of the type choice in use, lower is better); ``excluded`` (names ruled out
         by the t_R test of METHOD §9); ``veiling_light`` (A); ``veiling_mask``
@@ -330,7 +331,7 @@ def _method_params(**kw) -> _core.Params:
         )
     if isinstance(guided_eps, (bool, np.bool_)) or not isinstance(guided_eps, (int, float, np.integer, np.floating)):
         raise ParameterError(f"guided_eps must be a number > 0; got {guided_eps!r}")
-    if not isinstance(selection, str):
+    if selection is not None and not isinstance(selection, str):
         raise ParameterError(f'selection must be one of {_choices("selection")}; got {selection!r}')
     return _core.Params(
         water_types=water_types,
@@ -340,7 +341,6 @@ def _method_params(**kw) -> _core.Params:
         sphere_points=_int_param("sphere_points", kw["sphere_points"], 0),
         threads=_int_param("threads", kw["threads"], 0),
         max_memory=_int_param("max_memory", kw["max_memory"], 0),
-        selection=selection,
         guided_subsample=_subsample_param(kw["guided_subsample"]),
         t_scale=_float_param("t_scale", kw["t_scale"]),
         **{k: _choice_param(k, kw[k]) for k in STEP_KEYS},
@@ -357,7 +357,7 @@ def _float_param(key: str, value):
 
 
 #: The keywords that name a profile and its steps (METHOD §12).
-STEP_KEYS = ("method", "white_balance", "type_choice", "haze_floor")
+STEP_KEYS = ("method", "selection", "white_balance", "type_choice", "haze_floor")
 
 
 def _choice_param(key: str, value):
@@ -369,7 +369,7 @@ def _choice_param(key: str, value):
 
 def method_steps(**kw) -> dict:
     """The profile and the steps that ``restore(**kw)`` uses, by keyword
-    (``method``, ``white_balance``, ``type_choice``, ``haze_floor``), defaults resolved:
+    (``method``, ``selection``, ``white_balance``, ``type_choice``, ``haze_floor``), defaults resolved:
     what the sidecar and ``uwhl evaluate`` record."""
     return dict(_core.Params(**{k: _choice_param(k, kw.get(k)) for k in STEP_KEYS}).steps())
 

@@ -90,20 +90,21 @@ def _entry(k: int, raw, folder: str) -> Entry:
     path = os.path.join(folder, raw["path"])
     if not os.path.isfile(path):
         raise ManifestError(f"{label}: no such image file {path}")
-    distance = raw.get("distance")
-    if distance is not None:
-        if not isinstance(distance, str):
-            raise ManifestError(f"{label}: 'distance' is a file path, not {distance!r}")
-        distance = os.path.join(folder, distance)
-        if not os.path.isfile(distance):
-            raise ManifestError(f"{label}: no such distance file {distance}")
-    water_mask = raw.get("water_mask")
-    if water_mask is not None:
-        if not isinstance(water_mask, str):
-            raise ManifestError(f"{label}: 'water_mask' is a file path, not {water_mask!r}")
-        water_mask = os.path.join(folder, water_mask)
-        if not os.path.isfile(water_mask):
-            raise ManifestError(f"{label}: no such water-mask file {water_mask}")
+
+    def file_key(key: str, what: str):
+        # an optional file named by the entry, relative to the manifest
+        value = raw.get(key)
+        if value is None:
+            return None
+        if not isinstance(value, str):
+            raise ManifestError(f"{label}: '{key}' is a file path, not {value!r}")
+        value = os.path.join(folder, value)
+        if not os.path.isfile(value):
+            raise ManifestError(f"{label}: no such {what} file {value}")
+        return value
+
+    distance = file_key("distance", "distance")
+    water_mask = file_key("water_mask", "water-mask")
     wt = raw.get("water_type")
     if wt is not None and wt not in _TYPE_ORDER:
         raise ManifestError(f"{label}: water_type {wt!r} is not one of {_TYPE_ORDER}")

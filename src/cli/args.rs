@@ -97,7 +97,7 @@ pub struct Options {
     /// `--preprocess`
     pub preprocess: Preprocess,
     /// `--selection`: how the water type is chosen
-    pub selection: crate::params::Selection,
+    pub selection: Option<crate::params::Selection>,
     /// `--t-scale` (METHOD §4.6)
     pub t_scale: f64,
     /// `--method`: the profile (METHOD §12)
@@ -151,7 +151,7 @@ impl Default for Options {
             sphere_points: crate::options::DEFAULT_SPHERE_POINTS,
             max_side: None,
             preprocess: Preprocess::None,
-            selection: crate::params::Selection::Exhaustive,
+            selection: None,
             t_scale: crate::options::DEFAULT_T_SCALE,
             method: crate::profile::Method::default(),
             white_balance: None,
@@ -360,7 +360,7 @@ impl Options {
                 }
             }
             "selection" => {
-                self.selection = Selection::from_name(&text(v)?).map_err(CliError::from)?
+                self.selection = Some(Selection::from_name(&text(v)?).map_err(CliError::from)?)
             }
             "method" => self.method = crate::profile::Method::from_name(&text(v)?).map_err(CliError::from)?,
             "white_balance" => {

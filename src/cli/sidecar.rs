@@ -96,7 +96,7 @@ pub fn parameters(o: &Options) -> Value {
         "max_side": o.max_side,
         "max_pixels": o.max_pixels,
         "preprocess": o.preprocess.name(),
-        "selection": o.selection.name(),
+        "selection": step("selection"),
         "half_size": false,
         "format": o.format.name(),
         "bits": o.bits(),

@@ -87,7 +87,7 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     clock.lap(Stage::VeilingLight);
     // §9, fast selection: every type scored on a sampled copy first
     let types: Vec<&WaterType> = params.water_types.iter().collect();
-    let copy = match params.selection {
+    let copy = match params.selection_used() {
         Selection::Fast if types.len() >= 2 => fast::copy_stats(img, input.mask, &veil, &index, params, &types)?,
         _ => None,
     };

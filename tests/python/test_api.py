@@ -376,7 +376,7 @@ def test_chosen_type_restored_from_its_scoring_equals_a_fresh_restoration(scene,
     if holes:
         mask = np.ones(img.shape[:2], bool)
         mask[20:30, 30:45] = False
-    full = uwhl_rs.restore(img, mask=mask)
+    full = uwhl_rs.restore(img, mask=mask, selection="exhaustive")
     one = uwhl_rs.restore(img, mask=mask, water_types=[full.water_type])
     for field in ("image", "radiance", "transmission", "veiling_mask"):
         x, y = getattr(full, field), getattr(one, field)
@@ -384,15 +384,19 @@ def test_chosen_type_restored_from_its_scoring_equals_a_fresh_restoration(scene,
     assert full.scores[full.water_type].hex() == one.scores[full.water_type].hex()
 
 
+@pytest.mark.parametrize("method", ["revised", "paper"])
 @pytest.mark.parametrize("water,seed", [("II", 3), ("III", 5), ("5C", 8)])
-def test_fast_selection_agrees_with_exhaustive(water, seed):
+def test_fast_selection_agrees_with_exhaustive(water, seed, method):
     """On rendered 540x1100 scenes (the copy is 270x550), selection="fast"
-    picks the exhaustive mode's water type, and then every output is
-    bit-identical to the exhaustive one (same A, VL and restoration of that
-    type); its scores are the copy's, one per type."""
+    picks the exhaustive mode's water type under either profile's choice,
+    and then every output is bit-identical to the exhaustive one (same A,
+    VL and restoration of that type); its scores are the copy's, one per
+    type. The revised profile's default is fast."""
     img, _ = synth.demo_input(540, 1100, water_type=water, seed=seed)
-    ex = uwhl_rs.restore(img)
-    fa = uwhl_rs.restore(img, selection="fast")
+    ex = uwhl_rs.restore(img, method=method, selection="exhaustive")
+    fa = uwhl_rs.restore(img, method=method, selection="fast")
+    if method == "revised":
+        assert uwhl_rs.restore(img).scores == fa.scores
     assert fa.water_type == ex.water_type, (fa.scores, ex.scores)
     for field in ("image", "radiance", "transmission", "veiling_mask"):
         assert np.array_equal(getattr(fa, field), getattr(ex, field)), field

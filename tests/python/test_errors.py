@@ -279,7 +279,7 @@ case(
     ["sphere_points"],
 )
 case("threads-0", lambda: (_base(), {"threads": 0}), ParameterError, ["threads"])
-for _sel in ["Fast", "quick", "", 1, None]:
+for _sel in ["Fast", "quick", "", 1]:
     case(
         f"selection-{_sel!r}",
         lambda sel=_sel: (_base(), {"selection": sel}),

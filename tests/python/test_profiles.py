@@ -123,11 +123,13 @@ def test_haze_floor_estimates_a_clear_type_with_the_floors_ratios():
 def test_paper_profile_is_the_paper_steps():
     img, _ = synth.demo_input(64, 80, seed=2)
     paper = uwhl_rs.restore(img, method="paper")
-    steps = uwhl_rs.restore(img, white_balance="stretch", type_choice="gray_world", haze_floor="none")
+    steps = uwhl_rs.restore(img, white_balance="stretch", type_choice="gray_world", haze_floor="none",
+                            selection="exhaustive")
     assert np.array_equal(paper.image, steps.image) and paper.scores == steps.scores
-    assert uwhl_rs.method_steps(method="paper") == {"method": "paper", "white_balance": "stretch",
-                                                    "type_choice": "gray_world", "haze_floor": "none"}
-    assert uwhl_rs.method_steps() == {"method": "revised", "white_balance": "shades_of_gray",
+    assert uwhl_rs.method_steps(method="paper") == {"method": "paper", "selection": "exhaustive",
+                                                    "white_balance": "stretch", "type_choice": "gray_world",
+                                                    "haze_floor": "none"}
+    assert uwhl_rs.method_steps() == {"method": "revised", "selection": "fast", "white_balance": "shades_of_gray",
                                       "type_choice": "shades_of_gray", "haze_floor": "3C"}
     # an explicit step overrides the profile's
     assert uwhl_rs.method_steps(method="paper", white_balance="white_patch")["white_balance"] == "white_patch"
@@ -167,10 +169,12 @@ def _binary():
 
 
 @pytest.mark.parametrize("flags, steps", [
-    ([], {"method": "revised", "white_balance": "shades_of_gray", "type_choice": "shades_of_gray",
-          "haze_floor": "3C", "t_scale": 0.9}),
-    (["--method", "paper", "--t-scale", "0.8"], {"method": "paper", "white_balance": "stretch",
-                                                 "type_choice": "gray_world", "haze_floor": "none", "t_scale": 0.8}),
+    ([], {"method": "revised", "selection": "fast", "white_balance": "shades_of_gray",
+          "type_choice": "shades_of_gray", "haze_floor": "3C", "t_scale": 0.9}),
+    (["--method", "paper", "--t-scale", "0.8"], {"method": "paper", "selection": "exhaustive",
+                                                 "white_balance": "stretch", "type_choice": "gray_world",
+                                                 "haze_floor": "none", "t_scale": 0.8}),
+    (["--selection", "exhaustive"], {"method": "revised", "selection": "exhaustive"}),
     (["--method", "paper", "--white-balance", "white_patch", "--haze-floor", "1c"],
      {"method": "paper", "white_balance": "white_patch", "type_choice": "gray_world", "haze_floor": "1C"}),
 ])
