@@ -227,8 +227,9 @@ zero = ignore it (e.g. a color chart)",
 nearest object of each haze-line; in (0, 1]",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "method", flag: "--method", short: None, metavar: "PROFILE", kind: Kind::Choice(&["revised", "paper"]),
-        default: Default::Name("revised"), help: "revised: white balance of the restored radiance and the \
-shades-of-gray type choice (METHOD §12); paper: the paper's display stretch and gray-world choice, bit for bit",
+        default: Default::Name("revised"), help: "revised: white balance of the restored radiance, shades-of-gray \
+type choice, haze floor 3C, fast selection (METHOD §12); paper: the paper's method bit for bit (display stretch, \
+gray-world choice with the t_R rule, exhaustive selection)",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "white_balance", flag: "--white-balance", short: None, metavar: "WB",
         kind: Kind::Choice(&["stretch", "gray_world", "shades_of_gray", "white_patch"]),
