@@ -381,10 +381,14 @@ impl<'a> Shared<'a> {
         let top = (0..3).map(|c| gains[c] * at(c)).fold(0.0f64, f64::max);
         let scale = if top > 0.0 { 1.0 / top } else { 1.0 };
         let k: [f32; 3] = gains.map(|g| (g * scale) as f32);
-        radiance
-            .par_chunks(3)
-            .flat_map_iter(|p| (0..3).map(move |c| (p.get(c).copied().unwrap_or(0.0) * k[c]).clamp(0.0, 1.0)))
-            .collect()
+        // allocated at its size once: the memory plan counts one image
+        let mut image = vec![0f32; radiance.len()];
+        image.par_chunks_mut(3).zip(radiance.par_chunks(3)).for_each(|(o, p)| {
+            for ((o, &v), &g) in o.iter_mut().zip(p).zip(&k) {
+                *o = (v * g).clamp(0.0, 1.0);
+            }
+        });
+        image
     }
 
     /// The selection statistics of each type in `types` (in order), and the
