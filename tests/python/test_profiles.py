@@ -208,3 +208,19 @@ def test_bad_step_flags_are_usage_errors_in_both_commands(tmp_path, flag):
         r = subprocess.run([*cmd, str(src), "-o", str(tmp_path / "o"), *flag], capture_output=True, text=True)
         assert r.returncode == 2 and flag[0] in r.stderr, (cmd, r.returncode, r.stderr)
         assert not (tmp_path / "o" / "in.jpg").exists()
+
+
+def test_the_demo_finds_its_own_water_type(tmp_path):
+    """The README's first command on its built-in scene (type III): the
+    revised profile names III (the paper's choice named 3C, with III
+    excluded by the t_R rule); the binary's own rendered scene is within one
+    step (measured: 1C)."""
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "demo", "-o", str(tmp_path / "py")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "true water type:      III" in r.stdout and "estimated water type: III " in r.stdout, r.stdout
+    if _binary():
+        r = subprocess.run([_binary(), "demo", "-o", str(tmp_path / "rs")], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        est = r.stdout.split("estimated water type:")[1].split()[0]
+        assert abs(NAMES.index(est) - NAMES.index("III")) <= 1, r.stdout
