@@ -39,6 +39,8 @@ __all__ = [
     "ImageReadError",
     "FileResult",
     "DEFAULTS",
+    "STEP_KEYS",
+    "method_steps",
     "__version__",
 ]
 
