@@ -316,8 +316,7 @@ def _method_params(**kw) -> _core.Params:
     if unknown:
         raise TypeError(f"unexpected keyword argument(s) {', '.join(unknown)}; the method's are {', '.join(DEFAULTS)}")
     kw = {**DEFAULTS, **kw}
-    water_types, veiling_light, guided_eps, selection = (kw[k] for k in ("water_types", "veiling_light", "guided_eps",
-                                                                          "selection"))
+    water_types, veiling_light, guided_eps = (kw[k] for k in ("water_types", "veiling_light", "guided_eps"))
     if veiling_light is not None:
         try:
             v = np.asarray(veiling_light, dtype=np.float64)
@@ -333,8 +332,6 @@ def _method_params(**kw) -> _core.Params:
         )
     if isinstance(guided_eps, (bool, np.bool_)) or not isinstance(guided_eps, (int, float, np.integer, np.floating)):
         raise ParameterError(f"guided_eps must be a number > 0; got {guided_eps!r}")
-    if selection is not None and not isinstance(selection, str):
-        raise ParameterError(f'selection must be one of {_choices("selection")}; got {selection!r}')
     return _core.Params(
         water_types=water_types,
         veiling_light=veiling_light,
@@ -416,7 +413,9 @@ class Sequence:
     **kwargs
         As :func:`restore` (``water_types``, ``veiling_light``,
         ``guided_radius``, ``guided_eps``, ``sphere_points``, ``threads``,
-        ``max_memory``, ``selection``, ``guided_subsample``).
+        ``max_memory``, ``selection``, ``guided_subsample``, ``t_scale`` and
+        the profile and its steps: ``method``, ``white_balance``,
+        ``type_choice``, ``haze_floor``).
     """
 
     def __init__(self, *, refresh_every: int = 0, reuse_water_mask: bool = False, **kwargs):

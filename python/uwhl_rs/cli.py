@@ -375,9 +375,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     # what a killed run left in the output folders goes first
     for d in sorted({j.out_dir for j in jobs}):
         _core.remove_stale_temps(d)
-    # threads=None: every job works in the one global pool; a fixed count
-    # per job would make concurrent jobs queue on one cached pool
-    threads = a.threads
+    # threads=None (no --threads): every job works in the one global pool; a
+    # fixed count per job would make concurrent jobs queue on one cached pool
     kwargs = dict(
         format=a.format,
         bits=a.bits,
@@ -390,18 +389,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         water_mask=a.water_mask,
         contact=a.contact_sheet,
         water_types=water_types,
-        veiling_light=a.veiling_light,
-        guided_radius=a.guided_radius,
-        guided_eps=a.guided_eps,
-        guided_subsample=a.guided_subsample,
-        sphere_points=a.sphere_points,
-        selection=a.selection,
-        t_scale=a.t_scale,
-        method=a.method,
-        white_balance=a.white_balance,
-        type_choice=a.type_choice,
-        haze_floor=a.haze_floor,
-        threads=threads,
+        **_method_kwargs(a, skip=("max_memory",)),
     )
     if a.max_memory is not None:
         kwargs["max_memory"] = a.max_memory
@@ -610,6 +598,13 @@ def main(argv: list[str] | None = None) -> int:
     return run_restore(a)
 
 
+def _method_kwargs(a: argparse.Namespace, skip=()) -> dict:
+    """The method's keywords of ``restore`` as parsed from the option
+    table's flags (``water_types`` is parsed apart), less those in ``skip``."""
+    return {o["key"]: getattr(a, o["key"]) for o in _core.OPTIONS
+            if o["method"] and o["faces"] != "rust" and o["key"] not in ("water_types", *skip)}
+
+
 def run_evaluate(a: argparse.Namespace, out=None, err=None) -> int:
     """``uwhl evaluate``: returns the exit status (docs/CLI.md's codes)."""
     from . import evaluate as ev
@@ -619,9 +614,7 @@ def run_evaluate(a: argparse.Namespace, out=None, err=None) -> int:
     water_types = _water_types_or_report(a, err)
     if water_types is _BAD:
         return EXIT_USAGE
-    kwargs = {o["key"]: getattr(a, o["key"]) for o in _core.OPTIONS
-              if o["method"] and o["faces"] != "rust" and o["key"] not in ("water_types", "method")
-              and getattr(a, o["key"]) is not None}
+    kwargs = {k: v for k, v in _method_kwargs(a, skip=("method",)).items() if v is not None}
     if water_types is not None:
         kwargs["water_types"] = water_types
     try:

@@ -459,38 +459,34 @@ pub(crate) fn finish(
             (st, transmission)
         }
     };
-    if shared.balance != WhiteBalance::Stretch {
-        shared.floor_transmission(wt, &work.q, &mut transmission);
-        // METHOD §12.1: the choice's statistics from J as scoring saw it
-        let stats = shared.type_stats(&work.j, &st);
-        clock.lap(Stage::ChosenStretch);
-        pool.put(std::mem::take(&mut work.aux), std::mem::take(&mut work.q));
-        let mut radiance = std::mem::take(&mut work.j);
-        let clamp = ArtifactClamp::new(st.lo, st.hi);
-        radiance.par_iter_mut().for_each(|v| *v = clamp.apply(*v));
-        let image = shared.balance_image(&radiance, &shared.object_sums(&radiance, None));
-        if pool.keep {
-            pool.guide = shared.guide.into_guide();
-        }
-        clock.lap(Stage::ChosenOutputs);
-        return Final { radiance, transmission, image, stats };
-    }
     shared.floor_transmission(wt, &work.q, &mut transmission);
-    let sp = shared.stretch(&work.j, &st);
+    // METHOD §8's stretch is the display, or only scores the gray-world choice (METHOD §9)
+    let display = (shared.balance == WhiteBalance::Stretch).then(|| shared.stretch(&work.j, &st));
+    let gray_world = (display.is_none() && shared.choice == TypeChoice::GrayWorld).then(|| shared.type_stats(&work.j, &st));
     clock.lap(Stage::ChosenStretch);
     pool.put(std::mem::take(&mut work.aux), std::mem::take(&mut work.q));
     let mut radiance = std::mem::take(&mut work.j);
-    radiance.par_iter_mut().for_each(|v| *v = sp.clamp.apply(*v));
-    let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
-    let mut sums = st.sums;
-    sums.channels = match shared.choice {
-        TypeChoice::GrayWorld => shared.channel_sums(&image, None),
-        TypeChoice::ShadesOfGray => [0.0; 3],
-    };
-    let stats = match shared.choice {
-        TypeChoice::GrayWorld => sums.stats(),
-        // METHOD §12.2 with the stretch of METHOD §8 for display
-        TypeChoice::ShadesOfGray => TypeStats { score: shared.object_sums(&radiance, None).spread(), tr_diff: None },
+    let clamp = ArtifactClamp::new(st.lo, st.hi);
+    radiance.par_iter_mut().for_each(|v| *v = clamp.apply(*v));
+    let (image, stats) = match display {
+        Some(sp) => {
+            let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
+            let stats = match shared.choice {
+                TypeChoice::GrayWorld => {
+                    let mut sums = st.sums;
+                    sums.channels = shared.channel_sums(&image, None);
+                    sums.stats()
+                }
+                TypeChoice::ShadesOfGray => TypeStats { score: shared.object_sums(&radiance, None).spread(), tr_diff: None },
+            };
+            (image, stats)
+        }
+        None => {
+            // METHOD §12.1-12.2: one pass of power sums serves the balance and the choice
+            let objects = shared.object_sums(&radiance, None);
+            let stats = gray_world.unwrap_or(TypeStats { score: objects.spread(), tr_diff: None });
+            (shared.balance_image(&radiance, &objects), stats)
+        }
     };
     if pool.keep {
         pool.guide = shared.guide.into_guide();
