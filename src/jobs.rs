@@ -154,18 +154,38 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path, suffixes: &[String]) -> (
         }
         seen.insert(real)
     });
+    let names = name_jobs(&found, suffixes);
+    let jobs = found
+        .into_iter()
+        .zip(names)
+        .map(|((p, rel), name)| Job {
+            input: p,
+            dir: outdir.join(&rel),
+            name,
+        })
+        .collect();
+    (jobs, errors)
+}
+
+/// The output names of a batch's inputs, given in discovery order as
+/// (input, folder relative to the output folder): the naming rules of
+/// [`collect_jobs`], which object-storage batches (listed by fsspec, not
+/// walked here) share. Inputs that share a stem in one folder get
+/// `NAME_ext`, then `NAME_ext_2`, ...; a name one of whose output files
+/// (`NAME` + each of `suffixes`, and `NAME.json`) is taken gets `NAME_2`, ...
+pub fn name_jobs(found: &[(PathBuf, PathBuf)], suffixes: &[String]) -> Vec<String> {
     let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let mut count: BTreeMap<(PathBuf, String), usize> = BTreeMap::new();
-    for (p, rel) in &found {
+    for (p, rel) in found {
         *count.entry((rel.clone(), stem(p))).or_insert(0) += 1;
     }
     let mut taken = std::collections::HashSet::new();
-    let jobs = found
-        .into_iter()
+    found
+        .iter()
         .map(|(p, rel)| {
-            let s = stem(&p);
+            let s = stem(p);
             let shared = count.get(&(rel.clone(), s.clone())).copied().unwrap_or(0) > 1;
-            let base = if shared { format!("{s}_{}", extension(&p)) } else { s };
+            let base = if shared { format!("{s}_{}", extension(p)) } else { s };
             let files = |name: &str| -> Vec<(PathBuf, String)> {
                 suffixes
                     .iter()
@@ -181,16 +201,10 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path, suffixes: &[String]) -> (
                 name = format!("{base}_{k}");
             }
             taken.extend(files(&name));
-            Job {
-                input: p,
-                dir: outdir.join(&rel),
-                name,
-            }
+            name
         })
-        .collect();
-    (jobs, errors)
+        .collect()
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -82,6 +82,11 @@ pub enum Kind {
     Rgb,
     /// repeatable: Jerlov names or `NAME:BETA_BR:BETA_BG`, comma lists allowed
     WaterTypes,
+    /// where a batch runs: `local`, `local:N` or a Dask scheduler's address
+    /// (`tcp://HOST:PORT`, `tls://...`, or `HOST:PORT`)
+    Address,
+    /// repeatable: `KEY=VALUE`
+    KeyValue,
 }
 
 impl Kind {
@@ -97,6 +102,8 @@ impl Kind {
             Kind::Subsample => "subsample",
             Kind::Rgb => "rgb",
             Kind::WaterTypes => "water_types",
+            Kind::Address => "address",
+            Kind::KeyValue => "key_value",
         }
     }
 }
@@ -282,6 +289,15 @@ restored input and reuse them in between",
         default: Default::None, help: "peak memory of the process per input, checked from the header before \
 decoding (suffixes K, M, G; default: 16G, or what the machine, its cgroup or ulimit -v gives if less)",
         group: Group::Resources, faces: Faces::Both, method: true },
+    Spec { key: "dask", flag: "--dask", short: None, metavar: "ADDRESS", kind: Kind::Address,
+        default: Default::None, help: "run the batch on a Dask cluster: a scheduler's address (tcp://HOST:PORT) or \
+local:N, a local cluster of N worker processes (docs/SCALE.md); inputs and OUTDIR may then be fsspec URLs \
+(s3://, gs://, ...)",
+        group: Group::Resources, faces: Faces::Python, method: false },
+    Spec { key: "storage_option", flag: "--storage-option", short: None, metavar: "KEY=VALUE", kind: Kind::KeyValue,
+        default: Default::None, help: "an fsspec storage option for URL inputs and outputs (repeatable), e.g. \
+endpoint_url=http://127.0.0.1:9000, anon=true, profile=survey; values true/false/null and numbers are read as such",
+        group: Group::Resources, faces: Faces::Python, method: false },
     Spec { key: "jobs", flag: "--jobs", short: Some('j'), metavar: "N", kind: Kind::Int { min: 1, max: 1024 },
         default: Default::Int(1), help: "inputs restored at once (1: one input is written while the next is restored)",
         group: Group::Resources, faces: Faces::Python, method: false },
@@ -387,6 +403,28 @@ impl Spec {
                     Ok(Value::Text(text.to_string()))
                 }
             }
+            Kind::Address => {
+                let port = |p: &str| p.parse::<u16>().is_ok_and(|n| n > 0);
+                let ok = match t.split_once(':') {
+                    None => t == "local",
+                    Some(("local", n)) => n.parse::<u64>().is_ok_and(|n| (1..=1024).contains(&n)),
+                    Some((_, rest)) if rest.starts_with("//") => {
+                        let hostport = &rest[2..];
+                        hostport.rsplit_once(':').is_some_and(|(h, p)| !h.is_empty() && port(p))
+                    }
+                    Some((h, p)) => !h.is_empty() && port(p),
+                };
+                if ok {
+                    Ok(Value::Text(t.to_string()))
+                } else {
+                    Err(bad("is not local, local:N (1..1024 worker processes) or a scheduler address \
+(tcp://HOST:PORT)".into()))
+                }
+            }
+            Kind::KeyValue => match t.split_once('=') {
+                Some((k, _)) if !k.trim().is_empty() => Ok(Value::Text(t.to_string())),
+                _ => Err(bad("is not KEY=VALUE".into())),
+            },
             Kind::Subsample => match t {
                 "auto" => Ok(Value::Int(0)),
                 _ => t
@@ -527,6 +565,7 @@ pub const EXIT_CODES: &[(u8, &str, &str)] = &[
     (4, "over_budget", "an input is over --max-pixels or --max-memory"),
     (5, "write_failed", "an output could not be written"),
     (6, "internal", "internal error (a bug; please report it)"),
+    (7, "unreachable", "the Dask scheduler or the storage could not be reached, or refused the credentials"),
     (130, "interrupted", "interrupted (SIGINT); run the same command again to resume"),
 ];
 
@@ -577,6 +616,23 @@ mod tests {
         // the default follows the machine (crate::budget::default_max_memory)
         assert_eq!(spec("max_memory").map(Spec::default_text).as_deref(), Some(""));
         assert_eq!(spec("guided_eps").map(Spec::default_text).as_deref(), Some("0.001"));
+    }
+
+    #[test]
+    fn addresses_and_storage_options_parse() {
+        let d = spec("dask").unwrap();
+        for good in ["local", "local:1", "local:16", "tcp://10.0.0.5:8786", "tls://sched.example:8786", "sched:8786"] {
+            assert_eq!(d.parse(good).ok(), Some(Value::Text(good.to_string())), "{good}");
+        }
+        for bad in ["", "loc", "local:0", "local:x", "tcp://host", "tcp://:8786", "host:0", "host:99999", ":8786"] {
+            assert!(d.parse(bad).unwrap_err().contains("--dask"), "{bad}");
+        }
+        let so = spec("storage_option").unwrap();
+        assert_eq!(so.parse("anon=true").ok(), Some(Value::Text("anon=true".into())));
+        assert_eq!(so.parse("key=").ok(), Some(Value::Text("key=".into())));
+        for bad in ["anon", "=x", " =x", ""] {
+            assert!(so.parse(bad).unwrap_err().contains("KEY=VALUE"), "{bad}");
+        }
     }
 
     #[test]

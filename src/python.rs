@@ -208,7 +208,7 @@ impl PyParams {
                     let (r, g, b): (f64, f64, f64) = v.extract().map_err(|_| wrong("3 numbers (R, G, B)"))?;
                     Value::Rgb([r, g, b])
                 }
-                Kind::Flag | Kind::Path => return Err(wrong("a value of this keyword")),
+                Kind::Flag | Kind::Path | Kind::Address | Kind::KeyValue => return Err(wrong("a value of this keyword")),
             };
             params.set(s.key, &value).map_err(to_py_err)?;
         }
@@ -307,6 +307,16 @@ fn collect_jobs(
 ) -> (Vec<(std::path::PathBuf, std::path::PathBuf, String)>, Vec<(std::path::PathBuf, String)>) {
     let (jobs, problems) = py.detach(|| crate::jobs::collect_jobs(&inputs, &out_dir, &suffixes));
     (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
+}
+
+/// The output names of inputs listed elsewhere (object storage), given in
+/// discovery order as `(input, folder relative to the output folder)`:
+/// the naming of `collect_jobs` (`crate::jobs::name_jobs`).
+#[pyfunction]
+fn name_jobs(found: Vec<(String, String)>, suffixes: Vec<String>) -> Vec<String> {
+    let found: Vec<(std::path::PathBuf, std::path::PathBuf)> =
+        found.into_iter().map(|(p, r)| (p.into(), r.into())).collect();
+    crate::jobs::name_jobs(&found, &suffixes)
 }
 
 /// An input's claimed output names (`crate::commit::Claim`): temporaries
@@ -679,6 +689,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
+    m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;

@@ -70,6 +70,8 @@ def _add_options(parser: argparse.ArgumentParser, method_only: bool = False) -> 
             kw["action"] = "store_true"
         elif o["kind"] == "water_types":
             kw.update(action="append", metavar=o["metavar"])
+        elif o["kind"] == "key_value":
+            kw.update(action="append", metavar=o["metavar"], type=_option_type(o["key"]))
         else:
             kw.update(type=_option_type(o["key"]), metavar=o["metavar"], default=o["default"])
         g.add_argument(*names, **kw)
@@ -360,6 +362,14 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         if path is not None and not os.path.isfile(path):
             _report(err, a.json_errors, None, "bad_arguments", f"{flag} {path}: no such file")
             return EXIT_USAGE
+    from . import batch
+
+    if a.dask is not None or any(batch.is_url(p) for p in [*a.inputs, a.out]):
+        return _run_batch(a, water_types, out, err)
+    if a.storage_option:
+        _report(err, a.json_errors, None, "bad_arguments",
+                "--storage-option is for URL inputs or outputs (s3://, gs://, ...) and --dask")
+        return EXIT_USAGE
     if a.reuse_estimates is not None and a.jobs != 1:
         _report(err, a.json_errors, None, "bad_arguments",
                 "--reuse-estimates restores the inputs in order; it needs --jobs 1")
@@ -526,6 +536,65 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
                 f"interrupted after {len(outcomes) - len(problems)} of {len(jobs)} inputs; "
                 "run the same command again to resume")
         return EXIT_INTERRUPTED
+    if failed and not a.json_errors:
+        err.write(f"uwhl: {len(failed)} input(s) failed\n")
+    return max((o.code for o in outcomes), default=EXIT_OK)
+
+
+def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
+    """``uwhl restore`` on a Dask cluster (``--dask``) or with URL inputs or
+    outputs: ``uwhl_rs.batch`` (docs/SCALE.md), with the local run's
+    progress, summary and exit codes."""
+    from . import batch
+
+    if a.jobs != 1:
+        _report(err, a.json_errors, None, "bad_arguments",
+                "--jobs is for runs in this process; on a cluster (--dask) every worker takes one input at a time "
+                "per thread")
+        return EXIT_USAGE
+    try:
+        so = batch.parse_storage_options(a.storage_option)
+    except ValueError as e:
+        _report(err, a.json_errors, None, "bad_arguments", str(e))
+        return EXIT_USAGE
+    options = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
+                   max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
+                   contact=a.contact_sheet, water_types=water_types, **_method_kwargs(a, skip=("max_memory",)))
+    if a.max_memory is not None:
+        options["max_memory"] = a.max_memory
+    progress = Progress(0, err, a.quiet)
+    t0 = time.perf_counter()
+
+    def announce(text: str) -> None:
+        if not a.quiet:
+            err.write(f"uwhl: {text}\n")
+            err.flush()
+
+    try:
+        result = batch.run_batch(a.inputs, a.out, dask=a.dask, storage_options=so, overwrite=a.overwrite,
+                                 reuse_estimates=a.reuse_estimates, reuse_water_mask=a.reuse_water_mask,
+                                 bar=batch._Bar(progress, err, a.json_errors), options=options, announce=announce)
+    except batch.BatchError as e:
+        _report(err, a.json_errors, None, e.kind, str(e))
+        return EXIT[e.kind]
+    except KeyboardInterrupt:
+        _report(err, a.json_errors, None, "interrupted", "interrupted; run the same command again to resume")
+        return EXIT_INTERRUPTED
+    progress.close()
+    if not result.rows and not result.interrupted:
+        err.write("uwhl: nothing to do\n")
+        return EXIT_OK
+    status = {"done": "ok", "skipped": "skipped", "failed": "failed"}
+    outcomes = [Outcome(Job(r["input"], "", ""), status[r["status"]], r["water_type"] or "", r["seconds"] or 0.0,
+                        (r["flags"] or "") if r["status"] == "done" else (r["error"] or ""), int(r["exit_code"] or 0))
+                for r in result.rows]
+    if not a.quiet:
+        _summary(outcomes, out, time.perf_counter() - t0)
+    if result.interrupted:
+        _report(err, a.json_errors, None, "interrupted",
+                f"interrupted after {len(result.rows)} of {result.total} inputs; run the same command again to resume")
+        return EXIT_INTERRUPTED
+    failed = [o for o in outcomes if o.status == "failed"]
     if failed and not a.json_errors:
         err.write(f"uwhl: {len(failed)} input(s) failed\n")
     return max((o.code for o in outcomes), default=EXIT_OK)

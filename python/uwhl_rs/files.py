@@ -27,7 +27,7 @@ from .io import (
     write_image,
 )
 
-__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "FORMATS"]
+__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "FORMATS"]
 
 #: Every option's default, from the core's one table (docs/CLI.md).
 _D = {o["key"]: o["default"] for o in _core.OPTIONS}
@@ -108,6 +108,22 @@ def _max_side_factor(h: int, w: int, n: int | None) -> int:
     return 1 if not n else max(1, -(-max(h, w) // max(1, int(n))))
 
 
+def input_need(h: int, w: int, bpp: int, oriented: bool, *, half_size: bool = False, max_side: int | None = None,
+               preprocess: str = "none", masks: int = 0, contact: bool = False) -> int:
+    """Bytes one input of ``h`` x ``w`` pixels (``bpp`` decoded bytes per
+    pixel, ``oriented``: rotated on reading) needs from decoding to its last
+    output: the binary's plan (``_core.input_plan``) with what the Python
+    writers add. The process's own base is not included."""
+    if half_size:
+        h, w = (h + 1) // 2, (w + 1) // 2
+    s = _max_side_factor(h, w, max_side)
+    # Pillow's or LibRaw's buffer and its numpy copy are both alive: never "already RGB"
+    # ... and, writing, the display copy of the image and Pillow's copy of its codes (20 B/px)
+    plan = _core.input_plan(h, w, bpp, False, oriented, s, preprocess == "reference", masks, 20)
+    # the contact sheet: four cells of at most 360 px a side, and their labels
+    return plan + ((8 << 20) if contact else 0)
+
+
 def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwargs) -> FileResult:
     """Restore one photograph and write its outputs (docs/OUTPUTS.md).
 
@@ -151,6 +167,7 @@ def _restore_staged(
     sequence=None,
     _claim=None,
     _base: int = 0,
+    _label: str | None = None,
     **restore_kwargs,
 ) -> Callable[[], FileResult]:
     """:func:`restore_file` in two steps: this call reads and restores the
@@ -167,7 +184,11 @@ def _restore_staged(
     (decoding, ``max_side``, ``restore``, the outputs: the binary's plan,
     ``_core.input_plan``) plus ``_base`` (the command: what the process
     holds anyway, ``_core.process_base()``) is checked against
-    ``max_memory`` (default ``_core.default_max_memory()``)."""
+    ``max_memory`` (default ``_core.default_max_memory()``).
+
+    ``_label`` (batches on object storage): the input's name in the sidecar
+    (``input``, ``source.path``) and in errors, when ``in_path`` is a local
+    copy of it."""
     t_start = time.perf_counter()
     in_path = os.fspath(in_path)
     out_dir = os.fspath(out_dir)
@@ -191,7 +212,8 @@ def _restore_staged(
         staged = _read_and_restore(in_path, out_dir, claim, format=format, bits=bits, quality=quality, preprocess=preprocess,
                                    half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask,
                                    water_mask=water_mask, contact=contact, sequence=sequence,
-                                   restore_kwargs=restore_kwargs, t_start=t_start, base=_base)
+                                   restore_kwargs=restore_kwargs, t_start=t_start, base=_base,
+                                   label=_label or in_path)
     except BaseException:
         claim.release()
         raise
@@ -199,7 +221,7 @@ def _restore_staged(
 
 
 def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preprocess, half_size, max_side, max_pixels, mask,
-                      water_mask, contact, sequence, restore_kwargs, t_start, base) -> Callable[[], FileResult]:
+                      water_mask, contact, sequence, restore_kwargs, t_start, base, label) -> Callable[[], FileResult]:
     """The body of :func:`_restore_staged` once the names are claimed."""
     import uwhl_rs
 
@@ -208,19 +230,13 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
     masks = int(mask is not None) + int(water_mask is not None)
 
     def plan(h: int, w: int, bpp: int, oriented: bool) -> None:
-        if half_size:
-            h, w = (h + 1) // 2, (w + 1) // 2
-        s = _max_side_factor(h, w, max_side)
-        # Pillow's or LibRaw's buffer and its numpy copy are both alive: never "already RGB"
-        # ... and, writing, the display copy of the image and Pillow's copy of its codes
-        plan = _core.input_plan(h, w, bpp, False, oriented, s, preprocess == "reference", masks, 20)
-        # the contact sheet: four cells of at most 360 px a side, and their labels
-        need = plan + base + ((8 << 20) if contact else 0)
+        need = input_need(h, w, bpp, oriented, half_size=half_size, max_side=max_side, preprocess=preprocess,
+                          masks=masks, contact=contact) + base
         if need > budget:
-            raise ImageTooLargeError(f"{in_path}: {w}x{h} pixels need about {need} bytes, over max_memory {budget} "
+            raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, over max_memory {budget} "
                                      "(use max_side or raise max_memory)")
-        if not _core.can_allocate(plan):
-            raise ImageTooLargeError(f"{in_path}: {w}x{h} pixels need about {need} bytes, more than the system "
+        if not _core.can_allocate(need - base):
+            raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, more than the system "
                                      "gives now (free memory, a container limit or ulimit -v); use max_side")
 
     image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels,
@@ -267,12 +283,13 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
             t_sheet = time.perf_counter() - t_sheet
             t_end = time.perf_counter()
             sidecar = {
-                "input": in_path,
+                "input": label,
                 "outputs": {k: os.path.basename(v) for k, v in paths.items() if k != "sidecar"},
                 "uwhl_version": uwhl_rs.__version__,
                 "implementation": "python",
                 "source": {
                     **meta.to_dict(),
+                    "path": label,
                     "height": int(full_hw[0]),
                     "width": int(full_hw[1]),
                     "processed_height": int(res.transmission.shape[0]),
@@ -311,7 +328,7 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
             try:
                 claim.commit(temps)
             except OSError as e:
-                raise OSError(e.errno, f"cannot write the outputs of {in_path} in {out_dir}: {e.strerror or e}") from None
+                raise OSError(e.errno, f"cannot write the outputs of {label} in {out_dir}: {e.strerror or e}") from None
         finally:
             # committed: nothing left to release; failed: the temporaries go
             claim.release()
