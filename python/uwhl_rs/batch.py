@@ -336,7 +336,7 @@ _Planned = _planned_type()
 def _header_need(path: str, opts: dict) -> int:
     """Bytes the input at local ``path`` needs (files.input_need), from its header."""
     from .files import input_need
-    from .io import read_image
+    from .io import DEFAULT_MAX_PIXELS, read_image
 
     got = []
     masks = int(opts.get("mask") is not None) + int(opts.get("water_mask") is not None)
@@ -349,7 +349,7 @@ def _header_need(path: str, opts: dict) -> int:
 
     try:
         read_image(path, preprocess=opts.get("preprocess", "none"), half_size=opts.get("half_size", False),
-                   max_pixels=opts.get("max_pixels", _core.DEFAULT_MAX_PIXELS), _on_header=hook)
+                   max_pixels=opts.get("max_pixels", DEFAULT_MAX_PIXELS), _on_header=hook)
     except _Planned:
         pass
     if not got:

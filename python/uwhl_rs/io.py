@@ -207,7 +207,11 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
     if kind in ("JPEG", "PNG"):
         with _pillow_limit(), Image.open(path) as im:
             _check_pixels(path, im.height, im.width, max_pixels)
-            orientation = int(im.getexif().get(0x0112, 1) or 1)
+            # Pillow's PNG getexif() decodes the whole image to look for an
+            # eXIf chunk after the data; the plan comes before any decoding,
+            # so a PNG's orientation is read from the chunks before its data
+            has_exif = kind == "JPEG" or "exif" in im.info
+            orientation = int(im.getexif().get(0x0112, 1) or 1) if has_exif else 1
             mode = im.mode
             wide = kind == "PNG" and _png_bit_depth(path) == 16
             if on_header is not None:

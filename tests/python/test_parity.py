@@ -24,7 +24,7 @@ import uwhl_rs
 from uwhl_rs import _core, synth
 
 CONTRACT = {"ok": 0, "bad_arguments": 2, "unreadable_input": 3, "over_budget": 4, "write_failed": 5,
-            "internal": 6, "interrupted": 130}
+            "internal": 6, "unreachable": 7, "interrupted": 130}
 
 # fields of the sidecar both commands must write alike (the estimates and the
 # options that are not face-specific)
