@@ -45,7 +45,7 @@ _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 #: summary columns, in order
 COLUMNS = ["input", "status", "water_type", "A_R", "A_G", "A_B", "flags", "seconds", "image", "transmission",
            "transmission_color", "contact_sheet", "sidecar", "reused_estimates", "error_kind", "error", "exit_code",
-           "attempts", "worker"]
+           "worker"]
 
 
 class BatchError(Exception):
@@ -393,7 +393,7 @@ def _worker_resources(threads_default: int | None) -> tuple[int | None, int | No
 
 def _row(item: Item, status: str, **kw) -> dict:
     r = {c: None for c in COLUMNS}
-    r.update(input=item.input, status=status, attempts=1)
+    r.update(input=item.input, status=status)
     w = _worker()
     r["worker"] = w.address if w is not None else f"{socket.gethostname()}:{os.getpid()}"
     r.update(kw)
@@ -568,6 +568,27 @@ def _connect(client, dask: str | None, threads: int | None):
     return c, None, threads
 
 
+def _check_workers(client) -> None:
+    """The workers have this uwhl_rs (another version would write other
+    outputs; none would fail every task)."""
+    import importlib.metadata
+
+    import uwhl_rs
+
+    try:
+        found = client.run(importlib.metadata.version, "uwhl_rs", on_error="return")
+    except Exception as e:
+        raise BatchError(f"cannot ask the Dask workers for their uwhl_rs ({type(e).__name__}: {e})") from None
+    if not found:
+        raise BatchError("the Dask cluster has no workers")
+    wrong = {w: v for w, v in found.items() if v != uwhl_rs.__version__}
+    if wrong:
+        w, v = sorted(wrong.items())[0]
+        v = "no uwhl_rs" if isinstance(v, BaseException) else f"uwhl_rs {v}"
+        raise BatchError(f"{len(wrong)} of {len(found)} Dask workers do not run uwhl_rs {uwhl_rs.__version__} "
+                         f"(worker {w}: {v}); install the same version on the workers", "bad_arguments")
+
+
 def _memory_of_workers(client) -> list[int] | None:
     """Every worker's MEMORY resource, or None when some worker has none
     (then tasks ask for no resource, and each worker checks its own limit)."""
@@ -723,6 +744,7 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage
                 for row, it in zip(_restore_items(g, opts, so, overwrite, reuse_estimates, reuse_water_mask), g):
                     settle(it.index, row)
         else:
+            _check_workers(c)
             if announce is not None:
                 announce(f"Dask dashboard: {c.dashboard_link}")
             _run_on_cluster(c, groups, opts, so, overwrite, reuse_estimates, reuse_water_mask, settle)

@@ -480,3 +480,22 @@ def test_without_the_extra_the_error_says_what_to_install(inputs, tmp_path):
             "print(sorted(m for m in ('dask', 'distributed', 'fsspec', 's3fs', 'pandas') if m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.stdout.strip() == "[]", r.stdout + r.stderr
+
+
+def test_workers_without_this_uwhl_rs_are_refused(inputs, tmp_path):
+    """A worker that cannot import uwhl_rs (or has another version) would
+    fail or change every task: the batch does not start."""
+    import importlib.metadata
+
+    c, cl, _ = batch._connect(None, "local:1", None)
+    try:
+        def hide():  # on the worker: its package metadata now says another version
+            importlib.metadata.version = lambda name: "0.0.0-other"
+
+        c.run(hide)
+        with pytest.raises(batch.BatchError, match=r"1 of 1 Dask workers do not run uwhl_rs .*0\.0\.0-other"):
+            batch.restore_many(inputs, str(tmp_path / "o"), client=c)
+        assert not os.listdir(tmp_path / "o")
+    finally:
+        c.close()
+        cl.close()
