@@ -206,6 +206,20 @@ def _kill_a_busy_worker(client, stop: threading.Event, killed: list):
         time.sleep(0.02)
 
 
+def _batch_with_a_kill(c, src, out, threads):
+    """Runs the batch while one busy worker is SIGKILLed; its rows."""
+    stop, killed = threading.Event(), []
+    killer = threading.Thread(target=_kill_a_busy_worker, args=(c, stop, killed))
+    killer.start()
+    try:
+        df = batch.restore_many(src, out, client=c, threads=threads)
+    finally:
+        stop.set()
+        killer.join()
+    assert killed, "no worker was busy long enough to be killed"
+    return df
+
+
 def test_a_worker_killed_mid_batch_loses_nothing(tmp_path):
     src = make_inputs(str(tmp_path / "in"), n=10, size=(360, 480), bad=False)
     local = str(tmp_path / "local")
@@ -213,13 +227,7 @@ def test_a_worker_killed_mid_batch_loses_nothing(tmp_path):
     c, cl, threads = batch._connect(None, "local:2", None)
     try:
         out = str(tmp_path / "dask")
-        stop, killed = threading.Event(), []
-        killer = threading.Thread(target=_kill_a_busy_worker, args=(c, stop, killed))
-        killer.start()
-        df = batch.restore_many(src, out, client=c, threads=threads)
-        stop.set()
-        killer.join()
-        assert killed, "no worker was busy long enough to be killed"
+        df = _batch_with_a_kill(c, src, out, threads)
         # every input ends done (the killed worker's task ran again elsewhere)
         assert list(df.status) == ["done"] * 10, df[["input", "status", "error"]]
         # ... with complete outputs that decode and equal the local run's
@@ -246,13 +254,7 @@ def test_a_task_that_keeps_killing_workers_is_reported_failed(tmp_path):
         c, cl, threads = batch._connect(None, "local:2", None)
     try:
         out = str(tmp_path / "dask")
-        stop, killed = threading.Event(), []
-        killer = threading.Thread(target=_kill_a_busy_worker, args=(c, stop, killed))
-        killer.start()
-        df = batch.restore_many(src, out, client=c, threads=threads)
-        stop.set()
-        killer.join()
-        assert killed
+        df = _batch_with_a_kill(c, src, out, threads)
         failed = df[df.status == "failed"]
         assert len(failed) >= 1 and set(df.status) <= {"done", "failed"}
         for _, row in failed.iterrows():
