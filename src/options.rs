@@ -198,6 +198,10 @@ pub const OPTIONS: &[Spec] = &[
         default: Default::Off, help: "also write NAME_sheet.png: every water type's restoration side by side, \
 labelled with its score, the chosen one framed, the water region overlaid on the input",
         group: Group::Output, faces: Faces::Python, method: false },
+    Spec { key: "report", flag: "--report", short: None, metavar: "", kind: Kind::Flag,
+        default: Default::Off, help: "after the batch, write OUTDIR/report/index.html: thumbnails, water types, \
+the sequence, flagged photos first (uwhl report)",
+        group: Group::Output, faces: Faces::Python, method: false },
     // input
     Spec { key: "preprocess", flag: "--preprocess", short: None, metavar: "MODE", kind: Kind::Choice(&["none", "reference"]),
         default: Default::Name("none"), help: "none: sRGB decoded to linear; reference: the reference code's \

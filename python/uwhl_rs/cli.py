@@ -142,6 +142,17 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--size", default="480x640", help="HxW of the scene (default 480x640)")
     d.add_argument("--seed", type=int, default=7, help="scene seed (default 7)")
 
+    rp = sub.add_parser(
+        "report",
+        help="one page for a batch: thumbnails, water types, the sequence, flagged photos first",
+        description="Write OUTDIR/report/index.html from the sidecars under OUTDIR (docs/REPORT.md): the "
+        "flagged photos first, a histogram of the water types, water type, A and score over the sequence, and a "
+        "paginated grid of before/after thumbnails (written once into OUTDIR/report/thumbs) that open the "
+        "full-size photo and its transmission map.",
+    )
+    rp.add_argument("out", metavar="OUTDIR", help="an output folder of uwhl restore or uwhl-rs restore")
+    rp.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+
     e = sub.add_parser(
         "evaluate",
         help="the paper's colour and distance metrics on annotated photos, beside baselines",
@@ -538,7 +549,10 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         return EXIT_INTERRUPTED
     if failed and not a.json_errors:
         err.write(f"uwhl: {len(failed)} input(s) failed\n")
-    return max((o.code for o in outcomes), default=EXIT_OK)
+    code = max((o.code for o in outcomes), default=EXIT_OK)
+    if a.report:
+        code = max(code, run_report(a.out, a.quiet, out, err))
+    return code
 
 
 def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
@@ -547,6 +561,10 @@ def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
     progress, summary and exit codes."""
     from . import batch
 
+    if a.report and batch.is_url(a.out):
+        _report(err, a.json_errors, None, "bad_arguments",
+                "--report writes into a local OUTDIR; run uwhl report on a local copy of the outputs")
+        return EXIT_USAGE
     if a.jobs != 1:
         _report(err, a.json_errors, None, "bad_arguments",
                 "--jobs is for runs in this process; on a cluster (--dask) every worker takes one input at a time "
@@ -597,7 +615,10 @@ def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
     failed = [o for o in outcomes if o.status == "failed"]
     if failed and not a.json_errors:
         err.write(f"uwhl: {len(failed)} input(s) failed\n")
-    return max((o.code for o in outcomes), default=EXIT_OK)
+    code = max((o.code for o in outcomes), default=EXIT_OK)
+    if a.report:
+        code = max(code, run_report(a.out, a.quiet, out, err))
+    return code
 
 
 def _summary(outcomes: list[Outcome], out, total: float) -> None:
@@ -664,7 +685,32 @@ def main(argv: list[str] | None = None) -> int:
         return run_demo(a.out, a.water_type, (h, w), a.seed)
     if a.cmd == "evaluate":
         return run_evaluate(a)
+    if a.cmd == "report":
+        return run_report(a.out, a.quiet)
     return run_restore(a)
+
+
+def run_report(out_dir: str, quiet: bool = False, out=None, err=None) -> int:
+    """``uwhl report OUTDIR`` (and ``--report``): returns the exit status."""
+    from . import report
+
+    out = out or sys.stdout
+    err = err or sys.stderr
+    if not os.path.isdir(out_dir):
+        _report(err, False, out_dir, "unreadable_input", "no such folder")
+        return EXIT["unreadable_input"]
+    try:
+        done = report.write_report(out_dir)
+    except OSError as e:
+        _report(err, False, out_dir, "write_failed", f"cannot write the report: {_describe(e)}")
+        return EXIT["write_failed"]
+    if not quiet:
+        out.write(f"report: {done['path']} ({done['photos']} photos, {done['flagged']} flagged, "
+                  f"{done['thumbnails_written']} thumbnails written, {done['seconds']:.1f} s)\n")
+        for p in done["problems"][:20]:
+            out.write(f"  note: {p}\n")
+        out.flush()
+    return EXIT_OK
 
 
 def _method_kwargs(a: argparse.Namespace, skip=()) -> dict:

@@ -1,0 +1,46 @@
+"""How long ``uwhl report`` takes for a large batch (docs/REPORT.md):
+restores N rendered photos (not timed), then times the report's first run
+(every thumbnail written) and a second run (thumbnails kept), and the
+page's size.
+
+    python3 benches/report_scale.py [--n 1000] [--size 480x640]
+"""
+
+import argparse
+import os
+import shutil
+import tempfile
+import time
+
+from uwhl_rs import batch, report, synth
+from uwhl_rs.io import write_image
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=1000)
+    ap.add_argument("--size", default="480x640")
+    a = ap.parse_args()
+    h, w = (int(v) for v in a.size.split("x"))
+    root = tempfile.mkdtemp(prefix="uwhl-report-bench-")
+    src, out = os.path.join(root, "in"), os.path.join(root, "out")
+    os.makedirs(src)
+    for k in range(a.n):
+        img, _ = synth.demo_input(h, w, water_type=["III", "1C", "II", "3C", "IB"][k % 5], seed=k % 25)
+        write_image(os.path.join(src, f"p{k:05d}.jpg"), img, encoding="linear")
+    t = time.perf_counter()
+    batch.run_batch([src], out, options={"selection": "fast"})
+    print(f"{a.n} photos of {w}x{h} restored in {time.perf_counter() - t:.0f} s (not the report's time)")
+    for label in ("first run (thumbnails written)", "second run (thumbnails kept)"):
+        done = report.write_report(out)
+        print(f"report, {label}: {done['seconds']:.2f} s for {done['photos']} photos, "
+              f"{done['thumbnails_written']} thumbnails written")
+    page = os.path.getsize(done["path"])
+    thumbs = sum(os.path.getsize(os.path.join(out, "report", "thumbs", f))
+                 for f in os.listdir(os.path.join(out, "report", "thumbs")))
+    print(f"index.html {page / 1e6:.2f} MB; thumbnails {thumbs / 1e6:.1f} MB in all")
+    shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

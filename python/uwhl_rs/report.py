@@ -1,0 +1,351 @@
+"""``uwhl report OUTDIR``: one page for a whole batch (docs/REPORT.md).
+
+Reads the sidecars under OUTDIR, writes small thumbnails once
+(``OUTDIR/report/thumbs/``) and ``OUTDIR/report/index.html``: the photos
+that need a look first (their flags), a histogram of the water types, the
+water type, A and the choice's score over the sequence, and a grid of
+before/after thumbnails, paginated in the page, that open the full-size
+photo and its transmission map. The page needs nothing but the files
+beside it: no network, no script library.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE"]
+
+#: the report's folder inside OUTDIR
+REPORT_DIR = "report"
+#: the longer side of a thumbnail, in pixels
+THUMB_SIDE = 256
+#: thumbnails per page of the grid
+PAGE_SIZE = 120
+
+#: flags that say something the operator should look at (``estimates_reused`` is the plan of a sequence)
+ROUTINE_FLAGS = ("estimates_reused",)
+
+_TYPE_COLORS = {"I": "#08306b", "IA": "#08519c", "IB": "#2171b5", "II": "#4292c6", "III": "#6baed6",
+                "1C": "#41ab5d", "3C": "#238b45", "5C": "#006d2c", "7C": "#8c6d31", "9C": "#5b4a1f"}
+
+
+@dataclass
+class Photo:
+    """One restored input, as its sidecar tells."""
+
+    sidecar: str  # path, relative to OUTDIR
+    doc: dict
+
+    @property
+    def folder(self) -> str:
+        return os.path.dirname(self.sidecar)
+
+    def output(self, role: str) -> str | None:
+        name = (self.doc.get("outputs") or {}).get(role)
+        return None if not name else os.path.join(self.folder, name)
+
+    @property
+    def flags(self) -> list[str]:
+        return [f for f in self.doc.get("flags") or [] if f not in ROUTINE_FLAGS]
+
+
+def _is_sidecar(doc) -> bool:
+    return isinstance(doc, dict) and "water_type" in doc and isinstance(doc.get("outputs"), dict) and "input" in doc
+
+
+def collect_sidecars(out_dir: str) -> tuple[list[Photo], list[str]]:
+    """Every sidecar under ``out_dir`` (the report's own folder and hidden
+    entries skipped), in path order, and the problems (unreadable ones)."""
+    photos, problems = [], []
+    for d, dirs, files in os.walk(out_dir):
+        rel_d = os.path.relpath(d, out_dir)
+        dirs[:] = sorted(x for x in dirs if not x.startswith(".") and not (rel_d == "." and x == REPORT_DIR))
+        for f in sorted(files):
+            if not f.endswith(".json") or f.startswith("."):
+                continue
+            p = os.path.join(d, f)
+            try:
+                with open(p, encoding="utf-8") as fh:
+                    doc = json.load(fh)
+            except (OSError, ValueError) as e:
+                problems.append(f"{p}: cannot read ({type(e).__name__}: {e})")
+                continue
+            if _is_sidecar(doc):
+                photos.append(Photo(os.path.relpath(p, out_dir), doc))
+    photos.sort(key=lambda ph: tuple(ph.sidecar.split(os.sep)))
+    return photos, problems
+
+
+# ---------------------------------------------------------------- thumbnails
+
+
+def _open_small(path: str, side: int):
+    """An 8-bit RGB Pillow image of ``path`` at most ``side`` pixels a side,
+    decoded as cheaply as the format allows (JPEG: DCT scaling; raw: the
+    embedded preview)."""
+    from PIL import Image, ImageOps
+
+    from .io import RAW_EXTENSIONS
+
+    ext = os.path.splitext(path)[1].lower()
+    if ext in RAW_EXTENSIONS:
+        import io as _io
+
+        import rawpy
+
+        with rawpy.imread(path) as raw:
+            try:
+                th = raw.extract_thumb()
+            except (rawpy.LibRawNoThumbnailError, rawpy.LibRawUnsupportedThumbnailError):
+                th = None
+            if th is not None and th.format == rawpy.ThumbFormat.JPEG:
+                im = Image.open(_io.BytesIO(th.data))
+            else:
+                im = Image.fromarray(raw.postprocess(half_size=True, use_camera_wb=True))
+        im = ImageOps.exif_transpose(im)
+    else:
+        im = Image.open(path)
+        if im.format == "JPEG":
+            im.draft("RGB", (side, side))
+        im = ImageOps.exif_transpose(im)
+        if im.mode not in ("RGB", "L"):
+            if im.mode in ("I;16", "I;16B", "I") or im.format == "TIFF":
+                im = _from_array(path)
+            else:
+                im = im.convert("RGB")
+    im.thumbnail((side, side))
+    return im.convert("RGB")
+
+
+def _from_array(path: str):
+    """16-bit or float files Pillow cannot make RGB of: through our reader."""
+    from PIL import Image
+
+    from .io import read_image, to_srgb
+
+    img, meta = read_image(path)
+    s = max(1, -(-max(img.shape[:2]) // (THUMB_SIDE * 2)))
+    small = img[::s, ::s]
+    return Image.fromarray((np.clip(to_srgb(small, meta), 0, 1) * 255 + 0.5).astype(np.uint8))
+
+
+def _thumb(src: str, dst: str, side: int) -> str | None:
+    """Writes the thumbnail of ``src`` at ``dst`` unless one newer than
+    ``src`` is there: "written", "kept", or why not."""
+    try:
+        if os.path.exists(dst) and os.path.getmtime(dst) >= os.path.getmtime(src):
+            return "kept"
+    except OSError:
+        return f"{src}: not found"
+    try:
+        im = _open_small(src, side)
+        tmp = dst + ".tmp"
+        im.save(tmp, "JPEG", quality=82)
+        os.replace(tmp, dst)
+        return "written"
+    except Exception as e:  # one unreadable file leaves its cell empty, never the page
+        return f"{src}: no thumbnail ({type(e).__name__}: {e})"
+
+
+# ---------------------------------------------------------------- charts
+
+
+def _histogram_svg(counts: dict) -> str:
+    names = list(counts)
+    top = max(counts.values()) if counts else 1
+    bw, gap, H, top_pad = 34, 10, 150, 18
+    out = [f'<svg class="hist" width="{40 + len(names) * (bw + gap)}" height="{H + top_pad + 30}" role="img" '
+           'aria-label="water types">']
+    for k, n in enumerate(names):
+        h = H * counts[n] / top
+        x = 30 + k * (bw + gap)
+        out.append(f'<rect x="{x}" y="{H - h + top_pad:.1f}" width="{bw}" height="{h:.1f}" '
+                   f'fill="{_TYPE_COLORS.get(n, "#777")}"><title>{html.escape(n)}: {counts[n]}</title></rect>')
+        out.append(f'<text x="{x + bw / 2}" y="{H + top_pad + 16}" text-anchor="middle">{html.escape(n)}</text>')
+        out.append(f'<text x="{x + bw / 2}" y="{H - h + top_pad - 4:.1f}" text-anchor="middle" class="n">'
+                   f'{counts[n]}</text>')
+    out.append("</svg>")
+    return "".join(out)
+
+
+def _series_svg(photos: list[Photo], types: list[str]) -> str:
+    """Water type (steps), A (R, G, B) and the chosen type's score over the
+    frame index: three stacked panels sharing the x axis."""
+    n = len(photos)
+    W, H, left = 900, 140, 48
+    xs = [left + (W - left - 10) * (k / max(1, n - 1)) for k in range(n)]
+
+    def poly(vals, lo, hi, y0, color, width=1.4):
+        pts = " ".join(f"{x:.1f},{y0 + H - 8 - (H - 30) * ((v - lo) / (hi - lo) if hi > lo else 0.5):.1f}"
+                       for x, v in zip(xs, vals) if v is not None and np.isfinite(v))
+        return f'<polyline fill="none" stroke="{color}" stroke-width="{width}" points="{pts}"/>'
+
+    out = [f'<svg class="series" width="{W}" height="{3 * H + 40}" role="img" aria-label="over the sequence">']
+    idx = {t: k for k, t in enumerate(types)}
+    wt = [idx.get(p.doc.get("water_type"), None) for p in photos]
+    out.append(f'<text x="{left}" y="12" class="lab">water type</text>')
+    for k, t in enumerate(types):
+        y = H - 8 - (H - 30) * (k / max(1, len(types) - 1))
+        out.append(f'<text x="{left - 6}" y="{y + 4:.1f}" text-anchor="end" class="tick">{html.escape(t)}</text>')
+    out.append(poly(wt, 0, max(1, len(types) - 1), 0, "#333", 1.2))
+    a = np.array([p.doc.get("veiling_light") or [np.nan] * 3 for p in photos], dtype=float).reshape(-1, 3)
+    hi = float(np.nanmax(a)) if np.isfinite(a).any() else 1.0
+    out.append(f'<text x="{left}" y="{H + 12}" class="lab">A (R, G, B), 0 to {hi:.3f}</text>')
+    for c, color in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
+        out.append(poly(list(a[:, c]), 0.0, hi, H, color))
+    sc = [(p.doc.get("scores") or {}).get(p.doc.get("water_type")) for p in photos]
+    sv = [v for v in sc if v is not None]
+    out.append(f'<text x="{left}" y="{2 * H + 12}" class="lab">score of the chosen type (lower is better)</text>')
+    if sv:
+        out.append(poly(sc, min(sv), max(sv), 2 * H, "#9467bd"))
+    out.append(f'<text x="{left}" y="{3 * H + 30}" class="tick">frame 1</text>'
+               f'<text x="{W - 10}" y="{3 * H + 30}" text-anchor="end" class="tick">frame {n}</text>')
+    out.append("</svg>")
+    return "".join(out)
+
+
+# ---------------------------------------------------------------- the page
+
+_CSS = """
+body{font:14px/1.4 system-ui,sans-serif;margin:16px;background:#fafafa;color:#222}
+h1{font-size:20px;margin:0 0 4px} h2{font-size:16px;margin:22px 0 8px}
+.meta{color:#555} svg text{font-size:11px;fill:#333} svg .lab{font-weight:600} svg .tick{fill:#666}
+.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(270px,1fr));gap:10px}
+.cell{background:#fff;border:1px solid #ddd;border-radius:4px;padding:6px}
+.cell.flagged{border:2px solid #d95f02}
+.pair{display:flex;gap:3px;cursor:pointer} .pair img{width:50%;height:auto;min-height:60px;background:#ccc}
+.cap{font-size:12px;margin-top:4px;word-break:break-all} .flags{color:#d95f02;font-weight:600}
+.sw{display:inline-block;width:10px;height:10px;border:1px solid #999;vertical-align:middle;margin-right:2px}
+.pager button{margin:0 2px} #view{position:fixed;inset:0;background:rgba(0,0,0,.85);display:none;
+padding:20px;overflow:auto;color:#eee} #view img{max-width:48%;margin:0 1%} #view a{color:#9cf}
+"""
+
+_JS = """
+const D = JSON.parse(document.getElementById('data').textContent);
+function cell(p){
+  const flagged = p.flags.length ? ' flagged' : '';
+  const A = p.A ? p.A.map(v=>v.toFixed(3)).join(', ') : '';
+  const sw = p.A ? p.A.map(v=>Math.round(255*Math.min(1,Math.pow(v,1/2.2)))) : [0,0,0];
+  return `<div class="cell${flagged}" data-k="${p.k}"><div class="pair" onclick="show(${p.k})">`+
+    `<img loading="lazy" alt="input" src="${p.ti||''}"><img loading="lazy" alt="restored" src="${p.to||''}"></div>`+
+    `<div class="cap">${p.k+1}. ${esc(p.name)}<br>type <b>${p.wt}</b>, A `+
+    `<span class="sw" style="background:rgb(${sw.join(',')})"></span>(${A})`+
+    (p.flags.length ? `<br><span class="flags">${p.flags.join(', ')}</span>` : '')+`</div></div>`;
+}
+function esc(s){return String(s).replace(/[&<>"]/g,c=>({'&':'&amp;','<':'&lt;','>':'&gt;','"':'&quot;'}[c]));}
+function pager(id, items){
+  const el = document.getElementById(id), pages = Math.max(1, Math.ceil(items.length / D.page));
+  let cur = 0;
+  function draw(){
+    const nav = pages > 1 ? `<div class="pager">page ${cur+1} of ${pages} `+
+      `<button onclick="this.closest('section').go(${cur-1})" ${cur?'':'disabled'}>previous</button>`+
+      `<button onclick="this.closest('section').go(${cur+1})" ${cur<pages-1?'':'disabled'}>next</button></div>` : '';
+    el.innerHTML = nav + '<div class="grid">' +
+      items.slice(cur*D.page, (cur+1)*D.page).map(k=>cell(D.photos[k])).join('') + '</div>';
+  }
+  el.closest('section').go = k => { cur = Math.max(0, Math.min(pages-1, k)); draw(); };
+  draw();
+}
+function show(k){
+  const p = D.photos[k], v = document.getElementById('view');
+  v.innerHTML = `<p><a href="#" onclick="hide();return false">close</a> &middot; ${esc(p.name)}: `+
+    `type ${p.wt}, flags ${p.flags.join(', ')||'none'} &middot; `+
+    `<a href="${p.full}">full size</a> &middot; <a href="${p.t}">t map</a> &middot; <a href="${p.side}">sidecar</a></p>`+
+    `<img alt="restored" src="${p.full}"><img alt="transmission" src="${p.t}">`;
+  v.style.display = 'block';
+}
+function hide(){ document.getElementById('view').style.display = 'none'; }
+pager('flagged-grid', D.photos.filter(p=>p.flags.length).map(p=>p.k));
+pager('all-grid', D.photos.map(p=>p.k));
+"""
+
+
+def _rel_url(path: str | None, start: str) -> str | None:
+    """A relative URL from the report's folder to ``path`` (both under OUTDIR)."""
+    if path is None:
+        return None
+    from urllib.parse import quote
+
+    return quote(os.path.relpath(path, start).replace(os.sep, "/"))
+
+
+def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_SIDE,
+                 page_size: int = PAGE_SIZE) -> dict:
+    """Writes ``out_dir/report/index.html`` and its thumbnails from the
+    sidecars under ``out_dir``; returns what it did (``photos``,
+    ``flagged``, ``thumbnails_written``, ``problems``, ``seconds``,
+    ``path``). Thumbnails newer than their source are kept, so a rerun
+    after more inputs only makes the new ones."""
+    import uwhl_rs
+
+    t0 = time.perf_counter()
+    out_dir = os.fspath(out_dir)
+    if not os.path.isdir(out_dir):
+        raise FileNotFoundError(2, "no such folder", out_dir)
+    photos, problems = collect_sidecars(out_dir)
+    rdir = os.path.join(out_dir, REPORT_DIR)
+    tdir = os.path.join(rdir, "thumbs")
+    os.makedirs(tdir, exist_ok=True)
+    jobs = []
+    cells = []
+    for k, p in enumerate(photos):
+        stem = p.sidecar[:-5].replace(os.sep, "__")
+        ti, to = os.path.join(tdir, stem + "_in.jpg"), os.path.join(tdir, stem + "_out.jpg")
+        src_in = p.doc.get("input")
+        if src_in and not os.path.isabs(src_in):
+            src_in = os.path.abspath(src_in)
+        img = p.output("image")
+        jobs += [(src_in, ti) if src_in else None, (os.path.join(out_dir, img), to) if img else None]
+        cells.append((p, ti, to))
+    with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
+        notes = list(pool.map(lambda j: "kept" if j is None else _thumb(j[0], j[1], side), jobs))
+    problems += [n for n in notes if n not in ("written", "kept")]
+    written = notes.count("written")
+    data = []
+    counts = {t: 0 for t in uwhl_rs.WATER_TYPES}
+    for k, (p, ti, to) in enumerate(cells):
+        wt = p.doc.get("water_type")
+        counts[wt] = counts.get(wt, 0) + 1
+        data.append({
+            "k": k, "name": p.sidecar[:-5].replace(os.sep, "/"), "wt": wt,
+            "A": p.doc.get("veiling_light"), "flags": p.flags,
+            "ti": _rel_url(ti, rdir) if os.path.exists(ti) else None,
+            "to": _rel_url(to, rdir) if os.path.exists(to) else None,
+            "full": _rel_url(os.path.join(out_dir, p.output("image") or ""), rdir),
+            "t": _rel_url(os.path.join(out_dir, p.output("transmission_color") or ""), rdir),
+            "side": _rel_url(os.path.join(out_dir, p.sidecar), rdir),
+        })
+    counts = {t: n for t, n in counts.items() if n}
+    flagged = sum(1 for d in data if d["flags"])
+    types = [t for t in uwhl_rs.WATER_TYPES] + sorted(t for t in counts if t not in uwhl_rs.WATER_TYPES)
+    blob = json.dumps({"page": int(page_size), "photos": data}).replace("</", "<\\/")
+    page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
+<title>uwhl report: {html.escape(os.path.basename(os.path.abspath(out_dir)))}</title><style>{_CSS}</style></head><body>
+<h1>{html.escape(os.path.abspath(out_dir))}</h1>
+<p class="meta" id="summary">{len(photos)} photos restored, {flagged} flagged; water types:
+{', '.join(f'{html.escape(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
+{html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
+<section id="flagged"><h2>Needs a look: {flagged} flagged (fallbacks, clamps; docs/OUTPUTS.md "Flags")</h2>
+<div id="flagged-grid"></div></section>
+<h2>Water types</h2>{_histogram_svg(counts)}
+<h2>Over the sequence (frame index, in name order)</h2>{_series_svg(photos, types) if photos else ''}
+<section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
+{''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
+<div id="view" onclick="if(event.target===this)hide()"></div>
+<script id="data" type="application/json">{blob}</script>
+<script>{_JS}</script></body></html>
+"""
+    path = os.path.join(rdir, "index.html")
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(page)
+    os.replace(tmp, path)
+    return {"path": path, "photos": len(photos), "flagged": flagged, "thumbnails_written": written,
+            "problems": problems, "seconds": time.perf_counter() - t0}

@@ -1,0 +1,119 @@
+"""``uwhl report OUTDIR`` and ``restore --report`` (uwhl_rs.report): the
+page a batch gets, opened in headless Chromium (installed by the browser
+test's helper when missing). The numbers it shows are checked against the
+sidecars, which the test reads itself; a screenshot is saved for a person
+to look at (``target/batch-report-screenshot.png``)."""
+
+import collections
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from test_report_browser import ROOT, _chromium, _run
+from uwhl_rs import report, synth
+from uwhl_rs.io import write_image
+
+
+def _restore(tmp_path, n=8, extra=()):
+    src = tmp_path / "in"
+    (src / "sub").mkdir(parents=True, exist_ok=True)
+    for k in range(n):
+        img, _ = synth.demo_input(90, 120, water_type=["III", "1C", "II", "7C"][k % 4], seed=k)
+        write_image(src / ("sub" if k >= n - 2 else "") / f"f{k:03d}.png", img, encoding="linear")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "-q", *extra],
+                       capture_output=True, text=True, timeout=600)
+    return r, out
+
+
+def _sidecars(out):
+    docs = {}
+    for d, dirs, files in os.walk(out):
+        dirs[:] = [x for x in dirs if x != "report"]
+        for f in files:
+            if f.endswith(".json"):
+                docs[os.path.relpath(os.path.join(d, f), out)] = json.load(open(os.path.join(d, f)))
+    return docs
+
+
+def test_restore_report_in_chromium(tmp_path):
+    browser = _chromium()
+    r, out = _restore(tmp_path, extra=("--report",))
+    assert r.returncode == 0, r.stderr
+    assert (out / "report" / "index.html").exists() and len(os.listdir(out / "report" / "thumbs")) == 16
+    # an operator's flag on one photo: the report must list it first (the
+    # pipeline raises these on scenes without water; a sidecar says so)
+    side = out / "f002.json"
+    doc = json.loads(side.read_text())
+    doc["flags"] = ["no_water_region", "veiling_fallback"]
+    side.write_text(json.dumps(doc, indent=2) + "\n")
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(out)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0 and "8 photos, 1 flagged, 0 thumbnails written" in r.stdout, r.stdout + r.stderr
+    page_path = out / "report" / "index.html"
+    url = page_path.resolve().as_uri()
+    dom = _run(browser, "--dump-dom", url)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    page = dom.stdout
+    docs = _sidecars(out)
+    counts = collections.Counter(d["water_type"] for d in docs.values())
+    # the histogram's bars say what the sidecars say
+    for wt, n in counts.items():
+        assert f"<title>{wt}: {n}</title>" in page, wt
+    assert f"8 photos restored, 1 flagged" in page
+    # the flagged section comes first and holds exactly the flagged photo
+    flagged = page[page.index('id="flagged-grid"'):page.index('id="all"')]
+    assert flagged.count('class="cell flagged"') == 1 and "f002" in flagged and "veiling_fallback" in flagged
+    allgrid = page[page.index('id="all-grid"'):page.index('<script')]
+    assert allgrid.count('<div class="cell') == 8
+    # every thumbnail is a file beside the page (nothing fetched from the network), and decodes
+    from PIL import Image
+
+    thumbs = sorted(os.listdir(out / "report" / "thumbs"))
+    assert len(thumbs) == 16
+    for t in thumbs:
+        with Image.open(out / "report" / "thumbs" / t) as im:
+            assert max(im.size) <= report.THUMB_SIDE
+    # the links open the full-size photo and its t map
+    assert 'src="../f000.jpg"' not in allgrid  # thumbnails in the grid, not full images
+    data = json.loads(page[page.index('id="data"'):].split(">", 1)[1].split("</script>", 1)[0])
+    for p in data["photos"]:
+        assert os.path.exists(os.path.normpath(os.path.join(out / "report", p["full"])))
+        assert os.path.exists(os.path.normpath(os.path.join(out / "report", p["t"])))
+    # the series has one point per photo in each of its five lines
+    series = page[page.index('class="series"'):]
+    assert series.count("<polyline") == 5
+    first = series.split('points="', 1)[1].split('"', 1)[0]
+    assert len(first.split()) == 8
+    shot = os.path.join(ROOT, "target", "batch-report-screenshot.png")
+    os.makedirs(os.path.dirname(shot), exist_ok=True)
+    s = _run(browser, f"--screenshot={shot}", "--window-size=1280,1500", url)
+    assert s.returncode == 0 and os.path.getsize(shot) > 10000, s.stderr[-2000:]
+
+
+def test_report_pages_a_large_batch(tmp_path):
+    browser = _chromium()
+    r, out = _restore(tmp_path, n=11)
+    assert r.returncode == 0, r.stderr
+    done = report.write_report(str(out), page_size=4)
+    assert done["photos"] == 11
+    page = _run(browser, "--dump-dom", (out / "report" / "index.html").resolve().as_uri()).stdout
+    allgrid = page[page.index('id="all-grid"'):page.index('<script')]
+    assert "page 1 of 3" in allgrid and allgrid.count('<div class="cell') == 4
+    assert 'loading="lazy"' in allgrid
+
+
+def test_report_refusals_and_leftovers(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(tmp_path / "missing")], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 3 and "no such folder" in r.stderr
+    # an unreadable sidecar and a missing output: a note, and the rest of the page
+    r, out = _restore(tmp_path, n=3)
+    (out / "broken.json").write_text("{ not json")
+    os.remove(out / "f000.jpg")
+    done = report.write_report(str(out))
+    assert done["photos"] == 3
+    assert any("broken.json" in p for p in done["problems"]) and any("f000.jpg" in p for p in done["problems"])
