@@ -13,8 +13,9 @@ also list the profile's steps and `t_scale`, which the check ignores).
 Each case records sha256 digests of the image, radiance and transmission
 arrays (float32 bytes), the veiling mask, the exact scores (repr of the
 floats), the excluded types, flags, chosen type, A, radius and subsampling
-factor; the command cases record the digest of every output file and the
-sidecar with its timings and version removed. Cases that need
+factor; the command cases record the digest of every output's decoded samples
+(so the photo's metadata, docs/OUTPUTS.md "Metadata", does not count) and
+the sidecar with its timings, version and metadata summary removed. Cases that need
 `../shared/data` are skipped when it is absent; cases that need the
 `uwhl-rs` binary are skipped when `target/release/uwhl-rs` is absent.
 The fingerprints are machine-specific (CPU dispatch): record and check on
@@ -180,7 +181,7 @@ def api_cases():
     return cases
 
 
-_VOLATILE = {"seconds", "uwhl_version", "timings"}
+_VOLATILE = {"seconds", "uwhl_version", "timings", "metadata"}
 
 
 def _sidecar(path: str) -> dict:
@@ -195,10 +196,24 @@ def _tree(out: str) -> dict:
     res = {}
     for dp, _, fs in os.walk(out):
         for f in sorted(fs):
+            if f == "summary.csv":  # seconds per input: checked by the tests, not a fingerprint
+                continue
             p = os.path.join(dp, f)
             rel = os.path.relpath(p, out)
             if f.endswith(".json"):
                 res[rel] = _sidecar(p)
+            elif f.endswith((".tif", ".tiff")):
+                import tifffile
+
+                res[rel] = _digest(tifffile.imread(p))
+            elif f.endswith(".png"):
+                with open(p, "rb") as fh:  # the core's decoder: every bit of 16-bit samples
+                    res[rel] = _digest(uwhl_rs._core._decode_png(fh.read(), 1 << 40))
+            elif f.endswith(".jpg"):
+                from PIL import Image
+
+                with Image.open(p) as im:
+                    res[rel] = _digest(np.asarray(im))
             else:
                 with open(p, "rb") as fh:
                     res[rel] = hashlib.sha256(fh.read()).hexdigest()[:24]

@@ -12,14 +12,14 @@
 //! | reference stretch | `12 n` in + `12 n` out + `4 n` one channel's percentile copy |
 //! | downscale | `12 n` + `12 m` |
 //! | restore | `12 m` input + `params::memory_estimate(h, w, k)` |
-//! | write | `12 m` input + the restoration (`29 m`) + the three outputs' codes and encoded files, encoded at once (`16 m`) |
+//! | write | `12 m` input + the restoration (`29 m`) + the three outputs' codes and encoded files, encoded at once (`16 m`) + the photo's metadata carried (`18 m`: three copies of its encoding; `b n`: the input file read again, `crate::metadata`) |
 //!
 //! plus `n` bytes per mask given (`--mask`, `--water-mask`; read once per run)
 //! and `2 m` for their downscaled copies. The plan is the largest phase.
 //!
 //! The batch and stream loops decode and restore an input while the
 //! previous one's outputs are written (`run::overlapped`); that one holds
-//! `45 m'` bytes (its restoration and encoders, `m'` its pixels) until it
+//! `69 m'` bytes (its restoration, encoders and metadata, `m'` its pixels) until it
 //! is written. An input whose plan does not fit in `--max-memory` beside
 //! them waits until they are written, so the two together stay within the
 //! budget and an input is refused only if its own plan exceeds it.
@@ -32,8 +32,16 @@ use crate::params::memory_estimate;
 use std::sync::OnceLock;
 
 /// Bytes per processed pixel an input holds while its outputs are written:
-/// the restoration (29) and the three outputs' codes and encoded files (16).
-pub const HELD_WHILE_WRITING: u64 = 29 + 16;
+/// the restoration (29), the three outputs' codes and encoded files (16),
+/// and carrying the metadata ([`METADATA_PER_PIXEL`], with the input file
+/// read again: at most 6 bytes a pixel for an uncompressed 16-bit file).
+pub const HELD_WHILE_WRITING: u64 = 29 + 16 + METADATA_PER_PIXEL + 6;
+
+/// Bytes per processed pixel of carrying the metadata into the corrected
+/// photo (`crate::metadata::carry`): the encoded photo and up to two copies
+/// (TIFF: the file and its tags read back and rewritten), each at most 6
+/// bytes a pixel (16-bit, uncompressed).
+pub const METADATA_PER_PIXEL: u64 = 18;
 
 /// Everything the plan needs to know, from the header and the options.
 #[derive(Debug, Clone, Copy)]
@@ -87,7 +95,7 @@ impl Plan {
         };
         let reference = if self.reference { mul(28, n) } else { 0 };
         let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.masks > 0));
-        let write = mul((12 + HELD_WHILE_WRITING).saturating_add(self.write_extra), m);
+        let write = mul((12 + HELD_WHILE_WRITING).saturating_add(self.write_extra), m).saturating_add(decoded);
         let masks = u64::from(self.masks);
         let mask = mul(masks, n).saturating_add(mul(masks, m));
         [decode, scale, reference, restore, write]
@@ -117,10 +125,12 @@ impl Plan {
 
 /// What a process holds beyond its plan that grows with neither the image
 /// nor the number of inputs: allocator bookkeeping, worker threads' stacks,
-/// codec tables, the reading thread of the overlapped loop. Measured with
-/// 6 MiB: single 0.07-6 MP inputs peaked 2-8 MB under their tightest
-/// budget, a stream of six 0.3 MP frames 0.6 MB over it (docs/PERFORMANCE.md).
-pub const SLACK: u64 = 8 << 20;
+/// codec tables, the reading thread of the overlapped loop, the arenas the
+/// metadata's parsing leaves in the writing thread. Measured with 6 MiB:
+/// single 0.07-6 MP inputs peaked 2-8 MB under their tightest budget, a
+/// stream of six 0.3 MP frames 0.6 MB over it (docs/PERFORMANCE.md); with
+/// the metadata carried that stream peaked 0.2-1.1 MB over 8 MiB, so 10.
+pub const SLACK: u64 = 10 << 20;
 
 /// The largest default budget, whatever the machine.
 pub const CEILING: u64 = crate::options::DEFAULT_MAX_MEMORY;

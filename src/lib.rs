@@ -85,6 +85,12 @@ pub mod commit;
 #[forbid(unsafe_code)]
 mod commit;
 
+/// The input's metadata carried into the corrected photo, and the
+/// restoration recorded in XMP (both commands).
+#[cfg(any(feature = "cli", feature = "python"))]
+#[forbid(unsafe_code)]
+pub mod metadata;
+
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
 /// outputs and sidecar, batch and stream modes.
 #[cfg(feature = "cli")]

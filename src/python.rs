@@ -309,6 +309,35 @@ fn collect_jobs(
     (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
 }
 
+/// Carries the input file's metadata into the encoded output file at
+/// `encoded_path` (rewritten in place: a temporary of the caller's claim),
+/// with the restoration record of the sidecar (`sidecar_json`):
+/// `crate::metadata::carry`. Returns the sidecar's `metadata` object as JSON.
+#[pyfunction]
+fn carry_metadata(
+    py: Python<'_>,
+    encoded_path: std::path::PathBuf,
+    input_path: std::path::PathBuf,
+    sidecar_json: &str,
+    sidecar_name: &str,
+    width: u32,
+    height: u32,
+) -> PyResult<String> {
+    let side: serde_json::Value =
+        serde_json::from_str(sidecar_json).map_err(|e| PyValueError::new_err(format!("sidecar: {e}")))?;
+    let encoded = std::fs::read(&encoded_path)?;
+    let (bytes, summary) = py.detach(|| match std::fs::read(&input_path) {
+        Ok(input) => crate::metadata::carry(input, encoded, &side, sidecar_name, width, height),
+        Err(e) => (
+            encoded,
+            serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
+                "input_icc_profile": false, "taken_at": null, "gps": null, "notes": [format!("metadata: cannot read the input again ({e}); none carried")]}),
+        ),
+    });
+    std::fs::write(&encoded_path, bytes)?;
+    Ok(summary.to_string())
+}
+
 /// The output names of inputs listed elsewhere (object storage), given in
 /// discovery order as `(input, folder relative to the output folder)`:
 /// the naming of `collect_jobs` (`crate::jobs::name_jobs`).
@@ -690,6 +719,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
+    m.add_function(wrap_pyfunction!(carry_metadata, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;

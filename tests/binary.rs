@@ -78,15 +78,53 @@ fn json_lines(bytes: &[u8]) -> Vec<Value> {
         .collect()
 }
 
+/// The files of an output folder, less the batch's `summary.csv` (checked
+/// by `the_summary_has_a_row_per_input`).
 fn files(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = fs::read_dir(dir)
         .map(|rd| {
             rd.map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .filter(|n| n != "summary.csv")
                 .collect()
         })
         .unwrap_or_default();
     v.sort();
     v
+}
+
+#[test]
+fn the_summary_has_a_row_per_input() {
+    let d = tmp("summary");
+    let (good, bad, out) = (d.join("good.png"), d.join("bad.jpg"), d.join("out"));
+    scene_png(&good, 24, 32, 1);
+    fs::write(&bad, b"\xff\xd8\xff not a jpeg").unwrap();
+    let o = bin().args([&good, &bad]).arg("-o").arg(&out).arg("-q").output().unwrap();
+    assert_eq!(code(&o), 3, "{}", stderr(&o));
+    let read = || {
+        let text = fs::read_to_string(out.join("summary.csv")).unwrap();
+        let lines: Vec<Vec<String>> = text.split("\r\n").filter(|l| !l.is_empty())
+            .map(|l| l.split(',').map(String::from).collect()).collect();
+        let head = lines[0].clone();
+        let rows: Vec<std::collections::HashMap<String, String>> =
+            lines[1..].iter().map(|r| head.iter().cloned().zip(r.iter().cloned()).collect()).collect();
+        rows
+    };
+    let rows = read();
+    assert_eq!(rows.len(), 2);
+    let side: serde_json::Value = serde_json::from_slice(&fs::read(out.join("good.json")).unwrap()).unwrap();
+    let g = rows.iter().find(|r| r["input"].ends_with("good.png")).unwrap();
+    assert_eq!(g["status"], "done");
+    assert_eq!(g["water_type"], side["water_type"].as_str().unwrap());
+    assert_eq!(g["A_G"].parse::<f64>().unwrap(), side["veiling_light"][1].as_f64().unwrap());
+    assert!(g["sidecar"].ends_with("good.json") && g["image"].ends_with("good.jpg"));
+    let b = rows.iter().find(|r| r["input"].ends_with("bad.jpg")).unwrap();
+    assert_eq!((b["status"].as_str(), b["error_kind"].as_str(), b["exit_code"].as_str()), ("failed", "unreadable_input", "3"));
+    // the rerun: the done input is skipped, its row filled from its sidecar
+    let o = bin().arg(&good).arg("-o").arg(&out).arg("-q").output().unwrap();
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let rows = read();
+    assert_eq!(rows.len(), 1);
+    assert_eq!((rows[0]["status"].as_str(), rows[0]["water_type"].as_str()), ("skipped", side["water_type"].as_str().unwrap()));
 }
 
 #[test]

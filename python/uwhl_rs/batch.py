@@ -45,7 +45,7 @@ _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 #: summary columns, in order
 COLUMNS = ["input", "status", "water_type", "A_R", "A_G", "A_B", "flags", "seconds", "image", "transmission",
            "transmission_color", "contact_sheet", "sidecar", "reused_estimates", "error_kind", "error", "exit_code",
-           "worker"]
+           "worker", "scores", "taken_at", "latitude", "longitude", "altitude"]
 
 
 class BatchError(Exception):
@@ -414,10 +414,10 @@ def _failure_row(item: Item, e: BaseException, writing: bool, seconds: float, lo
 
 
 def _done_row(item: Item, result, seconds: float, outputs: dict) -> dict:
+    from .summary import row_fields_from_sidecar
+
     res = result.restoration
-    a = [float(v) for v in res.veiling_light]
-    return _row(item, "done", water_type=res.water_type, A_R=a[0], A_G=a[1], A_B=a[2], flags=",".join(res.flags),
-                seconds=round(seconds, 4), exit_code=0,
+    return _row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=round(seconds, 4), exit_code=0,
                 reused_estimates="estimates_reused" in res.flags if "reused_estimates" in result.sidecar else None,
                 **{role: outputs.get(role) for role in ("image", "transmission", "transmission_color",
                                                          "contact_sheet", "sidecar")})
@@ -675,6 +675,8 @@ class BatchResult:
     total: int
     #: stopped by an interrupt (the rows say what was done)
     interrupted: bool = False
+    #: why summary.csv could not be written, or None
+    summary_error: str | None = None
 
 
 def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage_options=None, overwrite=False,
@@ -704,8 +706,18 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage
 
             _report(bar.err, bar.json_errors, r["input"], r["error_kind"], r["error"])
 
+    from .summary import FILE_NAME, SummaryWriter
+
+    # summary.csv as the batch goes: in OUTDIR, or (object storage) in a
+    # local file uploaded when the batch ends
+    scratch = None if not is_url(output) else tempfile.mkdtemp(prefix="uwhl-summary-")
+    csv_rows = SummaryWriter(scratch or _local(output))
+    for r in problems:
+        csv_rows.add(r)
+
     def settle(k: int, row: dict) -> None:
         rows[k] = row
+        csv_rows.add(row)
         if bar is not None:
             bar.row(row)
 
@@ -754,7 +766,15 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage
         if cluster is not None:
             c.close()
             cluster.close()
-    return BatchResult(problems + [rows[k] for k in sorted(rows)], len(plan.items), interrupted)
+        csv_rows.close()
+        if scratch is not None:
+            try:
+                fs, root = _fs(output, so)
+                fs.put_file(csv_rows.path, root.rstrip("/") + "/" + FILE_NAME)
+            except Exception as e:  # the outputs are stored; only the summary is lost
+                print(f"uwhl: cannot upload {FILE_NAME} to {output}: {type(e).__name__}: {e}", file=sys.stderr)
+            shutil.rmtree(scratch, ignore_errors=True)
+    return BatchResult(problems + [rows[k] for k in sorted(rows)], len(plan.items), interrupted, csv_rows.error)
 
 
 def _core_exit(kind: str) -> int:

@@ -386,9 +386,18 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
                 "--reuse-estimates restores the inputs in order; it needs --jobs 1")
         return EXIT_USAGE
     jobs, problems = collect_inputs(a.inputs, a.out, a.format, a.contact_sheet)
+    from .summary import SummaryWriter, row_fields_from_sidecar
+
+    # OUTDIR/summary.csv, a row per input as it is settled (made with the first row)
+    csv_rows = SummaryWriter(a.out)
     for item, why in problems:
         _report(err, a.json_errors, item, "unreadable_input", why)
+        csv_rows.add({"input": item, "status": "failed", "error_kind": "unreadable_input", "error": why,
+                      "exit_code": EXIT["unreadable_input"]})
     if not jobs:
+        csv_rows.close()
+        if csv_rows.error:
+            _report(err, a.json_errors, None, "write_failed", csv_rows.error)
         if problems:
             return EXIT["unreadable_input"]
         err.write("uwhl: nothing to do\n")
@@ -449,6 +458,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
             def settle_claim(result=failure) -> Outcome:
                 kind, e = result
                 o = Outcome(job, "failed", note=_describe(e, job.path), code=EXIT[kind])
+                csv_rows.add({"input": job.path, "status": "failed", "error_kind": kind, "error": o.note,
+                              "exit_code": o.code})
                 progress.finish(f"{job.path}: {o.note}", error=True,
                                 report=lambda: _report(err, a.json_errors, job.path, kind, o.note))
                 return o
@@ -459,6 +470,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
             note = "already done (sidecar exists; --overwrite redoes it)" if status == "done" else reason
 
             def skipped(_=None) -> Outcome:
+                csv_rows.add({"input": job.path, "status": "skipped", "error": note, "exit_code": 0,
+                              "sidecar": str(sidecar)})
                 progress.finish(f"{job.path}: skipped ({why})")
                 return Outcome(job, "skipped", note=note)
             return skipped, None
@@ -469,11 +482,15 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
             if isinstance(result, tuple):  # (kind, exception)
                 kind, e = result
                 o = Outcome(job, "failed", seconds=time.perf_counter() - t0, note=_describe(e, job.path), code=EXIT[kind])
+                csv_rows.add({"input": job.path, "status": "failed", "error_kind": kind, "error": o.note,
+                              "exit_code": o.code, "seconds": round(o.seconds, 4)})
                 progress.finish(f"{job.path}: {o.note}", error=True,
                                 report=lambda: _report(err, a.json_errors, job.path, kind, o.note))
                 return o
             dt = time.perf_counter() - t0
             o = Outcome(job, "ok", result.restoration.water_type, dt, ", ".join(result.restoration.flags))
+            csv_rows.add({"input": job.path, "status": "done", **row_fields_from_sidecar(result.sidecar),
+                          "seconds": round(dt, 4), "exit_code": 0, **result.paths})
             progress.finish(f"{job.path} -> {result.paths['image']} (water type {o.water_type}, {dt:.2f} s)")
             return o
 
@@ -533,6 +550,8 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
                     raise
     except KeyboardInterrupt:
         interrupted = True
+    finally:
+        csv_rows.close()
     progress.close()
     order = {id(j): k for k, j in enumerate(jobs)}
     outcomes.sort(key=lambda o: order[id(o.job)])
@@ -550,6 +569,9 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     if failed and not a.json_errors:
         err.write(f"uwhl: {len(failed)} input(s) failed\n")
     code = max((o.code for o in outcomes), default=EXIT_OK)
+    if csv_rows.error:
+        _report(err, a.json_errors, None, "write_failed", csv_rows.error)
+        code = max(code, EXIT["write_failed"])
     if a.report:
         code = max(code, run_report(a.out, a.quiet, out, err))
     return code
@@ -616,6 +638,9 @@ def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
     if failed and not a.json_errors:
         err.write(f"uwhl: {len(failed)} input(s) failed\n")
     code = max((o.code for o in outcomes), default=EXIT_OK)
+    if result.summary_error:
+        _report(err, a.json_errors, None, "write_failed", result.summary_error)
+        code = max(code, EXIT["write_failed"])
     if a.report:
         code = max(code, run_report(a.out, a.quiet, out, err))
     return code

@@ -281,7 +281,6 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
                 sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
                 temps.append(_write_image_temp(claim, 3, paths["contact_sheet"], sheet))
             t_sheet = time.perf_counter() - t_sheet
-            t_end = time.perf_counter()
             sidecar = {
                 "input": label,
                 "outputs": {k: os.path.basename(v) for k, v in paths.items() if k != "sidecar"},
@@ -309,13 +308,19 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
                 "parameters": _parameters(restore_kwargs, mask=mask, water_mask=water_mask, max_side=max_side,
                                           max_pixels=max_pixels, preprocess=preprocess, half_size=half_size,
                                           format=format, bits=bits, quality=quality),
-                "seconds": {
-                    "read": round(t_read - t_start, 4),
-                    "restore": round(t_restore - t_read, 4),
-                    "write": round(t_end - t_write - t_sheet, 4),
-                    "contact_sheet": round(t_sheet, 4),
-                    "total": round(t_end - t_start, 4),
-                },
+            }
+            # the input's EXIF and XMP, and the restoration's record, into
+            # the photo (the core's src/metadata.rs, as uwhl-rs does)
+            sidecar["metadata"] = json.loads(_core.carry_metadata(
+                temps[0], in_path, json.dumps(_record_fields(sidecar)), os.path.basename(paths["sidecar"]),
+                int(res.transmission.shape[1]), int(res.transmission.shape[0])))
+            t_end = time.perf_counter()
+            sidecar["seconds"] = {
+                "read": round(t_read - t_start, 4),
+                "restore": round(t_restore - t_read, 4),
+                "write": round(t_end - t_write - t_sheet, 4),
+                "contact_sheet": round(t_sheet, 4),
+                "total": round(t_end - t_start, 4),
             }
             text = json.dumps(sidecar, indent=2) + "\n"
             tmp = os.fspath(claim.temp(len(temps)))
@@ -343,6 +348,18 @@ restore_file.__signature__ = _signature.replace(
     parameters=[p for p in _signature.parameters.values() if not p.name.startswith("_")],
     return_annotation="FileResult",
 )
+
+
+#: the sidecar's fields the XMP record is made of (the core's metadata::record_from_sidecar)
+_RECORD_KEYS = ("water_type", "veiling_light", "flags", "uwhl_version")
+_RECORD_PARAMETERS = ("method", "selection", "white_balance", "type_choice", "haze_floor", "t_scale", "water_types")
+
+
+def _record_fields(sidecar: dict) -> dict:
+    """What the XMP record needs of the sidecar (paths, which may hold
+    undecodable bytes, are not among it)."""
+    p = sidecar["parameters"]
+    return {**{k: sidecar[k] for k in _RECORD_KEYS}, "parameters": {k: p.get(k) for k in _RECORD_PARAMETERS}}
 
 
 def _parameters(restore_kwargs: dict, **given) -> dict:

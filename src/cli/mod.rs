@@ -18,7 +18,7 @@ macro_rules! cli_modules {
     };
 }
 
-cli_modules!(args, decode, demo, output, run, sidecar);
+cli_modules!(args, decode, demo, output, run, sidecar, summary);
 
 pub use args::{help, parse, Command, Demo, Format, Options, Preprocess, WaterChoice};
 pub use demo::run_demo;

@@ -406,15 +406,24 @@ fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), op
             )
         },
     );
-    let mut temps = Vec::with_capacity(4);
-    for (i, (path, bytes)) in [(&image_path, image_bytes?), (&t_path, t_bytes?), (&tc_path, tc_bytes?)].into_iter().enumerate() {
-        temps.push(write_temp(&mut claimed, i, path, &bytes)?);
-    }
     let paths = OutputPaths {
         image: &image_path,
         transmission: &t_path,
         transmission_color: &tc_path,
     };
+    // the input's EXIF and XMP, and the restoration's record, into the photo
+    // (src/metadata.rs); the record is made of the sidecar's fields
+    let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    let preview = sidecar(&job.input, &paths, &source, &res, opts, Seconds::default());
+    let (image_bytes, carried) = match std::fs::read(&job.input) {
+        Ok(input) => crate::metadata::carry(input, image_bytes?, &preview, &sidecar_name, wp as u32, hp as u32),
+        Err(e) => (image_bytes?, serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
+            "input_icc_profile": false, "taken_at": null, "gps": null, "notes": [format!("metadata: cannot read the input again ({e}); none carried")]})),
+    };
+    let mut temps = Vec::with_capacity(4);
+    for (i, (path, bytes)) in [(&image_path, image_bytes), (&t_path, t_bytes?), (&tc_path, tc_bytes?)].into_iter().enumerate() {
+        temps.push(write_temp(&mut claimed, i, path, &bytes)?);
+    }
     let seconds = Seconds {
         read: t_read,
         restore: t_restore,
@@ -422,10 +431,16 @@ fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), op
         total: t0.elapsed().as_secs_f64(),
     };
     let mut side = sidecar(&job.input, &paths, &source, &res, opts, seconds);
-    if opts.reuse_estimates.is_some() {
-        if let Some(obj) = side.as_object_mut() {
+    if let Some(obj) = side.as_object_mut() {
+        if opts.reuse_estimates.is_some() {
             let reused = res.flags.contains(&Flag::EstimatesReused);
             obj.insert("reused_estimates".into(), Value::Bool(reused));
+        }
+        // "metadata" goes before "seconds", as the Python command writes it
+        let secs = obj.shift_remove("seconds");
+        obj.insert("metadata".into(), carried);
+        if let Some(secs) = secs {
+            obj.insert("seconds".into(), secs);
         }
     }
     let mut bytes = serde_json::to_vec_pretty(&side)
@@ -612,9 +627,12 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     let (jobs, errors) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
     let errors: Vec<(PathBuf, CliError)> = errors.into_iter().map(|(p, m)| (p, CliError::new(Kind::Input, m))).collect();
     let mut code = 0u8;
+    // OUTDIR/summary.csv, a row per input as it is settled
+    let mut summary = super::summary::Summary::create(&opts.outdir);
     for (p, e) in &errors {
         report(err, opts.json_errors, Some(p), e);
         code = code.max(e.kind.exit_code());
+        summary.failed(p, e.kind.name(), &e.to_string(), e.kind.exit_code());
     }
     // --reuse-estimates N: the inputs are the frames of one sequence, in order
     let mut seq = sequence(opts);
@@ -648,6 +666,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         match outcome {
             Ok(Outcome::Done(side)) => {
                 counts[0] += 1;
+                summary.done(&job.input, &side, &job.dir);
                 if !opts.quiet {
                     let img = side
                         .pointer("/outputs/image")
@@ -666,6 +685,12 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
             }
             Ok(Outcome::Skipped(s, why)) => {
                 counts[1] += 1;
+                let note = if why == Skip::Done {
+                    "already done (sidecar exists; --overwrite redoes it)".to_string()
+                } else {
+                    why.reason()
+                };
+                summary.skipped(&job.input, &s, &note);
                 if !opts.quiet {
                     let why = if why == Skip::Done { format!("{} exists", s.display()) } else { why.reason() };
                     let _ = writeln!(out, "[{k}/{total}] {}: skipped ({why})", job.input.display());
@@ -675,11 +700,17 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                 counts[2] += 1;
                 report(err, opts.json_errors, Some(&job.input), &e);
                 code = code.max(e.kind.exit_code());
+                summary.failed(&job.input, e.kind.name(), &e.to_string(), e.kind.exit_code());
             }
         }
         let _ = out.flush();
     };
     if let Err(e) = overlapped(read, write) {
+        report(err, opts.json_errors, None, &e);
+        code = code.max(e.kind.exit_code());
+    }
+    if let Some(why) = summary.error.take() {
+        let e = CliError::new(Kind::Write, why);
         report(err, opts.json_errors, None, &e);
         code = code.max(e.kind.exit_code());
     }

@@ -156,7 +156,7 @@ def test_something_foreign_at_the_sidecars_name_is_kept(scenes, tmp_path):
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "scene_II.json").is_dir()
     assert sorted(os.listdir(tmp_path)) == ["scene_II.json", "scene_II_2.jpg", "scene_II_2.json",
-                                            "scene_II_2_t.png", "scene_II_2_t_color.png"]
+                                            "scene_II_2_t.png", "scene_II_2_t_color.png", "summary.csv"]
 
 
 def test_options_reach_restore(scenes, tmp_path):

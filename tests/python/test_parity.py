@@ -60,15 +60,59 @@ def _cmd(face: str, binary: str, args: list[str]) -> list[str]:
 
 
 def _outputs(out) -> dict:
+    """Each input's files (summary.csv, the batch's, is compared apart)."""
     if not os.path.isdir(out):
         return {}
     res = {}
     for dp, _, fs in os.walk(out):
         for f in fs:
+            if f == "summary.csv" and dp == str(out):
+                continue
             p = os.path.join(dp, f)
             rel = os.path.relpath(p, out)
             res[rel] = json.load(open(p)) if f.endswith(".json") else os.path.getsize(p)
     return res
+
+
+#: summary.csv columns both commands must fill alike (seconds and messages may differ)
+SUMMARY_SAME = ("status", "water_type", "A_R", "A_G", "A_B", "flags", "taken_at", "latitude", "longitude",
+                "altitude", "image", "transmission", "transmission_color", "sidecar", "error_kind", "exit_code")
+
+
+def _listing(out) -> list:
+    """The files of OUTDIR, less the batch's summary.csv."""
+    return sorted(f for f in os.listdir(out) if f != "summary.csv")
+
+
+def _summary_rows(out) -> dict | None:
+    """summary.csv by input, or None when there is none."""
+    import csv
+
+    p = os.path.join(out, "summary.csv")
+    if not os.path.exists(p):
+        return None
+    with open(p, newline="", encoding="utf-8", errors="surrogateescape") as f:
+        rows = list(csv.DictReader(f))
+    return {r["input"]: r for r in rows}
+
+
+def _same_summaries(py, rs) -> None:
+    assert (py is None) == (rs is None), "one command wrote summary.csv, the other not"
+    if py is None:
+        return
+    assert sorted(py) == sorted(rs)
+    for inp, a in py.items():
+        b = rs[inp]
+        for c in SUMMARY_SAME:
+            x, y = a[c], b[c]
+            if c in ("image", "transmission", "transmission_color", "sidecar"):  # each in its own OUTDIR
+                x, y = os.path.basename(x), os.path.basename(y)
+            try:
+                assert float(x) == pytest.approx(float(y), rel=1e-12), (inp, c)
+            except ValueError:
+                assert x == y, (inp, c, x, y)
+        for c in [c for c in a if c.startswith("score_")]:
+            assert (a[c] == "" and b[c] == "") or float(a[c]) == float(b[c]), (inp, c)
 
 
 def _run(face, binary, args, tmp, stdin=None):
@@ -124,6 +168,7 @@ def test_both_commands_keep_one_contract(binary, files, tmp_path, case):
         if kind != "ok" and not (kind == "unreadable_input" and names):
             assert r.stderr.strip(), face  # a message names the problem
         seen[face] = got
+    _same_summaries(_summary_rows(tmp_path / "python"), _summary_rows(tmp_path / "rust"))
     for f in names:
         if f.endswith(".json"):
             py, rs = seen["python"][f], seen["rust"][f]
@@ -261,7 +306,7 @@ def test_an_input_inside_the_output_folder_is_refused_with_a_message(binary, fil
         r = _run(face, binary, [str(out / "x.png"), "-o", str(out)], tmp_path)
         assert r.returncode == CONTRACT["unreadable_input"], (face, r.returncode, r.stderr)
         assert "inside the output folder" in r.stderr, (face, r.stderr)
-        assert sorted(os.listdir(out)) == ["x.png"], face
+        assert _listing(out) == ["x.png"], face
 
 
 def test_stream_refuses_a_fifo_line_and_goes_on(binary, files, tmp_path):
@@ -283,7 +328,7 @@ def test_long_file_names_fit_their_temporaries(binary, files, tmp_path):
         out = tmp_path / face
         r = _run(face, binary, [str(src), "-o", str(out), "--format", "png"], tmp_path)
         assert r.returncode == 0, (face, r.stderr)
-        assert len(os.listdir(out)) == 4 and not [f for f in os.listdir(out) if f.startswith(".")], face
+        assert len(_listing(out)) == 4 and not [f for f in os.listdir(out) if f.startswith(".")], face
 
 
 def test_stream_stops_when_its_output_is_gone(binary, files, tmp_path):
@@ -347,7 +392,7 @@ def test_overwrite_on_a_full_disk_keeps_the_earlier_outputs(binary, files, tmp_p
         out = tmp_path / face
         args = [str(files / "f1.png"), "-o", str(out), "--format", "jpg", "--quality", "5"]
         assert _run(face, binary, args, tmp_path).returncode == 0
-        before = {f: (out / f).read_bytes() for f in os.listdir(out)}
+        before = {f: (out / f).read_bytes() for f in _listing(out)}
         sizes = {f: len(b) for f, b in before.items()}
         # the image (written first) fits, the transmission (written next) does not
         limit = sizes["f1.jpg"] + 16
@@ -356,7 +401,7 @@ def test_overwrite_on_a_full_disk_keeps_the_earlier_outputs(binary, files, tmp_p
                            env=_env(), cwd=tmp_path, preexec_fn=_limited(limit), restore_signals=False)
         assert r.returncode == CONTRACT["write_failed"], (face, r.returncode, r.stderr)
         assert "f1_t.png" in r.stderr or "File too large" in r.stderr, (face, r.stderr)
-        after = {f: (out / f).read_bytes() for f in os.listdir(out)}
+        after = {f: (out / f).read_bytes() for f in _listing(out)}
         assert after == before, (face, sorted(after))  # nothing half-replaced, no temporary left
         side = json.loads(after["f1.json"])
         assert all((out / f).exists() for f in side["outputs"].values()), face
@@ -487,7 +532,7 @@ def test_memory_the_system_will_not_give_fails_one_input_not_the_process(binary,
             import re
 
             assert re.search(why, r.stderr), (face, extra, r.stderr)
-            assert sorted(os.listdir(out)) == ["f0.json", "f0.png", "f0_t.png", "f0_t_color.png"], (face, extra)
+            assert _listing(out) == ["f0.json", "f0.png", "f0_t.png", "f0_t_color.png"], (face, extra)
     r = subprocess.run([binary, "restore", "--stream", "-o", str(tmp_path / "s"), "--format", "png", "--max-memory",
                         "60G"], input=f"{big}\n{files / 'f1.png'}\n", capture_output=True, text=True, timeout=120,
                        preexec_fn=_address_space(limit))
@@ -587,5 +632,6 @@ def test_non_utf8_names_are_named_alike_by_both(binary, files, tmp_path):
         r = subprocess.run(_cmd(face, binary, [os.fsdecode(src), "-o", str(out), "--format", "png"]),
                            capture_output=True, timeout=120, env=_env(), cwd=tmp_path)
         assert r.returncode == 0, (face, r.stderr)
-        names[face] = sorted(os.listdir(os.fsencode(out)))
+        names[face] = sorted(f for f in os.listdir(os.fsencode(out)) if f != b"summary.csv")
     assert names["python"] == names["rust"] and len(names["rust"]) == 8, names
+    _same_summaries(_summary_rows(tmp_path / "python"), _summary_rows(tmp_path / "rust"))

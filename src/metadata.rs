@@ -1,0 +1,546 @@
+//! The photograph's metadata carried into its corrected photo, one
+//! implementation for both commands (docs/OUTPUTS.md "Metadata"): the
+//! input's EXIF (camera, lens, exposure, time, GPS, depth and altitude tags)
+//! and XMP, with the tags that describe pixels made true of the written
+//! image (Orientation 1, PixelX/YDimension, ColorSpace sRGB), and the
+//! restoration recorded in XMP under this project's namespace.
+//!
+//! EXIF is read and written by `little_exif`; JPEG segments and PNG chunks
+//! (the XMP packet, the ICC profile) by `img-parts`. A photo whose metadata
+//! cannot be read still restores: the reason is a note of [`Carried`].
+
+use bytes::Bytes;
+use img_parts::jpeg::{markers, Jpeg, JpegSegment};
+use img_parts::png::{Png, PngChunk};
+use img_parts::{ImageEXIF, ImageICC};
+use little_exif::exif_tag::ExifTag;
+use little_exif::filetype::FileExtension;
+use little_exif::ifd::ExifTagGroup;
+use little_exif::metadata::Metadata;
+
+/// The XMP namespace of the restoration record.
+pub const XMP_NAMESPACE: &str = "https://uwhl-rs.github.io/ns/restoration/1.0/";
+
+/// The prefix of [`XMP_NAMESPACE`] in the packets written.
+pub const XMP_PREFIX: &str = "uwhl";
+
+/// The header of an XMP APP1 segment in JPEG.
+const XMP_JPEG_HEADER: &[u8] = b"http://ns.adobe.com/xap/1.0/\0";
+
+/// The keyword of the iTXt chunk that holds XMP in PNG.
+const XMP_PNG_KEYWORD: &[u8] = b"XML:com.adobe.xmp";
+
+/// The TIFF tag of an XMP packet.
+const TIFF_XMP_TAG: u16 = 700;
+
+/// IFD0 tags carried from the input: what describes the photograph (camera,
+/// author, time), never its pixel layout (size, strips, compression).
+const IFD0_CARRIED: &[u16] = &[
+    0x010E, // ImageDescription
+    0x010F, // Make
+    0x0110, // Model
+    0x0131, // Software
+    0x0132, // DateTime
+    0x013B, // Artist
+    0x8298, // Copyright
+    0x011A, // XResolution
+    0x011B, // YResolution
+    0x0128, // ResolutionUnit
+];
+
+/// Exif sub-IFD tags rewritten for the output (its size and colour space).
+const EXIF_REWRITTEN: &[u16] = &[0xA001, 0xA002, 0xA003, 0xA005];
+
+/// What an input file holds besides its pixels.
+#[derive(Debug, Default, Clone)]
+pub struct Carried {
+    /// the EXIF tags carried over (IFD0's descriptive ones, the Exif
+    /// sub-IFD, GPS), None when the input has none
+    pub exif: Option<Metadata>,
+    /// the input's XMP packet
+    pub xmp: Option<String>,
+    /// the input's embedded ICC profile
+    pub icc: Option<Vec<u8>>,
+    /// why something could not be read (the sidecar's `source.notes`)
+    pub notes: Vec<String>,
+}
+
+/// The container of a file, from its first bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Container {
+    /// JPEG (JFIF or EXIF)
+    Jpeg,
+    /// PNG
+    Png,
+    /// TIFF, and the raw formats built on it (DNG, NEF, CR2, ARW, ...)
+    Tiff,
+}
+
+impl Container {
+    /// The container of `bytes`, if one of the three.
+    pub fn sniff(bytes: &[u8]) -> Option<Self> {
+        if bytes.starts_with(&[0xFF, 0xD8]) {
+            Some(Self::Jpeg)
+        } else if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+            Some(Self::Png)
+        } else if bytes.starts_with(b"II*\0") || bytes.starts_with(b"MM\0*") {
+            Some(Self::Tiff)
+        } else {
+            None
+        }
+    }
+
+    fn extension(self) -> FileExtension {
+        match self {
+            Self::Jpeg => FileExtension::JPEG,
+            Self::Png => FileExtension::PNG { as_zTXt_chunk: false },
+            Self::Tiff => FileExtension::TIFF,
+        }
+    }
+}
+
+/// Reads the metadata of an input file (`bytes`, the whole file, taken so
+/// that it is not copied). Never fails: what cannot be read is a note.
+pub fn read(bytes: Vec<u8>) -> Carried {
+    let mut out = Carried::default();
+    let Some(kind) = Container::sniff(&bytes) else {
+        out.notes.push("metadata: not a JPEG, PNG or TIFF container; none carried".into());
+        return out;
+    };
+    // little_exif panics on some malformed files; a photo never fails because of its metadata
+    let parsed = std::panic::catch_unwind(|| Metadata::new_from_vec(&bytes, kind.extension()));
+    match parsed {
+        Ok(Ok(m)) => {
+            if kind == Container::Tiff {
+                out.xmp = m.get_tag_by_hex(TIFF_XMP_TAG, None).next().map(|t| {
+                    let raw = t.value_as_u8_vec(&m.get_endian());
+                    String::from_utf8_lossy(&raw).trim_end_matches('\0').to_string()
+                });
+            }
+            out.exif = carried_exif(&m);
+        }
+        Ok(Err(e)) if is_absent(&e) => {}
+        Ok(Err(e)) => out.notes.push(format!("metadata: the EXIF cannot be read ({e}); not carried")),
+        Err(_) => out.notes.push("metadata: the EXIF is malformed; not carried".into()),
+    }
+    match kind {
+        Container::Jpeg => {
+            if let Ok(j) = Jpeg::from_bytes(Bytes::from(bytes)) {
+                out.xmp = j
+                    .segments()
+                    .iter()
+                    .filter(|s| s.marker() == markers::APP1)
+                    .find_map(|s| s.contents().strip_prefix(XMP_JPEG_HEADER).map(|x| String::from_utf8_lossy(x).into_owned()));
+                out.icc = j.icc_profile().map(|b| b.to_vec());
+            } else {
+                out.notes.push("metadata: the JPEG segments cannot be read; XMP and ICC not carried".into());
+            }
+        }
+        Container::Png => {
+            if let Ok(p) = Png::from_bytes(Bytes::from(bytes)) {
+                out.xmp = p.chunks().iter().filter(|c| &c.kind() == b"iTXt").find_map(|c| png_xmp(&c.contents()));
+                out.icc = p.icc_profile().map(|b| b.to_vec());
+            } else {
+                out.notes.push("metadata: the PNG chunks cannot be read; XMP and ICC not carried".into());
+            }
+        }
+        Container::Tiff => {}
+    }
+    out
+}
+
+fn is_absent(e: &std::io::Error) -> bool {
+    let s = e.to_string().to_ascii_lowercase();
+    s.contains("no exif") || s.contains("no metadata") || s.contains("could not find") || s.contains("not found")
+}
+
+/// The XMP text of an uncompressed iTXt chunk with the XMP keyword.
+fn png_xmp(data: &[u8]) -> Option<String> {
+    let rest = data.strip_prefix(XMP_PNG_KEYWORD)?.strip_prefix(b"\0")?;
+    let (&compressed, rest) = rest.split_first()?;
+    if compressed != 0 {
+        return None;
+    }
+    let rest = rest.get(1..)?; // compression method
+    let lang_end = rest.iter().position(|&b| b == 0)?;
+    let rest = &rest[lang_end + 1..];
+    let tr_end = rest.iter().position(|&b| b == 0)?;
+    Some(String::from_utf8_lossy(&rest[tr_end + 1..]).into_owned())
+}
+
+/// The input's tags worth carrying: IFD0's descriptive ones, the Exif
+/// sub-IFD (less what is rewritten) and GPS; no thumbnail (IFD1), no pixel layout.
+fn carried_exif(m: &Metadata) -> Option<Metadata> {
+    let mut out = Metadata::new();
+    let mut n = 0;
+    for ifd in m.get_ifds() {
+        if ifd.get_generic_ifd_nr() != 0 {
+            continue;
+        }
+        let group = ifd.get_ifd_type();
+        for tag in ifd.get_tags() {
+            let hex = tag.as_u16();
+            let keep = match group {
+                ExifTagGroup::GENERIC => IFD0_CARRIED.contains(&hex),
+                ExifTagGroup::EXIF => !EXIF_REWRITTEN.contains(&hex) && !matches!(tag, ExifTag::InteropOffset(_)),
+                ExifTagGroup::GPS => true,
+                _ => false,
+            };
+            if keep && !is_offset(tag) {
+                out.set_tag(tag.clone());
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then_some(out)
+}
+
+fn is_offset(tag: &ExifTag) -> bool {
+    matches!(tag, ExifTag::ExifOffset(_) | ExifTag::GPSInfo(_) | ExifTag::InteropOffset(_))
+}
+
+/// The EXIF of an output of `width` x `height` sRGB pixels, upright: the
+/// carried tags with Orientation 1, ColorSpace 1 (sRGB) and the pixel size.
+pub fn output_exif(c: &Carried, width: u32, height: u32) -> Metadata {
+    let mut m = c.exif.clone().unwrap_or_else(Metadata::new);
+    m.set_tag(ExifTag::Orientation(vec![1]));
+    m.set_tag(ExifTag::ColorSpace(vec![1]));
+    m.set_tag(ExifTag::ExifImageWidth(vec![width]));
+    m.set_tag(ExifTag::ExifImageHeight(vec![height]));
+    m
+}
+
+/// When the photograph was taken, from its EXIF: DateTimeOriginal (else
+/// DateTime) as ISO 8601, with SubSecTimeOriginal and OffsetTimeOriginal
+/// when present (`2026-11-30T10:15:42.437+10:00`).
+pub fn taken_at(m: &Metadata) -> Option<String> {
+    let mut original = None;
+    let mut fallback = None;
+    let mut subsec = None;
+    let mut offset = None;
+    for ifd in m.get_ifds() {
+        for tag in ifd.get_tags() {
+            match tag {
+                ExifTag::DateTimeOriginal(s) => original = Some(s.clone()),
+                ExifTag::ModifyDate(s) => fallback = Some(s.clone()),
+                ExifTag::SubSecTimeOriginal(s) => subsec = Some(s.clone()),
+                ExifTag::OffsetTimeOriginal(s) => offset = Some(s.clone()),
+                _ => {}
+            }
+        }
+    }
+    let raw = original.or(fallback)?;
+    let raw = raw.trim_end_matches('\0').trim();
+    // "YYYY:MM:DD HH:MM:SS"
+    let (date, time) = raw.split_once(' ')?;
+    if date.len() != 10 || time.len() < 8 || !date.chars().all(|c| c.is_ascii_digit() || c == ':') {
+        return None;
+    }
+    let mut iso = format!("{}T{}", date.replace(':', "-"), &time[..8]);
+    if let Some(sub) = subsec.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_digit())) {
+        iso.push('.');
+        iso.push_str(&sub);
+    }
+    if let Some(off) = offset.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| s.len() == 6) {
+        iso.push_str(&off);
+    }
+    Some(iso)
+}
+
+/// Where the photograph was taken, from its EXIF GPS IFD: latitude and
+/// longitude in decimal degrees (south and west negative) and the altitude
+/// in metres (negative below sea level: a depth), when given.
+pub fn position(m: &Metadata) -> Option<(f64, f64, Option<f64>)> {
+    let dms = |v: &[little_exif::rational::uR64]| -> Option<f64> {
+        let f = |r: &little_exif::rational::uR64| (r.denominator != 0).then(|| f64::from(r.nominator) / f64::from(r.denominator));
+        Some(f(v.first()?)? + f(v.get(1)?)? / 60.0 + f(v.get(2)?)? / 3600.0)
+    };
+    let (mut lat, mut lon, mut lat_ref, mut lon_ref, mut alt, mut below) = (None, None, None, None, None, false);
+    for ifd in m.get_ifds() {
+        for tag in ifd.get_tags() {
+            match tag {
+                ExifTag::GPSLatitude(v) => lat = dms(v),
+                ExifTag::GPSLongitude(v) => lon = dms(v),
+                ExifTag::GPSLatitudeRef(s) => lat_ref = Some(s.trim_end_matches('\0').to_string()),
+                ExifTag::GPSLongitudeRef(s) => lon_ref = Some(s.trim_end_matches('\0').to_string()),
+                ExifTag::GPSAltitude(v) => {
+                    alt = v.first().filter(|r| r.denominator != 0).map(|r| f64::from(r.nominator) / f64::from(r.denominator));
+                }
+                ExifTag::GPSAltitudeRef(v) => below = v.first() == Some(&1),
+                _ => {}
+            }
+        }
+    }
+    let sign = |r: &Option<String>, neg: &str| if r.as_deref() == Some(neg) { -1.0 } else { 1.0 };
+    Some((lat? * sign(&lat_ref, "S"), lon? * sign(&lon_ref, "W"), alt.map(|a| if below { -a } else { a })))
+}
+
+/// The restoration, as recorded in XMP: `(property, value)` pairs of the
+/// [`XMP_NAMESPACE`], written in this order.
+pub type Record = Vec<(&'static str, String)>;
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// The `rdf:Description` of the restoration record.
+pub fn record_description(record: &Record) -> String {
+    let mut s = format!("<rdf:Description rdf:about=\"\" xmlns:{XMP_PREFIX}=\"{XMP_NAMESPACE}\">");
+    for (k, v) in record {
+        s.push_str(&format!("<{XMP_PREFIX}:{k}>{}</{XMP_PREFIX}:{k}>", xml_escape(v)));
+    }
+    s.push_str("</rdf:Description>");
+    s
+}
+
+/// The XMP packet of the output: the input's packet (if any) with the
+/// restoration's description added, an earlier restoration record
+/// replaced, and `tiff:Orientation` made 1 (the pixels are upright);
+/// without one, a packet of the record alone.
+pub fn output_xmp(c: &Carried, record: &Record) -> String {
+    let desc = record_description(record);
+    if let Some(packet) = c.xmp.as_deref() {
+        let mut p = remove_record(packet);
+        p = set_orientation(&p);
+        if let Some(at) = p.rfind("</rdf:RDF>") {
+            p.insert_str(at, &desc);
+            return p;
+        }
+    }
+    format!(
+        "<?xpacket begin=\"\u{feff}\" id=\"W5M0MpCehiHzreSzNTczkc9d\"?>\
+<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"><rdf:RDF xmlns:rdf=\"http://www.w3.org/1999/02/22-rdf-syntax-ns#\">{desc}\
+</rdf:RDF></x:xmpmeta><?xpacket end=\"w\"?>"
+    )
+}
+
+/// `packet` without an `rdf:Description` of this project's namespace (a
+/// restored photo restored again gets one record, its own).
+fn remove_record(packet: &str) -> String {
+    let mut p = packet.to_string();
+    let marker = format!("xmlns:{XMP_PREFIX}=\"{XMP_NAMESPACE}\"");
+    while let Some(at) = p.find(&marker) {
+        let (Some(start), Some(end)) = (p[..at].rfind("<rdf:Description"), p[at..].find("</rdf:Description>")) else {
+            break;
+        };
+        p.replace_range(start..at + end + "</rdf:Description>".len(), "");
+    }
+    p
+}
+
+/// `tiff:Orientation` set to 1, as an attribute or an element.
+fn set_orientation(packet: &str) -> String {
+    let mut p = packet.to_string();
+    for (open, close) in [("tiff:Orientation=\"", "\""), ("<tiff:Orientation>", "</tiff:Orientation>")] {
+        let mut from = 0;
+        while let Some(i) = p[from..].find(open) {
+            let v0 = from + i + open.len();
+            let Some(len) = p[v0..].find(close) else { break };
+            p.replace_range(v0..v0 + len, "1");
+            from = v0 + 1;
+        }
+    }
+    p
+}
+
+/// Embeds `exif` and the XMP `packet` into the encoded output `file`
+/// (JPEG, PNG or TIFF, by its first bytes). An earlier EXIF or XMP of the
+/// encoder is replaced. `file` is shared, not copied: the caller keeps the
+/// photo as encoded if this fails.
+pub fn embed(file: &Bytes, exif: &Metadata, packet: &str) -> Result<Vec<u8>, String> {
+    let kind = Container::sniff(file).ok_or("the output is not a JPEG, PNG or TIFF")?;
+    if kind == Container::Tiff {
+        // TIFF keeps its EXIF in the image's own IFD0: the encoder's tags
+        // (size, strips) and the carried ones are written back together
+        let mut out = file.to_vec();
+        let mut m = std::panic::catch_unwind(|| Metadata::new_from_vec(&out, FileExtension::TIFF))
+            .map_err(|_| "cannot read the output TIFF's tags".to_string())?
+            .map_err(|e| format!("cannot read the output TIFF's tags: {e}"))?;
+        for ifd in exif.get_ifds() {
+            for tag in ifd.get_tags() {
+                if !is_offset(tag) {
+                    m.set_tag(tag.clone());
+                }
+            }
+        }
+        m.set_tag(ExifTag::UnknownINT8U(packet.as_bytes().to_vec(), TIFF_XMP_TAG, ExifTagGroup::GENERIC));
+        write_exif(&m, &mut out, kind)?;
+        return Ok(out);
+    }
+    let tiff = std::panic::catch_unwind(|| exif.encode())
+        .map_err(|_| "cannot encode the EXIF (the encoder failed)".to_string())?
+        .map_err(|e| format!("cannot encode the EXIF: {e}"))?;
+    match kind {
+        Container::Jpeg => {
+            let mut j = Jpeg::from_bytes(file.clone()).map_err(|e| format!("the output JPEG: {e}"))?;
+            j.set_exif(Some(Bytes::from(tiff)));
+            let segments = j.segments_mut();
+            segments.retain(|s| !(s.marker() == markers::APP1 && s.contents().starts_with(XMP_JPEG_HEADER)));
+            let mut contents = XMP_JPEG_HEADER.to_vec();
+            contents.extend_from_slice(packet.as_bytes());
+            if contents.len() > 65533 {
+                return Err(format!("the XMP packet ({} bytes) is larger than one JPEG segment holds", packet.len()));
+            }
+            // after the APPn segments (JFIF, EXIF)
+            let at = segments.iter().position(|s| !(0xE0..=0xEF).contains(&s.marker())).unwrap_or(segments.len());
+            segments.insert(at, JpegSegment::new_with_contents(markers::APP1, Bytes::from(contents)));
+            Ok(Vec::from(j.encoder().bytes()))
+        }
+        Container::Png => {
+            let mut p = Png::from_bytes(file.clone()).map_err(|e| format!("the output PNG: {e}"))?;
+            p.set_exif(Some(Bytes::from(tiff)));
+            let chunks = p.chunks_mut();
+            chunks.retain(|c| !(&c.kind() == b"iTXt" && c.contents().starts_with(XMP_PNG_KEYWORD)));
+            let mut data = XMP_PNG_KEYWORD.to_vec();
+            data.extend_from_slice(b"\0\0\0\0\0");
+            data.extend_from_slice(packet.as_bytes());
+            let at = chunks.iter().position(|c| &c.kind() == b"IDAT").unwrap_or(chunks.len());
+            chunks.insert(at, PngChunk::new(*b"iTXt", Bytes::from(data)));
+            Ok(Vec::from(p.encoder().bytes()))
+        }
+        Container::Tiff => Err("unreachable".into()),
+    }
+}
+
+fn write_exif(m: &Metadata, file: &mut Vec<u8>, kind: Container) -> Result<(), String> {
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| m.write_to_vec(file, kind.extension())));
+    match r {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(format!("cannot write the EXIF: {e}")),
+        Err(_) => Err("cannot write the EXIF (the writer failed)".into()),
+    }
+}
+
+/// The restoration record from the sidecar's fields (both commands write
+/// them alike): water type, A, flags, the profile and its steps, t_scale,
+/// the candidate types, the version, and the sidecar's file name.
+pub fn record_from_sidecar(side: &serde_json::Value, sidecar_name: &str) -> Record {
+    use serde_json::Value;
+    let text = |v: Option<&Value>| match v {
+        None | Some(Value::Null) => String::new(),
+        Some(Value::String(s)) => s.clone(),
+        Some(v) => v.to_string(),
+    };
+    let p = side.get("parameters");
+    let param = |k: &str| text(p.and_then(|p| p.get(k)));
+    let a = side
+        .get("veiling_light")
+        .and_then(Value::as_array)
+        .map(|a| a.iter().map(|v| format!("{:.6}", v.as_f64().unwrap_or(f64::NAN))).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default();
+    let list = |v: Option<&Value>| match v.and_then(Value::as_array) {
+        Some(items) => items
+            .iter()
+            .map(|x| match x {
+                Value::Array(spec) => text(spec.first()),
+                other => text(Some(other)),
+            })
+            .collect::<Vec<_>>()
+            .join(","),
+        None => String::new(),
+    };
+    let t_scale = p.and_then(|p| p.get("t_scale")).and_then(Value::as_f64).map(|v| format!("{v:.6}")).unwrap_or_default();
+    let types = list(p.and_then(|p| p.get("water_types")));
+    vec![
+        ("WaterType", text(side.get("water_type"))),
+        ("VeilingLight", a),
+        ("Flags", list(side.get("flags"))),
+        ("Method", param("method")),
+        ("Selection", param("selection")),
+        ("WhiteBalance", param("white_balance")),
+        ("TypeChoice", param("type_choice")),
+        ("HazeFloor", param("haze_floor")),
+        ("TScale", t_scale),
+        ("WaterTypes", if types.is_empty() { "all".into() } else { types }),
+        ("Version", text(side.get("uwhl_version"))),
+        ("Sidecar", sidecar_name.to_string()),
+    ]
+}
+
+/// Carries the metadata of the input file (`input`, its bytes) into the
+/// encoded output `encoded` of `width` x `height` pixels, with the
+/// restoration record of the sidecar `side`: the output's bytes and the
+/// sidecar's `metadata` object. Never fails: when the metadata cannot be
+/// written, the output is returned as encoded and the reason noted.
+pub fn carry(input: Vec<u8>, encoded: Vec<u8>, side: &serde_json::Value, sidecar_name: &str, width: u32, height: u32)
+    -> (Vec<u8>, serde_json::Value) {
+    let c = read(input);
+    let exif_tags = c.exif.as_ref().map_or(0, |m| m.get_ifds().iter().map(|i| i.get_tags().len()).sum::<usize>());
+    let exif = output_exif(&c, width, height);
+    let xmp = output_xmp(&c, &record_from_sidecar(side, sidecar_name));
+    let mut notes = c.notes.clone();
+    let original = Bytes::from(encoded);
+    let (bytes, written) = match embed(&original, &exif, &xmp) {
+        Ok(b) => (b, true),
+        Err(e) if c.xmp.is_some() => {
+            // the input's packet may not fit (one JPEG segment): the record alone
+            let own = output_xmp(&Carried::default(), &record_from_sidecar(side, sidecar_name));
+            match embed(&original, &exif, &own) {
+                Ok(b) => {
+                    notes.push(format!("metadata: the input's XMP is not carried ({e}); the record is"));
+                    (b, true)
+                }
+                Err(e) => {
+                    notes.push(format!("metadata: {e}; the photo is written without it"));
+                    (Vec::from(original), false)
+                }
+            }
+        }
+        Err(e) => {
+            notes.push(format!("metadata: {e}; the photo is written without it"));
+            (Vec::from(original), false)
+        }
+    };
+    let taken = c.exif.as_ref().and_then(taken_at);
+    let gps = c.exif.as_ref().and_then(position).map(|(lat, lon, alt)| {
+        serde_json::json!({"latitude": lat, "longitude": lon, "altitude": alt})
+    });
+    let summary = serde_json::json!({
+        "written": written,
+        "exif_tags_carried": exif_tags,
+        "input_xmp": c.xmp.is_some(),
+        "input_icc_profile": c.icc.is_some(),
+        "taken_at": taken,
+        "gps": gps,
+        "notes": notes,
+    });
+    (bytes, summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_record_replaces_an_earlier_one_and_orientation_becomes_upright() {
+        let rec: Record = vec![("WaterType", "3C".into()), ("Note", "a < b & c".into())];
+        let first = output_xmp(&Carried::default(), &rec);
+        assert!(first.contains("<uwhl:WaterType>3C</uwhl:WaterType>") && first.contains("a &lt; b &amp; c"));
+        let input = "<x:xmpmeta><rdf:RDF><rdf:Description tiff:Orientation=\"6\" xmp:Rating=\"3\"/>\
+<rdf:Description><tiff:Orientation>8</tiff:Orientation></rdf:Description></rdf:RDF></x:xmpmeta>";
+        let c = Carried { xmp: Some(input.into()), ..Carried::default() };
+        let once = output_xmp(&c, &rec);
+        assert!(once.contains("tiff:Orientation=\"1\"") && once.contains("<tiff:Orientation>1</tiff:Orientation>"));
+        assert!(once.contains("xmp:Rating=\"3\""));
+        let again = output_xmp(&Carried { xmp: Some(once.clone()), ..Carried::default() }, &vec![("WaterType", "II".into())]);
+        assert_eq!(again.matches(XMP_NAMESPACE).count(), 1);
+        assert!(again.contains("<uwhl:WaterType>II</uwhl:WaterType>") && !again.contains(">3C<"));
+    }
+
+    #[test]
+    fn png_xmp_chunks_are_read() {
+        let mut d = XMP_PNG_KEYWORD.to_vec();
+        d.extend_from_slice(b"\0\0\0en\0\0<x/>");
+        assert_eq!(png_xmp(&d).as_deref(), Some("<x/>"));
+        d[XMP_PNG_KEYWORD.len() + 1] = 1; // compressed: not read
+        assert_eq!(png_xmp(&d), None);
+    }
+
+    #[test]
+    fn garbage_is_a_note_not_a_failure() {
+        let c = read(b"\xFF\xD8\xFF\xE1\x00\x10Exif\0\0garbage-garbage".to_vec());
+        assert!(c.exif.is_none());
+        let c = read(b"not an image".to_vec());
+        assert!(c.exif.is_none() && !c.notes.is_empty());
+    }
+}
