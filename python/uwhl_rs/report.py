@@ -175,12 +175,40 @@ def _histogram_svg(counts: dict) -> str:
     return "".join(out)
 
 
+def _taken(p: Photo):
+    """When the photo was taken (its EXIF, through the sidecar), or None."""
+    from datetime import datetime
+
+    t = ((p.doc.get("metadata") or {}).get("taken_at"))
+    try:
+        return datetime.fromisoformat(t) if t else None
+    except ValueError:
+        return None
+
+
+def series_axis(photos: list[Photo]) -> tuple[list[Photo], list[float], str, str]:
+    """The x axis of the sequence: EXIF time when every photo has one (in
+    time order, seconds from the first), else the frame index (name
+    order); the photos in that order, their x, and the two end labels."""
+    times = [_taken(p) for p in photos]
+    if photos and all(t is not None for t in times) and len({t.tzinfo is None for t in times}) == 1:
+        order = sorted(range(len(photos)), key=lambda k: times[k])
+        t0 = times[order[0]]
+        xs = [(times[k] - t0).total_seconds() for k in order]
+        label = [p.doc["metadata"]["taken_at"] for p in photos]  # as the EXIF says it
+        return ([photos[k] for k in order], xs, f"EXIF time {label[order[0]]}",
+                f"{label[order[-1]]} (+{xs[-1]:.0f} s)")
+    return photos, [float(k) for k in range(len(photos))], "frame 1", f"frame {len(photos)}"
+
+
 def _series_svg(photos: list[Photo], types: list[str]) -> str:
     """Water type (steps), A (R, G, B) and the chosen type's score over the
-    frame index: three stacked panels sharing the x axis."""
+    sequence (:func:`series_axis`): three stacked panels sharing the x axis."""
+    photos, tx, first, last = series_axis(photos)
     n = len(photos)
     W, H, left = 900, 140, 48
-    xs = [left + (W - left - 10) * (k / max(1, n - 1)) for k in range(n)]
+    span = max(tx) - min(tx) if tx and max(tx) > min(tx) else 1.0
+    xs = [left + (W - left - 10) * ((t - tx[0]) / span) for t in tx]
 
     def poly(vals, lo, hi, y0, color, width=1.4):
         pts = " ".join(f"{x:.1f},{y0 + H - 8 - (H - 30) * ((v - lo) / (hi - lo) if hi > lo else 0.5):.1f}"
@@ -205,8 +233,8 @@ def _series_svg(photos: list[Photo], types: list[str]) -> str:
     out.append(f'<text x="{left}" y="{2 * H + 12}" class="lab">score of the chosen type (lower is better)</text>')
     if sv:
         out.append(poly(sc, min(sv), max(sv), 2 * H, "#9467bd"))
-    out.append(f'<text x="{left}" y="{3 * H + 30}" class="tick">frame 1</text>'
-               f'<text x="{W - 10}" y="{3 * H + 30}" text-anchor="end" class="tick">frame {n}</text>')
+    out.append(f'<text x="{left}" y="{3 * H + 30}" class="tick">{html.escape(first)}</text>'
+               f'<text x="{W - 10}" y="{3 * H + 30}" text-anchor="end" class="tick">{html.escape(last)}</text>')
     out.append("</svg>")
     return "".join(out)
 
@@ -335,7 +363,7 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
 <section id="flagged"><h2>Needs a look: {flagged} flagged (fallbacks, clamps; docs/OUTPUTS.md "Flags")</h2>
 <div id="flagged-grid"></div></section>
 <h2>Water types</h2>{_histogram_svg(counts)}
-<h2>Over the sequence (frame index, in name order)</h2>{_series_svg(photos, types) if photos else ''}
+<h2>Over the sequence ({'EXIF time' if photos and series_axis(photos)[3].endswith(' s)') else 'frame index, in name order'})</h2>{_series_svg(photos, types) if photos else ''}
 <section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
 {''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
 <div id="view" onclick="if(event.target===this)hide()"></div>

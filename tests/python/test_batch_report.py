@@ -117,3 +117,30 @@ def test_report_refusals_and_leftovers(tmp_path):
     done = report.write_report(str(out))
     assert done["photos"] == 3
     assert any("broken.json" in p for p in done["problems"]) and any("f000.jpg" in p for p in done["problems"])
+
+
+def test_the_sequence_follows_exif_time_when_every_photo_has_it(tmp_path):
+    """Frames named out of time order, with EXIF DateTimeOriginal: the
+    series is drawn in time order, its axis labelled with the times."""
+    from PIL import Image
+
+    from test_metadata import _gps_exif, _scene
+
+    src = tmp_path / "in"
+    src.mkdir()
+    # names in one order, times in the other
+    for k, name in enumerate(["c.jpg", "b.jpg", "a.jpg"]):
+        ex = _gps_exif()
+        ex.get_ifd(0x8769)[0x9003] = f"2026:11:30 10:15:{10 * k:02d}"
+        Image.fromarray(_scene(seed=k)).save(src / name, quality=92, exif=ex)
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "-q"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    photos, _ = report.collect_sidecars(str(out))
+    ordered, xs, first, last = report.series_axis(photos)
+    assert [os.path.basename(p.sidecar) for p in ordered] == ["c.json", "b.json", "a.json"]
+    assert xs == [0.0, 10.0, 20.0] and first.endswith("2026-11-30T10:15:00.437") and last.endswith("(+20 s)")
+    report.write_report(str(out))
+    page = (out / "report" / "index.html").read_text()
+    assert "Over the sequence (EXIF time)" in page and "2026-11-30T10:15:00.437" in page
