@@ -558,7 +558,6 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
     # inputs that matched nothing count as failed in the summary too
     outcomes = [Outcome(Job(item, "", ""), "failed", note=why, code=EXIT["unreadable_input"])
                 for item, why in problems] + outcomes
-    failed = [o for o in outcomes if o.status == "failed"]
     if not a.quiet:
         _summary(outcomes, out, time.perf_counter() - progress.t0)
     if interrupted:
@@ -566,11 +565,19 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
                 f"interrupted after {len(outcomes) - len(problems)} of {len(jobs)} inputs; "
                 "run the same command again to resume")
         return EXIT_INTERRUPTED
+    return _batch_end(a, outcomes, csv_rows.error, out, err)
+
+
+def _batch_end(a: argparse.Namespace, outcomes: list, summary_error: str | None, out, err) -> int:
+    """The end of a batch that was not interrupted, for both paths: the
+    failures counted, summary.csv's trouble reported, the report written;
+    the exit status."""
+    failed = [o for o in outcomes if o.status == "failed"]
     if failed and not a.json_errors:
         err.write(f"uwhl: {len(failed)} input(s) failed\n")
     code = max((o.code for o in outcomes), default=EXIT_OK)
-    if csv_rows.error:
-        _report(err, a.json_errors, None, "write_failed", csv_rows.error)
+    if summary_error:
+        _report(err, a.json_errors, None, "write_failed", summary_error)
         code = max(code, EXIT["write_failed"])
     if a.report:
         code = max(code, run_report(a.out, a.quiet, out, err))
@@ -634,16 +641,7 @@ def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
         _report(err, a.json_errors, None, "interrupted",
                 f"interrupted after {len(result.rows)} of {result.total} inputs; run the same command again to resume")
         return EXIT_INTERRUPTED
-    failed = [o for o in outcomes if o.status == "failed"]
-    if failed and not a.json_errors:
-        err.write(f"uwhl: {len(failed)} input(s) failed\n")
-    code = max((o.code for o in outcomes), default=EXIT_OK)
-    if result.summary_error:
-        _report(err, a.json_errors, None, "write_failed", result.summary_error)
-        code = max(code, EXIT["write_failed"])
-    if a.report:
-        code = max(code, run_report(a.out, a.quiet, out, err))
-    return code
+    return _batch_end(a, outcomes, result.summary_error, out, err)
 
 
 def _summary(outcomes: list[Outcome], out, total: float) -> None:

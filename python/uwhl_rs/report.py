@@ -205,7 +205,6 @@ def _series_svg(photos: list[Photo], types: list[str]) -> str:
     """Water type (steps), A (R, G, B) and the chosen type's score over the
     sequence (:func:`series_axis`): three stacked panels sharing the x axis."""
     photos, tx, first, last = series_axis(photos)
-    n = len(photos)
     W, H, left = 900, 140, 48
     span = max(tx) - min(tx) if tx and max(tx) > min(tx) else 1.0
     xs = [left + (W - left - 10) * ((t - tx[0]) / span) for t in tx]

@@ -10,8 +10,6 @@ import os
 import subprocess
 import sys
 
-import pytest
-
 from test_report_browser import ROOT, _chromium, _run
 from uwhl_rs import report, synth
 from uwhl_rs.io import write_image
@@ -63,7 +61,7 @@ def test_restore_report_in_chromium(tmp_path):
     # the histogram's bars say what the sidecars say
     for wt, n in counts.items():
         assert f"<title>{wt}: {n}</title>" in page, wt
-    assert f"8 photos restored, 1 flagged" in page
+    assert "8 photos restored, 1 flagged" in page
     # the flagged section comes first and holds exactly the flagged photo
     flagged = page[page.index('id="flagged-grid"'):page.index('id="all"')]
     assert flagged.count('class="cell flagged"') == 1 and "f002" in flagged and "veiling_fallback" in flagged

@@ -17,7 +17,6 @@ from PIL import Image
 
 from datapaths import IMAGES_DIR, RAW_DIR
 from uwhl_rs import synth
-from uwhl_rs.io import write_image
 
 EXIF_IFD, GPS_IFD = 0x8769, 0x8825
 #: IFD0 tags that describe the photograph (carried); the rest describe pixels
