@@ -189,6 +189,8 @@ def _sidecar(path: str) -> dict:
         d = json.load(f)
     if _EXTRA and isinstance(d.get("parameters"), dict):
         d["parameters"] = {k: v for k, v in d["parameters"].items() if k not in _NEW_PARAMETERS}
+    if isinstance(d.get("source"), dict):
+        d["source"].pop("icc_profile", None)  # recorded since 079fa6a; its effect is in the pixels
     return {k: v for k, v in d.items() if k not in _VOLATILE}
 
 

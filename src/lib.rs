@@ -91,6 +91,11 @@ mod commit;
 #[forbid(unsafe_code)]
 pub mod metadata;
 
+/// Inputs tagged with another colour profile converted to the working space.
+#[cfg(any(feature = "cli", feature = "python"))]
+#[forbid(unsafe_code)]
+pub mod icc;
+
 /// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
 /// outputs and sidecar, batch and stream modes.
 #[cfg(feature = "cli")]

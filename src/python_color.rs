@@ -42,6 +42,36 @@ fn _decode_u8<'py>(
     same_shape(py, v, codes.shape())
 }
 
+/// What an input's ICC profile is (`crate::icc::classify`): `("srgb" |
+/// "other" | "unreadable", description or reason)`.
+#[pyfunction]
+fn _icc_classify(icc: &[u8]) -> (&'static str, String) {
+    match crate::icc::classify(icc) {
+        crate::icc::Profile::Srgb(n) => ("srgb", n),
+        crate::icc::Profile::Other(n) => ("other", n),
+        crate::icc::Profile::Unreadable(why) => ("unreadable", why),
+    }
+}
+
+/// Interleaved RGB values in [0, 1] (codes / max, any shape ending in 3)
+/// from the profile `icc` to the working space (`crate::icc::convert`):
+/// linear when `linear`, else sRGB-encoded. A new float32 array.
+#[pyfunction]
+fn _icc_convert<'py>(
+    py: Python<'py>,
+    values: PyReadonlyArrayDyn<'py, f32>,
+    icc: &[u8],
+    linear: bool,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let mut v = slice(&values, "values")?.to_vec();
+    if v.len() % 3 != 0 {
+        return Err(PyValueError::new_err("values must hold RGB triples"));
+    }
+    let icc = icc.to_vec();
+    py.detach(|| crate::icc::convert(&icc, &mut v, linear)).map_err(PyValueError::new_err)?;
+    same_shape(py, v, values.shape())
+}
+
 /// 16-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`.
 #[pyfunction]
 fn _decode_u16<'py>(
@@ -245,6 +275,8 @@ fn _encode_png<'py>(py: Python<'py>, a: &Bound<'py, PyAny>) -> PyResult<Bound<'p
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_decode_u8, m)?)?;
     m.add_function(wrap_pyfunction!(_decode_u16, m)?)?;
+    m.add_function(wrap_pyfunction!(_icc_classify, m)?)?;
+    m.add_function(wrap_pyfunction!(_icc_convert, m)?)?;
     m.add_function(wrap_pyfunction!(_quantize, m)?)?;
     m.add_function(wrap_pyfunction!(_colormap, m)?)?;
     m.add_function(wrap_pyfunction!(_downscale, m)?)?;

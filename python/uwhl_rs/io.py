@@ -92,6 +92,9 @@ class ImageMeta:
     white_balance: tuple | None = None
     #: documented fallbacks taken while reading
     notes: tuple = field(default_factory=tuple)
+    #: the embedded ICC profile: {"description", "converted"} (converted:
+    #: not sRGB, so the codes went to the working space through it), or None
+    icc_profile: dict | None = None
 
     def to_dict(self) -> dict:
         """A JSON-ready dict (the sidecar's ``source``)."""
@@ -204,8 +207,10 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
     from PIL import Image
 
     orientation = 1
+    icc = None
     if kind in ("JPEG", "PNG"):
         with _pillow_limit(), Image.open(path) as im:
+            icc = im.info.get("icc_profile")
             _check_pixels(path, im.height, im.width, max_pixels)
             # Pillow's PNG getexif() decodes the whole image to look for an
             # eXIf chunk after the data; the plan comes before any decoding,
@@ -230,6 +235,7 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
             if page.samplesperpixel > 1 and page.planarconfig == 2:  # planar: (C, H, W)
                 h, w = shape[-2], shape[-1]
             orientation = int(page.tags.get("Orientation").value) if "Orientation" in page.tags else 1
+            icc = bytes(page.tags[34675].value) if 34675 in page.tags else None  # InterColorProfile
             bpp = int(page.samplesperpixel) * page.dtype.itemsize
             _check_pixels(path, h, w, max_pixels, on_header, bpp, orientation != 1)
             codes = page.asarray()
@@ -249,7 +255,18 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
                 codes = iio.imread(path, plugin="pillow", mode="RGB", rotate=True)
     codes = _to_rgb(path, np.asarray(codes))
     linearize = preprocess == "none"
-    if codes.dtype == np.uint8:
+    # a profile other than sRGB: the codes go to the working space through it (the core's src/icc.rs)
+    profile, notes = None, ()
+    if icc:
+        what, text = _core._icc_classify(bytes(icc))
+        profile = {"description": text if what != "unreadable" else "", "converted": what == "other"}
+        if what == "unreadable":
+            notes = (f"the ICC profile cannot be read ({text}); read as sRGB",)
+    if profile and profile["converted"] and codes.dtype in (np.uint8, np.uint16):
+        bits = 8 if codes.dtype == np.uint8 else 16
+        values = np.ascontiguousarray(codes, dtype=np.float32) / np.float32(255 if bits == 8 else 65535)
+        img = _core._icc_convert(values, bytes(icc), linearize)
+    elif codes.dtype == np.uint8:
         bits = 8
         img = _core._decode_u8(np.ascontiguousarray(codes), linearize)
     elif codes.dtype == np.uint16:
@@ -266,7 +283,8 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
         raise ImageReadError(f"{path}: samples of type {codes.dtype} are not supported (8/16-bit or float)")
     if preprocess == "reference":
         img = _core._reference_srgb(img)
-    meta = ImageMeta(path, "srgb", kind, bits, img.shape[0], img.shape[1], orientation, linearize, preprocess)
+    meta = ImageMeta(path, "srgb", kind, bits, img.shape[0], img.shape[1], orientation, linearize, preprocess,
+                     notes=notes, icc_profile=profile)
     return img, meta
 
 

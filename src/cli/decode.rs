@@ -55,6 +55,9 @@ pub struct Decoded {
     pub is_float: bool,
     /// the EXIF orientation that was applied (1 = none)
     pub orientation: u8,
+    /// the embedded ICC profile: its description, whether the codes were
+    /// converted through it (not sRGB), and why it could not be read
+    pub icc_profile: Option<(String, bool, Option<String>)>,
 }
 
 fn image_error(e: ImageError) -> CliError {
@@ -113,7 +116,7 @@ fn open<R: BufRead + Seek>(
     limits: &Limits,
     orient: bool,
     check: impl FnOnce(&Header) -> Result<(), CliError>,
-) -> Result<(DynamicImage, &'static str, u8), CliError> {
+) -> Result<(DynamicImage, &'static str, u8, Option<Vec<u8>>), CliError> {
     let reader = ImageReader::new(reader)
         .with_guessed_format()
         .map_err(|e| CliError::new(Kind::Input, format!("cannot read: {e}")))?;
@@ -130,7 +133,7 @@ fn open_reader<R: BufRead + Seek>(
     limits: &Limits,
     orient: bool,
     check: impl FnOnce(&Header) -> Result<(), CliError>,
-) -> Result<(DynamicImage, &'static str, u8), CliError> {
+) -> Result<(DynamicImage, &'static str, u8, Option<Vec<u8>>), CliError> {
     let format = match reader.format() {
         Some(ImageFormat::Png) => "PNG",
         Some(ImageFormat::Jpeg) => "JPEG",
@@ -191,9 +194,11 @@ fn open_reader<R: BufRead + Seek>(
         is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && format != "JPEG",
         oriented: code != 1,
     })?;
+    // a damaged profile is not either: the image is then read as sRGB
+    let icc = decoder.icc_profile().ok().flatten();
     let mut img = DynamicImage::from_decoder(decoder).map_err(image_error)?;
     img.apply_orientation(orientation);
-    Ok((img, format, code))
+    Ok((img, format, code, icc))
 }
 
 /// Decodes one file's bytes from `reader` to H x W x 3 values in [0, 1],
@@ -205,9 +210,28 @@ pub fn decode<R: BufRead + Seek>(
     linearize: bool,
     check: impl FnOnce(&Header) -> Result<(), CliError>,
 ) -> Result<Decoded, CliError> {
-    let (img, format, orientation) = open(reader, limits, true, check)?;
+    let (img, format, orientation, icc) = open(reader, limits, true, check)?;
     let (height, width) = (img.height() as usize, img.width() as usize);
+    // a profile other than sRGB: its codes go to the working space through it (src/icc.rs)
+    let (profile, convert) = match icc.as_deref().map(crate::icc::classify) {
+        None => (None, false),
+        Some(crate::icc::Profile::Srgb(name)) => (Some((name, false, None)), false),
+        Some(crate::icc::Profile::Other(name)) => (Some((name, true, None)), true),
+        Some(crate::icc::Profile::Unreadable(why)) => (Some((String::new(), false, Some(why))), false),
+    };
+    let through = |codes: Vec<f32>| -> Result<Vec<f32>, CliError> {
+        let mut v = codes;
+        crate::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize)
+            .map_err(|e| CliError::new(Kind::Input, e))?;
+        Ok(v)
+    };
     let (data, bits) = match img.color() {
+        ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 if convert => {
+            (through(img.into_rgb8().as_raw().iter().map(|&c| f32::from(c) / 255.0).collect())?, 8)
+        }
+        ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 if convert => {
+            (through(img.into_rgb16().as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect())?, 16)
+        }
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
             (decode_u8(img.into_rgb8().as_raw(), linearize), 8)
         }
@@ -230,6 +254,8 @@ pub fn decode<R: BufRead + Seek>(
         bits,
         is_float: bits == 32,
         orientation,
+        // float samples are taken as linear values, whatever their profile (as the Python reader does)
+        icc_profile: if bits == 32 { None } else { profile },
     })
 }
 
@@ -250,7 +276,7 @@ pub fn decode_mask<R: BufRead + Seek>(
     limits: &Limits,
 ) -> Result<(Vec<bool>, usize, usize), CliError> {
     let budget = limits.max_memory;
-    let (img, _, _) = open(reader, limits, false, |h| {
+    let (img, _, _, _) = open(reader, limits, false, |h| {
         let n = (h.height as u64).saturating_mul(h.width as u64);
         // decoded + converted (6 bytes per pixel) + the bools
         let need = n.saturating_mul(h.bpp.saturating_mul(2).saturating_add(7));

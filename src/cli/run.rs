@@ -252,6 +252,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         preprocess: if linear { Preprocess::None } else { Preprocess::Reference },
         processed_height: hp,
         processed_width: wp,
+        icc_profile: decoded.icc_profile.clone(),
     };
     Ok(Restored {
         res,

@@ -30,6 +30,8 @@ pub struct Source {
     pub processed_height: usize,
     /// columns restored
     pub processed_width: usize,
+    /// the embedded ICC profile (`decode::Decoded::icc_profile`)
+    pub icc_profile: Option<(String, bool, Option<String>)>,
 }
 
 /// Paths of the three image outputs (the sidecar names them by file name,
@@ -106,6 +108,23 @@ pub fn parameters(o: &Options) -> Value {
     })
 }
 
+/// The sidecar's `source.icc_profile`: the profile's description and
+/// whether the codes were converted through it (null without a profile),
+/// as the Python reader writes it.
+fn icc_json(source: &Source) -> Value {
+    match &source.icc_profile {
+        None => Value::Null,
+        Some((name, converted, _)) => json!({"description": name, "converted": converted}),
+    }
+}
+
+fn icc_notes(source: &Source) -> Vec<String> {
+    match &source.icc_profile {
+        Some((_, _, Some(why))) => vec![format!("the ICC profile cannot be read ({why}); read as sRGB")],
+        _ => vec![],
+    }
+}
+
 fn file_name(p: &Path) -> String {
     p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()
 }
@@ -148,7 +167,8 @@ pub fn sidecar(
             "preprocess": source.preprocess.name(),
             "camera_matrix": null,
             "white_balance": null,
-            "notes": [],
+            "notes": icc_notes(source),
+            "icc_profile": icc_json(source),
             "processed_height": source.processed_height,
             "processed_width": source.processed_width,
         },

@@ -1,0 +1,123 @@
+//! Inputs tagged with an ICC profile other than sRGB (Adobe RGB (1998),
+//! Display P3, a camera's own): their codes are converted to the linear
+//! working space the method works in (linear light, sRGB primaries, D65;
+//! METHOD §2) with the `moxcms` colour-management engine, one
+//! implementation for both commands. sRGB-tagged and untagged inputs keep
+//! the sRGB decoding of `color` bit for bit.
+
+use moxcms::{ColorProfile, Layout, ProfileText, RenderingIntent, ToneReprCurve, TransformOptions};
+
+/// The distance of a profile's colorants from sRGB's under which it is
+/// taken as sRGB (XYZ units; Adobe RGB's green is 0.07 away, P3's red 0.05).
+const SRGB_TOLERANCE: f64 = 2e-3;
+
+/// What the profile says it is: its description, else "unnamed".
+fn description(p: &ColorProfile) -> String {
+    match &p.description {
+        Some(ProfileText::PlainString(s)) => s.clone(),
+        Some(ProfileText::Localizable(v)) => v.first().map(|l| l.value.clone()).unwrap_or_default(),
+        Some(ProfileText::Description(d)) => d.ascii_string.clone(),
+        None => String::new(),
+    }
+    .trim_end_matches('\0')
+    .trim()
+    .to_string()
+}
+
+/// Whether `p` is sRGB: its colorants within [`SRGB_TOLERANCE`] of sRGB's
+/// (a profile that says "sRGB" with other primaries is not).
+fn is_srgb(p: &ColorProfile) -> bool {
+    let s = ColorProfile::new_srgb();
+    let near = |a: &moxcms::Xyzd, b: &moxcms::Xyzd| {
+        (a.x - b.x).abs() < SRGB_TOLERANCE && (a.y - b.y).abs() < SRGB_TOLERANCE && (a.z - b.z).abs() < SRGB_TOLERANCE
+    };
+    near(&p.red_colorant, &s.red_colorant) && near(&p.green_colorant, &s.green_colorant) && near(&p.blue_colorant, &s.blue_colorant)
+}
+
+/// The working space: sRGB primaries and white, linear (gamma 1) curves.
+fn linear_srgb() -> ColorProfile {
+    let mut p = ColorProfile::new_srgb();
+    let linear = ToneReprCurve::Parametric(vec![1.0]);
+    p.red_trc = Some(linear.clone());
+    p.green_trc = Some(linear.clone());
+    p.blue_trc = Some(linear);
+    p.cicp = None;
+    p
+}
+
+/// The result of looking at an input's profile.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Profile {
+    /// sRGB (or no profile): decode as sRGB
+    Srgb(String),
+    /// another profile: convert with [`convert`]
+    Other(String),
+    /// a profile that cannot be read: decoded as sRGB, with the reason
+    Unreadable(String),
+}
+
+/// Classifies the ICC profile `icc` of an input.
+pub fn classify(icc: &[u8]) -> Profile {
+    match ColorProfile::new_from_slice(icc) {
+        Ok(p) if is_srgb(&p) => Profile::Srgb(description(&p)),
+        Ok(p) => Profile::Other(description(&p)),
+        Err(e) => Profile::Unreadable(format!("{e:?}")),
+    }
+}
+
+/// Converts interleaved RGB codes (`values` in [0, 1]: codes / (2^bits - 1))
+/// from the profile `icc` to the working space, in place: linear when
+/// `linear`, else sRGB-encoded (`--preprocess reference`, which keeps the
+/// sRGB values). Values outside the sRGB gamut are clipped to [0, 1].
+pub fn convert(icc: &[u8], values: &mut [f32], linear: bool) -> Result<(), String> {
+    let src = ColorProfile::new_from_slice(icc).map_err(|e| format!("the ICC profile cannot be read: {e:?}"))?;
+    let dst = if linear { linear_srgb() } else { ColorProfile::new_srgb() };
+    let options = TransformOptions {
+        rendering_intent: RenderingIntent::RelativeColorimetric,
+        prefer_fixed_point: false,
+        ..TransformOptions::default()
+    };
+    let t = src
+        .create_transform_f32(Layout::Rgb, &dst, Layout::Rgb, options)
+        .map_err(|e| format!("no transform from the ICC profile {:?}: {e:?}", description(&src)))?;
+    let input = values.to_vec();
+    t.transform(&input, values).map_err(|e| format!("ICC transform: {e:?}"))?;
+    for v in values.iter_mut() {
+        *v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn encoded(p: ColorProfile) -> Vec<u8> {
+        p.encode().unwrap()
+    }
+
+    #[test]
+    fn srgb_is_recognised_and_others_are_not() {
+        assert!(matches!(classify(&encoded(ColorProfile::new_srgb())), Profile::Srgb(_)));
+        assert!(matches!(classify(&encoded(ColorProfile::new_adobe_rgb())), Profile::Other(_)));
+        assert!(matches!(classify(&encoded(ColorProfile::new_display_p3())), Profile::Other(_)));
+        assert!(matches!(classify(b"not a profile"), Profile::Unreadable(_)));
+    }
+
+    #[test]
+    fn adobe_rgb_primaries_land_where_the_matrices_put_them() {
+        // Adobe RGB (1998) pure green is outside sRGB: clipped to (0, 1, 0);
+        // its white is white; its mid gray (gamma 563/256) is linear 0.5^2.199
+        let icc = encoded(ColorProfile::new_adobe_rgb());
+        let mut v = vec![0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 0.5, 0.5, 0.5];
+        convert(&icc, &mut v, true).unwrap();
+        assert!(v[0] < 1e-3 && (v[1] - 1.0).abs() < 1e-3 && v[2] < 1e-3, "{v:?}");
+        assert!(v[3..6].iter().all(|x| (x - 1.0).abs() < 2e-3), "{v:?}");
+        let gray = 0.5f32.powf(563.0 / 256.0);
+        assert!(v[6..9].iter().all(|x| (x - gray).abs() < 2e-3), "{v:?} vs {gray}");
+        // Adobe red (R=1) in linear sRGB: X,Y,Z of Adobe red through sRGB's inverse matrix
+        let mut r = vec![1.0, 0.0, 0.0];
+        convert(&icc, &mut r, true).unwrap();
+        assert!(r[0] > 0.99 && r[1] < 1e-3 && r[2] < 1e-3, "{r:?}");
+    }
+}
