@@ -728,7 +728,7 @@ def run_report(out_dir: str, quiet: bool = False, out=None, err=None) -> int:
         _report(err, False, out_dir, "write_failed", f"cannot write the report: {_describe(e)}")
         return EXIT["write_failed"]
     if not quiet:
-        out.write(f"report: {done['path']} ({done['photos']} photos, {done['flagged']} flagged, "
+        out.write(f"report: {done['path']} ({done['photos']} photos, {done['flagged']} flagged, {done['failed']} failed, "
                   f"{done['thumbnails_written']} thumbnails written, {done['seconds']:.1f} s)\n")
         for p in done["problems"][:20]:
             out.write(f"  note: {p}\n")

@@ -56,6 +56,19 @@ class Photo:
         return [f for f in self.doc.get("flags") or [] if f not in ROUTINE_FLAGS]
 
 
+def failed_inputs(out_dir: str) -> list[dict]:
+    """The failed rows of ``OUTDIR/summary.csv`` (inputs without a sidecar
+    to show), or none when there is no summary."""
+    import csv
+
+    path = os.path.join(out_dir, "summary.csv")
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            return [r for r in csv.DictReader(f) if r.get("status") == "failed"]
+    except (OSError, ValueError, csv.Error):
+        return []
+
+
 def _is_sidecar(doc) -> bool:
     return isinstance(doc, dict) and "water_type" in doc and isinstance(doc.get("outputs"), dict) and "input" in doc
 
@@ -250,6 +263,7 @@ h1{font-size:20px;margin:0 0 4px} h2{font-size:16px;margin:22px 0 8px}
 .pair{display:flex;gap:3px;cursor:pointer} .pair img{width:50%;height:auto;min-height:60px;background:#ccc}
 .cap{font-size:12px;margin-top:4px;word-break:break-all} .flags{color:#d95f02;font-weight:600}
 .sw{display:inline-block;width:10px;height:10px;border:1px solid #999;vertical-align:middle;margin-right:2px}
+.failed td{padding:2px 8px;border-bottom:1px solid #ddd;color:#a00}
 .pager button{margin:0 2px} #view{position:fixed;inset:0;background:rgba(0,0,0,.85);display:none;
 padding:20px;overflow:auto;color:#eee} #view img{max-width:48%;margin:0 1%} #view a{color:#9cf}
 """
@@ -351,14 +365,21 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
         })
     counts = {t: n for t, n in counts.items() if n}
     flagged = sum(1 for d in data if d["flags"])
+    failed = failed_inputs(out_dir)
+    failed_html = "" if not failed else (
+        f'<section id="failed"><h2>Failed: {len(failed)} (from summary.csv)</h2><table class="failed">'
+        + "".join(f"<tr><td>{html.escape(r.get('input', ''))}</td><td>{html.escape(r.get('error_kind', ''))}</td>"
+                  f"<td>{html.escape(r.get('error', ''))}</td></tr>" for r in failed)
+        + "</table></section>")
     types = [t for t in uwhl_rs.WATER_TYPES] + sorted(t for t in counts if t not in uwhl_rs.WATER_TYPES)
     blob = json.dumps({"page": int(page_size), "photos": data}).replace("</", "<\\/")
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {html.escape(os.path.basename(os.path.abspath(out_dir)))}</title><style>{_CSS}</style></head><body>
 <h1>{html.escape(os.path.abspath(out_dir))}</h1>
-<p class="meta" id="summary">{len(photos)} photos restored, {flagged} flagged; water types:
+<p class="meta" id="summary">{len(photos)} photos restored, {flagged} flagged, {len(failed)} failed; water types:
 {', '.join(f'{html.escape(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
 {html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
+{failed_html}
 <section id="flagged"><h2>Needs a look: {flagged} flagged (fallbacks, clamps; docs/OUTPUTS.md "Flags")</h2>
 <div id="flagged-grid"></div></section>
 <h2>Water types</h2>{_histogram_svg(counts)}
@@ -374,5 +395,5 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
     with open(tmp, "w", encoding="utf-8") as f:
         f.write(page)
     os.replace(tmp, path)
-    return {"path": path, "photos": len(photos), "flagged": flagged, "thumbnails_written": written,
+    return {"path": path, "photos": len(photos), "flagged": flagged, "failed": len(failed), "thumbnails_written": written,
             "problems": problems, "seconds": time.perf_counter() - t0}

@@ -50,7 +50,7 @@ def test_restore_report_in_chromium(tmp_path):
     side.write_text(json.dumps(doc, indent=2) + "\n")
     r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(out)], capture_output=True, text=True,
                        timeout=300)
-    assert r.returncode == 0 and "8 photos, 1 flagged, 0 thumbnails written" in r.stdout, r.stdout + r.stderr
+    assert r.returncode == 0 and "8 photos, 1 flagged, 0 failed, 0 thumbnails written" in r.stdout, r.stdout + r.stderr
     page_path = out / "report" / "index.html"
     url = page_path.resolve().as_uri()
     dom = _run(browser, "--dump-dom", url)
@@ -61,7 +61,7 @@ def test_restore_report_in_chromium(tmp_path):
     # the histogram's bars say what the sidecars say
     for wt, n in counts.items():
         assert f"<title>{wt}: {n}</title>" in page, wt
-    assert "8 photos restored, 1 flagged" in page
+    assert "8 photos restored, 1 flagged, 0 failed" in page and 'id="failed"' not in page
     # the flagged section comes first and holds exactly the flagged photo
     flagged = page[page.index('id="flagged-grid"'):page.index('id="all"')]
     assert flagged.count('class="cell flagged"') == 1 and "f002" in flagged and "veiling_fallback" in flagged
@@ -109,7 +109,16 @@ def test_report_refusals_and_leftovers(tmp_path):
                        text=True, timeout=120)
     assert r.returncode == 3 and "no such folder" in r.stderr
     # an unreadable sidecar and a missing output: a note, and the rest of the page
-    r, out = _restore(tmp_path, n=3)
+    r, out = _restore(tmp_path, n=3, extra=())
+    # a failed input (in summary.csv, without a sidecar) is listed with its reason
+    (tmp_path / "in" / "zz_bad.jpg").write_bytes(b"\xff\xd8\xff not a jpeg")
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(tmp_path / "in"), "-o", str(out), "-q",
+                        "--report"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 3, r.stderr
+    page = (out / "report" / "index.html").read_text()
+    failed = page[page.index('id="failed"'):page.index('id="flagged"')]
+    assert "zz_bad.jpg" in failed and "unreadable_input" in failed and "cannot decode" in failed
+    assert "3 photos restored, 0 flagged, 1 failed" in page
     (out / "broken.json").write_text("{ not json")
     os.remove(out / "f000.jpg")
     done = report.write_report(str(out))
