@@ -411,16 +411,22 @@ fn write_exif(m: &Metadata, file: &mut Vec<u8>, kind: Container) -> Result<(), S
     }
 }
 
+/// A sidecar value as one text field (of the XMP record, of summary.csv):
+/// strings as they are, null or absent as nothing, the rest as JSON.
+pub fn value_text(v: Option<&serde_json::Value>) -> String {
+    match v {
+        None | Some(serde_json::Value::Null) => String::new(),
+        Some(serde_json::Value::String(s)) => s.clone(),
+        Some(v) => v.to_string(),
+    }
+}
+
 /// The restoration record from the sidecar's fields (both commands write
 /// them alike): water type, A, flags, the profile and its steps, t_scale,
 /// the candidate types, the version, and the sidecar's file name.
 pub fn record_from_sidecar(side: &serde_json::Value, sidecar_name: &str) -> Record {
     use serde_json::Value;
-    let text = |v: Option<&Value>| match v {
-        None | Some(Value::Null) => String::new(),
-        Some(Value::String(s)) => s.clone(),
-        Some(v) => v.to_string(),
-    };
+    let text = value_text;
     let p = side.get("parameters");
     let param = |k: &str| text(p.and_then(|p| p.get(k)));
     let a = side
@@ -505,6 +511,22 @@ pub fn carry(input: Vec<u8>, encoded: Vec<u8>, side: &serde_json::Value, sidecar
         "notes": notes,
     });
     (bytes, summary)
+}
+
+/// [`carry`] with the input read from `input_path` (both commands write
+/// the photo before the input is read again): when it cannot be read, the
+/// photo is returned as encoded and the reason noted.
+pub fn carry_from(input_path: &std::path::Path, encoded: Vec<u8>, side: &serde_json::Value, sidecar_name: &str,
+    width: u32, height: u32) -> (Vec<u8>, serde_json::Value) {
+    match std::fs::read(input_path) {
+        Ok(input) => carry(input, encoded, side, sidecar_name, width, height),
+        Err(e) => (
+            encoded,
+            serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
+                "input_icc_profile": false, "taken_at": null, "gps": null,
+                "notes": [format!("metadata: cannot read the input again ({e}); none carried")]}),
+        ),
+    }
 }
 
 #[cfg(test)]

@@ -312,7 +312,7 @@ fn collect_jobs(
 /// Carries the input file's metadata into the encoded output file at
 /// `encoded_path` (rewritten in place: a temporary of the caller's claim),
 /// with the restoration record of the sidecar (`sidecar_json`):
-/// `crate::metadata::carry`. Returns the sidecar's `metadata` object as JSON.
+/// `crate::metadata::carry_from`. Returns the sidecar's `metadata` object as JSON.
 #[pyfunction]
 fn carry_metadata(
     py: Python<'_>,
@@ -326,14 +326,8 @@ fn carry_metadata(
     let side: serde_json::Value =
         serde_json::from_str(sidecar_json).map_err(|e| PyValueError::new_err(format!("sidecar: {e}")))?;
     let encoded = std::fs::read(&encoded_path)?;
-    let (bytes, summary) = py.detach(|| match std::fs::read(&input_path) {
-        Ok(input) => crate::metadata::carry(input, encoded, &side, sidecar_name, width, height),
-        Err(e) => (
-            encoded,
-            serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
-                "input_icc_profile": false, "taken_at": null, "gps": null, "notes": [format!("metadata: cannot read the input again ({e}); none carried")]}),
-        ),
-    });
+    let (bytes, summary) =
+        py.detach(|| crate::metadata::carry_from(&input_path, encoded, &side, sidecar_name, width, height));
     std::fs::write(&encoded_path, bytes)?;
     Ok(summary.to_string())
 }

@@ -24,6 +24,7 @@ import time
 from dataclasses import dataclass, field
 
 from . import _core
+from .io import ImageReadError
 
 __all__ = ["restore_many", "BatchError", "parse_storage_options", "plan_batch", "EXTRA"]
 
@@ -39,7 +40,6 @@ _HEADER_BYTES = 1 << 18
 #: inputs whose header one planning task reads
 _PROBE_BATCH = 32
 
-_GLOB_CHARS = re.compile(r"[*?\[]")
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
 #: summary columns, in order
@@ -166,17 +166,12 @@ def _fs(url: str, storage_options: dict):
         raise BatchError(f"{url}: bad storage options ({e})", "bad_arguments") from None
 
 
-def _supported(path: str) -> bool:
-    from .io import IMAGE_EXTENSIONS, RAW_EXTENSIONS
-
-    ext = os.path.splitext(path)[1].lower()
-    return ext in IMAGE_EXTENSIONS or ext in RAW_EXTENSIONS
-
-
 def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[list[tuple[str, str]], list]:
     """URL inputs as (url, folder relative to the output folder), in the
     order a local folder walk gives (sorted by path components, hidden
     entries skipped, the output folder never searched), and the problems."""
+    from .cli import _GLOB_CHARS, _supported
+
     found: list[tuple[str, str]] = []
     problems: list[tuple[str, str]] = []
     out_key = out.rstrip("/") + "/"
@@ -201,7 +196,7 @@ def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[li
                     parts = rel.split("/")
                     if any(p.startswith(".") for p in parts) or not _supported(rel):
                         continue
-                    if (full(f)).startswith(out_key):
+                    if full(f).startswith(out_key):
                         continue
                     rels.append((tuple(parts), f))
                 rels.sort()
@@ -278,7 +273,7 @@ def plan_batch(inputs: list[str], out: str, *, format: str = "jpg", contact: boo
         except Exception as e:
             raise _storage_error(e, out) from None
         for k, it in enumerate(plan.items):
-            key = _fs(it.out_dir + "/" + it.name + ".json", so)[1]
+            key = _fs(_join(it.out_dir, it.name + ".json"), so)[1]
             if key in existing:
                 plan.done.add(k)
     return plan
@@ -320,17 +315,9 @@ def _fetch(url: str, scratch: str, storage_options: dict, header: bool = False) 
     return local
 
 
-def _planned_type():
-    from .io import ImageReadError
-
-    class _Planned(ImageReadError):
-        """Raised from the header hook: the input's plan is known (an
-        ImageReadError, so that read_image lets it through)."""
-
-    return _Planned
-
-
-_Planned = _planned_type()
+class _Planned(ImageReadError):
+    """Raised from the header hook: the input's plan is known (an
+    ImageReadError, so that read_image lets it through)."""
 
 
 def _header_need(path: str, opts: dict) -> int:
@@ -428,7 +415,7 @@ def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: 
     sidecar is the commit marker (docs/SCALE.md). An earlier sidecar goes
     first, so that no sidecar ever lists outputs of another attempt."""
     fs, _ = _fs(item.out_dir, storage_options)
-    dest = {role: item.out_dir.rstrip("/") + "/" + os.path.basename(p) for role, p in files_written.items()}
+    dest = {role: _join(item.out_dir, os.path.basename(p)) for role, p in files_written.items()}
     side = _fs(dest["sidecar"], storage_options)[1]
     if overwrite:
         try:
@@ -481,12 +468,13 @@ def _restore_items(items: list[Item], opts: dict, storage_options: dict, overwri
                         continue
                     out_dir = _local(item.out_dir)
                 else:
-                    fs, side = _fs(item.out_dir.rstrip("/") + "/" + item.name + ".json", storage_options)
+                    sidecar = _join(item.out_dir, item.name + ".json")
+                    fs, side = _fs(sidecar, storage_options)
                     if not overwrite and fs.exists(side):
                         if pos == 0 and sequence is not None:
                             _prime(sequence, item, scratch, opts, storage_options, base)
                         rows.append(_row(item, "skipped", error="already done (sidecar exists)", exit_code=0,
-                                         sidecar=item.out_dir.rstrip("/") + "/" + item.name + ".json"))
+                                         sidecar=sidecar))
                         continue
                     out_dir = os.path.join(scratch, f"out{pos}")
                     status, _, _, claim = files.claim_outputs(out_dir, item.name, item.input, fmt, contact,
@@ -589,14 +577,15 @@ def _check_workers(client) -> None:
                          f"(worker {w}: {v}); install the same version on the workers", "bad_arguments")
 
 
-def _memory_of_workers(client) -> list[int] | None:
-    """Every worker's MEMORY resource, or None when some worker has none
-    (then tasks ask for no resource, and each worker checks its own limit)."""
+def _largest_worker_memory(client) -> int | None:
+    """The largest MEMORY resource of the workers, or None when some worker
+    has none (then tasks ask for no resource, and each worker checks its
+    own limit)."""
     info = client.scheduler_info().get("workers", {})
     values = [w.get("resources", {}).get(MEMORY) for w in info.values()]
     if not values or any(v is None for v in values):
         return None
-    return [int(v) for v in values]
+    return max(int(v) for v in values)
 
 
 def restore_many(inputs, output: str, *, client=None, dask: str | None = None, storage_options: dict | None = None,
@@ -697,8 +686,10 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage
         for d in sorted({_local(it.out_dir) for it in plan.items}):
             _core.remove_stale_temps(d)
     rows: dict[int, dict] = {}
+    from .cli import EXIT
+
     problems = [dict(_row(Item(i, "", ""), "failed"), error_kind="unreadable_input", error=why,
-                     exit_code=_core_exit("unreadable_input"), worker=None) for i, why in plan.problems]
+                     exit_code=EXIT["unreadable_input"], worker=None) for i, why in plan.problems]
     if bar is not None:
         bar.total(len(plan.items))
         for r in problems:
@@ -721,7 +712,7 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage
         if bar is not None:
             bar.row(row)
 
-    def done_row(it: Item) -> dict:
+    def skipped_row(it: Item) -> dict:
         return _row(it, "skipped", error="already done (sidecar exists)", exit_code=0, worker=None,
                     sidecar=_join(it.out_dir, it.name + ".json"))
 
@@ -732,14 +723,14 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage
             ch = plan.items[i:i + reuse_estimates]
             if not overwrite and all(it.index in plan.done for it in ch):
                 for it in ch:
-                    settle(it.index, done_row(it))
+                    settle(it.index, skipped_row(it))
             else:
                 groups.append(ch)
     else:
         groups = []
         for it in plan.items:
             if not overwrite and it.index in plan.done:
-                settle(it.index, done_row(it))
+                settle(it.index, skipped_row(it))
             else:
                 groups.append([it])
     interrupted = False
@@ -770,15 +761,11 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask=None, storage
         if scratch is not None:
             try:
                 fs, root = _fs(output, so)
-                fs.put_file(csv_rows.path, root.rstrip("/") + "/" + FILE_NAME)
+                fs.put_file(csv_rows.path, _join(root, FILE_NAME))
             except Exception as e:  # the outputs are stored; only the summary is lost
                 print(f"uwhl: cannot upload {FILE_NAME} to {output}: {type(e).__name__}: {e}", file=sys.stderr)
             shutil.rmtree(scratch, ignore_errors=True)
     return BatchResult(problems + [rows[k] for k in sorted(rows)], len(plan.items), interrupted, csv_rows.error)
-
-
-def _core_exit(kind: str) -> int:
-    return {name: code for code, name, _ in _core.EXIT_CODES}[kind]
 
 
 def _progress_line(row: dict) -> tuple[str, bool]:
@@ -796,8 +783,7 @@ def _run_on_cluster(c, groups: list[list[Item]], opts, so, overwrite, reuse, reu
     reported failed with the reason."""
     from distributed import as_completed
 
-    memories = _memory_of_workers(c)
-    budget = max(memories) if memories else None
+    budget = _largest_worker_memory(c)
     pending = as_completed()
     meta = {}  # future key -> ("probe"|"restore", payload)
 
@@ -818,19 +804,20 @@ def _run_on_cluster(c, groups: list[list[Item]], opts, so, overwrite, reuse, reu
         pending.add(f)
 
     if budget is not None:
+        # a group is submitted once the headers of all its items are read:
+        # per group, how many are still unread
+        unread = {id(g): len(g) for g in groups}
+        group_of = {it.index: g for g in groups for it in g}
         flat = [it for g in groups for it in g]
-        by_index = {it.index: it for it in flat}
+        item_of = {it.index: it for it in flat}
         for i in range(0, len(flat), _PROBE_BATCH):
             chunk = [(it.index, it.input) for it in flat[i:i + _PROBE_BATCH]]
             f = c.submit(_probe, chunk, opts, so, pure=False, key=f"uwhl-probe-{chunk[0][0]}-{os.urandom(4).hex()}")
             meta[f.key] = ("probe", chunk)
             pending.add(f)
-        planned = set()
-        waiting = list(groups)
     else:
         for g in groups:
             submit_restore(g)
-        waiting = []
     try:
         for f in pending:
             what, payload = meta.pop(f.key)
@@ -845,15 +832,11 @@ def _run_on_cluster(c, groups: list[list[Item]], opts, so, overwrite, reuse, reu
                     continue
             if what == "probe":
                 for k, need in result:
-                    by_index[k].need = need
-                    planned.add(k)
-                still = []
-                for g in waiting:
-                    if all(it.index in planned for it in g):
+                    item_of[k].need = need
+                    g = group_of[k]
+                    unread[id(g)] -= 1
+                    if unread[id(g)] == 0:
                         submit_restore(g)
-                    else:
-                        still.append(g)
-                waiting = still
             else:
                 for it, row in zip(payload, result):
                     settle(it.index, row)

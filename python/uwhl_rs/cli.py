@@ -407,22 +407,7 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         _core.remove_stale_temps(d)
     # threads=None (no --threads): every job works in the one global pool; a
     # fixed count per job would make concurrent jobs queue on one cached pool
-    kwargs = dict(
-        format=a.format,
-        bits=a.bits,
-        quality=a.quality,
-        preprocess=a.preprocess,
-        half_size=a.half_size,
-        max_side=a.max_side,
-        max_pixels=a.max_pixels,
-        mask=a.mask,
-        water_mask=a.water_mask,
-        contact=a.contact_sheet,
-        water_types=water_types,
-        **_method_kwargs(a, skip=("max_memory",)),
-    )
-    if a.max_memory is not None:
-        kwargs["max_memory"] = a.max_memory
+    kwargs = _file_kwargs(a, water_types)
     # --max-memory bounds the process's peak: what it holds before the
     # first input (the interpreter, numpy, the codecs, imported now so that
     # they are counted here and not while the first input is written) counts
@@ -604,11 +589,7 @@ def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
     except ValueError as e:
         _report(err, a.json_errors, None, "bad_arguments", str(e))
         return EXIT_USAGE
-    options = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
-                   max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
-                   contact=a.contact_sheet, water_types=water_types, **_method_kwargs(a, skip=("max_memory",)))
-    if a.max_memory is not None:
-        options["max_memory"] = a.max_memory
+    options = _file_kwargs(a, water_types)
     progress = Progress(0, err, a.quiet)
     t0 = time.perf_counter()
 
@@ -734,6 +715,18 @@ def run_report(out_dir: str, quiet: bool = False, out=None, err=None) -> int:
             out.write(f"  note: {p}\n")
         out.flush()
     return EXIT_OK
+
+
+def _file_kwargs(a: argparse.Namespace, water_types) -> dict:
+    """The keywords of ``files.restore_file`` that ``uwhl restore``'s flags
+    give (``max_memory`` only when given: the default follows the machine
+    that restores)."""
+    kw = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
+              max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
+              contact=a.contact_sheet, water_types=water_types, **_method_kwargs(a, skip=("max_memory",)))
+    if a.max_memory is not None:
+        kw["max_memory"] = a.max_memory
+    return kw
 
 
 def _method_kwargs(a: argparse.Namespace, skip=()) -> dict:

@@ -17,6 +17,7 @@ import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,7 +62,9 @@ def failed_inputs(out_dir: str) -> list[dict]:
     to show), or none when there is no summary."""
     import csv
 
-    path = os.path.join(out_dir, "summary.csv")
+    from .summary import FILE_NAME
+
+    path = os.path.join(out_dir, FILE_NAME)
     try:
         with open(path, newline="", encoding="utf-8") as f:
             return [r for r in csv.DictReader(f) if r.get("status") == "failed"]
@@ -199,25 +202,38 @@ def _taken(p: Photo):
         return None
 
 
-def series_axis(photos: list[Photo]) -> tuple[list[Photo], list[float], str, str]:
+class Axis(NamedTuple):
+    """The x axis of the sequence (:func:`series_axis`)."""
+
+    #: the photos in axis order
+    photos: list
+    #: their x: seconds from the first photo, or the frame index
+    xs: list
+    #: the labels at the two ends
+    first: str
+    last: str
+    #: whether the axis is EXIF time (else the frame index)
+    by_time: bool
+
+
+def series_axis(photos: list[Photo]) -> Axis:
     """The x axis of the sequence: EXIF time when every photo has one (in
-    time order, seconds from the first), else the frame index (name
-    order); the photos in that order, their x, and the two end labels."""
+    time order, seconds from the first), else the frame index (name order)."""
     times = [_taken(p) for p in photos]
     if photos and all(t is not None for t in times) and len({t.tzinfo is None for t in times}) == 1:
         order = sorted(range(len(photos)), key=lambda k: times[k])
         t0 = times[order[0]]
         xs = [(times[k] - t0).total_seconds() for k in order]
         label = [p.doc["metadata"]["taken_at"] for p in photos]  # as the EXIF says it
-        return ([photos[k] for k in order], xs, f"EXIF time {label[order[0]]}",
-                f"{label[order[-1]]} (+{xs[-1]:.0f} s)")
-    return photos, [float(k) for k in range(len(photos))], "frame 1", f"frame {len(photos)}"
+        return Axis([photos[k] for k in order], xs, f"EXIF time {label[order[0]]}",
+                    f"{label[order[-1]]} (+{xs[-1]:.0f} s)", True)
+    return Axis(photos, [float(k) for k in range(len(photos))], "frame 1", f"frame {len(photos)}", False)
 
 
-def _series_svg(photos: list[Photo], types: list[str]) -> str:
+def _series_svg(axis: Axis, types: list[str]) -> str:
     """Water type (steps), A (R, G, B) and the chosen type's score over the
-    sequence (:func:`series_axis`): three stacked panels sharing the x axis."""
-    photos, tx, first, last = series_axis(photos)
+    sequence's ``axis``: three stacked panels sharing the x axis."""
+    photos, tx, first, last, _ = axis
     W, H, left = 900, 140, 48
     span = max(tx) - min(tx) if tx and max(tx) > min(tx) else 1.0
     xs = [left + (W - left - 10) * ((t - tx[0]) / span) for t in tx]
@@ -372,6 +388,7 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
                   f"<td>{html.escape(r.get('error', ''))}</td></tr>" for r in failed)
         + "</table></section>")
     types = [t for t in uwhl_rs.WATER_TYPES] + sorted(t for t in counts if t not in uwhl_rs.WATER_TYPES)
+    axis = series_axis(photos)
     blob = json.dumps({"page": int(page_size), "photos": data}).replace("</", "<\\/")
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {html.escape(os.path.basename(os.path.abspath(out_dir)))}</title><style>{_CSS}</style></head><body>
@@ -383,7 +400,7 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
 <section id="flagged"><h2>Needs a look: {flagged} flagged (fallbacks, clamps; docs/OUTPUTS.md "Flags")</h2>
 <div id="flagged-grid"></div></section>
 <h2>Water types</h2>{_histogram_svg(counts)}
-<h2>Over the sequence ({'EXIF time' if photos and series_axis(photos)[3].endswith(' s)') else 'frame index, in name order'})</h2>{_series_svg(photos, types) if photos else ''}
+<h2>Over the sequence ({'EXIF time' if axis.by_time else 'frame index, in name order'})</h2>{_series_svg(axis, types) if photos else ''}
 <section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
 {''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
 <div id="view" onclick="if(event.target===this)hide()"></div>

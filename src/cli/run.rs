@@ -416,11 +416,8 @@ fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), op
     // (src/metadata.rs); the record is made of the sidecar's fields
     let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
     let preview = sidecar(&job.input, &paths, &source, &res, opts, Seconds::default());
-    let (image_bytes, carried) = match std::fs::read(&job.input) {
-        Ok(input) => crate::metadata::carry(input, image_bytes?, &preview, &sidecar_name, wp as u32, hp as u32),
-        Err(e) => (image_bytes?, serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
-            "input_icc_profile": false, "taken_at": null, "gps": null, "notes": [format!("metadata: cannot read the input again ({e}); none carried")]})),
-    };
+    let (image_bytes, carried) =
+        crate::metadata::carry_from(&job.input, image_bytes?, &preview, &sidecar_name, wp as u32, hp as u32);
     let mut temps = Vec::with_capacity(4);
     for (i, (path, bytes)) in [(&image_path, image_bytes), (&t_path, t_bytes?), (&tc_path, tc_bytes?)].into_iter().enumerate() {
         temps.push(write_temp(&mut claimed, i, path, &bytes)?);

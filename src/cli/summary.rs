@@ -38,13 +38,7 @@ fn field(s: &str) -> String {
     }
 }
 
-fn text(v: Option<&Value>) -> String {
-    match v {
-        None | Some(Value::Null) => String::new(),
-        Some(Value::String(s)) => s.clone(),
-        Some(v) => v.to_string(),
-    }
-}
+use crate::metadata::value_text as text;
 
 /// The summary of a batch: made with its first row (a run refused before
 /// any input leaves no file), or why it could not be written.

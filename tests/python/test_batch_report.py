@@ -145,9 +145,10 @@ def test_the_sequence_follows_exif_time_when_every_photo_has_it(tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     photos, _ = report.collect_sidecars(str(out))
-    ordered, xs, first, last = report.series_axis(photos)
-    assert [os.path.basename(p.sidecar) for p in ordered] == ["c.json", "b.json", "a.json"]
-    assert xs == [0.0, 10.0, 20.0] and first.endswith("2026-11-30T10:15:00.437") and last.endswith("(+20 s)")
+    axis = report.series_axis(photos)
+    assert [os.path.basename(p.sidecar) for p in axis.photos] == ["c.json", "b.json", "a.json"]
+    assert axis.xs == [0.0, 10.0, 20.0] and axis.first.endswith("2026-11-30T10:15:00.437")
+    assert axis.last.endswith("(+20 s)") and axis.by_time
     report.write_report(str(out))
     page = (out / "report" / "index.html").read_text()
     assert "Over the sequence (EXIF time)" in page and "2026-11-30T10:15:00.437" in page
