@@ -275,6 +275,41 @@ pub fn position(m: &Metadata) -> Option<(f64, f64, Option<f64>)> {
     Some((lat? * sign(&lat_ref, "S"), lon? * sign(&lon_ref, "W"), alt.map(|a| if below { -a } else { a })))
 }
 
+/// Lowercase hexadecimal SHA-256 of `bytes`.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The image UUID of a corrected photo (docs/OUTPUTS.md "Metadata"), as
+/// the 32 hexadecimal digits EXIF's ImageUniqueID holds: the iFDO's
+/// `image-uuid`, which the standard asks to be embedded in the file. It has
+/// the layout of a version 4 UUID (the iFDO schema admits no other) with
+/// its 122 free bits taken from SHA-256 over the input file's hash and the
+/// restoration record, not from a random source: both commands, and a
+/// rerun on the same input with the same parameters, give a photo the same
+/// UUID; a photo restored otherwise, or under another name, gets another.
+pub fn image_uuid(input_sha256: &str, record: &Record) -> String {
+    let mut text = format!("uwhl-rs image uuid\n{input_sha256}\n");
+    for (k, v) in record {
+        text.push_str(&format!("{k}={v}\n"));
+    }
+    let hex = sha256_hex(text.as_bytes());
+    let mut digits: Vec<u8> = hex.as_bytes()[..32].to_vec();
+    digits[12] = b'4'; // version 4
+    let variant = u8::from_str_radix(std::str::from_utf8(&digits[16..17]).unwrap_or("0"), 16).unwrap_or(0);
+    digits[16] = b"89ab"[usize::from(variant & 3)]; // RFC 4122 variant: 10xx
+    String::from_utf8(digits).unwrap_or_default()
+}
+
+/// The input's own ImageUniqueID (EXIF 0xA420), if it has one.
+fn unique_id(m: &Metadata) -> Option<String> {
+    m.get_ifds().iter().flat_map(|i| i.get_tags()).find_map(|t| match t {
+        ExifTag::ImageUniqueID(s) => Some(s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty()),
+        _ => None,
+    })
+}
+
 /// The restoration, as recorded in XMP: `(property, value)` pairs of the
 /// [`XMP_NAMESPACE`], written in this order.
 pub type Record = Vec<(&'static str, String)>;
@@ -470,17 +505,22 @@ pub fn record_from_sidecar(side: &serde_json::Value, sidecar_name: &str) -> Reco
 /// written, the output is returned as encoded and the reason noted.
 pub fn carry(input: Vec<u8>, encoded: Vec<u8>, side: &serde_json::Value, sidecar_name: &str, width: u32, height: u32)
     -> (Vec<u8>, serde_json::Value) {
+    let input_sha256 = sha256_hex(&input);
     let c = read(input);
     let exif_tags = c.exif.as_ref().map_or(0, |m| m.get_ifds().iter().map(|i| i.get_tags().len()).sum::<usize>());
-    let exif = output_exif(&c, width, height);
-    let xmp = output_xmp(&c, &record_from_sidecar(side, sidecar_name));
+    let input_uuid = c.exif.as_ref().and_then(unique_id);
+    let record = record_from_sidecar(side, sidecar_name);
+    let uuid = image_uuid(&input_sha256, &record);
+    let mut exif = output_exif(&c, width, height);
+    exif.set_tag(ExifTag::ImageUniqueID(uuid.clone()));
+    let xmp = output_xmp(&c, &record);
     let mut notes = c.notes.clone();
     let original = Bytes::from(encoded);
     let (bytes, written) = match embed(&original, &exif, &xmp) {
         Ok(b) => (b, true),
         Err(e) if c.xmp.is_some() => {
             // the input's packet may not fit (one JPEG segment): the record alone
-            let own = output_xmp(&Carried::default(), &record_from_sidecar(side, sidecar_name));
+            let own = output_xmp(&Carried::default(), &record);
             match embed(&original, &exif, &own) {
                 Ok(b) => {
                     notes.push(format!("metadata: the input's XMP is not carried ({e}); the record is"));
@@ -508,6 +548,10 @@ pub fn carry(input: Vec<u8>, encoded: Vec<u8>, side: &serde_json::Value, sidecar
         "input_icc_profile": c.icc.is_some(),
         "taken_at": taken,
         "gps": gps,
+        "image_uuid": written.then_some(uuid),
+        "photo_sha256": sha256_hex(&bytes),
+        "input_sha256": input_sha256,
+        "input_image_uuid": input_uuid,
         "notes": notes,
     });
     (bytes, summary)
@@ -520,12 +564,16 @@ pub fn carry_from(input_path: &std::path::Path, encoded: Vec<u8>, side: &serde_j
     width: u32, height: u32) -> (Vec<u8>, serde_json::Value) {
     match std::fs::read(input_path) {
         Ok(input) => carry(input, encoded, side, sidecar_name, width, height),
-        Err(e) => (
-            encoded,
-            serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
-                "input_icc_profile": false, "taken_at": null, "gps": null,
-                "notes": [format!("metadata: cannot read the input again ({e}); none carried")]}),
-        ),
+        Err(e) => {
+            let photo_sha256 = sha256_hex(&encoded);
+            (
+                encoded,
+                serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
+                    "input_icc_profile": false, "taken_at": null, "gps": null, "image_uuid": null,
+                    "photo_sha256": photo_sha256, "input_sha256": null, "input_image_uuid": null,
+                    "notes": [format!("metadata: cannot read the input again ({e}); none carried")]}),
+            )
+        }
     }
 }
 
@@ -547,6 +595,21 @@ mod tests {
         let again = output_xmp(&Carried { xmp: Some(once.clone()), ..Carried::default() }, &vec![("WaterType", "II".into())]);
         assert_eq!(again.matches(XMP_NAMESPACE).count(), 1);
         assert!(again.contains("<uwhl:WaterType>II</uwhl:WaterType>") && !again.contains(">3C<"));
+    }
+
+    #[test]
+    fn image_uuids_have_the_version_4_layout_and_follow_input_and_record() {
+        // SHA-256 of the empty string, FIPS 180-2's test vector
+        assert_eq!(sha256_hex(b""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+        let rec: Record = vec![("WaterType", "3C".into())];
+        let a = image_uuid(&sha256_hex(b"photo"), &rec);
+        assert_eq!(a.len(), 32);
+        assert!(a.bytes().all(|b| b.is_ascii_hexdigit() && !b.is_ascii_uppercase()));
+        assert_eq!(&a[12..13], "4");
+        assert!("89ab".contains(&a[16..17]));
+        assert_eq!(a, image_uuid(&sha256_hex(b"photo"), &rec));
+        assert_ne!(a, image_uuid(&sha256_hex(b"photo2"), &rec));
+        assert_ne!(a, image_uuid(&sha256_hex(b"photo"), &vec![("WaterType", "II".into())]));
     }
 
     #[test]

@@ -202,6 +202,10 @@ labelled with its score, the chosen one framed, the water region overlaid on the
         default: Default::Off, help: "after the batch, write OUTDIR/report/index.html: thumbnails, water types, \
 the sequence, flagged photos first (uwhl report)",
         group: Group::Output, faces: Faces::Python, method: false },
+    Spec { key: "ifdo", flag: "--ifdo", short: None, metavar: "HEADER", kind: Kind::Path,
+        default: Default::None, help: "after the batch, write OUTDIR/ifdo.yaml (ifdo.json for a .json HEADER): the \
+iFDO of the corrected photos, with the set's fields from the HEADER file (uwhl ifdo)",
+        group: Group::Output, faces: Faces::Python, method: false },
     // input
     Spec { key: "preprocess", flag: "--preprocess", short: None, metavar: "MODE", kind: Kind::Choice(&["none", "reference"]),
         default: Default::Name("none"), help: "none: sRGB decoded to linear; reference: the reference code's \

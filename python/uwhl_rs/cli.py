@@ -153,6 +153,28 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("out", metavar="OUTDIR", help="an output folder of uwhl restore or uwhl-rs restore")
     rp.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
+    fd = sub.add_parser(
+        "ifdo",
+        help="the iFDO file of a batch (image FAIR Digital Objects) for marine imaging platforms",
+        description="Write OUTDIR/ifdo.yaml from the sidecars under OUTDIR (docs/OUTPUTS.md \"iFDO\"): the set's "
+        "header (the fields of --header, the rest derived), one item per corrected photo (its image UUID, "
+        "SHA-256, handle, UTC time and GPS position) and the restoration as the set's provenance.",
+    )
+    fd.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
+    fd.add_argument("--header", required=True, metavar="HEADER",
+                    help="YAML or JSON file of the set's iFDO fields: image-project, image-event, image-platform, "
+                    "image-sensor, image-pi, image-creators, image-license, image-copyright, image-abstract, "
+                    "image-context, image-coordinate-uncertainty-meters (and any other header field)")
+    fd.add_argument("--handle-base", metavar="URL",
+                    help="the URL the folder is published under: each photo's image-handle is it joined with "
+                    "the photo's path (default: the photos' own file:// or object-storage URLs)")
+    fd.add_argument("--format", choices=("yaml", "json"), default=None,
+                    help="ifdo.yaml or ifdo.json (default: the kind of the header file)")
+    fd.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="an fsspec option for a URL OUTDIR, as for restore")
+    fd.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
+    fd.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+
     e = sub.add_parser(
         "evaluate",
         help="the paper's colour and distance metrics on annotated photos, beside baselines",
@@ -373,6 +395,15 @@ def run_restore(a: argparse.Namespace, out=None, err=None) -> int:
         if path is not None and not os.path.isfile(path):
             _report(err, a.json_errors, None, "bad_arguments", f"{flag} {path}: no such file")
             return EXIT_USAGE
+    a.ifdo_header = None
+    if a.ifdo is not None:
+        from . import ifdo
+
+        try:
+            a.ifdo_header = ifdo.load_header(a.ifdo)
+        except ifdo.IfdoError as e:
+            _report(err, a.json_errors, None, "bad_arguments", str(e))
+            return EXIT_USAGE
     from . import batch
 
     if a.dask is not None or any(batch.is_url(p) for p in [*a.inputs, a.out]):
@@ -566,6 +597,10 @@ def _batch_end(a: argparse.Namespace, outcomes: list, summary_error: str | None,
         code = max(code, EXIT["write_failed"])
     if a.report:
         code = max(code, run_report(a.out, a.quiet, out, err))
+    if getattr(a, "ifdo_header", None) is not None:
+        fmt = "json" if a.ifdo.lower().endswith(".json") else "yaml"
+        code = max(code, run_ifdo(a.out, a.ifdo_header, file_format=fmt, storage_options=getattr(a, "storage_options", None),
+                                  quiet=a.quiet, json_errors=a.json_errors, out=out, err=err))
     return code
 
 
@@ -589,6 +624,7 @@ def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
     except ValueError as e:
         _report(err, a.json_errors, None, "bad_arguments", str(e))
         return EXIT_USAGE
+    a.storage_options = so
     options = _file_kwargs(a, water_types)
     progress = Progress(0, err, a.quiet)
     t0 = time.perf_counter()
@@ -691,7 +727,43 @@ def main(argv: list[str] | None = None) -> int:
         return run_evaluate(a)
     if a.cmd == "report":
         return run_report(a.out, a.quiet)
+    if a.cmd == "ifdo":
+        return _run_ifdo_command(a)
     return run_restore(a)
+
+
+def run_ifdo(out_dir: str, header, *, handle_base: str | None = None, file_format: str | None = None,
+             storage_options: dict | None = None, quiet: bool = False, json_errors: bool = False,
+             out=None, err=None) -> int:
+    """``uwhl ifdo OUTDIR`` (and ``restore --ifdo``): writes the folder's
+    iFDO (``uwhl_rs.ifdo``); returns the exit status."""
+    from . import batch, ifdo
+
+    out = out or sys.stdout
+    err = err or sys.stderr
+    if not batch.is_url(out_dir) and not os.path.isdir(out_dir):
+        _report(err, json_errors, out_dir, "unreadable_input", "no such folder")
+        return EXIT["unreadable_input"]
+    try:
+        done = ifdo.write_ifdo(out_dir, header, handle_base=handle_base, file_format=file_format,
+                               storage_options=storage_options)
+    except ifdo.IfdoError as e:
+        _report(err, json_errors, out_dir, "bad_arguments", f"no iFDO written: {e}")
+        return EXIT_USAGE
+    except batch.BatchError as e:
+        _report(err, json_errors, out_dir, e.kind, f"cannot write the iFDO: {e}")
+        return EXIT[e.kind]
+    except OSError as e:
+        _report(err, json_errors, out_dir, "write_failed", f"cannot write the iFDO: {_describe(e)}")
+        return EXIT["write_failed"]
+    if not quiet:
+        out.write(f"ifdo: {done['path']} ({done['items']} photos)\n")
+        for n in done["notes"][:20]:
+            out.write(f"  note: {n}\n")
+        if len(done["notes"]) > 20:
+            out.write(f"  ... and {len(done['notes']) - 20} more notes\n")
+        out.flush()
+    return EXIT_OK
 
 
 def run_report(out_dir: str, quiet: bool = False, out=None, err=None) -> int:
@@ -715,6 +787,21 @@ def run_report(out_dir: str, quiet: bool = False, out=None, err=None) -> int:
             out.write(f"  note: {p}\n")
         out.flush()
     return EXIT_OK
+
+
+def _run_ifdo_command(a: argparse.Namespace) -> int:
+    from . import batch, ifdo
+
+    err = sys.stderr
+    try:
+        so = batch.parse_storage_options(a.storage_option)
+        header = ifdo.load_header(a.header)
+    except ValueError as e:  # IfdoError is one
+        _report(err, a.json_errors, None, "bad_arguments", str(e))
+        return EXIT_USAGE
+    fmt = a.format or ("json" if a.header.lower().endswith(".json") else "yaml")
+    return run_ifdo(a.out, header, handle_base=a.handle_base, file_format=fmt, storage_options=so or None,
+                    quiet=a.quiet, json_errors=a.json_errors)
 
 
 def _file_kwargs(a: argparse.Namespace, water_types) -> dict:

@@ -422,7 +422,7 @@ where
             }
             Value(v) if is_first && v == "restore" => continue,
             Value(v) if is_first && v == "demo" => return parse_demo(&mut p),
-            Value(v) if is_first && (v == "evaluate" || v == "report") => {
+            Value(v) if is_first && (v == "evaluate" || v == "report" || v == "ifdo") => {
                 return Err(CliError::usage(format!(
                     "'{}' is a subcommand of the Python command only: run 'uwhl {}' (docs/CLI.md)",
                     v.to_string_lossy(),
@@ -545,6 +545,7 @@ mod tests {
             &["a", "-o", "o", "--quality", "0"],
             &["a", "-o", "o", "--jobs", "2"],
             &["evaluate", "-o", "o"],
+            &["ifdo", "out", "--header", "h.yaml"],
             &["demo", "--size", "3x9"],
             &["demo", "--water-type", "XI"],
             &["demo", "--frobnicate"],

@@ -353,6 +353,37 @@ def test_s3_round_trip_on_a_cluster(s3, cluster, inputs, local_run):
             assert filecmp.cmp(p, os.path.join(out, rel), shallow=False), rel
 
 
+def test_s3_outputs_get_an_ifdo_with_their_urls(s3, inputs, tmp_path):
+    """``restore --ifdo`` with an object-storage OUTDIR: the iFDO is stored
+    beside the photos, its handles are their s3:// URLs and its hashes those
+    of the stored objects; it passes the standard's schema."""
+    import hashlib
+
+    import yaml
+    from test_ifdo import HEADER, POSITION, validator
+
+    fs, endpoint = s3
+    fs.put(inputs + "/f00.png", "survey/dive_i/f00.png")
+    fs.put(inputs + "/f01.png", "survey/dive_i/f01.png")
+    head = tmp_path / "header.yaml"
+    # renders have no EXIF time: the header gives the set's
+    head.write_text(yaml.safe_dump({**HEADER, **POSITION, "image-datetime": "2026-11-30 09:00:00.000"}))
+    r = run("restore", "s3://survey/dive_i/", "-o", "s3://survey/restored/dive_i/", "--storage-option",
+            f"endpoint_url={endpoint}", "--ifdo", str(head), "-q")
+    assert r.returncode == 0, r.stderr
+    doc = yaml.safe_load(fs.cat("survey/restored/dive_i/ifdo.yaml"))
+    validator().validate(doc)
+    assert sorted(doc["image-set-items"]) == ["f00.jpg", "f01.jpg"]
+    for name, item in doc["image-set-items"].items():
+        assert item["image-handle"] == f"s3://survey/restored/dive_i/{name}"
+        assert item["image-hash-sha256"] == hashlib.sha256(fs.cat(f"survey/restored/dive_i/{name}")).hexdigest()
+    assert doc["image-set-header"]["image-set-name"] == "dive_i"
+    # an unreachable store: named, exit 7, nothing claimed written
+    r = run("ifdo", "s3://survey/restored/dive_i/", "--header", str(head), "--storage-option",
+            f"endpoint_url=http://127.0.0.1:{_free_port()}")
+    assert r.returncode == 7 and "cannot reach the storage" in r.stderr and "ifdo:" not in r.stdout, r.stderr
+
+
 def test_s3_interrupted_outputs_without_sidecar_are_repaired(s3, inputs, local_run, monkeypatch):
     fs, endpoint = s3
     fs.put(inputs + "/", "survey/dive_b/", recursive=True)

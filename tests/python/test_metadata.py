@@ -5,6 +5,7 @@ the written pixels, the restoration recorded in XMP, and a photo with
 broken metadata still restored. Everything is read back with Pillow and
 tifffile, which share no code with the writer (little_exif, img-parts)."""
 
+import hashlib
 import io
 import json
 import os
@@ -124,7 +125,12 @@ def test_both_commands_write_the_same_metadata(binary, gps_jpeg, tmp_path):
         assert restore(face, binary, [gps_jpeg], out, "--max-side", "100").returncode == 0
         ifd0, exif, gps, size, xmp = exif_of(out / "dive_0001.jpg")
         got[face] = (ifd0, exif, gps, size, record(xmp))
-        got[face + "_side"] = json.load(open(out / "dive_0001.json"))["metadata"]
+        side = json.load(open(out / "dive_0001.json"))["metadata"]
+        # the hash is of the file each wrote; the image UUID, of input and restoration: the same
+        assert side.pop("photo_sha256") == hashlib.sha256((out / "dive_0001.jpg").read_bytes()).hexdigest()
+        assert side["input_sha256"] == hashlib.sha256(gps_jpeg.read_bytes()).hexdigest()
+        assert exif[0xA420] == side["image_uuid"]
+        got[face + "_side"] = side
     assert got["python"] == got["rust"]
     assert got["python_side"] == got["rust_side"]
 
