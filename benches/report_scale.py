@@ -1,7 +1,8 @@
 """How long ``uwhl report`` takes for a large batch (docs/REPORT.md):
 restores N rendered photos (not timed), then times the report's first run
 (every thumbnail written) and a second run (thumbnails kept), and the
-page's size.
+page's size; then the batch's iFDO (``uwhl ifdo``, docs/OUTPUTS.md) and
+its size.
 
     python3 benches/report_scale.py [--n 1000] [--size 480x640]
 """
@@ -12,7 +13,7 @@ import shutil
 import tempfile
 import time
 
-from uwhl_rs import batch, report, synth
+from uwhl_rs import batch, ifdo, report, synth
 from uwhl_rs.io import write_image
 
 
@@ -39,6 +40,16 @@ def main() -> None:
     thumbs = sum(os.path.getsize(os.path.join(out, "report", "thumbs", f))
                  for f in os.listdir(os.path.join(out, "report", "thumbs")))
     print(f"index.html {page / 1e6:.2f} MB; thumbnails {thumbs / 1e6:.1f} MB in all")
+    header = {"image-context": {"name": "bench"}, "image-project": {"name": "bench"}, "image-event": {"name": "bench"},
+              "image-platform": {"name": "bench"}, "image-sensor": {"name": "bench"}, "image-pi": {"name": "bench"},
+              "image-creators": [{"name": "bench"}], "image-license": {"name": "CC-BY-4.0"},
+              "image-copyright": "bench", "image-abstract": "bench", "image-coordinate-uncertainty-meters": 1,
+              "image-datetime": "2026-12-01 00:00:00.000", "image-latitude": 0.0, "image-longitude": 0.0,
+              "image-altitude-meters": -10.0}
+    t = time.perf_counter()
+    done = ifdo.write_ifdo(out, header)
+    print(f"ifdo.yaml: {time.perf_counter() - t:.2f} s for {done['items']} photos, "
+          f"{os.path.getsize(done['path']) / 1e6:.2f} MB")
     shutil.rmtree(root, ignore_errors=True)
 
 

@@ -67,13 +67,13 @@ def load_header(path: str) -> dict:
         with open(path, encoding="utf-8") as f:
             doc = yaml.safe_load(f)
     except OSError as e:
-        raise IfdoError(f"header {path}: cannot read the header ({e.strerror or e})") from None
+        raise IfdoError(f"{path}: cannot read the header file ({e.strerror or e})") from None
     except yaml.YAMLError as e:
-        raise IfdoError(f"header {path}: not YAML or JSON ({str(e).splitlines()[0]})") from None
+        raise IfdoError(f"header file {path}: not YAML or JSON ({str(e).splitlines()[0]})") from None
     if isinstance(doc, dict) and isinstance(doc.get("image-set-header"), dict):
         doc = doc["image-set-header"]
     if not isinstance(doc, dict):
-        raise IfdoError(f"header {path}: the header must be a mapping of iFDO fields (image-project: ..., ...)")
+        raise IfdoError(f"header file {path}: it must be a mapping of iFDO fields (image-project: ..., ...)")
     check_header(doc, path)
     return doc
 
@@ -384,7 +384,7 @@ def _write(out: str, header: dict, handle_base, storage_options, file_format: st
     if file_format == "json":
         text = json.dumps(doc, indent=1, ensure_ascii=False) + "\n"
     else:
-        class _Plain(yaml.SafeDumper):
+        class _Plain(getattr(yaml, "CSafeDumper", yaml.SafeDumper)):  # libyaml's emitter when PyYAML has it
             # the agent repeated in full, not as an anchor and aliases: not every ingester resolves them
             def ignore_aliases(self, data):
                 return True
