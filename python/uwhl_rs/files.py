@@ -15,7 +15,6 @@ import numpy as np
 
 from . import _core
 from .io import (
-    DEFAULT_MAX_PIXELS,
     ImageMeta,
     ImageReadError,
     ImageTooLargeError,
@@ -24,7 +23,6 @@ from .io import (
     colorize_transmission,
     read_image,
     to_srgb,
-    write_image,
 )
 
 __all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "FORMATS"]
