@@ -150,7 +150,10 @@ def build_parser() -> argparse.ArgumentParser:
         "paginated grid of before/after thumbnails (written once into OUTDIR/report/thumbs) that open the "
         "full-size photo and its transmission map.",
     )
-    rp.add_argument("out", metavar="OUTDIR", help="an output folder of uwhl restore or uwhl-rs restore")
+    rp.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
+    rp.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="an fsspec option for a URL OUTDIR, as for restore")
+    rp.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
     rp.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
     fd = sub.add_parser(
@@ -596,7 +599,8 @@ def _batch_end(a: argparse.Namespace, outcomes: list, summary_error: str | None,
         _report(err, a.json_errors, None, "write_failed", summary_error)
         code = max(code, EXIT["write_failed"])
     if a.report:
-        code = max(code, run_report(a.out, a.quiet, out, err))
+        code = max(code, run_report(a.out, a.quiet, out, err, storage_options=getattr(a, "storage_options", None),
+                                    json_errors=a.json_errors))
     if getattr(a, "ifdo_header", None) is not None:
         fmt = "json" if a.ifdo.lower().endswith(".json") else "yaml"
         code = max(code, run_ifdo(a.out, a.ifdo_header, file_format=fmt, storage_options=getattr(a, "storage_options", None),
@@ -610,10 +614,6 @@ def _run_batch(a: argparse.Namespace, water_types, out, err) -> int:
     progress, summary and exit codes."""
     from . import batch
 
-    if a.report and batch.is_url(a.out):
-        _report(err, a.json_errors, None, "bad_arguments",
-                "--report writes into a local OUTDIR; run uwhl report on a local copy of the outputs")
-        return EXIT_USAGE
     if a.jobs != 1:
         _report(err, a.json_errors, None, "bad_arguments",
                 "--jobs is for runs in this process; on a cluster (--dask) every worker takes one input at a time "
@@ -726,7 +726,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.cmd == "evaluate":
         return run_evaluate(a)
     if a.cmd == "report":
-        return run_report(a.out, a.quiet)
+        return _run_report_command(a)
     if a.cmd == "ifdo":
         return _run_ifdo_command(a)
     return run_restore(a)
@@ -766,19 +766,27 @@ def run_ifdo(out_dir: str, header, *, handle_base: str | None = None, file_forma
     return EXIT_OK
 
 
-def run_report(out_dir: str, quiet: bool = False, out=None, err=None) -> int:
-    """``uwhl report OUTDIR`` (and ``--report``): returns the exit status."""
-    from . import report
+def run_report(out_dir: str, quiet: bool = False, out=None, err=None, *, storage_options: dict | None = None,
+               json_errors: bool = False) -> int:
+    """``uwhl report OUTDIR`` (and ``--report``; OUTDIR a folder or a
+    storage URL): returns the exit status."""
+    from . import batch, report
 
     out = out or sys.stdout
     err = err or sys.stderr
-    if not os.path.isdir(out_dir):
-        _report(err, False, out_dir, "unreadable_input", "no such folder")
+    if not batch.is_url(out_dir) and not os.path.isdir(out_dir):
+        _report(err, json_errors, out_dir, "unreadable_input", "no such folder")
         return EXIT["unreadable_input"]
     try:
-        done = report.write_report(out_dir)
+        done = report.write_report(out_dir, storage_options=storage_options)
+    except batch.BatchError as e:
+        _report(err, json_errors, out_dir, e.kind, f"cannot write the report: {e}")
+        return EXIT[e.kind]
+    except FileNotFoundError:
+        _report(err, json_errors, out_dir, "unreadable_input", "no such folder")
+        return EXIT["unreadable_input"]
     except OSError as e:
-        _report(err, False, out_dir, "write_failed", f"cannot write the report: {_describe(e)}")
+        _report(err, json_errors, out_dir, "write_failed", f"cannot write the report: {_describe(e)}")
         return EXIT["write_failed"]
     if not quiet:
         out.write(f"report: {done['path']} ({done['photos']} photos, {done['flagged']} flagged, {done['failed']} failed, "
@@ -787,6 +795,17 @@ def run_report(out_dir: str, quiet: bool = False, out=None, err=None) -> int:
             out.write(f"  note: {p}\n")
         out.flush()
     return EXIT_OK
+
+
+def _run_report_command(a: argparse.Namespace) -> int:
+    from . import batch
+
+    try:
+        so = batch.parse_storage_options(a.storage_option)
+    except ValueError as e:
+        _report(sys.stderr, a.json_errors, None, "bad_arguments", str(e))
+        return EXIT_USAGE
+    return run_report(a.out, a.quiet, storage_options=so or None, json_errors=a.json_errors)
 
 
 def _run_ifdo_command(a: argparse.Namespace) -> int:

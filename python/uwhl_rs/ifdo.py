@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
-import os
 import uuid as _uuid
 from typing import Any
 
@@ -140,72 +139,34 @@ def _is_url(path: str) -> bool:
     return is_url(path)
 
 
-def _sidecars(out: str, storage_options: dict | None) -> tuple[list[tuple[str, dict, _dt.datetime]], list[str]]:
-    """The sidecars of an output folder or URL: (path relative to it, the
-    document, when it was written), in path order, and the problems."""
-    from .report import _is_sidecar, collect_sidecars
+def _sidecars(folder) -> tuple[list[tuple[str, dict, _dt.datetime]], list[str]]:
+    """The sidecars of an output folder (``store.Folder``): (path relative
+    to it, the document, when it was written, in UTC), in path order, and
+    the problems."""
+    from .report import collect_sidecars
 
-    if not _is_url(out):
-        photos, problems = collect_sidecars(out)
-        found = []
-        for p in photos:
-            mtime = os.path.getmtime(os.path.join(out, p.sidecar))
-            found.append((p.sidecar.replace(os.sep, "/"), p.doc, _dt.datetime.fromtimestamp(mtime, _dt.timezone.utc)))
-        return found, problems
-    fs, root = _fs(out, storage_options)
-    root = root.rstrip("/")
-    found, problems = [], []
-    for path, info in sorted(fs.find(root, detail=True).items()):
-        rel = path[len(root):].lstrip("/")
-        if not rel.endswith(".json") or any(part.startswith(".") for part in rel.split("/")):
-            continue
-        try:
-            doc = json.loads(fs.cat_file(path))
-        except (OSError, ValueError) as e:
-            problems.append(f"{path}: cannot read ({type(e).__name__}: {e})")
-            continue
-        if _is_sidecar(doc):
-            when = info.get("LastModified") or info.get("mtime") or info.get("last_modified")
-            if isinstance(when, (int, float)):
-                when = _dt.datetime.fromtimestamp(when, _dt.timezone.utc)
-            if not isinstance(when, _dt.datetime):
-                when = _dt.datetime.now(_dt.timezone.utc)
-            found.append((rel, doc, when))
-    return found, problems
+    photos, problems = collect_sidecars(folder)
+    now = _dt.datetime.now(_dt.timezone.utc)
+    return [(p.sidecar, p.doc, now if p.modified is None else _dt.datetime.fromtimestamp(p.modified, _dt.timezone.utc))
+            for p in photos], problems
 
 
-def _fs(out: str, storage_options: dict | None):
-    from .batch import _fs as fs_of
-
-    return fs_of(out, storage_options or {})
-
-
-def _folder_uri(out: str) -> str:
-    if _is_url(out):
-        return out.rstrip("/") + "/"
-    return _as_uri(os.path.abspath(out)) + "/"
-
-
-def _as_uri(path: str) -> str:
+def _folder_uri(folder) -> str:
+    if folder.is_url:
+        return folder.display + "/"
     from pathlib import Path
 
-    return Path(path).as_uri()
+    return Path(folder.display).as_uri() + "/"
 
 
-def _earlier_uuid(out: str, storage_options: dict | None) -> str | None:
+def _earlier_uuid(folder) -> str | None:
     """The set UUID of an iFDO already in the folder: a rerun describes the
     same set."""
     import yaml
 
     for name in ("ifdo.yaml", "ifdo.json"):
         try:
-            if _is_url(out):
-                fs, root = _fs(out, storage_options)
-                text = fs.cat_file(root.rstrip("/") + "/" + name).decode("utf-8")
-            else:
-                with open(os.path.join(out, name), encoding="utf-8") as f:
-                    text = f.read()
-            doc = yaml.safe_load(text)
+            doc = yaml.safe_load(folder.read(name).decode("utf-8"))
             u = doc["image-set-header"]["image-set-uuid"]
             return str(_uuid.UUID(str(u)))
         except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError, yaml.YAMLError):
@@ -223,18 +184,21 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
     notes to show (photos left out, times taken as UTC). ``handle_base``:
     the URL under which the folder is published (items' ``image-handle``
     is it joined with their path); by default the photos' own URLs."""
+    from .store import Folder
+
     check_header(header)
-    found, notes = _sidecars(out, storage_options)
+    folder = Folder(out, storage_options)
+    found, notes = _sidecars(folder)
     items: dict[str, Any] = {}
     activities, entities = [], []
     times, positions, no_offset, no_time, no_position = [], [], 0, [], []
     agent = None
-    base = (handle_base.rstrip("/") + "/") if handle_base else _folder_uri(out)
+    base = (handle_base.rstrip("/") + "/") if handle_base else _folder_uri(folder)
     for rel, doc, written in found:
         md = doc.get("metadata") or {}
         name = (doc.get("outputs") or {}).get("image")
-        folder = rel.rsplit("/", 1)[0] + "/" if "/" in rel else ""
-        key = folder + name if name else None
+        sub = rel.rsplit("/", 1)[0] + "/" if "/" in rel else ""
+        key = sub + name if name else None
         if not key or not md.get("image_uuid") or not md.get("photo_sha256"):
             notes.append(f"{rel}: no image UUID embedded in the photo (metadata not written, or an older sidecar); "
                          "left out of the iFDO")
@@ -296,8 +260,8 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         raise IfdoError(f"{out}: no restored photo with an embedded image UUID (no sidecar of uwhl restore found)")
 
     derived: dict[str, Any] = {
-        "image-set-name": os.path.basename(os.path.normpath(out.rstrip("/"))) or "uwhl_rs restored images",
-        "image-set-uuid": _earlier_uuid(out, storage_options) or str(_uuid.uuid4()),
+        "image-set-name": folder.name or "uwhl_rs restored images",
+        "image-set-uuid": _earlier_uuid(folder) or str(_uuid.uuid4()),
         "image-set-handle": base,
         "image-set-ifdo-version": IFDO_VERSION,
         "image-coordinate-reference-system": "EPSG:4326",
@@ -365,16 +329,9 @@ def write_ifdo(out: str, header: dict | str, *, handle_base: str | None = None, 
     file_format = file_format or "yaml"
     if file_format not in ("yaml", "json"):
         raise IfdoError(f"file_format must be 'yaml' or 'json', not {file_format!r}")
-    if not _is_url(out):
-        return _write(out, header, handle_base, storage_options, file_format)
-    from .batch import BatchError, _storage_error
+    from .store import on_storage
 
-    try:
-        return _write(out, header, handle_base, storage_options, file_format)
-    except (IfdoError, BatchError):
-        raise
-    except Exception as e:  # the storage client's own kinds: unreachable, refused, no credentials
-        raise _storage_error(e, out) from None
+    return on_storage(out, _write, out, header, handle_base, storage_options, file_format, keep=(IfdoError,))
 
 
 def _write(out: str, header: dict, handle_base, storage_options, file_format: str) -> dict:
@@ -390,21 +347,7 @@ def _write(out: str, header: dict, handle_base, storage_options, file_format: st
                 return True
 
         text = yaml.dump(doc, Dumper=_Plain, sort_keys=False, allow_unicode=True, width=120)
-    name = f"ifdo.{file_format}"
-    data = text.encode("utf-8")
-    if _is_url(out):
-        fs, root = _fs(out, storage_options)
-        path = root.rstrip("/") + "/" + name
-        fs.pipe_file(path, data)
-        where = out.rstrip("/") + "/" + name
-    else:
-        where = os.path.join(out, name)
-        tmp = os.path.join(out, f".{name}.{os.getpid()}.tmp")
-        try:
-            with open(tmp, "wb") as f:
-                f.write(data)
-            os.replace(tmp, where)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+    from .store import Folder
+
+    where = Folder(out, storage_options).write(f"ifdo.{file_format}", text.encode("utf-8"))
     return {"path": where, "items": len(doc["image-set-items"]), "notes": notes}

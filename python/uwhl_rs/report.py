@@ -1,6 +1,7 @@
 """``uwhl report OUTDIR``: one page for a whole batch (docs/REPORT.md).
 
-Reads the sidecars under OUTDIR, writes small thumbnails once
+Reads the sidecars under OUTDIR (a local folder or an object-storage URL,
+``uwhl_rs.store``), writes small thumbnails once
 (``OUTDIR/report/thumbs/``) and ``OUTDIR/report/index.html``: the photos
 that need a look first (their flags), a histogram of the water types, the
 water type, A and the choice's score over the sequence, and a grid of
@@ -14,6 +15,8 @@ from __future__ import annotations
 import html
 import json
 import os
+import posixpath
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -41,33 +44,37 @@ _TYPE_COLORS = {"I": "#08306b", "IA": "#08519c", "IB": "#2171b5", "II": "#4292c6
 class Photo:
     """One restored input, as its sidecar tells."""
 
-    sidecar: str  # path, relative to OUTDIR
+    sidecar: str  # path, relative to OUTDIR, /-separated
     doc: dict
+    modified: float | None = None  # when the sidecar was written (seconds since the epoch)
 
     @property
     def folder(self) -> str:
-        return os.path.dirname(self.sidecar)
+        return posixpath.dirname(self.sidecar)
 
     def output(self, role: str) -> str | None:
+        """The path of an output (``image``, ``transmission_color``, ...),
+        relative to OUTDIR, or None."""
         name = (self.doc.get("outputs") or {}).get(role)
-        return None if not name else os.path.join(self.folder, name)
+        return None if not name else posixpath.join(self.folder, name)
 
     @property
     def flags(self) -> list[str]:
         return [f for f in self.doc.get("flags") or [] if f not in ROUTINE_FLAGS]
 
 
-def failed_inputs(out_dir: str) -> list[dict]:
+def failed_inputs(out_dir, storage_options: dict | None = None) -> list[dict]:
     """The failed rows of ``OUTDIR/summary.csv`` (inputs without a sidecar
     to show), or none when there is no summary."""
     import csv
 
+    from .store import Folder
     from .summary import FILE_NAME
 
-    path = os.path.join(out_dir, FILE_NAME)
+    folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
     try:
-        with open(path, newline="", encoding="utf-8") as f:
-            return [r for r in csv.DictReader(f) if r.get("status") == "failed"]
+        text = folder.read(FILE_NAME).decode("utf-8")
+        return [r for r in csv.DictReader(text.splitlines()) if r.get("status") == "failed"]
     except (OSError, ValueError, csv.Error):
         return []
 
@@ -76,39 +83,55 @@ def _is_sidecar(doc) -> bool:
     return isinstance(doc, dict) and "water_type" in doc and isinstance(doc.get("outputs"), dict) and "input" in doc
 
 
-def collect_sidecars(out_dir: str) -> tuple[list[Photo], list[str]]:
-    """Every sidecar under ``out_dir`` (the report's own folder and hidden
-    entries skipped), in path order, and the problems (unreadable ones)."""
+def collect_sidecars(out_dir, storage_options: dict | None = None, *,
+                     listed: list[tuple[str, float | None]] | None = None) -> tuple[list[Photo], list[str]]:
+    """Every sidecar under ``out_dir`` (a local folder, a storage URL or a
+    ``store.Folder``; the report's own folder and hidden entries skipped),
+    in path order, and the problems (unreadable ones). ``listed``: the
+    folder's files as ``Folder.files`` gives them, when already listed."""
+    from .store import Folder
+
+    folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
+    if listed is None:
+        listed = folder.files(skip_top=(REPORT_DIR,))
+    listed = [(rel, when) for rel, when in listed if rel.endswith(".json")]
+    got = folder.read_many([rel for rel, _ in listed])
     photos, problems = [], []
-    for d, dirs, files in os.walk(out_dir):
-        rel_d = os.path.relpath(d, out_dir)
-        dirs[:] = sorted(x for x in dirs if not x.startswith(".") and not (rel_d == "." and x == REPORT_DIR))
-        for f in sorted(files):
-            if not f.endswith(".json") or f.startswith("."):
-                continue
-            p = os.path.join(d, f)
-            try:
-                with open(p, encoding="utf-8") as fh:
-                    doc = json.load(fh)
-            except (OSError, ValueError) as e:
-                problems.append(f"{p}: cannot read ({type(e).__name__}: {e})")
-                continue
-            if _is_sidecar(doc):
-                photos.append(Photo(os.path.relpath(p, out_dir), doc))
-    photos.sort(key=lambda ph: tuple(ph.sidecar.split(os.sep)))
+    for rel, when in listed:
+        data = got[rel]
+        try:
+            if isinstance(data, Exception):
+                raise data
+            doc = json.loads(data)
+        except (OSError, ValueError) as e:
+            problems.append(f"{folder.path(rel)}: cannot read ({type(e).__name__}: {e})")
+            continue
+        if _is_sidecar(doc):
+            photos.append(Photo(rel, doc, when))
     return photos, problems
 
 
 # ---------------------------------------------------------------- thumbnails
 
 
-def _open_small(path: str, side: int):
-    """An 8-bit RGB Pillow image of ``path`` at most ``side`` pixels a side,
+def _open_small(path: str, side: int, storage_options: dict | None = None):
+    """An 8-bit RGB Pillow image of ``path`` (a local file, or a storage
+    URL fetched into a temporary file first) at most ``side`` pixels a side,
     decoded as cheaply as the format allows (JPEG: DCT scaling; raw: the
     embedded preview)."""
     from PIL import Image, ImageOps
 
     from .io import RAW_EXTENSIONS
+    from .store import _is_url, read_bytes
+
+    if _is_url(path):
+        with tempfile.TemporaryDirectory(prefix="uwhl-thumb-") as d:
+            local = os.path.join(d, "source" + os.path.splitext(path)[1])
+            with open(local, "wb") as f:
+                f.write(read_bytes(path, storage_options))
+            im = _open_small(local, side)
+            im.load()
+            return im
 
     ext = os.path.splitext(path)[1].lower()
     if ext in RAW_EXTENSIONS:
@@ -152,22 +175,29 @@ def _from_array(path: str):
     return Image.fromarray((np.clip(to_srgb(small, meta), 0, 1) * 255 + 0.5).astype(np.uint8))
 
 
-def _thumb(src: str, dst: str, side: int) -> str | None:
-    """Writes the thumbnail of ``src`` at ``dst`` unless one newer than
-    ``src`` is there: "written", "kept", or why not."""
+def _thumb(src: str, folder, dst: str, side: int, made: float | None, dst_time: float | None,
+           missing: bool = False) -> str:
+    """Writes the thumbnail of ``src`` (a local path or URL) at ``dst`` in
+    ``folder`` unless one is there written after ``made`` (when the photo's
+    restored output was written: every restore of an input rewrites it, so
+    neither source is asked again for a thumbnail that is current, which on
+    object storage would be a request per photo). ``missing``: the output
+    is not in the folder. Returns "written", "kept", or why not."""
+    import io as _io
+
+    if dst_time is not None and made is not None and dst_time >= made and not missing:
+        return "kept"
     try:
-        if os.path.exists(dst) and os.path.getmtime(dst) >= os.path.getmtime(src):
-            return "kept"
-    except OSError:
-        return f"{src}: not found"
-    try:
-        im = _open_small(src, side)
-        tmp = dst + ".tmp"
-        im.save(tmp, "JPEG", quality=82)
-        os.replace(tmp, dst)
-        return "written"
-    except Exception as e:  # one unreadable file leaves its cell empty, never the page
-        return f"{src}: no thumbnail ({type(e).__name__}: {e})"
+        if missing:
+            raise FileNotFoundError(2, "not found", src)
+        im = _open_small(src, side, folder.storage_options)
+        buf = _io.BytesIO()
+        im.save(buf, "JPEG", quality=82)
+    except Exception as e:  # one unreadable file leaves its cell empty (or its earlier thumbnail), never the page
+        why = "not found" if isinstance(e, FileNotFoundError) else f"no thumbnail ({type(e).__name__}: {e})"
+        return f"{src}: {why}" + ("; its earlier thumbnail is shown" if dst_time is not None else "")
+    folder.write(dst, buf.getvalue())
+    return "written"
 
 
 # ---------------------------------------------------------------- charts
@@ -324,46 +354,68 @@ pager('all-grid', D.photos.map(p=>p.k));
 """
 
 
-def _rel_url(path: str | None, start: str) -> str | None:
-    """A relative URL from the report's folder to ``path`` (both under OUTDIR)."""
-    if path is None:
+def _rel_url(rel: str | None) -> str | None:
+    """A relative URL from the report's folder to ``rel`` (a path relative
+    to OUTDIR), so the page works wherever OUTDIR is served or copied."""
+    if rel is None:
         return None
     from urllib.parse import quote
 
-    return quote(os.path.relpath(path, start).replace(os.sep, "/"))
+    return quote(posixpath.relpath(rel, REPORT_DIR))
 
 
-def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_SIDE,
-                 page_size: int = PAGE_SIZE) -> dict:
+def _shown(note: str | None) -> bool:
+    """Whether a thumbnail is there after :func:`_thumb` said ``note``."""
+    return note is not None and (note in ("written", "kept") or note.endswith("its earlier thumbnail is shown"))
+
+
+def write_report(out_dir, *, storage_options: dict | None = None, workers: int | None = None,
+                 side: int = THUMB_SIDE, page_size: int = PAGE_SIZE) -> dict:
     """Writes ``out_dir/report/index.html`` and its thumbnails from the
-    sidecars under ``out_dir``; returns what it did (``photos``,
-    ``flagged``, ``thumbnails_written``, ``problems``, ``seconds``,
-    ``path``). Thumbnails newer than their source are kept, so a rerun
-    after more inputs only makes the new ones."""
+    sidecars under ``out_dir`` (a local folder, or an object-storage URL
+    read and written with ``storage_options``); returns what it did
+    (``photos``, ``flagged``, ``thumbnails_written``, ``problems``,
+    ``seconds``, ``path``). Thumbnails newer than their source are kept, so
+    a rerun after more inputs only makes the new ones; the page is written
+    last, in one step. Storage that cannot be reached raises
+    ``batch.BatchError``; a missing local folder, FileNotFoundError."""
+    from .store import Folder, on_storage
+
+    out_dir = os.fspath(out_dir)
+    return on_storage(out_dir, lambda: _write_report(Folder(out_dir, storage_options), workers, side, page_size),
+                      keep=(FileNotFoundError,))
+
+
+def _write_report(folder, workers, side: int, page_size: int) -> dict:
     import uwhl_rs
 
+    from .store import _is_url
+
     t0 = time.perf_counter()
-    out_dir = os.fspath(out_dir)
-    if not os.path.isdir(out_dir):
-        raise FileNotFoundError(2, "no such folder", out_dir)
-    photos, problems = collect_sidecars(out_dir)
-    rdir = os.path.join(out_dir, REPORT_DIR)
-    tdir = os.path.join(rdir, "thumbs")
-    os.makedirs(tdir, exist_ok=True)
+    if not folder.exists():
+        raise FileNotFoundError(2, "no such folder", folder.display)
+    listed = folder.files(skip_top=(REPORT_DIR,))
+    written_at = dict(listed)
+    photos, problems = collect_sidecars(folder, listed=listed)
+    tdir = REPORT_DIR + "/thumbs"
+    thumbs_at = dict(folder.files(under=tdir))
     jobs = []
     cells = []
     for k, p in enumerate(photos):
-        stem = p.sidecar[:-5].replace(os.sep, "__")
-        ti, to = os.path.join(tdir, stem + "_in.jpg"), os.path.join(tdir, stem + "_out.jpg")
+        stem = p.sidecar[:-5].replace("/", "__")
+        ti, to = f"{tdir}/{stem}_in.jpg", f"{tdir}/{stem}_out.jpg"
         src_in = p.doc.get("input")
-        if src_in and not os.path.isabs(src_in):
+        if src_in and not _is_url(src_in) and not os.path.isabs(src_in):
             src_in = os.path.abspath(src_in)
         img = p.output("image")
-        jobs += [(src_in, ti) if src_in else None, (os.path.join(out_dir, img), to) if img else None]
+        made = written_at.get(img, p.modified) if img else p.modified
+        missing = bool(img) and img not in written_at
+        jobs += [(src_in, ti, made, False) if src_in else None, (folder.path(img), to, made, missing) if img else None]
         cells.append((p, ti, to))
     with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
-        notes = list(pool.map(lambda j: "kept" if j is None else _thumb(j[0], j[1], side), jobs))
-    problems += [n for n in notes if n not in ("written", "kept")]
+        notes = list(pool.map(lambda j: None if j is None else _thumb(j[0], folder, j[1], side, j[2],
+                                                                       thumbs_at.get(j[1]), j[3]), jobs))
+    problems += [n for n in notes if n not in (None, "written", "kept")]
     written = notes.count("written")
     data = []
     counts = {t: 0 for t in uwhl_rs.WATER_TYPES}
@@ -371,17 +423,17 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
         wt = p.doc.get("water_type")
         counts[wt] = counts.get(wt, 0) + 1
         data.append({
-            "k": k, "name": p.sidecar[:-5].replace(os.sep, "/"), "wt": wt,
+            "k": k, "name": p.sidecar[:-5], "wt": wt,
             "A": p.doc.get("veiling_light"), "flags": p.flags,
-            "ti": _rel_url(ti, rdir) if os.path.exists(ti) else None,
-            "to": _rel_url(to, rdir) if os.path.exists(to) else None,
-            "full": _rel_url(os.path.join(out_dir, p.output("image") or ""), rdir),
-            "t": _rel_url(os.path.join(out_dir, p.output("transmission_color") or ""), rdir),
-            "side": _rel_url(os.path.join(out_dir, p.sidecar), rdir),
+            "ti": _rel_url(ti) if _shown(notes[2 * k]) else None,
+            "to": _rel_url(to) if _shown(notes[2 * k + 1]) else None,
+            "full": _rel_url(p.output("image")),
+            "t": _rel_url(p.output("transmission_color")),
+            "side": _rel_url(p.sidecar),
         })
     counts = {t: n for t, n in counts.items() if n}
     flagged = sum(1 for d in data if d["flags"])
-    failed = failed_inputs(out_dir)
+    failed = failed_inputs(folder)
     failed_html = "" if not failed else (
         f'<section id="failed"><h2>Failed: {len(failed)} (from summary.csv)</h2><table class="failed">'
         + "".join(f"<tr><td>{html.escape(r.get('input', ''))}</td><td>{html.escape(r.get('error_kind', ''))}</td>"
@@ -391,8 +443,8 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
     axis = series_axis(photos)
     blob = json.dumps({"page": int(page_size), "photos": data}).replace("</", "<\\/")
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
-<title>uwhl report: {html.escape(os.path.basename(os.path.abspath(out_dir)))}</title><style>{_CSS}</style></head><body>
-<h1>{html.escape(os.path.abspath(out_dir))}</h1>
+<title>uwhl report: {html.escape(folder.name)}</title><style>{_CSS}</style></head><body>
+<h1>{html.escape(folder.display)}</h1>
 <p class="meta" id="summary">{len(photos)} photos restored, {flagged} flagged, {len(failed)} failed; water types:
 {', '.join(f'{html.escape(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
 {html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
@@ -407,10 +459,6 @@ def write_report(out_dir: str, *, workers: int | None = None, side: int = THUMB_
 <script id="data" type="application/json">{blob}</script>
 <script>{_JS}</script></body></html>
 """
-    path = os.path.join(rdir, "index.html")
-    tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(page)
-    os.replace(tmp, path)
+    path = folder.write(REPORT_DIR + "/index.html", page.encode("utf-8"))
     return {"path": path, "photos": len(photos), "flagged": flagged, "failed": len(failed), "thumbnails_written": written,
             "problems": problems, "seconds": time.perf_counter() - t0}

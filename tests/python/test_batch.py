@@ -384,6 +384,69 @@ def test_s3_outputs_get_an_ifdo_with_their_urls(s3, inputs, tmp_path):
     assert r.returncode == 7 and "cannot reach the storage" in r.stderr and "ifdo:" not in r.stdout, r.stderr
 
 
+def _page_data(html_text: str) -> dict:
+    start = html_text.index('<script id="data" type="application/json">') + len('<script id="data" type="application/json">')
+    return json.loads(html_text[start:html_text.index("</script>", start)].replace("<\\/", "</"))
+
+
+def test_s3_outputs_get_a_report_that_resolves_on_the_store(s3, inputs, tmp_path):
+    """``restore --report`` and ``uwhl report`` with an object-storage
+    OUTDIR: the page and its thumbnails are stored beside the photos, every
+    link of the page resolves to a stored object, the thumbnails show the
+    stored photos, a rerun writes none, and the page equals the one made
+    from a local copy of the same outputs."""
+    import posixpath
+
+    import numpy as np
+    from PIL import Image
+
+    from uwhl_rs import report
+
+    fs, endpoint = s3
+    for name in ("f00.png", "f01.png", "bad.jpg", "sub/f04.png"):
+        fs.put(f"{inputs}/{name}", f"survey/dive_r/{name}")
+    dest = "s3://survey/restored/dive_r/"
+    r = run("restore", "s3://survey/dive_r/", "-o", dest, "--storage-option", f"endpoint_url={endpoint}",
+            "--report", "-q")
+    assert r.returncode == 3, r.stderr  # bad.jpg
+    page = fs.cat("survey/restored/dive_r/report/index.html").decode()
+    assert "3 photos restored, 0 flagged, 1 failed" in page and "bad.jpg" in page and dest.rstrip("/") in page
+    data = _page_data(page)["photos"]
+    assert [d["name"] for d in data] == ["f00", "f01", "sub/f04"]
+    base = "survey/restored/dive_r/report"
+    for d in data:
+        for key in ("ti", "to", "full", "t", "side"):
+            assert d[key] and fs.exists(posixpath.normpath(posixpath.join(base, d[key]))), (d["name"], key, d[key])
+        side = json.loads(fs.cat(posixpath.normpath(posixpath.join(base, d["side"]))))
+        assert d["wt"] == side["water_type"] and d["A"] == side["veiling_light"]
+        # the restored thumbnail is the stored photo made small: its mean colour matches
+        thumb = np.asarray(Image.open(fs.open(posixpath.normpath(posixpath.join(base, d["to"])))), dtype=float)
+        full = np.asarray(Image.open(fs.open(posixpath.normpath(posixpath.join(base, d["full"])))).convert("RGB"),
+                          dtype=float)
+        assert max(thumb.shape[:2]) <= report.THUMB_SIDE
+        assert np.abs(thumb.mean(axis=(0, 1)) - full.mean(axis=(0, 1))).max() < 3.0
+    assert len(fs.find("survey/restored/dive_r/report/thumbs")) == 6
+    # a rerun keeps every thumbnail
+    r = run("report", dest, "--storage-option", f"endpoint_url={endpoint}")
+    assert r.returncode == 0 and "3 photos, 0 flagged, 1 failed, 0 thumbnails written" in r.stdout, r.stdout + r.stderr
+    # a local copy of the outputs gives the same page data (its thumbnails kept)
+    local = tmp_path / "copy"
+    fs.get("survey/restored/dive_r/", str(local), recursive=True)
+    # (a download stamps each file with its own arrival: the thumbnails are
+    # made newer than the copied photos again, as they are on the store)
+    later = time.time() + 5
+    for f in (local / "report" / "thumbs").iterdir():
+        os.utime(f, (later, later))
+    assert report.write_report(str(local))["thumbnails_written"] == 0
+    assert _page_data((local / "report" / "index.html").read_text())["photos"] == data
+    # an unreachable store: named, exit 7, no report claimed
+    r = run("report", dest, "--storage-option", f"endpoint_url=http://127.0.0.1:{_free_port()}")
+    assert r.returncode == 7 and "cannot reach the storage" in r.stderr and "report:" not in r.stdout, r.stderr
+    # an empty prefix of the store is no output folder
+    r = run("report", "s3://survey/nothing_here/", "--storage-option", f"endpoint_url={endpoint}")
+    assert r.returncode == 3 and "no such folder" in r.stderr, r.stderr
+
+
 def test_s3_interrupted_outputs_without_sidecar_are_repaired(s3, inputs, local_run, monkeypatch):
     fs, endpoint = s3
     fs.put(inputs + "/", "survey/dive_b/", recursive=True)
