@@ -98,7 +98,7 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
     got = folder.read_many([rel for rel, _ in listed])
     photos, problems = [], []
     for rel, when in listed:
-        data = got[rel]
+        data = got.pop(rel)  # each document parsed, its bytes let go
         try:
             if isinstance(data, Exception):
                 raise data
