@@ -63,18 +63,16 @@ fn child_core(h: usize, w: usize, threads: usize) {
 fn child_binary(png: &Path, threads: usize) {
     uwhl::cli::run::init_threads(Some(threads));
     let out = std::env::temp_dir().join(format!("uwhl-mem-out-{}", std::process::id()));
-    let opts = uwhl::cli::args::Options {
-        outdir: out.clone(),
-        threads: Some(threads),
+    let opts = uwhl::files::settings::Settings {
         overwrite: true,
         ..Default::default()
     };
-    let (jobs, _) = uwhl::jobs::collect_jobs(&[png.to_path_buf()], &out, &[".jpg".into(), "_t.png".into(), "_t_color.png".into()]);
+    let (jobs, _) = uwhl::files::jobs::collect_jobs(&[png.to_path_buf()], &out, &[".jpg".into(), "_t.png".into(), "_t_color.png".into()]);
     let base = reset_peak();
     let t = std::time::Instant::now();
-    let masks = uwhl::cli::run::Masks::default();
+    let masks = uwhl::files::pipeline::Masks::default();
     for job in &jobs {
-        uwhl::cli::run::process(job, &opts, &masks, None).expect("process");
+        uwhl::files::pipeline::process(job, &opts, &masks, None).expect("process");
     }
     let secs = t.elapsed().as_secs_f64();
     let peak = status_kb("VmHWM:");
@@ -97,7 +95,7 @@ fn spawn(args: &[String]) -> (u64, f64) {
 }
 
 fn write_png(path: &PathBuf, h: usize, w: usize) {
-    let codes = uwhl::color::quantize_u8(&scene(h, w), true);
+    let codes = uwhl::files::color::quantize_u8(&scene(h, w), true);
     image::RgbImage::from_raw(w as u32, h as u32, codes)
         .expect("buffer")
         .save(path)

@@ -69,7 +69,7 @@ fn main() {
     let pngs: Vec<Vec<u8>> = images
         .iter()
         .map(|img| {
-            let codes = uwhl::color::quantize_u8(img, true);
+            let codes = uwhl::files::color::quantize_u8(img, true);
             let mut png = Vec::new();
             image::RgbImage::from_raw(w as u32, h as u32, codes)
                 .expect("buffer")
@@ -80,7 +80,7 @@ fn main() {
         })
         .collect();
     let ok_bin = soak("decode+restore", calls, |i| {
-        let r = uwhl::cli::run::fuzz_one(&pngs[i % pngs.len()]).expect("decode_and_restore");
+        let r = uwhl::files::pipeline::fuzz_one(&pngs[i % pngs.len()]).expect("decode_and_restore");
         std::hint::black_box(r);
     });
     if !(ok_core && ok_bin) {

@@ -13,14 +13,14 @@ use rayon::prelude::*;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use std::hint::black_box;
 use std::time::Duration;
-use uwhl::guided::GuideStats;
-use uwhl::hazelines::initial_transmission;
-use uwhl::matting::Matting;
-use uwhl::stretch::guide_image;
-use uwhl::recover::{display_stretch, recover};
-use uwhl::select::{choose, type_stats};
-use uwhl::sphere::SphereIndex;
-use uwhl::veiling::estimate;
+use uwhl::method::guided::GuideStats;
+use uwhl::method::hazelines::initial_transmission;
+use uwhl::method::matting::Matting;
+use uwhl::method::stretch::guide_image;
+use uwhl::method::recover::{display_stretch, recover};
+use uwhl::method::select::{choose, type_stats};
+use uwhl::method::sphere::SphereIndex;
+use uwhl::method::veiling::estimate;
 use uwhl::{default_radius, restore, ImageRef, Input, Params, Selection, WaterType};
 
 #[path = "../tests/common/mod.rs"]
@@ -74,7 +74,7 @@ fn stages(c: &mut Criterion) {
     let (j, tb) = recover(&img, veil.a, &q, &wt, None);
     g.bench_function("display_stretch", |b| b.iter(|| display_stretch(black_box(&j), None)));
     let s = display_stretch(&j, None);
-    let tr: Vec<f32> = tb.iter().map(|&t| uwhl::recover::channel_t(t, &wt)[0]).collect();
+    let tr: Vec<f32> = tb.iter().map(|&t| uwhl::method::recover::channel_t(t, &wt)[0]).collect();
     g.bench_function("selection_statistics_one_type", |b| {
         b.iter(|| choose(&[type_stats(black_box(&s), &tr, &veil.vl, None, w)]))
     });
@@ -136,11 +136,11 @@ fn outputs(c: &mut Criterion) {
     g.sample_size(20).measurement_time(Duration::from_secs(3));
     g.bench_function("srgb_8bit_formula_per_value", |b| {
         // the baseline: the formula per value, in parallel (the quantiser settles table estimates instead)
-        b.iter(|| black_box(&res.image).par_iter().map(|&v| uwhl::color::quantize_one(v, 255.0, true) as u8).collect::<Vec<u8>>())
+        b.iter(|| black_box(&res.image).par_iter().map(|&v| uwhl::files::color::quantize_one(v, 255.0, true) as u8).collect::<Vec<u8>>())
     });
-    g.bench_function("srgb_8bit_quantize_u8", |b| b.iter(|| uwhl::color::quantize_u8(black_box(&res.image), true)));
-    g.bench_function("srgb_16bit_quantize_u16", |b| b.iter(|| uwhl::color::quantize_u16(black_box(&res.image), true)));
-    g.bench_function("colormap", |b| b.iter(|| uwhl::color::colormap(black_box(&res.transmission))));
+    g.bench_function("srgb_8bit_quantize_u8", |b| b.iter(|| uwhl::files::color::quantize_u8(black_box(&res.image), true)));
+    g.bench_function("srgb_16bit_quantize_u16", |b| b.iter(|| uwhl::files::color::quantize_u16(black_box(&res.image), true)));
+    g.bench_function("colormap", |b| b.iter(|| uwhl::files::color::colormap(black_box(&res.transmission))));
     g.finish();
 }
 

@@ -37,10 +37,20 @@
     )
 )]
 
-/// Declares the stage modules: every one forbids unsafe code even when the
-/// pyo3 bindings (which expand to unsafe code) are built into the crate,
-/// and all are under the crate's panic lints above. They are private: the
-/// API is the `pub use` list below. The feature `internals` (benches,
+// The layers, each a folder, imports pointing down only:
+//
+//     error      the one error enum, the failure kinds and their exit codes
+//     kernels/   box sums, filters, order statistics, powers, deterministic reductions, memory
+//     method/    restore() and Sequence, one file per METHOD section, params, profiles, water table
+//     files/     the per-input path both commands share: option table, jobs, claims and commit,
+//                memory plan, decoding and encoding, colour and ICC, metadata, sidecar, summary
+//     cli/       the uwhl-rs binary: arguments from the table, batch and stream loops, demo
+//     python/    the pyo3 bindings only
+
+/// Declares modules of the layers below: every one forbids unsafe code even
+/// when the pyo3 bindings (which expand to unsafe code) are built into the
+/// crate, and all are under the crate's panic lints above. They are private:
+/// the API is the `pub use` list below. The feature `internals` (benches,
 /// fuzzing, the Python cross-check hooks; never in release wheels) makes
 /// them public.
 macro_rules! stage_modules {
@@ -52,52 +62,29 @@ macro_rules! stage_modules {
             pub mod $m;
             #[cfg(not(feature = "internals"))]
             #[forbid(unsafe_code)]
-            mod $m;
+            pub(crate) mod $m;
         )*
     };
 }
 
-stage_modules! {
-    boxsum, budget, error, fastmath, filters, guided, hazelines, image, jobs, matting, params, pipeline, rank, recover,
-    select, sequence, sphere, stretch, util, veiling, water,
-}
+/// The one error enum, the failure kinds and their exit codes.
+#[forbid(unsafe_code)]
+pub mod error;
 
-/// sRGB curves, quantisation and the transmission colour map of
-/// docs/OUTPUTS.md, shared by both commands.
+/// Numerical building blocks of the method, independent of it.
 #[forbid(unsafe_code)]
-pub mod color;
-/// The one table of parameters and command options (docs/CLI.md).
-#[forbid(unsafe_code)]
-pub mod options;
-/// Method profiles and their steps (METHOD §12).
-#[forbid(unsafe_code)]
-pub mod profile;
+pub mod kernels;
 
-/// The rendered scene of `uwhl-rs demo` (and, included by path, of the Rust tests).
-#[cfg(feature = "cli")]
+/// The method of docs/METHOD.md: `restore`, `Sequence` and their stages.
 #[forbid(unsafe_code)]
-mod scene;
+pub mod method;
 
-#[cfg(all(any(feature = "cli", feature = "python"), feature = "internals"))]
+/// Files in and out, the same for both commands (docs/OUTPUTS.md).
 #[forbid(unsafe_code)]
-pub mod commit;
-#[cfg(all(any(feature = "cli", feature = "python"), not(feature = "internals")))]
-#[forbid(unsafe_code)]
-mod commit;
+pub mod files;
 
-/// The input's metadata carried into the corrected photo, and the
-/// restoration recorded in XMP (both commands).
-#[cfg(any(feature = "cli", feature = "python"))]
-#[forbid(unsafe_code)]
-pub mod metadata;
-
-/// Inputs tagged with another colour profile converted to the working space.
-#[cfg(any(feature = "cli", feature = "python"))]
-#[forbid(unsafe_code)]
-pub mod icc;
-
-/// The standalone `uwhl-rs` command (feature `cli`): decoding with limits,
-/// outputs and sidecar, batch and stream modes.
+/// The standalone `uwhl-rs` command (feature `cli`): arguments, the batch
+/// and stream loops, the demo.
 #[cfg(feature = "cli")]
 #[forbid(unsafe_code)]
 pub mod cli;
@@ -107,17 +94,11 @@ pub mod cli;
 #[cfg(feature = "python")]
 #[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 mod python;
-#[cfg(feature = "python")]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-mod python_color;
-#[cfg(all(feature = "python", feature = "internals"))]
-#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
-mod python_hooks;
 
-pub use crate::error::{Error, Result};
-pub use crate::image::ImageRef;
-pub use crate::params::{channel_transmissions, default_radius, memory_estimate, Flag, Input, Params, Restoration, Selection, Stage};
-pub use crate::pipeline::restore;
-pub use crate::profile::{Method, TypeChoice, WhiteBalance};
-pub use crate::sequence::{Estimates, Sequence};
-pub use crate::water::{jerlov_types, WaterType, JERLOV};
+pub use crate::error::{Error, Failure, Kind, Result};
+pub use crate::method::image::ImageRef;
+pub use crate::method::params::{channel_transmissions, default_radius, memory_estimate, Flag, Input, Params, Restoration, Selection, Stage};
+pub use crate::method::pipeline::restore;
+pub use crate::method::profile::{Method, TypeChoice, WhiteBalance};
+pub use crate::method::sequence::{Estimates, Sequence};
+pub use crate::method::water::{jerlov_types, WaterType, JERLOV};

@@ -26,7 +26,7 @@ fn tmp(name: &str) -> PathBuf {
 /// Writes the common scene as an 8-bit sRGB PNG.
 fn scene_png(path: &Path, h: usize, w: usize, seed: u64) {
     let lin = common::scene(h, w, seed);
-    let codes = uwhl::color::quantize_u8(&lin, true);
+    let codes = uwhl::files::color::quantize_u8(&lin, true);
     image::RgbImage::from_raw(w as u32, h as u32, codes)
         .unwrap()
         .save(path)
@@ -292,7 +292,7 @@ fn a_budget_for_one_input_at_a_time_still_restores_every_input() {
     for (k, p) in imgs.iter().enumerate() {
         scene_png(p, h, w, 20 + k as u64);
     }
-    // the plan (uwhl::budget::Plan) plus what the process holds anyway,
+    // the plan (uwhl::files::budget::Plan) plus what the process holds anyway,
     // as the refusal reports it; the held outputs (45 B/px) are more than
     // the 1 MiB of margin that absorbs the process's own size changing
     let o = run(&[&imgs[0], &"-o", &d.join("probe"), &"--max-memory", &"1M"]);
@@ -463,7 +463,7 @@ fn stream_mode_reuses_the_water_region_when_asked() {
     let lin = common::scene(h, w, 22);
     let flipped: Vec<f32> = (0..h).rev().flat_map(|y| lin[3 * w * y..3 * w * (y + 1)].to_vec()).collect();
     let f1 = d.join("f1.png");
-    image::RgbImage::from_raw(w as u32, h as u32, uwhl::color::quantize_u8(&flipped, true))
+    image::RgbImage::from_raw(w as u32, h as u32, uwhl::files::color::quantize_u8(&flipped, true))
         .unwrap()
         .save(&f1)
         .unwrap();

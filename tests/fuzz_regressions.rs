@@ -18,8 +18,8 @@ fn fuzz_seeds_and_regressions_give_results_or_clear_errors() {
                 continue;
             }
             let data = std::fs::read(&path).unwrap();
-            if let Err(e) = uwhl::cli::run::fuzz_one(&data) {
-                assert!(e.kind != uwhl::cli::Kind::Internal, "{}: {e}", path.display());
+            if let Err(e) = uwhl::files::pipeline::fuzz_one(&data) {
+                assert!(e.kind != uwhl::Kind::Internal, "{}: {e}", path.display());
             }
             n += 1;
         }

@@ -35,7 +35,7 @@ fn main() -> ExitCode {
             }
         },
         Ok(Command::Run(opts)) => {
-            init_threads(opts.threads);
+            init_threads(opts.params.threads);
             if opts.stream {
                 // unlocked (the lock is not Send): lines are read on a second thread
                 let mut stdin = std::io::BufReader::new(std::io::stdin());

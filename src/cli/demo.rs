@@ -3,27 +3,27 @@
 //! `uwhl demo` does with the Python package's scene.
 
 use super::args::{Demo, Format};
-use super::output::{encode_image, encode_transmission_color, Encoding};
-use super::{CliError, Kind};
+use crate::files::encode::{encode_image, encode_transmission_color, Encoding};
+use super::{Failure, Kind};
 use crate::{restore, ImageRef, Input, Params};
 use std::io::Write;
 use std::time::Instant;
 
-fn put(path: &std::path::Path, bytes: &[u8]) -> Result<(), CliError> {
-    crate::commit::write_file(path, bytes)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display())))
+fn put(path: &std::path::Path, bytes: &[u8]) -> Result<(), Failure> {
+    crate::files::commit::write_file(path, bytes)
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot write {}: {e}", path.display())))
 }
 
 /// Runs the demo; returns the exit code.
-pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
+pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, Failure> {
     let (h, w) = d.size;
-    let scene = crate::scene::render(h, w, &d.water_type, d.seed);
+    let scene = crate::cli::scene::render(h, w, &d.water_type, d.seed);
     let input = Input { image: ImageRef::new(&scene.img, h, w)?, mask: None, water_mask: None };
     let t0 = Instant::now();
     let res = restore(&input, &Params::default())?;
     let secs = t0.elapsed().as_secs_f64();
     std::fs::create_dir_all(&d.out)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot create {}: {e}", d.out.display())))?;
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot create {}: {e}", d.out.display())))?;
     // the output files' own encoders: 8-bit sRGB PNGs and the colour map
     let png = Encoding { format: Format::Png, bits: 8, srgb: true, quality: 95 };
     for (name, linear) in [("input.png", &scene.img), ("restored.png", &res.image), ("clean_truth.png", &scene.clean)] {
@@ -35,7 +35,7 @@ pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, CliError> {
     let mut ranking: Vec<&(String, f64)> = res.scores.iter().collect();
     ranking.sort_by(|a, b| a.1.total_cmp(&b.1));
     let names = |v: &[&(String, f64)]| v.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(" ");
-    let rho = crate::scene::rho(&scene, &res.transmission);
+    let rho = crate::cli::scene::rho(&scene, &res.transmission);
     let vl = res.veiling_mask.iter().filter(|&&b| b).count() as f64 / (h * w) as f64;
     let flags: Vec<&str> = res.flags.iter().map(|f| f.name()).collect();
     let a3 = |a: [f32; 3]| format!("({:.4}, {:.4}, {:.4})", a[0], a[1], a[2]);

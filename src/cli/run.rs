@@ -1,469 +1,21 @@
-//! One input through decode -> preprocess -> `restore` -> outputs, and the
-//! batch and stream loops around it.
+//! The binary's batch and stream loops around the per-input path of
+//! `crate::files::pipeline`: the next input is read and restored while the
+//! previous one's outputs are written, its line printed, summary.csv kept.
 
-use super::args::{Options, Preprocess};
-use crate::budget::{Plan, HELD_WHILE_WRITING};
-use super::decode::{decode, decode_mask, Limits};
-use super::output::{encode_image, encode_transmission, encode_transmission_color, Encoding};
-use crate::commit::{claim, Claim, Request, Resolution, Skip};
-use super::sidecar::{sidecar, OutputPaths, Seconds, Source};
-use super::{CliError, Kind};
-use crate::color::{max_side_factor, reference_srgb_stretch};
-use crate::filters::downscale;
-use crate::image::ImageRef;
-use crate::params::{Input, Params};
-use crate::pipeline::restore;
-use crate::jobs::{collect_jobs, extension, Job, RAW_EXTENSIONS};
-use crate::params::Flag;
-use crate::sequence::Sequence;
-use crate::water::{jerlov_types, WaterType};
+use super::args::Options;
+use super::{Failure, Kind};
+use crate::files::jobs::{collect_jobs, Job};
+use crate::files::pipeline::{complete, load_masks, output_suffixes, prepare, sequence, Masks, Outcome, Prepared};
+use crate::files::commit::Skip;
 use serde_json::Value;
-use std::fs::File;
-use std::io::{BufRead, BufReader, Read, Seek, Write};
+use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, sync_channel, Receiver, SyncSender};
 use std::time::Instant;
 
-/// A decoded mask image (`--mask` or `--water-mask`).
-#[derive(Debug, Clone)]
-pub struct Mask {
-    /// true where the image is nonzero
-    pub data: Vec<bool>,
-    /// rows
-    pub height: usize,
-    /// columns
-    pub width: usize,
-}
-
-/// The masks of a run, read once.
-#[derive(Debug, Clone, Default)]
-pub struct Masks {
-    /// `--mask`: true = use the pixel for estimation
-    pub mask: Option<Mask>,
-    /// `--water-mask`: true = water region
-    pub water: Option<Mask>,
-}
-
-/// Reads a mask file; an unreadable mask is a usage error (it is an argument).
-pub fn load_mask(path: &Path, flag: &str, opts: &Options) -> Result<Mask, CliError> {
-    let file = File::open(path)
-        .map_err(|e| CliError::usage(format!("{flag} {}: {e}", path.display())))?;
-    let limits = Limits {
-        max_pixels: opts.max_pixels,
-        max_memory: opts.max_memory,
-    };
-    let (data, height, width) = decode_mask(BufReader::new(file), &limits).map_err(|e| {
-        let kind = if e.kind == Kind::Budget { Kind::Budget } else { Kind::Usage };
-        CliError::new(kind, format!("{flag} {}: {}", path.display(), e.message))
-    })?;
-    Ok(Mask { data, height, width })
-}
-
-/// Reads `--mask` and `--water-mask`.
-pub fn load_masks(opts: &Options) -> Result<Masks, CliError> {
-    let read = |p: &Option<PathBuf>, flag: &str| p.as_deref().map(|p| load_mask(p, flag, opts)).transpose();
-    Ok(Masks {
-        mask: read(&opts.mask, "--mask")?,
-        water: read(&opts.water_mask, "--water-mask")?,
-    })
-}
-
-/// What happened to one input.
-#[derive(Debug, Clone)]
-pub enum Outcome {
-    /// restored: the sidecar object
-    Done(Box<Value>),
-    /// skipped: the sidecar path and why
-    Skipped(PathBuf, Skip),
-}
-
-fn water_types(opts: &Options) -> Vec<WaterType> {
-    match &opts.water_types {
-        None => jerlov_types(),
-        Some(list) => list.iter().map(|c| c.water_type.clone()).collect(),
-    }
-}
-
-/// A mask checked against the input size and downscaled by `factor`: a
-/// block is true when at least `need` of its pixels are (1.0 = all).
-fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, need: f32) -> Result<Option<Vec<bool>>, CliError> {
-    let Some(m) = m else { return Ok(None) };
-    if (m.height, m.width) != (h, w) {
-        return Err(CliError::usage(format!(
-            "{flag} is {}x{} pixels but the input is {h}x{w}",
-            m.width, m.height
-        )));
-    }
-    if factor <= 1 {
-        return Ok(Some(m.data.clone()));
-    }
-    let plane: Vec<f32> = m.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
-    Ok(Some(downscale(&plane, h, w, 1, factor).0.iter().map(|&v| v >= need).collect()))
-}
-
-/// The memory plan of one input, checked against `--max-memory` from its
-/// header. With a `gate` (the reader thread of [`overlapped`]), an input
-/// that does not fit beside the previous one's outputs, still being
-/// written, first waits until they are.
-fn check_plan(h: &super::decode::Header, opts: &Options, masks: &Masks, gate: Option<&mut Gate>) -> Result<(), CliError> {
-    let plan = Plan {
-        height: h.height,
-        width: h.width,
-        decoded_bpp: h.bpp,
-        decoded_is_rgb: h.is_rgb,
-        oriented: h.oriented,
-        factor: opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n)),
-        reference: opts.preprocess == Preprocess::Reference,
-        masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
-        write_extra: 0,
-    };
-    // the budget bounds the process's peak: what it holds anyway counts
-    let need = plan.bytes().saturating_add(crate::budget::process_base());
-    if let Some(g) = gate {
-        g.make_room(need, opts.max_memory);
-    }
-    if need > opts.max_memory {
-        return Err(CliError::new(
-            Kind::Budget,
-            format!(
-                "{}x{} pixels need about {need} bytes, over --max-memory {} (use --max-side or raise --max-memory)",
-                h.height, h.width, opts.max_memory
-            ),
-        ));
-    }
-    if !crate::budget::can_allocate(plan.bytes()) {
-        return Err(CliError::new(
-            Kind::Budget,
-            format!(
-                "{}x{} pixels need about {need} bytes, more than the system gives now (free memory, a container \
-                 limit or ulimit -v); use --max-side",
-                h.height, h.width
-            ),
-        ));
-    }
-    Ok(())
-}
-
-/// A restored input before anything is written.
-#[derive(Debug, Clone)]
-pub struct Restored {
-    /// the result of `restore`
-    pub res: crate::params::Restoration,
-    /// where it came from (the sidecar's `source`)
-    pub source: Source,
-    /// seconds spent decoding and preprocessing
-    pub t_read: f64,
-    /// seconds spent in `restore`
-    pub t_restore: f64,
-}
-
-/// The core parameters of the options (the candidate types, a given A).
-pub(crate) fn method_params(opts: &Options) -> Params {
-    Params {
-        water_types: water_types(opts),
-        veiling_light: opts.veiling_light.map(|a| a.map(|v| v as f32)),
-        guided_radius: opts.guided_radius,
-        guided_eps: opts.guided_eps,
-        sphere_points: opts.sphere_points,
-        // the binary sizes rayon's global pool once (init_threads)
-        threads: None,
-        max_memory: opts.max_memory,
-        selection: opts.selection,
-        guided_subsample: opts.guided_subsample,
-        t_scale: opts.t_scale,
-        method: opts.method,
-        white_balance: opts.white_balance,
-        type_choice: opts.type_choice,
-        haze_floor: opts.haze_floor,
-    }
-}
-
-#[cfg(any(test, feature = "internals"))]
-/// Decodes one file from `reader` and restores it with the options, as the
-/// next frame of `seq` when given (`--reuse-estimates`: its
-/// [`Sequence`] was made with the same options).
-///
-/// Order (as the Python command): decode (sRGB -> linear unless `--linear`
-/// or `--preprocess reference`; float TIFF as is) -> reference stretch of
-/// METHOD §2 (integer inputs with `--preprocess reference`, whole image, no
-/// mask) -> `--max-side` block average (masks: see `--help`) -> `restore`.
-pub fn decode_and_restore<R: BufRead + Seek>(
-    reader: R,
-    opts: &Options,
-    masks: &Masks,
-    seq: Option<&mut Sequence>,
-) -> Result<Restored, CliError> {
-    decode_and_restore_gated(reader, opts, masks, seq, None)
-}
-
-/// [`decode_and_restore`], with the memory check waiting at `gate` when given.
-fn decode_and_restore_gated<R: BufRead + Seek>(
-    reader: R,
-    opts: &Options,
-    masks: &Masks,
-    seq: Option<&mut Sequence>,
-    gate: Option<&mut Gate>,
-) -> Result<Restored, CliError> {
-    let t0 = Instant::now();
-    let reference = opts.preprocess == Preprocess::Reference;
-    let limits = Limits {
-        max_pixels: opts.max_pixels,
-        max_memory: opts.max_memory,
-    };
-    let decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
-        check_plan(h, opts, masks, gate)
-    })?;
-    let (h, w) = (decoded.height, decoded.width);
-    // float samples are linear: no reference stretch, sRGB curve on output
-    let linear = !reference || decoded.is_float;
-    let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n));
-    let mask = fit_mask(masks.mask.as_ref(), "--mask", h, w, factor, 1.0)?;
-    let water = fit_mask(masks.water.as_ref(), "--water-mask", h, w, factor, 0.5)?;
-    let data = if linear {
-        decoded.data
-    } else {
-        reference_srgb_stretch(&decoded.data, None)
-    };
-    let (data, hp, wp) = if factor > 1 {
-        downscale(&data, h, w, 3, factor)
-    } else {
-        (data, h, w)
-    };
-    let t_read = t0.elapsed().as_secs_f64();
-    let input = Input {
-        image: ImageRef::new(&data, hp, wp)?,
-        mask: mask.as_deref(),
-        water_mask: water.as_deref(),
-    };
-    let t1 = Instant::now();
-    let res = match seq {
-        Some(seq) => seq.restore(&input)?,
-        None => restore(&input, &method_params(opts))?,
-    };
-    let t_restore = t1.elapsed().as_secs_f64();
-    let source = Source {
-        kind: if decoded.is_float || opts.linear { "linear" } else { "srgb" },
-        format: decoded.format,
-        bits: decoded.bits,
-        height: h,
-        width: w,
-        orientation: decoded.orientation,
-        linear,
-        preprocess: if linear { Preprocess::None } else { Preprocess::Reference },
-        processed_height: hp,
-        processed_width: wp,
-        icc_profile: decoded.icc_profile.clone(),
-    };
-    Ok(Restored {
-        res,
-        source,
-        t_read,
-        t_restore,
-    })
-}
-
-#[cfg(any(test, feature = "internals"))]
-/// The fuzz target's body (`fuzz/`) and its regression test: the first byte
-/// picks options (bit 0 reference preprocessing, bit 1 `--linear`, bit 2
-/// `--max-side 16`, bit 3 two water types), the rest is a file decoded and
-/// restored in memory with tight limits (65536 pixels, 256 MiB, one
-/// thread's worth of water types in flight). Returns the restoration or the
-/// error; panics only if a result breaks the output contract.
-pub fn fuzz_one(data: &[u8]) -> Result<Restored, CliError> {
-    let Some((&sel, file)) = data.split_first() else {
-        return Err(CliError::new(Kind::Input, "empty"));
-    };
-    let reference = sel & 1 != 0;
-    let opts = Options {
-        max_pixels: 1 << 16,
-        max_memory: 256 << 20,
-        sphere_points: 64,
-        threads: Some(1),
-        preprocess: if reference { Preprocess::Reference } else { Preprocess::None },
-        linear: sel & 2 != 0 && !reference,
-        max_side: (sel & 4 != 0).then_some(16),
-        water_types: (sel & 8 != 0).then(|| {
-            ["II", "7C"]
-                .iter()
-                .filter_map(|n| WaterType::by_name(n).ok())
-                .map(|water_type| super::args::WaterChoice {
-                    water_type,
-                    custom: false,
-                })
-                .collect()
-        }),
-        ..Options::default()
-    };
-    let r = decode_and_restore(std::io::Cursor::new(file), &opts, &Masks::default(), None)?;
-    let ok = r.res.image.iter().chain(&r.res.radiance).all(|v| (0.0..=1.0).contains(v))
-        && r.res.transmission.iter().all(|t| *t > 0.0 && *t <= 1.0);
-    if !ok {
-        return Err(CliError::new(Kind::Internal, "output outside [0, 1]"));
-    }
-    Ok(r)
-}
-
-#[cfg(any(test, feature = "internals"))]
-/// Restores one input and writes its outputs (see [`decode_and_restore`]).
-pub fn process(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>) -> Result<Outcome, CliError> {
-    complete(job, prepare(job, opts, masks, seq, None)?, opts)
-}
-
-/// What becomes of a prepared input: skipped, or its outputs written.
-fn complete(job: &Job, p: Prepared, opts: &Options) -> Result<Outcome, CliError> {
-    match p {
-        Prepared::Skipped(s, why) => Ok(Outcome::Skipped(s, why)),
-        Prepared::Restored(r) => finish(job, *r, opts),
-    }
-}
-
-/// One input decoded and restored, before anything is written.
-#[derive(Debug)]
-enum Prepared {
-    /// not restored: the sidecar path and why ([`Outcome::Skipped`])
-    Skipped(PathBuf, Skip),
-    /// restored, with its claimed output names and the time its processing started
-    Restored(Box<(Restored, Claim, Instant)>),
-}
-
-impl Prepared {
-    /// Bytes it holds until its outputs are written ([`super::budget::HELD_WHILE_WRITING`] per pixel).
-    fn held_bytes(&self) -> u64 {
-        match self {
-            Prepared::Skipped(..) => 0,
-            Prepared::Restored(r) => (r.0.res.transmission.len() as u64).saturating_mul(HELD_WHILE_WRITING),
-        }
-    }
-}
-
-/// The suffixes of an input's outputs after `NAME`, in writing order (the
-/// sidecar comes last, added by `crate::commit`).
-fn output_suffixes(opts: &Options) -> Vec<String> {
-    vec![format!(".{}", opts.format.extension()), "_t.png".into(), "_t_color.png".into()]
-}
-
-/// The first half of [`process`]: the output names claimed (or the input
-/// skipped), decoding and `restore`.
-fn prepare(job: &Job, opts: &Options, masks: &Masks, seq: Option<&mut Sequence>, gate: Option<&mut Gate>) -> Result<Prepared, CliError> {
-    let t0 = Instant::now();
-    let suffixes = output_suffixes(opts);
-    let request = Request {
-        dir: &job.dir,
-        base: &job.name,
-        input: &job.input,
-        suffixes: &suffixes,
-        overwrite: opts.overwrite,
-        rename: true,
-    };
-    let claimed = claim(&request)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot claim output names in {}: {e}", job.dir.display())))?;
-    let claimed = match claimed {
-        Resolution::Claimed(c) => c,
-        Resolution::Skipped(why, s) => return Ok(Prepared::Skipped(s, why)),
-    };
-    if RAW_EXTENSIONS.contains(&extension(&job.input).as_str()) {
-        return Err(CliError::new(
-            Kind::Input,
-            "raw files are decoded by the Python command (uwhl restore); uwhl-rs reads PNG, JPEG and TIFF",
-        ));
-    }
-    // a FIFO, socket or device is never opened (opening a FIFO blocks)
-    crate::jobs::regular_file(&job.input).map_err(|m| CliError::new(Kind::Input, m))?;
-    let file = File::open(&job.input)
-        .map_err(|e| CliError::new(Kind::Input, format!("cannot open: {e}")))?;
-    let restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, gate)?;
-    Ok(Prepared::Restored(Box::new((restored, claimed, t0))))
-}
-
-/// The second half of [`process`]: the outputs and the sidecar, through
-/// the claim (written to temporaries, then put in place with the sidecar
-/// last: all or nothing).
-fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), opts: &Options) -> Result<Outcome, CliError> {
-    let Restored {
-        res,
-        source,
-        t_read,
-        t_restore,
-    } = restored;
-    let (hp, wp) = (source.processed_height, source.processed_width);
-
-    let t2 = Instant::now();
-    let [image_path, t_path, tc_path, sidecar_path] = <[PathBuf; 4]>::try_from(claimed.paths().to_vec())
-        .map_err(|_| CliError::new(Kind::Internal, "a claim of four outputs was expected"))?;
-    let enc = Encoding {
-        format: opts.format,
-        bits: opts.bits(),
-        srgb: source.linear,
-        quality: opts.quality,
-    };
-    // the three encoders (each single-threaded) run at once; the files are
-    // then written in order
-    let (image_bytes, (t_bytes, tc_bytes)) = rayon::join(
-        || encode_image(&image_path, &res.image, hp, wp, enc),
-        || {
-            rayon::join(
-                || encode_transmission(&t_path, &res.transmission, hp, wp),
-                || encode_transmission_color(&tc_path, &res.transmission, hp, wp),
-            )
-        },
-    );
-    let paths = OutputPaths {
-        image: &image_path,
-        transmission: &t_path,
-        transmission_color: &tc_path,
-    };
-    // the input's EXIF and XMP, and the restoration's record, into the photo
-    // (src/metadata.rs); the record is made of the sidecar's fields
-    let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
-    let preview = sidecar(&job.input, &paths, &source, &res, opts, Seconds::default());
-    let (image_bytes, carried) =
-        crate::metadata::carry_from(&job.input, image_bytes?, &preview, &sidecar_name, wp as u32, hp as u32);
-    let mut temps = Vec::with_capacity(4);
-    for (i, (path, bytes)) in [(&image_path, image_bytes), (&t_path, t_bytes?), (&tc_path, tc_bytes?)].into_iter().enumerate() {
-        temps.push(write_temp(&mut claimed, i, path, &bytes)?);
-    }
-    let seconds = Seconds {
-        read: t_read,
-        restore: t_restore,
-        write: t2.elapsed().as_secs_f64(),
-        total: t0.elapsed().as_secs_f64(),
-    };
-    let mut side = sidecar(&job.input, &paths, &source, &res, opts, seconds);
-    if let Some(obj) = side.as_object_mut() {
-        if opts.reuse_estimates.is_some() {
-            let reused = res.flags.contains(&Flag::EstimatesReused);
-            obj.insert("reused_estimates".into(), Value::Bool(reused));
-        }
-        // "metadata" goes before "seconds", as the Python command writes it
-        let secs = obj.shift_remove("seconds");
-        obj.insert("metadata".into(), carried);
-        if let Some(secs) = secs {
-            obj.insert("seconds".into(), secs);
-        }
-    }
-    let mut bytes = serde_json::to_vec_pretty(&side)
-        .map_err(|e| CliError::new(Kind::Internal, format!("sidecar: {e}")))?;
-    bytes.push(b'\n');
-    temps.push(write_temp(&mut claimed, 3, &sidecar_path, &bytes)?);
-    claimed
-        .commit(&temps)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot write the outputs of {} in {}: {e}", job.input.display(), job.dir.display())))?;
-    Ok(Outcome::Done(Box::new(side)))
-}
-
-/// Writes `bytes` into a new temporary of output `index` of the claim.
-fn write_temp(claimed: &mut Claim, index: usize, path: &Path, bytes: &[u8]) -> Result<PathBuf, CliError> {
-    let (tmp, mut f) = claimed
-        .temp(index)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display())))?;
-    f.write_all(bytes)
-        .map_err(|e| CliError::new(Kind::Write, format!("cannot write {}: {e}", path.display())))?;
-    Ok(tmp)
-}
-
 /// Reports an error on `err`: one JSON object per line with `--json-errors`,
 /// else `uwhl-rs: INPUT: message`.
-pub fn report(err: &mut dyn Write, opts_json: bool, input: Option<&Path>, e: &CliError) {
+pub fn report(err: &mut dyn Write, opts_json: bool, input: Option<&Path>, e: &Failure) {
     let input_s = input.map(|p| p.to_string_lossy().into_owned());
     let _ = if opts_json {
         writeln!(err, "{}", e.to_json(input_s.as_deref()))
@@ -551,7 +103,7 @@ impl<T> Handoff<T> {
 /// both within `--max-memory`. Outputs, their order and every byte written
 /// are those of the one-at-a-time loop. Returns an error if the thread
 /// cannot be started (nothing was processed then).
-fn overlapped<T: Send>(read: impl FnOnce(&mut Handoff<T>) + Send, mut write: impl FnMut(T)) -> Result<(), CliError> {
+fn overlapped<T: Send>(read: impl FnOnce(&mut Handoff<T>) + Send, mut write: impl FnMut(T)) -> Result<(), Failure> {
     let (tx, rx) = sync_channel::<T>(0);
     let (ack_tx, acks) = channel::<()>();
     std::thread::scope(|s| {
@@ -568,7 +120,7 @@ fn overlapped<T: Send>(read: impl FnOnce(&mut Handoff<T>) + Send, mut write: imp
             read(&mut h);
         });
         if let Err(e) = reader {
-            return Err(CliError::new(Kind::Internal, format!("cannot start the reading thread: {e}")));
+            return Err(Failure::new(Kind::Internal, format!("cannot start the reading thread: {e}")));
         }
         for item in rx {
             write(item);
@@ -598,18 +150,7 @@ fn interrupted() -> bool {
 
 /// The exit code of an interrupted run (docs/CLI.md).
 fn exit_interrupted() -> u8 {
-    crate::options::exit_code("interrupted")
-}
-
-/// The core sequence of `--reuse-estimates N`: restored inputs 0, N, 2N,
-/// ... estimate the water type and veiling light, the others reuse them.
-fn sequence(opts: &Options) -> Option<Sequence> {
-    opts.reuse_estimates.map(|n| {
-        let mut s = Sequence::new(method_params(opts));
-        s.refresh_every = n;
-        s.reuse_water_mask = opts.reuse_water_mask;
-        s
-    })
+    crate::files::options::exit_code("interrupted")
 }
 
 /// Batch mode: every input is processed; returns the largest exit code.
@@ -617,16 +158,16 @@ fn sequence(opts: &Options) -> Option<Sequence> {
 /// previous one are written (`overlapped`).
 pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
     // measured before any input is read: the part of --max-memory the process holds anyway
-    crate::budget::process_base();
+    crate::kernels::memory::process_base();
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,
     };
     let (jobs, errors) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
-    let errors: Vec<(PathBuf, CliError)> = errors.into_iter().map(|(p, m)| (p, CliError::new(Kind::Input, m))).collect();
+    let errors: Vec<(PathBuf, Failure)> = errors.into_iter().map(|(p, m)| (p, Failure::new(Kind::Input, m))).collect();
     let mut code = 0u8;
     // OUTDIR/summary.csv, a row per input as it is settled
-    let mut summary = super::summary::Summary::create(&opts.outdir);
+    let mut summary = crate::files::summary::Summary::create(&opts.outdir);
     for (p, e) in &errors {
         report(err, opts.json_errors, Some(p), e);
         code = code.max(e.kind.exit_code());
@@ -637,14 +178,14 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     // what a killed run left in the output folders goes first
     let dirs: std::collections::BTreeSet<&Path> = jobs.iter().map(|j| j.dir.as_path()).collect();
     for d in dirs {
-        crate::jobs::remove_stale_temps(d);
+        crate::files::jobs::remove_stale_temps(d);
     }
-    let read = |h: &mut Handoff<(usize, Result<Prepared, CliError>)>| {
+    let read = |h: &mut Handoff<(usize, Result<Prepared, Failure>)>| {
         for (i, job) in jobs.iter().enumerate() {
             if interrupted() {
                 break;
             }
-            let r = prepare(job, opts, &masks, seq.as_mut(), Some(&mut h.gate));
+            let r = prepare(job, opts, &masks, seq.as_mut(), Some(&mut |need| h.gate.make_room(need, opts.params.max_memory)));
             let held = r.as_ref().map_or(0, Prepared::held_bytes);
             if !h.hand((i, r), held) {
                 break;
@@ -655,7 +196,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     let total = jobs.len();
     // done, skipped, failed (the inputs that matched nothing count as failed)
     let mut counts = [0usize, 0, errors.len()];
-    let write = |(i, r): (usize, Result<Prepared, CliError>)| {
+    let write = |(i, r): (usize, Result<Prepared, Failure>)| {
         let Some(job) = jobs.get(i) else {
             return;
         };
@@ -708,7 +249,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         code = code.max(e.kind.exit_code());
     }
     if let Some(why) = summary.error.take() {
-        let e = CliError::new(Kind::Write, why);
+        let e = Failure::new(Kind::Write, why);
         report(err, opts.json_errors, None, &e);
         code = code.max(e.kind.exit_code());
     }
@@ -763,9 +304,9 @@ fn read_line(input: &mut dyn BufRead, line: &mut Vec<u8>) -> std::io::Result<Opt
 /// What the reading side of stream mode hands over: a frame's outcome so
 /// far, a line that names no frame, or an unreadable stdin (the end).
 enum StreamItem {
-    Frame(Job, Result<Prepared, CliError>),
-    BadLine(CliError),
-    Fatal(CliError),
+    Frame(Job, Result<Prepared, Failure>),
+    BadLine(Failure),
+    Fatal(Failure),
 }
 
 /// Stream mode: one image path per line of `input`, one JSON line per frame
@@ -777,13 +318,13 @@ enum StreamItem {
 /// is printed as soon as they are. Returns 0 at the end of the input (or
 /// the code of a bad `--mask`).
 pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dyn Write, err: &mut dyn Write) -> u8 {
-    crate::budget::process_base();
+    crate::kernels::memory::process_base();
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,
     };
     let mut seq = sequence(opts);
-    crate::jobs::remove_stale_temps(&opts.outdir);
+    crate::files::jobs::remove_stale_temps(&opts.outdir);
     // stdout gone (closed pipe, full disk): the frames' lines cannot be
     // reported, so the loop stops instead of restoring frames nobody hears of
     let gone = std::sync::atomic::AtomicBool::new(false);
@@ -799,16 +340,16 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
                 Ok(None) => break,
                 Ok(Some(too_long)) => too_long,
                 Err(e) => {
-                    let e = CliError::new(Kind::Input, format!("cannot read stdin: {e}"));
+                    let e = Failure::new(Kind::Input, format!("cannot read stdin: {e}"));
                     h.hand(StreamItem::Fatal(e), 0);
                     break;
                 }
             };
             let item = match std::str::from_utf8(&line) {
                 _ if too_long => {
-                    StreamItem::BadLine(CliError::new(Kind::Input, format!("input line longer than {MAX_LINE} bytes")))
+                    StreamItem::BadLine(Failure::new(Kind::Input, format!("input line longer than {MAX_LINE} bytes")))
                 }
-                Err(_) => StreamItem::BadLine(CliError::new(Kind::Input, "input line is not valid UTF-8")),
+                Err(_) => StreamItem::BadLine(Failure::new(Kind::Input, "input line is not valid UTF-8")),
                 Ok(s) => {
                     let s = s.trim_end_matches(['\n', '\r']);
                     if s.trim().is_empty() {
@@ -823,7 +364,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
                         input: path.clone(),
                         dir: opts.outdir.clone(),
                     };
-                    let r = prepare(&job, opts, &masks, seq.as_mut(), Some(&mut h.gate));
+                    let r = prepare(&job, opts, &masks, seq.as_mut(), Some(&mut |need| h.gate.make_room(need, opts.params.max_memory)));
                     StreamItem::Frame(job, r)
                 }
             };
@@ -872,7 +413,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         return e.kind.exit_code();
     }
     if let Some(why) = lost {
-        let e = CliError::new(
+        let e = Failure::new(
             Kind::Write,
             format!("cannot write the frame lines to stdout ({why}): stopped; the lines after it were not read"),
         );

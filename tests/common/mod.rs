@@ -5,7 +5,7 @@
 
 pub use uwhl::WaterType;
 
-#[path = "../../src/scene.rs"]
+#[path = "../../src/cli/scene.rs"]
 mod scene;
 pub use scene::{pearson, render, rho, Rendered};
 

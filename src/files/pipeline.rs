@@ -1,0 +1,459 @@
+//! One input's path through the files layer, the same for both commands:
+//! its output names claimed (or the input skipped), the memory plan checked
+//! from the header, decoding, preprocessing and `--max-side`, `restore` (or
+//! a Sequence's next frame), the three encodes, the metadata carried, the
+//! sidecar, and the commit with the sidecar last (docs/OUTPUTS.md).
+//!
+//! [`prepare`] does the reading half and [`complete`] the writing half, so
+//! that a loop can write one input while it restores the next.
+
+use crate::error::{Failure, Kind};
+use crate::files::budget::{Plan, HELD_WHILE_WRITING};
+use crate::files::color::{max_side_factor, reference_srgb_stretch};
+use crate::files::commit::{claim, Claim, Request, Resolution, Skip};
+use crate::files::decode::{decode, decode_mask, Limits};
+use crate::files::encode::{encode_image, encode_transmission, encode_transmission_color, Encoding};
+use crate::files::jobs::{extension, Job, RAW_EXTENSIONS};
+use crate::files::settings::{Preprocess, Settings};
+use crate::files::sidecar::{sidecar, OutputPaths, Seconds, Source};
+use crate::kernels::filters::downscale;
+use crate::method::image::ImageRef;
+use crate::method::params::{Flag, Input};
+use crate::method::pipeline::restore;
+use crate::method::sequence::Sequence;
+#[cfg(any(test, feature = "internals"))]
+use crate::method::water::WaterType;
+use serde_json::Value;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Seek, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Called with an input's memory need before it is checked against the
+/// budget: the overlapped loop waits there until the previous input's
+/// outputs, still being written, are (see `cli::run`).
+pub type Room<'a> = Option<&'a mut dyn FnMut(u64)>;
+
+/// A decoded mask image (`--mask` or `--water-mask`).
+#[derive(Debug, Clone)]
+pub struct Mask {
+    /// true where the image is nonzero
+    pub data: Vec<bool>,
+    /// rows
+    pub height: usize,
+    /// columns
+    pub width: usize,
+}
+
+/// The masks of a run, read once.
+#[derive(Debug, Clone, Default)]
+pub struct Masks {
+    /// `--mask`: true = use the pixel for estimation
+    pub mask: Option<Mask>,
+    /// `--water-mask`: true = water region
+    pub water: Option<Mask>,
+}
+
+/// Reads a mask file; an unreadable mask is a usage error (it is an argument).
+pub fn load_mask(path: &Path, flag: &str, opts: &Settings) -> Result<Mask, Failure> {
+    let file = File::open(path)
+        .map_err(|e| Failure::usage(format!("{flag} {}: {e}", path.display())))?;
+    let limits = Limits {
+        max_pixels: opts.max_pixels,
+        max_memory: opts.params.max_memory,
+    };
+    let (data, height, width) = decode_mask(BufReader::new(file), &limits).map_err(|e| {
+        let kind = if e.kind == Kind::Budget { Kind::Budget } else { Kind::Usage };
+        Failure::new(kind, format!("{flag} {}: {}", path.display(), e.message))
+    })?;
+    Ok(Mask { data, height, width })
+}
+
+/// Reads `--mask` and `--water-mask`.
+pub fn load_masks(opts: &Settings) -> Result<Masks, Failure> {
+    let read = |p: &Option<PathBuf>, flag: &str| p.as_deref().map(|p| load_mask(p, flag, opts)).transpose();
+    Ok(Masks {
+        mask: read(&opts.mask, "--mask")?,
+        water: read(&opts.water_mask, "--water-mask")?,
+    })
+}
+
+/// What happened to one input.
+#[derive(Debug, Clone)]
+pub enum Outcome {
+    /// restored: the sidecar object
+    Done(Box<Value>),
+    /// skipped: the sidecar path and why
+    Skipped(PathBuf, Skip),
+}
+
+/// A mask checked against the input size and downscaled by `factor`: a
+/// block is true when at least `need` of its pixels are (1.0 = all).
+fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, need: f32) -> Result<Option<Vec<bool>>, Failure> {
+    let Some(m) = m else { return Ok(None) };
+    if (m.height, m.width) != (h, w) {
+        return Err(Failure::usage(format!(
+            "{flag} is {}x{} pixels but the input is {h}x{w}",
+            m.width, m.height
+        )));
+    }
+    if factor <= 1 {
+        return Ok(Some(m.data.clone()));
+    }
+    let plane: Vec<f32> = m.data.iter().map(|&b| if b { 1.0 } else { 0.0 }).collect();
+    Ok(Some(downscale(&plane, h, w, 1, factor).0.iter().map(|&v| v >= need).collect()))
+}
+
+/// The memory plan of one input, checked against `--max-memory` from its
+/// header. With a `gate` (the reader thread of [`overlapped`]), an input
+/// that does not fit beside the previous one's outputs, still being
+/// written, first waits until they are.
+fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, room: Room<'_>) -> Result<(), Failure> {
+    let plan = Plan {
+        height: h.height,
+        width: h.width,
+        decoded_bpp: h.bpp,
+        decoded_is_rgb: h.is_rgb,
+        oriented: h.oriented,
+        factor: opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n)),
+        reference: opts.preprocess == Preprocess::Reference,
+        masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
+        write_extra: 0,
+    };
+    // the budget bounds the process's peak: what it holds anyway counts
+    let need = plan.bytes().saturating_add(crate::kernels::memory::process_base());
+    if let Some(make_room) = room {
+        make_room(need);
+    }
+    if need > opts.params.max_memory {
+        return Err(Failure::new(
+            Kind::Budget,
+            format!(
+                "{}x{} pixels need about {need} bytes, over --max-memory {} (use --max-side or raise --max-memory)",
+                h.height, h.width, opts.params.max_memory
+            ),
+        ));
+    }
+    if !crate::kernels::memory::can_allocate(plan.bytes()) {
+        return Err(Failure::new(
+            Kind::Budget,
+            format!(
+                "{}x{} pixels need about {need} bytes, more than the system gives now (free memory, a container \
+                 limit or ulimit -v); use --max-side",
+                h.height, h.width
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A restored input before anything is written.
+#[derive(Debug, Clone)]
+pub struct Restored {
+    /// the result of `restore`
+    pub res: crate::method::params::Restoration,
+    /// where it came from (the sidecar's `source`)
+    pub source: Source,
+    /// seconds spent decoding and preprocessing
+    pub t_read: f64,
+    /// seconds spent in `restore`
+    pub t_restore: f64,
+}
+
+#[cfg(any(test, feature = "internals"))]
+/// Decodes one file from `reader` and restores it with the options, as the
+/// next frame of `seq` when given (`--reuse-estimates`: its
+/// [`Sequence`] was made with the same options).
+///
+/// Order (as the Python command): decode (sRGB -> linear unless `--linear`
+/// or `--preprocess reference`; float TIFF as is) -> reference stretch of
+/// METHOD §2 (integer inputs with `--preprocess reference`, whole image, no
+/// mask) -> `--max-side` block average (masks: see `--help`) -> `restore`.
+pub fn decode_and_restore<R: BufRead + Seek>(
+    reader: R,
+    opts: &Settings,
+    masks: &Masks,
+    seq: Option<&mut Sequence>,
+) -> Result<Restored, Failure> {
+    decode_and_restore_gated(reader, opts, masks, seq, None)
+}
+
+/// [`decode_and_restore`], with the memory check waiting at `gate` when given.
+fn decode_and_restore_gated<R: BufRead + Seek>(
+    reader: R,
+    opts: &Settings,
+    masks: &Masks,
+    seq: Option<&mut Sequence>,
+    room: Room<'_>,
+) -> Result<Restored, Failure> {
+    let t0 = Instant::now();
+    let reference = opts.preprocess == Preprocess::Reference;
+    let limits = Limits {
+        max_pixels: opts.max_pixels,
+        max_memory: opts.params.max_memory,
+    };
+    let decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
+        check_plan(h, opts, masks, room)
+    })?;
+    let (h, w) = (decoded.height, decoded.width);
+    // float samples are linear: no reference stretch, sRGB curve on output
+    let linear = !reference || decoded.is_float;
+    let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n));
+    let mask = fit_mask(masks.mask.as_ref(), "--mask", h, w, factor, 1.0)?;
+    let water = fit_mask(masks.water.as_ref(), "--water-mask", h, w, factor, 0.5)?;
+    let data = if linear {
+        decoded.data
+    } else {
+        reference_srgb_stretch(&decoded.data, None)
+    };
+    let (data, hp, wp) = if factor > 1 {
+        downscale(&data, h, w, 3, factor)
+    } else {
+        (data, h, w)
+    };
+    let t_read = t0.elapsed().as_secs_f64();
+    let input = Input {
+        image: ImageRef::new(&data, hp, wp)?,
+        mask: mask.as_deref(),
+        water_mask: water.as_deref(),
+    };
+    let t1 = Instant::now();
+    let res = match seq {
+        Some(seq) => seq.restore(&input)?,
+        None => restore(&input, &opts.method_params())?,
+    };
+    let t_restore = t1.elapsed().as_secs_f64();
+    let source = Source {
+        kind: if decoded.is_float || opts.linear { "linear" } else { "srgb" },
+        format: decoded.format,
+        bits: decoded.bits,
+        height: h,
+        width: w,
+        orientation: decoded.orientation,
+        linear,
+        preprocess: if linear { Preprocess::None } else { Preprocess::Reference },
+        processed_height: hp,
+        processed_width: wp,
+        icc_profile: decoded.icc_profile.clone(),
+    };
+    Ok(Restored {
+        res,
+        source,
+        t_read,
+        t_restore,
+    })
+}
+
+#[cfg(any(test, feature = "internals"))]
+/// The fuzz target's body (`fuzz/`) and its regression test: the first byte
+/// picks options (bit 0 reference preprocessing, bit 1 `--linear`, bit 2
+/// `--max-side 16`, bit 3 two water types), the rest is a file decoded and
+/// restored in memory with tight limits (65536 pixels, 256 MiB, one
+/// thread's worth of water types in flight). Returns the restoration or the
+/// error; panics only if a result breaks the output contract.
+pub fn fuzz_one(data: &[u8]) -> Result<Restored, Failure> {
+    let Some((&sel, file)) = data.split_first() else {
+        return Err(Failure::new(Kind::Input, "empty"));
+    };
+    let reference = sel & 1 != 0;
+    let opts = Settings {
+        max_pixels: 1 << 16,
+        params: crate::method::params::Params {
+            max_memory: 256 << 20,
+            sphere_points: 64,
+            threads: Some(1),
+            ..Default::default()
+        },
+        preprocess: if reference { Preprocess::Reference } else { Preprocess::None },
+        linear: sel & 2 != 0 && !reference,
+        max_side: (sel & 4 != 0).then_some(16),
+        water_types: (sel & 8 != 0).then(|| {
+            ["II", "7C"]
+                .iter()
+                .filter_map(|n| WaterType::by_name(n).ok())
+                .map(|water_type| crate::files::settings::WaterChoice {
+                    water_type,
+                    custom: false,
+                })
+                .collect()
+        }),
+        ..Settings::default()
+    };
+    let r = decode_and_restore(std::io::Cursor::new(file), &opts, &Masks::default(), None)?;
+    let ok = r.res.image.iter().chain(&r.res.radiance).all(|v| (0.0..=1.0).contains(v))
+        && r.res.transmission.iter().all(|t| *t > 0.0 && *t <= 1.0);
+    if !ok {
+        return Err(Failure::new(Kind::Internal, "output outside [0, 1]"));
+    }
+    Ok(r)
+}
+
+#[cfg(any(test, feature = "internals"))]
+/// Restores one input and writes its outputs (see [`decode_and_restore`]).
+pub fn process(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Sequence>) -> Result<Outcome, Failure> {
+    complete(job, prepare(job, opts, masks, seq, None)?, opts)
+}
+
+/// What becomes of a prepared input: skipped, or its outputs written.
+pub fn complete(job: &Job, p: Prepared, opts: &Settings) -> Result<Outcome, Failure> {
+    match p {
+        Prepared::Skipped(s, why) => Ok(Outcome::Skipped(s, why)),
+        Prepared::Restored(r) => finish(job, *r, opts),
+    }
+}
+
+/// One input decoded and restored, before anything is written.
+#[derive(Debug)]
+pub enum Prepared {
+    /// not restored: the sidecar path and why ([`Outcome::Skipped`])
+    Skipped(PathBuf, Skip),
+    /// restored, with its claimed output names and the time its processing started
+    Restored(Box<(Restored, Claim, Instant)>),
+}
+
+impl Prepared {
+    /// Bytes it holds until its outputs are written ([`super::budget::HELD_WHILE_WRITING`] per pixel).
+    pub fn held_bytes(&self) -> u64 {
+        match self {
+            Prepared::Skipped(..) => 0,
+            Prepared::Restored(r) => (r.0.res.transmission.len() as u64).saturating_mul(HELD_WHILE_WRITING),
+        }
+    }
+}
+
+/// The suffixes of an input's outputs after `NAME`, in writing order (the
+/// sidecar comes last, added by `crate::files::commit`).
+pub fn output_suffixes(opts: &Settings) -> Vec<String> {
+    vec![format!(".{}", opts.format.extension()), "_t.png".into(), "_t_color.png".into()]
+}
+
+/// The first half of [`process`]: the output names claimed (or the input
+/// skipped), decoding and `restore`.
+pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Sequence>, room: Room<'_>) -> Result<Prepared, Failure> {
+    let t0 = Instant::now();
+    let suffixes = output_suffixes(opts);
+    let request = Request {
+        dir: &job.dir,
+        base: &job.name,
+        input: &job.input,
+        suffixes: &suffixes,
+        overwrite: opts.overwrite,
+        rename: true,
+    };
+    let claimed = claim(&request)
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot claim output names in {}: {e}", job.dir.display())))?;
+    let claimed = match claimed {
+        Resolution::Claimed(c) => c,
+        Resolution::Skipped(why, s) => return Ok(Prepared::Skipped(s, why)),
+    };
+    if RAW_EXTENSIONS.contains(&extension(&job.input).as_str()) {
+        return Err(Failure::new(
+            Kind::Input,
+            "raw files are decoded by the Python command (uwhl restore); uwhl-rs reads PNG, JPEG and TIFF",
+        ));
+    }
+    // a FIFO, socket or device is never opened (opening a FIFO blocks)
+    crate::files::jobs::regular_file(&job.input).map_err(|m| Failure::new(Kind::Input, m))?;
+    let file = File::open(&job.input)
+        .map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))?;
+    let restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, room)?;
+    Ok(Prepared::Restored(Box::new((restored, claimed, t0))))
+}
+
+/// The second half of [`process`]: the outputs and the sidecar, through
+/// the claim (written to temporaries, then put in place with the sidecar
+/// last: all or nothing).
+fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), opts: &Settings) -> Result<Outcome, Failure> {
+    let Restored {
+        res,
+        source,
+        t_read,
+        t_restore,
+    } = restored;
+    let (hp, wp) = (source.processed_height, source.processed_width);
+
+    let t2 = Instant::now();
+    let [image_path, t_path, tc_path, sidecar_path] = <[PathBuf; 4]>::try_from(claimed.paths().to_vec())
+        .map_err(|_| Failure::new(Kind::Internal, "a claim of four outputs was expected"))?;
+    let enc = Encoding {
+        format: opts.format,
+        bits: opts.bits(),
+        srgb: source.linear,
+        quality: opts.quality,
+    };
+    // the three encoders (each single-threaded) run at once; the files are
+    // then written in order
+    let (image_bytes, (t_bytes, tc_bytes)) = rayon::join(
+        || encode_image(&image_path, &res.image, hp, wp, enc),
+        || {
+            rayon::join(
+                || encode_transmission(&t_path, &res.transmission, hp, wp),
+                || encode_transmission_color(&tc_path, &res.transmission, hp, wp),
+            )
+        },
+    );
+    let paths = OutputPaths {
+        image: &image_path,
+        transmission: &t_path,
+        transmission_color: &tc_path,
+    };
+    // the input's EXIF and XMP, and the restoration's record, into the photo
+    // (src/metadata.rs); the record is made of the sidecar's fields
+    let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    let preview = sidecar(&job.input, &paths, &source, &res, opts, Seconds::default());
+    let (image_bytes, carried) =
+        crate::files::metadata::carry_from(&job.input, image_bytes?, &preview, &sidecar_name, wp as u32, hp as u32);
+    let mut temps = Vec::with_capacity(4);
+    for (i, (path, bytes)) in [(&image_path, image_bytes), (&t_path, t_bytes?), (&tc_path, tc_bytes?)].into_iter().enumerate() {
+        temps.push(write_temp(&mut claimed, i, path, &bytes)?);
+    }
+    let seconds = Seconds {
+        read: t_read,
+        restore: t_restore,
+        write: t2.elapsed().as_secs_f64(),
+        total: t0.elapsed().as_secs_f64(),
+    };
+    let mut side = sidecar(&job.input, &paths, &source, &res, opts, seconds);
+    if let Some(obj) = side.as_object_mut() {
+        if opts.reuse_estimates.is_some() {
+            let reused = res.flags.contains(&Flag::EstimatesReused);
+            obj.insert("reused_estimates".into(), Value::Bool(reused));
+        }
+        // "metadata" goes before "seconds", as the Python command writes it
+        let secs = obj.shift_remove("seconds");
+        obj.insert("metadata".into(), carried);
+        if let Some(secs) = secs {
+            obj.insert("seconds".into(), secs);
+        }
+    }
+    let mut bytes = serde_json::to_vec_pretty(&side)
+        .map_err(|e| Failure::new(Kind::Internal, format!("sidecar: {e}")))?;
+    bytes.push(b'\n');
+    temps.push(write_temp(&mut claimed, 3, &sidecar_path, &bytes)?);
+    claimed
+        .commit(&temps)
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot write the outputs of {} in {}: {e}", job.input.display(), job.dir.display())))?;
+    Ok(Outcome::Done(Box::new(side)))
+}
+
+/// Writes `bytes` into a new temporary of output `index` of the claim.
+fn write_temp(claimed: &mut Claim, index: usize, path: &Path, bytes: &[u8]) -> Result<PathBuf, Failure> {
+    let (tmp, mut f) = claimed
+        .temp(index)
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot write {}: {e}", path.display())))?;
+    f.write_all(bytes)
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot write {}: {e}", path.display())))?;
+    Ok(tmp)
+}
+
+/// The core sequence of `--reuse-estimates N`: restored inputs 0, N, 2N,
+/// ... estimate the water type and veiling light, the others reuse them.
+pub fn sequence(opts: &Settings) -> Option<Sequence> {
+    opts.reuse_estimates.map(|n| {
+        let mut s = Sequence::new(opts.method_params());
+        s.refresh_every = n;
+        s.reuse_water_mask = opts.reuse_water_mask;
+        s
+    })
+}
+

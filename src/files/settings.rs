@@ -1,0 +1,246 @@
+//! What one input's processing is asked to do, the same for both commands:
+//! the method's [`Params`] and the file options (format, bits, quality,
+//! preprocessing, `--max-side`, masks, reuse of estimates), each set from a
+//! row of the option table (`crate::files::options`) by [`Settings::set`].
+
+use crate::error::{Failure, Kind};
+use crate::files::options::Value as Val;
+use crate::method::params::Params;
+use crate::method::water::{jerlov_types, WaterType};
+use std::path::PathBuf;
+
+/// The encoded format of the restored image (`--format`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// `NAME.jpg`, 8-bit, quality 95
+    Jpg,
+    /// `NAME.png`, 8 or 16 bits (`--bits`)
+    Png,
+    /// `NAME.tif`, 16-bit RGB
+    Tiff,
+}
+
+impl Format {
+    /// The name used on the command line and in the sidecar.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Jpg => "jpg",
+            Format::Png => "png",
+            Format::Tiff => "tiff",
+        }
+    }
+
+    /// The file extension of the restored image.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Jpg => "jpg",
+            Format::Png => "png",
+            Format::Tiff => "tif",
+        }
+    }
+}
+
+/// Input preprocessing (`--preprocess`, METHOD §2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preprocess {
+    /// decode sRGB to linear (the default; physically right)
+    None,
+    /// METHOD §2 reference: keep sRGB values as they are, mild pulled stretch
+    Reference,
+}
+
+impl Preprocess {
+    /// The name used on the command line and in the sidecar.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preprocess::None => "none",
+            Preprocess::Reference => "reference",
+        }
+    }
+}
+
+/// One `--water-type` entry: a Jerlov name or a custom `NAME:BETA_BR:BETA_BG`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WaterChoice {
+    /// the type
+    pub water_type: WaterType,
+    /// given as `NAME:BETA_BR:BETA_BG` (echoed as `[name, br, bg]` in the sidecar)
+    pub custom: bool,
+}
+
+/// The options of one input's processing, checked: the method's
+/// parameters and what the files layer does around `restore`.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// the method's parameters (every row with `method: true` but
+    /// `water_types`, set through `Params::set`)
+    pub params: Params,
+    /// `--water-type` entries in order (None = all ten), as given
+    pub water_types: Option<Vec<WaterChoice>>,
+    /// `--veiling-light R,G,B` as given (the sidecar echoes it)
+    pub veiling_light: Option<[f64; 3]>,
+    /// `--mask PATH`
+    pub mask: Option<PathBuf>,
+    /// `--water-mask PATH`: a given water region (nonzero = water)
+    pub water_mask: Option<PathBuf>,
+    /// `--max-side`
+    pub max_side: Option<usize>,
+    /// `--preprocess`
+    pub preprocess: Preprocess,
+    /// `--linear`: the input is already linear (no sRGB decoding)
+    pub linear: bool,
+    /// `--format`
+    pub format: Format,
+    /// `--bits` as given (None: the format's default, see [`Settings::bits`])
+    pub bits: Option<u8>,
+    /// `--quality` of JPEG outputs, 1..=100
+    pub quality: u8,
+    /// `--overwrite`: process inputs whose sidecar exists
+    pub overwrite: bool,
+    /// `--max-pixels`
+    pub max_pixels: u64,
+    /// `--reuse-estimates N`: re-estimate every N inputs
+    pub reuse_estimates: Option<usize>,
+    /// `--reuse-water-mask` (with `--reuse-estimates`): reuse the water region too
+    pub reuse_water_mask: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            params: Params::default(),
+            water_types: None,
+            veiling_light: None,
+            mask: None,
+            water_mask: None,
+            max_side: None,
+            preprocess: Preprocess::None,
+            linear: false,
+            format: Format::Jpg,
+            bits: None,
+            quality: crate::files::options::DEFAULT_QUALITY as u8,
+            overwrite: false,
+            max_pixels: crate::files::options::DEFAULT_MAX_PIXELS,
+            reuse_estimates: None,
+            reuse_water_mask: false,
+        }
+    }
+}
+
+impl Settings {
+    /// Bits per sample of the restored image: `--bits`, else 8 for JPEG and
+    /// PNG, 16 for TIFF.
+    pub fn bits(&self) -> u8 {
+        self.bits.unwrap_or(match self.format {
+            Format::Tiff => 16,
+            Format::Jpg | Format::Png => 8,
+        })
+    }
+
+    /// The parameters `restore` is called with: the candidate types of
+    /// `--water-type`, and no pool of its own (a command sizes rayon's
+    /// global pool once, `cli::init_threads`).
+    pub fn method_params(&self) -> Params {
+        Params {
+            water_types: match &self.water_types {
+                None => jerlov_types(),
+                Some(list) => list.iter().map(|c| c.water_type.clone()).collect(),
+            },
+            threads: None,
+            ..self.params.clone()
+        }
+    }
+
+    /// Sets the option `key` of the table to its parsed value: the one
+    /// place where a row of `crate::files::options::OPTIONS` meets these
+    /// settings; a method key goes to [`Params::set`]. Returns false for a
+    /// key that is not one of them (a command's own option).
+    pub fn set(&mut self, key: &str, v: Val) -> Result<bool, Failure> {
+        let int = |v: &Val| match v {
+            Val::Int(n) => Ok(*n),
+            other => Err(Failure::new(Kind::Internal, format!("{key}: {other:?} is not an integer"))),
+        };
+        let usize_of = |v: &Val| int(v).map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+        let text = |v: Val| match v {
+            Val::Text(t) => Ok(t),
+            other => Err(Failure::new(Kind::Internal, format!("{key}: {other:?} is not text"))),
+        };
+        match key {
+            "format" => {
+                self.format = match text(v)?.as_str() {
+                    "png" => Format::Png,
+                    "tiff" => Format::Tiff,
+                    _ => Format::Jpg,
+                }
+            }
+            "bits" => self.bits = Some(int(&v)?.min(16) as u8),
+            "quality" => self.quality = int(&v)?.min(100) as u8,
+            "overwrite" => self.overwrite = true,
+            "preprocess" => {
+                self.preprocess = if text(v)? == "reference" { Preprocess::Reference } else { Preprocess::None }
+            }
+            "linear" => self.linear = true,
+            "max_side" => self.max_side = Some(usize_of(&v)?),
+            "max_pixels" => self.max_pixels = int(&v)?,
+            "mask" => self.mask = Some(text(v)?.into()),
+            "water_mask" => self.water_mask = Some(text(v)?.into()),
+            "water_types" => water_types(self.water_types.get_or_insert_with(Vec::new), &text(v)?)?,
+            "reuse_estimates" => self.reuse_estimates = Some(usize_of(&v)?),
+            "reuse_water_mask" => self.reuse_water_mask = true,
+            _ if crate::files::options::spec(key).is_some_and(|s| s.method) => {
+                if let Val::Rgb(rgb) = v {
+                    if key == "veiling_light" {
+                        self.veiling_light = Some(rgb);
+                    }
+                }
+                self.params.set(key, &v).map_err(Failure::from)?;
+            }
+            _ => return Ok(false),
+        }
+        Ok(true)
+    }
+}
+
+/// One `--water-type` item: a Jerlov name, or `NAME:BETA_BR:BETA_BG`.
+pub fn water_choice(item: &str) -> Result<WaterChoice, Failure> {
+    let bad = |e: crate::Error| Failure::usage(format!("--water-type {item:?}: {e}"));
+    if item.contains(':') {
+        let parts: Vec<&str> = item.split(':').map(str::trim).collect();
+        let ratios = match parts.as_slice() {
+            [name, br, bg] => br.parse::<f64>().ok().zip(bg.parse::<f64>().ok()).map(|r| (*name, r)),
+            _ => None,
+        };
+        let (name, (br, bg)) = ratios.ok_or_else(|| {
+            Failure::usage(format!(
+                "--water-type {item:?}: a custom type is NAME:BETA_BR:BETA_BG"
+            ))
+        })?;
+        return Ok(WaterChoice {
+            water_type: WaterType::new(name, br, bg).map_err(bad)?,
+            custom: true,
+        });
+    }
+    Ok(WaterChoice {
+        water_type: WaterType::by_name(item).map_err(bad)?,
+        custom: false,
+    })
+}
+
+/// One `--water-type` value: its comma-separated items appended to `list`.
+pub fn water_types(list: &mut Vec<WaterChoice>, v: &str) -> Result<(), Failure> {
+    for item in v.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+        let choice = water_choice(item)?;
+        if list.iter().any(|c| c.water_type.name == choice.water_type.name) {
+            return Err(Failure::usage(format!(
+                "--water-type: {:?} is listed twice",
+                choice.water_type.name
+            )));
+        }
+        list.push(choice);
+    }
+    if list.is_empty() {
+        return Err(Failure::usage("--water-type: no type named"));
+    }
+    Ok(())
+}
+

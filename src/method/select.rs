@@ -1,0 +1,371 @@
+//! Choosing the water type by the gray-world assumption (METHOD §9 / METHOD §9).
+
+use crate::method::recover::Stretch;
+use crate::method::stretch::{lane_constants, LANES};
+use crate::kernels::util::ChannelStretch;
+
+/// Initial exclusion threshold on the t_R difference (METHOD §9).
+pub const EXCLUDE_THRESHOLD: f64 = 0.1;
+/// Halvings of the threshold tried before giving up on exclusion.
+pub const MAX_HALVINGS: usize = 30;
+/// What selection needs from one water type's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TypeStats {
+    /// gray-world score: sample std (n - 1) of the 3 channel means of the
+    /// stretched image over the counted pixels
+    pub score: f64,
+    /// mean t_R over counted pixels minus mean t_R over VL (None without VL)
+    pub tr_diff: Option<f64>,
+}
+
+/// Sums over the pixels of one type's result that selection needs
+/// (METHOD §9): over counted pixels (masked-in, not VL) the three channels of
+/// the stretched image, t_R and their number; over VL pixels t_R and their
+/// number.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SelectionSums {
+    /// sum of each stretched channel over counted pixels
+    pub channels: [f64; 3],
+    /// sum of t_R over counted pixels
+    pub tr_counted: f64,
+    /// number of counted pixels
+    pub counted: f64,
+    /// sum of t_R over VL pixels
+    pub tr_vl: f64,
+    /// number of VL pixels
+    pub vl: f64,
+}
+
+impl SelectionSums {
+    /// Adds another partial sum (combine partials in a fixed order).
+    pub fn add(&mut self, o: &Self) {
+        self.channels.iter_mut().zip(&o.channels).for_each(|(a, b)| *a += b);
+        self.tr_counted += o.tr_counted;
+        self.counted += o.counted;
+        self.tr_vl += o.tr_vl;
+        self.vl += o.vl;
+    }
+
+    /// Score and t_R difference (METHOD §9): the sample std (n - 1) of the
+    /// three channel means; mean t_R over counted minus over VL pixels.
+    pub fn stats(&self) -> TypeStats {
+        let cnt = self.counted.max(1.0);
+        let means = self.channels.map(|s| s / cnt);
+        let mu = (means[0] + means[1] + means[2]) / 3.0;
+        let var = means.iter().map(|m| (m - mu).powi(2)).sum::<f64>() / 2.0;
+        let tr_diff = (self.vl > 0.0).then(|| self.tr_counted / cnt - self.tr_vl / self.vl);
+        TypeStats {
+            score: var.sqrt(),
+            tr_diff,
+        }
+    }
+}
+
+#[cfg(any(test, feature = "internals"))]
+/// Score and t_R difference for one type (METHOD §9) from its displayed
+/// image (`stretched`, interleaved RGB) and t_R, through the row kernels
+/// that `restore` runs ([`row_stats`], [`counted_sums`]), rows combined in
+/// row order. Counted pixels are masked-in and not in VL.
+pub fn type_stats(
+    stretched: &[f32],
+    t_red: &[f32],
+    vl: &[bool],
+    mask: Option<&[bool]>,
+    width: usize,
+) -> TypeStats {
+    let w = width.max(1);
+    let (yes, no) = (vec![true; w], vec![false; w]);
+    let rows: Vec<(RowStats, [f64; 3])> = t_red
+        .chunks(w)
+        .zip(stretched.chunks(3 * w))
+        .enumerate()
+        .map(|(y, (tr, px))| {
+            let row = y * w..(y + 1) * w;
+            let inside = mask.map_or(&yes[..], |m| m.get(row.clone()).unwrap_or(&no));
+            let vlr = vl.get(row).unwrap_or(&no);
+            let px = px.as_chunks::<3>().0;
+            let mut st = RowStats::default();
+            row_stats(px, tr, inside, vlr, &mut st);
+            let counted: Vec<bool> = inside.iter().zip(vlr).map(|(&i, &v)| i & !v).collect();
+            (st, counted_sums(None, px, &counted))
+        })
+        .collect();
+    let st = combine(&rows.iter().map(|r| r.0).collect::<Vec<_>>());
+    let mut sums = st.sums;
+    sums.channels = rows.iter().fold([0f64; 3], |a, r| [a[0] + r.1[0], a[1] + r.1[1], a[2] + r.1[2]]);
+    sums.stats()
+}
+
+/// The outcome of [`choose`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Choice {
+    /// index of the chosen type
+    pub winner: usize,
+    /// per type: excluded by the t_R rule
+    pub excluded: Vec<bool>,
+    /// the exclusion rule was given up (no threshold left a type)
+    pub relaxed: bool,
+    /// the exclusion threshold that was applied (None: no exclusion)
+    pub threshold: Option<f64>,
+}
+
+/// METHOD §9: exclude types whose t_R difference is below the threshold
+/// (halving it while none survives), then the lowest score wins; ties go
+/// to the first type. Empty `stats` gives winner 0.
+pub fn choose(stats: &[TypeStats]) -> Choice {
+    let n = stats.len();
+    let mut excluded = vec![false; n];
+    let mut relaxed = false;
+    let mut threshold = None;
+    if stats.iter().all(|s| s.tr_diff.is_some()) && n > 0 {
+        let mut thr = EXCLUDE_THRESHOLD;
+        for _ in 0..=MAX_HALVINGS {
+            let ex: Vec<bool> = stats
+                .iter()
+                .map(|s| s.tr_diff.is_none_or(|d| d.is_nan() || d < thr))
+                .collect();
+            if ex.iter().any(|&e| !e) {
+                excluded = ex;
+                threshold = Some(thr);
+                break;
+            }
+            thr /= 2.0;
+        }
+        relaxed = threshold.is_none();
+    }
+    // (index, stats) of the best type so far
+    let mut winner = None::<(usize, &TypeStats)>;
+    for (i, (s, &ex)) in stats.iter().zip(&excluded).enumerate() {
+        if ex {
+            continue;
+        }
+        // NaN scores never win
+        if winner.is_none_or(|(_, w)| s.score < w.score || w.score.is_nan()) {
+            winner = Some((i, s));
+        }
+    }
+    Choice {
+        winner: winner.map_or(0, |(i, _)| i),
+        excluded,
+        relaxed,
+        threshold,
+    }
+}
+
+/// Sums of the three displayed channels of a row of J (`sp` applied, the
+/// METHOD §7 clamp and METHOD §8 stretch, or the values as they are without)
+/// over the pixels where `counted` is true (METHOD §9's means). Without `sp`
+/// on values mapped by [`Stretch::apply`], the same bits as with `sp` on
+/// the values. Runs of 8 pixels are summed in 24 lanes (one
+/// channel each, as in [`map_lanes`]), each lane in pixel order; a
+/// channel's lanes are combined in lane order, then the pixels left over
+/// are added: the same for any thread count. Compiled for baseline x86-64
+/// and for AVX2, picked at run time; the same bits either way (METHOD appendix, same bits on every CPU).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+pub(crate) fn counted_sums(sp: Option<&Stretch>, px: &[[f32; 3]], counted: &[bool]) -> [f64; 3] {
+    match sp {
+        Some(sp) => {
+            let shown = |v: f32, lo: f64, inv: f64, on: bool| -> f32 {
+                let x = sp.norm.apply(sp.clamp.apply(v));
+                let s = ((x as f64 - lo) * inv).clamp(0.0, 1.0) as f32;
+                if on {
+                    s
+                } else {
+                    x
+                }
+            };
+            sum_lanes(&sp.limits, px, counted, shown, |c, x| sp.apply(c, x))
+        }
+        None => sum_lanes(&ChannelStretch::new([None; 3]), px, counted, |v, _, _, _| v, |_, x| x),
+    }
+}
+
+/// The loop of [`counted_sums`] with `map` (and `tail` for the pixels left
+/// over) giving the displayed values; inlined into each of its builds.
+#[inline(always)]
+pub(crate) fn sum_lanes<M, T>(limits: &ChannelStretch, px: &[[f32; 3]], counted: &[bool], map: M, tail: T) -> [f64; 3]
+where
+    M: Fn(f32, f64, f64, bool) -> f32,
+    T: Fn(usize, f32) -> f32,
+{
+    const P: usize = LANES / 3;
+    const L: usize = LANES;
+    let (lo, inv, on) = lane_constants(limits);
+    let mut acc = [0f64; L];
+    let (pc, prest) = px.as_chunks::<P>();
+    let (cc, crest) = counted.as_chunks::<P>();
+    for (p, c) in pc.iter().zip(cc) {
+        let v = p.as_flattened();
+        let mut shown = [0f32; L];
+        for k in 0..L {
+            if let (Some(d), Some(&x), Some(&l), Some(&i), Some(&f)) = (shown.get_mut(k), v.get(k), lo.get(k), inv.get(k), on.get(k)) {
+                *d = map(x, l, i, f);
+            }
+        }
+        let flag: [bool; L] = std::array::from_fn(|k| c.get(k / 3).copied().unwrap_or(false));
+        for ((a, &x), &n) in acc.iter_mut().zip(&shown).zip(&flag) {
+            *a += if n { f64::from(x) } else { 0.0 };
+        }
+    }
+    let mut out = [0f64; 3];
+    for (k, a) in acc.iter().enumerate() {
+        if let Some(o) = out.get_mut(k % 3) {
+            *o += *a;
+        }
+    }
+    for (p, &n) in prest.iter().zip(crest) {
+        for (c, (o, &x)) in out.iter_mut().zip(p).enumerate() {
+            *o += if n { f64::from(tail(c, x)) } else { 0.0 };
+        }
+    }
+    out
+}
+
+/// Adds to `st` one row's statistics: min and max of J over the pixels
+/// inside the mask, sums of t_R and counts over its VL and other pixels.
+/// Accumulates in 8 lanes combined in lane order (the same for any thread
+/// count); compiled for baseline x86-64 and for AVX2, picked at run time,
+/// the same bits either way (METHOD appendix, same bits on every CPU).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+pub(crate) fn row_stats(j: &[[f32; 3]], tr: &[f32], inside: &[bool], vl: &[bool], st: &mut RowStats) {
+    const L: usize = 8;
+    // one array per statistic, one entry per lane: each lane's values are
+    // accumulated in pixel order, and lanes combined in lane order
+    let mut lo = [f32::INFINITY; L];
+    let mut hi = [f32::NEG_INFINITY; L];
+    let [mut s0, mut s1, mut s2, mut s3] = [[0f64; L]; 4];
+    let (jc, jrest) = j.as_chunks::<L>();
+    let (tc, trest) = tr.as_chunks::<L>();
+    let (ic, irest) = inside.as_chunks::<L>();
+    let (vc, vrest) = vl.as_chunks::<L>();
+    for (((jj, tt), ii), vv) in jc.iter().zip(tc).zip(ic).zip(vc) {
+        let lanes = lo.iter_mut().zip(hi.iter_mut()).zip(s0.iter_mut().zip(s1.iter_mut()).zip(s2.iter_mut().zip(s3.iter_mut())));
+        for (((l, h), ((a0, a1), (a2, a3))), (((jv, &t), &ins), &v)) in lanes.zip(jj.iter().zip(tt).zip(ii).zip(vv)) {
+            let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
+            *l = l.min(if ins { mn } else { f32::INFINITY });
+            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
+            let t = f64::from(t);
+            let (iv, ic) = (ins && v, ins && !v);
+            *a0 += if iv { t } else { 0.0 };
+            *a1 += if iv { 1.0 } else { 0.0 };
+            *a2 += if ic { t } else { 0.0 };
+            *a3 += if ic { 1.0 } else { 0.0 };
+        }
+    }
+    // the pixels left over go to lane 0, after its chunk values
+    for (((jv, &t), &ins), &v) in jrest.iter().zip(trest).zip(irest).zip(vrest) {
+        let (mn, mx) = (jv[0].min(jv[1]).min(jv[2]), jv[0].max(jv[1]).max(jv[2]));
+        let t = f64::from(t);
+        let (iv, ic) = (ins && v, ins && !v);
+        let lane0 = (lo.first_mut(), hi.first_mut(), s0.first_mut(), s1.first_mut(), s2.first_mut(), s3.first_mut());
+        if let (Some(l), Some(h), Some(a0), Some(a1), Some(a2), Some(a3)) = lane0 {
+            *l = l.min(if ins { mn } else { f32::INFINITY });
+            *h = h.max(if ins { mx } else { f32::NEG_INFINITY });
+            *a0 += if iv { t } else { 0.0 };
+            *a1 += if iv { 1.0 } else { 0.0 };
+            *a2 += if ic { t } else { 0.0 };
+            *a3 += if ic { 1.0 } else { 0.0 };
+        }
+    }
+    for k in 0..L {
+        let get = |a: &[f64; L]| a.get(k).copied().unwrap_or(0.0);
+        st.lo = st.lo.min(lo.get(k).copied().unwrap_or(f32::INFINITY));
+        st.hi = st.hi.max(hi.get(k).copied().unwrap_or(f32::NEG_INFINITY));
+        st.sums.tr_vl += get(&s0);
+        st.sums.vl += get(&s1);
+        st.sums.tr_counted += get(&s2);
+        st.sums.counted += get(&s3);
+    }
+}
+
+/// What one pass over a row of recovered pixels gathers (METHOD §7-9).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RowStats {
+    /// min and max of J over the masked-in pixels' channels
+    pub(crate) lo: f32,
+    pub(crate) hi: f32,
+    /// t_R sums over counted and VL pixels (the channel sums come later)
+    pub(crate) sums: SelectionSums,
+}
+
+impl Default for RowStats {
+    fn default() -> Self {
+        Self {
+            lo: f32::INFINITY,
+            hi: f32::NEG_INFINITY,
+            sums: SelectionSums::default(),
+        }
+    }
+}
+
+impl RowStats {
+    pub(crate) fn add(&mut self, o: &Self) {
+        self.lo = self.lo.min(o.lo);
+        self.hi = self.hi.max(o.hi);
+        self.sums.add(&o.sums);
+    }
+}
+
+/// The statistics of all rows combined in row order (the same for any
+/// thread count).
+pub(crate) fn combine(rows: &[RowStats]) -> RowStats {
+    rows.iter().fold(RowStats::default(), |mut acc, r| {
+        acc.add(r);
+        acc
+    })
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn score_by_hand() {
+        // two counted pixels with means (0.5, 0.4, 0.3): std (n-1) = 0.1
+        let st = [0.4f32, 0.4, 0.2, 0.6, 0.4, 0.4, 0.9, 0.9, 0.9];
+        let tr = [0.5f32, 0.7, 0.2];
+        let vl = [false, false, true];
+        let s = type_stats(&st, &tr, &vl, None, 3);
+        assert!((s.score - 0.1).abs() < 1e-7);
+        assert!((s.tr_diff.unwrap() - (0.6 - 0.2)).abs() < 1e-7);
+        // masking out pixel 1 leaves only pixel 0: means (0.4, 0.4, 0.2)
+        let s = type_stats(&st, &tr, &vl, Some(&[true, false, true]), 3);
+        let e = ((2.0 * (0.4 - 1.0 / 3.0f64).powi(2) + (0.2 - 1.0 / 3.0f64).powi(2)) / 2.0).sqrt();
+        assert!((s.score - e).abs() < 1e-7);
+        assert!(type_stats(&st, &tr, &[false; 3], None, 3).tr_diff.is_none());
+    }
+
+    #[test]
+    fn exclusion_and_ties() {
+        let t = |score, d| TypeStats {
+            score,
+            tr_diff: Some(d),
+        };
+        // the best score is excluded (d < 0.1): the next best wins
+        let c = choose(&[t(0.01, 0.05), t(0.02, 0.2), t(0.03, 0.3)]);
+        assert_eq!(c.winner, 1);
+        assert_eq!(c.excluded, vec![true, false, false]);
+        // no type reaches 0.1: halve to 0.05 -> types with d >= 0.05 survive
+        let c = choose(&[t(0.01, 0.04), t(0.02, 0.06), t(0.005, 0.01)]);
+        assert_eq!((c.winner, c.relaxed, c.threshold), (1, false, Some(0.05)));
+        // all negative: the rule is given up, the best score wins
+        let c = choose(&[t(0.02, -0.5), t(0.01, -0.4)]);
+        assert_eq!((c.winner, c.relaxed, c.threshold), (1, true, None));
+        // ties go to the first
+        let c = choose(&[t(0.02, 0.5), t(0.02, 0.5)]);
+        assert_eq!(c.winner, 0);
+        // no VL: no exclusion
+        let c = choose(&[
+            TypeStats {
+                score: 0.3,
+                tr_diff: None,
+            },
+            TypeStats {
+                score: 0.2,
+                tr_diff: None,
+            },
+        ]);
+        assert_eq!((c.winner, c.excluded), (1, vec![false, false]));
+    }
+}

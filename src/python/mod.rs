@@ -1,0 +1,733 @@
+//! pyo3 bindings (feature "python"): numpy in, numpy out, the GIL released
+//! for the whole Rust call, core errors mapped to Python exceptions in one
+//! function ([`to_py_err`]). No algorithm code lives here.
+
+mod color;
+#[cfg(feature = "internals")]
+mod hooks;
+
+use crate::error::Error;
+use crate::method::params::{Input, Params, Restoration};
+use crate::method::pipeline::restore;
+use crate::method::sequence::Sequence;
+use std::sync::Mutex;
+use crate::method::water::{WaterType, JERLOV};
+use crate::ImageRef;
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString, PyTuple};
+
+create_exception!(
+    _core,
+    UwhlError,
+    PyValueError,
+    "Bad input to uwhl_rs (a ValueError)."
+);
+create_exception!(
+    _core,
+    ImageError,
+    UwhlError,
+    "The image is unusable: shape, size, NaN/Inf, range, constant."
+);
+create_exception!(
+    _core,
+    ParameterError,
+    UwhlError,
+    "A parameter, mask or water type is invalid."
+);
+
+/// The one place where core errors become Python exceptions.
+pub(crate) fn to_py_err(e: Error) -> PyErr {
+    use crate::error::Kind;
+    let msg = e.to_string();
+    match e.kind() {
+        Kind::Input => ImageError::new_err(msg),
+        Kind::Usage => ParameterError::new_err(msg),
+        Kind::Budget => PyMemoryError::new_err(msg),
+        Kind::Write | Kind::Internal => PyRuntimeError::new_err(msg),
+    }
+}
+
+/// Result of `restore` (see `uwhl_rs.Restoration` in the stubs for fields).
+#[pyclass(name = "Restoration", module = "uwhl_rs._core", frozen)]
+pub struct PyRestoration {
+    #[pyo3(get)]
+    image: Py<PyAny>,
+    #[pyo3(get)]
+    radiance: Py<PyAny>,
+    #[pyo3(get)]
+    transmission: Py<PyAny>,
+    #[pyo3(get)]
+    water_type: String,
+    #[pyo3(get)]
+    beta_ratios: (f64, f64),
+    #[pyo3(get)]
+    scores: Py<PyDict>,
+    #[pyo3(get)]
+    excluded: Vec<String>,
+    #[pyo3(get)]
+    veiling_light: (f32, f32, f32),
+    #[pyo3(get)]
+    veiling_mask: Py<PyAny>,
+    #[pyo3(get)]
+    flags: Vec<String>,
+    #[pyo3(get)]
+    guided_radius: usize,
+    #[pyo3(get)]
+    guided_subsample: usize,
+    #[pyo3(get)]
+    timings: Py<PyDict>,
+    wt: WaterType,
+    shape: (usize, usize),
+}
+
+#[pymethods]
+impl PyRestoration {
+    /// Per-channel transmissions (t_R, t_G, t_B) of the chosen type as an
+    /// HxWx3 float32 array (METHOD §7).
+    fn channel_transmissions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let arr = self
+            .transmission
+            .bind(py)
+            .cast::<numpy::PyArray2<f32>>()?
+            .readonly();
+        let t = arr
+            .as_slice()
+            .map_err(|_| PyRuntimeError::new_err("transmission is not contiguous"))?;
+        let wt = &self.wt;
+        let [tr, tg, tb] = py.detach(|| crate::method::params::channel_transmissions(t, wt));
+        let v: Vec<f32> = tr
+            .iter()
+            .zip(&tg)
+            .zip(&tb)
+            .flat_map(|((a, b), c)| [*a, *b, *c])
+            .collect();
+        Ok(PyArray1::from_vec(py, v)
+            .reshape([self.shape.0, self.shape.1, 3])?
+            .into_any())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Restoration(water_type={:?}, veiling_light=({:.4}, {:.4}, {:.4}), shape={}x{}, flags={:?})",
+            self.water_type, self.veiling_light.0, self.veiling_light.1, self.veiling_light.2, self.shape.0, self.shape.1, self.flags
+        )
+    }
+}
+
+fn parse_types(obj: &Bound<'_, PyAny>) -> PyResult<Vec<WaterType>> {
+    if obj.is_instance_of::<PyString>() {
+        return Err(ParameterError::new_err(
+            "water_types must be a list of names or (name, beta_BR, beta_BG) tuples, not a string",
+        ));
+    }
+    let mut out = Vec::new();
+    for item in obj
+        .try_iter()
+        .map_err(|_| ParameterError::new_err("water_types must be a list"))?
+    {
+        let item = item?;
+        if let Ok(name) = item.extract::<String>() {
+            out.push(WaterType::by_name(&name).map_err(to_py_err)?);
+        } else if let Ok(t) = item.cast::<PyTuple>() {
+            let (name, br, bg): (String, f64, f64) = t.extract().map_err(|_| {
+                ParameterError::new_err(format!(
+                    "water type {t} must be (name, beta_BR, beta_BG) with a str and two numbers"
+                ))
+            })?;
+            out.push(WaterType::new(&name, br, bg).map_err(to_py_err)?);
+        } else {
+            return Err(ParameterError::new_err(format!(
+                "water type {item} must be a name or a (name, beta_BR, beta_BG) tuple"
+            )));
+        }
+    }
+    Ok(out)
+}
+
+pub(crate) fn mask_slice<'a>(
+    name: &str,
+    m: &'a Option<PyReadonlyArray2<'a, bool>>,
+    h: usize,
+    w: usize,
+) -> PyResult<Option<&'a [bool]>> {
+    match m {
+        None => Ok(None),
+        Some(a) => {
+            let s = a.shape();
+            if s != [h, w] {
+                return Err(ParameterError::new_err(format!(
+                    "{name} has shape {s:?}; the image needs ({h}, {w})"
+                )));
+            }
+            Ok(Some(a.as_slice().map_err(|_| {
+                ParameterError::new_err(format!("{name} must be C-contiguous"))
+            })?))
+        }
+    }
+}
+
+/// The method's parameters (core [`Params`]), made once from the keyword
+/// arguments that `uwhl_rs.restore` and `uwhl_rs.Sequence` share (which
+/// check them first) and passed to `restore_f32` or `Sequence`.
+#[pyclass(name = "Params", module = "uwhl_rs._core", frozen)]
+pub struct PyParams(Params);
+
+#[pymethods]
+impl PyParams {
+    /// The method's keywords (the rows of the option table with `method`),
+    /// each None or absent for the core's default; a value of the wrong
+    /// kind is a ParameterError naming the keyword, an unknown keyword a
+    /// TypeError.
+    #[new]
+    #[pyo3(signature = (**kwargs))]
+    fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        use crate::files::options::{spec, Kind, Value};
+        let mut params = Params::default();
+        let Some(kwargs) = kwargs else {
+            return Ok(Self(params));
+        };
+        for (k, v) in kwargs.iter() {
+            let key: String = k.extract()?;
+            let s = spec(&key).filter(|s| s.method).ok_or_else(|| {
+                pyo3::exceptions::PyTypeError::new_err(format!("unexpected keyword argument {key:?}"))
+            })?;
+            if v.is_none() {
+                continue;
+            }
+            let wrong = |what: &str| ParameterError::new_err(format!("{key} must be {what}; got {v}"));
+            let value = match s.kind {
+                Kind::WaterTypes => {
+                    params.water_types = parse_types(&v)?;
+                    continue;
+                }
+                Kind::Int { .. } | Kind::Bytes | Kind::Subsample | Kind::IntOf(_) => {
+                    Value::Int(v.extract().map_err(|_| wrong("an integer >= 0"))?)
+                }
+                Kind::Float { .. } => Value::Float(v.extract().map_err(|_| wrong("a number"))?),
+                Kind::Choice(names) => Value::Text(v.extract().map_err(|_| wrong(&names.join(" or ")))?),
+                Kind::Rgb => {
+                    let (r, g, b): (f64, f64, f64) = v.extract().map_err(|_| wrong("3 numbers (R, G, B)"))?;
+                    Value::Rgb([r, g, b])
+                }
+                Kind::Flag | Kind::Path | Kind::Address | Kind::KeyValue => return Err(wrong("a value of this keyword")),
+            };
+            params.set(s.key, &value).map_err(to_py_err)?;
+        }
+        Ok(Self(params))
+    }
+
+    /// The profile and the steps used, as (keyword, name) pairs (METHOD §12).
+    fn steps(&self) -> Vec<(&'static str, &'static str)> {
+        self.0.steps().to_vec()
+    }
+}
+
+/// The option table (`crate::files::options::OPTIONS`) as a list of dicts: what
+/// the Python layer builds its command line and keyword defaults from.
+fn options_table(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    use crate::files::options::{Default as D, Kind as K, OPTIONS};
+    let list = PyList::empty(py);
+    for s in OPTIONS {
+        let d = PyDict::new(py);
+        d.set_item("key", s.key)?;
+        d.set_item("flag", s.flag)?;
+        d.set_item("short", s.short.map(|c| format!("-{c}")))?;
+        d.set_item("metavar", s.metavar)?;
+        d.set_item("kind", s.kind.name())?;
+        match s.kind {
+            K::Int { min, max } => {
+                d.set_item("min", min)?;
+                d.set_item("max", max)?;
+            }
+            K::IntOf(values) => d.set_item("choices", values.to_vec())?,
+            K::Float { gt, le } => {
+                d.set_item("gt", gt)?;
+                d.set_item("le", le)?;
+            }
+            K::Choice(names) => d.set_item("choices", names.to_vec())?,
+            _ => {}
+        }
+        match s.default {
+            D::None => d.set_item("default", py.None())?,
+            D::Off => d.set_item("default", false)?,
+            D::Int(n) => d.set_item("default", n)?,
+            D::Float(x) => d.set_item("default", x)?,
+            D::Name(n) => d.set_item("default", n)?,
+        }
+        d.set_item("help", s.help_with_default())?;
+        d.set_item("group", s.group.title())?;
+        d.set_item("faces", s.faces.name())?;
+        d.set_item("method", s.method)?;
+        list.append(d)?;
+    }
+    Ok(list)
+}
+
+/// Parses a command-line value of the option `key` with the core's rules
+/// (the same function `uwhl-rs` uses); ValueError naming the flag.
+#[pyfunction]
+fn parse_option(py: Python<'_>, key: &str, text: &str) -> PyResult<Py<PyAny>> {
+    use crate::files::options::{spec, Value};
+    let s = spec(key).ok_or_else(|| PyValueError::new_err(format!("unknown option {key:?}")))?;
+    let v = s.parse(text).map_err(PyValueError::new_err)?;
+    Ok(match v {
+        Value::On => true.into_pyobject(py)?.to_owned().into_any().unbind(),
+        Value::Int(n) => n.into_pyobject(py)?.into_any().unbind(),
+        Value::Float(x) => x.into_pyobject(py)?.into_any().unbind(),
+        Value::Text(t) => t.into_pyobject(py)?.into_any().unbind(),
+        Value::Rgb([r, g, b]) => (r, g, b).into_pyobject(py)?.into_any().unbind(),
+    })
+}
+
+/// The checks of several options at once (`crate::files::options::check_combination`);
+/// ValueError with the usage message.
+#[pyfunction]
+#[pyo3(signature = (format, bits, reuse_estimates, reuse_water_mask, linear, preprocess))]
+fn check_combination(
+    format: &str,
+    bits: Option<u64>,
+    reuse_estimates: Option<u64>,
+    reuse_water_mask: bool,
+    linear: bool,
+    preprocess: &str,
+) -> PyResult<()> {
+    crate::files::options::check_combination(format, bits, reuse_estimates, reuse_water_mask, linear, preprocess)
+        .map_err(PyValueError::new_err)
+}
+
+/// The jobs of a batch (`crate::files::jobs::collect_jobs`, output files `NAME` +
+/// each suffix): `(jobs, problems)`,
+/// jobs as `(input, output folder, name)`, problems as `(input, reason)`.
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn collect_jobs(
+    py: Python<'_>,
+    inputs: Vec<std::path::PathBuf>,
+    out_dir: std::path::PathBuf,
+    suffixes: Vec<String>,
+) -> (Vec<(std::path::PathBuf, std::path::PathBuf, String)>, Vec<(std::path::PathBuf, String)>) {
+    let (jobs, problems) = py.detach(|| crate::files::jobs::collect_jobs(&inputs, &out_dir, &suffixes));
+    (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
+}
+
+/// Carries the input file's metadata into the encoded output file at
+/// `encoded_path` (rewritten in place: a temporary of the caller's claim),
+/// with the restoration record of the sidecar (`sidecar_json`):
+/// `crate::files::metadata::carry_from`. Returns the sidecar's `metadata` object as JSON.
+#[pyfunction]
+fn carry_metadata(
+    py: Python<'_>,
+    encoded_path: std::path::PathBuf,
+    input_path: std::path::PathBuf,
+    sidecar_json: &str,
+    sidecar_name: &str,
+    width: u32,
+    height: u32,
+) -> PyResult<String> {
+    let side: serde_json::Value =
+        serde_json::from_str(sidecar_json).map_err(|e| PyValueError::new_err(format!("sidecar: {e}")))?;
+    let encoded = std::fs::read(&encoded_path)?;
+    let (bytes, summary) =
+        py.detach(|| crate::files::metadata::carry_from(&input_path, encoded, &side, sidecar_name, width, height));
+    std::fs::write(&encoded_path, bytes)?;
+    Ok(summary.to_string())
+}
+
+/// The output names of inputs listed elsewhere (object storage), given in
+/// discovery order as `(input, folder relative to the output folder)`:
+/// the naming of `collect_jobs` (`crate::files::jobs::name_jobs`).
+#[pyfunction]
+fn name_jobs(found: Vec<(String, String)>, suffixes: Vec<String>) -> Vec<String> {
+    let found: Vec<(std::path::PathBuf, std::path::PathBuf)> =
+        found.into_iter().map(|(p, r)| (p.into(), r.into())).collect();
+    crate::files::jobs::name_jobs(&found, &suffixes)
+}
+
+/// An input's claimed output names (`crate::files::commit::Claim`): temporaries
+/// to write the outputs into, then one commit that puts them in place with
+/// the sidecar last. Released (temporaries and claim removed) by
+/// `release()` or when collected without a commit.
+#[pyclass(name = "Claim", module = "uwhl_rs._core", frozen)]
+struct PyClaim {
+    inner: Mutex<Option<crate::files::commit::Claim>>,
+}
+
+impl PyClaim {
+    fn with<T>(&self, f: impl FnOnce(&mut crate::files::commit::Claim) -> PyResult<T>) -> PyResult<T> {
+        let mut g = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        match g.as_mut() {
+            Some(c) => f(c),
+            None => Err(PyRuntimeError::new_err("this claim is committed or released")),
+        }
+    }
+}
+
+#[pymethods]
+impl PyClaim {
+    /// The name the outputs are written under.
+    #[getter]
+    fn name(&self) -> PyResult<String> {
+        self.with(|c| Ok(c.name().to_string()))
+    }
+
+    /// The output paths in the order of the suffixes, the sidecar last.
+    #[getter]
+    fn paths(&self) -> PyResult<Vec<std::path::PathBuf>> {
+        self.with(|c| Ok(c.paths().to_vec()))
+    }
+
+    /// A new empty temporary file (created exclusively) for output `index`.
+    fn temp(&self, index: usize) -> PyResult<std::path::PathBuf> {
+        self.with(|c| Ok(c.temp(index)?.0))
+    }
+
+    /// Puts the written temporaries (one per path) in place, sidecar last.
+    fn commit(&self, py: Python<'_>, temps: Vec<std::path::PathBuf>) -> PyResult<()> {
+        let claim = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take();
+        let claim = claim.ok_or_else(|| PyRuntimeError::new_err("this claim is committed or released"))?;
+        py.detach(|| claim.commit(&temps)).map_err(PyErr::from)
+    }
+
+    /// Gives the names up: removes the temporaries and the claim file.
+    fn release(&self) {
+        drop(self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take());
+    }
+}
+
+/// Claims output names for an input (`crate::files::commit::claim`): returns
+/// `(status, sidecar, reason, claim)` with status "claimed" (claim set),
+/// "done" (its sidecar exists), "busy" (another process restores it) or
+/// "in_flight" (this process restores it now), and the reason the commands
+/// print for a skip (`crate::files::commit::Skip::reason`).
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn claim_outputs(
+    py: Python<'_>,
+    dir: std::path::PathBuf,
+    base: String,
+    input: std::path::PathBuf,
+    suffixes: Vec<String>,
+    overwrite: bool,
+    rename: bool,
+) -> PyResult<(&'static str, std::path::PathBuf, Option<String>, Option<PyClaim>)> {
+    use crate::files::commit::Resolution;
+    let request = crate::files::commit::Request { dir: &dir, base: &base, input: &input, suffixes: &suffixes, overwrite, rename };
+    Ok(match py.detach(|| crate::files::commit::claim(&request))? {
+        Resolution::Claimed(c) => {
+            let side = c.paths().last().cloned().unwrap_or_default();
+            ("claimed", side, None, Some(PyClaim { inner: Mutex::new(Some(c)) }))
+        }
+        Resolution::Skipped(why, s) => (why.name(), s, Some(why.reason()), None),
+    })
+}
+
+/// A new empty temporary file in `path`'s folder, created exclusively
+/// under a short name with `path`'s extension (`crate::files::commit::create_temp_for`).
+#[pyfunction]
+fn create_temp(path: std::path::PathBuf) -> PyResult<std::path::PathBuf> {
+    Ok(crate::files::commit::create_temp_for(&path)?.0)
+}
+
+/// Puts a written temporary in place of `path` durably (`crate::files::commit::place`).
+#[pyfunction]
+fn place(py: Python<'_>, tmp: std::path::PathBuf, path: std::path::PathBuf) -> PyResult<()> {
+    py.detach(|| crate::files::commit::place(&tmp, &path)).map_err(PyErr::from)
+}
+
+/// The bytes the whole input needs at its peak (`crate::files::budget::Plan`):
+/// decoding, `max_side`, `restore`, the outputs; the plan both commands
+/// check from the header.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra = 0))]
+fn input_plan(
+    height: usize,
+    width: usize,
+    decoded_bpp: u64,
+    decoded_is_rgb: bool,
+    oriented: bool,
+    factor: usize,
+    reference: bool,
+    masks: u8,
+    write_extra: u64,
+) -> u64 {
+    crate::files::budget::Plan { height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra }
+        .bytes()
+}
+
+/// What the process holds before its first input plus a margin
+/// (`crate::kernels::memory::process_base`), measured at the first call.
+#[pyfunction]
+fn process_base() -> u64 {
+    crate::kernels::memory::process_base()
+}
+
+/// The default memory budget (`crate::kernels::memory::default_max_memory`).
+#[pyfunction]
+fn default_max_memory() -> u64 {
+    crate::kernels::memory::default_max_memory()
+}
+
+/// Whether the system would give `bytes` now (`crate::kernels::memory::can_allocate`).
+#[pyfunction]
+fn can_allocate(bytes: u64) -> bool {
+    crate::kernels::memory::can_allocate(bytes)
+}
+
+/// Removes the temporaries that dead processes left in `dir`
+/// (`crate::files::jobs::remove_stale_temps`); returns how many.
+#[pyfunction]
+fn remove_stale_temps(py: Python<'_>, dir: std::path::PathBuf) -> usize {
+    py.detach(|| crate::files::jobs::remove_stale_temps(&dir))
+}
+
+/// The `options:` part of a command's `--help` for `face` ("python" or "rust").
+#[pyfunction]
+fn options_help(face: &str) -> PyResult<String> {
+    use crate::files::options::{help_text, Faces};
+    let f = match face {
+        "python" => Faces::Python,
+        "rust" => Faces::Rust,
+        other => return Err(PyValueError::new_err(format!("face must be python or rust, not {other:?}"))),
+    };
+    Ok(help_text(f, 100))
+}
+
+/// The pixels and (H, W) of an (H, W, 3) C-contiguous float32 array.
+fn image_data<'a>(image: &'a PyReadonlyArray3<'a, f32>) -> PyResult<(&'a [f32], usize, usize)> {
+    let shape = image.shape();
+    if shape.len() != 3 || shape[2] != 3 {
+        return Err(ImageError::new_err(format!(
+            "image has shape {shape:?}; expected (H, W, 3)"
+        )));
+    }
+    let data = image
+        .as_slice()
+        .map_err(|_| ImageError::new_err("image must be C-contiguous"))?;
+    Ok((data, shape[0], shape[1]))
+}
+
+/// Native entry point behind `uwhl_rs.restore` (which checks dtypes and
+/// converts float64 to float32 first). Releases the GIL while it works.
+#[pyfunction]
+#[pyo3(signature = (image, params, *, water_mask=None, mask=None))]
+fn restore_f32(
+    py: Python<'_>,
+    image: PyReadonlyArray3<'_, f32>,
+    params: &PyParams,
+    water_mask: Option<PyReadonlyArray2<'_, bool>>,
+    mask: Option<PyReadonlyArray2<'_, bool>>,
+) -> PyResult<PyRestoration> {
+    let (data, h, w) = image_data(&image)?;
+    let params = &params.0;
+    let wm = mask_slice("water_mask", &water_mask, h, w)?;
+    let mk = mask_slice("mask", &mask, h, w)?;
+    let res = py
+        .detach(|| {
+            let img = ImageRef::new(data, h, w)?;
+            restore(
+                &Input {
+                    image: img,
+                    mask: mk,
+                    water_mask: wm,
+                },
+                params,
+            )
+        })
+        .map_err(to_py_err)?;
+    to_py(py, res)
+}
+
+/// A core [`Restoration`] as the Python `Restoration` (arrays handed over
+/// to numpy without copying).
+fn to_py(py: Python<'_>, res: Restoration) -> PyResult<PyRestoration> {
+    let (h, w) = (res.height, res.width);
+    let scores = PyDict::new(py);
+    for (n, s) in &res.scores {
+        scores.set_item(n, *s)?;
+    }
+    // stage names are unique (the core adds repeated laps up), so a dict
+    // keeps every stage, in the order they ran
+    let timings = PyDict::new(py);
+    for (n, s) in &res.timings {
+        timings.set_item(n.name(), *s)?;
+    }
+    let to3 = |v: Vec<f32>| -> PyResult<Py<PyAny>> {
+        Ok(PyArray1::from_vec(py, v)
+            .reshape([h, w, 3])?
+            .into_any()
+            .unbind())
+    };
+    Ok(PyRestoration {
+        image: to3(res.image)?,
+        radiance: to3(res.radiance)?,
+        transmission: PyArray1::from_vec(py, res.transmission)
+            .reshape([h, w])?
+            .into_any()
+            .unbind(),
+        water_type: res.water_type.name.clone(),
+        beta_ratios: (res.water_type.beta_br, res.water_type.beta_bg),
+        scores: scores.unbind(),
+        excluded: res.excluded,
+        veiling_light: (
+            res.veiling_light[0],
+            res.veiling_light[1],
+            res.veiling_light[2],
+        ),
+        veiling_mask: PyArray1::from_vec(py, res.veiling_mask)
+            .reshape([h, w])?
+            .into_any()
+            .unbind(),
+        flags: res.flags.iter().map(|f| f.name().to_string()).collect(),
+        guided_radius: res.guided_radius,
+        guided_subsample: res.guided_subsample,
+        timings: timings.unbind(),
+        wt: res.water_type,
+        shape: (h, w),
+    })
+}
+
+/// Native class behind `uwhl_rs.Sequence` (which checks the arguments
+/// first): a core [`Sequence`] behind a mutex, so that calls from several
+/// Python threads take turns; the GIL is released while a frame is
+/// restored (and while waiting for the mutex).
+#[pyclass(name = "Sequence", module = "uwhl_rs._core", frozen)]
+pub struct PySequence {
+    inner: Mutex<Sequence>,
+}
+
+impl PySequence {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Sequence> {
+        // the core does not panic; a poisoned lock still holds a usable state
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+#[pymethods]
+impl PySequence {
+    #[new]
+    #[pyo3(signature = (params, *, refresh_every=0, reuse_water_mask=false))]
+    fn new(params: &PyParams, refresh_every: usize, reuse_water_mask: bool) -> PyResult<Self> {
+        let params = params.0.clone();
+        let mut seq = Sequence::new(params);
+        seq.refresh_every = refresh_every;
+        seq.reuse_water_mask = reuse_water_mask;
+        Ok(Self { inner: Mutex::new(seq) })
+    }
+
+    /// Restores the next frame (float32 (H, W, 3), C-contiguous).
+    #[pyo3(signature = (image, *, mask=None, water_mask=None))]
+    fn restore(
+        &self,
+        py: Python<'_>,
+        image: PyReadonlyArray3<'_, f32>,
+        mask: Option<PyReadonlyArray2<'_, bool>>,
+        water_mask: Option<PyReadonlyArray2<'_, bool>>,
+    ) -> PyResult<PyRestoration> {
+        let (data, h, w) = image_data(&image)?;
+        let wm = mask_slice("water_mask", &water_mask, h, w)?;
+        let mk = mask_slice("mask", &mask, h, w)?;
+        let res = py
+            .detach(|| {
+                let img = ImageRef::new(data, h, w)?;
+                self.lock().restore(&Input { image: img, mask: mk, water_mask: wm })
+            })
+            .map_err(to_py_err)?;
+        to_py(py, res)
+    }
+
+    /// Forgets the estimates and frees the kept buffers.
+    fn reset(&self, py: Python<'_>) {
+        py.detach(|| self.lock().reset());
+    }
+
+    /// The water type the next frame reuses (None before the first frame).
+    #[getter]
+    fn water_type(&self, py: Python<'_>) -> Option<String> {
+        py.detach(|| self.lock().estimates().map(|e| e.water_type.name.clone()))
+    }
+
+    /// The veiling light A the next frame reuses (None before the first frame).
+    #[getter]
+    fn veiling_light(&self, py: Python<'_>) -> Option<(f32, f32, f32)> {
+        py.detach(|| self.lock().estimates().map(|e| (e.veiling_light[0], e.veiling_light[1], e.veiling_light[2])))
+    }
+
+    /// Whether the next frame runs the estimation (water type and A).
+    #[getter]
+    fn estimates_next(&self, py: Python<'_>) -> bool {
+        py.detach(|| self.lock().estimates_next())
+    }
+
+    /// Bytes of work buffers kept between frames.
+    #[getter]
+    fn buffer_bytes(&self, py: Python<'_>) -> usize {
+        py.detach(|| self.lock().buffer_bytes())
+    }
+
+    #[getter]
+    fn refresh_every(&self, py: Python<'_>) -> usize {
+        py.detach(|| self.lock().refresh_every)
+    }
+
+    #[getter]
+    fn reuse_water_mask(&self, py: Python<'_>) -> bool {
+        py.detach(|| self.lock().reuse_water_mask)
+    }
+}
+
+/// Called in a forked child (registered by `uwhl_rs` with
+/// `os.register_at_fork`): later calls use fresh thread pools.
+#[pyfunction]
+fn _after_fork() {
+    crate::kernels::util::after_fork();
+}
+
+/// The native module `uwhl_rs._core`.
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
+    crate::python::color::register(m)?;
+    m.add_class::<PyRestoration>()?;
+    m.add_class::<PySequence>()?;
+    m.add_class::<PyParams>()?;
+    m.add_function(wrap_pyfunction!(_after_fork, m)?)?;
+    #[cfg(feature = "internals")]
+    crate::python::hooks::register(m)?;
+    m.add("UwhlError", py.get_type::<UwhlError>())?;
+    m.add("ImageError", py.get_type::<ImageError>())?;
+    m.add("ParameterError", py.get_type::<ParameterError>())?;
+    let table = PyList::empty(py);
+    for (n, br, bg) in JERLOV {
+        table.append((n, br, bg))?;
+    }
+    m.add("JERLOV_TABLE", table)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("OPTIONS", options_table(py)?)?;
+    m.add("FLAGS", crate::Flag::ALL.iter().map(|f| f.name()).collect::<Vec<_>>())?;
+    m.add("STAGES", crate::Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>())?;
+    m.add("EXIT_CODES", crate::files::options::EXIT_CODES.to_vec())?;
+    m.add("EXIT_CODES_HELP", crate::files::options::exit_code_text())?;
+    m.add_function(wrap_pyfunction!(parse_option, m)?)?;
+    m.add_function(wrap_pyfunction!(options_help, m)?)?;
+    m.add_function(wrap_pyfunction!(check_combination, m)?)?;
+    m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
+    m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
+    m.add_function(wrap_pyfunction!(carry_metadata, m)?)?;
+    m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
+    m.add_class::<PyClaim>()?;
+    m.add_function(wrap_pyfunction!(input_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(process_base, m)?)?;
+    m.add_function(wrap_pyfunction!(default_max_memory, m)?)?;
+    m.add_function(wrap_pyfunction!(can_allocate, m)?)?;
+    m.add_function(wrap_pyfunction!(claim_outputs, m)?)?;
+    m.add_function(wrap_pyfunction!(create_temp, m)?)?;
+    m.add_function(wrap_pyfunction!(place, m)?)?;
+    m.add("IMAGE_EXTENSIONS", crate::files::jobs::IMAGE_EXTENSIONS.to_vec())?;
+    m.add("RAW_EXTENSIONS", crate::files::jobs::RAW_EXTENSIONS.to_vec())?;
+    Ok(())
+}
