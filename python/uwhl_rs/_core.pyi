@@ -185,7 +185,7 @@ class Params:
     """The method's keywords: the rows of OPTIONS with "method" true
     (water_types, veiling_light, guided_radius, guided_eps, sphere_points,
     threads, max_memory, selection, guided_subsample, method,
-    white_balance, type_choice, haze_floor); None = default."""
+    white_balance, type_choice, haze_floor, t_scale); None = default."""
     def __new__(cls, **kwargs: object) -> "Params": ...
     def steps(self) -> list[tuple[str, str]]:
         """The profile and the steps used, as (keyword, name) pairs (METHOD §12)."""
