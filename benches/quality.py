@@ -3,17 +3,24 @@
 
 Run from the repository root with the package importable, e.g.::
 
-    python3 benches/quality.py            # full run (package installed)
-    python3 benches/quality.py --quick    # small run; PYTHONPATH=python for a dev build
+    python3 benches/quality.py                  # full run, default profile (package installed)
+    python3 benches/quality.py --method paper   # the same figures for the paper profile
+    python3 benches/quality.py --quick          # small run; PYTHONPATH=python for a dev build
+
+Every ``restore`` call runs the profile ``--method`` names (default: the
+package's default, ``revised``; METHOD §12), and the report's first line
+names it.
 
 Sections
 --------
 1. Rendered scenes (``uwhl_rs.synth``, METHOD §0) with known truth, all ten
    Jerlov types, two noise levels: rho = Pearson(z, -ln t_B) over non-water
    pixels, once with the true water region given (``water_mask``) and once
-   with detection; the gray-world choice of the water type (METHOD §9) with and
-   without the t_R exclusion rule; the veiling-light error |A - A_true|; the
-   mean angular color error of non-water pixels before and after.
+   with detection; the profile's choice of the water type (``paper``: gray
+   world with the t_R exclusion rule, METHOD §9, also ranked without it;
+   ``revised``: shades of gray, METHOD §12.2, which excludes none); the
+   veiling-light error |A - A_true|; the mean angular color error of
+   non-water pixels before and after.
 2. VL detection on the renders: IoU with the true water region (full, and
    restricted to the rows VL may occupy, METHOD §3.4), and how often the
    looking-down scenes (no water) raise ``veiling_fallback``.
@@ -43,6 +50,10 @@ except ImportError as exc:  # pragma: no cover - a clear message for a missing b
     sys.exit(f"cannot import uwhl_rs ({exc}); run with PYTHONPATH=python from the repo root")
 
 TYPES = list(synth.JERLOV)
+# the profiles and the default one (the option table's row of `method`)
+_METHOD_ROW = next(o for o in uwhl_rs._core.OPTIONS if o["key"] == "method")
+METHODS, DEFAULT_METHOD = tuple(_METHOD_ROW["choices"]), _METHOD_ROW["default"]
+CHOICE = {"paper": "gray world, METHOD §9", "revised": "shades of gray, METHOD §12.2"}
 # ../shared/data beside the repository (as in CI); UWHL_DATA overrides.
 DATA_DIR = pathlib.Path(os.environ.get("UWHL_DATA", pathlib.Path(__file__).resolve().parents[2] / "shared" / "data")) / "images"
 LARGEST_PHOTO = "udc_5-2.jpg"
@@ -211,7 +222,7 @@ def run_renders(args) -> list:
                     ang_in = mean_angle_deg(img, sc.clean, nonwater)
                     for mode in ("given", "detected"):
                         wm = sc.water if mode == "given" else None
-                        res = uwhl_rs.restore(img, water_mask=wm, threads=args.threads)
+                        res = uwhl_rs.restore(img, water_mask=wm, threads=args.threads, method=args.method)
                         tb = np.asarray(res.transmission, dtype=np.float64)
                         ranking = score_ranking(res.scores)
                         vm = np.asarray(res.veiling_mask)
@@ -277,8 +288,8 @@ def report_renders(recs: list, args) -> None:
 
         for mode in ("given", "detected"):
             print()
-            print(f"   {kind}, water-type choice (METHOD §9), VL {mode}: ranks are by score over"
-                  " all ten types (1 = lowest score)")
+            print(f"   {kind}, water-type choice ({CHOICE[args.method]}), VL {mode}: ranks are by score"
+                  " over all ten types (1 = lowest score)")
             rows = []
             for wt in TYPES:
                 s = [r for r in sub if r["type"] == wt and r["mode"] == mode]
@@ -406,7 +417,7 @@ def run_photos(args) -> None:
 
     print()
     print("=" * 78)
-    print("3. REAL PHOTOS (sRGB decoded, inverse sRGB curve, restore with defaults)")
+    print(f"3. REAL PHOTOS (sRGB decoded, inverse sRGB curve, restore with method={args.method})")
     print("=" * 78)
     if not DATA_DIR.is_dir():
         print(f"skipped: {DATA_DIR} is absent")
@@ -437,7 +448,7 @@ def run_photos(args) -> None:
         lin = srgb_to_linear(srgb).astype(np.float32)
         h, w = lin.shape[:2]
         t0 = time.perf_counter()
-        res = uwhl_rs.restore(lin, threads=args.threads)
+        res = uwhl_rs.restore(lin, threads=args.threads, method=args.method)
         dt = time.perf_counter() - t0
         vm = np.asarray(res.veiling_mask)
         frac = float(vm.mean())
@@ -501,14 +512,14 @@ def run_timing(args) -> None:
     print("=" * 78)
     rows = []
     img, _ = synth.demo_input(1000, 1000, water_type="III", seed=3)
-    t = best_of(lambda: uwhl_rs.restore(img, threads=args.threads), args.repeats)
+    t = best_of(lambda: uwhl_rs.restore(img, threads=args.threads, method=args.method), args.repeats)
     rows.append(["render 1000x1000 (1.0 MP)", f"{t:.2f}", f"{t / 1.0:.2f}"])
     p = DATA_DIR / LARGEST_PHOTO
     if p.is_file() and not args.quick:
         lin = srgb_to_linear(to_unit_float(iio.imread(p))).astype(np.float32)
         h, w = lin.shape[:2]
         mp = h * w / 1e6
-        t = best_of(lambda: uwhl_rs.restore(lin, threads=args.threads), args.repeats)
+        t = best_of(lambda: uwhl_rs.restore(lin, threads=args.threads, method=args.method), args.repeats)
         rows.append([f"{LARGEST_PHOTO} {w}x{h} ({mp:.1f} MP)", f"{t:.2f}", f"{t / mp:.2f}"])
     elif not p.is_file():
         rows.append([f"{LARGEST_PHOTO}", "absent", "-"])
@@ -522,6 +533,8 @@ def main(argv=None) -> int:
                     help="small run: 180x240 renders, 1 seed, noise 0.002, 6 photos at "
                          "<= 640 px, 1 MP timing once")
     ap.add_argument("--out", default="/tmp/uwhl_quality", help="folder for the photo PNGs")
+    ap.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
+                    help=f"the profile every restore call runs (METHOD §12; default {DEFAULT_METHOD})")
     ap.add_argument("--threads", type=int, default=None, help="restore threads (default all)")
     ap.add_argument("--panel", type=int, default=720,
                     help="longest side of each panel in the saved PNGs (0 = full size)")
@@ -539,7 +552,8 @@ def main(argv=None) -> int:
         args.photo_max_side = 0
     skip = {s.strip() for s in args.skip.split(",") if s.strip()}
 
-    print(f"uwhl_rs {uwhl_rs.__version__} quality report ({'quick' if args.quick else 'full'} run)")
+    print(f"uwhl_rs {uwhl_rs.__version__} quality report, method={args.method} "
+          f"({'quick' if args.quick else 'full'} run)")
     t0 = time.perf_counter()
     if "renders" not in skip:
         recs = run_renders(args)

@@ -1,113 +1,267 @@
-"""Type stubs of the native module uwhl_rs._core (built from src/python.rs)."""
+"""Type stubs of the native module uwhl_rs._core (built from src/python.rs,
+src/python_color.rs and, with the Cargo feature ``internals``,
+src/python_hooks.rs). tests/python/test_stubs.py checks them against the
+built module with mypy's stubtest."""
 
-from typing import Any, Literal, Optional, Union
-from typing import Sequence as _Seq
+import os
+from pathlib import Path
+from typing import Any, Literal, Optional, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
+_PathArg = Union[str, "os.PathLike[str]"]
+_F32 = npt.NDArray[np.float32]
+_Bool = npt.NDArray[np.bool_]
+_RGB = tuple[float, float, float]
+
+#: every name the module registers, in registration order (the _stage_*
+#: names only in a build with the ``internals`` feature)
+__all__ = [
+    "restore_f32", "_decode_u8", "_decode_u16", "_icc_classify", "_icc_convert", "_quantize", "_colormap",
+    "_downscale", "_reference_srgb", "_reference_raw", "_decode_png", "_encode_png", "Restoration", "Sequence",
+    "Params", "_after_fork", "_stage_stretch", "_stage_guide", "_stage_edge_map", "_stage_veiling",
+    "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
+    "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
+    "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
+    "options_help", "check_combination", "collect_jobs", "name_jobs", "carry_metadata", "remove_stale_temps",
+    "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
+    "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
+]
+
 __version__: str
+#: (name, beta_BR, beta_BG) of the ten Jerlov water types (METHOD §4)
 JERLOV_TABLE: list[tuple[str, float, float]]
 #: the one option table (src/options.rs): dicts with key, flag, short, metavar,
 #: kind, min/max/gt/choices, default, help, group, faces, method
-OPTIONS: list[dict]
+OPTIONS: list[dict[str, Any]]
 #: (code, name, meaning) of both commands' exit codes
 EXIT_CODES: list[tuple[int, str, str]]
 EXIT_CODES_HELP: str
 #: the stable names of Restoration.flags and Restoration.timings (docs/OUTPUTS.md)
 FLAGS: list[str]
 STAGES: list[str]
-
-def parse_option(key: str, text: str) -> object: ...
-def options_help(face: Literal["python", "rust"]) -> str: ...
+#: the file extensions (lower case, no dot) a batch takes as images / as camera raw files
 IMAGE_EXTENSIONS: list[str]
 RAW_EXTENSIONS: list[str]
 
-def collect_jobs(
-    inputs: list[str], out_dir: str, suffixes: list[str]
-) -> tuple[list[tuple[str, str, str]], list[tuple[str, str]]]: ...
-def carry_metadata(encoded_path: str, input_path: str, sidecar_json: str, sidecar_name: str, width: int,
-                   height: int) -> str: ...
-def _icc_classify(icc: bytes) -> tuple[str, str]: ...
-def _icc_convert(values: Any, icc: bytes, linear: bool) -> Any: ...
-def name_jobs(found: list[tuple[str, str]], suffixes: list[str]) -> list[str]: ...
-def remove_stale_temps(dir: str) -> int: ...
-class Claim:
-    @property
-    def name(self) -> str: ...
-    @property
-    def paths(self) -> list[str]: ...
-    def temp(self, index: int) -> str: ...
-    def commit(self, temps: list[str]) -> None: ...
-    def release(self) -> None: ...
-def claim_outputs(
-    dir: str, base: str, input: str, suffixes: list[str], overwrite: bool, rename: bool
-) -> tuple[str, str, Optional[str], Optional[Claim]]: ...
-def create_temp(path: str) -> str: ...
-def input_plan(
-    height: int, width: int, decoded_bpp: int, decoded_is_rgb: bool, oriented: bool, factor: int, reference: bool,
-    masks: int, write_extra: int = 0,
-) -> int: ...
-def process_base() -> int: ...
-def default_max_memory() -> int: ...
-def can_allocate(bytes: int) -> bool: ...
-def place(tmp: str, path: str) -> None: ...
+class UwhlError(ValueError):
+    """Bad input to uwhl_rs (a ValueError)."""
+
+class ImageError(UwhlError):
+    """The image is unusable: shape, size, NaN/Inf, range, constant."""
+
+class ParameterError(UwhlError):
+    """A parameter, mask or water type is invalid."""
+
+# ---- the option table ----
+
+def parse_option(key: str, text: str) -> object:
+    """A command-line value of option `key` parsed with the core's rules; ValueError naming the flag."""
+def options_help(face: Literal["python", "rust"]) -> str:
+    """The `options:` part of a command's --help for `face`."""
 def check_combination(
     format: str, bits: Optional[int], reuse_estimates: Optional[int], reuse_water_mask: bool, linear: bool,
     preprocess: str,
-) -> None: ...
+) -> None:
+    """The checks of several options at once; ValueError with the usage message."""
 
-class UwhlError(ValueError): ...
-class ImageError(UwhlError): ...
-class ParameterError(UwhlError): ...
+# ---- batches: jobs, output names, claims, metadata ----
 
+def collect_jobs(
+    inputs: list[_PathArg], out_dir: _PathArg, suffixes: list[str]
+) -> tuple[list[tuple[Path, Path, str]], list[tuple[Path, str]]]:
+    """The jobs of a batch as (input, output folder, name), and the problems as (input, reason)."""
+def name_jobs(found: list[tuple[str, str]], suffixes: list[str]) -> list[str]:
+    """The output names of (input, relative folder) pairs listed elsewhere, in discovery order."""
+def carry_metadata(encoded_path: _PathArg, input_path: _PathArg, sidecar_json: str, sidecar_name: str,
+                   width: int, height: int) -> str:
+    """Carries the input's metadata into the encoded file (rewritten in place); the sidecar's `metadata` as JSON."""
+def remove_stale_temps(dir: _PathArg) -> int:
+    """Removes the temporaries dead processes left in `dir`; returns how many."""
+
+@final
+class Claim:
+    """An input's claimed output names: temporaries, then one commit, sidecar last."""
+    @property
+    def name(self) -> str:
+        """The name the outputs are written under."""
+    @property
+    def paths(self) -> list[Path]:
+        """The output paths in the order of the suffixes, the sidecar last."""
+    def temp(self, index: int) -> Path:
+        """A new empty temporary file (created exclusively) for output `index`."""
+    def commit(self, temps: list[_PathArg]) -> None:
+        """Puts the written temporaries (one per path) in place, sidecar last."""
+    def release(self) -> None:
+        """Gives the names up: removes the temporaries and the claim file."""
+
+def claim_outputs(
+    dir: _PathArg, base: str, input: _PathArg, suffixes: list[str], overwrite: bool, rename: bool
+) -> tuple[Literal["claimed", "done", "busy", "in_flight"], Path, Optional[str], Optional[Claim]]:
+    """Claims an input's output names: (status, sidecar, reason of a skip, claim if "claimed")."""
+def create_temp(path: _PathArg) -> Path:
+    """A new empty temporary file in `path`'s folder, with `path`'s extension."""
+def place(tmp: _PathArg, path: _PathArg) -> None:
+    """Puts a written temporary in place of `path` durably."""
+
+# ---- memory budget ----
+
+def input_plan(
+    height: int, width: int, decoded_bpp: int, decoded_is_rgb: bool, oriented: bool, factor: int, reference: bool,
+    masks: int, write_extra: int = 0,
+) -> int:
+    """The bytes the whole input needs at its peak (decoding, max_side, restore, the outputs)."""
+def process_base() -> int:
+    """What the process holds before its first input plus a margin, measured at the first call."""
+def default_max_memory() -> int:
+    """The default memory budget in bytes."""
+def can_allocate(bytes: int) -> bool:
+    """Whether the system would give `bytes` now."""
+
+# ---- pixel conventions (docs/OUTPUTS.md) ----
+
+def _decode_u8(codes: npt.NDArray[np.uint8], linearize: bool) -> _F32:
+    """8-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`."""
+def _decode_u16(codes: npt.NDArray[np.uint16], linearize: bool) -> _F32:
+    """16-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`."""
+def _icc_classify(icc: bytes) -> tuple[Literal["srgb", "other", "unreadable"], str]:
+    """What an ICC profile is: (kind, description or reason)."""
+def _icc_convert(values: _F32, icc: bytes, linear: bool) -> _F32:
+    """RGB values in [0, 1] (shape ending in 3) from profile `icc` to the working space (linear or sRGB)."""
+def _quantize(data: _F32, bits: Literal[8, 16], srgb: bool) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
+    """float32 values (any shape) to uint8 or uint16 codes, through the sRGB curve when `srgb`."""
+def _colormap(t: _F32) -> npt.NDArray[np.uint8]:
+    """A transmission map (H, W) to its colour-mapped uint8 image (H, W, 3)."""
+def _downscale(image: _F32, factor: int) -> _F32:
+    """Block-average downscale of an (H, W, C) float32 image by an integer factor."""
+def _reference_srgb(image: _F32) -> _F32:
+    """METHOD §2 reference preprocessing of a non-linearised sRGB image (H, W, 3)."""
+def _reference_raw(image: _F32) -> _F32:
+    """METHOD §2 reference preprocessing of a white-balanced linear raw image (H, W, 3)."""
+def _decode_png(data: bytes, max_pixels: int) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
+    """A PNG file's bytes to (H, W, 3) uint8 or uint16 codes; ValueError over `max_pixels` pixels."""
+def _encode_png(a: Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]) -> bytes:
+    """PNG bytes of a C-contiguous (H, W) or (H, W, 3) uint8 or uint16 array."""
+def _after_fork() -> None:
+    """Called in a forked child (os.register_at_fork): later calls use fresh thread pools."""
+
+# ---- the method ----
+
+@final
 class Restoration:
-    image: npt.NDArray[np.float32]
-    radiance: npt.NDArray[np.float32]
-    transmission: npt.NDArray[np.float32]
-    water_type: str
-    beta_ratios: tuple[float, float]
-    scores: dict[str, float]
-    excluded: list[str]
-    veiling_light: tuple[float, float, float]
-    veiling_mask: npt.NDArray[np.bool_]
-    flags: list[str]
-    guided_radius: int
-    guided_subsample: int
-    timings: dict[str, float]
-    def channel_transmissions(self) -> npt.NDArray[np.float32]: ...
+    """The result of restore_f32 / Sequence.restore (fields: docs/OUTPUTS.md)."""
+    @property
+    def image(self) -> _F32: ...
+    @property
+    def radiance(self) -> _F32: ...
+    @property
+    def transmission(self) -> _F32: ...
+    @property
+    def water_type(self) -> str: ...
+    @property
+    def beta_ratios(self) -> tuple[float, float]: ...
+    @property
+    def scores(self) -> dict[str, float]: ...
+    @property
+    def excluded(self) -> list[str]: ...
+    @property
+    def veiling_light(self) -> _RGB: ...
+    @property
+    def veiling_mask(self) -> _Bool: ...
+    @property
+    def flags(self) -> list[str]: ...
+    @property
+    def guided_radius(self) -> int: ...
+    @property
+    def guided_subsample(self) -> int: ...
+    @property
+    def timings(self) -> dict[str, float]: ...
+    def channel_transmissions(self) -> _F32:
+        """Per-channel transmissions (t_R, t_G, t_B) of the chosen type, (H, W, 3) float32 (METHOD §7)."""
 
-WaterTypeSpec = Union[str, tuple[str, float, float]]
-
+@final
 class Params:
     """The method's keywords: the rows of OPTIONS with "method" true
     (water_types, veiling_light, guided_radius, guided_eps, sphere_points,
     threads, max_memory, selection, guided_subsample, method,
-    white_balance, type_choice, haze_floor); None = default."""
-    def __init__(self, **kwargs: object) -> None: ...
-    def steps(self) -> list[tuple[str, str]]: ...
+    white_balance, type_choice, haze_floor, t_scale); None = default."""
+    def __new__(cls, **kwargs: object) -> "Params": ...
+    def steps(self) -> list[tuple[str, str]]:
+        """The profile and the steps used, as (keyword, name) pairs (METHOD §12)."""
 
 def restore_f32(
-    image: npt.NDArray[np.float32],
+    image: _F32,
     params: Params,
     *,
-    water_mask: Optional[npt.NDArray[np.bool_]] = None,
-    mask: Optional[npt.NDArray[np.bool_]] = None,
-) -> Restoration: ...
+    water_mask: Optional[_Bool] = None,
+    mask: Optional[_Bool] = None,
+) -> Restoration:
+    """Restores a C-contiguous float32 (H, W, 3) image, the GIL released."""
 
+@final
 class Sequence:
-    def __init__(self, params: Params, *, refresh_every: int = 0, reuse_water_mask: bool = False) -> None: ...
+    """Restores the frames of one sequence, reusing the water type and A between estimates."""
+    def __new__(cls, params: Params, *, refresh_every: int = 0, reuse_water_mask: bool = False) -> "Sequence": ...
     def restore(
         self,
-        image: npt.NDArray[np.float32],
+        image: _F32,
         *,
-        mask: Optional[npt.NDArray[np.bool_]] = None,
-        water_mask: Optional[npt.NDArray[np.bool_]] = None,
-    ) -> Restoration: ...
-    def reset(self) -> None: ...
-    water_type: Optional[str]
-    veiling_light: Optional[tuple[float, float, float]]
-    estimates_next: bool
-    buffer_bytes: int
-    refresh_every: int
-    reuse_water_mask: bool
+        mask: Optional[_Bool] = None,
+        water_mask: Optional[_Bool] = None,
+    ) -> Restoration:
+        """Restores the next frame (float32 (H, W, 3), C-contiguous)."""
+    def reset(self) -> None:
+        """Forgets the estimates and frees the kept buffers."""
+    @property
+    def water_type(self) -> Optional[str]:
+        """The water type the next frame reuses (None before the first frame)."""
+    @property
+    def veiling_light(self) -> Optional[_RGB]:
+        """The veiling light A the next frame reuses (None before the first frame)."""
+    @property
+    def estimates_next(self) -> bool:
+        """Whether the next frame runs the estimation (water type and A)."""
+    @property
+    def buffer_bytes(self) -> int:
+        """Bytes of work buffers kept between frames."""
+    @property
+    def refresh_every(self) -> int: ...
+    @property
+    def reuse_water_mask(self) -> bool: ...
+
+# ---- the stage entry points: only in a build with the Cargo feature
+# ``internals`` (the test builds; release wheels lack them), for the
+# cross-checks of tests/python/test_crosscheck.py ----
+
+def _stage_stretch(image: _F32, mask: Optional[_Bool] = None) -> _F32:
+    """METHOD §3.1 contrast stretch (statistics over masked-in pixels)."""
+def _stage_guide(image: _F32, mask: Optional[_Bool] = None) -> _F32:
+    """METHOD §6 guide image."""
+def _stage_edge_map(image: _F32) -> tuple[_F32, float, int, float]:
+    """Edge map: (E at working size, tau, scale, sigma)."""
+def _stage_veiling(
+    image: _F32, mask: Optional[_Bool] = None, water_mask: Optional[_Bool] = None,
+    veiling_light: Optional[_RGB] = None,
+) -> tuple[_RGB, _Bool, list[str]]:
+    """Veiling light and water region: (A, VL, flags)."""
+def _stage_haze_lines(
+    image: _F32, a: _RGB, beta_br: float, beta_bg: float, n_points: int = 500, mask: Optional[_Bool] = None
+) -> _F32:
+    """Initial transmission t~ (METHOD §4, after fill and x0.9)."""
+def _stage_lower_bound(image: _F32, a: _RGB, beta_br: float, beta_bg: float) -> _F32:
+    """Lower bound t_LB (METHOD §5)."""
+def _stage_matting(image: _F32, vl: _Bool) -> Optional[tuple[_F32, _F32]]:
+    """Squared Mahalanobis distances and matting weights (METHOD §5), or None."""
+def _stage_guided(guide: _F32, p: _F32, r: int, eps: float) -> _F32:
+    """Color guided filter (METHOD §6)."""
+def _stage_recover(
+    image: _F32, a: _RGB, t: _F32, beta_br: float, beta_bg: float, mask: Optional[_Bool] = None
+) -> tuple[_F32, _F32]:
+    """Recovery (METHOD §7): (J after the artifact clamp, clamped t_B)."""
+def _stage_display_stretch(j: _F32, mask: Optional[_Bool] = None) -> _F32:
+    """Display stretch (METHOD §8), limits from masked-in pixels."""
+def _stage_chart_fill(q: _F32, mask: _Bool) -> _F32:
+    """Chart fill (METHOD §6, last paragraph)."""
+def _stage_sphere(n: int, u: _F32) -> tuple[_F32, list[int]]:
+    """Fibonacci sphere points (n, 3) as stored and the nearest point's index per row of u."""

@@ -64,6 +64,8 @@ class Entry:
     charts: list[Chart] = field(default_factory=list)
     restore: dict = field(default_factory=dict)
     water_mask: str | None = None
+    #: the entry's ``path`` as written in the manifest (``path`` is it joined to the manifest's folder)
+    manifest_path: str = ""
 
 
 def _box(v, what: str) -> tuple[int, int, int, int]:
@@ -131,7 +133,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
     unknown = sorted(set(restore) - _METHOD_KEYS)
     if unknown:
         raise ManifestError(f"{label}: unknown restore keyword(s) {unknown} (known: {sorted(_METHOD_KEYS)})")
-    return Entry(label, path, distance, wt, charts, dict(restore), water_mask)
+    return Entry(label, path, distance, wt, charts, dict(restore), water_mask, raw["path"])
 
 
 def load_manifest(path: str) -> tuple[list[Entry], list[str]]:
@@ -364,7 +366,8 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
     for name in types:
         types[name]["psi_deg"] = _finite(_mean([r["psi_deg"] for r in rows if r["method"] == f"type:{name}"]))
     return {
-        "image": entry.label, "path": entry.path, "width": w, "height": h, "orientation": meta.orientation,
+        "image": entry.label, "path": entry.path, "manifest_path": entry.manifest_path, "width": w, "height": h,
+        "orientation": meta.orientation,
         "water_type": res.water_type, "veiling_light": [float(v) for v in res.veiling_light],
         "flags": list(res.flags), "charts": rows, "rho": rho, "water_type_truth": truth, "types": types,
         "method": method, "profiles": profiles,
@@ -426,8 +429,11 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
     def put_csv(tmp):
         with open(tmp, "w", newline="", encoding="utf-8") as f:
             wr = csv.writer(f)
-            wr.writerow(["image", "chart", "method", "psi_deg", "rho_B", "rho_R", "water_type", "true_water_type"])
+            # image: the entry's path as written in the manifest (to join on); label: images[K] (path)
+            wr.writerow(["image", "label", "chart", "method", "psi_deg", "rho_B", "rho_R", "water_type",
+                         "true_water_type"])
             for r in results:
+                key = (r["manifest_path"], r["image"])
                 truth = r["water_type_truth"] or {}
                 chosen = r["water_type"]
                 seen = set()
@@ -440,14 +446,14 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
                 for row in r["charts"]:
                     rho = r["rho"].get(row["method"], {})
                     seen.add(row["method"])
-                    wr.writerow([r["image"], row["chart"], row["method"], _fmt(row["psi_deg"]), _fmt(rho.get("rho_B")),
+                    wr.writerow([*key, row["chart"], row["method"], _fmt(row["psi_deg"]), _fmt(rho.get("rho_B")),
                                  _fmt(rho.get("rho_R")), chosen_by(row["method"]), truth.get("true", "")])
                 for m, rho in r["rho"].items():
                     if m not in seen:
-                        wr.writerow([r["image"], "", m, "", _fmt(rho["rho_B"]), _fmt(rho["rho_R"]), chosen_by(m),
+                        wr.writerow([*key, "", m, "", _fmt(rho["rho_B"]), _fmt(rho["rho_R"]), chosen_by(m),
                                      truth.get("true", "")])
                 if not r["charts"] and not r["rho"]:
-                    wr.writerow([r["image"], "", "", "", "", "", chosen, truth.get("true", "")])
+                    wr.writerow([*key, "", "", "", "", "", chosen, truth.get("true", "")])
 
     atomic_write_bytes(os.path.join(out_dir, "results.csv"), put_csv)
     return doc

@@ -184,3 +184,36 @@ def test_end_to_end_on_a_rendered_scene(tmp_path):
     for e in doc["images"]:
         assert e["image"] in page
     assert page.count("chart 1") >= 2 and page.count("<section") == 2
+
+
+def test_results_csv_joins_to_the_manifest_by_path(tmp_path):
+    """results.csv's ``image`` is each entry's ``path`` exactly as the
+    manifest writes it (relative, with ``./``, absolute), so the table joins
+    to the manifest on it; ``label`` tells apart an image listed twice."""
+    (tmp_path / "sub").mkdir()
+    a = _scene(tmp_path, "a.png", h=60, w=80, water_type="3C", seed=1)
+    b = _scene(tmp_path, "sub/b.png", h=60, w=80, water_type="II", seed=2)
+    b["path"] = "./sub/b.png"
+    c = _scene(tmp_path, "c.png", h=60, w=80, water_type="II", seed=3)
+    c["path"] = str(tmp_path / "c.png")
+    again = dict(a, restore={"guided_radius": 5})
+    manifest = [a, b, c, again]
+    (tmp_path / "m.json").write_text(json.dumps({"images": manifest}))
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "evaluate", str(tmp_path / "m.json"), "-o", str(out),
+                        "--water-type", "3C,II"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rows = list(csv.DictReader(open(out / "results.csv", newline="", encoding="utf-8")))
+    assert list(rows[0])[:2] == ["image", "label"]
+    by_path: dict[str, list[dict]] = {}
+    for row in rows:
+        by_path.setdefault(row["image"], []).append(row)
+    assert set(by_path) == {"a.png", "./sub/b.png", str(tmp_path / "c.png")}
+    for k, entry in enumerate(manifest):
+        joined = [row for row in by_path[entry["path"]] if row["label"] == f"images[{k}] ({entry['path']})"]
+        # one row per method and baseline on the entry's one chart
+        assert {row["method"] for row in joined} == {"input", "stretch", "grayworld", "revised", "paper",
+                                                     "type:3C", "type:II"}, (k, joined)
+        assert all(row["true_water_type"] == entry["water_type"] and row["chart"] == "chart 1" for row in joined)
+    # the twice-listed image: two entries under one path, told apart by label
+    assert {row["label"] for row in by_path["a.png"]} == {"images[0] (a.png)", "images[3] (a.png)"}
