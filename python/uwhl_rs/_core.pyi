@@ -5,7 +5,7 @@ built module with mypy's stubtest."""
 
 import os
 from pathlib import Path
-from typing import Any, Literal, Optional, Union, final
+from typing import Any, ClassVar, Literal, Optional, Union, final
 
 import numpy as np
 import numpy.typing as npt
@@ -23,7 +23,7 @@ __all__ = [
     "Params", "_after_fork", "_stage_stretch", "_stage_guide", "_stage_edge_map", "_stage_veiling",
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
-    "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
+    "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
     "options_help", "check_combination", "collect_jobs", "name_jobs", "carry_metadata", "remove_stale_temps",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
@@ -51,8 +51,15 @@ class UwhlError(ValueError):
 class ImageError(UwhlError):
     """The image is unusable: shape, size, NaN/Inf, range, constant."""
 
+    kind: ClassVar[str]
+
 class ParameterError(UwhlError):
     """A parameter, mask or water type is invalid."""
+
+    kind: ClassVar[str]
+
+def output_suffixes(format: str = "jpg", contact: bool = False) -> list[str]:
+    """What follows NAME in the names of an input's outputs, in writing order, without the sidecar's .json."""
 
 # ---- the option table ----
 

@@ -324,7 +324,7 @@ impl Prepared {
 /// The suffixes of an input's outputs after `NAME`, in writing order (the
 /// sidecar comes last, added by `crate::files::commit`).
 pub fn output_suffixes(opts: &Settings) -> Vec<String> {
-    vec![format!(".{}", opts.format.extension()), "_t.png".into(), "_t_color.png".into()]
+    crate::files::settings::output_suffixes(opts.format, false)
 }
 
 /// The first half of [`process`]: the output names claimed (or the input

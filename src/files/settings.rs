@@ -30,6 +30,11 @@ impl Format {
         }
     }
 
+    /// The format called `name` on the command line (`jpg`, `png`, `tiff`).
+    pub fn from_name(name: &str) -> Option<Format> {
+        [Format::Jpg, Format::Png, Format::Tiff].into_iter().find(|f| f.name() == name)
+    }
+
     /// The file extension of the restored image.
     pub fn extension(self) -> &'static str {
         match self {
@@ -38,6 +43,19 @@ impl Format {
             Format::Tiff => "tif",
         }
     }
+}
+
+/// What follows `NAME` in the names of an input's outputs, in writing
+/// order: the photo, t_B as 16-bit PNG, t_B colour-mapped, and the contact
+/// sheet when asked for (the Python command's `--contact-sheet`). The
+/// sidecar's `.json` comes last, added by `crate::files::commit`
+/// (docs/OUTPUTS.md).
+pub fn output_suffixes(format: Format, contact: bool) -> Vec<String> {
+    let mut s = vec![format!(".{}", format.extension()), "_t.png".into(), "_t_color.png".into()];
+    if contact {
+        s.push("_sheet.png".into());
+    }
+    s
 }
 
 /// Input preprocessing (`--preprocess`, METHOD §2).
@@ -244,3 +262,31 @@ pub fn water_types(list: &mut Vec<WaterChoice>, v: &str) -> Result<(), Failure> 
     Ok(())
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_names_follow_the_format_and_the_sheet() {
+        assert_eq!(output_suffixes(Format::Tiff, false), [".tif", "_t.png", "_t_color.png"]);
+        assert_eq!(output_suffixes(Format::Jpg, true), [".jpg", "_t.png", "_t_color.png", "_sheet.png"]);
+        assert_eq!(Format::from_name("png"), Some(Format::Png));
+        assert_eq!(Format::from_name("tif"), None);
+    }
+
+    #[test]
+    fn method_keys_land_in_params_and_file_keys_in_the_settings() {
+        let mut s = Settings::default();
+        assert!(s.set("guided_eps", Val::Float(0.01)).unwrap());
+        assert!(s.set("veiling_light", Val::Rgb([0.1, 0.2, 0.3])).unwrap());
+        assert!(s.set("quality", Val::Int(80)).unwrap());
+        assert!(!s.set("quiet", Val::On).unwrap());
+        assert_eq!(s.params.guided_eps, 0.01);
+        assert_eq!(s.params.veiling_light, Some([0.1f32, 0.2, 0.3]));
+        assert_eq!(s.veiling_light, Some([0.1, 0.2, 0.3]));
+        assert_eq!(s.quality, 80);
+        // a value of the wrong kind for a method key is the core's parameter error
+        assert_eq!(s.set("t_scale", Val::Text("x".into())).unwrap_err().kind, Kind::Usage);
+    }
+}

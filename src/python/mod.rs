@@ -687,6 +687,16 @@ fn _after_fork() {
 }
 
 /// The native module `uwhl_rs._core`.
+/// What follows NAME in the names of an input's outputs, in writing order,
+/// without the sidecar's `.json` (`crate::files::settings::output_suffixes`).
+#[pyfunction]
+#[pyo3(signature = (format="jpg", contact=false))]
+fn output_suffixes(format: &str, contact: bool) -> PyResult<Vec<String>> {
+    let f = crate::files::settings::Format::from_name(format)
+        .ok_or_else(|| ParameterError::new_err(format!("format must be one of jpg, png, tiff, not {format:?}")))?;
+    Ok(crate::files::settings::output_suffixes(f, contact))
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -701,6 +711,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("UwhlError", py.get_type::<UwhlError>())?;
     m.add("ImageError", py.get_type::<ImageError>())?;
     m.add("ParameterError", py.get_type::<ParameterError>())?;
+    // each exception carries its failure kind, the name of its exit code
+    // (crate::error::Kind), so that the commands read it instead of guessing
+    py.get_type::<ImageError>().setattr("kind", crate::error::Kind::Input.name())?;
+    py.get_type::<ParameterError>().setattr("kind", crate::error::Kind::Usage.name())?;
+    m.add_function(wrap_pyfunction!(output_suffixes, m)?)?;
     let table = PyList::empty(py);
     for (n, br, bg) in JERLOV {
         table.append((n, br, bg))?;
