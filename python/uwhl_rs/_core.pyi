@@ -1,6 +1,6 @@
-"""Type stubs of the native module uwhl_rs._core (built from src/python.rs,
-src/python_color.rs and, with the Cargo feature ``internals``,
-src/python_hooks.rs). tests/python/test_stubs.py checks them against the
+"""Type stubs of the native module uwhl_rs._core (built from src/python/mod.rs,
+src/python/color.rs and, with the Cargo feature ``internals``,
+src/python/hooks.rs). tests/python/test_stubs.py checks them against the
 built module with mypy's stubtest."""
 
 import os
@@ -32,7 +32,7 @@ __all__ = [
 __version__: str
 #: (name, beta_BR, beta_BG) of the ten Jerlov water types (METHOD §4)
 JERLOV_TABLE: list[tuple[str, float, float]]
-#: the one option table (src/options.rs): dicts with key, flag, short, metavar,
+#: the one option table (src/files/options.rs): dicts with key, flag, short, metavar,
 #: kind, min/max/gt/choices, default, help, group, faces, method
 OPTIONS: list[dict[str, Any]]
 #: (code, name, meaning) of both commands' exit codes

@@ -1,4 +1,4 @@
-//! `uwhl-rs demo`: renders the crate's scene (`src/scene.rs`) with a known
+//! `uwhl-rs demo`: renders the crate's scene (`src/cli/scene.rs`) with a known
 //! water type, restores it and reports true against estimated, as
 //! `uwhl demo` does with the Python package's scene.
 

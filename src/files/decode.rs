@@ -212,7 +212,7 @@ pub fn decode<R: BufRead + Seek>(
 ) -> Result<Decoded, Failure> {
     let (img, format, orientation, icc) = open(reader, limits, true, check)?;
     let (height, width) = (img.height() as usize, img.width() as usize);
-    // a profile other than sRGB: its codes go to the working space through it (src/icc.rs)
+    // a profile other than sRGB: its codes go to the working space through it (src/files/icc.rs)
     let (profile, convert) = match icc.as_deref().map(crate::files::icc::classify) {
         None => (None, false),
         Some(crate::files::icc::Profile::Srgb(name)) => (Some((name, false, None)), false),

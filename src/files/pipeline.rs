@@ -398,7 +398,7 @@ fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), op
         transmission_color: &tc_path,
     };
     // the input's EXIF and XMP, and the restoration's record, into the photo
-    // (src/metadata.rs); the record is made of the sidecar's fields
+    // (src/files/metadata.rs); the record is made of the sidecar's fields
     let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
     let preview = sidecar(&job.input, &paths, &source, &res, opts, Seconds::default());
     let (image_bytes, carried) =

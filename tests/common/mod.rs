@@ -1,5 +1,5 @@
 //! Shared helpers of the Rust tests and benches: the crate's one scene
-//! generator (`src/scene.rs`, included by path) and the statistics of
+//! generator (`src/cli/scene.rs`, included by path) and the statistics of
 //! METHOD §11.
 #![allow(dead_code, unused_imports)]
 

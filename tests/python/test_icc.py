@@ -1,5 +1,5 @@
 """Inputs tagged with an ICC profile other than sRGB are converted to the
-linear working space (src/icc.rs, moxcms) by both commands; sRGB-tagged
+linear working space (src/files/icc.rs, moxcms) by both commands; sRGB-tagged
 ones are read exactly as untagged ones. The forward conversion in these
 tests is LittleCMS's (Pillow's ImageCms), which shares no code with moxcms."""
 

@@ -1,4 +1,4 @@
-"""The photograph's metadata in the corrected photo (src/metadata.rs,
+"""The photograph's metadata in the corrected photo (src/files/metadata.rs,
 docs/OUTPUTS.md "Metadata"), for both commands: EXIF (camera, exposure,
 time, GPS) and XMP carried over, Orientation and size tags made true of
 the written pixels, the restoration recorded in XMP, and a photo with

@@ -1,4 +1,4 @@
-"""One definition of each parameter (src/options.rs): the Python API, the
+"""One definition of each parameter (src/files/options.rs): the Python API, the
 command, the stubs and the docs agree with the core's table, and the
 names of flags and timing stages are the documented ones."""
 
