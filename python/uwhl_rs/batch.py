@@ -15,6 +15,7 @@ Dask, distributed, fsspec, s3fs and pandas are the optional extra
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import sys
@@ -276,7 +277,10 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
     core releases it), and inputs settle in order; on an interrupt the
     write in flight finishes (its files appear whole or not at all) and
     counts."""
-    with tempfile.TemporaryDirectory(prefix="uwhl-run-", dir=scratch_root()) as scratch:
+    # a scratch folder only for copies of URL inputs and outputs bound for storage
+    remote = any(is_url(it.input) or is_url(it.out_dir) for it in items)
+    with tempfile.TemporaryDirectory(prefix="uwhl-run-", dir=scratch_root()) if remote \
+            else contextlib.nullcontext("") as scratch:
         ctx = context(opts, so, overwrite, reuse, reuse_water_mask, scratch)
         if jobs == 1:
             with ThreadPoolExecutor(max_workers=1, thread_name_prefix="uwhl-write") as writer:

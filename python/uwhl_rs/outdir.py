@@ -107,7 +107,7 @@ class SummaryWriter:
         self._f = None
 
     def add(self, row: dict) -> None:
-        """One input's row (a ``uwhl_rs.batch`` row): a skipped input's
+        """One input's row (a ``uwhl_rs.tasks`` row): a skipped input's
         fields come from its sidecar when the row lacks them."""
         r = dict(row)
         if r.get("status") == "skipped" and r.get("water_type") is None:

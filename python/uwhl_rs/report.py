@@ -303,7 +303,7 @@ def write_report(out_dir, *, storage_options: dict | None = None, workers: int |
     ``seconds``, ``path``). Thumbnails newer than their source are kept, so
     a rerun after more inputs only makes the new ones; the page is written
     last, in one step. Storage that cannot be reached raises
-    ``batch.BatchError``; a missing local folder, FileNotFoundError."""
+    ``BatchError``; a missing local folder, FileNotFoundError."""
     out_dir = os.fspath(out_dir)
     return on_storage(out_dir, lambda: _write_report(Folder(out_dir, storage_options), workers, side, page_size),
                       keep=(FileNotFoundError,))
