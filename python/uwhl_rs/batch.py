@@ -224,7 +224,8 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
     c, started = None, None
     try:
         if client is None and dask is None:
-            _run_here(plan.items, opts, so, overwrite, reuse_estimates, reuse_water_mask, jobs, settle)
+            _run_here(plan.items, opts, so, overwrite, reuse_estimates, reuse_water_mask, jobs, settle,
+                      set() if overwrite else plan.done)
         else:
             groups = _groups(plan, overwrite, reuse_estimates, settle)
             if groups:
@@ -270,18 +271,26 @@ def _groups(plan: Plan, overwrite: bool, reuse: int | None, settle) -> list[list
 
 
 def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: int | None, reuse_water_mask: bool,
-              jobs: int, settle) -> None:
+              jobs: int, settle, done: set) -> None:
     """The batch in this process, one sequence over every input with
     ``reuse`` (as uwhl-rs runs it). With ``jobs`` 1, one input is written
     (the encoders release the GIL) while the next is read and restored (the
     core releases it), and inputs settle in order; on an interrupt the
     write in flight finishes (its files appear whole or not at all) and
-    counts."""
+    counts. Inputs in ``done`` whose outputs go to object storage are
+    skipped from the plan's one listing, without a request each; local
+    ones are skipped by their claim."""
     # a scratch folder only for copies of URL inputs and outputs bound for storage
     remote = any(is_url(it.input) or is_url(it.out_dir) for it in items)
     with tempfile.TemporaryDirectory(prefix="uwhl-run-", dir=scratch_root()) if remote \
             else contextlib.nullcontext("") as scratch:
         ctx = context(opts, so, overwrite, reuse, reuse_water_mask, scratch)
+
+        def start(it: Item):
+            if it.index in done and is_url(it.out_dir):
+                return skipped_row(it, join(it.out_dir, it.name + ".json"))
+            return begin(it, ctx)
+
         if jobs == 1:
             with ThreadPoolExecutor(max_workers=1, thread_name_prefix="uwhl-write") as writer:
                 pending = []  # (item, future of its write): the previous input
@@ -295,7 +304,7 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
 
                 try:
                     for it in items:
-                        step = begin(it, ctx)
+                        step = start(it)
                         settle_pending()
                         if callable(step):
                             pending.append((it, writer.submit(step)))
@@ -306,7 +315,7 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
             return
 
         def one(it: Item) -> dict:
-            step = begin(it, ctx)
+            step = start(it)
             return step() if callable(step) else step
 
         with ThreadPoolExecutor(max_workers=jobs) as pool:
@@ -318,6 +327,7 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
                 for f in futures:
                     f.cancel()
                 raise
+
 
 def restore_many(inputs, output: str, *, client=None, dask: str | None = None, storage_options: dict | None = None,
                  overwrite: bool = False, reuse_estimates: int | None = None, reuse_water_mask: bool = False,
