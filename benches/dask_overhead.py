@@ -19,7 +19,8 @@ import tempfile
 import time
 
 from uwhl_rs import batch, synth
-from uwhl_rs.io import write_image
+from uwhl_rs import cluster as dask_cluster
+from uwhl_rs.images import write_image
 
 
 def main() -> None:
@@ -61,7 +62,7 @@ def main() -> None:
     best("batch in this process", in_process)
     for n in (1, 2):
         t = time.perf_counter()
-        client, cluster, threads = batch._connect(None, f"local:{n}", None)
+        client, cluster, threads = dask_cluster.connect(None, f"local:{n}", None)
         start = time.perf_counter() - t
         try:
             # one warm-up photo: the workers import the package once

@@ -34,7 +34,7 @@ import tempfile
 import numpy as np
 
 import uwhl_rs
-from uwhl_rs import io as uio
+from uwhl_rs import images as uio
 from uwhl_rs import synth
 
 #: keywords added to every restore call and flags to every command (--method)

@@ -81,7 +81,7 @@ def run_face(face: str, kills: int, frames: int, seed: int) -> tuple[int, int, l
     for k in range(frames):
         img, _ = synth.demo_input(360, 480, water_type=["II", "3C", "7C"][k % 3], seed=k)
         name = f"frame{k:03d}.png"
-        uwhl_rs.io.write_image(os.path.join(src, name), img, bits=8, encoding="linear")
+        uwhl_rs.images.write_image(os.path.join(src, name), img, bits=8, encoding="linear")
         inputs[name] = os.path.join(src, name)
     exe = binary()
     env = dict(os.environ)

@@ -47,7 +47,7 @@ def timing(sizes, repeat: int) -> None:
 
 
 def agreement(quick: bool) -> None:
-    from uwhl_rs.io import read_image
+    from uwhl_rs.images import read_image
 
     cases = []
     if not quick and os.path.isdir(DATA):

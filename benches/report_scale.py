@@ -17,7 +17,7 @@ import tempfile
 import time
 
 from uwhl_rs import batch, ifdo, report, synth
-from uwhl_rs.io import write_image
+from uwhl_rs.images import write_image
 
 
 def main() -> None:

@@ -85,7 +85,7 @@ def main() -> int:
             for n, noise in enumerate(NOISE):
                 img = synth.render(clean, distance, name, beta_b=0.2, noise=noise, seed=seed * 10 + n)
                 stem = f"{kind}_{name}_n{n}"
-                uwhl_rs.io.write_image(os.path.join(a.out, stem + ".png"), img, bits=16, encoding="linear")
+                uwhl_rs.images.write_image(os.path.join(a.out, stem + ".png"), img, bits=16, encoding="linear")
                 d = np.where(np.isfinite(distance), distance, 0).astype(np.float32)
                 np.save(os.path.join(a.out, stem + ".npy"), d)
                 images.append({"path": stem + ".png", "distance": stem + ".npy", "water_type": name,
@@ -93,7 +93,7 @@ def main() -> int:
                 entry = dict(images[-1])
                 water = ~np.isfinite(distance)
                 if water.any():
-                    uwhl_rs.io.write_image(os.path.join(a.out, stem + "_water.png"),
+                    uwhl_rs.images.write_image(os.path.join(a.out, stem + "_water.png"),
                                            np.repeat(water[:, :, None], 3, axis=2).astype(np.float32), bits=8,
                                            encoding="linear")
                     entry["water_mask"] = stem + "_water.png"

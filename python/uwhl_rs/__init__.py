@@ -20,7 +20,18 @@ import os as _os
 import numpy as np
 
 from . import _core
-from ._core import ImageError, ParameterError, Restoration, UwhlError
+from ._core import Restoration
+from .errors import (
+    BatchError,
+    CommandError,
+    IfdoError,
+    ImageError,
+    ImageReadError,
+    ImageTooLargeError,
+    ManifestError,
+    ParameterError,
+    UwhlError,
+)
 
 __all__ = [
     "restore",
@@ -37,6 +48,11 @@ __all__ = [
     "restore_file",
     "ImageMeta",
     "ImageReadError",
+    "ImageTooLargeError",
+    "BatchError",
+    "IfdoError",
+    "ManifestError",
+    "CommandError",
     "FileResult",
     "DEFAULTS",
     "STEP_KEYS",
@@ -65,14 +81,13 @@ WATER_TYPES: dict[str, tuple[float, float]] = {n: (br, bg) for n, br, bg in _cor
 # `import uwhl_rs` stays fast (rawpy, imageio and Pillow load only when used)
 _LAZY = {
     "synth": None,
-    "io": None,
+    "images": None,
     "files": None,
     "cli": None,
-    "read_image": "io",
-    "to_srgb": "io",
-    "write_image": "io",
-    "ImageMeta": "io",
-    "ImageReadError": "io",
+    "read_image": "images",
+    "to_srgb": "images",
+    "write_image": "images",
+    "ImageMeta": "images",
     "restore_file": "files",
     "FileResult": "files",
 }

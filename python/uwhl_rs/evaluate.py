@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _core
+from .errors import ManifestError
 
 #: Profiles ``--method`` can name (METHOD §12), the default first.
 METHODS = tuple(next(o["choices"] for o in _core.OPTIONS if o["key"] == "method"))
@@ -38,10 +39,6 @@ _ENTRY_KEYS = {"path", "distance", "water_type", "water_mask", "charts", "restor
 _CHART_KEYS = {"name", "gray_patches", "region"}
 _TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
 _METHOD_KEYS = {o["key"] for o in _core.OPTIONS if o["method"]}
-
-
-class ManifestError(ValueError):
-    """A manifest entry that cannot be evaluated; the message names it."""
 
 
 @dataclass
@@ -297,7 +294,7 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
     module documentation). Raises :class:`ManifestError` for a box outside
     the image or an unreadable distance map, and what ``restore`` raises."""
     import uwhl_rs
-    from .io import read_image
+    from .images import read_image
 
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, not {method!r}")
@@ -318,10 +315,10 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
                 mask[y0:y1, x0:x1] = False
     kwargs = {**restore_kwargs, **entry.restore, "method": method}
     if entry.water_mask:
-        from .files import _read_mask
+        from .files import read_mask
 
         try:
-            kwargs["water_mask"] = _read_mask(entry.water_mask, (h, w), "water_mask")
+            kwargs["water_mask"] = read_mask(entry.water_mask, (h, w), "water_mask")
         except ValueError as e:
             raise ManifestError(f"{entry.label}: {e}") from None
     res = uwhl_rs.restore(img, mask=mask, **kwargs)
@@ -410,7 +407,7 @@ def summarize(results: list[dict]) -> dict:
 def write_results(out_dir: str, manifest: str, results: list[dict], problems: list[str], parameters: dict) -> dict:
     """Writes ``results.json`` and ``results.csv`` into ``out_dir``; returns the JSON document."""
     import uwhl_rs
-    from .io import atomic_write_bytes
+    from .images import atomic_write_bytes
 
     os.makedirs(out_dir, exist_ok=True)
     doc = {
@@ -470,7 +467,7 @@ def _png_data_uri(img: np.ndarray, max_side: int = 480) -> str:
     """An sRGB PNG data URI of a linear HxWx3 image or an 8-bit one, shrunk to max_side."""
     import base64
 
-    from .io import quantize
+    from .images import quantize
 
     h, w = img.shape[:2]
     s = max(1, math.ceil(max(h, w) / max_side))
@@ -560,7 +557,7 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
     network) with the summary table and, per image, the input with its
     chart boxes, the restored image, t_B, the distance map, the psi-bar bars,
     the -ln t_B scatter and the candidate types."""
-    from .io import atomic_write_bytes
+    from .images import atomic_write_bytes
 
     by_label = {e.label: e for e in entries}
     methods = ["input", "stretch", "grayworld", method, *[m for m in compare if m != method]]

@@ -13,16 +13,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import uwhl_rs
+
 from . import _core
-from .io import (
+from .errors import ImageReadError, ImageTooLargeError
+from .images import (
     ImageMeta,
-    ImageReadError,
-    ImageTooLargeError,
-    _display_linear,
-    _write_image_temp,
     colorize_transmission,
+    display_linear,
     read_image,
     to_srgb,
+    write_image_temp,
 )
 
 __all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "FORMATS"]
@@ -75,7 +76,7 @@ def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = Fals
     return p
 
 
-def _read_mask(mask, shape, what: str) -> np.ndarray | None:
+def read_mask(mask, shape, what: str) -> np.ndarray | None:
     """A bool mask from an array or an image file (nonzero = True)."""
     if mask is None:
         return None
@@ -125,7 +126,7 @@ def input_need(h: int, w: int, bpp: int, oriented: bool, *, half_size: bool = Fa
 def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwargs) -> FileResult:
     """Restore one photograph and write its outputs (docs/OUTPUTS.md).
 
-    Reads ``in_path`` (raw or JPEG/PNG/TIFF, see :func:`uwhl_rs.io.read_image`
+    Reads ``in_path`` (raw or JPEG/PNG/TIFF, see :func:`uwhl_rs.images.read_image`
     for ``preprocess``, ``half_size``, ``max_pixels``), optionally shrinks it
     so the longer side is at most ``max_side``, runs :func:`uwhl_rs.restore`
     with ``restore_kwargs`` (``mask``/``water_mask`` may be bool arrays or
@@ -144,10 +145,10 @@ def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwarg
     Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
     the paths written and the sidecar dict).
     """
-    return _restore_staged(in_path, out_dir, **kwargs)()
+    return restore_staged(in_path, out_dir, **kwargs)()
 
 
-def _restore_staged(
+def restore_staged(
     in_path: str | os.PathLike,
     out_dir: str | os.PathLike,
     *,
@@ -220,9 +221,7 @@ def _restore_staged(
 
 def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preprocess, half_size, max_side, max_pixels, mask,
                       water_mask, contact, sequence, restore_kwargs, t_start, base, label) -> Callable[[], FileResult]:
-    """The body of :func:`_restore_staged` once the names are claimed."""
-    import uwhl_rs
-
+    """The body of :func:`restore_staged` once the names are claimed."""
     paths = output_paths(out_dir, claim.name, format, contact)
     budget = restore_kwargs.get("max_memory") or _core.default_max_memory()
     masks = int(mask is not None) + int(water_mask is not None)
@@ -240,8 +239,8 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
     image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels,
                              _on_header=plan)
     full_hw = image.shape[:2]
-    m = _read_mask(mask, full_hw, "mask")
-    wm = _read_mask(water_mask, full_hw, "water_mask")
+    m = read_mask(mask, full_hw, "mask")
+    wm = read_mask(water_mask, full_hw, "water_mask")
     s = _max_side_factor(*full_hw, max_side)
     if s > 1:
         image = _core._downscale(image, s)
@@ -257,16 +256,16 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
     def write() -> FileResult:
         t_write = time.perf_counter()
         try:
-            shown = _display_linear(res.image, meta)
+            shown = display_linear(res.image, meta)
             encoding = "linear" if meta.linear else "srgb"
             # the three encoders (Pillow, the core's PNG) release the GIL: write them at once
             with ThreadPoolExecutor(max_workers=3) as pool:
                 futures = [
-                    pool.submit(_write_image_temp, claim, 0, paths["image"], shown, bits=bits, encoding=encoding,
+                    pool.submit(write_image_temp, claim, 0, paths["image"], shown, bits=bits, encoding=encoding,
                                 quality=quality),
-                    pool.submit(_write_image_temp, claim, 1, paths["transmission"], res.transmission, bits=16,
+                    pool.submit(write_image_temp, claim, 1, paths["transmission"], res.transmission, bits=16,
                                 encoding="srgb"),
-                    pool.submit(_write_image_temp, claim, 2, paths["transmission_color"],
+                    pool.submit(write_image_temp, claim, 2, paths["transmission_color"],
                                 colorize_transmission(res.transmission)),
                 ]
                 wait(futures)
@@ -277,7 +276,7 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
             t_sheet = time.perf_counter()
             if contact:
                 sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
-                temps.append(_write_image_temp(claim, 3, paths["contact_sheet"], sheet))
+                temps.append(write_image_temp(claim, 3, paths["contact_sheet"], sheet))
             t_sheet = time.perf_counter() - t_sheet
             sidecar = {
                 "input": label,
@@ -340,8 +339,8 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
     return write
 
 
-# restore_file takes exactly _restore_staged's keywords: show them (help(), IDEs)
-_signature = inspect.signature(_restore_staged)
+# restore_file takes exactly restore_staged's keywords: show them (help(), IDEs)
+_signature = inspect.signature(restore_staged)
 restore_file.__signature__ = _signature.replace(
     parameters=[p for p in _signature.parameters.values() if not p.name.startswith("_")],
     return_annotation="FileResult",
@@ -363,10 +362,8 @@ def _record_fields(sidecar: dict) -> dict:
 def _parameters(restore_kwargs: dict, **given) -> dict:
     """The sidecar's ``parameters``: every option as asked for (defaults
     filled in from the core's table), then any other keyword passed."""
-    from . import method_steps
-
     p = {
-        **method_steps(**restore_kwargs),
+        **uwhl_rs.method_steps(**restore_kwargs),
         "water_types": _jsonable(restore_kwargs.get("water_types")),
         "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
         "mask": _mask_label(given["mask"]),
@@ -429,7 +426,6 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
     full image's veiling light A and water region, so they show what each
     type does, not a re-estimate.
     """
-    import uwhl_rs
     from PIL import Image, ImageDraw, ImageFont
 
     kw = dict(restore_kwargs or {})

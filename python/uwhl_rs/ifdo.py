@@ -23,7 +23,13 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import uuid as _uuid
+from pathlib import Path
 from typing import Any
+from urllib.parse import quote
+
+from .errors import IfdoError
+from .outdir import collect_sidecars
+from .storage import Folder, on_storage
 
 #: the iFDO version written, and the schema it is checked against
 IFDO_VERSION = "v2.0.1"
@@ -49,11 +55,6 @@ FROM_USER = tuple(k for k in REQUIRED_HEADER if k not in DERIVED + FROM_PHOTOS)
 
 #: iFDO's default time format (``image-datetime-format``), to the millisecond
 _TIME_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
-
-
-class IfdoError(ValueError):
-    """The header cannot make a valid iFDO (a field missing or ill-typed),
-    or the folder holds no restored photo."""
 
 
 def load_header(path: str) -> dict:
@@ -133,18 +134,10 @@ def _agent(doc: dict) -> dict:
 # ------------------------------------------------------------------ storage
 
 
-def _is_url(path: str) -> bool:
-    from .batch import is_url
-
-    return is_url(path)
-
-
 def _sidecars(folder) -> tuple[list[tuple[str, dict, _dt.datetime]], list[str]]:
-    """The sidecars of an output folder (``store.Folder``): (path relative
+    """The sidecars of an output folder (``storage.Folder``): (path relative
     to it, the document, when it was written, in UTC), in path order, and
     the problems."""
-    from .report import collect_sidecars
-
     photos, problems = collect_sidecars(folder)
     now = _dt.datetime.now(_dt.timezone.utc)
     return [(p.sidecar, p.doc, now if p.modified is None else _dt.datetime.fromtimestamp(p.modified, _dt.timezone.utc))
@@ -154,8 +147,6 @@ def _sidecars(folder) -> tuple[list[tuple[str, dict, _dt.datetime]], list[str]]:
 def _folder_uri(folder) -> str:
     if folder.is_url:
         return folder.display + "/"
-    from pathlib import Path
-
     return Path(folder.display).as_uri() + "/"
 
 
@@ -184,8 +175,6 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
     notes to show (photos left out, times taken as UTC). ``handle_base``:
     the URL under which the folder is published (items' ``image-handle``
     is it joined with their path); by default the photos' own URLs."""
-    from .store import Folder
-
     check_header(header)
     folder = Folder(out, storage_options)
     found, notes = _sidecars(folder)
@@ -310,8 +299,6 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
 
 
 def _quote(part: str) -> str:
-    from urllib.parse import quote
-
     return quote(part, safe="")
 
 
@@ -329,8 +316,6 @@ def write_ifdo(out: str, header: dict | str, *, handle_base: str | None = None, 
     file_format = file_format or "yaml"
     if file_format not in ("yaml", "json"):
         raise IfdoError(f"file_format must be 'yaml' or 'json', not {file_format!r}")
-    from .store import on_storage
-
     return on_storage(out, _write, out, header, handle_base, storage_options, file_format, keep=(IfdoError,))
 
 
@@ -347,7 +332,5 @@ def _write(out: str, header: dict, handle_base, storage_options, file_format: st
                 return True
 
         text = yaml.dump(doc, Dumper=_Plain, sort_keys=False, allow_unicode=True, width=120)
-    from .store import Folder
-
     where = Folder(out, storage_options).write(f"ifdo.{file_format}", text.encode("utf-8"))
     return {"path": where, "items": len(doc["image-set-items"]), "notes": notes}

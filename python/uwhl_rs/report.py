@@ -1,7 +1,7 @@
 """``uwhl report OUTDIR``: one page for a whole batch (docs/REPORT.md).
 
 Reads the sidecars under OUTDIR (a local folder or an object-storage URL,
-``uwhl_rs.store``), writes small thumbnails once
+``uwhl_rs.storage``), writes small thumbnails once
 (``OUTDIR/report/thumbs/``) and ``OUTDIR/report/index.html``: the photos
 that need a look first (their flags), a histogram of the water types, the
 water type, A and the choice's score over the sequence, and a grid of
@@ -19,96 +19,25 @@ import posixpath
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
+import uwhl_rs
+
+from .images import RAW_EXTENSIONS, read_image, to_srgb
+from .outdir import REPORT_DIR, Photo, collect_sidecars, failed_inputs
+from .storage import Folder, is_url, on_storage, read_bytes
+
 __all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE"]
 
-#: the report's folder inside OUTDIR
-REPORT_DIR = "report"
 #: the longer side of a thumbnail, in pixels
 THUMB_SIDE = 256
 #: thumbnails per page of the grid
 PAGE_SIZE = 120
 
-#: flags that say something the operator should look at (``estimates_reused`` is the plan of a sequence)
-ROUTINE_FLAGS = ("estimates_reused",)
-
 _TYPE_COLORS = {"I": "#08306b", "IA": "#08519c", "IB": "#2171b5", "II": "#4292c6", "III": "#6baed6",
                 "1C": "#41ab5d", "3C": "#238b45", "5C": "#006d2c", "7C": "#8c6d31", "9C": "#5b4a1f"}
-
-
-@dataclass
-class Photo:
-    """One restored input, as its sidecar tells."""
-
-    sidecar: str  # path, relative to OUTDIR, /-separated
-    doc: dict
-    modified: float | None = None  # when the sidecar was written (seconds since the epoch)
-
-    @property
-    def folder(self) -> str:
-        return posixpath.dirname(self.sidecar)
-
-    def output(self, role: str) -> str | None:
-        """The path of an output (``image``, ``transmission_color``, ...),
-        relative to OUTDIR, or None."""
-        name = (self.doc.get("outputs") or {}).get(role)
-        return None if not name else posixpath.join(self.folder, name)
-
-    @property
-    def flags(self) -> list[str]:
-        return [f for f in self.doc.get("flags") or [] if f not in ROUTINE_FLAGS]
-
-
-def failed_inputs(out_dir, storage_options: dict | None = None) -> list[dict]:
-    """The failed rows of ``OUTDIR/summary.csv`` (inputs without a sidecar
-    to show), or none when there is no summary."""
-    import csv
-
-    from .store import Folder
-    from .summary import FILE_NAME
-
-    folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
-    try:
-        text = folder.read(FILE_NAME).decode("utf-8")
-        return [r for r in csv.DictReader(text.splitlines()) if r.get("status") == "failed"]
-    except (OSError, ValueError, csv.Error):
-        return []
-
-
-def _is_sidecar(doc) -> bool:
-    return isinstance(doc, dict) and "water_type" in doc and isinstance(doc.get("outputs"), dict) and "input" in doc
-
-
-def collect_sidecars(out_dir, storage_options: dict | None = None, *,
-                     listed: list[tuple[str, float | None]] | None = None) -> tuple[list[Photo], list[str]]:
-    """Every sidecar under ``out_dir`` (a local folder, a storage URL or a
-    ``store.Folder``; the report's own folder and hidden entries skipped),
-    in path order, and the problems (unreadable ones). ``listed``: the
-    folder's files as ``Folder.files`` gives them, when already listed."""
-    from .store import Folder
-
-    folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
-    if listed is None:
-        listed = folder.files(skip_top=(REPORT_DIR,))
-    listed = [(rel, when) for rel, when in listed if rel.endswith(".json")]
-    got = folder.read_many([rel for rel, _ in listed])
-    photos, problems = [], []
-    for rel, when in listed:
-        data = got.pop(rel)  # each document parsed, its bytes let go
-        try:
-            if isinstance(data, Exception):
-                raise data
-            doc = json.loads(data)
-        except (OSError, ValueError) as e:
-            problems.append(f"{folder.path(rel)}: cannot read ({type(e).__name__}: {e})")
-            continue
-        if _is_sidecar(doc):
-            photos.append(Photo(rel, doc, when))
-    return photos, problems
 
 
 # ---------------------------------------------------------------- thumbnails
@@ -121,10 +50,7 @@ def _open_small(path: str, side: int, storage_options: dict | None = None):
     embedded preview)."""
     from PIL import Image, ImageOps
 
-    from .io import RAW_EXTENSIONS
-    from .store import _is_url, read_bytes
-
-    if _is_url(path):
+    if is_url(path):
         with tempfile.TemporaryDirectory(prefix="uwhl-thumb-") as d:
             local = os.path.join(d, "source" + os.path.splitext(path)[1])
             with open(local, "wb") as f:
@@ -167,7 +93,6 @@ def _from_array(path: str):
     """16-bit or float files Pillow cannot make RGB of: through our reader."""
     from PIL import Image
 
-    from .io import read_image, to_srgb
 
     img, meta = read_image(path)
     s = max(1, -(-max(img.shape[:2]) // (THUMB_SIDE * 2)))
@@ -378,19 +303,13 @@ def write_report(out_dir, *, storage_options: dict | None = None, workers: int |
     ``seconds``, ``path``). Thumbnails newer than their source are kept, so
     a rerun after more inputs only makes the new ones; the page is written
     last, in one step. Storage that cannot be reached raises
-    ``batch.BatchError``; a missing local folder, FileNotFoundError."""
-    from .store import Folder, on_storage
-
+    ``BatchError``; a missing local folder, FileNotFoundError."""
     out_dir = os.fspath(out_dir)
     return on_storage(out_dir, lambda: _write_report(Folder(out_dir, storage_options), workers, side, page_size),
                       keep=(FileNotFoundError,))
 
 
 def _write_report(folder, workers, side: int, page_size: int) -> dict:
-    import uwhl_rs
-
-    from .store import _is_url
-
     t0 = time.perf_counter()
     if not folder.exists():
         raise FileNotFoundError(2, "no such folder", folder.display)
@@ -405,7 +324,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         stem = p.sidecar[:-5].replace("/", "__")
         ti, to = f"{tdir}/{stem}_in.jpg", f"{tdir}/{stem}_out.jpg"
         src_in = p.doc.get("input")
-        if src_in and not _is_url(src_in) and not os.path.isabs(src_in):
+        if src_in and not is_url(src_in) and not os.path.isabs(src_in):
             src_in = os.path.abspath(src_in)
         img = p.output("image")
         made = written_at.get(img, p.modified) if img else p.modified

@@ -518,7 +518,7 @@ def test_import_is_light():
     """`import uwhl_rs` imports neither scipy, imageio, rawpy, PIL, tifffile nor the I/O submodules."""
     code = (
         "import sys, uwhl_rs\n"
-        "mods = ('scipy', 'imageio', 'rawpy', 'PIL', 'tifffile', 'uwhl_rs.synth', 'uwhl_rs.io', 'uwhl_rs.files')\n"
+        "mods = ('scipy', 'imageio', 'rawpy', 'PIL', 'tifffile', 'uwhl_rs.synth', 'uwhl_rs.images', 'uwhl_rs.files')\n"
         "bad = [m for m in mods if m in sys.modules]\n"
         "print(','.join(bad))\n"
     )

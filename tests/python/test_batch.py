@@ -18,8 +18,9 @@ import pytest
 
 import uwhl_rs
 from datapaths import IMAGES_DIR
-from uwhl_rs import batch, synth
-from uwhl_rs.io import read_image, write_image
+from uwhl_rs import batch, storage, synth
+from uwhl_rs import cluster as dask_cluster
+from uwhl_rs.images import read_image, write_image
 
 distributed = pytest.importorskip("distributed")
 pd = pytest.importorskip("pandas")
@@ -95,7 +96,7 @@ def assert_same_outputs(a, b, fetch=None, where=True):
 @pytest.fixture(scope="module")
 def cluster():
     """Two worker processes on loopback, as ``--dask local:2`` makes them."""
-    c, cl, threads = batch._connect(None, "local:2", None)
+    c, cl, threads = dask_cluster.connect(None, "local:2", None)
     yield c, threads
     c.close()
     cl.close()
@@ -225,7 +226,7 @@ def test_a_worker_killed_mid_batch_loses_nothing(tmp_path):
     src = make_inputs(str(tmp_path / "in"), n=10, size=(360, 480), bad=False)
     local = str(tmp_path / "local")
     assert run("restore", src, "-o", local, "-q").returncode == 0
-    c, cl, threads = batch._connect(None, "local:2", None)
+    c, cl, threads = dask_cluster.connect(None, "local:2", None)
     try:
         out = str(tmp_path / "dask")
         df = _batch_with_a_kill(c, src, out, threads)
@@ -252,7 +253,7 @@ def test_a_task_that_keeps_killing_workers_is_reported_failed(tmp_path):
 
     src = make_inputs(str(tmp_path / "in"), n=6, size=(360, 480), bad=False)
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-        c, cl, threads = batch._connect(None, "local:2", None)
+        c, cl, threads = dask_cluster.connect(None, "local:2", None)
     try:
         out = str(tmp_path / "dask")
         df = _batch_with_a_kill(c, src, out, threads)
@@ -460,7 +461,7 @@ def test_s3_interrupted_outputs_without_sidecar_are_repaired(s3, inputs, local_r
             raise ConnectionError("the connection dropped")
         return real_put(lpath, rpath, *a, **kw)
 
-    assert batch._fs(dest, so)[0] is fs  # fsspec's one instance for these options
+    assert storage.filesystem(dest, so)[0] is fs  # fsspec's one instance for these options
     monkeypatch.setattr(fs, "put_file", dying_put)
     df = batch.restore_many(["s3://survey/dive_b/f01.png", "s3://survey/dive_b/f02.png"], dest, storage_options=so)
     monkeypatch.undo()
@@ -590,7 +591,7 @@ def test_workers_without_this_uwhl_rs_are_refused(inputs, tmp_path):
     fail or change every task: the batch does not start."""
     import importlib.metadata
 
-    c, cl, _ = batch._connect(None, "local:1", None)
+    c, cl, _ = dask_cluster.connect(None, "local:1", None)
     try:
         def hide():  # on the worker: its package metadata now says another version
             importlib.metadata.version = lambda name: "0.0.0-other"

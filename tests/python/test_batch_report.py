@@ -12,7 +12,7 @@ import sys
 
 from test_report_browser import ROOT, _chromium, _run
 from uwhl_rs import report, synth
-from uwhl_rs.io import write_image
+from uwhl_rs.images import write_image
 
 
 def _restore(tmp_path, n=8, extra=()):

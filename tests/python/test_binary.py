@@ -63,8 +63,8 @@ def inputs(tmp_path_factory):
     codes8 = _core._quantize(img, 8, True)
     _png(d / "scene8.png", codes8)
     _png(d / "rotated.png", codes8, exif_orientation=6)
-    uwhl_rs.io.write_image(d / "scene16.png", img, bits=16, encoding="linear")
-    uwhl_rs.io.write_image(d / "scene16.tif", img, bits=16, encoding="linear")
+    uwhl_rs.images.write_image(d / "scene16.png", img, bits=16, encoding="linear")
+    uwhl_rs.images.write_image(d / "scene16.tif", img, bits=16, encoding="linear")
     mask = np.full((90, 120), 255, np.uint8)
     mask[60:80, 20:50] = 0
     _png(d / "mask.png", mask)

@@ -15,7 +15,7 @@ import pytest
 from datapaths import IMAGES_DIR, RAW_DIR
 
 import uwhl_rs
-from uwhl_rs import io, synth
+from uwhl_rs import images, synth
 
 SIDECAR_KEYS = {
     "input", "outputs", "uwhl_version", "implementation", "source", "water_type", "scores",
@@ -45,7 +45,7 @@ def scenes(tmp_path_factory):
     d = tmp_path_factory.mktemp("scenes")
     for k, wt in enumerate(["II", "3C", "7C"]):
         img, _ = synth.demo_input(96, 128, water_type=wt, seed=k)
-        io.write_image(d / f"scene_{wt}.png", img, encoding="linear")
+        images.write_image(d / f"scene_{wt}.png", img, encoding="linear")
     return d
 
 
@@ -59,12 +59,12 @@ def _check_outputs(out, name, fmt="jpg"):
     assert side["implementation"] == "python" and side["uwhl_version"] == uwhl_rs.__version__
     assert {"preprocess", "format", "guided_eps", "guided_subsample", "sphere_points", "max_side"} <= set(side["parameters"])
     assert side["seconds"]["total"] >= side["seconds"]["restore"] > 0
-    img, meta = io.read_image(out / f"{name}{ext}")
+    img, meta = images.read_image(out / f"{name}{ext}")
     h, w = side["source"]["processed_height"], side["source"]["processed_width"]
     assert img.shape == (h, w, 3)
-    t16 = io._core._decode_png((out / f"{name}_t.png").read_bytes(), 10**9)
+    t16 = images._core._decode_png((out / f"{name}_t.png").read_bytes(), 10**9)
     assert t16.dtype == np.uint16 and t16.shape == (h, w, 3)
-    tc, _ = io.read_image(out / f"{name}_t_color.png")
+    tc, _ = images.read_image(out / f"{name}_t_color.png")
     assert tc.shape == (h, w, 3)
     for role, fname in side["outputs"].items():
         assert (out / fname).is_file(), role
@@ -85,7 +85,7 @@ def test_outputs_equal_the_python_api(scenes, tmp_path):
     """The command's files hold exactly what restore() returns."""
     r = uwhl("restore", scenes / "scene_3C.png", "-o", tmp_path, "--format", "tiff")
     assert r.returncode == 0, r.stderr
-    img, _ = io.read_image(scenes / "scene_3C.png")
+    img, _ = images.read_image(scenes / "scene_3C.png")
     res = uwhl_rs.restore(img)
     side = json.loads((tmp_path / "scene_3C.json").read_text())
     assert side["water_type"] == res.water_type
@@ -95,9 +95,9 @@ def test_outputs_equal_the_python_api(scenes, tmp_path):
     tif = tifffile.imread(tmp_path / "scene_3C.tif")
     assert tif.dtype == np.uint16
     # 16-bit sRGB codes of the restored image: floor(srgb(v) * 65535 + 0.5)
-    want = np.floor(io.linear_to_srgb(res.image) * 65535 + 0.5)
+    want = np.floor(images.linear_to_srgb(res.image) * 65535 + 0.5)
     assert np.array_equal(tif, want)
-    t16 = io._core._decode_png((tmp_path / "scene_3C_t.png").read_bytes(), 10**9)[..., 0]
+    t16 = images._core._decode_png((tmp_path / "scene_3C_t.png").read_bytes(), 10**9)[..., 0]
     assert np.array_equal(t16, np.floor(np.clip(res.transmission, 0, 1).astype(np.float64) * 65535 + 0.5))
 
 
@@ -107,7 +107,7 @@ def test_bad_files_fail_alone_with_one_clear_line(scenes, tmp_path):
     good = (scenes / "scene_II.png").read_bytes()
     (src / "a_good.png").write_bytes(good)
     img = (np.random.default_rng(0).random((80, 80, 3)) * 255).astype(np.uint8)
-    io.write_image(src / "b_full.jpg", img)
+    images.write_image(src / "b_full.jpg", img)
     data = (src / "b_full.jpg").read_bytes()
     (src / "b_full.jpg").unlink()
     (src / "c_truncated.jpg").write_bytes(data[: len(data) // 2])
@@ -121,9 +121,17 @@ def test_bad_files_fail_alone_with_one_clear_line(scenes, tmp_path):
     assert any("c_truncated.jpg" in ln and "truncated" in ln.lower() for ln in lines)
     assert any("d_random.NEF" in ln and "LibRaw" in ln for ln in lines)
     assert "2 done, 0 skipped, 2 failed" in r.stdout
-    # one input is written while the next is restored: the lines stay in order
-    order = [n for ln in r.stderr.splitlines() for n in ("a_good", "c_truncated", "d_random", "e_good") if n in ln]
-    assert order == ["a_good", "c_truncated", "d_random", "e_good"], r.stderr
+    # progress lines on stdout, errors on stderr, as uwhl-rs writes them
+    assert [os.path.basename(ln.split(" ")[1]) for ln in r.stdout.splitlines() if ln.startswith("[")] == \
+        ["a_good.png", "e_good.png"], r.stdout
+    assert not any(ln.startswith("[") for ln in r.stderr.splitlines()), r.stderr
+    # one input is written while the next is restored: the lines, on both
+    # streams read as one, stay in input order
+    both = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(tmp_path / "again")],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600, env=_env()).stdout
+    order = [n for ln in both.splitlines() for n in ("a_good", "c_truncated", "d_random", "e_good") if n in ln]
+    assert order == ["a_good", "c_truncated", "d_random", "e_good"], both
+    assert [ln[:5] for ln in both.splitlines() if ln.startswith("[")] == ["[1/4]", "[4/4]"], both
     names = sorted(os.listdir(out))
     assert not [n for n in names if n.startswith(("c_truncated", "d_random", "."))], names  # nothing partial
     assert {"a_good.json", "e_good.json"} <= set(names)
@@ -134,7 +142,7 @@ def test_staged_restore_writes_nothing_until_asked(scenes, tmp_path):
     from uwhl_rs import files
 
     out = tmp_path / "out"
-    write = files._restore_staged(scenes / "scene_3C.png", out, format="png")
+    write = files.restore_staged(scenes / "scene_3C.png", out, format="png")
     # only the claim of the name (docs/OUTPUTS.md) is there until the outputs are written
     assert [p.name[:12] for p in out.iterdir()] == [".uwhl-claim-"]
     r = write()
@@ -143,7 +151,7 @@ def test_staged_restore_writes_nothing_until_asked(scenes, tmp_path):
     assert np.array_equal(r.restoration.image, want.restoration.image)
     with pytest.raises(Exception, match="truncated|decode"):
         (tmp_path / "cut.png").write_bytes((scenes / "scene_3C.png").read_bytes()[:300])
-        files._restore_staged(tmp_path / "cut.png", out)
+        files.restore_staged(tmp_path / "cut.png", out)
 
 
 def test_something_foreign_at_the_sidecars_name_is_kept(scenes, tmp_path):
@@ -160,7 +168,7 @@ def test_something_foreign_at_the_sidecars_name_is_kept(scenes, tmp_path):
 def test_options_reach_restore(scenes, tmp_path):
     mask = np.ones((96, 128), np.uint8) * 255
     mask[60:80, 10:40] = 0  # a "chart" to ignore
-    io.write_image(tmp_path / "mask.png", mask)
+    images.write_image(tmp_path / "mask.png", mask)
     r = uwhl("restore", scenes / "scene_3C.png", "-o", tmp_path / "o", "--water-type", "II,3C", "--water-type", "x:1.2:1.1",
              "--veiling-light", "0.05,0.3,0.4", "--mask", tmp_path / "mask.png", "--guided-radius", "9",
              "--guided-eps", "0.01", "--sphere-points", "300", "--format", "png", "--bits", "16",
@@ -177,9 +185,9 @@ def test_options_reach_restore(scenes, tmp_path):
     # 128 wide, max side 64: blocks of 2
     assert (side["source"]["processed_height"], side["source"]["processed_width"]) == (48, 64)
     assert (side["source"]["height"], side["source"]["width"]) == (96, 128)
-    img, meta = io.read_image(tmp_path / "o" / "scene_3C.png")
+    img, meta = images.read_image(tmp_path / "o" / "scene_3C.png")
     assert meta.bits == 16 and img.shape == (48, 64, 3)
-    sheet, _ = io.read_image(tmp_path / "o" / "scene_3C_sheet.png")
+    sheet, _ = images.read_image(tmp_path / "o" / "scene_3C_sheet.png")
     assert sheet.shape[1] > 4 * 64  # four columns of cells
 
 
@@ -226,7 +234,7 @@ def test_reuse_estimates_restores_a_folder_as_a_sequence(tmp_path):
     br, bg = uwhl_rs.WATER_TYPES["5C"]
     for k in range(4):
         img = synth.render(sc.clean, sc.distance, (br, bg), noise=0.004, seed=k)
-        io.write_image(d / f"frame_{k:03d}.png", img, encoding="linear")
+        images.write_image(d / f"frame_{k:03d}.png", img, encoding="linear")
     r = uwhl("restore", d, "-o", tmp_path / "out", "--reuse-estimates", "2", "--format", "tiff",
              "--guided-subsample", "auto")
     assert r.returncode == 0, r.stderr
@@ -239,11 +247,11 @@ def test_reuse_estimates_restores_a_folder_as_a_sequence(tmp_path):
 
     seq = uwhl_rs.Sequence(refresh_every=2, guided_subsample="auto")
     for k, side in enumerate(sides):
-        img, _ = io.read_image(d / f"frame_{k:03d}.png")
+        img, _ = images.read_image(d / f"frame_{k:03d}.png")
         res = seq.restore(img)
         assert side["water_type"] == res.water_type and side["scores"] == pytest.approx(res.scores, rel=1e-12)
         tif = tifffile.imread(tmp_path / "out" / f"frame_{k:03d}.tif")
-        assert np.array_equal(tif, np.floor(io.linear_to_srgb(res.image) * 65535 + 0.5))
+        assert np.array_equal(tif, np.floor(images.linear_to_srgb(res.image) * 65535 + 0.5))
         if side["reused_estimates"]:
             want = uwhl_rs.restore(img, water_types=[res.water_type], veiling_light=res.veiling_light,
                                    guided_subsample="auto")
@@ -260,15 +268,15 @@ def test_reuse_water_mask_keeps_the_first_region(scenes, tmp_path):
     first, second = (json.loads((tmp_path / f"scene_{t}.json").read_text()) for t in ("3C", "7C"))
     assert second["reused_estimates"] and second["vl_pixels"] == first["vl_pixels"]
     seq = uwhl_rs.Sequence(refresh_every=5, reuse_water_mask=True)
-    a, _ = io.read_image(scenes / "scene_3C.png")
-    b, _ = io.read_image(scenes / "scene_7C.png")
+    a, _ = images.read_image(scenes / "scene_3C.png")
+    b, _ = images.read_image(scenes / "scene_7C.png")
     ra = seq.restore(a)
     rb = seq.restore(b)
     assert np.array_equal(rb.veiling_mask, ra.veiling_mask)
     import tifffile
 
     tif = tifffile.imread(tmp_path / "scene_7C.tif")
-    assert np.array_equal(tif, np.floor(io.linear_to_srgb(rb.image) * 65535 + 0.5))
+    assert np.array_equal(tif, np.floor(images.linear_to_srgb(rb.image) * 65535 + 0.5))
 
 
 def test_guided_subsample_in_the_sidecar(scenes, tmp_path):
@@ -281,7 +289,7 @@ def test_guided_subsample_in_the_sidecar(scenes, tmp_path):
     assert r.returncode == 0, r.stderr
     side = json.loads((tmp_path / "a" / "scene_II.json").read_text())
     assert side["parameters"]["guided_subsample"] == 0 and side["guided_subsample"] == 1
-    img, _ = io.read_image(scenes / "scene_II.png")
+    img, _ = images.read_image(scenes / "scene_II.png")
     res = uwhl_rs.restore(img, water_types=["II", "3C"], guided_subsample=0)
     assert side["water_type"] == res.water_type and side["scores"] == pytest.approx(res.scores, rel=1e-12)
     r = uwhl("restore", scenes / "scene_II.png", "-o", tmp_path / "b", "--guided-subsample", "500", "-q")
@@ -301,9 +309,9 @@ def test_glob_and_name_collisions(scenes, tmp_path):
     src = tmp_path / "in"
     (src / "sub").mkdir(parents=True)
     img, _ = synth.demo_input(64, 80, water_type="II", seed=3)
-    io.write_image(src / "x.png", img, encoding="linear")
-    io.write_image(src / "x.jpg", img, encoding="linear")
-    io.write_image(src / "sub" / "x.png", img, encoding="linear")
+    images.write_image(src / "x.png", img, encoding="linear")
+    images.write_image(src / "x.jpg", img, encoding="linear")
+    images.write_image(src / "sub" / "x.png", img, encoding="linear")
     r = uwhl("restore", str(src / "*.*"), src / "sub", "-o", tmp_path / "o")
     assert r.returncode == 0, r.stderr
     names = set(os.listdir(tmp_path / "o"))
@@ -332,7 +340,7 @@ def test_demo_reports_true_and_estimated_type(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "true water type:      III" in r.stdout and "estimated water type:" in r.stdout
     for f in ["input.png", "restored.png", "transmission.png", "clean_truth.png"]:
-        img, _ = io.read_image(tmp_path / f)
+        img, _ = images.read_image(tmp_path / f)
         assert img.shape == (120, 160, 3)
 
 
@@ -348,7 +356,7 @@ def test_shared_raw_files_end_to_end(tmp_path):
         side = _check_outputs(tmp_path, name)
         src = side["source"]
         assert src["kind"] == "raw" and src["orientation"] == 1
-        img, meta = io.read_image(f)
+        img, meta = images.read_image(f)
         assert (src["height"], src["width"]) == img.shape[:2]
         assert max(src["processed_height"], src["processed_width"]) <= 600
 

@@ -67,7 +67,7 @@ def _scene(tmp_path, name="scene.png", h=120, w=160, water_type="3C", seed=1):
     """A rendered scene, its distance map (.npy; water has no value), its
     true type, and three boxes on the seabed annotated as a chart."""
     img, truth = synth.demo_input(h, w, water_type=water_type, seed=seed)
-    uwhl_rs.io.write_image(tmp_path / name, img, bits=8, encoding="linear")
+    uwhl_rs.images.write_image(tmp_path / name, img, bits=8, encoding="linear")
     d = truth["distance"].copy()
     d[~np.isfinite(d)] = 0  # water: no value
     np.save(tmp_path / (name + ".npy"), d)
@@ -105,7 +105,7 @@ def test_boxes_refer_to_the_displayed_pixels_of_a_rotated_photo(tmp_path):
     exif = im.getexif()
     exif[0x0112] = 6
     im.save(tmp_path / "rot.png", exif=exif)
-    img, meta = uwhl_rs.io.read_image(tmp_path / "rot.png")
+    img, meta = uwhl_rs.images.read_image(tmp_path / "rot.png")
     assert img.shape[:2] == (40, 60) and meta.orientation == 6
     chart = ev.Chart("gray", [(1, 1, 9, 9)])
     assert ev.chart_angles(img, chart)[0] == pytest.approx(0, abs=0.01)

@@ -14,7 +14,7 @@ from PIL import Image, ImageCms
 
 from datapaths import IMAGES_DIR
 from uwhl_rs import synth
-from uwhl_rs.io import linear_to_srgb, read_image
+from uwhl_rs.images import linear_to_srgb, read_image
 
 ADOBE_PHOTO = IMAGES_DIR / "chart_calib_3_under.jpg"
 

@@ -29,7 +29,7 @@ def test_restore_and_sequence_take_the_tables_method_keywords_with_its_defaults(
 
 
 def test_restore_file_defaults_are_the_tables():
-    params = inspect.signature(files._restore_staged).parameters
+    params = inspect.signature(files.restore_staged).parameters
     for k in ("format", "bits", "quality", "preprocess", "half_size", "max_side", "max_pixels"):
         assert params[k].default == TABLE[k]["default"], k
     assert set(files.METHOD_KEYS) == {k for k, o in TABLE.items() if o["method"]}

@@ -44,7 +44,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("parity_inputs")
     for k, wt in enumerate(["II", "3C", "7C"]):
         img, _ = synth.demo_input(60, 80, water_type=wt, seed=k)
-        uwhl_rs.io.write_image(d / f"f{k}.png", img, bits=8, encoding="linear")
+        uwhl_rs.images.write_image(d / f"f{k}.png", img, bits=8, encoding="linear")
     good = (d / "f0.png").read_bytes()
     (d / "truncated.png").write_bytes(good[: len(good) // 3])
     (d / "garbage.jpg").write_bytes(b"\xff\xd8\xff\xe0 not really a jpeg" * 10)
@@ -470,7 +470,7 @@ def test_two_processes_on_one_folder_restore_each_input_once(binary, files, tmp_
     src = tmp_path / "in"
     src.mkdir()
     img, _ = synth.demo_input(240, 320, water_type="3C", seed=5)
-    uwhl_rs.io.write_image(src / "base.png", img, bits=8, encoding="linear")
+    uwhl_rs.images.write_image(src / "base.png", img, bits=8, encoding="linear")
     for k in range(8):
         os.link(src / "base.png", src / f"p{k}.png")
     (src / "base.png").unlink()
@@ -573,7 +573,7 @@ def test_peak_memory_stays_under_max_memory(binary, tmp_path):
     src.mkdir()
     for k in range(6):
         img, _ = synth.demo_input(480, 640, water_type="3C", seed=k)
-        uwhl_rs.io.write_image(src / f"m{k}.png", img, bits=8, encoding="linear")
+        uwhl_rs.images.write_image(src / f"m{k}.png", img, bits=8, encoding="linear")
     margin = {"rust": 1 << 20, "python": 4 << 20}
     for face in ("rust", "python"):
         args = [str(src / "m0.png"), "-o", str(tmp_path / face), "--format", "png", "--overwrite"]
@@ -607,7 +607,7 @@ def test_a_cmyk_tiff_is_read_as_its_colors_in_both(binary, tmp_path):
     cmyk[:4, 8:12] = [0, 0, 0, 255]  # black
     path = tmp_path / "cmyk.tif"
     tifffile.imwrite(path, cmyk, photometric="separated")
-    img, meta = uwhl_rs.io.read_image(path, preprocess="reference")  # codes / 255, no curve
+    img, meta = uwhl_rs.images.read_image(path, preprocess="reference")  # codes / 255, no curve
     assert np.allclose(img[0, 0], [1, 0, 0]) and np.allclose(img[0, 5], [0, 1, 0]) and np.allclose(img[0, 9], 0)
     got = {}
     for face in ("python", "rust"):

@@ -181,7 +181,7 @@ def _binary():
 def test_both_commands_record_the_steps_used(tmp_path, flags, steps):
     img, _ = synth.demo_input(48, 64, seed=4)
     src = tmp_path / "in.png"
-    uwhl_rs.io.write_image(str(src), img, bits=16, encoding="linear")
+    uwhl_rs.images.write_image(str(src), img, bits=16, encoding="linear")
     cmds = {"uwhl": [sys.executable, "-m", "uwhl_rs", "restore"]}
     if _binary():
         cmds["uwhl-rs"] = [_binary()]
@@ -202,7 +202,7 @@ def test_both_commands_record_the_steps_used(tmp_path, flags, steps):
 def test_bad_step_flags_are_usage_errors_in_both_commands(tmp_path, flag):
     img, _ = synth.demo_input(32, 40, seed=1)
     src = tmp_path / "in.png"
-    uwhl_rs.io.write_image(str(src), img, bits=8)
+    uwhl_rs.images.write_image(str(src), img, bits=8)
     cmds = [[sys.executable, "-m", "uwhl_rs", "restore"]] + ([[_binary()]] if _binary() else [])
     for cmd in cmds:
         r = subprocess.run([*cmd, str(src), "-o", str(tmp_path / "o"), *flag], capture_output=True, text=True)

@@ -55,7 +55,7 @@ def test_the_report_renders_in_chromium(tmp_path):
     for k, wt in enumerate(["3C", "II"]):
         img, truth = synth.demo_input(120, 160, water_type=wt, seed=k + 3)
         name = f"scene_{wt}.png"
-        uwhl_rs.io.write_image(tmp_path / name, img, bits=8, encoding="linear")
+        uwhl_rs.images.write_image(tmp_path / name, img, bits=8, encoding="linear")
         d = np.where(np.isfinite(truth["distance"]), truth["distance"], 0)
         np.save(tmp_path / f"{name}.npy", d)
         entries.append({"path": name, "distance": f"{name}.npy", "water_type": wt,

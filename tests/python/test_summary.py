@@ -1,4 +1,4 @@
-"""``OUTDIR/summary.csv`` (uwhl_rs.summary): one row per input, done,
+"""``OUTDIR/summary.csv`` (uwhl_rs.outdir): one row per input, done,
 skipped or failed, with what its sidecar says and the EXIF time and GPS
 position; written as the batch goes, so an interrupted run keeps its rows."""
 
@@ -15,7 +15,7 @@ from PIL import Image
 
 from test_metadata import _gps_exif, _scene
 from uwhl_rs import synth
-from uwhl_rs.io import write_image
+from uwhl_rs.images import write_image
 
 
 def rows(out):

@@ -1,4 +1,4 @@
-"""uwhl_rs.io: colour math, reading and writing, against values known
+"""uwhl_rs.images: colour math, reading and writing, against values known
 independently (IEC 61966-2-1 constants, hand-made files, rawpy itself)."""
 
 from __future__ import annotations
@@ -10,73 +10,73 @@ import pytest
 
 from datapaths import RAW_DIR
 
-from uwhl_rs import io
+from uwhl_rs import images
 
 # ------------------------------------------------------------ colour math
 
 
 def test_known_linear_gray_gives_the_standard_srgb_value(tmp_path):
     # IEC 61966-2-1: 18% linear gray encodes to 0.46136 -> 8-bit 118, 16-bit 30235
-    assert io.linear_to_srgb(0.18) == pytest.approx(0.461356, abs=1e-6)
+    assert images.linear_to_srgb(0.18) == pytest.approx(0.461356, abs=1e-6)
     gray = np.full((4, 4, 3), 0.18, np.float32)
     p = tmp_path / "g.png"
-    io.write_image(p, gray, encoding="linear")
-    img, meta = io.read_image(p)
+    images.write_image(p, gray, encoding="linear")
+    img, meta = images.read_image(p)
     from PIL import Image
 
     assert np.asarray(Image.open(p))[0, 0].tolist() == [118, 118, 118]
     # read back through the inverse curve: 118/255 decodes to 0.1812
     assert img[0, 0, 0] == pytest.approx(((118 / 255 + 0.055) / 1.055) ** 2.4, abs=1e-7)
     p16 = tmp_path / "g16.png"
-    io.write_image(p16, gray, bits=16, encoding="linear")
-    codes = io._core._decode_png(p16.read_bytes(), 10**6)
+    images.write_image(p16, gray, bits=16, encoding="linear")
+    codes = images._core._decode_png(p16.read_bytes(), 10**6)
     assert codes.dtype == np.uint16 and codes[0, 0, 0] == round(0.46135612950044164 * 65535)
 
 
 def test_inverse_srgb_then_srgb_is_identity_within_one_16_bit_step():
     x = np.linspace(0, 1, 200001)
-    back = io.linear_to_srgb(io.srgb_to_linear(x))
+    back = images.linear_to_srgb(images.srgb_to_linear(x))
     assert np.max(np.abs(back - x)) < 1 / 65535
     # and through the core's float32 path on every 16-bit code
     codes = np.arange(65536, dtype=np.uint16)
-    lin = io._core._decode_u16(codes, True)
-    assert np.array_equal(io.quantize(lin, 16, encoding="linear"), codes)
-    assert np.max(np.abs(io.linear_to_srgb(lin) - codes / 65535)) < 1 / 65535
+    lin = images._core._decode_u16(codes, True)
+    assert np.array_equal(images.quantize(lin, 16, encoding="linear"), codes)
+    assert np.max(np.abs(images.linear_to_srgb(lin) - codes / 65535)) < 1 / 65535
 
 
 def test_srgb_curve_matches_the_core():
     x = np.random.default_rng(0).random(10000).astype(np.float32)
-    want = np.floor(io.linear_to_srgb(x) * 65535 + 0.5)
-    assert np.array_equal(io.quantize(x, 16, encoding="linear"), want.astype(np.uint16))
+    want = np.floor(images.linear_to_srgb(x) * 65535 + 0.5)
+    assert np.array_equal(images.quantize(x, 16, encoding="linear"), want.astype(np.uint16))
 
 
 def test_camera_matrix_path_on_a_synthetic_matrix():
     m = np.array([[1.6, -0.4, -0.2], [-0.2, 1.5, -0.3], [0.0, -0.5, 1.5]])
-    meta = io.ImageMeta("x.dng", "raw", "DNG", 16, 1, 3, camera_matrix=m)
+    meta = images.ImageMeta("x.dng", "raw", "DNG", 16, 1, 3, camera_matrix=m)
     cam = np.array([[[0.2, 0.3, 0.1], [0.5, 0.5, 0.5], [0.9, 0.1, 0.05]]], np.float32)
-    got = io.to_srgb(cam, meta)
+    got = images.to_srgb(cam, meta)
     lin = np.clip(np.einsum("ij,hwj->hwi", m, cam.astype(np.float64)), 0, 1)
     want = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
     assert np.allclose(got, want, atol=2e-6)
     # rows summing to 1 keep a neutral gray neutral
-    assert np.allclose(got[0, 1], io.linear_to_srgb(0.5), atol=1e-6)
+    assert np.allclose(got[0, 1], images.linear_to_srgb(0.5), atol=1e-6)
     # without a matrix only the curve is applied; an unlinearised source is only clipped
-    assert np.allclose(io.to_srgb(cam), io.linear_to_srgb(cam), atol=1e-6)
-    ref = io.ImageMeta("x.jpg", "srgb", "JPEG", 8, 1, 3, linear=False, preprocess="reference")
-    assert np.array_equal(io.to_srgb(cam, ref), cam)
+    assert np.allclose(images.to_srgb(cam), images.linear_to_srgb(cam), atol=1e-6)
+    ref = images.ImageMeta("x.jpg", "srgb", "JPEG", 8, 1, 3, linear=False, preprocess="reference")
+    assert np.array_equal(images.to_srgb(cam, ref), cam)
 
 
 def test_camera_matrix_from_xyz_keeps_white_white():
     class FakeRaw:
         color_matrix = np.zeros((3, 4))
         # a camera whose XYZ->camera matrix is the inverse of sRGB's primaries: camera = sRGB
-        rgb_xyz_matrix = np.vstack([np.linalg.inv(io._SRGB_TO_XYZ), np.zeros((1, 3))])
+        rgb_xyz_matrix = np.vstack([np.linalg.inv(images._SRGB_TO_XYZ), np.zeros((1, 3))])
 
-    m, notes = io._camera_matrix(FakeRaw())
+    m, notes = images._camera_matrix(FakeRaw())
     assert notes == [] and np.allclose(m @ np.ones(3), 1.0)
     assert np.allclose(m, np.eye(3), atol=1e-6)
     FakeRaw.rgb_xyz_matrix = np.zeros((4, 3))
-    assert io._camera_matrix(FakeRaw()) == (None, ["no_camera_matrix"])
+    assert images._camera_matrix(FakeRaw()) == (None, ["no_camera_matrix"])
 
 
 # ---------------------------------------------------------------- reading
@@ -97,7 +97,7 @@ def test_exif_orientation_is_applied(tmp_path, orientation, expect):
     a[:20, :30] = (250, 20, 20)  # red block at the stored top-left
     p = tmp_path / f"o{orientation}.jpg"
     _jpeg_with_orientation(p, a, orientation)
-    img, meta = io.read_image(p)
+    img, meta = images.read_image(p)
     assert meta.orientation == orientation
     red = img[..., 0] > 0.5
     h, w = img.shape[:2]
@@ -116,10 +116,10 @@ def test_16_bit_png_and_tiff_round_trip_exactly(tmp_path):
     codes = rng.integers(0, 65536, size=(17, 23, 3), dtype=np.uint16)
     for ext in (".png", ".tif"):
         p = tmp_path / f"x{ext}"
-        io.write_image(p, codes)
-        img, meta = io.read_image(p)
+        images.write_image(p, codes)
+        img, meta = images.read_image(p)
         assert meta.bits == 16 and meta.kind == "srgb"
-        assert np.array_equal(io.quantize(img, 16, encoding="linear"), codes)
+        assert np.array_equal(images.quantize(img, 16, encoding="linear"), codes)
 
 
 def test_png_writer_is_read_back_exactly_by_pillow_and_zlib(tmp_path):
@@ -137,13 +137,13 @@ def test_png_writer_is_read_back_exactly_by_pillow_and_zlib(tmp_path):
     g16 = np.clip(ramp * 65535 + rng.normal(0, 300, ramp.shape), 0, 65535).astype(np.uint16)
     for a in (g8, rgb8, g16):
         p = tmp_path / "w.png"
-        io.write_image(p, a)
+        images.write_image(p, a)
         with Image.open(p) as im:
             back = np.asarray(im)
         assert np.array_equal(back.astype(a.dtype), a), a.shape
     # 16-bit RGB (Pillow keeps only 8 bits): by hand, inflate and unfilter
     rgb16 = np.stack([g16, 65535 - g16, g16 // 3], axis=-1)
-    io.write_image(tmp_path / "w16.png", rgb16)
+    images.write_image(tmp_path / "w16.png", rgb16)
     data = (tmp_path / "w16.png").read_bytes()
     pos, idat = 8, b""
     while pos < len(data):
@@ -187,7 +187,7 @@ def test_png_writer_rejects_what_png_cannot_hold():
                       (np.zeros((0, 4), np.uint8), "shape"),
                       (np.zeros(5, np.uint16), "shape")):
         with pytest.raises(ValueError, match=what):
-            io._core._encode_png(bad)
+            images._core._encode_png(bad)
 
 
 def test_gray_and_rgba_become_rgb(tmp_path):
@@ -195,32 +195,32 @@ def test_gray_and_rgba_become_rgb(tmp_path):
 
     g = (np.arange(64, dtype=np.uint8).reshape(8, 8) * 4).astype(np.uint8)
     Image.fromarray(g).save(tmp_path / "g.png")
-    img, _ = io.read_image(tmp_path / "g.png")
+    img, _ = images.read_image(tmp_path / "g.png")
     assert img.shape == (8, 8, 3) and np.array_equal(img[..., 0], img[..., 2])
     rgba = np.dstack([np.full((8, 8, 3), 200, np.uint8), np.zeros((8, 8), np.uint8)])
     Image.fromarray(rgba, "RGBA").save(tmp_path / "a.png")
-    img, _ = io.read_image(tmp_path / "a.png")
-    assert img.shape == (8, 8, 3) and np.allclose(img, io.srgb_to_linear(200 / 255), atol=1e-6)
+    img, _ = images.read_image(tmp_path / "a.png")
+    assert img.shape == (8, 8, 3) and np.allclose(img, images.srgb_to_linear(200 / 255), atol=1e-6)
 
 
 def test_reference_preprocessing_keeps_srgb_unlinearised(tmp_path):
     a = np.random.default_rng(1).integers(20, 200, size=(30, 30, 3), dtype=np.uint8)
-    io.write_image(tmp_path / "r.png", a)
-    lin, m1 = io.read_image(tmp_path / "r.png")
-    ref, m2 = io.read_image(tmp_path / "r.png", preprocess="reference")
+    images.write_image(tmp_path / "r.png", a)
+    lin, m1 = images.read_image(tmp_path / "r.png")
+    ref, m2 = images.read_image(tmp_path / "r.png", preprocess="reference")
     assert m1.linear and not m2.linear and m2.preprocess == "reference"
     assert lin.max() < 0.6  # 199/255 decodes to 0.57
     assert ref.max() == 1.0 and ref.min() == 0.0  # stretched to the full range
     with pytest.raises(ValueError, match="preprocess"):
-        io.read_image(tmp_path / "r.png", preprocess="auto")
+        images.read_image(tmp_path / "r.png", preprocess="auto")
 
 
 # ------------------------------------------------------------- bad files
 
 
 def _error(path, **kw) -> str:
-    with pytest.raises(io.ImageReadError) as e:
-        io.read_image(path, **kw)
+    with pytest.raises(images.ImageReadError) as e:
+        images.read_image(path, **kw)
     msg = str(e.value)
     assert str(path) in msg
     return msg
@@ -228,7 +228,7 @@ def _error(path, **kw) -> str:
 
 def test_bad_files_give_clear_errors(tmp_path):
     a = (np.random.default_rng(2).random((64, 64, 3)) * 255).astype(np.uint8)
-    io.write_image(tmp_path / "ok.jpg", a)
+    images.write_image(tmp_path / "ok.jpg", a)
     data = (tmp_path / "ok.jpg").read_bytes()
     (tmp_path / "trunc.jpg").write_bytes(data[: len(data) // 3])
     assert "truncated" in _error(tmp_path / "trunc.jpg").lower()
@@ -240,11 +240,11 @@ def test_bad_files_give_clear_errors(tmp_path):
     assert "empty file" in _error(tmp_path / "empty.png")
     assert "no such file" in _error(tmp_path / "missing.jpg")
     assert "folder" in _error(tmp_path)
-    io.write_image(tmp_path / "p.png", a)
+    images.write_image(tmp_path / "p.png", a)
     png = (tmp_path / "p.png").read_bytes()
     (tmp_path / "cut.png").write_bytes(png[: len(png) // 2])
     _error(tmp_path / "cut.png")
-    io.write_image(tmp_path / "p16.png", a.astype(np.uint16) * 257)
+    images.write_image(tmp_path / "p16.png", a.astype(np.uint16) * 257)
     png16 = (tmp_path / "p16.png").read_bytes()
     (tmp_path / "cut16.png").write_bytes(png16[: len(png16) // 2])
     assert "PNG" in _error(tmp_path / "cut16.png")
@@ -264,7 +264,7 @@ def test_absurd_size_is_refused_before_decoding(tmp_path):
     hdr16 = struct.pack(">IIBBBBB", 100000, 100000, 16, 2, 0, 0, 0)
     (tmp_path / "huge16.png").write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", hdr16) + chunk(b"IEND", b""))
     assert "over the limit" in _error(tmp_path / "huge16.png")
-    io.write_image(tmp_path / "small.png", np.zeros((10, 10, 3), np.uint8))
+    images.write_image(tmp_path / "small.png", np.zeros((10, 10, 3), np.uint8))
     assert "over the limit" in _error(tmp_path / "small.png", max_pixels=99)
 
 
@@ -273,19 +273,19 @@ def test_absurd_size_is_refused_before_decoding(tmp_path):
 
 def test_write_is_atomic_and_leaves_nothing_on_failure(tmp_path, monkeypatch):
     p = tmp_path / "out.png"
-    io.write_image(p, np.zeros((4, 4, 3), np.float32))
+    images.write_image(p, np.zeros((4, 4, 3), np.float32))
     before = p.read_bytes()
 
     def boom(a):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(io, "_png_bytes", boom)
+    monkeypatch.setattr(images, "_png_bytes", boom)
     with pytest.raises(OSError, match="No space left"):
-        io.write_image(p, np.ones((4, 4, 3), np.float32))
+        images.write_image(p, np.ones((4, 4, 3), np.float32))
     assert p.read_bytes() == before  # the old file is untouched
     assert sorted(os.listdir(tmp_path)) == ["out.png"]  # no temporary left
     with pytest.raises(OSError):
-        io.write_image(tmp_path / "new.png", np.ones((4, 4, 3), np.float32))
+        images.write_image(tmp_path / "new.png", np.ones((4, 4, 3), np.float32))
     assert sorted(os.listdir(tmp_path)) == ["out.png"]
 
 
@@ -293,26 +293,26 @@ def test_written_files_have_normal_permissions(tmp_path):
     # 0666 minus the umask, as any program's new files (not mkstemp's 0600)
     umask = os.umask(0)
     os.umask(umask)
-    p = io.write_image(tmp_path / "x.jpg", np.zeros((4, 4, 3), np.uint8))
+    p = images.write_image(tmp_path / "x.jpg", np.zeros((4, 4, 3), np.uint8))
     assert os.stat(p).st_mode & 0o777 == 0o666 & ~umask
 
 
 def test_write_rejects_what_it_cannot_write(tmp_path):
     with pytest.raises(ValueError, match="JPEG holds 8 bits"):
-        io.write_image(tmp_path / "x.jpg", np.zeros((4, 4, 3), np.uint16))
+        images.write_image(tmp_path / "x.jpg", np.zeros((4, 4, 3), np.uint16))
     with pytest.raises(ValueError, match="shape"):
-        io.write_image(tmp_path / "x.png", np.zeros((4, 4, 4), np.uint8))
+        images.write_image(tmp_path / "x.png", np.zeros((4, 4, 4), np.uint8))
     with pytest.raises(ValueError, match="shape"):
-        io.write_image(tmp_path / "x.png", np.zeros((0, 4, 3), np.uint8))
+        images.write_image(tmp_path / "x.png", np.zeros((0, 4, 3), np.uint8))
     with pytest.raises(ValueError, match=".bmp"):
-        io.write_image(tmp_path / "x.bmp", np.zeros((4, 4, 3), np.uint8))
+        images.write_image(tmp_path / "x.bmp", np.zeros((4, 4, 3), np.uint8))
     with pytest.raises(ValueError, match="bits"):
-        io.write_image(tmp_path / "x.png", np.zeros((4, 4, 3), np.float32), bits=12)
+        images.write_image(tmp_path / "x.png", np.zeros((4, 4, 3), np.float32), bits=12)
     assert os.listdir(tmp_path) == []
 
 
 def test_colormap_endpoints_are_viridis():
-    c = io.colorize_transmission(np.array([[0.0, 0.5, 1.0]], np.float32))
+    c = images.colorize_transmission(np.array([[0.0, 0.5, 1.0]], np.float32))
     assert c.tolist() == [[[68, 1, 84], [33, 145, 140], [253, 231, 37]]]
 
 
@@ -327,7 +327,7 @@ def test_raw_shape_and_orientation_match_libraw(name):
     import rawpy
 
     p = RAW_DIR / name
-    img, meta = io.read_image(p)
+    img, meta = images.read_image(p)
     with rawpy.imread(str(p)) as r:
         # LibRaw's own default rendering (flip applied); for the NEF whose
         # declared white level is below its data, at the data's maximum
@@ -335,7 +335,7 @@ def test_raw_shape_and_orientation_match_libraw(name):
         ref = r.postprocess(user_sat=sat)
         flip = r.sizes.flip
     assert img.shape == ref.shape and img.dtype == np.float32
-    assert meta.kind == "raw" and meta.orientation == io._FLIP_TO_EXIF[flip]
+    assert meta.kind == "raw" and meta.orientation == images._FLIP_TO_EXIF[flip]
     assert (meta.height, meta.width) == img.shape[:2]
     assert np.isfinite(img).all() and img.min() >= 0 and img.max() <= 1
     # linear and not brightened: darker than LibRaw's gamma-encoded default
@@ -358,15 +358,15 @@ def test_raw_shape_and_orientation_match_libraw(name):
 
 @needs_raw
 def test_raw_half_size_and_metadata():
-    img, meta = io.read_image(RAW_DIR / "Blackmagic.dng", half_size=True)
+    img, meta = images.read_image(RAW_DIR / "Blackmagic.dng", half_size=True)
     assert img.shape == (1088, 2064, 3)
     assert meta.camera_matrix is not None and np.allclose(np.asarray(meta.camera_matrix).sum(axis=1), 1, atol=0.01)
     assert meta.white_balance[0] > 1.5  # as-shot multipliers, red boosted
-    img, meta = io.read_image(RAW_DIR / "Nikon_uncompressed.nef")
+    img, meta = images.read_image(RAW_DIR / "Nikon_uncompressed.nef")
     # the file declares white = 255 under data up to 54998: not all clipped
     assert "white_level_below_data" in meta.notes and np.mean(img >= 1.0) < 0.05
-    plain, _ = io.read_image(RAW_DIR / "RAW_KODAK_DC50.KDC")
-    img, meta = io.read_image(RAW_DIR / "RAW_KODAK_DC50.KDC", preprocess="reference")
+    plain, _ = images.read_image(RAW_DIR / "RAW_KODAK_DC50.KDC")
+    img, meta = images.read_image(RAW_DIR / "RAW_KODAK_DC50.KDC", preprocess="reference")
     # METHOD §2 reference: top 0.1% of each channel clipped to 1, the rest scaled up
     assert meta.preprocess == "reference" and img.max() == 1.0
     assert all(np.mean(img[..., c] >= 1.0) >= 0.001 for c in range(3))
@@ -376,8 +376,8 @@ def test_raw_half_size_and_metadata():
 def test_io_functions_are_reachable_from_the_package():
     import uwhl_rs
 
-    assert uwhl_rs.read_image is io.read_image and uwhl_rs.to_srgb is io.to_srgb
-    assert uwhl_rs.write_image is io.write_image
+    assert uwhl_rs.read_image is images.read_image and uwhl_rs.to_srgb is images.to_srgb
+    assert uwhl_rs.write_image is images.write_image
     assert uwhl_rs.restore_file is uwhl_rs.files.restore_file
     assert {"read_image", "restore_file"} <= set(dir(uwhl_rs))
     with pytest.raises(AttributeError):

@@ -1,9 +1,10 @@
-"""``OUTDIR/summary.csv``: one row per input of a batch, written as the
-batch goes (each row flushed when its input is settled), so an interrupted
-run keeps what it did (docs/OUTPUTS.md "summary.csv").
+"""An output folder as its readers see it: the sidecars of its restored
+photos (``uwhl report``, ``uwhl ifdo``) and ``OUTDIR/summary.csv``, one row
+per input of a batch, written as the batch goes (each row flushed when its
+input is settled), so an interrupted run keeps what it did
+(docs/OUTPUTS.md "summary.csv").
 
-Rows are the dicts of ``uwhl_rs.batch`` (its ``COLUMNS``); the local run
-of ``uwhl restore`` makes the same rows with :func:`row_from_sidecar`.
+Rows are the dicts of ``uwhl_rs.tasks`` (its ``COLUMNS``).
 """
 
 from __future__ import annotations
@@ -11,11 +12,22 @@ from __future__ import annotations
 import csv
 import json
 import os
+import posixpath
 import threading
+from dataclasses import dataclass
 
-__all__ = ["SummaryWriter", "CSV_COLUMNS", "row_fields_from_sidecar", "FILE_NAME"]
+from .storage import Folder
+
+__all__ = ["SummaryWriter", "CSV_COLUMNS", "row_fields_from_sidecar", "FILE_NAME", "REPORT_DIR", "Photo",
+           "collect_sidecars", "failed_inputs"]
 
 FILE_NAME = "summary.csv"
+
+#: the report's folder inside OUTDIR (never searched for sidecars)
+REPORT_DIR = "report"
+
+#: flags that say something the operator should look at (``estimates_reused`` is the plan of a sequence)
+ROUTINE_FLAGS = ("estimates_reused",)
 
 #: the Jerlov types, one score column each (custom types go to other_scores)
 _TYPES = ("I", "IA", "IB", "II", "III", "1C", "3C", "5C", "7C", "9C")
@@ -95,7 +107,7 @@ class SummaryWriter:
         self._f = None
 
     def add(self, row: dict) -> None:
-        """One input's row (a ``uwhl_rs.batch`` row): a skipped input's
+        """One input's row (a ``uwhl_rs.tasks`` row): a skipped input's
         fields come from its sidecar when the row lacks them."""
         r = dict(row)
         if r.get("status") == "skipped" and r.get("water_type") is None:
@@ -130,3 +142,70 @@ class SummaryWriter:
                     self._f.close()
                 except OSError as e:
                     self._fail(e)
+
+
+# ------------------------------------------------------------------ sidecars
+
+
+@dataclass
+class Photo:
+    """One restored input, as its sidecar tells."""
+
+    sidecar: str  # path, relative to OUTDIR, /-separated
+    doc: dict
+    modified: float | None = None  # when the sidecar was written (seconds since the epoch)
+
+    @property
+    def folder(self) -> str:
+        return posixpath.dirname(self.sidecar)
+
+    def output(self, role: str) -> str | None:
+        """The path of an output (``image``, ``transmission_color``, ...),
+        relative to OUTDIR, or None."""
+        name = (self.doc.get("outputs") or {}).get(role)
+        return None if not name else posixpath.join(self.folder, name)
+
+    @property
+    def flags(self) -> list[str]:
+        return [f for f in self.doc.get("flags") or [] if f not in ROUTINE_FLAGS]
+
+
+def failed_inputs(out_dir, storage_options: dict | None = None) -> list[dict]:
+    """The failed rows of ``OUTDIR/summary.csv`` (inputs without a sidecar
+    to show), or none when there is no summary."""
+    folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
+    try:
+        text = folder.read(FILE_NAME).decode("utf-8")
+        return [r for r in csv.DictReader(text.splitlines()) if r.get("status") == "failed"]
+    except (OSError, ValueError, csv.Error):
+        return []
+
+
+def _is_sidecar(doc) -> bool:
+    return isinstance(doc, dict) and "water_type" in doc and isinstance(doc.get("outputs"), dict) and "input" in doc
+
+
+def collect_sidecars(out_dir, storage_options: dict | None = None, *,
+                     listed: list[tuple[str, float | None]] | None = None) -> tuple[list[Photo], list[str]]:
+    """Every sidecar under ``out_dir`` (a local folder, a storage URL or a
+    ``storage.Folder``; the report's own folder and hidden entries skipped),
+    in path order, and the problems (unreadable ones). ``listed``: the
+    folder's files as ``Folder.files`` gives them, when already listed."""
+    folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
+    if listed is None:
+        listed = folder.files(skip_top=(REPORT_DIR,))
+    listed = [(rel, when) for rel, when in listed if rel.endswith(".json")]
+    got = folder.read_many([rel for rel, _ in listed])
+    photos, problems = [], []
+    for rel, when in listed:
+        data = got.pop(rel)  # each document parsed, its bytes let go
+        try:
+            if isinstance(data, Exception):
+                raise data
+            doc = json.loads(data)
+        except (OSError, ValueError) as e:
+            problems.append(f"{folder.path(rel)}: cannot read ({type(e).__name__}: {e})")
+            continue
+        if _is_sidecar(doc):
+            photos.append(Photo(rel, doc, when))
+    return photos, problems

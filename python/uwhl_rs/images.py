@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import _core
+from .errors import ImageReadError, ImageTooLargeError
 
 __all__ = [
     "ImageMeta",
@@ -54,17 +55,6 @@ _SRGB_TO_XYZ = np.array(
 )
 # LibRaw's flip code -> EXIF orientation
 _FLIP_TO_EXIF = {0: 1, 3: 3, 5: 8, 6: 6}
-
-
-class ImageReadError(ValueError):
-    """A file could not be read as an image (missing, truncated, corrupt,
-    unsupported or too large). The message names the file and the reason."""
-
-
-class ImageTooLargeError(ImageReadError):
-    """The image is over the pixel budget (``max_pixels``), the memory
-    budget, or what the system gives; the commands report it as over
-    budget, not as unreadable."""
 
 
 @dataclass(frozen=True)
@@ -441,13 +431,13 @@ def to_srgb(linear: np.ndarray, meta: ImageMeta | None = None) -> np.ndarray:
     (``meta.linear`` False, ``preprocess="reference"`` on an sRGB file) the
     values are only clipped.
     """
-    x = _display_linear(linear, meta)
+    x = display_linear(linear, meta)
     if meta is not None and not meta.linear:
         return np.clip(np.nan_to_num(x, nan=0.0), 0.0, 1.0).astype(np.float32)
     return linear_to_srgb(x).astype(np.float32)
 
 
-def _display_linear(linear: np.ndarray, meta: ImageMeta | None) -> np.ndarray:
+def display_linear(linear: np.ndarray, meta: ImageMeta | None) -> np.ndarray:
     """Apply the camera matrix when the source was raw (float32, clipped to [0, 1])."""
     x = np.asarray(linear, dtype=np.float32)
     if meta is not None and meta.camera_matrix is not None:
@@ -548,8 +538,8 @@ def write_image(
     return path
 
 
-def _write_image_temp(claim, index: int, path: str, image: np.ndarray, *, bits: int = 8,
-                      encoding: str = "srgb", quality: int = 95) -> str:
+def write_image_temp(claim, index: int, path: str, image: np.ndarray, *, bits: int = 8,
+                     encoding: str = "srgb", quality: int = 95) -> str:
     """Writes output ``index`` of a claim (``_core.Claim``) into a new
     temporary, as :func:`write_image` would write ``path``; returns the
     temporary's path, which the claim's commit puts in place."""

@@ -1,36 +1,126 @@
-"""A finished batch's output folder as its readers see it (``uwhl report``,
-``uwhl ifdo``): on the local disk or at an object-storage URL through
-fsspec (docs/SCALE.md), with one set of operations for both, so a page or
-an iFDO is made the same way wherever the batch wrote.
+"""Where a batch reads and writes: local paths, ``file://`` URLs and
+object-storage URLs (``s3://``, ``gs://``, ...) through fsspec
+(docs/SCALE.md), the storage client's errors said as what to do, and
+:class:`Folder`, the output folder as its readers and writers see it
+(``uwhl report``, ``uwhl ifdo``), with one set of operations wherever the
+batch wrote.
 
-Paths inside the folder are relative and ``/``-separated.
+fsspec (and its backends) is the optional extra ``uwhl_rs[dask]``,
+imported only when a URL needs it. Paths inside a folder are relative and
+``/``-separated.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
+import importlib
+import json
 import os
 import posixpath
+import re
 
-__all__ = ["Folder", "read_bytes", "modified", "on_storage"]
+from .errors import BatchError
+
+__all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "need", "filesystem", "storage_error",
+           "on_storage", "read_bytes", "modified", "Folder"]
+
+#: how to get what batches on Dask or object storage need
+EXTRA = 'pip install "uwhl_rs[dask]"'
+
+_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
 
 
-def _is_url(path: str) -> bool:
-    from .batch import is_url
+def need(*modules: str):
+    """Imports ``modules`` or raises a BatchError naming the extra."""
+    out = []
+    for m in modules:
+        try:
+            out.append(importlib.import_module(m))
+        except ImportError as e:
+            raise BatchError(f"{m} is not installed ({e}); batches on Dask or object storage need the extra: {EXTRA}",
+                             "bad_arguments") from None
+    return out
 
-    return is_url(path)
+
+def is_url(path: str) -> bool:
+    """Whether ``path`` is a URL of a storage other than the local disk
+    (``file://`` URLs are local paths)."""
+    return bool(_URL.match(str(path))) and not str(path).startswith("file://")
 
 
-def _fs(url: str, storage_options: dict | None):
-    from .batch import _fs as fs_of
+def local_path(path: str) -> str:
+    """``path`` without a leading ``file://``."""
+    return path[len("file://"):] if str(path).startswith("file://") else str(path)
 
-    return fs_of(url, storage_options or {})
+
+def join(base: str, rel: str) -> str:
+    """``rel`` (``/``-separated, may be empty) under ``base``, a folder or URL."""
+    if not rel:
+        return base.rstrip("/") if is_url(base) else base
+    return base.rstrip("/") + "/" + rel if is_url(base) else os.path.join(base, rel)
+
+
+def parse_storage_options(items: list[str] | None) -> dict:
+    """``--storage-option KEY=VALUE`` values as fsspec storage options:
+    values ``true``/``false``/``null`` and numbers are read as JSON, others
+    kept as text; ``a.b=V`` nests (``client_kwargs.region_name=eu-west-1``)."""
+    out: dict = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise BatchError(f"--storage-option {item!r} is not KEY=VALUE", "bad_arguments")
+        try:
+            v = json.loads(value) if value.strip() in ("true", "false", "null") or _is_number(value) else value
+        except ValueError:
+            v = value
+        d = out
+        *parents, leaf = key.split(".")
+        for p in parents:
+            d = d.setdefault(p, {})
+            if not isinstance(d, dict):
+                raise BatchError(f"--storage-option {item!r}: {p} is given both as a value and as a group",
+                                 "bad_arguments")
+        d[leaf] = v
+    return out
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def storage_error(e: BaseException, where: str) -> BatchError:
+    """An error of the storage client as a BatchError that says what to do."""
+    name = type(e).__name__
+    text = str(e) or name
+    if "credential" in text.lower() or name in ("NoCredentialsError", "PartialCredentialsError"):
+        return BatchError(f"{where}: no credentials ({text}); give them with --storage-option key=... "
+                          "--storage-option secret=... (or profile=NAME, or anon=true for a public bucket), "
+                          "or the AWS_ACCESS_KEY_ID / AWS_SECRET_ACCESS_KEY environment variables")
+    if isinstance(e, PermissionError) or "AccessDenied" in text or "Forbidden" in text:
+        return BatchError(f"{where}: access refused ({text}); check the credentials and the bucket's policy")
+    return BatchError(f"{where}: cannot reach the storage ({name}: {text})")
+
+
+def filesystem(url: str, storage_options: dict | None):
+    """(filesystem, path) of ``url`` through fsspec."""
+    (fsspec,) = need("fsspec")
+    try:
+        return fsspec.core.url_to_fs(url, **(storage_options or {}))
+    except ImportError as e:
+        raise BatchError(f"{url}: no fsspec backend for this protocol is installed ({e}); "
+                         f"{EXTRA} brings s3fs (s3://)", "bad_arguments") from None
+    except (ValueError, TypeError) as e:
+        raise BatchError(f"{url}: bad storage options ({e})", "bad_arguments") from None
 
 
 def _info_time(info: dict) -> float | None:
     """The modification time (seconds since the epoch) in an fsspec info
     record; each backend names it its own way."""
-    import datetime as _dt
-
     when = info.get("LastModified") or info.get("mtime") or info.get("last_modified") or info.get("created")
     if isinstance(when, _dt.datetime):
         return when.timestamp()
@@ -42,45 +132,39 @@ def _info_time(info: dict) -> float | None:
 def on_storage(where: str, fn, *args, keep: tuple = (), **kwargs):
     """``fn(*args, **kwargs)``; when ``where`` is a storage URL, the storage
     client's own errors (unreachable, refused, no credentials) come out as a
-    ``batch.BatchError`` that names ``where`` and says what to do. Errors of
+    ``BatchError`` that names ``where`` and says what to do. Errors of
     the kinds in ``keep``, and every error of a local ``where``, pass as
     they are."""
-    if not _is_url(where):
+    if not is_url(where):
         return fn(*args, **kwargs)
-    from .batch import BatchError, _storage_error
-
     try:
         return fn(*args, **kwargs)
     except (BatchError, *keep):
         raise
     except Exception as e:
-        raise _storage_error(e, where) from None
+        raise storage_error(e, where) from None
 
 
 def read_bytes(path: str, storage_options: dict | None = None) -> bytes:
     """The bytes of a local file or a storage URL."""
-    from .batch import _local
-
-    if _is_url(path):
-        fs, p = _fs(path, storage_options)
+    if is_url(path):
+        fs, p = filesystem(path, storage_options)
         return fs.cat_file(p)
-    with open(_local(path), "rb") as f:
+    with open(local_path(path), "rb") as f:
         return f.read()
 
 
 def modified(path: str, storage_options: dict | None = None) -> float | None:
     """When a local file or a storage URL was last written (seconds since
     the epoch), None when it is not there; other storage errors propagate."""
-    from .batch import _local
-
-    if _is_url(path):
-        fs, p = _fs(path, storage_options)
+    if is_url(path):
+        fs, p = filesystem(path, storage_options)
         try:
             return _info_time(fs.info(p))
         except FileNotFoundError:
             return None
     try:
-        return os.path.getmtime(_local(path))
+        return os.path.getmtime(local_path(path))
     except FileNotFoundError:
         return None
 
@@ -90,19 +174,17 @@ class Folder:
     storage URL, read and written with ``storage_options``."""
 
     def __init__(self, root, storage_options: dict | None = None):
-        from .batch import _local
-
         root = os.fspath(root)
         self.storage_options = storage_options or {}
-        self.is_url = _is_url(root)
+        self.is_url = is_url(root)
         if self.is_url:
-            self.fs, path = _fs(root, self.storage_options)
+            self.fs, path = filesystem(root, self.storage_options)
             self.root = path.rstrip("/")
             #: the folder as the user names it: its URL, or its absolute path
             self.display = root.rstrip("/")
         else:
             self.fs = None
-            self.root = _local(root)
+            self.root = local_path(root)
             self.display = os.path.abspath(self.root)
 
     @property

@@ -1,0 +1,41 @@
+"""The ``uwhl`` command (also ``python -m uwhl_rs``).
+
+``uwhl restore INPUT... -o OUTDIR`` restores files, folders (recursively)
+and globs, writing per input the corrected photo, the transmission maps
+and a JSON sidecar (docs/OUTPUTS.md), a line per input, a summary and a
+non-zero exit status when any input failed; ``uwhl report``, ``uwhl
+ifdo``, ``uwhl evaluate`` and ``uwhl demo`` are the other commands, one
+module each. Everything written to the streams is :mod:`.console`'s;
+:func:`main` is the one place where an exception becomes its message and
+exit status (docs/CLI.md "Exit codes").
+"""
+
+from __future__ import annotations
+
+from . import demo, evaluate, ifdo, report, restore
+from .console import Console
+from .parser import build_parser
+
+__all__ = ["main", "build_parser"]
+
+_COMMANDS = {"restore": restore.run, "demo": demo.run, "report": report.run, "ifdo": ifdo.run,
+             "evaluate": evaluate.run}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``uwhl`` command; returns the exit status."""
+    p = build_parser()
+    a = p.parse_args(argv)
+    if a.cmd == "demo":
+        try:
+            h, w = (int(v) for v in a.size.lower().split("x"))
+        except ValueError:
+            p.error(f"--size must look like 480x640, not {a.size!r}")
+        if h < 4 or w < 4:
+            p.error(f"--size must be at least 4x4, not {a.size!r}")
+        a.size = (h, w)
+    console = Console(quiet=getattr(a, "quiet", False), json_errors=getattr(a, "json_errors", False))
+    try:
+        return _COMMANDS[a.cmd](a, console)
+    except (Exception, MemoryError, KeyboardInterrupt) as e:
+        return console.failure(e)

@@ -1,0 +1,95 @@
+"""Everything the ``uwhl`` command writes to its streams, from one place
+(docs/CLI.md "Lines"): the progress line of each input and the summary on
+stdout, errors on stderr as ``uwhl: INPUT: MESSAGE`` or, with
+``--json-errors``, one JSON object a line. The texts are uwhl-rs's.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+
+from ..errors import EXIT, CommandError, describe, kind_of
+from ..tasks import DONE_NOTE
+
+__all__ = ["Console"]
+
+
+class Console:
+    """The command's streams. ``out`` and ``err`` default to the process's
+    stdout and stderr as they are when written to; ``quiet`` keeps
+    everything but errors off; ``json_errors`` writes errors as objects."""
+
+    def __init__(self, out=None, err=None, *, quiet: bool = False, json_errors: bool = False,
+                 program: str = "uwhl"):
+        self._out, self._err = out, err
+        self.quiet, self.json_errors, self.program = quiet, json_errors, program
+        # --jobs N settles inputs from N threads: a line is written whole
+        self._lock = threading.Lock()
+
+    @property
+    def out(self):
+        return self._out or sys.stdout
+
+    @property
+    def err(self):
+        return self._err or sys.stderr
+
+    def _write(self, stream, text: str) -> None:
+        with self._lock:
+            stream.write(text + "\n")
+            stream.flush()
+
+    def line(self, text: str = "") -> None:
+        """A line of the command's output (stdout), unless quiet."""
+        if not self.quiet:
+            self._write(self.out, text)
+
+    def note(self, text: str, always: bool = False) -> None:
+        """A remark on stderr (``uwhl: TEXT``) that is not an error, unless
+        quiet (or ``always``)."""
+        if always or not self.quiet:
+            self._write(self.err, f"{self.program}: {text}")
+
+    def error(self, kind: str, message: str, input: str | None = None) -> int:
+        """One error on stderr; returns its exit code."""
+        code = EXIT[kind]
+        if self.json_errors:
+            text = json.dumps({"error": kind, "input": input, "message": message, "exit_code": code})
+        else:
+            text = f"{self.program}: {input}: {message}" if input is not None else f"{self.program}: {message}"
+        self._write(self.err, text)
+        return code
+
+    def failure(self, e: BaseException, input: str | None = None) -> int:
+        """An exception as its error line (its kind and message, the input
+        it names); returns its exit code."""
+        if isinstance(e, KeyboardInterrupt):
+            e = CommandError("interrupted; run the same command again to resume", "interrupted")
+        kind = kind_of(e)
+        # a bug says what it is
+        message = describe(e) if kind != "internal" else f"{type(e).__name__}: {e}"
+        return self.error(kind, message, input if input is not None else getattr(e, "input", None))
+
+    def row(self, row: dict, k: int | None, total: int) -> None:
+        """The line of one settled input (a ``tasks`` row): its progress
+        line (``k`` of ``total``), or its error."""
+        if row["status"] == "failed":
+            self.error(row["error_kind"], row["error"], row["input"])
+        elif row["status"] == "skipped":
+            why = f"{row['sidecar']} exists" if row["error"] == DONE_NOTE else row["error"]
+            self.line(f"[{k}/{total}] {row['input']}: skipped ({why})")
+        else:
+            self.line(f"[{k}/{total}] {row['input']} -> {row['image']} "
+                      f"(water type {row['water_type']}, {row['seconds'] or 0.0:.2f} s)")
+
+    def summary(self, rows: list[dict], seconds: float) -> None:
+        """The batch's last line: how many inputs were done, skipped, failed."""
+        n = {s: sum(r["status"] == s for r in rows) for s in ("done", "skipped", "failed")}
+        self.line(f"{n['done']} done, {n['skipped']} skipped, {n['failed']} failed in {seconds:.1f} s")
+
+    def failed_count(self, n: int) -> None:
+        """After a batch in which ``n`` inputs failed (each said already)."""
+        if n and not self.json_errors:
+            self._write(self.err, f"{self.program}: {n} input(s) failed")

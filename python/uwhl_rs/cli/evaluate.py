@@ -1,0 +1,72 @@
+"""``uwhl evaluate MANIFEST``: the paper's metrics on annotated photos,
+beside the baselines (``uwhl_rs.evaluate``, docs/EVALUATE.md)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import uwhl_rs
+
+from .. import evaluate as ev
+from ..errors import CommandError, ManifestError, describe, kind_of
+from .console import Console
+from .parser import method_kwargs, water_types
+
+__all__ = ["run"]
+
+
+def _fmt(x) -> str:
+    return "" if x is None else f"{x:.4f}"
+
+
+def run(a: argparse.Namespace, console: Console) -> int:
+    """``uwhl evaluate``: the exit status (docs/CLI.md's codes)."""
+    types = water_types(a.water_types)
+    kwargs = {k: v for k, v in method_kwargs(a, skip=("method",)).items() if v is not None}
+    if types is not None:
+        kwargs["water_types"] = types
+    try:
+        entries, problems = ev.load_manifest(a.manifest)
+    except ManifestError as e:
+        raise CommandError(str(e), e.kind, a.manifest) from e
+    code = 0
+    for p in problems:
+        code = max(code, console.error("unreadable_input", p, a.manifest))
+    results = []
+    t0 = time.perf_counter()
+    for k, entry in enumerate(entries, 1):
+        t = time.perf_counter()
+        try:
+            r = ev.evaluate_entry(entry, a.method, a.mask_charts, **kwargs)
+        except (Exception, MemoryError) as e:  # one entry's failure is its line; the others go on
+            code = max(code, console.error(kind_of(e), describe(e, entry.path), entry.label))
+            problems.append(f"{entry.label}: {describe(e, entry.path)}")
+            continue
+        results.append(r)
+        psi = [row["psi_deg"] for row in r["charts"] if row["method"] == a.method]
+        rho = r["rho"].get(a.method, {}).get("rho_B")
+        console.line(f"[{k}/{len(entries)}] {entry.label}: water type {r['water_type']}"
+                     + (f", psi-bar {', '.join(f'{v:.1f}' for v in psi if v is not None)} deg" if psi else "")
+                     + (f", rho {rho:.3f}" if rho is not None else "") + f" ({time.perf_counter() - t:.1f} s)")
+    try:
+        parameters = {"method": a.method, "mask_charts": a.mask_charts,
+                      **{k: v if not isinstance(v, tuple) else list(v) for k, v in kwargs.items()},
+                      "profiles": {m: uwhl_rs.method_steps(**({**kwargs, "method": m} if m == a.method else {"method": m}))
+                                   for m in ev.METHODS}}
+        doc = ev.write_results(a.out, a.manifest, results, problems, parameters)
+        ev.write_report(a.out, doc, results, entries, a.method, ev.METHODS)
+    except OSError as e:
+        raise CommandError(describe(e), "write_failed", a.out) from e
+    console.line(f"\n{'method':<12} {'psi-bar':>8} {'rho t_B':>8}")
+    for m, v in doc["summary"].items():
+        if m == "water_type":
+            continue
+        console.line(f"{m:<12} {_fmt(v['psi_deg']):>8} {_fmt(v['rho_B']):>8}")
+    if "water_type" in doc["summary"]:
+        for m, wt in doc["summary"]["water_type"].items():
+            console.line(f"water type ({m}): {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step")
+    console.line(f"{len(results)} of {len(entries)} images evaluated in {time.perf_counter() - t0:.1f} s; "
+                 f"{os.path.join(a.out, 'report.html')}")
+    return code

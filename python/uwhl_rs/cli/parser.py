@@ -1,0 +1,204 @@
+"""The arguments of ``uwhl``: every subcommand's parser, the options of
+the method and of ``restore`` built from the core's one option table
+(``_core.OPTIONS``, the table uwhl-rs parses from too), and what the
+parsed flags become (the keywords of ``restore`` and ``restore_file``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import uwhl_rs
+
+from .. import _core
+from ..errors import CommandError
+
+__all__ = ["build_parser", "water_types", "method_kwargs", "file_kwargs"]
+
+_EPILOG_RESTORE = _core.EXIT_CODES_HELP + """
+
+outputs (per input NAME, in OUTDIR, mirroring sub-folders of folder inputs):
+  NAME.jpg|.tif|.png   the corrected photo (sRGB)
+  NAME_t.png           transmission t_B, 16-bit gray (-ln t_B is a distance proxy)
+  NAME_t_color.png     transmission, colour-mapped (dark = far, yellow = near)
+  NAME_sheet.png       with --contact-sheet: every water type side by side
+  NAME.json            sidecar: water type, scores, A, VL size, flags, parameters,
+                       version, timings; written last, it marks the input as done
+Inputs whose sidecar exists are skipped unless --overwrite, so an interrupted
+run resumes where it stopped. Every file is written atomically.
+
+examples:
+  uwhl restore dive_042/ -o corrected/ --jobs 2
+  uwhl restore 'dive_*/**/*.NEF' -o out --format tiff --max-side 3000
+  uwhl restore IMG_1620.CR2 -o out --water-type 3C --contact-sheet
+"""
+
+
+def _option_type(key: str):
+    """An argparse type: the core's parser of option ``key`` (the one uwhl-rs uses)."""
+
+    def parse(text: str):
+        try:
+            return _core.parse_option(key, text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e).split(": ", 1)[-1]) from None
+
+    return parse
+
+
+def _add_options(parser: argparse.ArgumentParser, method_only: bool = False) -> None:
+    """The options of the core's table that the Python command takes,
+    grouped (``method_only``: those of the method, for ``uwhl evaluate``)."""
+    groups: dict[str, argparse._ArgumentGroup] = {}
+    for o in _core.OPTIONS:
+        if o["faces"] == "rust" or (method_only and not o["method"]):
+            continue
+        g = groups.get(o["group"]) or groups.setdefault(o["group"], parser.add_argument_group(o["group"]))
+        names = [o["flag"]] + ([o["short"]] if o["short"] else [])
+        kw = dict(dest=o["key"], help=o["help"].replace("%", "%%"))
+        if o["kind"] == "flag":
+            kw["action"] = "store_true"
+        elif o["kind"] == "water_types":
+            kw.update(action="append", metavar=o["metavar"])
+        elif o["kind"] == "key_value":
+            kw.update(action="append", metavar=o["metavar"], type=_option_type(o["key"]))
+        else:
+            kw.update(type=_option_type(o["key"]), metavar=o["metavar"], default=o["default"])
+        g.add_argument(*names, **kw)
+
+
+def water_types(values: list[str] | None):
+    """--water-type values: names (comma lists allowed) or NAME:BETA_BR:BETA_BG."""
+    if not values:
+        return None
+    out = []
+    for v in values:
+        for item in (x.strip() for x in v.split(",")):
+            if not item:
+                continue
+            if ":" in item:
+                parts = item.split(":")
+                try:
+                    out.append((parts[0], float(parts[1]), float(parts[2])))
+                except (IndexError, ValueError):
+                    raise CommandError(f"--water-type {item!r}: a custom type is NAME:BETA_BR:BETA_BG",
+                                       "bad_arguments") from None
+            elif item in uwhl_rs.WATER_TYPES:
+                out.append(item)
+            else:
+                raise CommandError(
+                    f"--water-type {item!r}: unknown; known types are {', '.join(uwhl_rs.WATER_TYPES)}"
+                    " (or give NAME:BETA_BR:BETA_BG)", "bad_arguments"
+                )
+    return out
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``uwhl`` (all subcommands)."""
+    p = argparse.ArgumentParser(
+        prog="uwhl",
+        description="Underwater single-image color restoration with haze-lines "
+        "(Berman, Levy, Avidan & Treibitz, TPAMI 2020): corrected colors, a transmission "
+        "(distance proxy) map and the Jerlov water type from a raw or JPEG photograph.",
+        epilog="Run 'uwhl COMMAND --help' for a command's options.",
+    )
+    p.add_argument("--version", action="version", version=f"uwhl_rs {uwhl_rs.__version__}")
+    sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
+
+    r = sub.add_parser(
+        "restore",
+        help="restore photographs (files, folders, globs) into an output folder",
+        description="Restore underwater photographs: raw (NEF, CR2, ARW, DNG, ... anything LibRaw reads), "
+        "JPEG, PNG or TIFF. Folders are searched recursively; quote globs to let uwhl expand them.",
+        epilog=_EPILOG_RESTORE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    r.add_argument("inputs", nargs="+", metavar="INPUT", help="image files, folders or glob patterns")
+    r.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR",
+                   help="output folder (created if needed)")
+    _add_options(r)
+
+    d = sub.add_parser(
+        "demo",
+        help="restore the built-in synthetic scene and print the true vs estimated water type",
+        description="Render the package's synthetic underwater scene (nothing is downloaded), restore it, "
+        "write input/restored/transmission/clean_truth PNGs and report true vs estimated water type and A.",
+    )
+    d.add_argument("-o", "--out", "--output", dest="out", default="uwhl_demo", help="output folder (default: ./uwhl_demo)")
+    d.add_argument("--water-type", default="III", choices=list(uwhl_rs.WATER_TYPES), help="water type to render (default III)")
+    d.add_argument("--size", default="480x640", help="HxW of the scene (default 480x640)")
+    d.add_argument("--seed", type=int, default=7, help="scene seed (default 7)")
+
+    rp = sub.add_parser(
+        "report",
+        help="one page for a batch: thumbnails, water types, the sequence, flagged photos first",
+        description="Write OUTDIR/report/index.html from the sidecars under OUTDIR (docs/REPORT.md): the "
+        "flagged photos first, a histogram of the water types, water type, A and score over the sequence, and a "
+        "paginated grid of before/after thumbnails (written once into OUTDIR/report/thumbs) that open the "
+        "full-size photo and its transmission map.",
+    )
+    rp.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
+    rp.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="an fsspec option for a URL OUTDIR, as for restore")
+    rp.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
+    rp.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+
+    fd = sub.add_parser(
+        "ifdo",
+        help="the iFDO file of a batch (image FAIR Digital Objects) for marine imaging platforms",
+        description="Write OUTDIR/ifdo.yaml from the sidecars under OUTDIR (docs/OUTPUTS.md \"iFDO\"): the set's "
+        "header (the fields of --header, the rest derived), one item per corrected photo (its image UUID, "
+        "SHA-256, handle, UTC time and GPS position) and the restoration as the set's provenance.",
+    )
+    fd.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
+    fd.add_argument("--header", required=True, metavar="HEADER",
+                    help="YAML or JSON file of the set's iFDO fields: image-project, image-event, image-platform, "
+                    "image-sensor, image-pi, image-creators, image-license, image-copyright, image-abstract, "
+                    "image-context, image-coordinate-uncertainty-meters (and any other header field)")
+    fd.add_argument("--handle-base", metavar="URL",
+                    help="the URL the folder is published under: each photo's image-handle is it joined with "
+                    "the photo's path (default: the photos' own file:// or object-storage URLs)")
+    fd.add_argument("--format", choices=("yaml", "json"), default=None,
+                    help="ifdo.yaml or ifdo.json (default: the kind of the header file)")
+    fd.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
+                    help="an fsspec option for a URL OUTDIR, as for restore")
+    fd.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
+    fd.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+
+    e = sub.add_parser(
+        "evaluate",
+        help="the paper's colour and distance metrics on annotated photos, beside baselines",
+        description="Evaluate the method on the photos of a manifest (docs/EVALUATE.md): the mean angle of "
+        "chart gray patches from gray (psi-bar), rho of -ln t against distance maps, the water type against "
+        "a known one; beside every other profile (--method), the input, a contrast stretch, gray world and "
+        "every candidate type. Writes "
+        "results.json, results.csv and report.html.",
+    )
+    e.add_argument("manifest", metavar="MANIFEST", help="the manifest (JSON; paths relative to it)")
+    e.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR",
+                   help="output folder (created if needed)")
+    e.add_argument("--mask-charts", action="store_true",
+                   help="exclude the charts' regions from estimation (the mask of restore), as the paper does")
+    e.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
+    e.add_argument("-q", "--quiet", action="store_true", help="no progress lines and no summary")
+    _add_options(e, method_only=True)
+    return p
+
+
+def file_kwargs(a: argparse.Namespace, water_types) -> dict:
+    """The keywords of ``files.restore_file`` that ``uwhl restore``'s flags
+    give (``max_memory`` only when given: the default follows the machine
+    that restores)."""
+    kw = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
+              max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
+              contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
+    if a.max_memory is not None:
+        kw["max_memory"] = a.max_memory
+    return kw
+
+
+def method_kwargs(a: argparse.Namespace, skip=()) -> dict:
+    """The method's keywords of ``restore`` as parsed from the option
+    table's flags (``water_types`` is parsed apart), less those in ``skip``."""
+    return {o["key"]: getattr(a, o["key"]) for o in _core.OPTIONS
+            if o["method"] and o["faces"] != "rust" and o["key"] not in ("water_types", *skip)}

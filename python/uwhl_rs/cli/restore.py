@@ -1,0 +1,90 @@
+"""``uwhl restore INPUT... -o OUTDIR``: every input restored into OUTDIR by
+the one batch loop (``uwhl_rs.batch.run_batch``: in this process, or on
+a Dask cluster with ``--dask``, with inputs and outputs on local paths or
+storage URLs), then the report and the iFDO when asked for."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import uwhl_rs
+
+from .. import _core, batch, files
+from ..errors import CommandError, UwhlError
+from ..ifdo import load_header
+from ..storage import is_url, parse_storage_options
+from . import ifdo as ifdo_command
+from . import report as report_command
+from .console import Console
+from .parser import file_kwargs, water_types
+
+__all__ = ["run"]
+
+
+def _bad(message: str) -> CommandError:
+    return CommandError(message, "bad_arguments")
+
+
+def _check(a: argparse.Namespace, options: dict) -> None:
+    """What is refused before any input is read."""
+    try:
+        _core.check_combination(a.format, a.bits, a.reuse_estimates, a.reuse_water_mask, False, a.preprocess)
+    except ValueError as e:
+        raise _bad(str(e)) from None
+    for flag, path in (("--mask", a.mask), ("--water-mask", a.water_mask)):
+        if path is not None and not os.path.isfile(path):
+            raise _bad(f"{flag} {path}: no such file")
+    if a.reuse_estimates is not None:
+        # the sequence's keywords checked once here, not by every input
+        method = {k: options[k] for k in files.METHOD_KEYS if k in options}
+        try:
+            uwhl_rs.Sequence(refresh_every=a.reuse_estimates, reuse_water_mask=a.reuse_water_mask, **method)
+        except UwhlError as e:
+            raise _bad(str(e)) from None
+
+
+def run(a: argparse.Namespace, console: Console) -> int:
+    """``uwhl restore``: the exit status, the largest of its inputs' codes."""
+    options = file_kwargs(a, water_types(a.water_types))
+    _check(a, options)
+    header = load_header(a.ifdo) if a.ifdo is not None else None
+    so: dict = {}
+    if a.dask is not None or any(is_url(p) for p in [*a.inputs, a.out]):
+        if a.jobs != 1:
+            raise _bad("--jobs is for runs in this process; on a cluster (--dask) every worker takes one input at "
+                       "a time per thread")
+        so = parse_storage_options(a.storage_option)
+    elif a.storage_option:
+        raise _bad("--storage-option is for URL inputs or outputs (s3://, gs://, ...) and --dask")
+    elif a.reuse_estimates is not None and a.jobs != 1:
+        raise _bad("--reuse-estimates restores the inputs in order; it needs --jobs 1")
+    t0 = time.perf_counter()
+    result = batch.run_batch(a.inputs, a.out, dask=a.dask, storage_options=so, overwrite=a.overwrite,
+                             reuse_estimates=a.reuse_estimates, reuse_water_mask=a.reuse_water_mask,
+                             options=options, jobs=a.jobs, listener=console)
+    if not result.rows and not result.interrupted:
+        console.note("nothing to do", always=True)
+        return 0
+    code = max((int(r["exit_code"] or 0) for r in result.rows), default=0)
+    if result.summary_error:
+        code = max(code, console.error("write_failed", result.summary_error))
+    console.summary(result.rows, time.perf_counter() - t0)
+    if result.interrupted:
+        raise CommandError(f"interrupted after {len(result.rows) - result.problems} of {result.total} inputs; "
+                           "run the same command again to resume", "interrupted")
+    console.failed_count(sum(r["status"] == "failed" for r in result.rows))
+    # the report and the iFDO of what is there, each failing alone
+    if a.report:
+        try:
+            report_command.write(a.out, console, so or None)
+        except (Exception, MemoryError) as e:
+            code = max(code, console.failure(e))
+    if header is not None:
+        try:
+            ifdo_command.write(a.out, header, console, file_format=ifdo_command.file_format(a.ifdo),
+                               storage_options=so or None)
+        except (Exception, MemoryError) as e:
+            code = max(code, console.failure(e))
+    return code

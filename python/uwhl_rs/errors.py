@@ -1,0 +1,120 @@
+"""One error model for the package: every failure has a *kind*, the name of
+its exit code in the core's table (docs/CLI.md "Exit codes"), set where it
+is raised.
+
+All the package's exceptions derive from the core's
+:class:`uwhl_rs.UwhlError` (itself a ValueError), and keep their builtin
+bases, so ``except ValueError`` keeps catching what it caught. Errors that
+do not come from the package (a full disk, a failed allocation, a bug) get
+their kind from :func:`kind_of`.
+"""
+
+from __future__ import annotations
+
+from ._core import EXIT_CODES, ImageError, ParameterError, UwhlError
+
+__all__ = [
+    "EXIT",
+    "UwhlError",
+    "ImageError",
+    "ParameterError",
+    "CommandError",
+    "ImageReadError",
+    "ImageTooLargeError",
+    "BatchError",
+    "IfdoError",
+    "ManifestError",
+    "kind_of",
+    "describe",
+]
+
+#: exit statuses, shared with uwhl-rs (docs/CLI.md): {name: code}
+EXIT: dict[str, int] = {name: code for code, name, _ in EXIT_CODES}
+
+# the core's own exceptions carry no kind (yet): the subclass says it
+_CORE_KINDS = ((ImageError, "unreadable_input"), (ParameterError, "bad_arguments"))
+
+
+class CommandError(UwhlError):
+    """A failure that ends a command (or one input of a batch): its
+    message, its ``kind`` (an exit-code name) and the input or folder it
+    is about, if any."""
+
+    kind = "internal"
+
+    def __init__(self, message: str, kind: str | None = None, input: str | None = None):
+        super().__init__(message)
+        if kind is not None:
+            if kind not in EXIT:
+                raise ValueError(f"unknown error kind {kind!r}; the kinds are {', '.join(EXIT)}")
+            self.kind = kind
+        self.input = input
+
+
+class ImageReadError(UwhlError):
+    """A file could not be read as an image (missing, truncated, corrupt,
+    unsupported or too large). The message names the file and the reason."""
+
+    kind = "unreadable_input"
+
+
+class ImageTooLargeError(ImageReadError):
+    """The image is over the pixel budget (``max_pixels``), the memory
+    budget, or what the system gives; the commands report it as over
+    budget, not as unreadable."""
+
+    kind = "over_budget"
+
+
+class BatchError(CommandError):
+    """The batch could not start: the extra is missing, the scheduler or
+    the storage cannot be reached, credentials are refused (``kind``
+    ``unreachable`` unless said otherwise)."""
+
+    kind = "unreachable"
+
+
+class IfdoError(UwhlError):
+    """The header cannot make a valid iFDO (a field missing or ill-typed),
+    or the folder holds no restored photo."""
+
+    kind = "bad_arguments"
+
+
+class ManifestError(UwhlError):
+    """A manifest entry that cannot be evaluated; the message names it."""
+
+    kind = "unreadable_input"
+
+
+def kind_of(e: BaseException, writing: bool = False) -> str:
+    """The kind of a failure: its own ``kind`` when it has one, else what
+    its class says (the core's ImageError and ParameterError; a builtin
+    MemoryError is over budget, an OSError a failed write while
+    ``writing`` and an unreadable input before); anything else is a bug."""
+    kind = getattr(e, "kind", None)
+    if isinstance(kind, str) and kind in EXIT:
+        return kind
+    for cls, k in _CORE_KINDS:
+        if isinstance(e, cls):
+            return k
+    if isinstance(e, MemoryError):
+        return "over_budget"
+    if isinstance(e, OSError):
+        return "write_failed" if writing else "unreadable_input"
+    if isinstance(e, KeyboardInterrupt):
+        return "interrupted"
+    return "internal"
+
+
+def describe(e: BaseException, path: str | None = None) -> str:
+    """The message of a failure; the input's path is said once, by the
+    line that reports it, so a leading ``path: `` is left out."""
+    if isinstance(e, MemoryError):
+        return f"over the memory budget: {e}"
+    if isinstance(e, OSError) and e.strerror:
+        return f"{e.strerror}" + (f": {e.filename}" if e.filename else "")
+    text = str(e) or type(e).__name__
+    if path is not None and text.startswith(f"{path}: "):
+        text = text[len(path) + 2:]
+    return text

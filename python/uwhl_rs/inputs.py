@@ -1,0 +1,62 @@
+"""A batch's inputs: the files, folders and glob patterns given, expanded
+into jobs (input, output folder, output name) by the rules both commands
+share (docs/OUTPUTS.md "Names"); the naming itself is the core's
+(``_core.collect_jobs``, ``_core.name_jobs``)."""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+from dataclasses import dataclass
+
+from . import _core
+from .files import output_suffixes
+from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS
+
+__all__ = ["Job", "GLOB_CHARS", "supported", "collect_inputs"]
+
+#: what makes an input a glob pattern (when no file has that name)
+GLOB_CHARS = re.compile(r"[*?\[]")
+
+
+@dataclass
+class Job:
+    """One input and where its outputs go."""
+
+    path: str
+    out_dir: str
+    name: str
+
+
+def supported(path: str) -> bool:
+    """Whether ``path``'s extension is one a folder walk or a glob takes."""
+    ext = os.path.splitext(path)[1].lower()
+    return ext in IMAGE_EXTENSIONS or ext in RAW_EXTENSIONS
+
+
+def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",
+                   contact: bool = False) -> tuple[list[Job], list[tuple[str, str]]]:
+    """Expand files, folders (recursive) and globs into jobs.
+
+    Glob patterns are expanded here; the rest is the core's one discovery
+    and naming, which uwhl-rs uses too (``_core.collect_jobs``): files under
+    ``out_dir`` are never taken as inputs, the same file named twice is
+    processed once, and two inputs that would share an output name get
+    ``NAME_ext`` (then ``NAME_ext_2``, ... if still shared), and no output
+    file of one input (``fmt``, ``contact``) is another's. Returns (jobs,
+    problems): problems are (input, reason) for inputs that match nothing.
+    """
+    items: list[str] = []
+    problems: list[tuple[str, str]] = []
+    for item in inputs:
+        if not os.path.exists(item) and GLOB_CHARS.search(item):
+            hits = sorted(h for h in glob.glob(item, recursive=True) if os.path.isfile(h) and supported(h))
+            if not hits:
+                problems.append((item, "pattern matches no image file"))
+            items.extend(hits)
+        else:
+            items.append(item)
+    found, missing = _core.collect_jobs(items, out_dir, output_suffixes(fmt, contact))
+    problems += [(str(p), why) for p, why in missing]
+    return [Job(str(p), str(d), name) for p, d, name in found], problems

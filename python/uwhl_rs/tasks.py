@@ -1,0 +1,377 @@
+"""One input of a batch, from claim to row: the per-input step that every
+way of running a batch shares (in this process, overlapped or on threads,
+and as Dask tasks), and the row that says what became of the input
+(docs/SCALE.md, docs/OUTPUTS.md "summary.csv").
+
+An input's outputs are written by ``files`` as a local run writes them;
+on object storage they are written into a local scratch folder, then
+uploaded, the sidecar last (the commit marker).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import uwhl_rs
+
+from . import _core, files
+from .errors import EXIT, CommandError, ImageReadError, UwhlError, describe, kind_of
+from .images import DEFAULT_MAX_PIXELS, read_image
+from .outdir import row_fields_from_sidecar
+from .storage import filesystem, is_url, join, local_path
+
+__all__ = ["COLUMNS", "MEMORY", "DONE_NOTE", "Item", "Context", "begin", "restore_items", "probe", "worker", "row"]
+
+#: the Dask worker resource a task asks for: bytes of its memory plan
+MEMORY = "MEMORY"
+
+#: header bytes fetched from object storage to plan an input's memory
+_HEADER_BYTES = 1 << 18
+
+#: a row's columns, in order (``restore_many``'s DataFrame)
+COLUMNS = ["input", "status", "water_type", "A_R", "A_G", "A_B", "flags", "seconds", "image", "transmission",
+           "transmission_color", "contact_sheet", "sidecar", "reused_estimates", "error_kind", "error", "exit_code",
+           "worker", "scores", "taken_at", "latitude", "longitude", "altitude"]
+
+#: the note of an input skipped because its sidecar exists (uwhl-rs's words)
+DONE_NOTE = "already done (sidecar exists; --overwrite redoes it)"
+
+
+@dataclass
+class Item:
+    """One input of a batch: where it is, where its outputs go, its name."""
+
+    input: str
+    out_dir: str
+    name: str
+    #: index in name order (the order of the batch)
+    index: int = 0
+    #: bytes of its memory plan, once known (None: not planned)
+    need: int | None = None
+
+
+# ------------------------------------------------------------------ rows
+
+
+def worker():
+    """The Dask worker running this task, or None (in this process)."""
+    try:
+        from distributed import get_worker
+
+        return get_worker()
+    except (ImportError, ValueError):
+        return None
+
+
+def scratch_root() -> str:
+    """Where a task keeps its local copies: the worker's own folder, or the
+    system's temporary folder."""
+    w = worker()
+    root = getattr(w, "local_directory", None) if w is not None else None
+    return root or tempfile.gettempdir()
+
+
+def row(item: Item, status: str, **kw) -> dict:
+    """An input's row: every column, ``status`` done / skipped / failed."""
+    r = {c: None for c in COLUMNS}
+    r.update(input=item.input, status=status)
+    w = worker()
+    r["worker"] = w.address if w is not None else f"{socket.gethostname()}:{os.getpid()}"
+    r.update(kw)
+    return r
+
+
+def failure_row(item: Item, e: BaseException, writing: bool, seconds: float | None,
+                local_copy: str | None = None) -> dict:
+    """The row of an input that failed with ``e`` (while writing its
+    outputs, or before); a local copy's path is said as the input's."""
+    kind = kind_of(e, writing)
+    text = describe(e, local_copy or item.input)
+    if local_copy and local_copy != item.input:
+        text = text.replace(local_copy, item.input)
+    return row(item, "failed", error_kind=kind, error=text, exit_code=EXIT[kind],
+               seconds=None if seconds is None else round(seconds, 4))
+
+
+def skipped_row(item: Item, sidecar: str, note: str = DONE_NOTE) -> dict:
+    """The row of an input skipped (its sidecar exists, or ``note`` says why)."""
+    return row(item, "skipped", error=note, exit_code=0, sidecar=str(sidecar))
+
+
+def _done_row(item: Item, result, seconds: float, outputs: dict) -> dict:
+    res = result.restoration
+    return row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=round(seconds, 4), exit_code=0,
+               reused_estimates="estimates_reused" in res.flags if "reused_estimates" in result.sidecar else None,
+               **{role: outputs.get(role) for role in ("image", "transmission", "transmission_color",
+                                                        "contact_sheet", "sidecar")})
+
+
+# ------------------------------------------------------------------ storage
+
+
+def _stored(kind: str, fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` on object storage; the storage client's own
+    errors (which are neither the package's nor OSErrors) as a failure of
+    ``kind``, with the client's message."""
+    try:
+        return fn(*args, **kwargs)
+    except (UwhlError, OSError, MemoryError):
+        raise
+    except Exception as e:
+        raise CommandError(str(e) or type(e).__name__, kind) from e
+
+
+def fetch(url: str, scratch: str, storage_options: dict, header: bool = False) -> str:
+    """A local copy of ``url`` in ``scratch`` under its own base name (so
+    the contact sheet and the readers see the same name and extension);
+    ``header``: only its first bytes."""
+    fs, path = filesystem(url, storage_options)
+    local = os.path.join(scratch, os.path.basename(path))
+
+    def get():
+        if header:
+            with open(local, "wb") as f:
+                f.write(fs.cat_file(path, start=0, end=_HEADER_BYTES))
+        else:
+            fs.get_file(path, local)
+
+    try:
+        _stored("unreadable_input", get)
+    except FileNotFoundError:
+        raise FileNotFoundError(2, "No such file or folder", url) from None
+    return local
+
+
+def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: bool) -> dict:
+    """Uploads an input's outputs to object storage, the sidecar last: the
+    sidecar is the commit marker (docs/SCALE.md). An earlier sidecar goes
+    first, so that no sidecar ever lists outputs of another attempt."""
+    fs, _ = filesystem(item.out_dir, storage_options)
+    dest = {role: join(item.out_dir, os.path.basename(p)) for role, p in files_written.items()}
+    side = filesystem(dest["sidecar"], storage_options)[1]
+    if overwrite:
+        try:
+            fs.rm_file(side)
+        except FileNotFoundError:
+            pass
+    for role, p in files_written.items():
+        if role != "sidecar":
+            fs.put_file(p, filesystem(dest[role], storage_options)[1])
+    fs.put_file(files_written["sidecar"], side)
+    return dest
+
+
+def _unlink(p: str) -> None:
+    try:
+        os.unlink(p)
+    except OSError:
+        pass
+
+
+# ------------------------------------------------------------------ the step
+
+
+@dataclass
+class Context:
+    """What every input of one run (or one task) shares."""
+
+    opts: dict
+    storage_options: dict
+    overwrite: bool
+    #: the scratch folder (local copies, outputs bound for object storage)
+    scratch: str
+    #: the ``uwhl_rs.Sequence`` of ``--reuse-estimates``, or None
+    sequence: object = None
+    #: what the process holds anyway, counted in every input's memory check
+    base: int = 0
+
+
+def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | None, reuse_water_mask: bool,
+            scratch: str) -> Context:
+    """The context of a run here or of a task on a worker: the worker's
+    threads and memory as defaults, the sequence of ``reuse``, the base."""
+    opts = dict(opts)
+    threads, budget = _worker_resources(opts.get("threads"))
+    if threads is not None:
+        opts["threads"] = threads
+    if budget is not None and opts.get("max_memory") is None:
+        opts["max_memory"] = budget
+    method = {k: opts[k] for k in files.METHOD_KEYS if k in opts}
+    sequence = None
+    if reuse is not None:
+        sequence = uwhl_rs.Sequence(refresh_every=reuse, reuse_water_mask=reuse_water_mask, **method)
+    # --max-memory bounds the process's peak: what it holds before the
+    # first input (the interpreter, numpy, the codecs, imported now so that
+    # they are counted here and not while the first input is written) counts
+    import imageio.v3  # noqa: F401  (counted in the base)
+    import tifffile  # noqa: F401
+    from PIL import Image  # noqa: F401
+
+    # (and 4 MiB for the writer threads' stacks and allocator arenas)
+    return Context(opts, dict(storage_options), overwrite, scratch, sequence, _core.process_base() + (4 << 20))
+
+
+def _worker_resources(threads_default: int | None) -> tuple[int | None, int | None]:
+    """(threads, max_memory) for the core on this worker: the cores shared
+    among the worker's task threads unless given, the worker's MEMORY
+    resource or memory limit as the budget."""
+    w = worker()
+    if w is None:
+        return threads_default, None
+    nthreads = getattr(getattr(w, "state", None), "nthreads", None) or getattr(w, "nthreads", 1) or 1
+    threads = threads_default if threads_default is not None else max(1, (os.cpu_count() or 1) // int(nthreads))
+    budget = (getattr(getattr(w, "state", None), "total_resources", None) or {}).get(MEMORY)
+    if budget is None:
+        limit = getattr(getattr(w, "memory_manager", None), "memory_limit", None)
+        budget = int(limit) if limit else None
+    return threads, None if budget is None else int(budget)
+
+
+def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], dict]:
+    """Claims ``item``'s output names, reads and restores it. Returns its
+    row when that settles it (skipped, failed), else the function that
+    writes its outputs and returns its row, so that a caller can write one
+    input while the next is restored. ``prime``: the input starts a chunk
+    of a sequence; when it is done already it is restored again, unwritten,
+    so the chunk's other frames reuse its estimates as in a full run.
+
+    One input's failure is its row; an interrupt propagates (the claim is
+    released)."""
+    t0 = time.perf_counter()
+    opts, so = ctx.opts, ctx.storage_options
+    fmt, contact = opts.get("format", "jpg"), opts.get("contact", False)
+    remote_out = is_url(item.out_dir)
+    local_in = None
+    if not remote_out:
+        out_dir = local_path(item.out_dir)
+        try:
+            status, sidecar, reason, claim = files.claim_outputs(out_dir, item.name, item.input, fmt, contact,
+                                                                 overwrite=ctx.overwrite, rename=True)
+        except OSError as e:
+            return failure_row(item, OSError(e.errno, f"cannot claim output names in {out_dir}: {e}"), True, None)
+        if status != "claimed":
+            if prime and ctx.sequence is not None and status == "done":
+                _prime(item, ctx)
+            return skipped_row(item, sidecar, DONE_NOTE if status == "done" else reason)
+    try:
+        if remote_out:
+            sidecar = join(item.out_dir, item.name + ".json")
+            fs, side = filesystem(sidecar, so)
+            if not ctx.overwrite and _stored("unreadable_input", fs.exists, side):
+                if prime and ctx.sequence is not None:
+                    _prime(item, ctx)
+                return skipped_row(item, sidecar)
+            out_dir = os.path.join(ctx.scratch, f"out{item.index}")
+            _, _, _, claim = files.claim_outputs(out_dir, item.name, item.input, fmt, contact,
+                                                 overwrite=True, rename=False)
+        local_in = fetch(item.input, ctx.scratch, so) if is_url(item.input) else local_path(item.input)
+        write = files.restore_staged(local_in, out_dir, name=item.name, _claim=claim, _base=ctx.base,
+                                     _label=item.input, sequence=ctx.sequence, **opts)
+    except (Exception, MemoryError) as e:  # one bad file never stops the batch
+        return failure_row(item, e, False, time.perf_counter() - t0, local_in)
+
+    def finish() -> dict:
+        try:
+            result = write()
+            outputs = dict(result.paths)
+            if remote_out:
+                outputs = _stored("write_failed", _publish, result.paths, item, so, ctx.overwrite)
+        except (Exception, MemoryError) as e:
+            return failure_row(item, e, True, time.perf_counter() - t0, local_in)
+        finally:
+            if local_in is not None and local_in != local_path(item.input):
+                _unlink(local_in)
+        done = _done_row(item, result, time.perf_counter() - t0, outputs)
+        if remote_out:
+            shutil.rmtree(out_dir, ignore_errors=True)
+        return done
+
+    return finish
+
+
+def _prime(item: Item, ctx: Context) -> None:
+    """Restores ``item`` (done already) into the scratch folder, unwritten,
+    as the first frame of its chunk's sequence."""
+    d = os.path.join(ctx.scratch, "prime")
+    opts = ctx.opts
+    try:
+        local_in = fetch(item.input, ctx.scratch, ctx.storage_options) if is_url(item.input) \
+            else local_path(item.input)
+        _, _, _, claim = files.claim_outputs(d, item.name, item.input, opts.get("format", "jpg"),
+                                             opts.get("contact", False), overwrite=True, rename=False)
+    except (Exception, MemoryError):
+        return  # the frames after it then estimate for themselves, as after a failed first frame
+    try:
+        files.restore_staged(local_in, d, name=item.name, _claim=claim, _base=ctx.base, sequence=ctx.sequence, **opts)
+    except (Exception, MemoryError):
+        pass
+    finally:
+        claim.release()
+
+
+def restore_items(items: list[Item], opts: dict, storage_options: dict, overwrite: bool,
+                  reuse: int | None, reuse_water_mask: bool) -> list[dict]:
+    """Task: restores ``items`` (in order; with ``reuse``, one chunk of a
+    sequence whose first frame estimates) and writes their outputs as a
+    local run does; their rows."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="uwhl-task-", dir=scratch_root()) as scratch:
+        ctx = context(opts, storage_options, overwrite, reuse, reuse_water_mask, scratch)
+        for pos, item in enumerate(items):
+            step = begin(item, ctx, prime=pos == 0)
+            rows.append(step() if callable(step) else step)
+    return rows
+
+
+# ------------------------------------------------------------------ planning
+
+
+class _Planned(ImageReadError):
+    """Raised from the header hook: the input's plan is known (an
+    ImageReadError, so that read_image lets it through)."""
+
+
+def _header_need(path: str, opts: dict) -> int:
+    """Bytes the input at local ``path`` needs (files.input_need), from its header."""
+    got = []
+    masks = int(opts.get("mask") is not None) + int(opts.get("water_mask") is not None)
+
+    def hook(h, w, bpp, oriented):
+        got.append(files.input_need(h, w, bpp, oriented, half_size=opts.get("half_size", False),
+                                    max_side=opts.get("max_side"), preprocess=opts.get("preprocess", "none"),
+                                    masks=masks, contact=opts.get("contact", False)))
+        raise _Planned
+
+    try:
+        read_image(path, preprocess=opts.get("preprocess", "none"), half_size=opts.get("half_size", False),
+                   max_pixels=opts.get("max_pixels", DEFAULT_MAX_PIXELS), _on_header=hook)
+    except _Planned:
+        pass
+    if not got:
+        raise ValueError("no header")
+    return got[0]
+
+
+def probe(items: list[tuple[int, str]], opts: dict, storage_options: dict) -> list[tuple[int, int | None]]:
+    """Task: the memory plan of each (index, input) from its header, or
+    None when the header cannot be read (the restore task then reports why)."""
+    out = []
+    with tempfile.TemporaryDirectory(prefix="uwhl-probe-", dir=scratch_root()) as scratch:
+        for k, path in items:
+            need = None
+            for header in ((True, False) if is_url(path) else (None,)):
+                try:
+                    local = fetch(path, scratch, storage_options, header=header) if header is not None \
+                        else local_path(path)
+                    need = _header_need(local, opts)
+                    break
+                except Exception:  # a truncated header copy: try the whole file; a bad file: the restore says why
+                    continue
+            out.append((k, need))
+    return out
