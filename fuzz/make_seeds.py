@@ -50,9 +50,9 @@ save("rgb8.tif", 0, tif(c8, photometric="rgb"))
 save("rgb16_deflate_linear.tif", 2, tif(c16, photometric="rgb", compression="zlib"))
 save("rgb32f.tif", 0, tif(lin, photometric="rgb"))
 # a 16-bit PNG: the package's writer (Pillow cannot write 16-bit RGB)
-from uwhl_rs.io import _png_bytes  # noqa: E402
+from uwhl_rs import _core  # noqa: E402
 
-save("rgb16.png", 4, _png_bytes(c16))
+save("rgb16.png", 4, _core._encode_png(np.ascontiguousarray(c16)))
 for name in ["huge_header.png", "truncated.jpg", "bad_offsets.tif"]:
     with open(os.path.join(HOSTILE, name), "rb") as f:
         save("hostile_" + name, 0, f.read())

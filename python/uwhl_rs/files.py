@@ -54,10 +54,10 @@ class FileResult:
 
 def output_suffixes(fmt: str = "jpg", contact: bool = False) -> list[str]:
     """What follows ``NAME`` in the names of an input's outputs, in writing
-    order, without the sidecar's ``.json`` (the claim of ``_core`` adds it)."""
-    if fmt not in FORMATS:
-        raise ValueError(f"format must be one of {sorted(FORMATS)}, not {fmt!r}")
-    return [FORMATS[fmt][0], "_t.png", "_t_color.png"] + (["_sheet.png"] if contact else [])
+    order, without the sidecar's ``.json`` (the claim of ``_core`` adds it):
+    the files layer's one list (``_core.output_suffixes``), which the binary
+    uses too. An unknown ``fmt`` is a ``ParameterError`` (a ValueError)."""
+    return _core.output_suffixes(fmt, contact)
 
 
 def claim_outputs(out_dir: str, name: str, in_path: str, fmt: str, contact: bool, *, overwrite: bool, rename: bool):
@@ -307,7 +307,7 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
                                           format=format, bits=bits, quality=quality),
             }
             # the input's EXIF and XMP, and the restoration's record, into
-            # the photo (the core's src/metadata.rs, as uwhl-rs does)
+            # the photo (the core's src/files/metadata.rs, as uwhl-rs does)
             sidecar["metadata"] = json.loads(_core.carry_metadata(
                 temps[0], in_path, json.dumps(_record_fields(sidecar)), os.path.basename(paths["sidecar"]),
                 int(res.transmission.shape[1]), int(res.transmission.shape[0])))

@@ -245,7 +245,7 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
                 codes = iio.imread(path, plugin="pillow", mode="RGB", rotate=True)
     codes = _to_rgb(path, np.asarray(codes))
     linearize = preprocess == "none"
-    # a profile other than sRGB: the codes go to the working space through it (the core's src/icc.rs)
+    # a profile other than sRGB: the codes go to the working space through it (the core's src/files/icc.rs)
     profile, notes = None, ()
     if icc:
         what, text = _core._icc_classify(bytes(icc))
