@@ -17,15 +17,15 @@
 //! and `2 m` for their downscaled copies. The plan is the largest phase.
 //!
 //! The batch and stream loops decode and restore an input while the
-//! previous one's outputs are written (`run::overlapped`); that one holds
+//! previous one's outputs are written (`crate::cli::run`); that one holds
 //! `69 m'` bytes (its restoration, encoders and metadata, `m'` its pixels) until it
 //! is written. An input whose plan does not fit in `--max-memory` beside
 //! them waits until they are written, so the two together stay within the
 //! budget and an input is refused only if its own plan exceeds it.
 //!
 //! `--max-memory` bounds the process's peak resident memory: the plan is
-//! added to [`process_base`], what the process holds before its first
-//! input (code, libraries, the Python interpreter) plus [`SLACK`].
+//! added to [`process_base`](crate::kernels::memory::process_base), what the process holds before its first
+//! input (code, libraries, the Python interpreter) plus [`SLACK`](crate::kernels::memory::SLACK).
 
 use crate::method::params::memory_estimate;
 

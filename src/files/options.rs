@@ -576,8 +576,8 @@ pub fn exit_code_text() -> String {
 impl crate::method::params::Params {
     /// Sets the method parameter `key` (a row of `crate::files::options::OPTIONS`
     /// with `method: true`, other than `water_types`) to a value of its
-    /// kind: where a Python keyword's value reaches `Params` (the binary's
-    /// parsed options fill `Params` in `cli::run::method_params`). Ranges
+    /// kind: where a Python keyword's value and the binary's parsed flag
+    /// reach `Params` (the binary through `files::settings::Settings::set`). Ranges
     /// that depend on the image are checked by `check_params` when
     /// `restore` runs.
     pub fn set(&mut self, key: &str, v: &crate::files::options::Value) -> crate::error::Result<()> {

@@ -105,9 +105,9 @@ fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, nee
 }
 
 /// The memory plan of one input, checked against `--max-memory` from its
-/// header. With a `gate` (the reader thread of [`overlapped`]), an input
-/// that does not fit beside the previous one's outputs, still being
-/// written, first waits until they are.
+/// header. With a [`Room`] hook (the reading side of the binary's
+/// overlapped loop), an input that does not fit beside the previous one's
+/// outputs, still being written, first waits until they are.
 fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, room: Room<'_>) -> Result<(), Failure> {
     let plan = Plan {
         height: h.height,
@@ -312,7 +312,7 @@ pub enum Prepared {
 }
 
 impl Prepared {
-    /// Bytes it holds until its outputs are written ([`super::budget::HELD_WHILE_WRITING`] per pixel).
+    /// Bytes it holds until its outputs are written ([`HELD_WHILE_WRITING`] per pixel).
     pub fn held_bytes(&self) -> u64 {
         match self {
             Prepared::Skipped(..) => 0,

@@ -205,12 +205,13 @@ impl Settings {
             "water_types" => water_types(self.water_types.get_or_insert_with(Vec::new), &text(v)?)?,
             "reuse_estimates" => self.reuse_estimates = Some(usize_of(&v)?),
             "reuse_water_mask" => self.reuse_water_mask = true,
-            _ if crate::files::options::spec(key).is_some_and(|s| s.method) => {
+            "veiling_light" => {
+                self.params.set(key, &v).map_err(Failure::from)?;
                 if let Val::Rgb(rgb) = v {
-                    if key == "veiling_light" {
-                        self.veiling_light = Some(rgb);
-                    }
+                    self.veiling_light = Some(rgb);
                 }
+            }
+            _ if crate::files::options::spec(key).is_some_and(|s| s.method) => {
                 self.params.set(key, &v).map_err(Failure::from)?;
             }
             _ => return Ok(false),

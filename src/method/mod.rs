@@ -1,5 +1,5 @@
-//! The method of docs/METHOD.md: [`restore`](pipeline::restore) step by
-//! step, [`Sequence`](sequence::Sequence) for frames, one file per section,
+//! The method of docs/METHOD.md: [`restore`](crate::restore) step by
+//! step, [`Sequence`](crate::Sequence) for frames, one file per section,
 //! the parameters and profiles, the Jerlov table. Nothing here touches a
 //! file: images come in and results go out as slices.
 //!

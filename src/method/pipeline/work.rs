@@ -60,7 +60,7 @@ impl Work {
 /// from one frame to the next (the guide image, the guided filter's (a, b)
 /// and the filtered plane: 32 B per pixel), so that a frame of the same
 /// size reuses their pages instead of having the kernel map and zero new
-/// ones (METHOD §10, sequence mode). A plain [`restore`] starts from empty buffers and
+/// ones (METHOD §10, sequence mode). A plain [`restore`](crate::restore) starts from empty buffers and
 /// frees each plane as soon as it is no longer read (`keep` false).
 #[derive(Debug, Default)]
 pub struct Buffers {
