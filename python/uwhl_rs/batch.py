@@ -24,6 +24,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 
 from . import _core, cluster
+from .console import Console
 from .errors import EXIT, BatchError
 from .files import output_suffixes
 from .inputs import GLOB_CHARS, collect_inputs, supported
@@ -361,12 +362,8 @@ def restore_many(inputs, output: str, *, client=None, dask: str | None = None, s
         inputs = [os.fspath(inputs)]
     inputs = [os.fspath(i) for i in inputs]
     output = os.fspath(output)
-    listener = None
-    if progress:
-        # the command's lines, from the one place that writes them
-        from .cli.console import Console
-
-        listener = Console(out=sys.stderr)
+    # the command's lines, from the one place that writes them
+    listener = Console(out=sys.stderr) if progress else None
     result = run_batch(inputs, output, client=client, dask=dask, storage_options=storage_options,
                        overwrite=overwrite, reuse_estimates=reuse_estimates, reuse_water_mask=reuse_water_mask,
                        listener=listener, options=options)

@@ -1,4 +1,5 @@
-"""Everything the ``uwhl`` command writes to its streams, from one place
+"""Everything the ``uwhl`` command (and ``restore_many(progress=True)``)
+writes to its streams, from one place
 (docs/CLI.md "Lines"): the progress line of each input and the summary on
 stdout, errors on stderr as ``uwhl: INPUT: MESSAGE`` or, with
 ``--json-errors``, one JSON object a line. The texts are uwhl-rs's.
@@ -10,8 +11,8 @@ import json
 import sys
 import threading
 
-from ..errors import EXIT, CommandError, describe, kind_of
-from ..tasks import DONE_NOTE
+from .errors import EXIT, CommandError, describe, kind_of
+from .tasks import DONE_NOTE
 
 __all__ = ["Console"]
 

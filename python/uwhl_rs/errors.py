@@ -31,10 +31,6 @@ __all__ = [
 #: exit statuses, shared with uwhl-rs (docs/CLI.md): {name: code}
 EXIT: dict[str, int] = {name: code for code, name, _ in EXIT_CODES}
 
-# the core's own exceptions carry no kind (yet): the subclass says it
-_CORE_KINDS = ((ImageError, "unreadable_input"), (ParameterError, "bad_arguments"))
-
-
 class CommandError(UwhlError):
     """A failure that ends a command (or one input of a batch): its
     message, its ``kind`` (an exit-code name) and the input or folder it
@@ -88,16 +84,14 @@ class ManifestError(UwhlError):
 
 
 def kind_of(e: BaseException, writing: bool = False) -> str:
-    """The kind of a failure: its own ``kind`` when it has one, else what
-    its class says (the core's ImageError and ParameterError; a builtin
-    MemoryError is over budget, an OSError a failed write while
-    ``writing`` and an unreadable input before); anything else is a bug."""
+    """The kind of a failure: its own ``kind`` when it has one (every
+    exception of the package, and the core's ImageError and ParameterError,
+    whose kinds the core sets), else what its builtin class says (a
+    MemoryError is over budget, an OSError a failed write while ``writing``
+    and an unreadable input before); anything else is a bug."""
     kind = getattr(e, "kind", None)
     if isinstance(kind, str) and kind in EXIT:
         return kind
-    for cls, k in _CORE_KINDS:
-        if isinstance(e, cls):
-            return k
     if isinstance(e, MemoryError):
         return "over_budget"
     if isinstance(e, OSError):

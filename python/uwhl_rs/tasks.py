@@ -105,9 +105,8 @@ def skipped_row(item: Item, sidecar: str, note: str = DONE_NOTE) -> dict:
 
 
 def _done_row(item: Item, result, seconds: float, outputs: dict) -> dict:
-    res = result.restoration
     return row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=round(seconds, 4), exit_code=0,
-               reused_estimates="estimates_reused" in res.flags if "reused_estimates" in result.sidecar else None,
+               reused_estimates=result.sidecar.get("reused_estimates"),
                **{role: outputs.get(role) for role in ("image", "transmission", "transmission_color",
                                                         "contact_sheet", "sidecar")})
 
@@ -146,6 +145,12 @@ def fetch(url: str, scratch: str, storage_options: dict, header: bool = False) -
     except FileNotFoundError:
         raise FileNotFoundError(2, "No such file or folder", url) from None
     return local
+
+
+def local_input(path: str, scratch: str, storage_options: dict) -> str:
+    """The input at ``path`` as a local file: a copy in ``scratch`` of a
+    URL, else the path itself."""
+    return fetch(path, scratch, storage_options) if is_url(path) else local_path(path)
 
 
 def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: bool) -> dict:
@@ -270,7 +275,7 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
             out_dir = os.path.join(ctx.scratch, f"out{item.index}")
             _, _, _, claim = files.claim_outputs(out_dir, item.name, item.input, fmt, contact,
                                                  overwrite=True, rename=False)
-        local_in = fetch(item.input, ctx.scratch, so) if is_url(item.input) else local_path(item.input)
+        local_in = local_input(item.input, ctx.scratch, so)
         write = files.restore_staged(local_in, out_dir, name=item.name, _claim=claim, _base=ctx.base,
                                      _label=item.input, sequence=ctx.sequence, **opts)
     except (Exception, MemoryError) as e:  # one bad file never stops the batch
@@ -301,8 +306,7 @@ def _prime(item: Item, ctx: Context) -> None:
     d = os.path.join(ctx.scratch, "prime")
     opts = ctx.opts
     try:
-        local_in = fetch(item.input, ctx.scratch, ctx.storage_options) if is_url(item.input) \
-            else local_path(item.input)
+        local_in = local_input(item.input, ctx.scratch, ctx.storage_options)
         _, _, _, claim = files.claim_outputs(d, item.name, item.input, opts.get("format", "jpg"),
                                              opts.get("contact", False), overwrite=True, rename=False)
     except (Exception, MemoryError):

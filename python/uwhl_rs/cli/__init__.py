@@ -13,7 +13,7 @@ exit status (docs/CLI.md "Exit codes").
 from __future__ import annotations
 
 from . import demo, evaluate, ifdo, report, restore
-from .console import Console
+from ..console import Console
 from .parser import build_parser
 
 __all__ = ["main", "build_parser"]

@@ -13,7 +13,7 @@ import uwhl_rs
 
 from .. import synth
 from ..images import colorize_transmission, write_image
-from .console import Console
+from ..console import Console
 
 __all__ = ["run"]
 

@@ -11,7 +11,7 @@ import uwhl_rs
 
 from .. import evaluate as ev
 from ..errors import CommandError, ManifestError, describe, kind_of
-from .console import Console
+from ..console import Console
 from .parser import method_kwargs, water_types
 
 __all__ = ["run"]

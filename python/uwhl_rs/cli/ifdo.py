@@ -9,7 +9,7 @@ import os
 from ..errors import BatchError, CommandError, IfdoError, describe
 from ..ifdo import load_header, write_ifdo
 from ..storage import is_url, parse_storage_options
-from .console import Console
+from ..console import Console
 
 __all__ = ["run", "write", "file_format"]
 

@@ -93,6 +93,15 @@ def water_types(values: list[str] | None):
     return out
 
 
+def _folder_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of the subcommands that read an output folder (report, ifdo)."""
+    p.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
+    p.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="an fsspec option for a URL OUTDIR, as for restore")
+    p.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``uwhl`` (all subcommands)."""
     p = argparse.ArgumentParser(
@@ -137,11 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
         "paginated grid of before/after thumbnails (written once into OUTDIR/report/thumbs) that open the "
         "full-size photo and its transmission map.",
     )
-    rp.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
-    rp.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
-                    help="an fsspec option for a URL OUTDIR, as for restore")
-    rp.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
-    rp.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    _folder_arguments(rp)
 
     fd = sub.add_parser(
         "ifdo",
@@ -150,7 +155,6 @@ def build_parser() -> argparse.ArgumentParser:
         "header (the fields of --header, the rest derived), one item per corrected photo (its image UUID, "
         "SHA-256, handle, UTC time and GPS position) and the restoration as the set's provenance.",
     )
-    fd.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
     fd.add_argument("--header", required=True, metavar="HEADER",
                     help="YAML or JSON file of the set's iFDO fields: image-project, image-event, image-platform, "
                     "image-sensor, image-pi, image-creators, image-license, image-copyright, image-abstract, "
@@ -160,10 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "the photo's path (default: the photos' own file:// or object-storage URLs)")
     fd.add_argument("--format", choices=("yaml", "json"), default=None,
                     help="ifdo.yaml or ifdo.json (default: the kind of the header file)")
-    fd.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
-                    help="an fsspec option for a URL OUTDIR, as for restore")
-    fd.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
-    fd.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    _folder_arguments(fd)
 
     e = sub.add_parser(
         "evaluate",

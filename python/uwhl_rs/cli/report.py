@@ -9,7 +9,7 @@ import os
 from ..errors import BatchError, CommandError, describe
 from ..report import write_report
 from ..storage import is_url, parse_storage_options
-from .console import Console
+from ..console import Console
 
 __all__ = ["run", "write"]
 

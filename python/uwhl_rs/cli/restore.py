@@ -17,7 +17,7 @@ from ..ifdo import load_header
 from ..storage import is_url, parse_storage_options
 from . import ifdo as ifdo_command
 from . import report as report_command
-from .console import Console
+from ..console import Console
 from .parser import file_kwargs, water_types
 
 __all__ = ["run"]
