@@ -3,6 +3,11 @@
 //! preprocessing, `--max-side`, masks, reuse of estimates), each set from a
 //! row of the option table (`crate::files::options`) by [`Settings::set`].
 
+// The wheel uses only the output names here so far: its own per-input path
+// (python/uwhl_rs/files.py) does not yet go through `Settings` and
+// `files::pipeline`, so without the binary the rest is unused.
+#![cfg_attr(not(feature = "cli"), allow(dead_code))]
+
 use crate::error::{Failure, Kind};
 use crate::files::options::Value as Val;
 use crate::method::params::Params;
@@ -184,13 +189,8 @@ impl Settings {
             other => Err(Failure::new(Kind::Internal, format!("{key}: {other:?} is not text"))),
         };
         match key {
-            "format" => {
-                self.format = match text(v)?.as_str() {
-                    "png" => Format::Png,
-                    "tiff" => Format::Tiff,
-                    _ => Format::Jpg,
-                }
-            }
+            // the table's choices are the formats' names
+            "format" => self.format = Format::from_name(&text(v)?).unwrap_or(Format::Jpg),
             "bits" => self.bits = Some(int(&v)?.min(16) as u8),
             "quality" => self.quality = int(&v)?.min(100) as u8,
             "overwrite" => self.overwrite = true,
@@ -221,7 +221,7 @@ impl Settings {
 }
 
 /// One `--water-type` item: a Jerlov name, or `NAME:BETA_BR:BETA_BG`.
-pub fn water_choice(item: &str) -> Result<WaterChoice, Failure> {
+fn water_choice(item: &str) -> Result<WaterChoice, Failure> {
     let bad = |e: crate::Error| Failure::usage(format!("--water-type {item:?}: {e}"));
     if item.contains(':') {
         let parts: Vec<&str> = item.split(':').map(str::trim).collect();
@@ -246,7 +246,7 @@ pub fn water_choice(item: &str) -> Result<WaterChoice, Failure> {
 }
 
 /// One `--water-type` value: its comma-separated items appended to `list`.
-pub fn water_types(list: &mut Vec<WaterChoice>, v: &str) -> Result<(), Failure> {
+fn water_types(list: &mut Vec<WaterChoice>, v: &str) -> Result<(), Failure> {
     for item in v.split(',').map(str::trim).filter(|n| !n.is_empty()) {
         let choice = water_choice(item)?;
         if list.iter().any(|c| c.water_type.name == choice.water_type.name) {
