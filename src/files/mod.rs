@@ -16,7 +16,6 @@ pub mod color;
 #[cfg(any(feature = "cli", feature = "python"))]
 stage_modules! { budget, commit, jobs, settings }
 
-
 /// The input's metadata carried into the corrected photo, and the
 /// restoration recorded in XMP (both commands).
 #[cfg(any(feature = "cli", feature = "python"))]

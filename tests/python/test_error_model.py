@@ -64,8 +64,32 @@ def test_kind_of_reads_the_kind_where_it_was_set(e, writing, kind):
     assert errors.kind_of(e, writing) == kind
 
 
-def test_a_kind_given_to_a_core_error_wins():
-    # the core may carry a kind itself one day: it is read before the subclass
+def test_the_core_raises_its_errors_with_their_kind():
+    import numpy as np
+
+    img = np.full((16, 16, 3), 0.3, np.float32)
+    with pytest.raises(uwhl_rs.ImageError) as constant:
+        uwhl_rs.restore(img)
+    with pytest.raises(uwhl_rs.ParameterError) as bad_eps:
+        uwhl_rs.restore(img, guided_eps=-1.0)
+    with pytest.raises(uwhl_rs.ParameterError) as bad_format:
+        _core.output_suffixes("gif")
+    assert (constant.value.kind, bad_eps.value.kind, bad_format.value.kind) == \
+        ("unreadable_input", "bad_arguments", "bad_arguments")
+    assert "gif" in str(bad_format.value)
+
+
+def test_output_names_are_the_files_layers():
+    from uwhl_rs import files
+
+    # docs/OUTPUTS.md: NAME.tif, NAME_t.png, NAME_t_color.png, NAME_sheet.png, then NAME.json
+    assert files.output_suffixes("tiff", True) == [".tif", "_t.png", "_t_color.png", "_sheet.png"]
+    assert files.output_suffixes() == [".jpg", "_t.png", "_t_color.png"]
+    with pytest.raises(ValueError):
+        files.output_suffixes("gif")
+
+
+def test_a_kind_set_on_an_error_wins_over_its_class():
     e = uwhl_rs.ImageError("too large to decode")
     e.kind = "over_budget"
     assert errors.kind_of(e) == "over_budget"
