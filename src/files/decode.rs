@@ -108,6 +108,18 @@ fn read_jpeg<R: BufRead + Seek>(mut reader: R, limits: &Limits) -> Result<Vec<u8
     Ok(bytes)
 }
 
+/// The pixel limit (`--max-pixels`) checked on a header's size.
+fn too_many_pixels(w: u32, h: u32, limits: &Limits) -> Result<(), Failure> {
+    let pixels = u64::from(w) * u64::from(h);
+    if pixels > limits.max_pixels {
+        return Err(Failure::new(
+            Kind::Budget,
+            format!("{w}x{h} = {pixels} pixels is over the limit of {} pixels (--max-pixels)", limits.max_pixels),
+        ));
+    }
+    Ok(())
+}
+
 /// Opens a decoder on `reader`, checks the header (pixel count, then the
 /// caller's `check`), decodes and orients. Returns the image, its format
 /// name and the EXIF orientation code applied.
@@ -120,19 +132,40 @@ fn open<R: BufRead + Seek>(
     let reader = ImageReader::new(reader)
         .with_guessed_format()
         .map_err(|e| Failure::new(Kind::Input, format!("cannot read: {e}")))?;
+    if reader.format() == Some(ImageFormat::Png) {
+        // the PNG decoder reads up to the first data chunk before it tells
+        // the size: a header claiming an absurd size is refused from IHDR
+        let mut r = reader.into_inner();
+        let mut head = [0u8; 24];
+        let got = r.read(&mut head).map_err(|e| Failure::new(Kind::Input, format!("cannot read: {e}")))?;
+        r.seek(std::io::SeekFrom::Start(0)).map_err(|e| Failure::new(Kind::Input, format!("cannot read: {e}")))?;
+        let mut ihdr = None;
+        if got == head.len() && &head[12..16] == b"IHDR" {
+            let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]);
+            let (w, h) = (be(&head[16..20]), be(&head[20..24]));
+            too_many_pixels(w, h, limits)?;
+            ihdr = Some((w, h));
+        }
+        return open_reader(ImageReader::with_format(r, ImageFormat::Png), limits, orient, check, ihdr);
+    }
     if reader.format() == Some(ImageFormat::Jpeg) {
         let bytes = read_jpeg(reader.into_inner(), limits)?;
         let reader = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
-        return open_reader(reader, limits, orient, check);
+        return open_reader(reader, limits, orient, check, None);
     }
-    open_reader(reader, limits, orient, check)
+    open_reader(reader, limits, orient, check, None)
 }
 
+/// `ihdr`: a PNG's size from its header chunk. The PNG decoder reads up to
+/// the first data chunk before it starts; when it fails there, the memory
+/// plan is still checked from that size (RGBA 16-bit, the most a PNG
+/// decodes to), so that a file over the budget is reported as such.
 fn open_reader<R: BufRead + Seek>(
     reader: ImageReader<R>,
     limits: &Limits,
     orient: bool,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
+    ihdr: Option<(u32, u32)>,
 ) -> Result<(DynamicImage, &'static str, u8, Option<Vec<u8>>), Failure> {
     let format = match reader.format() {
         Some(ImageFormat::Png) => "PNG",
@@ -158,18 +191,17 @@ fn open_reader<R: BufRead + Seek>(
     lim.max_alloc = Some(limits.max_memory);
     let mut reader = reader;
     reader.limits(lim);
-    let mut decoder = reader.into_decoder().map_err(image_error)?;
+    let mut decoder = match reader.into_decoder() {
+        Ok(d) => d,
+        Err(e) => {
+            if let Some((w, h)) = ihdr {
+                check(&Header { height: h as usize, width: w as usize, bpp: 8, is_rgb: false, oriented: false })?;
+            }
+            return Err(image_error(e));
+        }
+    };
     let (w, h) = decoder.dimensions();
-    let pixels = u64::from(w) * u64::from(h);
-    if pixels > limits.max_pixels {
-        return Err(Failure::new(
-            Kind::Budget,
-            format!(
-                "{w}x{h} = {pixels} pixels, over --max-pixels {}",
-                limits.max_pixels
-            ),
-        ));
-    }
+    too_many_pixels(w, h, limits)?;
     if w == 0 || h == 0 {
         return Err(Failure::new(Kind::Input, format!("empty image ({w}x{h})")));
     }

@@ -15,7 +15,7 @@ use crate::files::decode::{decode, decode_mask, Limits};
 use crate::files::encode::{encode_image, encode_transmission, encode_transmission_color, Encoding};
 use crate::files::jobs::{extension, Job, RAW_EXTENSIONS};
 use crate::files::settings::{Preprocess, Settings};
-use crate::files::sidecar::{sidecar, OutputPaths, Seconds, Source};
+use crate::files::sidecar::{sidecar, Estimates, OutputPaths, Seconds, Source};
 use crate::kernels::filters::downscale;
 use crate::method::image::ImageRef;
 use crate::method::params::{Flag, Input};
@@ -224,8 +224,8 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     };
     let t_restore = t1.elapsed().as_secs_f64();
     let source = Source {
-        kind: if decoded.is_float || opts.linear { "linear" } else { "srgb" },
-        format: decoded.format,
+        kind: (if decoded.is_float || opts.linear { "linear" } else { "srgb" }).to_string(),
+        format: decoded.format.to_string(),
         bits: decoded.bits,
         height: h,
         width: w,
@@ -235,6 +235,9 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         processed_height: hp,
         processed_width: wp,
         icc_profile: decoded.icc_profile.clone(),
+        camera_matrix: None,
+        white_balance: None,
+        notes: Vec::new(),
     };
     Ok(Restored {
         res,
@@ -360,66 +363,155 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
     Ok(Prepared::Restored(Box::new((restored, claimed, t0))))
 }
 
-/// The second half of [`process`]: the outputs and the sidecar, through
-/// the claim (written to temporaries, then put in place with the sidecar
-/// last: all or nothing).
-fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), opts: &Settings) -> Result<Outcome, Failure> {
+/// The second half of [`process`]: the outputs and the sidecar through the
+/// claim ([`write_outputs`]).
+fn finish(job: &Job, (restored, claimed, t0): (Restored, Claim, Instant), opts: &Settings) -> Result<Outcome, Failure> {
     let Restored {
         res,
         source,
         t_read,
         t_restore,
     } = restored;
-    let (hp, wp) = (source.processed_height, source.processed_width);
+    let label = job.input.to_string_lossy();
+    let parameters = crate::files::sidecar::parameters(opts);
+    let side = write_outputs(
+        claimed,
+        Outputs {
+            label: &label,
+            input: &job.input,
+            implementation: "rust",
+            source: &source,
+            estimates: Estimates::of(&res),
+            image: &res.image,
+            transmission: &res.transmission,
+            contact_sheet: None,
+            reused: opts.reuse_estimates.map(|_| res.flags.contains(&Flag::EstimatesReused)),
+            parameters: &parameters,
+        },
+        opts,
+        Timing { read: t_read, restore: t_restore, contact_sheet: None, start: t0 },
+    )?;
+    Ok(Outcome::Done(Box::new(side)))
+}
 
+/// What one input's outputs are made of ([`write_outputs`]).
+#[derive(Debug)]
+pub struct Outputs<'a> {
+    /// the input as the batch names it (the sidecar's `input`: a path, or a URL)
+    pub label: &'a str,
+    /// the local file whose metadata is carried into the photo
+    pub input: &'a Path,
+    /// the command: "rust" or "python"
+    pub implementation: &'a str,
+    /// where the input came from
+    pub source: &'a Source,
+    /// the restoration's estimates
+    pub estimates: Estimates<'a>,
+    /// the image to encode, interleaved RGB of the processed size (raw
+    /// inputs: already through the camera matrix)
+    pub image: &'a [f32],
+    /// t_B, of the processed size
+    pub transmission: &'a [f32],
+    /// the contact sheet, encoded (PNG): the claim's fourth output
+    pub contact_sheet: Option<&'a [u8]>,
+    /// with `--reuse-estimates`: whether this input reused them
+    pub reused: Option<bool>,
+    /// the sidecar's `parameters` ([`crate::files::sidecar::parameters`])
+    pub parameters: &'a Value,
+}
+
+/// Seconds already spent on an input, for its sidecar.
+#[derive(Debug, Clone, Copy)]
+pub struct Timing {
+    /// decoding and preprocessing
+    pub read: f64,
+    /// `restore`
+    pub restore: f64,
+    /// making the contact sheet
+    pub contact_sheet: Option<f64>,
+    /// when the input's processing started
+    pub start: Instant,
+}
+
+/// Encodes an input's outputs, carries the input's metadata into the photo,
+/// makes the sidecar, and commits them through the claim (temporaries put
+/// in place with the sidecar last: all or nothing; docs/OUTPUTS.md). The
+/// one writing half of both commands. Returns the sidecar.
+pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timing: Timing) -> Result<Value, Failure> {
+    let (hp, wp) = (out.source.processed_height, out.source.processed_width);
     let t2 = Instant::now();
-    let [image_path, t_path, tc_path, sidecar_path] = <[PathBuf; 4]>::try_from(claimed.paths().to_vec())
-        .map_err(|_| Failure::new(Kind::Internal, "a claim of four outputs was expected"))?;
+    let paths = claimed.paths().to_vec();
+    let sheet_path = match (paths.len(), out.contact_sheet) {
+        (4, None) => None,
+        (5, Some(_)) => Some(paths[3].clone()),
+        (n, sheet) => {
+            return Err(Failure::new(
+                Kind::Internal,
+                format!("a claim of {n} outputs does not fit {} contact sheet", if sheet.is_some() { "a" } else { "no" }),
+            ))
+        }
+    };
+    let (image_path, t_path, tc_path) = (paths[0].clone(), paths[1].clone(), paths[2].clone());
+    let sidecar_path = paths[paths.len() - 1].clone();
     let enc = Encoding {
         format: opts.format,
         bits: opts.bits(),
-        srgb: source.linear,
+        srgb: out.source.linear,
         quality: opts.quality,
     };
     // the three encoders (each single-threaded) run at once; the files are
     // then written in order
     let (image_bytes, (t_bytes, tc_bytes)) = rayon::join(
-        || encode_image(&image_path, &res.image, hp, wp, enc),
+        || encode_image(&image_path, out.image, hp, wp, enc),
         || {
             rayon::join(
-                || encode_transmission(&t_path, &res.transmission, hp, wp),
-                || encode_transmission_color(&tc_path, &res.transmission, hp, wp),
+                || encode_transmission(&t_path, out.transmission, hp, wp),
+                || encode_transmission_color(&tc_path, out.transmission, hp, wp),
             )
         },
     );
-    let paths = OutputPaths {
+    let names = OutputPaths {
         image: &image_path,
         transmission: &t_path,
         transmission_color: &tc_path,
+        contact_sheet: sheet_path.as_deref(),
+    };
+    let make = |seconds: Seconds| {
+        let mut side = sidecar(out.label, out.implementation, &names, out.source, &out.estimates, out.parameters, seconds);
+        if let (Some(reused), Some(obj)) = (out.reused, side.as_object_mut()) {
+            obj.insert("reused_estimates".into(), Value::Bool(reused));
+        }
+        side
     };
     // the input's EXIF and XMP, and the restoration's record, into the photo
     // (src/files/metadata.rs); the record is made of the sidecar's fields
     let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
-    let preview = sidecar(&job.input, &paths, &source, &res, opts, Seconds::default());
-    let (image_bytes, carried) =
-        crate::files::metadata::carry_from(&job.input, image_bytes?, &preview, &sidecar_name, wp as u32, hp as u32);
-    let mut temps = Vec::with_capacity(4);
-    for (i, (path, bytes)) in [(&image_path, image_bytes), (&t_path, t_bytes?), (&tc_path, tc_bytes?)].into_iter().enumerate() {
-        temps.push(write_temp(&mut claimed, i, path, &bytes)?);
+    let (image_bytes, carried) = crate::files::metadata::carry_from(
+        out.input,
+        image_bytes?,
+        &make(Seconds::default()),
+        &sidecar_name,
+        wp as u32,
+        hp as u32,
+    );
+    let mut files = vec![(image_path.clone(), image_bytes), (t_path.clone(), t_bytes?), (tc_path.clone(), tc_bytes?)];
+    if let (Some(p), Some(sheet)) = (&sheet_path, out.contact_sheet) {
+        files.push((p.clone(), sheet.to_vec()));
+    }
+    let mut temps = Vec::with_capacity(files.len() + 1);
+    for (i, (path, bytes)) in files.iter().enumerate() {
+        temps.push(write_temp(&mut claimed, i, path, bytes)?);
     }
     let seconds = Seconds {
-        read: t_read,
-        restore: t_restore,
+        read: timing.read,
+        restore: timing.restore,
         write: t2.elapsed().as_secs_f64(),
-        total: t0.elapsed().as_secs_f64(),
+        contact_sheet: timing.contact_sheet,
+        total: timing.start.elapsed().as_secs_f64(),
     };
-    let mut side = sidecar(&job.input, &paths, &source, &res, opts, seconds);
+    let mut side = make(seconds);
     if let Some(obj) = side.as_object_mut() {
-        if opts.reuse_estimates.is_some() {
-            let reused = res.flags.contains(&Flag::EstimatesReused);
-            obj.insert("reused_estimates".into(), Value::Bool(reused));
-        }
-        // "metadata" goes before "seconds", as the Python command writes it
+        // "metadata" goes before "seconds"
         let secs = obj.shift_remove("seconds");
         obj.insert("metadata".into(), carried);
         if let Some(secs) = secs {
@@ -429,11 +521,12 @@ fn finish(job: &Job, (restored, mut claimed, t0): (Restored, Claim, Instant), op
     let mut bytes = serde_json::to_vec_pretty(&side)
         .map_err(|e| Failure::new(Kind::Internal, format!("sidecar: {e}")))?;
     bytes.push(b'\n');
-    temps.push(write_temp(&mut claimed, 3, &sidecar_path, &bytes)?);
+    temps.push(write_temp(&mut claimed, files.len(), &sidecar_path, &bytes)?);
+    let dir = sidecar_path.parent().unwrap_or(Path::new(".")).to_path_buf();
     claimed
         .commit(&temps)
-        .map_err(|e| Failure::new(Kind::Write, format!("cannot write the outputs of {} in {}: {e}", job.input.display(), job.dir.display())))?;
-    Ok(Outcome::Done(Box::new(side)))
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot write the outputs of {} in {}: {e}", out.label, dir.display())))?;
+    Ok(side)
 }
 
 /// Writes `bytes` into a new temporary of output `index` of the claim.

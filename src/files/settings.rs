@@ -3,11 +3,6 @@
 //! preprocessing, `--max-side`, masks, reuse of estimates), each set from a
 //! row of the option table (`crate::files::options`) by [`Settings::set`].
 
-// The wheel uses only the output names here so far: its own per-input path
-// (python/uwhl_rs/files.py) does not yet go through `Settings` and
-// `files::pipeline`, so without the binary the rest is unused.
-#![cfg_attr(not(feature = "cli"), allow(dead_code))]
-
 use crate::error::{Failure, Kind};
 use crate::files::options::Value as Val;
 use crate::method::params::Params;
@@ -112,6 +107,8 @@ pub struct Settings {
     pub preprocess: Preprocess,
     /// `--linear`: the input is already linear (no sRGB decoding)
     pub linear: bool,
+    /// `--half-size`: raw files demosaiced at half size (the Python command)
+    pub half_size: bool,
     /// `--format`
     pub format: Format,
     /// `--bits` as given (None: the format's default, see [`Settings::bits`])
@@ -139,6 +136,7 @@ impl Default for Settings {
             max_side: None,
             preprocess: Preprocess::None,
             linear: false,
+            half_size: false,
             format: Format::Jpg,
             bits: None,
             quality: crate::files::options::DEFAULT_QUALITY as u8,
@@ -198,6 +196,7 @@ impl Settings {
                 self.preprocess = if text(v)? == "reference" { Preprocess::Reference } else { Preprocess::None }
             }
             "linear" => self.linear = true,
+            "half_size" => self.half_size = true,
             "max_side" => self.max_side = Some(usize_of(&v)?),
             "max_pixels" => self.max_pixels = int(&v)?,
             "mask" => self.mask = Some(text(v)?.into()),

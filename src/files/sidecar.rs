@@ -1,19 +1,21 @@
-//! The JSON sidecar `NAME.json` of docs/OUTPUTS.md (`implementation: "rust"`).
-//! Single-precision results (A) are written as the f64 of the same value,
-//! as Python's `float(np.float32(x))` does, so both commands write equal numbers.
+//! The JSON sidecar `NAME.json` of docs/OUTPUTS.md, made here for both
+//! commands (`implementation` says which one wrote it). Single-precision
+//! results (A) are written as the f64 of the same value, as Python's
+//! `float(np.float32(x))` does.
 
 use crate::files::settings::{Preprocess, Settings};
 use crate::method::params::Restoration;
+use crate::method::water::WaterType;
 use serde_json::{json, Value};
 use std::path::Path;
 
 /// Where the input came from (the `source` object).
 #[derive(Debug, Clone)]
 pub struct Source {
-    /// "srgb" or "linear"
-    pub kind: &'static str,
-    /// "PNG", "JPEG", "TIFF"
-    pub format: &'static str,
+    /// "srgb", "linear" or "raw"
+    pub kind: String,
+    /// "PNG", "JPEG", "TIFF", or a raw file's extension in capitals ("DNG")
+    pub format: String,
     /// bits per sample of the file
     pub bits: u8,
     /// rows after orientation
@@ -32,9 +34,16 @@ pub struct Source {
     pub processed_width: usize,
     /// the embedded ICC profile (`decode::Decoded::icc_profile`)
     pub icc_profile: Option<(String, bool, Option<String>)>,
+    /// raw files: camera RGB -> linear sRGB (rows), as LibRaw gives it
+    pub camera_matrix: Option<Vec<Vec<f64>>>,
+    /// raw files: the as-shot white balance multipliers
+    pub white_balance: Option<Vec<f64>>,
+    /// what the reader noticed (raw: `white_level_below_data`, ...); the
+    /// ICC profile's note is added from `icc_profile`
+    pub notes: Vec<String>,
 }
 
-/// Paths of the three image outputs (the sidecar names them by file name,
+/// Paths of the image outputs (the sidecar names them by file name,
 /// relative to itself).
 #[derive(Debug, Clone)]
 pub struct OutputPaths<'a> {
@@ -44,6 +53,50 @@ pub struct OutputPaths<'a> {
     pub transmission: &'a Path,
     /// `NAME_t_color.png`
     pub transmission_color: &'a Path,
+    /// `NAME_sheet.png` (the Python command's `--contact-sheet`)
+    pub contact_sheet: Option<&'a Path>,
+}
+
+/// What the sidecar records of a restoration: the estimates, without the
+/// images (a `Restoration` of the core, or the fields the Python
+/// `Restoration` keeps).
+#[derive(Debug, Clone)]
+pub struct Estimates<'a> {
+    /// the chosen water type
+    pub water_type: &'a WaterType,
+    /// every evaluated type's score, in evaluation order
+    pub scores: &'a [(String, f64)],
+    /// the types excluded from the choice
+    pub excluded: &'a [String],
+    /// A
+    pub veiling_light: [f32; 3],
+    /// pixels of the water region
+    pub vl_pixels: usize,
+    /// pixels restored
+    pub pixels: usize,
+    /// the flags' names
+    pub flags: Vec<&'a str>,
+    /// the guided filter's radius used
+    pub guided_radius: usize,
+    /// its subsampling factor used
+    pub guided_subsample: usize,
+}
+
+impl<'a> Estimates<'a> {
+    /// The estimates of a core restoration.
+    pub fn of(res: &'a Restoration) -> Self {
+        Self {
+            water_type: &res.water_type,
+            scores: &res.scores,
+            excluded: &res.excluded,
+            veiling_light: res.veiling_light,
+            vl_pixels: res.veiling_mask.iter().filter(|&&b| b).count(),
+            pixels: res.height.saturating_mul(res.width),
+            flags: res.flags.iter().map(|f| f.name()).collect(),
+            guided_radius: res.guided_radius,
+            guided_subsample: res.guided_subsample,
+        }
+    }
 }
 
 /// Seconds spent per phase.
@@ -55,6 +108,8 @@ pub struct Seconds {
     pub restore: f64,
     /// encoding and writing the image outputs
     pub write: f64,
+    /// the contact sheet (when made)
+    pub contact_sheet: Option<f64>,
     /// everything
     pub total: f64,
 }
@@ -63,8 +118,7 @@ fn path(p: &Path) -> String {
     p.to_string_lossy().into_owned()
 }
 
-/// The options, in the `parameters` object (keys as the Python command's;
-/// `half_size` is always false here: it concerns raw files).
+/// The options, in the `parameters` object.
 pub fn parameters(o: &Settings) -> Value {
     let types = o.water_types.as_ref().map(|list| {
         list.iter()
@@ -99,7 +153,7 @@ pub fn parameters(o: &Settings) -> Value {
         "max_pixels": o.max_pixels,
         "preprocess": o.preprocess.name(),
         "selection": step("selection"),
-        "half_size": false,
+        "half_size": o.half_size,
         "format": o.format.name(),
         "bits": o.bits(),
         "quality": o.quality,
@@ -118,45 +172,58 @@ fn icc_json(source: &Source) -> Value {
     }
 }
 
-fn icc_notes(source: &Source) -> Vec<String> {
-    match &source.icc_profile {
-        Some((_, _, Some(why))) => vec![format!("the ICC profile cannot be read ({why}); read as sRGB")],
-        _ => vec![],
+fn notes(source: &Source) -> Vec<String> {
+    let mut notes = source.notes.clone();
+    if let Some((_, _, Some(why))) = &source.icc_profile {
+        notes.push(format!("the ICC profile cannot be read ({why}); read as sRGB"));
     }
+    notes
 }
 
 fn file_name(p: &Path) -> String {
     p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()
 }
 
-/// The whole sidecar object.
+/// The whole sidecar object: `input` is the input as the batch names it
+/// (a path, or a URL for object storage), `implementation` "rust" or
+/// "python", `parameters` made by [`parameters`].
 pub fn sidecar(
-    input: &Path,
+    input: &str,
+    implementation: &str,
     outputs: &OutputPaths,
     source: &Source,
-    res: &Restoration,
-    opts: &Settings,
+    est: &Estimates,
+    parameters: &Value,
     seconds: Seconds,
 ) -> Value {
-    let vl_pixels = res.veiling_mask.iter().filter(|&&b| b).count();
-    let n = res.height.saturating_mul(res.width).max(1);
-    let scores: serde_json::Map<String, Value> = res
+    let scores: serde_json::Map<String, Value> = est
         .scores
         .iter()
         .map(|(name, s)| (name.clone(), json!(s)))
         .collect();
-    let a: Vec<f64> = res.veiling_light.iter().map(|&v| f64::from(v)).collect();
+    let a: Vec<f64> = est.veiling_light.iter().map(|&v| f64::from(v)).collect();
+    let mut names = serde_json::Map::new();
+    names.insert("image".into(), json!(file_name(outputs.image)));
+    names.insert("transmission".into(), json!(file_name(outputs.transmission)));
+    names.insert("transmission_color".into(), json!(file_name(outputs.transmission_color)));
+    if let Some(sheet) = outputs.contact_sheet {
+        names.insert("contact_sheet".into(), json!(file_name(sheet)));
+    }
+    let mut secs = serde_json::Map::new();
+    secs.insert("read".into(), json!(seconds.read));
+    secs.insert("restore".into(), json!(seconds.restore));
+    secs.insert("write".into(), json!(seconds.write));
+    if let Some(sheet) = seconds.contact_sheet {
+        secs.insert("contact_sheet".into(), json!(sheet));
+    }
+    secs.insert("total".into(), json!(seconds.total));
     json!({
-        "input": path(input),
-        "outputs": {
-            "image": file_name(outputs.image),
-            "transmission": file_name(outputs.transmission),
-            "transmission_color": file_name(outputs.transmission_color),
-        },
+        "input": input,
+        "outputs": names,
         "uwhl_version": env!("CARGO_PKG_VERSION"),
-        "implementation": "rust",
+        "implementation": implementation,
         "source": {
-            "path": path(input),
+            "path": input,
             "kind": source.kind,
             "format": source.format,
             "bits": source.bits,
@@ -165,29 +232,24 @@ pub fn sidecar(
             "orientation": source.orientation,
             "linear": source.linear,
             "preprocess": source.preprocess.name(),
-            "camera_matrix": null,
-            "white_balance": null,
-            "notes": icc_notes(source),
+            "camera_matrix": source.camera_matrix,
+            "white_balance": source.white_balance,
+            "notes": notes(source),
             "icc_profile": icc_json(source),
             "processed_height": source.processed_height,
             "processed_width": source.processed_width,
         },
-        "water_type": res.water_type.name,
+        "water_type": est.water_type.name,
         "scores": scores,
-        "excluded": res.excluded,
+        "excluded": est.excluded,
         "veiling_light": a,
-        "vl_pixels": vl_pixels,
-        "vl_fraction": vl_pixels as f64 / n as f64,
-        "flags": res.flags.iter().map(|f| f.name()).collect::<Vec<_>>(),
-        "guided_radius": res.guided_radius,
-        "guided_subsample": res.guided_subsample,
-        "beta_ratios": [res.water_type.beta_br, res.water_type.beta_bg],
-        "parameters": parameters(opts),
-        "seconds": {
-            "read": seconds.read,
-            "restore": seconds.restore,
-            "write": seconds.write,
-            "total": seconds.total,
-        },
+        "vl_pixels": est.vl_pixels,
+        "vl_fraction": est.vl_pixels as f64 / est.pixels.max(1) as f64,
+        "flags": est.flags,
+        "guided_radius": est.guided_radius,
+        "guided_subsample": est.guided_subsample,
+        "beta_ratios": [est.water_type.beta_br, est.water_type.beta_bg],
+        "parameters": parameters,
+        "seconds": secs,
     })
 }

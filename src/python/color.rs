@@ -30,48 +30,6 @@ fn rgb_shape(shape: &[usize], what: &str) -> PyResult<()> {
     Ok(())
 }
 
-/// 8-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`.
-#[pyfunction]
-fn _decode_u8<'py>(
-    py: Python<'py>,
-    codes: PyReadonlyArrayDyn<'py, u8>,
-    linearize: bool,
-) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
-    let s = slice(&codes, "codes")?;
-    let v = py.detach(|| color::decode_u8(s, linearize));
-    same_shape(py, v, codes.shape())
-}
-
-/// What an input's ICC profile is (`crate::files::icc::classify`): `("srgb" |
-/// "other" | "unreadable", description or reason)`.
-#[pyfunction]
-fn _icc_classify(icc: &[u8]) -> (&'static str, String) {
-    match crate::files::icc::classify(icc) {
-        crate::files::icc::Profile::Srgb(n) => ("srgb", n),
-        crate::files::icc::Profile::Other(n) => ("other", n),
-        crate::files::icc::Profile::Unreadable(why) => ("unreadable", why),
-    }
-}
-
-/// Interleaved RGB values in [0, 1] (codes / max, any shape ending in 3)
-/// from the profile `icc` to the working space (`crate::files::icc::convert`):
-/// linear when `linear`, else sRGB-encoded. A new float32 array.
-#[pyfunction]
-fn _icc_convert<'py>(
-    py: Python<'py>,
-    values: PyReadonlyArrayDyn<'py, f32>,
-    icc: &[u8],
-    linear: bool,
-) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
-    let mut v = slice(&values, "values")?.to_vec();
-    if v.len() % 3 != 0 {
-        return Err(PyValueError::new_err("values must hold RGB triples"));
-    }
-    let icc = icc.to_vec();
-    py.detach(|| crate::files::icc::convert(&icc, &mut v, linear)).map_err(PyValueError::new_err)?;
-    same_shape(py, v, values.shape())
-}
-
 /// 16-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`.
 #[pyfunction]
 fn _decode_u16<'py>(
@@ -273,10 +231,7 @@ fn _encode_png<'py>(py: Python<'py>, a: &Bound<'py, PyAny>) -> PyResult<Bound<'p
 
 /// Adds the colour functions to `uwhl_rs._core`.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(_decode_u8, m)?)?;
     m.add_function(wrap_pyfunction!(_decode_u16, m)?)?;
-    m.add_function(wrap_pyfunction!(_icc_classify, m)?)?;
-    m.add_function(wrap_pyfunction!(_icc_convert, m)?)?;
     m.add_function(wrap_pyfunction!(_quantize, m)?)?;
     m.add_function(wrap_pyfunction!(_colormap, m)?)?;
     m.add_function(wrap_pyfunction!(_downscale, m)?)?;

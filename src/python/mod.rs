@@ -3,6 +3,7 @@
 //! function ([`to_py_err`]). No algorithm code lives here.
 
 mod color;
+mod files;
 #[cfg(feature = "internals")]
 mod hooks;
 
@@ -117,11 +118,17 @@ impl PyRestoration {
     }
 }
 
-fn parse_types(obj: &Bound<'_, PyAny>) -> PyResult<Vec<WaterType>> {
-    if obj.is_instance_of::<PyString>() {
-        return Err(ParameterError::new_err(
-            "water_types must be a list of names or (name, beta_BR, beta_BG) tuples, not a string",
-        ));
+/// `water_types` as given in Python: names or `(name, beta_BR, beta_BG)`
+/// tuples (custom types, echoed as such in the sidecar).
+pub(crate) fn parse_choices(obj: &Bound<'_, PyAny>) -> PyResult<Vec<crate::files::settings::WaterChoice>> {
+    use crate::files::settings::WaterChoice;
+    if obj.is_instance_of::<PyString>() || obj.is_instance_of::<pyo3::types::PyBytes>() || obj.is_instance_of::<PyTuple>() {
+        let shown = obj.repr().map(|r| r.to_string()).unwrap_or_default();
+        let kind = obj.get_type().name().map(|n| n.to_string()).unwrap_or_default();
+        return Err(ParameterError::new_err(format!(
+            "water_types must be a list of names or (name, beta_BR, beta_BG) tuples, not a {kind} ({shown}); \
+             write [{shown}] for a single type"
+        )));
     }
     let mut out = Vec::new();
     for item in obj
@@ -130,14 +137,14 @@ fn parse_types(obj: &Bound<'_, PyAny>) -> PyResult<Vec<WaterType>> {
     {
         let item = item?;
         if let Ok(name) = item.extract::<String>() {
-            out.push(WaterType::by_name(&name).map_err(to_py_err)?);
+            out.push(WaterChoice { water_type: WaterType::by_name(&name).map_err(to_py_err)?, custom: false });
         } else if let Ok(t) = item.cast::<PyTuple>() {
             let (name, br, bg): (String, f64, f64) = t.extract().map_err(|_| {
                 ParameterError::new_err(format!(
                     "water type {t} must be (name, beta_BR, beta_BG) with a str and two numbers"
                 ))
             })?;
-            out.push(WaterType::new(&name, br, bg).map_err(to_py_err)?);
+            out.push(WaterChoice { water_type: WaterType::new(&name, br, bg).map_err(to_py_err)?, custom: true });
         } else {
             return Err(ParameterError::new_err(format!(
                 "water type {item} must be a name or a (name, beta_BR, beta_BG) tuple"
@@ -145,6 +152,56 @@ fn parse_types(obj: &Bound<'_, PyAny>) -> PyResult<Vec<WaterType>> {
         }
     }
     Ok(out)
+}
+
+/// The value of a method keyword (a row with `method: true` other than
+/// `water_types`) as the option table's [`crate::files::options::Value`]:
+/// integers (numpy's too, not booleans) >= 0, numbers (not booleans or
+/// text), names, and R, G, B as any sequence of three numbers. A value of
+/// the wrong kind is a ParameterError naming the keyword and the value.
+pub(crate) fn method_value(
+    s: &crate::files::options::Spec,
+    v: &Bound<'_, PyAny>,
+) -> PyResult<Option<crate::files::options::Value>> {
+    use crate::files::options::{Kind, Value};
+    let key = s.key;
+    let shown = v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+    let wrong = |what: &str| ParameterError::new_err(format!("{key} must be {what}; got {shown}"));
+    let is_bool = v.is_instance_of::<pyo3::types::PyBool>()
+        || v.get_type().name().is_ok_and(|n| n.to_string() == "bool_");
+    let text = v.is_instance_of::<PyString>();
+    let int = |what: &str| -> PyResult<u64> {
+        if is_bool || text {
+            return Err(wrong(what));
+        }
+        v.extract::<u64>().map_err(|_| wrong(what))
+    };
+    Ok(Some(match s.kind {
+        Kind::WaterTypes => return Ok(None),
+        Kind::Subsample if text => match v.extract::<String>()?.as_str() {
+            "auto" => Value::Int(0),
+            _ => return Err(wrong("an integer >= 0 or \"auto\"")),
+        },
+        Kind::Subsample => Value::Int(int("an integer >= 0 or \"auto\"")?),
+        Kind::Int { .. } | Kind::Bytes | Kind::IntOf(_) => Value::Int(int("an integer >= 0")?),
+        Kind::Float { .. } => {
+            if is_bool || text {
+                return Err(wrong("a number"));
+            }
+            Value::Float(v.extract().map_err(|_| wrong("a number"))?)
+        }
+        Kind::Choice(names) => {
+            let list = names.iter().map(|n| format!("{n:?}")).collect::<Vec<_>>().join(", ");
+            Value::Text(v.extract().map_err(|_| wrong(&format!("one of {list}")))?)
+        }
+        Kind::Rgb => {
+            let rgb: Vec<f64> = if text { None } else { v.extract().ok() }
+                .filter(|c: &Vec<f64>| c.len() == 3)
+                .ok_or_else(|| wrong("3 numbers (R, G, B)"))?;
+            Value::Rgb([rgb[0], rgb[1], rgb[2]])
+        }
+        Kind::Flag | Kind::Path | Kind::Address | Kind::KeyValue => return Err(wrong("a value of this keyword")),
+    }))
 }
 
 pub(crate) fn mask_slice<'a>(
@@ -184,7 +241,7 @@ impl PyParams {
     #[new]
     #[pyo3(signature = (**kwargs))]
     fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        use crate::files::options::{spec, Kind, Value};
+        use crate::files::options::{spec, Kind};
         let mut params = Params::default();
         let Some(kwargs) = kwargs else {
             return Ok(Self(params));
@@ -197,24 +254,13 @@ impl PyParams {
             if v.is_none() {
                 continue;
             }
-            let wrong = |what: &str| ParameterError::new_err(format!("{key} must be {what}; got {v}"));
-            let value = match s.kind {
-                Kind::WaterTypes => {
-                    params.water_types = parse_types(&v)?;
-                    continue;
-                }
-                Kind::Int { .. } | Kind::Bytes | Kind::Subsample | Kind::IntOf(_) => {
-                    Value::Int(v.extract().map_err(|_| wrong("an integer >= 0"))?)
-                }
-                Kind::Float { .. } => Value::Float(v.extract().map_err(|_| wrong("a number"))?),
-                Kind::Choice(names) => Value::Text(v.extract().map_err(|_| wrong(&names.join(" or ")))?),
-                Kind::Rgb => {
-                    let (r, g, b): (f64, f64, f64) = v.extract().map_err(|_| wrong("3 numbers (R, G, B)"))?;
-                    Value::Rgb([r, g, b])
-                }
-                Kind::Flag | Kind::Path | Kind::Address | Kind::KeyValue => return Err(wrong("a value of this keyword")),
-            };
-            params.set(s.key, &value).map_err(to_py_err)?;
+            if s.kind == Kind::WaterTypes {
+                params.water_types = parse_choices(&v)?.into_iter().map(|c| c.water_type).collect();
+                continue;
+            }
+            if let Some(value) = method_value(s, &v)? {
+                params.set(s.key, &value).map_err(to_py_err)?;
+            }
         }
         Ok(Self(params))
     }
@@ -311,29 +357,6 @@ fn collect_jobs(
 ) -> (Vec<(std::path::PathBuf, std::path::PathBuf, String)>, Vec<(std::path::PathBuf, String)>) {
     let (jobs, problems) = py.detach(|| crate::files::jobs::collect_jobs(&inputs, &out_dir, &suffixes));
     (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
-}
-
-/// Carries the input file's metadata into the encoded output file at
-/// `encoded_path` (rewritten in place: a temporary of the caller's claim),
-/// with the restoration record of the sidecar (`sidecar_json`):
-/// `crate::files::metadata::carry_from`. Returns the sidecar's `metadata` object as JSON.
-#[pyfunction]
-fn carry_metadata(
-    py: Python<'_>,
-    encoded_path: std::path::PathBuf,
-    input_path: std::path::PathBuf,
-    sidecar_json: &str,
-    sidecar_name: &str,
-    width: u32,
-    height: u32,
-) -> PyResult<String> {
-    let side: serde_json::Value =
-        serde_json::from_str(sidecar_json).map_err(|e| PyValueError::new_err(format!("sidecar: {e}")))?;
-    let encoded = std::fs::read(&encoded_path)?;
-    let (bytes, summary) =
-        py.detach(|| crate::files::metadata::carry_from(&input_path, encoded, &side, sidecar_name, width, height));
-    std::fs::write(&encoded_path, bytes)?;
-    Ok(summary.to_string())
 }
 
 /// The output names of inputs listed elsewhere (object storage), given in
@@ -702,6 +725,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
     crate::python::color::register(m)?;
+    crate::python::files::register(m)?;
     m.add_class::<PyRestoration>()?;
     m.add_class::<PySequence>()?;
     m.add_class::<PyParams>()?;
@@ -732,7 +756,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
-    m.add_function(wrap_pyfunction!(carry_metadata, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;

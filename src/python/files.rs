@@ -1,0 +1,282 @@
+//! The files layer's per-input path for the Python command: decoding
+//! JPEG/PNG/TIFF with the binary's decoder (`crate::files::decode`), the
+//! settings of one input made from keywords through the option table
+//! (`crate::files::settings::Settings::set`), and the writing half
+//! (`crate::files::pipeline::write_outputs`: encodes, metadata, sidecar,
+//! commit). Python keeps what Rust cannot do: raw decoding (rawpy), object
+//! storage (fsspec), Dask, and the contact sheet's drawing.
+
+use super::{mask_slice, parse_choices, ImageError, ParameterError, PyClaim, PyRestoration};
+use crate::error::{Failure, Kind};
+use crate::files::decode::{decode, Header, Limits};
+use crate::files::options::{spec, Kind as OptKind, Value};
+use crate::files::pipeline::{write_outputs, Outputs, Timing};
+use crate::files::settings::{Preprocess, Settings};
+use crate::files::sidecar::{parameters, Estimates, Source};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyTypeError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// A failure of the files layer as the Python exception of its kind.
+pub(crate) fn failure_to_py(f: Failure) -> PyErr {
+    match f.kind {
+        Kind::Input => ImageError::new_err(f.message),
+        Kind::Usage => ParameterError::new_err(f.message),
+        Kind::Budget => PyMemoryError::new_err(f.message),
+        Kind::Write => PyOSError::new_err(f.message),
+        Kind::Internal => PyRuntimeError::new_err(f.message),
+    }
+}
+
+/// The settings of one input's processing (core `Settings`): every
+/// keyword of `uwhl_rs.files.restore_file` that the option table knows,
+/// method and file keys alike, checked by the table's own parser; None
+/// leaves the default.
+#[pyclass(name = "FileSettings", module = "uwhl_rs._core", frozen)]
+pub struct PyFileSettings(pub(crate) Settings);
+
+/// The text of a file option's value as a command line would give it.
+fn as_text(v: &Bound<'_, PyAny>) -> PyResult<String> {
+    if v.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(ParameterError::new_err(format!("{v} is not a value of this keyword")));
+    }
+    Ok(v.str()?.to_string())
+}
+
+#[pymethods]
+impl PyFileSettings {
+    #[new]
+    #[pyo3(signature = (**kwargs))]
+    fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let mut s = Settings::default();
+        let Some(kwargs) = kwargs else { return Ok(Self(s)) };
+        for (k, v) in kwargs.iter() {
+            let key: String = k.extract()?;
+            let spec = spec(&key)
+                .ok_or_else(|| PyTypeError::new_err(format!("unexpected keyword argument {key:?}")))?;
+            if v.is_none() {
+                continue;
+            }
+            if key == "water_types" {
+                s.water_types = Some(parse_choices(&v)?);
+                continue;
+            }
+            let value = if spec.method {
+                match super::method_value(spec, &v)? {
+                    Some(value) => value,
+                    None => continue,
+                }
+            } else {
+                match spec.kind {
+                    OptKind::Flag => {
+                        if !v.is_truthy()? {
+                            continue;
+                        }
+                        Value::On
+                    }
+                    _ => spec
+                        .parse(&as_text(&v)?)
+                        .map_err(|m| ParameterError::new_err(m.replacen(spec.flag, spec.key, 1)))?,
+                }
+            };
+            if !s.set(spec.key, value).map_err(failure_to_py)? {
+                return Err(PyTypeError::new_err(format!("{key:?} is not an option of one input's processing")));
+            }
+        }
+        let bits = s.bits.map(u64::from);
+        crate::files::options::check_combination(s.format.name(), bits, None, false, s.linear, s.preprocess.name())
+            .map_err(|m| ParameterError::new_err(m.replace("--", "").replace('-', "_")))?;
+        Ok(Self(s))
+    }
+
+    /// The sidecar's `parameters` object, as JSON text.
+    fn parameters(&self) -> String {
+        parameters(&self.0).to_string()
+    }
+
+    /// Bits per sample of the restored image.
+    #[getter]
+    fn bits(&self) -> u8 {
+        self.0.bits()
+    }
+
+    /// The memory budget in bytes.
+    #[getter]
+    fn max_memory(&self) -> u64 {
+        self.0.params.max_memory
+    }
+}
+
+/// Decodes a PNG, JPEG or TIFF file with the binary's decoder: returns
+/// `(image, info)`, image float32 (H, W, 3) through the inverse sRGB curve
+/// when `linearize` (float TIFFs as they are), info a dict with `format`,
+/// `bits`, `is_float`, `orientation` (applied) and `icc_profile`
+/// (None or `(description, converted, why_unreadable)`).
+/// `on_header(height, width, bytes_per_pixel, oriented)` is called from
+/// the header before the pixels are decoded (the memory plan); what it
+/// raises propagates. A file the decoder refuses raises ImageError, one
+/// over a limit MemoryError.
+#[pyfunction]
+#[pyo3(signature = (path, linearize, max_pixels, max_memory, on_header=None))]
+fn decode_file<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    linearize: bool,
+    max_pixels: u64,
+    max_memory: u64,
+    on_header: Option<Bound<'py, PyAny>>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
+    crate::files::jobs::regular_file(&path).map_err(ImageError::new_err)?;
+    let file = std::fs::File::open(&path).map_err(|e| ImageError::new_err(format!("cannot open: {e}")))?;
+    let limits = Limits { max_pixels, max_memory };
+    let mut hook_error: Option<PyErr> = None;
+    // the header hook runs Python, so the GIL is held while decoding
+    let decoded = decode(std::io::BufReader::new(file), &limits, linearize, |h: &Header| {
+        if let Some(f) = &on_header {
+            if let Err(e) = f.call1((h.height, h.width, h.bpp, h.oriented)) {
+                hook_error = Some(e);
+                return Err(Failure::new(Kind::Internal, "refused by the header hook"));
+            }
+        }
+        Ok(())
+    });
+    if let Some(e) = hook_error {
+        return Err(e);
+    }
+    let d = decoded.map_err(failure_to_py)?;
+    let info = PyDict::new(py);
+    info.set_item("format", d.format)?;
+    info.set_item("bits", d.bits)?;
+    info.set_item("is_float", d.is_float)?;
+    info.set_item("orientation", d.orientation)?;
+    info.set_item("icc_profile", d.icc_profile.clone())?;
+    let image = PyArray1::from_vec(py, d.data).reshape([d.height, d.width, 3])?.into_any();
+    Ok((image, info))
+}
+
+/// The sidecar's `source` from the Python reader's fields (`ImageMeta`
+/// plus the restored size): the keys of `crate::files::sidecar::Source`.
+fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
+    fn get<'py, T: FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, k: &str) -> PyResult<T> {
+        d.get_item(k)?
+            .ok_or_else(|| PyTypeError::new_err(format!("source lacks {k:?}")))?
+            .extract()
+            .map_err(|_| PyTypeError::new_err(format!("source {k:?} is not of its type")))
+    }
+    let icc: Option<(String, bool, Option<String>)> = get(d, "icc_profile")?;
+    Ok(Source {
+        kind: get(d, "kind")?,
+        format: get(d, "format")?,
+        bits: get(d, "bits")?,
+        height: get(d, "height")?,
+        width: get(d, "width")?,
+        orientation: get(d, "orientation")?,
+        linear: get(d, "linear")?,
+        preprocess: if get::<String>(d, "preprocess")? == "reference" { Preprocess::Reference } else { Preprocess::None },
+        processed_height: get(d, "processed_height")?,
+        processed_width: get(d, "processed_width")?,
+        icc_profile: icc,
+        camera_matrix: get(d, "camera_matrix")?,
+        white_balance: get(d, "white_balance")?,
+        notes: get(d, "notes")?,
+    })
+}
+
+/// Writes one input's outputs through its claim and returns the sidecar
+/// as JSON text (`crate::files::pipeline::write_outputs`, the binary's
+/// writing half): `image` is the restored image to encode (raw inputs:
+/// through the camera matrix), `source` the reader's fields,
+/// `contact_sheet` an encoded PNG when asked for, `reused` whether a
+/// sequence reused its estimates (None outside a sequence), and the
+/// seconds spent reading, restoring, drawing the sheet and in all so far.
+/// The claim is used up; on failure its temporaries are removed.
+#[pyfunction]
+#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed))]
+#[allow(clippy::too_many_arguments)]
+fn write_input_outputs(
+    py: Python<'_>,
+    claim: &PyClaim,
+    res: &PyRestoration,
+    image: PyReadonlyArray3<'_, f32>,
+    source: &Bound<'_, PyDict>,
+    settings: &PyFileSettings,
+    input: PathBuf,
+    label: PathBuf,
+    contact_sheet: Option<Bound<'_, PyBytes>>,
+    reused: Option<bool>,
+    read: f64,
+    restore: f64,
+    sheet_seconds: Option<f64>,
+    elapsed: f64,
+) -> PyResult<String> {
+    let source = source_of(source)?;
+    let (h, w) = res.shape;
+    if (source.processed_height, source.processed_width) != (h, w) || image.shape() != [h, w, 3] {
+        return Err(PyRuntimeError::new_err("the image, the restoration and the source disagree on the size"));
+    }
+    let image = image.as_slice().map_err(|_| PyRuntimeError::new_err("the image must be C-contiguous"))?;
+    let t = res.transmission.bind(py).cast::<numpy::PyArray2<f32>>()?.readonly();
+    let vm = res.veiling_mask.bind(py).cast::<numpy::PyArray2<bool>>()?.readonly();
+    let transmission = t.as_slice().map_err(|_| PyRuntimeError::new_err("transmission is not contiguous"))?;
+    let vm = Some(vm);
+    let water = mask_slice("veiling_mask", &vm, h, w)?.unwrap_or_default();
+    let mut scores = Vec::new();
+    for (k, v) in res.scores.bind(py).iter() {
+        scores.push((k.extract::<String>()?, v.extract::<f64>()?));
+    }
+    let estimates = Estimates {
+        water_type: &res.wt,
+        scores: &scores,
+        excluded: &res.excluded,
+        veiling_light: [res.veiling_light.0, res.veiling_light.1, res.veiling_light.2],
+        vl_pixels: water.iter().filter(|&&b| b).count(),
+        pixels: h.saturating_mul(w),
+        flags: res.flags.iter().map(String::as_str).collect(),
+        guided_radius: res.guided_radius,
+        guided_subsample: res.guided_subsample,
+    };
+    let sheet = contact_sheet.as_ref().map(|b| b.as_bytes().to_vec());
+    let claimed = claim
+        .inner
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .take()
+        .ok_or_else(|| PyRuntimeError::new_err("this claim is committed or released"))?;
+    let params = parameters(&settings.0);
+    // a name that is not UTF-8 is written as the binary writes it (U+FFFD)
+    let label = label.to_string_lossy().into_owned();
+    let start = Instant::now().checked_sub(Duration::from_secs_f64(elapsed.max(0.0))).unwrap_or_else(Instant::now);
+    let side = py
+        .detach(|| {
+            write_outputs(
+                claimed,
+                Outputs {
+                    label: &label,
+                    input: &input,
+                    implementation: "python",
+                    source: &source,
+                    estimates,
+                    image,
+                    transmission,
+                    contact_sheet: sheet.as_deref(),
+                    reused,
+                    parameters: &params,
+                },
+                &settings.0,
+                Timing { read, restore, contact_sheet: sheet_seconds, start },
+            )
+        })
+        .map_err(failure_to_py)?;
+    Ok(side.to_string())
+}
+
+/// Registers the classes and functions of this module in `_core`.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyFileSettings>()?;
+    m.add_function(wrap_pyfunction!(decode_file, m)?)?;
+    m.add_function(wrap_pyfunction!(write_input_outputs, m)?)?;
+    Ok(())
+}
