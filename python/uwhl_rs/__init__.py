@@ -148,23 +148,6 @@ def _int_param(name: str, value, lo: int):
     return int(value)
 
 
-def _subsample_param(value) -> int:
-    """guided_subsample: an integer >= 0 or "auto" (= 0) -> int."""
-    if isinstance(value, str):
-        if value == "auto":
-            return 0
-        raise ParameterError(f'guided_subsample must be an integer >= 0 or "auto"; got {value!r}')
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise ParameterError(f'guided_subsample must be an integer >= 0 or "auto"; got {value!r}')
-    if not 0 <= int(value) <= _MAX_INT:
-        raise ParameterError(f'guided_subsample must be an integer >= 0 or "auto"; got {value!r}')
-    return int(value)
-
-
-def _choices(key: str) -> str:
-    return ", ".join(f'"{c}"' for c in next(o for o in _core.OPTIONS if o["key"] == key)["choices"])
-
-
 def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     if mask is None:
         return None
@@ -176,26 +159,7 @@ def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     return np.ascontiguousarray(m)
 
 
-def restore(
-    image,
-    *,
-    water_types=None,
-    veiling_light=None,
-    water_mask=None,
-    mask=None,
-    guided_radius: int | None = DEFAULTS["guided_radius"],
-    guided_eps: float = DEFAULTS["guided_eps"],
-    sphere_points: int = DEFAULTS["sphere_points"],
-    threads: int | None = DEFAULTS["threads"],
-    max_memory: int | None = None,
-    selection: str | None = DEFAULTS["selection"],
-    guided_subsample: int | str = DEFAULTS["guided_subsample"],
-    t_scale: float = DEFAULTS["t_scale"],
-    method: str = DEFAULTS["method"],
-    white_balance: str | None = DEFAULTS["white_balance"],
-    type_choice: str | None = DEFAULTS["type_choice"],
-    haze_floor: str | None = DEFAULTS["haze_floor"],
-) -> Restoration:
+def restore(image, *, water_mask=None, mask=None, **method) -> Restoration:
     """Restore the colors of one underwater image (METHOD §2-§10).
 
     Parameters
@@ -304,88 +268,38 @@ def restore(
     hw = img.shape[:2]
     wm = _as_mask(water_mask, "water_mask", hw)
     m = _as_mask(mask, "mask", hw)
-    kw = _method_params(
-        water_types=water_types,
-        veiling_light=veiling_light,
-        guided_radius=guided_radius,
-        guided_eps=guided_eps,
-        sphere_points=sphere_points,
-        threads=threads,
-        max_memory=max_memory,
-        selection=selection,
-        guided_subsample=guided_subsample,
-        t_scale=t_scale,
-        method=method,
-        white_balance=white_balance,
-        type_choice=type_choice,
-        haze_floor=haze_floor,
-    )
-    return _core.restore_f32(img, kw, water_mask=wm, mask=m)
+    return _core.restore_f32(img, _method_params(**method), water_mask=wm, mask=m)
 
 
 def _method_params(**kw) -> _core.Params:
     """The method's keyword arguments of :func:`restore` and :class:`Sequence`
-    (defaults: :func:`restore`'s), checked (ParameterError naming a bad one)
-    and converted to the core's parameters."""
-    unknown = sorted(set(kw) - set(DEFAULTS))
-    if unknown:
-        raise TypeError(f"unexpected keyword argument(s) {', '.join(unknown)}; the method's are {', '.join(DEFAULTS)}")
-    kw = {**DEFAULTS, **kw}
-    water_types, veiling_light, guided_eps = (kw[k] for k in ("water_types", "veiling_light", "guided_eps"))
-    if veiling_light is not None:
-        try:
-            v = np.asarray(veiling_light, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ParameterError(f"veiling_light must be 3 numbers (R, G, B); got {veiling_light!r}") from None
-        if v.shape != (3,):
-            raise ParameterError(f"veiling_light must be 3 numbers (R, G, B); got {veiling_light!r}")
-        veiling_light = tuple(float(x) for x in v)
-    if water_types is not None and isinstance(water_types, (str, bytes, tuple)):
-        raise ParameterError(
-            f"water_types must be a list of names or (name, beta_BR, beta_BG) tuples, not a "
-            f"{type(water_types).__name__} ({water_types!r}); write [{water_types!r}] for a single type"
-        )
-    if isinstance(guided_eps, (bool, np.bool_)) or not isinstance(guided_eps, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"guided_eps must be a number > 0; got {guided_eps!r}")
-    return _core.Params(
-        water_types=water_types,
-        veiling_light=veiling_light,
-        guided_radius=_int_param("guided_radius", kw["guided_radius"], 0),
-        guided_eps=float(guided_eps),
-        sphere_points=_int_param("sphere_points", kw["sphere_points"], 0),
-        threads=_int_param("threads", kw["threads"], 0),
-        max_memory=_int_param("max_memory", kw["max_memory"], 0),
-        guided_subsample=_subsample_param(kw["guided_subsample"]),
-        t_scale=_float_param("t_scale", kw["t_scale"]),
-        **{k: _choice_param(k, kw[k]) for k in STEP_KEYS},
-    )
+    as the core's parameters: the core checks each (a ParameterError naming
+    a bad one, a TypeError for an unknown keyword)."""
+    return _core.Params(**kw)
 
 
-def _float_param(key: str, value):
-    """A number (None: the default); booleans and text are refused."""
-    if value is None:
-        return None
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"{key} must be a number; got {value!r}")
-    return float(value)
+def _signature_from_table(f, before: list[str]) -> None:
+    """Gives ``f`` (which takes the method's keywords as ``**method``) a
+    signature listing every method keyword with its default, from the
+    option table: what help() and IDEs show. ``before``: the first
+    (positional) parameter, then keyword-only ones defaulting to None."""
+    import inspect
+
+    first = [inspect.Parameter(before[0], inspect.Parameter.POSITIONAL_OR_KEYWORD)]
+    rest = [inspect.Parameter(k, inspect.Parameter.KEYWORD_ONLY, default=None) for k in before[1:]]
+    kw = [inspect.Parameter(k, inspect.Parameter.KEYWORD_ONLY, default=v) for k, v in DEFAULTS.items()]
+    f.__signature__ = inspect.Signature(first + rest + kw, return_annotation=Restoration)
 
 
 #: The keywords that name a profile and its steps (METHOD §12).
 STEP_KEYS = ("method", "selection", "white_balance", "type_choice", "haze_floor")
 
 
-def _choice_param(key: str, value):
-    """A name among the option table's choices for ``key`` (None: the default)."""
-    if value is None or isinstance(value, str):
-        return value
-    raise ParameterError(f"{key} must be one of {_choices(key)}; got {value!r}")
-
-
 def method_steps(**kw) -> dict:
     """The profile and the steps that ``restore(**kw)`` uses, by keyword
     (``method``, ``selection``, ``white_balance``, ``type_choice``, ``haze_floor``), defaults resolved:
     what the sidecar and ``uwhl evaluate`` record."""
-    return dict(_core.Params(**{k: _choice_param(k, kw.get(k)) for k in STEP_KEYS}).steps())
+    return dict(_core.Params(**{k: kw.get(k) for k in STEP_KEYS}).steps())
 
 
 class Sequence:
@@ -479,3 +393,6 @@ class Sequence:
             f"Sequence(water_type={self.water_type!r}, refresh_every={self._core.refresh_every}, "
             f"reuse_water_mask={self._core.reuse_water_mask})"
         )
+
+
+_signature_from_table(restore, ["image", "water_mask", "mask"])

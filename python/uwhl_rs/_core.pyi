@@ -5,6 +5,7 @@ built module with mypy's stubtest."""
 
 import os
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any, ClassVar, Literal, Optional, Union, final
 
 import numpy as np
@@ -18,13 +19,13 @@ _RGB = tuple[float, float, float]
 #: every name the module registers, in registration order (the _stage_*
 #: names only in a build with the ``internals`` feature)
 __all__ = [
-    "restore_f32", "_decode_u8", "_decode_u16", "_icc_classify", "_icc_convert", "_quantize", "_colormap",
+    "restore_f32", "_decode_u16", "_quantize", "_colormap",
     "_downscale", "_reference_srgb", "_reference_raw", "_decode_png", "_encode_png", "Restoration", "Sequence",
     "Params", "_after_fork", "_stage_stretch", "_stage_guide", "_stage_edge_map", "_stage_veiling",
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "collect_jobs", "name_jobs", "carry_metadata", "remove_stale_temps",
+    "options_help", "check_combination", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "write_input_outputs",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
 ]
@@ -81,9 +82,7 @@ def collect_jobs(
     """The jobs of a batch as (input, output folder, name), and the problems as (input, reason)."""
 def name_jobs(found: list[tuple[str, str]], suffixes: list[str]) -> list[str]:
     """The output names of (input, relative folder) pairs listed elsewhere, in discovery order."""
-def carry_metadata(encoded_path: _PathArg, input_path: _PathArg, sidecar_json: str, sidecar_name: str,
-                   width: int, height: int) -> str:
-    """Carries the input's metadata into the encoded file (rewritten in place); the sidecar's `metadata` as JSON."""
+
 def remove_stale_temps(dir: _PathArg) -> int:
     """Removes the temporaries dead processes left in `dir`; returns how many."""
 
@@ -112,6 +111,33 @@ def create_temp(path: _PathArg) -> Path:
 def place(tmp: _PathArg, path: _PathArg) -> None:
     """Puts a written temporary in place of `path` durably."""
 
+# ---- one input's path (src/files/pipeline.rs) ----
+
+@final
+class FileSettings:
+    """The settings of one input's processing: method and file keywords, checked by the option table."""
+    def __new__(cls, **kwargs: object) -> "FileSettings": ...
+    def parameters(self) -> str:
+        """The sidecar's `parameters` object, as JSON text."""
+    @property
+    def bits(self) -> int:
+        """Bits per sample of the restored image."""
+    @property
+    def max_memory(self) -> int:
+        """The memory budget in bytes."""
+
+def decode_file(
+    path: _PathArg, linearize: bool, max_pixels: int, max_memory: int,
+    on_header: Optional[Callable[[int, int, int, bool], object]] = None,
+) -> tuple[_F32, dict[str, Any]]:
+    """A PNG, JPEG or TIFF decoded by the binary's decoder: (image, info)."""
+def write_input_outputs(
+    claim: Claim, res: Restoration, image: _F32, source: dict[str, Any], settings: FileSettings, input: _PathArg,
+    label: str, contact_sheet: Optional[bytes], reused: Optional[bool], read: float, restore: float,
+    sheet_seconds: Optional[float], elapsed: float,
+) -> str:
+    """Writes one input's outputs through its claim (encodes, metadata, sidecar, commit): the sidecar as JSON."""
+
 # ---- memory budget ----
 
 def input_plan(
@@ -128,14 +154,8 @@ def can_allocate(bytes: int) -> bool:
 
 # ---- pixel conventions (docs/OUTPUTS.md) ----
 
-def _decode_u8(codes: npt.NDArray[np.uint8], linearize: bool) -> _F32:
-    """8-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`."""
 def _decode_u16(codes: npt.NDArray[np.uint16], linearize: bool) -> _F32:
     """16-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`."""
-def _icc_classify(icc: bytes) -> tuple[Literal["srgb", "other", "unreadable"], str]:
-    """What an ICC profile is: (kind, description or reason)."""
-def _icc_convert(values: _F32, icc: bytes, linear: bool) -> _F32:
-    """RGB values in [0, 1] (shape ending in 3) from profile `icc` to the working space (linear or sRGB)."""
 def _quantize(data: _F32, bits: Literal[8, 16], srgb: bool) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
     """float32 values (any shape) to uint8 or uint16 codes, through the sRGB curve when `srgb`."""
 def _colormap(t: _F32) -> npt.NDArray[np.uint8]:

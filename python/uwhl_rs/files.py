@@ -6,9 +6,9 @@ from __future__ import annotations
 import inspect
 import json
 import os
+import stat
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,29 +16,17 @@ import numpy as np
 import uwhl_rs
 
 from . import _core
-from .errors import ImageReadError, ImageTooLargeError
-from .images import (
-    ImageMeta,
-    colorize_transmission,
-    display_linear,
-    read_image,
-    to_srgb,
-    write_image_temp,
-)
+from ._core import ParameterError
+from .errors import ImageTooLargeError
+from .images import ImageMeta, colorize_transmission, display_linear, read_image, to_srgb
 
-__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "FORMATS"]
+__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need"]
 
 #: Every option's default, from the core's one table (docs/CLI.md).
 _D = {o["key"]: o["default"] for o in _core.OPTIONS}
 
-#: The smallest max_side (the core's table).
-_MIN_SIDE = next(o["min"] for o in _core.OPTIONS if o["key"] == "max_side")
-
 #: The keywords of :func:`uwhl_rs.restore` (and of :class:`uwhl_rs.Sequence`).
 METHOD_KEYS = tuple(o["key"] for o in _core.OPTIONS if o["method"])
-
-#: --format -> (extension, default bits)
-FORMATS = {"jpg": (".jpg", 8), "tiff": (".tif", 16), "png": (".png", 8)}
 
 
 @dataclass
@@ -77,21 +65,29 @@ def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = Fals
 
 
 def read_mask(mask, shape, what: str) -> np.ndarray | None:
-    """A bool mask from an array or an image file (nonzero = True)."""
+    """A bool mask from an array or an image file (nonzero = True). A mask
+    is an argument: one that cannot be read, or of another size than the
+    image, is a ``ParameterError`` (exit 2, as in the binary)."""
     if mask is None:
         return None
     if isinstance(mask, (str, os.PathLike)):
         import imageio.v3 as iio
 
+        path = os.fspath(mask)
         try:
-            a = np.asarray(iio.imread(os.fspath(mask)))
+            # a FIFO or a device would block or never end: regular files only
+            if not stat.S_ISREG(os.stat(path).st_mode):
+                raise ParameterError(f"{what} {path}: not a regular file")
+            a = np.asarray(iio.imread(path))
+        except ParameterError:
+            raise
         except Exception as e:
-            raise ImageReadError(f"{what} {os.fspath(mask)}: cannot read ({type(e).__name__}: {e})") from None
+            raise ParameterError(f"{what} {path}: cannot read ({type(e).__name__}: {e})") from None
         m = (a != 0) if a.ndim == 2 else (a[..., :3] != 0).any(axis=-1)
     else:
         m = np.asarray(mask, dtype=bool)
     if m.shape != tuple(shape):
-        raise ValueError(f"{what} is {m.shape[1]}x{m.shape[0]} but the image is {shape[1]}x{shape[0]}")
+        raise ParameterError(f"{what} is {m.shape[1]}x{m.shape[0]} pixels but the image is {shape[1]}x{shape[0]}")
     return m
 
 
@@ -191,14 +187,10 @@ def restore_staged(
     t_start = time.perf_counter()
     in_path = os.fspath(in_path)
     out_dir = os.fspath(out_dir)
-    if format not in FORMATS:
-        raise ValueError(f"format must be one of {sorted(FORMATS)}, not {format!r}")
-    ext, default_bits = FORMATS[format]
-    bits = default_bits if bits is None else int(bits)
-    if bits not in (8, 16) or (format == "jpg" and bits != 8):
-        raise ValueError(f"bits={bits} is not possible for {format} (jpg: 8; png, tiff: 8 or 16)")
-    if max_side is not None and int(max_side) < _MIN_SIDE:
-        raise ValueError(f"max_side must be at least {_MIN_SIDE}, not {max_side}")
+    # every option checked by the core's table (the binary's checks and messages)
+    settings = _core.FileSettings(format=format, bits=bits, quality=quality, preprocess=preprocess,
+                                  half_size=half_size, max_side=max_side, max_pixels=max_pixels,
+                                  mask=_mask_label(mask), water_mask=_mask_label(water_mask), **restore_kwargs)
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     if _claim is None:
         status, sidecar_path, reason, _claim = claim_outputs(out_dir, name, in_path, format, contact,
@@ -208,7 +200,7 @@ def restore_staged(
             raise OSError(f"{sidecar_path} is {who}")
     claim = _claim
     try:
-        staged = _read_and_restore(in_path, out_dir, claim, format=format, bits=bits, quality=quality, preprocess=preprocess,
+        staged = _read_and_restore(in_path, out_dir, claim, settings, format=format, preprocess=preprocess,
                                    half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask,
                                    water_mask=water_mask, contact=contact, sequence=sequence,
                                    restore_kwargs=restore_kwargs, t_start=t_start, base=_base,
@@ -219,11 +211,11 @@ def restore_staged(
     return staged
 
 
-def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preprocess, half_size, max_side, max_pixels, mask,
+def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, half_size, max_side, max_pixels, mask,
                       water_mask, contact, sequence, restore_kwargs, t_start, base, label) -> Callable[[], FileResult]:
     """The body of :func:`restore_staged` once the names are claimed."""
     paths = output_paths(out_dir, claim.name, format, contact)
-    budget = restore_kwargs.get("max_memory") or _core.default_max_memory()
+    budget = settings.max_memory
     masks = int(mask is not None) + int(water_mask is not None)
 
     def plan(h: int, w: int, bpp: int, oriented: bool) -> None:
@@ -254,87 +246,27 @@ def _read_and_restore(in_path, out_dir, claim, *, format, bits, quality, preproc
     t_restore = time.perf_counter()
 
     def write() -> FileResult:
-        t_write = time.perf_counter()
         try:
-            shown = display_linear(res.image, meta)
-            encoding = "linear" if meta.linear else "srgb"
-            # the three encoders (Pillow, the core's PNG) release the GIL: write them at once
-            with ThreadPoolExecutor(max_workers=3) as pool:
-                futures = [
-                    pool.submit(write_image_temp, claim, 0, paths["image"], shown, bits=bits, encoding=encoding,
-                                quality=quality),
-                    pool.submit(write_image_temp, claim, 1, paths["transmission"], res.transmission, bits=16,
-                                encoding="srgb"),
-                    pool.submit(write_image_temp, claim, 2, paths["transmission_color"],
-                                colorize_transmission(res.transmission)),
-                ]
-                wait(futures)
-                for f in futures:
-                    if f.exception() is not None:
-                        raise f.exception()
-                temps = [f.result() for f in futures]
-            t_sheet = time.perf_counter()
+            sheet, t_sheet = None, None
             if contact:
-                sheet = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
-                temps.append(write_image_temp(claim, 3, paths["contact_sheet"], sheet))
-            t_sheet = time.perf_counter() - t_sheet
-            sidecar = {
-                "input": label,
-                "outputs": {k: os.path.basename(v) for k, v in paths.items() if k != "sidecar"},
-                "uwhl_version": uwhl_rs.__version__,
-                "implementation": "python",
-                "source": {
-                    **meta.to_dict(),
-                    "path": label,
-                    "height": int(full_hw[0]),
-                    "width": int(full_hw[1]),
-                    "processed_height": int(res.transmission.shape[0]),
-                    "processed_width": int(res.transmission.shape[1]),
-                },
-                "water_type": res.water_type,
-                "scores": {k: float(v) for k, v in res.scores.items()},
-                "excluded": list(res.excluded),
-                "veiling_light": [float(v) for v in res.veiling_light],
-                "vl_pixels": int(res.veiling_mask.sum()),
-                "vl_fraction": float(res.veiling_mask.mean()),
-                "flags": list(res.flags),
-                "guided_radius": int(res.guided_radius),
-                "guided_subsample": int(res.guided_subsample),
-                "beta_ratios": [float(v) for v in res.beta_ratios],
-                **({"reused_estimates": "estimates_reused" in res.flags} if sequence is not None else {}),
-                "parameters": _parameters(restore_kwargs, mask=mask, water_mask=water_mask, max_side=max_side,
-                                          max_pixels=max_pixels, preprocess=preprocess, half_size=half_size,
-                                          format=format, bits=bits, quality=quality),
-            }
-            # the input's EXIF and XMP, and the restoration's record, into
-            # the photo (the core's src/files/metadata.rs, as uwhl-rs does)
-            sidecar["metadata"] = json.loads(_core.carry_metadata(
-                temps[0], in_path, json.dumps(_record_fields(sidecar)), os.path.basename(paths["sidecar"]),
-                int(res.transmission.shape[1]), int(res.transmission.shape[0])))
-            t_end = time.perf_counter()
-            sidecar["seconds"] = {
-                "read": round(t_read - t_start, 4),
-                "restore": round(t_restore - t_read, 4),
-                "write": round(t_end - t_write - t_sheet, 4),
-                "contact_sheet": round(t_sheet, 4),
-                "total": round(t_end - t_start, 4),
-            }
-            text = json.dumps(sidecar, indent=2) + "\n"
-            tmp = os.fspath(claim.temp(len(temps)))
-            try:
-                with open(tmp, "w", encoding="utf-8") as f:
-                    f.write(text)
-            except OSError as e:
-                raise OSError(e.errno, f"cannot write {paths['sidecar']}: {e.strerror or e}") from None
-            temps.append(tmp)
-            try:
-                claim.commit(temps)
-            except OSError as e:
-                raise OSError(e.errno, f"cannot write the outputs of {label} in {out_dir}: {e.strerror or e}") from None
+                t0 = time.perf_counter()
+                drawn = contact_sheet(image, meta, res, mask=m, restore_kwargs=restore_kwargs)
+                sheet = _core._encode_png(np.ascontiguousarray(drawn))
+                t_sheet = time.perf_counter() - t0
+            hp, wp = res.transmission.shape
+            source = {**meta.to_dict(), "path": label, "height": int(full_hw[0]), "width": int(full_hw[1]),
+                      "processed_height": int(hp), "processed_width": int(wp)}
+            icc = source["icc_profile"]  # its note, when unreadable, is among the notes already
+            source["icc_profile"] = None if icc is None else (icc["description"], bool(icc["converted"]), None)
+            reused = ("estimates_reused" in res.flags) if sequence is not None else None
+            # the binary's writing half: encodes, metadata, sidecar, commit (src/files/pipeline.rs)
+            text = _core.write_input_outputs(claim, res, display_linear(res.image, meta), source, settings, in_path,
+                                             label, sheet, reused, t_read - t_start, t_restore - t_read, t_sheet,
+                                             time.perf_counter() - t_start)
         finally:
             # committed: nothing left to release; failed: the temporaries go
             claim.release()
-        return FileResult(res, meta, paths, sidecar)
+        return FileResult(res, meta, paths, json.loads(text))
 
     return write
 
@@ -347,62 +279,13 @@ restore_file.__signature__ = _signature.replace(
 )
 
 
-#: the sidecar's fields the XMP record is made of (the core's metadata::record_from_sidecar)
-_RECORD_KEYS = ("water_type", "veiling_light", "flags", "uwhl_version")
-_RECORD_PARAMETERS = ("method", "selection", "white_balance", "type_choice", "haze_floor", "t_scale", "water_types")
-
-
-def _record_fields(sidecar: dict) -> dict:
-    """What the XMP record needs of the sidecar (paths, which may hold
-    undecodable bytes, are not among it)."""
-    p = sidecar["parameters"]
-    return {**{k: sidecar[k] for k in _RECORD_KEYS}, "parameters": {k: p.get(k) for k in _RECORD_PARAMETERS}}
-
-
-def _parameters(restore_kwargs: dict, **given) -> dict:
-    """The sidecar's ``parameters``: every option as asked for (defaults
-    filled in from the core's table), then any other keyword passed."""
-    p = {
-        **uwhl_rs.method_steps(**restore_kwargs),
-        "water_types": _jsonable(restore_kwargs.get("water_types")),
-        "veiling_light": _jsonable(restore_kwargs.get("veiling_light")),
-        "mask": _mask_label(given["mask"]),
-        "water_mask": _mask_label(given["water_mask"]),
-        "guided_radius": restore_kwargs.get("guided_radius"),
-        "guided_eps": float(restore_kwargs.get("guided_eps", _D["guided_eps"])),
-        "t_scale": float(restore_kwargs.get("t_scale", _D["t_scale"])),
-        "guided_subsample": _subsample_label(restore_kwargs.get("guided_subsample", _D["guided_subsample"])),
-        "sphere_points": int(restore_kwargs.get("sphere_points", _D["sphere_points"])),
-        "threads": restore_kwargs.get("threads"),
-        "max_memory": int(restore_kwargs.get("max_memory") or _core.default_max_memory()),
-        "max_side": None if given["max_side"] is None else int(given["max_side"]),
-        "max_pixels": int(given["max_pixels"]),
-        "preprocess": given["preprocess"],
-        "half_size": bool(given["half_size"]),
-        "format": given["format"],
-        "bits": given["bits"],
-        "quality": int(given["quality"]),
-    }
-    p.update({k: _jsonable(v) for k, v in restore_kwargs.items() if k not in p})
-    return p
-
-
 def _subsample_label(v) -> int:
     """The requested guided_subsample as the sidecar writes it: "auto" -> 0."""
     return 0 if isinstance(v, str) and v == "auto" else int(v)
 
 
-def _jsonable(v):
-    if v is None or isinstance(v, (bool, int, float, str)):
-        return v
-    if isinstance(v, np.generic):
-        return v.item()
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return [_jsonable(x) for x in v]
-    return str(v)
-
-
 def _mask_label(mask):
+    """A mask as the sidecar names it: its path, or "array"."""
     if mask is None:
         return None
     if isinstance(mask, (str, os.PathLike)):

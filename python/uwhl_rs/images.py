@@ -1,18 +1,18 @@
 """Reading and writing images: raw camera files (rawpy/LibRaw), JPEG, PNG
-and TIFF (imageio), the sRGB transfer curves and the camera matrix.
+and TIFF (read by the core's decoder, the binary's own), the sRGB transfer
+curves and the camera matrix.
 
 Everything here converts between files and the LINEAR float32 HxWx3
 arrays that :func:`uwhl_rs.restore` takes (METHOD §2) and returns (METHOD §10).
 The pixel conventions (curves, rounding, colour map) are shared with the
 ``uwhl-rs`` binary through ``uwhl_rs._core`` and documented in
-``docs/OUTPUTS.md``. rawpy and imageio are imported on first use only.
+``docs/OUTPUTS.md``. rawpy and imageio (writing :func:`write_image`) are
+imported on first use only.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import threading
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -194,139 +194,37 @@ def _check_pixels(path: str, h: int, w: int, max_pixels: int, on_header=None, bp
 
 def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
                   on_header=None) -> tuple[np.ndarray, ImageMeta]:
-    from PIL import Image
-
-    orientation = 1
-    icc = None
-    if kind in ("JPEG", "PNG"):
-        with _pillow_limit(), Image.open(path) as im:
-            icc = im.info.get("icc_profile")
-            _check_pixels(path, im.height, im.width, max_pixels)
-            # Pillow's PNG getexif() decodes the whole image to look for an
-            # eXIf chunk after the data; the plan comes before any decoding,
-            # so a PNG's orientation is read from the chunks before its data
-            has_exif = kind == "JPEG" or "exif" in im.info
-            orientation = int(im.getexif().get(0x0112, 1) or 1) if has_exif else 1
-            mode = im.mode
-            wide = kind == "PNG" and _png_bit_depth(path) == 16
-            if on_header is not None:
-                on_header(im.height, im.width, len(im.getbands()) * (2 if wide else 1), orientation != 1)
-    if kind == "PNG" and _png_bit_depth(path) == 16:
-        with open(path, "rb") as f:
-            codes = _core._decode_png(f.read(), max_pixels)
-        codes = _orient(codes, orientation)
-    elif kind == "TIFF":
-        import tifffile
-
-        with tifffile.TiffFile(path) as tf:
-            page = tf.pages[0]
-            shape = page.shape
-            h, w = (shape[0], shape[1]) if len(shape) >= 2 else (0, 0)
-            if page.samplesperpixel > 1 and page.planarconfig == 2:  # planar: (C, H, W)
-                h, w = shape[-2], shape[-1]
-            orientation = int(page.tags.get("Orientation").value) if "Orientation" in page.tags else 1
-            icc = bytes(page.tags[34675].value) if 34675 in page.tags else None  # InterColorProfile
-            bpp = int(page.samplesperpixel) * page.dtype.itemsize
-            _check_pixels(path, h, w, max_pixels, on_header, bpp, orientation != 1)
-            codes = page.asarray()
-            if page.samplesperpixel > 1 and page.planarconfig == 2:
-                codes = np.moveaxis(codes, 0, -1)
-            if page.photometric == 5:  # separated: CMYK
-                codes = _cmyk_to_rgb(path, codes, page)
-        codes = _orient(codes, orientation)
-    else:
-        import imageio.v3 as iio
-
-        if mode == "CMYK":
-            raise ImageReadError(f"{path}: CMYK {kind} is not supported (convert it to RGB)")
-        with _pillow_limit():
-            codes = iio.imread(path, plugin="pillow", rotate=True)
-            if mode == "P":  # palette: expand through Pillow's RGB conversion
-                codes = iio.imread(path, plugin="pillow", mode="RGB", rotate=True)
-    codes = _to_rgb(path, np.asarray(codes))
+    """JPEG, PNG and TIFF through the core's decoder, the binary's own
+    (src/files/decode.rs): the same pixels, orientation and ICC handling in
+    both commands."""
     linearize = preprocess == "none"
-    # a profile other than sRGB: the codes go to the working space through it (the core's src/files/icc.rs)
-    profile, notes = None, ()
-    if icc:
-        what, text = _core._icc_classify(bytes(icc))
-        profile = {"description": text if what != "unreadable" else "", "converted": what == "other"}
-        if what == "unreadable":
-            notes = (f"the ICC profile cannot be read ({text}); read as sRGB",)
-    if profile and profile["converted"] and codes.dtype in (np.uint8, np.uint16):
-        bits = 8 if codes.dtype == np.uint8 else 16
-        values = np.ascontiguousarray(codes, dtype=np.float32) / np.float32(255 if bits == 8 else 65535)
-        img = _core._icc_convert(values, bytes(icc), linearize)
-    elif codes.dtype == np.uint8:
-        bits = 8
-        img = _core._decode_u8(np.ascontiguousarray(codes), linearize)
-    elif codes.dtype == np.uint16:
-        bits = 16
-        img = _core._decode_u16(np.ascontiguousarray(codes), linearize)
-    elif codes.dtype.kind == "f":
-        bits = codes.dtype.itemsize * 8
-        img = np.ascontiguousarray(codes, dtype=np.float32)
-        if not np.all(np.isfinite(img)):
-            raise ImageReadError(f"{path}: the float image contains NaN or Inf")
-        meta = ImageMeta(path, "linear", kind, bits, img.shape[0], img.shape[1], orientation, True, "none")
+
+    def header(h: int, w: int, bpp: int, oriented: bool) -> None:
+        if on_header is not None:
+            on_header(h, w, bpp, oriented)
+
+    try:
+        img, info = _core.decode_file(path, linearize, int(max_pixels), int(_core.default_max_memory()), header)
+    except MemoryError as e:
+        raise ImageTooLargeError(f"{path}: {e}") from None
+    except _core.ImageError as e:
+        raise ImageReadError(f"{path}: {kind}: {e}") from None
+    orientation = int(info["orientation"])
+    if info["is_float"]:
+        meta = ImageMeta(path, "linear", info["format"], int(info["bits"]), img.shape[0], img.shape[1], orientation,
+                         True, "none")
         return img, meta
-    else:
-        raise ImageReadError(f"{path}: samples of type {codes.dtype} are not supported (8/16-bit or float)")
+    profile, notes = None, ()
+    if info["icc_profile"] is not None:
+        description, converted, why = info["icc_profile"]
+        profile = {"description": description, "converted": bool(converted)}
+        if why is not None:
+            notes = (f"the ICC profile cannot be read ({why}); read as sRGB",)
     if preprocess == "reference":
         img = _core._reference_srgb(img)
-    meta = ImageMeta(path, "srgb", kind, bits, img.shape[0], img.shape[1], orientation, linearize, preprocess,
-                     notes=notes, icc_profile=profile)
+    meta = ImageMeta(path, "srgb", info["format"], int(info["bits"]), img.shape[0], img.shape[1], orientation,
+                     linearize, preprocess, notes=notes, icc_profile=profile)
     return img, meta
-
-
-_PILLOW_LOCK = threading.Lock()
-
-
-@contextlib.contextmanager
-def _pillow_limit():
-    """Pillow refuses images over its own pixel limit with a message about
-    "decompression bombs"; our ``max_pixels`` is checked with a clearer one
-    instead (right after opening, before decoding), so Pillow's check is
-    switched off while we read."""
-    from PIL import Image
-
-    with _PILLOW_LOCK:
-        old = Image.MAX_IMAGE_PIXELS
-        Image.MAX_IMAGE_PIXELS = None
-        try:
-            yield
-        finally:
-            Image.MAX_IMAGE_PIXELS = old
-
-
-def _png_bit_depth(path: str) -> int:
-    with open(path, "rb") as f:
-        head = f.read(26)
-    return head[24] if len(head) >= 25 and head[12:16] == b"IHDR" else 8
-
-
-def _orient(a: np.ndarray, orientation: int) -> np.ndarray:
-    """Apply an EXIF orientation (1-8) to an (H, W, ...) array."""
-    ops = {
-        2: lambda x: x[:, ::-1],
-        3: lambda x: x[::-1, ::-1],
-        4: lambda x: x[::-1],
-        5: lambda x: np.swapaxes(x, 0, 1),
-        6: lambda x: np.swapaxes(x, 0, 1)[:, ::-1],
-        7: lambda x: np.swapaxes(x, 0, 1)[::-1, ::-1],
-        8: lambda x: np.swapaxes(x, 0, 1)[::-1],
-    }
-    return ops[orientation](a) if orientation in ops else a
-
-
-def _to_rgb(path: str, a: np.ndarray) -> np.ndarray:
-    """Gray -> 3 channels, gray+alpha / RGBA -> drop alpha."""
-    if a.ndim == 2:
-        return np.repeat(a[:, :, None], 3, axis=2)
-    if a.ndim == 3 and a.shape[2] in (1, 2):
-        return np.repeat(a[:, :, :1], 3, axis=2)
-    if a.ndim == 3 and a.shape[2] >= 3:
-        return a[:, :, :3]
-    raise ImageReadError(f"{path}: cannot use an image of shape {a.shape} (need HxW or HxWx3)")
 
 
 def _camera_matrix(raw) -> tuple[np.ndarray | None, list[str]]:
@@ -344,23 +242,6 @@ def _camera_matrix(raw) -> tuple[np.ndarray | None, list[str]]:
         except np.linalg.LinAlgError:
             pass
     return None, ["no_camera_matrix"]
-
-
-def _cmyk_to_rgb(path: str, codes: np.ndarray, page) -> np.ndarray:
-    """CMYK samples (TIFF photometric "separated", ink set CMYK) as RGB:
-    each of R, G, B is (max - C) (1 - K / max), truncated, with max the
-    samples' largest code (255 or 65535): the conversion without a colour
-    profile that uwhl-rs' decoder (the image crate) makes, so that both
-    commands read such a file alike."""
-    inkset = page.tags.get("InkSet")
-    if codes.ndim != 3 or codes.shape[2] < 4 or (inkset is not None and int(inkset.value) != 1):
-        raise ImageReadError(f"{path}: a separated (non-CMYK) TIFF of shape {codes.shape} is not supported")
-    if codes.dtype not in (np.uint8, np.uint16):
-        raise ImageReadError(f"{path}: CMYK samples of type {codes.dtype} are not supported (8 or 16 bits)")
-    top = np.float32(np.iinfo(codes.dtype).max)
-    c = codes[:, :, :4].astype(np.float32)
-    kf = 1.0 - c[:, :, 3:4] / top
-    return ((top - c[:, :, :3]) * kf).astype(codes.dtype)
 
 
 def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
@@ -536,20 +417,6 @@ def write_image(
     except OSError as e:
         raise _os_error(path, e) from None
     return path
-
-
-def write_image_temp(claim, index: int, path: str, image: np.ndarray, *, bits: int = 8,
-                     encoding: str = "srgb", quality: int = 95) -> str:
-    """Writes output ``index`` of a claim (``_core.Claim``) into a new
-    temporary, as :func:`write_image` would write ``path``; returns the
-    temporary's path, which the claim's commit puts in place."""
-    ext, a = _encodable(path, image, bits, encoding)
-    try:
-        tmp = os.fspath(claim.temp(index))
-        _encode_into(tmp, ext, a, quality)
-    except OSError as e:
-        raise _os_error(path, e) from None
-    return tmp
 
 
 def _png_bytes(a: np.ndarray) -> bytes:

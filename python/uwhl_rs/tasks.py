@@ -215,7 +215,6 @@ def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | Non
     # first input (the interpreter, numpy, the codecs, imported now so that
     # they are counted here and not while the first input is written) counts
     import imageio.v3  # noqa: F401  (counted in the base)
-    import tifffile  # noqa: F401
     from PIL import Image  # noqa: F401
 
     # (and 4 MiB for the writer threads' stacks and allocator arenas)

@@ -35,9 +35,14 @@ def test_restore_file_defaults_are_the_tables():
     assert set(files.METHOD_KEYS) == {k for k, o in TABLE.items() if o["method"]}
 
 
-def test_formats_are_the_tables_choices():
-    assert sorted(files.FORMATS) == sorted(TABLE["format"]["choices"])
-    assert {b for _, b in files.FORMATS.values()} <= set(TABLE["bits"]["choices"])
+def test_none_is_the_default_for_every_method_keyword():
+    """The core's one check of a keyword's value (no second one in Python):
+    None, for any method keyword, is the restore with that keyword absent."""
+    img, _ = synth.demo_input(40, 56, seed=3)
+    plain = uwhl_rs.restore(img)
+    for key in (k for k, o in TABLE.items() if o["method"]):
+        r = uwhl_rs.restore(img, **{key: None})
+        assert np.array_equal(r.image, plain.image) and r.water_type == plain.water_type, key
 
 
 def test_the_tables_defaults_are_the_cores():
