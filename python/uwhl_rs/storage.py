@@ -157,19 +157,22 @@ def read_bytes(path: str, storage_options: dict | None = None) -> bytes:
         return f.read()
 
 
-def open_regular(path: str):
+def open_regular(path: str, follow_links: bool = False):
     """The local regular file ``path`` opened for reading (a binary file
     object). A FIFO, device or socket is refused before it is opened (so
     nothing blocks and no device is touched), and so is a symbolic link at
-    the last component; what is opened is checked again to be the file
-    looked at. OSError otherwise, naming the path."""
+    the last component unless ``follow_links`` (a file the user named
+    himself); what is opened is checked again to be the file looked at.
+    OSError otherwise, naming the path."""
     path = local_path(path)
-    st = os.lstat(path)
+    st = os.stat(path) if follow_links else os.lstat(path)
     if stat.S_ISLNK(st.st_mode):
         raise OSError(errno.ELOOP, "a symbolic link (not followed)", path)
     if not stat.S_ISREG(st.st_mode):
         raise OSError(errno.EINVAL, "not a regular file", path)
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)
     fd = os.open(path, flags)
     try:
         now = os.fstat(fd)
@@ -181,11 +184,11 @@ def open_regular(path: str):
         raise
 
 
-def read_regular(path: str, limit: int | None = None) -> bytes:
+def read_regular(path: str, limit: int | None = None, follow_links: bool = False) -> bytes:
     """The bytes of the local regular file ``path`` (:func:`open_regular`),
     at most ``limit`` of them: a larger file is an OSError (EFBIG) before
     more than ``limit + 1`` bytes are read."""
-    with open_regular(path) as f:
+    with open_regular(path, follow_links) as f:
         if limit is not None and os.fstat(f.fileno()).st_size > limit:
             raise OSError(errno.EFBIG, f"larger than {limit} bytes", local_path(path))
         data = f.read(-1 if limit is None else limit + 1)
