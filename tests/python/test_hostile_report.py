@@ -197,6 +197,19 @@ def http_server():
     srv.server_close()
 
 
+def test_a_url_in_a_sidecar_is_never_fetched(batch, tmp_path, http_server):
+    out = _copy(batch, tmp_path)
+    port = http_server.server_address[1]
+    for name in ("f000", "f001"):
+        doc = json.loads((out / f"{name}.json").read_text())
+        doc["input"] = f"http://127.0.0.1:{port}/{name}.jpg"  # an internal address is asked the same way
+        (out / f"{name}.json").write_text(json.dumps(doc))
+    r = uwhl("report", out)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert _Recorder.hits == [], "the report asked a server the user did not name"
+    assert sum("not fetched" in line for line in r.stdout.splitlines()) == 2, r.stdout
+
+
 def test_sidecars_cannot_make_the_report_fetch_open_fifos_or_show_other_files(batch, tmp_path, http_server):
     out = _copy(batch, tmp_path)
     fifo = tmp_path / "pipe.jpg"
@@ -535,18 +548,21 @@ def test_links_planted_at_the_temporaries_are_not_written_through(batch, tmp_pat
     out = _copy(batch, tmp_path)
     victim = tmp_path / "victim.txt"
     victim.write_text("keep me")
-    pid = os.getpid()
-    thumbs = [n for s in ("f000", "f001", "f002") for n in report.thumb_names(f"{s}.json")]
+    pid = os.getpid()  # the temporaries' names have the writer's process id: this one writes
     old_thumbs = [f"{s}_{w}.jpg" for s in ("f000", "f001", "f002") for w in ("in", "out")]
     _plant(out / "report", [f".index.html.{pid}.tmp"] + [f".uwhl-{pid}-{n}.tmp.html" for n in range(300)], victim)
-    _plant(out / "report" / "thumbs", [f".{os.path.basename(t)}.{pid}.tmp" for t in thumbs + old_thumbs]
-           + [f".uwhl-{pid}-{n}.tmp.jpeg" for n in range(300)], victim)
+    _plant(out / "report" / "thumbs", [f".{t}.{pid}.tmp" for t in old_thumbs]
+           + [f".uwhl-{pid}-{n}.tmp.jpeg" for n in range(300)] + [f".uwhl-{pid}-{n}.tmp.jpg" for n in range(300)],
+           victim)
     _plant(out, [f".ifdo.yaml.{pid}.tmp"] + [f".uwhl-{pid}-{n}.tmp.yaml" for n in range(300)], victim)
     done = report.write_report(str(out))
     assert done["photos"] == 3
     ifdo.write_ifdo(str(out), {**HEADER, **POSITION})
     assert victim.read_text() == "keep me"
-    for p in [out / "report" / "index.html", out / "ifdo.yaml"] + [out / t for t in thumbs[1::2]]:
+    data = _page_data((out / "report" / "index.html").read_text())
+    made = [out / "report" / p[k] for p in data["photos"] for k in ("ti", "to") if p[k]]
+    assert len(made) >= 3
+    for p in [out / "report" / "index.html", out / "ifdo.yaml"] + made:
         assert p.is_file() and not p.is_symlink(), p
 
 
