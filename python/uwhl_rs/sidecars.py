@@ -20,6 +20,8 @@ import json
 import math
 import re
 
+from .errors import UwhlError
+
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "display",
            "is_uuid_hex", "is_sha256"]
 
@@ -57,8 +59,11 @@ class _NonFinite:
 _NONFINITE = _NonFinite()
 
 
-class SidecarError(ValueError):
-    """A sidecar that cannot be used; the message names the problem."""
+class SidecarError(UwhlError):
+    """A sidecar that cannot be used; the message names the problem. (A
+    ValueError, as every UwhlError.)"""
+
+    kind = "unreadable_input"
 
 
 def display(text: str) -> str:
