@@ -4,7 +4,7 @@ bytes in, a checked document or one line saying what is wrong out.
 An output folder is shared and may be written by anyone, so a sidecar is
 read as untrusted input: bounded in size and nesting, strict UTF-8, no
 NaN or infinity (``1e400`` included), and every field the readers use
-(``uwhl report``, ``uwhl ifdo``, the summary, resume) checked against
+(``uwhl report``, ``uwhl ifdo``, the summary rows of skipped inputs) checked against
 :data:`FIELDS` before any of them looks at it. A reader then never meets a
 value of the wrong type, and a malformed sidecar is a note naming it,
 never a traceback.
