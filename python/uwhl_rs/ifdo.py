@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import os
 import re
 import uuid as _uuid
 from pathlib import Path
@@ -31,7 +32,7 @@ from urllib.parse import quote
 from .errors import IfdoError
 from .ifdocheck import field_problems, plain_data
 from .outdir import collect_sidecars
-from .sidecars import display
+from .sidecars import display, printable
 from .storage import Folder, on_storage, read_regular
 
 #: the iFDO version written, and the schema it is checked against
@@ -92,6 +93,8 @@ def load_yaml(text: str, label: str):
             elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
         return yaml.load(text, Loader=loader)
+    except ValueError as e:  # an integer of thousands of digits, a date out of range
+        raise IfdoError(f"{label}: a value cannot be read ({str(e).splitlines()[0][:200]})") from None
     except yaml.YAMLError as e:
         raise IfdoError(f"{label}: not YAML or JSON ({str(e).splitlines()[0]})") from None
 
@@ -239,6 +242,9 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
             notes.append(f"{shown}: no image UUID embedded in the photo (metadata not written, or an older sidecar); "
                          "left out of the iFDO")
             continue
+        if key in items:
+            notes.append(f"{shown}: names the photo {display(key)!r} of another sidecar; left out of the iFDO")
+            continue
         if not inside(key):
             notes.append(f"{shown}: its photo {display(key)!r} is not a path inside the folder; left out of the iFDO")
             continue
@@ -347,8 +353,9 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
                      "it is taken as UTC")
     provenance = head.get("image-set-provenance") if isinstance(head.get("image-set-provenance"), dict) else {}
     for k in ("provenance-agents", "provenance-entities", "provenance-activities"):
-        if not isinstance(provenance.get(k) or [], list):
-            raise IfdoError(f"the header's image-set-provenance.{k} must be a list")
+        given = provenance.get(k) or []
+        if not isinstance(given, list) or not all(isinstance(x, dict) for x in given):
+            raise IfdoError(f"the header's image-set-provenance.{k} must be a list of mappings")
     head["image-set-provenance"] = {
         "provenance-agents": list(provenance.get("provenance-agents") or []) + [agent],
         "provenance-entities": list(provenance.get("provenance-entities") or []) + entities,
@@ -359,7 +366,7 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         raise IfdoError("the iFDO header would not pass the iFDO schema: " + "; ".join(wrong))
     ordered = {k: head[k] for k in REQUIRED_HEADER}
     ordered.update({k: v for k, v in head.items() if k not in ordered})
-    return {"image-set-header": ordered, "image-set-items": items}, notes
+    return {"image-set-header": ordered, "image-set-items": items}, [printable(n) for n in notes]
 
 
 #: the longest a restoration is taken to last (a sidecar saying more is not believed)
@@ -371,7 +378,9 @@ def inside(key: str) -> bool:
     that stays inside the folder: no absolute path, drive, ``..`` or
     empty part."""
     parts = key.split("/")
-    return (bool(key) and not key.startswith(("/", "\\")) and not re.match(r"[A-Za-z]:", key) and "\\" not in key
+    if os.sep == "\\" or (os.altsep or "/") == "\\":
+        parts = key.replace("\\", "/").split("/")  # where a backslash separates folders too
+    return (bool(key) and not key.startswith(("/", "\\")) and not re.match(r"[A-Za-z]:", key)
             and all(p not in ("", ".", "..") for p in parts))
 
 

@@ -30,7 +30,7 @@ import uwhl_rs
 
 from .images import RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import REPORT_DIR, Photo, collect_sidecars, failed_inputs
-from .sidecars import display
+from .sidecars import display, printable
 from .storage import Folder, is_url, on_storage, open_regular, read_bytes
 
 __all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE", "MAX_INPUT_BYTES", "thumb_names",
@@ -436,6 +436,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
         notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2])), jobs))
     problems += [n for n in notes if n not in (None, "written", "kept")]
+    problems = [printable(x) for x in problems]  # they quote names and sidecars' values, and go to a terminal
     written = notes.count("written")
     data = []
     counts = {t: 0 for t in uwhl_rs.WATER_TYPES}

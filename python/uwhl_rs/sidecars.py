@@ -4,8 +4,8 @@ bytes in, a checked document or one line saying what is wrong out.
 An output folder is shared and may be written by anyone, so a sidecar is
 read as untrusted input: bounded in size and nesting, strict UTF-8, no
 NaN or infinity (``1e400`` included), and every field the readers use
-(``uwhl report``, ``uwhl ifdo``, the summary rows of skipped inputs) checked against
-:data:`FIELDS` before any of them looks at it. A reader then never meets a
+(``uwhl report``, ``uwhl ifdo``, the summary rows of skipped inputs)
+checked against :data:`FIELDS` before any of them looks at it. A reader then never meets a
 value of the wrong type, and a malformed sidecar is a note naming it,
 never a traceback.
 
@@ -22,7 +22,7 @@ import re
 
 from .errors import UwhlError
 
-__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "display",
+__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "display", "printable",
            "is_uuid_hex", "is_sha256"]
 
 #: the version of the checked fields (the sidecar's own ``uwhl_version`` says which program wrote it)
@@ -40,6 +40,7 @@ MAX_TEXT = 4096
 #: keys whose presence makes a JSON object a sidecar (else it is another file, left alone)
 _MARKS = ("input", "outputs", "water_type", "uwhl_version")
 
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 _HEX32 = re.compile(r"[0-9a-fA-F]{32}")
 _HEX64 = re.compile(r"[0-9a-fA-F]{64}")
 # JSON strings (with their escapes), removed before the brackets are counted
@@ -70,6 +71,13 @@ def display(text: str) -> str:
     """``text`` as it can be shown and written as UTF-8: lone surrogates
     (undecodable bytes of a file name) become U+FFFD."""
     return text.encode("utf-8", "surrogatepass").decode("utf-8", "replace")
+
+
+def printable(text: str) -> str:
+    """``text`` (:func:`display`) with control characters written as
+    ``\\xNN`` escapes: a note quoting a file name or a sidecar's value
+    cannot move the cursor or recolour the terminal it is printed on."""
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", display(text))
 
 
 def plain_name(name: object) -> bool:
@@ -106,6 +114,10 @@ def _text(v):
 
 def _nonempty_text(v):
     return _text(v) or (None if v else "must not be empty")
+
+
+def _path_text(v):
+    return _nonempty_text(v) or (None if "\x00" not in v else "holds a NUL character")
 
 
 def _number(v):
@@ -203,7 +215,7 @@ def _hex(pattern_check, what):
 
 #: the fields the readers use, and what each must be (absent is fine unless in REQUIRED)
 FIELDS = {
-    "input": _nonempty_text,
+    "input": _path_text,
     "outputs": _object({r: _output_name for r in ("image", "transmission", "transmission_color", "contact_sheet")}),
     "uwhl_version": _text,
     "implementation": _text,

@@ -438,7 +438,7 @@ def _yaml_bomb(levels=9):
 
 
 @pytest.mark.parametrize("kind", ["billion_laughs", "recursive_alias", "deep_nesting", "fifo", "huge", "non_utf8",
-                                  "date_value", "devnull_link"])
+                                  "date_value", "devnull_link", "huge_integer", "python_tag"])
 def test_hostile_header_files_are_refused_without_hanging(batch, tmp_path, kind):
     out = _copy(batch, tmp_path)
     p = tmp_path / "header.yaml"
@@ -457,6 +457,10 @@ def test_hostile_header_files_are_refused_without_hanging(batch, tmp_path, kind)
         p.write_bytes(plain.encode() + b"note: \xff\xfe\n")
     elif kind == "date_value":
         p.write_text(plain + "image-set-related-date: 2026-11-30\n")
+    elif kind == "huge_integer":
+        p.write_text(plain + "count: " + "9" * 5000 + "\n")
+    elif kind == "python_tag":
+        p.write_text(plain + "x: !!python/object/apply:os.system ['true']\n")
     else:
         os.symlink("/dev/zero", p)
     r = uwhl("ifdo", out, "--header", p)
@@ -464,9 +468,34 @@ def test_hostile_header_files_are_refused_without_hanging(batch, tmp_path, kind)
     assert r.returncode == 2, r.stdout + r.stderr
     want = {"billion_laughs": "aliases", "recursive_alias": "aliases", "deep_nesting": "nested deeper",
             "fifo": "not a regular file", "huge": "larger than", "non_utf8": "not UTF-8",
-            "date_value": "image-set-related-date", "devnull_link": "not a regular file"}[kind]
+            "date_value": "image-set-related-date", "devnull_link": "not a regular file",
+            "huge_integer": "cannot be read", "python_tag": "not YAML"}[kind]
     assert want in r.stderr, r.stderr
     assert not (out / "ifdo.yaml").exists()
+
+
+def test_two_sidecars_naming_one_photo_give_one_item(batch, tmp_path):
+    out = _copy(batch, tmp_path)
+    shutil.copy(out / "f000.json", out / "copy_of_f000.json")
+    r = uwhl("ifdo", out, "--header", _header(tmp_path))
+    assert r.returncode == 0, r.stdout + r.stderr
+    doc = yaml.safe_load((out / "ifdo.yaml").read_text())
+    assert sorted(doc["image-set-items"]) == ["f000.jpg", "f001.jpg", "f002.jpg"]
+    names = [e["name"] for e in doc["image-set-header"]["image-set-provenance"]["provenance-entities"]]
+    assert sorted(names) == ["f000.jpg", "f001.jpg", "f002.jpg"]
+    assert any("another sidecar" in line for line in r.stdout.splitlines()), r.stdout
+
+
+def test_notes_quoting_names_and_sidecars_cannot_drive_the_terminal(batch, tmp_path):
+    out = _copy(batch, tmp_path)
+    (out / "\x1b[2J\x1b[31mred.json").write_text("{ not json")
+    doc = json.loads((out / "f001.json").read_text())
+    doc["input"] = "in/\x1b]0;title\x07f001.jpg"
+    (out / "f001.json").write_text(json.dumps(doc))
+    for r in (uwhl("report", out), uwhl("ifdo", out, "--header", _header(tmp_path))):
+        assert r.returncode == 0, r.stdout + r.stderr
+        assert "\x1b" not in r.stdout + r.stderr and "\x07" not in r.stdout + r.stderr
+    assert "\\x1b[31mred.json" in uwhl("report", out).stdout
 
 
 # ------------------------------------------------------------------ 5. thumbnails
