@@ -31,6 +31,10 @@ FILE_NAME = "summary.csv"
 #: report's own files have names no output has)
 REPORT_DIR = "report"
 
+#: JSON files the commands write at the top of OUTDIR that are no sidecars
+#: (``uwhl ifdo --format json``: it grows past a sidecar's size limit with the batch)
+OWN_JSON = ("ifdo.json",)
+
 #: the largest summary.csv read back (about a million rows)
 SUMMARY_MAX_BYTES = 512 << 20
 
@@ -204,7 +208,7 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
     folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
     if listed is None:
         listed = folder.files()
-    listed = [(rel, when) for rel, when in listed if rel.endswith(".json")]
+    listed = [(rel, when) for rel, when in listed if rel.endswith(".json") and rel not in OWN_JSON]
     got = folder.read_many([rel for rel, _ in listed], SIDECAR_MAX_BYTES)
     photos, problems = [], []
     for rel, when in listed:

@@ -74,7 +74,8 @@ def _copy(batch, tmp_path):
 
 def _header(tmp_path, fields=None, name="header.yaml"):
     p = tmp_path / name
-    p.write_text(yaml.safe_dump({**HEADER, **POSITION} if fields is None else fields))
+    fields = {**HEADER, **POSITION} if fields is None else fields
+    p.write_text(json.dumps(fields) if name.endswith(".json") else yaml.safe_dump(fields))
     return p
 
 
@@ -484,6 +485,17 @@ def test_two_sidecars_naming_one_photo_give_one_item(batch, tmp_path):
     names = [e["name"] for e in doc["image-set-header"]["image-set-provenance"]["provenance-entities"]]
     assert sorted(names) == ["f000.jpg", "f001.jpg", "f002.jpg"]
     assert any("another sidecar" in line for line in r.stdout.splitlines()), r.stdout
+
+
+def test_a_large_ifdo_json_of_the_folder_is_no_sidecar(batch, tmp_path):
+    out = _copy(batch, tmp_path)
+    r = uwhl("ifdo", out, "--header", _header(tmp_path, name="h.json"), "--format", "json")
+    assert r.returncode == 0, r.stdout + r.stderr
+    doc = json.loads((out / "ifdo.json").read_text())
+    doc["image-set-header"]["image-abstract"] = "x" * (2 << 20)  # a big batch's file is this large
+    (out / "ifdo.json").write_text(json.dumps(doc))
+    r = uwhl("report", out)
+    assert r.returncode == 0 and "(3 photos," in r.stdout and "ifdo.json" not in r.stdout, r.stdout
 
 
 def test_notes_quoting_names_and_sidecars_cannot_drive_the_terminal(batch, tmp_path):
