@@ -242,7 +242,7 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
             notes.append(f"{shown}: no image UUID embedded in the photo (metadata not written, or an older sidecar); "
                          "left out of the iFDO")
             continue
-        if key in items:
+        if display(key) in items:
             notes.append(f"{shown}: names the photo {display(key)!r} of another sidecar; left out of the iFDO")
             continue
         if not inside(key):
