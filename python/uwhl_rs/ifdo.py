@@ -22,14 +22,18 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import os
+import re
 import uuid as _uuid
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
 from .errors import IfdoError
+from .ifdocheck import field_problems, plain_data
 from .outdir import collect_sidecars
-from .storage import Folder, on_storage
+from .sidecars import display, printable
+from .storage import Folder, on_storage, read_regular
 
 #: the iFDO version written, and the schema it is checked against
 IFDO_VERSION = "v2.0.1"
@@ -57,19 +61,59 @@ FROM_USER = tuple(k for k in REQUIRED_HEADER if k not in DERIVED + FROM_PHOTOS)
 _TIME_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
 
 
+#: the largest header file read (a header is a few kB)
+MAX_HEADER_BYTES = 1 << 20
+
+#: the largest earlier iFDO read back for its set UUID
+MAX_EARLIER_BYTES = 256 << 20
+
+#: the deepest nesting accepted in a header
+MAX_DEPTH = 32
+
+
+def load_yaml(text: str, label: str):
+    """The YAML (or JSON) document ``text``, refused with an IfdoError
+    naming ``label`` when it is not YAML, holds anchors or aliases (``&``,
+    ``*``: what lets a few lines expand to gigabytes, and to loops), or is
+    nested deeper than :data:`MAX_DEPTH`. The events are checked before
+    anything is built; libyaml's C parser when PyYAML has it."""
+    import yaml
+
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    depth = 0
+    try:
+        for ev in yaml.parse(text, Loader=loader):
+            where = f"line {ev.start_mark.line + 1}" if ev.start_mark is not None else "somewhere"
+            if isinstance(ev, yaml.AliasEvent) or getattr(ev, "anchor", None):
+                raise IfdoError(f"{label}: YAML anchors and aliases (&, *) are not accepted ({where})")
+            if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise IfdoError(f"{label}: nested deeper than {MAX_DEPTH} levels ({where})")
+            elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+        return yaml.load(text, Loader=loader)
+    except ValueError as e:  # an integer of thousands of digits, a date out of range
+        raise IfdoError(f"{label}: a value cannot be read ({str(e).splitlines()[0][:200]})") from None
+    except yaml.YAMLError as e:
+        raise IfdoError(f"{label}: not YAML or JSON ({str(e).splitlines()[0]})") from None
+
+
 def load_header(path: str) -> dict:
     """The user's header file (YAML or JSON: a mapping of iFDO header
     fields), checked for the fields only its owner can give. A file that
-    is the whole of an earlier iFDO is read for its ``image-set-header``."""
-    import yaml
-
+    is the whole of an earlier iFDO is read for its ``image-set-header``.
+    Only a regular file of at most :data:`MAX_HEADER_BYTES` is read (a
+    FIFO or device is refused, not waited on)."""
     try:
-        with open(path, encoding="utf-8") as f:
-            doc = yaml.safe_load(f)
+        data = read_regular(path, MAX_HEADER_BYTES, follow_links=True)
     except OSError as e:
         raise IfdoError(f"{path}: cannot read the header file ({e.strerror or e})") from None
-    except yaml.YAMLError as e:
-        raise IfdoError(f"header file {path}: not YAML or JSON ({str(e).splitlines()[0]})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise IfdoError(f"header file {path}: not UTF-8 text (byte {e.start})") from None
+    doc = load_yaml(text, f"header file {path}")
     if isinstance(doc, dict) and isinstance(doc.get("image-set-header"), dict):
         doc = doc["image-set-header"]
     if not isinstance(doc, dict):
@@ -81,6 +125,9 @@ def load_header(path: str) -> dict:
 def check_header(header: dict, label: str = "the header") -> None:
     """Raises ``IfdoError`` naming every field the user must give that
     ``header`` lacks, and those of the wrong shape."""
+    why = plain_data(header)
+    if why:
+        raise IfdoError(f"{label}: {why}")
     missing = [k for k in FROM_USER if header.get(k) in (None, "", [], {})]
     if missing:
         raise IfdoError(f"{label}: the iFDO header needs {', '.join(missing)} (docs/OUTPUTS.md \"iFDO\" has an example)")
@@ -98,8 +145,10 @@ def check_header(header: dict, label: str = "the header") -> None:
     u = header["image-coordinate-uncertainty-meters"]
     if isinstance(u, bool) or not isinstance(u, (int, float)) or u < 0:
         bad.append("image-coordinate-uncertainty-meters must be a number >= 0")
+    said = {b.split(" ", 1)[0] for b in bad}
+    bad += [x for x in field_problems(header) if x.split(" ", 1)[0].split(".", 1)[0].split("[", 1)[0] not in said]
     if bad:
-        raise IfdoError(f"{label}: " + "; ".join(bad))
+        raise IfdoError(f"{label}: " + "; ".join(dict.fromkeys(bad)))
 
 
 def uuid_text(hex32: str) -> str:
@@ -152,15 +201,15 @@ def _folder_uri(folder) -> str:
 
 def _earlier_uuid(folder) -> str | None:
     """The set UUID of an iFDO already in the folder: a rerun describes the
-    same set."""
-    import yaml
-
+    same set. One that cannot be read (not a regular file, too large, not
+    YAML, anchors) is not an earlier iFDO."""
     for name in ("ifdo.yaml", "ifdo.json"):
         try:
-            doc = yaml.safe_load(folder.read(name).decode("utf-8"))
-            u = doc["image-set-header"]["image-set-uuid"]
-            return str(_uuid.UUID(str(u)))
-        except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError, yaml.YAMLError):
+            doc = load_yaml(folder.read(name, MAX_EARLIER_BYTES).decode("utf-8"), name)
+            u = str(_uuid.UUID(str(doc["image-set-header"]["image-set-uuid"])))
+            if not field_problems({"image-set-uuid": u}):
+                return u
+        except (OSError, ValueError, KeyError, TypeError, IfdoError):
             continue
     return None
 
@@ -188,9 +237,16 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         name = (doc.get("outputs") or {}).get("image")
         sub = rel.rsplit("/", 1)[0] + "/" if "/" in rel else ""
         key = sub + name if name else None
+        shown = display(rel)
         if not key or not md.get("image_uuid") or not md.get("photo_sha256"):
-            notes.append(f"{rel}: no image UUID embedded in the photo (metadata not written, or an older sidecar); "
+            notes.append(f"{shown}: no image UUID embedded in the photo (metadata not written, or an older sidecar); "
                          "left out of the iFDO")
+            continue
+        if display(key) in items:
+            notes.append(f"{shown}: names the photo {display(key)!r} of another sidecar; left out of the iFDO")
+            continue
+        if not inside(key):
+            notes.append(f"{shown}: its photo {display(key)!r} is not a path inside the folder; left out of the iFDO")
             continue
         agent = agent or _agent(doc)
         item: dict[str, Any] = {
@@ -198,12 +254,17 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
             "image-hash-sha256": md["photo_sha256"],
             "image-handle": base + "/".join(_quote(p) for p in key.split("/")),
         }
+        wrong = field_problems(item)
+        if wrong:
+            notes.append(f"{shown}: {'; '.join(wrong)}; left out of the iFDO")
+            continue
+        key = display(key)
         if md.get("taken_at"):
             try:
                 t, known = utc_time(md["taken_at"])
-            except ValueError:
+            except (ValueError, OverflowError):
                 t, known = None, True
-                notes.append(f"{rel}: EXIF time {md['taken_at']!r} not understood; no image-datetime")
+                notes.append(f"{shown}: EXIF time {md['taken_at']!r} not understood; no image-datetime")
             if t is not None:
                 item["image-datetime"] = _ifdo_time(t)
                 times.append(t)
@@ -221,6 +282,9 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
             no_position.append(key)
         items[key] = item
         secs = float(((doc.get("seconds") or {}).get("total")) or 0.0)
+        if not 0.0 <= secs <= _MAX_SECONDS:
+            notes.append(f"{shown}: seconds.total {secs:g} is not a time a restoration takes; start time = end time")
+            secs = 0.0
         activity_id = f"urn:uuid:{item['image-uuid']}#restoration"
         source = doc.get("input") or ""
         used = {"name": source.replace("\\", "/").rsplit("/", 1)[-1]}
@@ -240,7 +304,7 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
                 "veiling-light": doc.get("veiling_light"),
                 "flags": doc.get("flags") or [],
                 "parameters": doc.get("parameters") or {},
-                "sidecar": rel,
+                "sidecar": shown,
             },
         })
         entities.append({"name": key, "id": f"urn:uuid:{item['image-uuid']}", "created-at": _rfc3339(written),
@@ -288,18 +352,53 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         notes.append(f"{no_offset} photo(s) have an EXIF time without a UTC offset (OffsetTimeOriginal); "
                      "it is taken as UTC")
     provenance = head.get("image-set-provenance") if isinstance(head.get("image-set-provenance"), dict) else {}
+    for k in ("provenance-agents", "provenance-entities", "provenance-activities"):
+        given = provenance.get(k) or []
+        if not isinstance(given, list) or not all(isinstance(x, dict) for x in given):
+            raise IfdoError(f"the header's image-set-provenance.{k} must be a list of mappings")
     head["image-set-provenance"] = {
         "provenance-agents": list(provenance.get("provenance-agents") or []) + [agent],
         "provenance-entities": list(provenance.get("provenance-entities") or []) + entities,
         "provenance-activities": list(provenance.get("provenance-activities") or []) + activities,
     }
+    wrong = field_problems(head)
+    if wrong:
+        raise IfdoError("the iFDO header would not pass the iFDO schema: " + "; ".join(wrong))
     ordered = {k: head[k] for k in REQUIRED_HEADER}
     ordered.update({k: v for k, v in head.items() if k not in ordered})
-    return {"image-set-header": ordered, "image-set-items": items}, notes
+    return {"image-set-header": ordered, "image-set-items": items}, [printable(n) for n in notes]
+
+
+#: the longest a restoration is taken to last (a sidecar saying more is not believed)
+_MAX_SECONDS = 7 * 24 * 3600.0
+
+
+def inside(key: str) -> bool:
+    """Whether ``key`` (an item's name) is a relative ``/``-separated path
+    that stays inside the folder: no absolute path, drive, ``..`` or
+    empty part."""
+    parts = key.split("/")
+    if os.sep == "\\" or (os.altsep or "/") == "\\":
+        parts = key.replace("\\", "/").split("/")  # where a backslash separates folders too
+    return (bool(key) and not key.startswith(("/", "\\")) and not re.match(r"[A-Za-z]:", key)
+            and all(p not in ("", ".", "..") for p in parts))
+
+
+def _shown(v):
+    """``v`` with every text as it can be written as UTF-8 (undecodable
+    bytes of file names, lone surrogates, as U+FFFD)."""
+    if isinstance(v, str):
+        return display(v)
+    if isinstance(v, dict):
+        return {_shown(k): _shown(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_shown(x) for x in v]
+    return v
 
 
 def _quote(part: str) -> str:
-    return quote(part, safe="")
+    # undecodable bytes of a name as the bytes themselves
+    return quote(part, safe="", errors="surrogateescape")
 
 
 def write_ifdo(out: str, header: dict | str, *, handle_base: str | None = None, storage_options: dict | None = None,
@@ -323,6 +422,7 @@ def _write(out: str, header: dict, handle_base, storage_options, file_format: st
     import yaml
 
     doc, notes = build_ifdo(out, header, handle_base=handle_base, storage_options=storage_options)
+    doc = _shown(doc)
     if file_format == "json":
         text = json.dumps(doc, indent=1, ensure_ascii=False) + "\n"
     else:

@@ -16,15 +16,27 @@ import posixpath
 import threading
 from dataclasses import dataclass
 
-from .storage import Folder
+from .sidecars import MAX_BYTES as SIDECAR_MAX_BYTES
+from .sidecars import SidecarError, display
+from .sidecars import parse as parse_sidecar
+from .storage import Folder, read_regular
 
 __all__ = ["SummaryWriter", "CSV_COLUMNS", "row_fields_from_sidecar", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
 
 FILE_NAME = "summary.csv"
 
-#: the report's folder inside OUTDIR (never searched for sidecars)
+#: the report's folder inside OUTDIR (an input tree may have its own
+#: ``report`` folder: its outputs are found there like any others, and the
+#: report's own files have names no output has)
 REPORT_DIR = "report"
+
+#: JSON files the commands write at the top of OUTDIR that are no sidecars
+#: (``uwhl ifdo --format json``: it grows past a sidecar's size limit with the batch)
+OWN_JSON = ("ifdo.json",)
+
+#: the largest summary.csv read back (about a million rows)
+SUMMARY_MAX_BYTES = 512 << 20
 
 #: flags that say something the operator should look at (``estimates_reused`` is the plan of a sequence)
 ROUTINE_FLAGS = ("estimates_reused",)
@@ -52,12 +64,13 @@ def row_fields_from_sidecar(side: dict) -> dict:
 
 
 def _read_sidecar(path: str | None) -> dict | None:
-    if not path or not os.path.exists(path):
+    """The checked sidecar at the local ``path`` (``uwhl_rs.sidecars``),
+    or None when there is none, or it is unreadable or malformed."""
+    if not path:
         return None
     try:
-        with open(path, encoding="utf-8") as f:
-            return json.load(f)
-    except (OSError, ValueError):
+        return parse_sidecar(read_regular(path, SIDECAR_MAX_BYTES))
+    except (OSError, SidecarError):
         return None
 
 
@@ -172,40 +185,44 @@ class Photo:
 
 def failed_inputs(out_dir, storage_options: dict | None = None) -> list[dict]:
     """The failed rows of ``OUTDIR/summary.csv`` (inputs without a sidecar
-    to show), or none when there is no summary."""
+    to show), every value text, or none when there is no summary (or it
+    cannot be read: a FIFO, a link, not UTF-8, not CSV)."""
     folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
     try:
-        text = folder.read(FILE_NAME).decode("utf-8")
-        return [r for r in csv.DictReader(text.splitlines()) if r.get("status") == "failed"]
+        text = folder.read(FILE_NAME, SUMMARY_MAX_BYTES).decode("utf-8")
+        rows = [r for r in csv.DictReader(text.splitlines()) if r.get("status") == "failed"]
     except (OSError, ValueError, csv.Error):
         return []
-
-
-def _is_sidecar(doc) -> bool:
-    return isinstance(doc, dict) and "water_type" in doc and isinstance(doc.get("outputs"), dict) and "input" in doc
+    # a short row has None for its missing cells, a long one a list under None
+    return [{k: display(v) if isinstance(v, str) else "" for k, v in r.items() if isinstance(k, str)} for r in rows]
 
 
 def collect_sidecars(out_dir, storage_options: dict | None = None, *,
                      listed: list[tuple[str, float | None]] | None = None) -> tuple[list[Photo], list[str]]:
     """Every sidecar under ``out_dir`` (a local folder, a storage URL or a
-    ``storage.Folder``; the report's own folder and hidden entries skipped),
-    in path order, and the problems (unreadable ones). ``listed``: the
-    folder's files as ``Folder.files`` gives them, when already listed."""
+    ``storage.Folder``; hidden entries skipped), checked
+    (``uwhl_rs.sidecars``), in path order, and the problems: one line per
+    ``.json`` file that cannot be read or is a malformed sidecar. JSON
+    files of other programs are left alone. ``listed``: the folder's files
+    as ``Folder.files`` gives them, when already listed."""
     folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
     if listed is None:
-        listed = folder.files(skip_top=(REPORT_DIR,))
-    listed = [(rel, when) for rel, when in listed if rel.endswith(".json")]
-    got = folder.read_many([rel for rel, _ in listed])
+        listed = folder.files()
+    listed = [(rel, when) for rel, when in listed if rel.endswith(".json") and rel not in OWN_JSON]
+    got = folder.read_many([rel for rel, _ in listed], SIDECAR_MAX_BYTES)
     photos, problems = [], []
     for rel, when in listed:
         data = got.pop(rel)  # each document parsed, its bytes let go
-        try:
-            if isinstance(data, Exception):
-                raise data
-            doc = json.loads(data)
-        except (OSError, ValueError) as e:
-            problems.append(f"{folder.path(rel)}: cannot read ({type(e).__name__}: {e})")
+        where = display(folder.path(rel))
+        if isinstance(data, Exception):
+            why = data.strerror if isinstance(data, OSError) and data.strerror else str(data)
+            problems.append(f"{where}: cannot read ({display(why)})")
             continue
-        if _is_sidecar(doc):
+        try:
+            doc = parse_sidecar(data)
+        except SidecarError as e:
+            problems.append(f"{where}: not a usable sidecar: {display(str(e))}")
+            continue
+        if doc is not None:
             photos.append(Photo(rel, doc, when))
     return photos, problems

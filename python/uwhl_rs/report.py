@@ -12,10 +12,13 @@ beside it: no network, no script library.
 
 from __future__ import annotations
 
+import hashlib
 import html
+import io as _io
 import json
 import os
 import posixpath
+import re
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -27,9 +30,11 @@ import uwhl_rs
 
 from .images import RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import REPORT_DIR, Photo, collect_sidecars, failed_inputs
-from .storage import Folder, is_url, on_storage, read_bytes
+from .sidecars import display, printable
+from .storage import Folder, is_url, on_storage, open_regular, read_bytes
 
-__all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE"]
+__all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE", "MAX_INPUT_BYTES", "thumb_names",
+           "script_json", "series_axis"]
 
 #: the longer side of a thumbnail, in pixels
 THUMB_SIDE = 256
@@ -41,31 +46,113 @@ _TYPE_COLORS = {"I": "#08306b", "IA": "#08519c", "IB": "#2171b5", "II": "#4292c6
 
 
 # ---------------------------------------------------------------- thumbnails
+# A sidecar is not trusted (uwhl_rs.sidecars): its ``input`` names a file
+# the report opens only when it is a regular file whose SHA-256 is the one
+# the batch recorded (metadata.input_sha256), so a planted sidecar cannot
+# have the report fetch a URL, read a device or FIFO, or show another file;
+# the outputs it names are bare file names beside it, inside the folder.
+
+#: the largest input file hashed and thumbnailed (raw files and TIFFs included)
+MAX_INPUT_BYTES = 4 << 30
 
 
-def _open_small(path: str, side: int, storage_options: dict | None = None):
-    """An 8-bit RGB Pillow image of ``path`` (a local file, or a storage
-    URL fetched into a temporary file first) at most ``side`` pixels a side,
-    decoded as cheaply as the format allows (JPEG: DCT scaling; raw: the
-    embedded preview)."""
+def thumb_names(sidecar: str) -> tuple[str, str]:
+    """The thumbnails of the photo of ``sidecar`` (relative to OUTDIR):
+    input and restored, in ``report/thumbs``. The name keeps the photo's
+    for a reader, and a digest of its whole path so that no two photos
+    share one (``a/b`` and ``a__b``); ``.jpeg`` is an extension no output
+    of a batch has, so a thumbnail never replaces an output."""
+    stem = sidecar[:-5] if sidecar.endswith(".json") else sidecar
+    slug = re.sub(r"[^A-Za-z0-9._-]", "_", posixpath.basename(stem))[:60]
+    digest = hashlib.sha256(stem.encode("utf-8", "surrogatepass")).hexdigest()[:16]
+    tdir = REPORT_DIR + "/thumbs"
+    return f"{tdir}/{slug}-{digest}_in.jpeg", f"{tdir}/{slug}-{digest}_out.jpeg"
+
+
+def _scheme(url: str) -> str:
+    return url.split("://", 1)[0].lower()
+
+
+def _candidates(src: str, folder) -> list[str]:
+    """Where a relative ``input`` may be: the batch's working folder is not
+    recorded, so the folders above the output folder (nearest first), then
+    the current one; the recorded hash says which, if any, is the input."""
+    if os.path.isabs(src):
+        return [src]
+    bases = []
+    if not folder.is_url:
+        d = os.path.abspath(folder.root)
+        while True:
+            bases.append(d)
+            up = os.path.dirname(d)
+            if up == d:
+                break
+            d = up
+    bases.append(os.getcwd())
+    out = []
+    for b in bases:
+        c = os.path.normpath(os.path.join(b, src))
+        if c not in out:
+            out.append(c)
+    return out
+
+
+def _sha256(f) -> str:
+    h = hashlib.sha256()
+    for block in iter(lambda: f.read(1 << 20), b""):
+        h.update(block)
+    return h.hexdigest()
+
+
+def _input_file(p: Photo, folder):
+    """The batch's input of ``p`` opened (a binary file object), or None
+    and why it is not shown."""
+    src = p.doc["input"]
+    want = (p.doc.get("metadata") or {}).get("input_sha256")
+    shown = display(src)
+    if is_url(src):
+        # the network is the folder's own storage only: never http(s), never elsewhere
+        if not folder.is_url or _scheme(src) != _scheme(folder.display) or _scheme(src) in ("http", "https"):
+            return None, f"{shown}: not on the output folder's storage; not fetched"
+        if not want:
+            return None, f"{shown}: the sidecar records no input hash; not fetched"
+        f = _io.BytesIO(read_bytes(src, folder.storage_options))
+        if _sha256(f) != want:
+            return None, f"{shown}: changed since it was restored (another SHA-256)"
+        f.seek(0)
+        return f, None
+    if not want:
+        return None, f"{shown}: the sidecar records no input hash (metadata.input_sha256); not shown"
+    why = "not found"
+    for c in _candidates(src, folder):
+        try:
+            f = open_regular(c)
+        except FileNotFoundError:
+            continue
+        except OSError as e:
+            why = f"{e.strerror or e}; not opened"
+            continue
+        try:
+            if os.fstat(f.fileno()).st_size <= MAX_INPUT_BYTES and _sha256(f) == want:
+                f.seek(0)
+                return f, None
+        except OSError:
+            pass
+        f.close()
+        why = "no file there has the SHA-256 the batch recorded"
+    return None, f"{shown}: {why}"
+
+
+def _open_small(f, ext: str, side: int):
+    """An 8-bit RGB Pillow image of the open file ``f`` (its name's
+    extension ``ext``) at most ``side`` pixels a side, decoded as cheaply
+    as the format allows (JPEG: DCT scaling; raw: the embedded preview)."""
     from PIL import Image, ImageOps
 
-    if is_url(path):
-        with tempfile.TemporaryDirectory(prefix="uwhl-thumb-") as d:
-            local = os.path.join(d, "source" + os.path.splitext(path)[1])
-            with open(local, "wb") as f:
-                f.write(read_bytes(path, storage_options))
-            im = _open_small(local, side)
-            im.load()
-            return im
-
-    ext = os.path.splitext(path)[1].lower()
     if ext in RAW_EXTENSIONS:
-        import io as _io
-
         import rawpy
 
-        with rawpy.imread(path) as raw:
+        with rawpy.imread(f) as raw:
             try:
                 th = raw.extract_thumb()
             except (rawpy.LibRawNoThumbnailError, rawpy.LibRawUnsupportedThumbnailError):
@@ -76,51 +163,68 @@ def _open_small(path: str, side: int, storage_options: dict | None = None):
                 im = Image.fromarray(raw.postprocess(half_size=True, use_camera_wb=True))
         im = ImageOps.exif_transpose(im)
     else:
-        im = Image.open(path)
+        im = Image.open(f)
         if im.format == "JPEG":
             im.draft("RGB", (side, side))
         im = ImageOps.exif_transpose(im)
         if im.mode not in ("RGB", "L"):
             if im.mode in ("I;16", "I;16B", "I") or im.format == "TIFF":
-                im = _from_array(path)
+                im = _from_array(f, ext)
             else:
                 im = im.convert("RGB")
     im.thumbnail((side, side))
     return im.convert("RGB")
 
 
-def _from_array(path: str):
-    """16-bit or float files Pillow cannot make RGB of: through our reader."""
+def _from_array(f, ext: str):
+    """16-bit or float files Pillow cannot make RGB of: through our reader
+    (which takes a path: a private copy of the bytes already opened)."""
     from PIL import Image
 
-
-    img, meta = read_image(path)
+    f.seek(0)
+    with tempfile.TemporaryDirectory(prefix="uwhl-thumb-") as d:
+        local = os.path.join(d, "source" + ext)
+        with open(local, "xb") as out:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                out.write(block)
+        img, meta = read_image(local)
     s = max(1, -(-max(img.shape[:2]) // (THUMB_SIDE * 2)))
     small = img[::s, ::s]
     return Image.fromarray((np.clip(to_srgb(small, meta), 0, 1) * 255 + 0.5).astype(np.uint8))
 
 
-def _thumb(src: str, folder, dst: str, side: int, made: float | None, dst_time: float | None,
-           missing: bool = False) -> str:
-    """Writes the thumbnail of ``src`` (a local path or URL) at ``dst`` in
-    ``folder`` unless one is there written after ``made`` (when the photo's
-    restored output was written: every restore of an input rewrites it, so
-    neither source is asked again for a thumbnail that is current, which on
-    object storage would be a request per photo). ``missing``: the output
-    is not in the folder. Returns "written", "kept", or why not."""
-    import io as _io
-
+def _thumb(job, folder, side: int, dst_time: float | None) -> str:
+    """Writes one thumbnail (``job``: the photo, "in" or "out", where, when
+    the photo's output was written, whether it is missing) unless one is
+    there written after the output (every restore of an input rewrites it,
+    so neither source is asked again for a thumbnail that is current, which
+    on object storage would be a request per photo). Returns "written",
+    "kept", or why not."""
+    p, which, dst, made, missing = job
     if dst_time is not None and made is not None and dst_time >= made and not missing:
         return "kept"
+    earlier = "; its earlier thumbnail is shown" if dst_time is not None else ""
+    rel = p.output("image")
+    if which == "out" and missing:
+        return f"{display(folder.path(rel))}: not found{earlier}"
     try:
-        if missing:
-            raise FileNotFoundError(2, "not found", src)
-        im = _open_small(src, side, folder.storage_options)
+        if which == "in":
+            f, why = _input_file(p, folder)
+            if f is None:
+                return why + earlier
+            name = p.doc["input"]
+        elif folder.is_url:
+            f, name = _io.BytesIO(folder.read(rel)), rel
+        else:
+            f, name = open_regular(folder.path(rel)), rel
+        with f:
+            im = _open_small(f, os.path.splitext(name)[1].lower(), side)
         buf = _io.BytesIO()
         im.save(buf, "JPEG", quality=82)
     except Exception as e:  # one unreadable file leaves its cell empty (or its earlier thumbnail), never the page
+        src = display(p.doc["input"] if which == "in" else folder.path(rel))
         why = "not found" if isinstance(e, FileNotFoundError) else f"no thumbnail ({type(e).__name__}: {e})"
-        return f"{src}: {why}" + ("; its earlier thumbnail is shown" if dst_time is not None else "")
+        return f"{src}: {display(why)}{earlier}"
     folder.write(dst, buf.getvalue())
     return "written"
 
@@ -243,15 +347,16 @@ _JS = """
 const D = JSON.parse(document.getElementById('data').textContent);
 function cell(p){
   const flagged = p.flags.length ? ' flagged' : '';
-  const A = p.A ? p.A.map(v=>v.toFixed(3)).join(', ') : '';
-  const sw = p.A ? p.A.map(v=>Math.round(255*Math.min(1,Math.pow(v,1/2.2)))) : [0,0,0];
-  return `<div class="cell${flagged}" data-k="${p.k}"><div class="pair" onclick="show(${p.k})">`+
-    `<img loading="lazy" alt="input" src="${p.ti||''}"><img loading="lazy" alt="restored" src="${p.to||''}"></div>`+
-    `<div class="cap">${p.k+1}. ${esc(p.name)}<br>type <b>${p.wt}</b>, A `+
-    `<span class="sw" style="background:rgb(${sw.join(',')})"></span>(${A})`+
-    (p.flags.length ? `<br><span class="flags">${p.flags.join(', ')}</span>` : '')+`</div></div>`;
+  const A = p.A ? p.A.map(v=>Number(v).toFixed(3)).join(', ') : '';
+  const sw = p.A ? p.A.map(v=>Math.round(255*Math.max(0,Math.min(1,Math.pow(Number(v),1/2.2))))||0) : [0,0,0];
+  return `<div class="cell${flagged}" data-k="${Number(p.k)}"><div class="pair" onclick="show(${Number(p.k)})">`+
+    `<img loading="lazy" alt="input" src="${esc(p.ti||'')}"><img loading="lazy" alt="restored" src="${esc(p.to||'')}"></div>`+
+    `<div class="cap">${Number(p.k)+1}. ${esc(p.name)}<br>type <b>${esc(p.wt)}</b>, A `+
+    `<span class="sw" style="background:rgb(${sw.join(',')})"></span>(${esc(A)})`+
+    (p.flags.length ? `<br><span class="flags">${p.flags.map(esc).join(', ')}</span>` : '')+`</div></div>`;
 }
-function esc(s){return String(s).replace(/[&<>"]/g,c=>({'&':'&amp;','<':'&lt;','>':'&gt;','"':'&quot;'}[c]));}
+// every value of a sidecar is text to the page: escaped for HTML text and quoted attributes
+function esc(s){return String(s).replace(/[&<>"']/g,c=>({'&':'&amp;','<':'&lt;','>':'&gt;','"':'&quot;',"'":'&#39;'}[c]));}
 function pager(id, items){
   const el = document.getElementById(id), pages = Math.max(1, Math.ceil(items.length / D.page));
   let cur = 0;
@@ -268,9 +373,10 @@ function pager(id, items){
 function show(k){
   const p = D.photos[k], v = document.getElementById('view');
   v.innerHTML = `<p><a href="#" onclick="hide();return false">close</a> &middot; ${esc(p.name)}: `+
-    `type ${p.wt}, flags ${p.flags.join(', ')||'none'} &middot; `+
-    `<a href="${p.full}">full size</a> &middot; <a href="${p.t}">t map</a> &middot; <a href="${p.side}">sidecar</a></p>`+
-    `<img alt="restored" src="${p.full}"><img alt="transmission" src="${p.t}">`;
+    `type ${esc(p.wt)}, flags ${p.flags.map(esc).join(', ')||'none'} &middot; `+
+    `<a href="${esc(p.full||'')}">full size</a> &middot; <a href="${esc(p.t||'')}">t map</a> &middot; `+
+    `<a href="${esc(p.side)}">sidecar</a></p>`+
+    `<img alt="restored" src="${esc(p.full||'')}"><img alt="transmission" src="${esc(p.t||'')}">`;
   v.style.display = 'block';
 }
 function hide(){ document.getElementById('view').style.display = 'none'; }
@@ -286,7 +392,9 @@ def _rel_url(rel: str | None) -> str | None:
         return None
     from urllib.parse import quote
 
-    return quote(posixpath.relpath(rel, REPORT_DIR))
+    # a relative path, every character but / percent-encoded (no scheme such as javascript: survives);
+    # undecodable bytes of a name as the bytes themselves
+    return quote(posixpath.relpath(rel, REPORT_DIR), safe="/", errors="surrogateescape")
 
 
 def _shown(note: str | None) -> bool:
@@ -313,33 +421,27 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     t0 = time.perf_counter()
     if not folder.exists():
         raise FileNotFoundError(2, "no such folder", folder.display)
-    listed = folder.files(skip_top=(REPORT_DIR,))
+    listed = folder.files()
     written_at = dict(listed)
     photos, problems = collect_sidecars(folder, listed=listed)
-    tdir = REPORT_DIR + "/thumbs"
-    thumbs_at = dict(folder.files(under=tdir))
-    jobs = []
-    cells = []
-    for k, p in enumerate(photos):
-        stem = p.sidecar[:-5].replace("/", "__")
-        ti, to = f"{tdir}/{stem}_in.jpg", f"{tdir}/{stem}_out.jpg"
-        src_in = p.doc.get("input")
-        if src_in and not is_url(src_in) and not os.path.isabs(src_in):
-            src_in = os.path.abspath(src_in)
+    thumbs_at = dict(folder.files(under=REPORT_DIR + "/thumbs"))
+    jobs, cells = [], []
+    for p in photos:
+        ti, to = thumb_names(p.sidecar)
         img = p.output("image")
         made = written_at.get(img, p.modified) if img else p.modified
         missing = bool(img) and img not in written_at
-        jobs += [(src_in, ti, made, False) if src_in else None, (folder.path(img), to, made, missing) if img else None]
+        jobs += [(p, "in", ti, made, False), (p, "out", to, made, missing) if img else None]
         cells.append((p, ti, to))
     with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
-        notes = list(pool.map(lambda j: None if j is None else _thumb(j[0], folder, j[1], side, j[2],
-                                                                       thumbs_at.get(j[1]), j[3]), jobs))
+        notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2])), jobs))
     problems += [n for n in notes if n not in (None, "written", "kept")]
+    problems = [printable(x) for x in problems]  # they quote names and sidecars' values, and go to a terminal
     written = notes.count("written")
     data = []
     counts = {t: 0 for t in uwhl_rs.WATER_TYPES}
     for k, (p, ti, to) in enumerate(cells):
-        wt = p.doc.get("water_type")
+        wt = p.doc["water_type"]
         counts[wt] = counts.get(wt, 0) + 1
         data.append({
             "k": k, "name": p.sidecar[:-5], "wt": wt,
@@ -360,7 +462,6 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         + "</table></section>")
     types = [t for t in uwhl_rs.WATER_TYPES] + sorted(t for t in counts if t not in uwhl_rs.WATER_TYPES)
     axis = series_axis(photos)
-    blob = json.dumps({"page": int(page_size), "photos": data}).replace("</", "<\\/")
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {html.escape(folder.name)}</title><style>{_CSS}</style></head><body>
 <h1>{html.escape(folder.display)}</h1>
@@ -375,9 +476,19 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
 <section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
 {''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
 <div id="view" onclick="if(event.target===this)hide()"></div>
-<script id="data" type="application/json">{blob}</script>
+<script id="data" type="application/json">{script_json({"page": int(page_size), "photos": data})}</script>
 <script>{_JS}</script></body></html>
 """
-    path = folder.write(REPORT_DIR + "/index.html", page.encode("utf-8"))
+    # lone surrogates (undecodable names) cannot be UTF-8: shown as U+FFFD
+    path = folder.write(REPORT_DIR + "/index.html", display(page).encode("utf-8"))
     return {"path": path, "photos": len(photos), "flagged": flagged, "failed": len(failed), "thumbnails_written": written,
             "problems": problems, "seconds": time.perf_counter() - t0}
+
+
+def script_json(value) -> str:
+    """``value`` as JSON that is inert inside a ``<script>`` element: no
+    ``<``, ``>`` or ``&`` (so no ``</script>`` or ``<!--`` can end or
+    swallow the element) and no U+2028/U+2029, each written as its
+    ``\\u`` escape, which JSON.parse reads back as the same text."""
+    text = json.dumps(value, ensure_ascii=True, allow_nan=False)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")

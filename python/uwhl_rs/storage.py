@@ -13,16 +13,19 @@ imported only when a URL needs it. Paths inside a folder are relative and
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import importlib
 import json
 import os
 import posixpath
 import re
+import stat
 
+from . import _core
 from .errors import BatchError
 
 __all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "need", "filesystem", "storage_error",
-           "on_storage", "read_bytes", "modified", "Folder"]
+           "on_storage", "read_bytes", "open_regular", "read_regular", "modified", "Folder"]
 
 #: how to get what batches on Dask or object storage need
 EXTRA = 'pip install "uwhl_rs[dask]"'
@@ -154,6 +157,46 @@ def read_bytes(path: str, storage_options: dict | None = None) -> bytes:
         return f.read()
 
 
+def open_regular(path: str, follow_links: bool = False):
+    """The local regular file ``path`` opened for reading (a binary file
+    object). A FIFO, device or socket is refused before it is opened (so
+    nothing blocks and no device is touched), and so is a symbolic link at
+    the last component unless ``follow_links`` (a file the user named
+    himself); what is opened is checked again to be the file looked at.
+    OSError otherwise, naming the path."""
+    path = local_path(path)
+    st = os.stat(path) if follow_links else os.lstat(path)
+    if stat.S_ISLNK(st.st_mode):
+        raise OSError(errno.ELOOP, "a symbolic link (not followed)", path)
+    if not stat.S_ISREG(st.st_mode):
+        raise OSError(errno.EINVAL, "not a regular file", path)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)
+    fd = os.open(path, flags)
+    try:
+        now = os.fstat(fd)
+        if not stat.S_ISREG(now.st_mode) or (now.st_dev, now.st_ino) != (st.st_dev, st.st_ino):
+            raise OSError(errno.EINVAL, "replaced while being opened", path)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_regular(path: str, limit: int | None = None, follow_links: bool = False) -> bytes:
+    """The bytes of the local regular file ``path`` (:func:`open_regular`),
+    at most ``limit`` of them: a larger file is an OSError (EFBIG) before
+    more than ``limit + 1`` bytes are read."""
+    with open_regular(path, follow_links) as f:
+        if limit is not None and os.fstat(f.fileno()).st_size > limit:
+            raise OSError(errno.EFBIG, f"larger than {limit} bytes", local_path(path))
+        data = f.read(-1 if limit is None else limit + 1)
+    if limit is not None and len(data) > limit:
+        raise OSError(errno.EFBIG, f"larger than {limit} bytes", local_path(path))
+    return data
+
+
 def modified(path: str, storage_options: dict | None = None) -> float | None:
     """When a local file or a storage URL was last written (seconds since
     the epoch), None when it is not there; other storage errors propagate."""
@@ -240,24 +283,38 @@ class Folder:
         found.sort(key=lambda f: tuple(f[0].split("/")))
         return found
 
-    def read(self, rel: str) -> bytes:
-        """The bytes of ``rel``."""
-        return read_bytes(self.path(rel), self.storage_options)
+    def read(self, rel: str, limit: int | None = None) -> bytes:
+        """The bytes of ``rel``, at most ``limit`` of them (OSError EFBIG
+        beyond). Locally only a regular file, not through a symbolic link
+        (:func:`read_regular`): what the folder holds is not trusted."""
+        if not self.is_url:
+            return read_regular(self.path(rel), limit)
+        data = read_bytes(self.path(rel), self.storage_options)
+        if limit is not None and len(data) > limit:
+            raise OSError(errno.EFBIG, f"larger than {limit} bytes", self.path(rel))
+        return data
 
-    def read_many(self, rels: list[str]) -> dict[str, bytes | Exception]:
-        """The bytes of each of ``rels``, or the error that reading it
-        raised (on object storage fetched concurrently, in one call)."""
+    def read_many(self, rels: list[str], limit: int | None = None) -> dict[str, bytes | Exception]:
+        """The bytes of each of ``rels`` (as :meth:`read`), or the error
+        that reading it raised (on object storage fetched concurrently, in
+        one call)."""
         if not self.is_url:
             got: dict[str, bytes | Exception] = {}
             for rel in rels:
                 try:
-                    got[rel] = self.read(rel)
+                    got[rel] = self.read(rel, limit)
                 except OSError as e:
                     got[rel] = e
             return got
         full = {self.root + "/" + rel: rel for rel in rels}
         fetched = self.fs.cat(list(full), on_error="return") if full else {}
-        return {rel: fetched.get(path, FileNotFoundError(2, "not found", path)) for path, rel in full.items()}
+        out: dict[str, bytes | Exception] = {}
+        for path, rel in full.items():
+            data = fetched.get(path, FileNotFoundError(2, "not found", path))
+            if isinstance(data, bytes) and limit is not None and len(data) > limit:
+                data = OSError(errno.EFBIG, f"larger than {limit} bytes", path)
+            out[rel] = data
+        return out
 
     def modified(self, rel: str) -> float | None:
         """When ``rel`` was last written, None when it is not there."""
@@ -271,13 +328,30 @@ class Folder:
         if self.is_url:
             self.fs.pipe_file(self.root + "/" + rel, data)
             return where
-        os.makedirs(os.path.dirname(where) or ".", exist_ok=True)
-        tmp = os.path.join(os.path.dirname(where), f".{os.path.basename(where)}.{os.getpid()}.tmp")
+        # the folders below the root are the program's own (report/thumbs):
+        # one that is a link would carry the write elsewhere
+        parts = rel.split("/")[:-1]
+        for k in range(1, len(parts) + 1):
+            d = os.path.join(self.root, *parts[:k])
+            try:
+                os.mkdir(d)
+            except FileExistsError:
+                pass
+            if os.path.islink(d) or not os.path.isdir(d):
+                raise OSError(errno.ELOOP if os.path.islink(d) else errno.ENOTDIR,
+                              "a symbolic link or not a folder (not written through)", d)
+        # the same exclusive temporary and durable rename as the photos
+        # (files::commit): a link planted at a temporary's name is never opened
+        tmp = os.fspath(_core.create_temp(where))
         try:
-            with open(tmp, "wb") as f:
+            fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0))
+            with os.fdopen(fd, "wb") as f:
                 f.write(data)
-            os.replace(tmp, where)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        except BaseException:
+            try:
+                os.remove(tmp)
+            except OSError:
+                pass
+            raise
+        _core.place(tmp, where)
         return where

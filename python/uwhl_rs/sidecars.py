@@ -1,0 +1,332 @@
+"""The one reader of sidecars (``NAME.json``, docs/OUTPUTS.md "Sidecar"):
+bytes in, a checked document or one line saying what is wrong out.
+
+An output folder is shared and may be written by anyone, so a sidecar is
+read as untrusted input: bounded in size and nesting, strict UTF-8, no
+NaN or infinity (``1e400`` included), and every field the readers use
+(``uwhl report``, ``uwhl ifdo``, the summary rows of skipped inputs)
+checked against :data:`FIELDS` before any of them looks at it. A reader then never meets a
+value of the wrong type, and a malformed sidecar is a note naming it,
+never a traceback.
+
+Keys may be added to sidecars (docs/OUTPUTS.md), so unknown keys pass;
+:data:`SCHEMA_VERSION` says which set of fields this module checks.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import re
+
+from .errors import UwhlError
+
+__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "display", "printable",
+           "is_uuid_hex", "is_sha256"]
+
+#: the version of the checked fields (the sidecar's own ``uwhl_version`` says which program wrote it)
+SCHEMA_VERSION = 1
+
+#: the largest sidecar read, in bytes (one is a few kB; custom water types and notes stay far below)
+MAX_BYTES = 1 << 20
+
+#: the deepest nesting of arrays and objects accepted (the writers use 3)
+MAX_DEPTH = 16
+
+#: the longest text field accepted (names, paths, notes)
+MAX_TEXT = 4096
+
+#: keys whose presence makes a JSON object a sidecar (else it is another file, left alone)
+_MARKS = ("input", "outputs", "water_type", "uwhl_version")
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+_HEX32 = re.compile(r"[0-9a-fA-F]{32}")
+_HEX64 = re.compile(r"[0-9a-fA-F]{64}")
+# JSON strings (with their escapes), removed before the brackets are counted
+_STRINGS = re.compile(rb'"(?:[^"\\]|\\.)*"', re.S)
+
+
+class _NonFinite:
+    """What NaN, Infinity and numbers beyond a float (1e400) are read as:
+    refused where a field needs a number, null where one may be unknown
+    (a score: the Python writer's ``Infinity`` for a black radiance is
+    the Rust writer's ``null``)."""
+
+    def __repr__(self) -> str:
+        return "NaN"
+
+
+_NONFINITE = _NonFinite()
+
+
+class SidecarError(UwhlError):
+    """A sidecar that cannot be used; the message names the problem. (A
+    ValueError, as every UwhlError.)"""
+
+    kind = "unreadable_input"
+
+
+def display(text: str) -> str:
+    """``text`` as it can be shown and written as UTF-8: lone surrogates
+    (undecodable bytes of a file name) become U+FFFD."""
+    return text.encode("utf-8", "surrogatepass").decode("utf-8", "replace")
+
+
+def printable(text: str) -> str:
+    """``text`` (:func:`display`) with control characters written as
+    ``\\xNN`` escapes: a note quoting a file name or a sidecar's value
+    cannot move the cursor or recolour the terminal it is printed on."""
+    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", display(text))
+
+
+def plain_name(name: object) -> bool:
+    """Whether ``name`` is a bare file name (an output beside its sidecar):
+    no folder part, not ``.`` or ``..``, no NUL or control character."""
+    return (isinstance(name, str) and 0 < len(name) <= 255 and name not in (".", "..")
+            and not any(c in name for c in "/\\") and all(ord(c) >= 32 for c in name))
+
+
+def is_uuid_hex(v: object) -> bool:
+    """32 hexadecimal digits (EXIF ImageUniqueID's form)."""
+    return isinstance(v, str) and bool(_HEX32.fullmatch(v))
+
+
+def is_sha256(v: object) -> bool:
+    """64 hexadecimal digits."""
+    return isinstance(v, str) and bool(_HEX64.fullmatch(v))
+
+
+# ------------------------------------------------------------------ field checks
+# each check returns None when the value is fine, else what is wrong
+
+
+def _at(where: str, why: str) -> str:
+    """``why`` said of the field at ``where`` (nested paths join: ``metadata.gps.latitude``)."""
+    return where + (why if why[:1] in ".[" else " " + why)
+
+
+def _text(v):
+    if not isinstance(v, str):
+        return "must be text"
+    return None if len(v) <= MAX_TEXT else f"is longer than {MAX_TEXT} characters"
+
+
+def _nonempty_text(v):
+    return _text(v) or (None if v else "must not be empty")
+
+
+def _path_text(v):
+    return _nonempty_text(v) or (None if "\x00" not in v else "holds a NUL character")
+
+
+def _number(v):
+    if v is _NONFINITE:
+        return "is not a finite number (NaN, Infinity, or beyond a float)"
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return "must be a number"
+    return None if math.isfinite(v) else "must be finite"
+
+
+def _count(v):
+    return None if isinstance(v, int) and not isinstance(v, bool) and v >= 0 else "must be a whole number >= 0"
+
+
+def _flag(v):
+    return None if isinstance(v, bool) else "must be true or false"
+
+
+def _score(v):
+    return None if v is None or v is _NONFINITE else _number(v)
+
+
+def _optional(check):
+    return lambda v: None if v is None else check(v)
+
+
+def _list_of(check, length: int | None = None, most: int = 1000):
+    def f(v):
+        if not isinstance(v, list):
+            return "must be a list"
+        if length is not None and len(v) != length:
+            return f"must have {length} entries, not {len(v)}"
+        if len(v) > most:
+            return f"has more than {most} entries"
+        for k, x in enumerate(v):
+            why = check(x)
+            if why:
+                return _at(f"[{k}]", why)
+        return None
+    return f
+
+
+def _map_of(check, most: int = 1000):
+    def f(v):
+        if not isinstance(v, dict):
+            return "must be an object"
+        if len(v) > most:
+            return f"has more than {most} entries"
+        for k, x in v.items():
+            why = _text(k) or check(x)
+            if why:
+                return _at(f"[{json.dumps(k)[:60]}]", why)
+        return None
+    return f
+
+
+def _object(fields: dict):
+    def f(v):
+        if not isinstance(v, dict):
+            return "must be an object"
+        for k, check in fields.items():
+            if k in v:
+                why = check(v[k])
+                if why:
+                    return _at(f".{k}", why)
+        return None
+    return f
+
+
+def _in_range(lo: float, hi: float):
+    def f(v):
+        return _number(v) or (None if lo <= v <= hi else f"must be between {lo:g} and {hi:g}")
+    return f
+
+
+def _output_name(v):
+    return None if v is None or plain_name(v) else "must be a file name beside the sidecar (no folder, no ..)"
+
+
+def _iso_time(v):
+    if v is None:
+        return None
+    if not isinstance(v, str) or len(v) > 64:
+        return "must be an ISO 8601 time (text)"
+    try:
+        _dt.datetime.fromisoformat(v)
+    except ValueError:
+        return "is not an ISO 8601 time"
+    return None
+
+
+def _hex(pattern_check, what):
+    return lambda v: None if v is None or pattern_check(v) else f"must be {what}"
+
+
+#: the fields the readers use, and what each must be (absent is fine unless in REQUIRED)
+FIELDS = {
+    "input": _path_text,
+    "outputs": _object({r: _output_name for r in ("image", "transmission", "transmission_color", "contact_sheet")}),
+    "uwhl_version": _text,
+    "implementation": _text,
+    "water_type": _nonempty_text,
+    "scores": _map_of(_score),
+    "excluded": _list_of(_text),
+    "veiling_light": _list_of(_number, 3),
+    "flags": _list_of(_text),
+    "beta_ratios": _list_of(_number, 2),
+    "reused_estimates": _flag,
+    "vl_pixels": _count,
+    "vl_fraction": _number,
+    "guided_radius": _count,
+    "guided_subsample": _count,
+    "parameters": _object({}),
+    "source": _object({"path": _optional(_text), "height": _optional(_count), "width": _optional(_count),
+                       "notes": _optional(_list_of(_text))}),
+    "seconds": _map_of(_optional(_number)),
+    "metadata": _object({
+        "written": _optional(_flag),
+        "taken_at": _iso_time,
+        "gps": _optional(_object({"latitude": _optional(_in_range(-90, 90)),
+                                  "longitude": _optional(_in_range(-180, 180)),
+                                  "altitude": _optional(_number)})),
+        "image_uuid": _hex(is_uuid_hex, "32 hexadecimal digits"),
+        "photo_sha256": _hex(is_sha256, "64 hexadecimal digits"),
+        "input_sha256": _hex(is_sha256, "64 hexadecimal digits"),
+        "input_image_uuid": _optional(_text),
+        "notes": _optional(_list_of(_text)),
+    }),
+}
+
+#: the fields every sidecar has
+REQUIRED = ("input", "outputs", "water_type")
+
+
+def _no_constant(name: str):
+    return _NONFINITE
+
+
+def _finite_float(text: str):
+    v = float(text)
+    return v if math.isfinite(v) else _NONFINITE
+
+
+def _unknown_as_null(v):
+    """``v`` with every non-finite number left after the checks as None."""
+    if v is _NONFINITE:
+        return None
+    if isinstance(v, dict):
+        return {k: _unknown_as_null(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_unknown_as_null(x) for x in v]
+    return v
+
+
+def _bounded_int(text: str):
+    # a 5000-digit integer is no count or coordinate, and would not convert to a float
+    return int(text) if len(text) <= 19 else _finite_float(text)
+
+
+def _depth(data: bytes) -> int:
+    """The deepest nesting of ``data``'s arrays and objects, counted
+    without recursion (outside strings)."""
+    deepest = depth = 0
+    for c in _STRINGS.sub(b'""', data):
+        if c in b"[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif c in b"]}":
+            depth -= 1
+    return deepest
+
+
+def parse(data: bytes) -> dict | None:
+    """The checked sidecar in ``data`` (the bytes of a ``.json`` file of an
+    output folder); None when it is a JSON object that is no sidecar at
+    all (no ``input``, ``outputs``, ``water_type`` or ``uwhl_version``:
+    another program's file, left alone). Raises :class:`SidecarError`
+    saying what is wrong: too large, not UTF-8, not JSON, too deeply
+    nested, a number out of range, not an object, a field missing or of
+    the wrong shape."""
+    if len(data) > MAX_BYTES:
+        raise SidecarError(f"larger than {MAX_BYTES} bytes ({len(data)})")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SidecarError(f"not UTF-8 text (byte {e.start})") from None
+    if _depth(data) > MAX_DEPTH:
+        raise SidecarError(f"nested deeper than {MAX_DEPTH} levels")
+    try:
+        doc = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float,
+                         parse_int=_bounded_int)
+    except (ValueError, RecursionError) as e:
+        raise SidecarError(f"not JSON ({str(e)[:200]})") from None
+    if not isinstance(doc, dict):
+        raise SidecarError(f"not a JSON object (a {type(doc).__name__})")
+    if not any(k in doc for k in _MARKS):
+        return None
+    check(doc)
+    return _unknown_as_null(doc)
+
+
+def check(doc: dict) -> None:
+    """Raises :class:`SidecarError` naming the first field of ``doc`` that
+    is missing or of the wrong shape."""
+    missing = [k for k in REQUIRED if k not in doc]
+    if missing:
+        raise SidecarError(f"no {', '.join(missing)} (not a complete sidecar)")
+    for k, rule in FIELDS.items():
+        if k in doc:
+            why = rule(doc[k])
+            if why:
+                raise SidecarError(_at(k, why))
