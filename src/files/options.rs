@@ -608,6 +608,30 @@ impl crate::method::params::Params {
         }
         Ok(())
     }
+
+    /// The method parameter `key` as the sidecar's `parameters` records it
+    /// (docs/OUTPUTS.md): the value asked for, the profile's steps as
+    /// resolved (`Params::steps`). None for `water_types` and
+    /// `veiling_light`, which the files layer echoes as given, and for a key
+    /// that is not a method parameter. Beside [`Params::set`], so that a new
+    /// method option is recorded by the row, the field and this arm.
+    #[cfg(any(feature = "cli", feature = "python"))]
+    pub fn recorded(&self, key: &str) -> Option<serde_json::Value> {
+        use serde_json::json;
+        if let Some((_, name)) = self.steps().into_iter().find(|s| s.0 == key) {
+            return Some(json!(name));
+        }
+        Some(match key {
+            "guided_radius" => json!(self.guided_radius),
+            "guided_eps" => json!(self.guided_eps),
+            "t_scale" => json!(self.t_scale),
+            "guided_subsample" => json!(self.guided_subsample),
+            "sphere_points" => json!(self.sphere_points),
+            "threads" => json!(self.threads),
+            "max_memory" => json!(self.max_memory),
+            _ => return None,
+        })
+    }
 }
 
 #[cfg(test)]

@@ -118,7 +118,9 @@ fn path(p: &Path) -> String {
     p.to_string_lossy().into_owned()
 }
 
-/// The options, in the `parameters` object.
+/// The options, in the `parameters` object: every method parameter of
+/// the option table (`Params::recorded`; the water types and A as given),
+/// then the file options.
 pub fn parameters(o: &Settings) -> Value {
     let types = o.water_types.as_ref().map(|list| {
         list.iter()
@@ -132,34 +134,31 @@ pub fn parameters(o: &Settings) -> Value {
             })
             .collect::<Vec<_>>()
     });
-    let steps = o.method_params().steps();
-    let step = |k: &str| steps.iter().find(|s| s.0 == k).map(|s| s.1);
-    json!({
-        "method": step("method"),
-        "white_balance": step("white_balance"),
-        "type_choice": step("type_choice"),
-        "haze_floor": step("haze_floor"),
-        "water_types": types,
-        "veiling_light": o.veiling_light,
+    let mut p = serde_json::Map::new();
+    for spec in crate::files::options::OPTIONS.iter().filter(|s| s.method) {
+        let v = match spec.key {
+            "water_types" => json!(types),
+            "veiling_light" => json!(o.veiling_light),
+            key => o.params.recorded(key).unwrap_or(Value::Null),
+        };
+        p.insert(spec.key.to_string(), v);
+    }
+    let files = json!({
         "mask": o.mask.as_deref().map(path),
         "water_mask": o.water_mask.as_deref().map(path),
-        "guided_radius": o.params.guided_radius,
-        "guided_eps": o.params.guided_eps,
-        "t_scale": o.params.t_scale,
-        "guided_subsample": o.params.guided_subsample,
-        "sphere_points": o.params.sphere_points,
-        "threads": o.params.threads,
         "max_side": o.max_side,
         "max_pixels": o.max_pixels,
         "preprocess": o.preprocess.name(),
-        "selection": step("selection"),
         "half_size": o.half_size,
         "format": o.format.name(),
         "bits": o.bits(),
         "quality": o.quality,
-        "max_memory": o.params.max_memory,
         "linear": o.linear,
-    })
+    });
+    if let Value::Object(f) = files {
+        p.extend(f);
+    }
+    Value::Object(p)
 }
 
 /// The sidecar's `source.icc_profile`: the profile's description and
