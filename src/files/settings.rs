@@ -123,6 +123,8 @@ pub struct Settings {
     pub reuse_estimates: Option<usize>,
     /// `--reuse-water-mask` (with `--reuse-estimates`): reuse the water region too
     pub reuse_water_mask: bool,
+    /// `--max-memory` was given (else the budget follows the machine: "auto")
+    pub max_memory_given: bool,
 }
 
 impl Default for Settings {
@@ -144,6 +146,7 @@ impl Default for Settings {
             max_pixels: crate::files::options::DEFAULT_MAX_PIXELS,
             reuse_estimates: None,
             reuse_water_mask: false,
+            max_memory_given: false,
         }
     }
 }
@@ -204,6 +207,10 @@ impl Settings {
             "water_types" => water_types(self.water_types.get_or_insert_with(Vec::new), &text(v)?)?,
             "reuse_estimates" => self.reuse_estimates = Some(usize_of(&v)?),
             "reuse_water_mask" => self.reuse_water_mask = true,
+            "max_memory" => {
+                self.params.set(key, &v).map_err(Failure::from)?;
+                self.max_memory_given = true;
+            }
             "veiling_light" => {
                 self.params.set(key, &v).map_err(Failure::from)?;
                 if let Val::Rgb(rgb) = v {

@@ -119,8 +119,10 @@ fn path(p: &Path) -> String {
 }
 
 /// The options, in the `parameters` object: every method parameter of
-/// the option table (`Params::recorded`; the water types and A as given),
-/// then the file options.
+/// the option table (`Params::recorded`; the water types and A as given;
+/// `max_memory` as asked, "auto" when not given, so that a sidecar does not
+/// follow the machine's free memory, with the budget used beside it as
+/// `max_memory_used`), then the file options.
 pub fn parameters(o: &Settings) -> Value {
     let types = o.water_types.as_ref().map(|list| {
         list.iter()
@@ -139,11 +141,13 @@ pub fn parameters(o: &Settings) -> Value {
         let v = match spec.key {
             "water_types" => json!(types),
             "veiling_light" => json!(o.veiling_light),
+            "max_memory" if !o.max_memory_given => json!("auto"),
             key => o.params.recorded(key).unwrap_or(Value::Null),
         };
         p.insert(spec.key.to_string(), v);
     }
     let files = json!({
+        "max_memory_used": o.params.max_memory,
         "mask": o.mask.as_deref().map(path),
         "water_mask": o.water_mask.as_deref().map(path),
         "max_side": o.max_side,
