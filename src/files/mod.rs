@@ -14,7 +14,7 @@ pub mod options;
 pub mod color;
 
 #[cfg(any(feature = "cli", feature = "python"))]
-stage_modules! { budget, commit, jobs, settings }
+stage_modules! { budget, commit, jobs, settings, summary }
 
 /// The input's metadata carried into the corrected photo, and the
 /// restoration recorded in XMP (both commands).
@@ -28,4 +28,4 @@ pub mod metadata;
 pub mod icc;
 
 #[cfg(feature = "cli")]
-stage_modules! { decode, encode, pipeline, sidecar, summary }
+stage_modules! { decode, encode, pipeline, sidecar }
