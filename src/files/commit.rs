@@ -147,7 +147,7 @@ fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String
     }
     let mut text = Vec::new();
     f.take(MAX_SIDECAR).read_to_end(&mut text).ok()?;
-    let v: serde_json::Value = serde_json::from_slice(&text).ok()?;
+    let v = parse_sidecar(&text)?;
     let input = PathBuf::from(v.get("input")?.as_str()?);
     let resolved = v.get("input_resolved").and_then(|r| r.as_str()).map(PathBuf::from).filter(|p| p.is_absolute());
     let hash = v
@@ -156,6 +156,33 @@ fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String
         .filter(|h| h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()))
         .map(str::to_ascii_lowercase);
     Some((input, resolved, hash))
+}
+
+/// A sidecar's JSON. Python's `json` writes a name that is not UTF-8 with
+/// its undecodable bytes as lone surrogate escapes (`\udce9`), which
+/// serde_json refuses; those are read as U+FFFD, as the binary records them.
+pub(crate) fn parse_sidecar(text: &[u8]) -> Option<serde_json::Value> {
+    if let Ok(v) = serde_json::from_slice(text) {
+        return Some(v);
+    }
+    let mut fixed = Vec::with_capacity(text.len());
+    let mut i = 0;
+    while let Some(&b) = text.get(i) {
+        let esc = text.get(i..i + 6);
+        let low = esc.is_some_and(|e| e.starts_with(b"\\udc") || e.starts_with(b"\\uDC"));
+        // a low surrogate right after a high one is half of a valid pair
+        let paired = i >= 6 && text.get(i - 6..i).is_some_and(|h| {
+            h.starts_with(b"\\ud") && h.get(3).is_some_and(|c| b"89abAB".contains(c))
+        });
+        if low && !paired {
+            fixed.extend_from_slice(b"\\ufffd");
+            i += 6;
+        } else {
+            fixed.push(b);
+            i += 1;
+        }
+    }
+    serde_json::from_slice(&fixed).ok()
 }
 
 /// The SHA-256 of a regular file, streamed (None for anything else).
@@ -659,6 +686,13 @@ mod tests {
         assert_eq!(fs::read_to_string(d.join("a.json")).unwrap(), side);
         assert_eq!(fs::read_dir(&d).unwrap().count(), 3);
         fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_python_sidecar_with_a_lone_surrogate_is_read_with_u_fffd() {
+        let v = parse_sidecar(br#"{"input": "caf\udce9.png", "x": "\ud83d\ude00\udc80"}"#).unwrap();
+        assert_eq!(v["input"], "caf\u{fffd}.png");
+        assert_eq!(v["x"], "\u{1f600}\u{fffd}");
     }
 
     fn sha256_of(p: &Path) -> String {

@@ -66,6 +66,7 @@ pub fn neutralise(s: &str) -> String {
 
 /// The text a reader of summary.csv gets back from a cell written through
 /// [`neutralise`] (the inverse: the one quote taken off).
+#[cfg_attr(not(feature = "python"), allow(dead_code))]
 pub fn restore_cell(s: &str) -> &str {
     let mut c = s.chars();
     match (c.next(), c.next()) {
@@ -84,11 +85,6 @@ fn cell(v: Option<&Value>) -> String {
 
 use crate::files::metadata::value_text as text;
 
-/// The lock file beside summary.csv that every writer of the folder holds
-/// shared while it runs: a run that can take it exclusively is alone and
-/// starts the file afresh; one that cannot joins the file of the running one.
-const PRESENCE: &str = ".uwhl-summary.lock";
-
 /// Opens `path` for appending without following a link at its name
 /// (`O_NOFOLLOW`: a link planted there fails with ELOOP, never written through).
 fn open_append(path: &Path, create: bool) -> std::io::Result<File> {
@@ -97,40 +93,44 @@ fn open_append(path: &Path, create: bool) -> std::io::Result<File> {
 }
 
 /// A clear message for a failed open: a link named as such.
-fn open_error(path: &Path, e: &std::io::Error) -> String {
+fn open_error(path: &Path, e: &std::io::Error) -> std::io::Error {
     if e.raw_os_error() == Some(libc::ELOOP) {
-        format!("cannot write {}: it is a symbolic link (not written through)", path.display())
+        std::io::Error::other(format!("cannot write {}: it is a symbolic link (not written through)", path.display()))
     } else {
-        format!("cannot write {}: {e}", path.display())
+        std::io::Error::new(e.kind(), format!("cannot write {}: {e}", path.display()))
     }
 }
 
 /// The summary of a batch: made with its first row (a run refused before
 /// any input leaves no file), or why it could not be written.
 ///
-/// Rows are appended to the file opened `O_APPEND | O_NOFOLLOW`, each in
-/// one write under an exclusive `flock` of the file, so that two runs on
-/// one output folder (docs/OUTPUTS.md) give every row once, none spliced.
-/// A run alone on the folder starts the file afresh: a new file with the
-/// header, written through an exclusive temporary and renamed into place,
-/// which replaces whatever was at the name (a link is replaced, its target
-/// never touched). A run that starts while another is writing appends to
-/// that run's file.
+/// Each row is appended in one write under an exclusive `flock` of the
+/// file, opened for that row `O_APPEND | O_NOFOLLOW` (a link planted at
+/// the name fails with its name, never written through), so that two runs
+/// on one output folder (docs/OUTPUTS.md) give every row once, none
+/// spliced. Every writer holds a shared `flock` of the output folder while
+/// it runs: one that can take it exclusively is alone and starts the file
+/// afresh (a new file with the header, through an exclusive temporary
+/// renamed into place: whatever was at the name, a link included, is
+/// replaced, its target never touched); one that cannot appends to the
+/// running one's file.
 pub struct Summary {
     outdir: std::path::PathBuf,
-    out: Option<File>,
-    /// held shared while the summary is open (see [`PRESENCE`])
+    /// the output folder, its lock held shared while the summary is in use
     presence: Option<File>,
     opened: bool,
     /// the reason it cannot be written, if so
     pub error: Option<String>,
+    /// it cannot be written because the output folder is on a read-only
+    /// file system (a rerun over an archived survey: see docs/OUTPUTS.md)
+    pub read_only: bool,
     columns: Vec<String>,
 }
 
 impl Summary {
     /// The summary of a batch into `outdir/summary.csv` (started afresh).
     pub fn create(outdir: &Path) -> Self {
-        Self { outdir: outdir.to_path_buf(), out: None, presence: None, opened: false, error: None, columns: columns() }
+        Self { outdir: outdir.to_path_buf(), presence: None, opened: false, error: None, read_only: false, columns: columns() }
     }
 
     /// The path of the file.
@@ -138,63 +138,47 @@ impl Summary {
         self.outdir.join(FILE_NAME)
     }
 
+    fn fail(&mut self, e: &std::io::Error) {
+        self.read_only = e.kind() == std::io::ErrorKind::ReadOnlyFilesystem;
+        self.error = Some(e.to_string());
+    }
+
     fn open(&mut self) {
         self.opened = true;
         match self.try_open() {
-            Ok((f, presence)) => {
-                self.out = Some(f);
-                self.presence = Some(presence);
-            }
-            Err(e) => self.error = Some(e),
+            Ok(presence) => self.presence = Some(presence),
+            Err(e) => self.fail(&e),
         }
     }
 
-    fn try_open(&self) -> Result<(File, File), String> {
+    fn try_open(&self) -> std::io::Result<File> {
         let path = self.path();
-        let fail = |e: std::io::Error| format!("cannot write {}: {e}", path.display());
+        let fail = |e: std::io::Error| std::io::Error::new(e.kind(), format!("cannot write {}: {e}", path.display()));
         std::fs::create_dir_all(&self.outdir).map_err(fail)?;
-        // the folder's flock: one run at a time decides whether it is alone
-        let gate = File::open(&self.outdir).map_err(fail)?;
-        gate.lock().map_err(fail)?;
-        let lock_path = self.outdir.join(PRESENCE);
-        let presence = {
-            use std::os::unix::fs::OpenOptionsExt;
-            std::fs::OpenOptions::new()
-                .read(true)
-                .write(true)
-                .create(true)
-                .truncate(false)
-                .custom_flags(libc::O_NOFOLLOW)
-                .open(&lock_path)
-                .map_err(|e| open_error(&lock_path, &e))?
-        };
-        let alone = presence.try_lock().is_ok();
+        let presence = File::open(&self.outdir).map_err(fail)?;
         let header = format!("{}\r\n", self.columns.join(","));
-        let f = if alone {
-            let (tmp, mut t) = crate::files::commit::create_temp_for(&path).map_err(fail)?;
-            let written = t.write_all(header.as_bytes()).and_then(|()| t.sync_all());
-            drop(t);
-            if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, &path)) {
-                let _ = std::fs::remove_file(&tmp);
-                return Err(fail(e));
+        match presence.try_lock() {
+            // alone: a new file. A run starting while this one takes the
+            // shared lock below (the exclusive one is let go first) may
+            // think itself alone too and replace the file: it holds the
+            // header only then, and rows open the file anew, so none is lost
+            Ok(()) => {
+                let (tmp, mut t) = crate::files::commit::create_temp_for(&path).map_err(fail)?;
+                let written = t.write_all(header.as_bytes()).and_then(|()| t.sync_all());
+                drop(t);
+                if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, &path)) {
+                    let _ = std::fs::remove_file(&tmp);
+                    return Err(fail(e));
+                }
+                presence.unlock().map_err(fail)?;
+                presence.lock_shared().map_err(fail)?;
             }
-            let f = open_append(&path, false).map_err(|e| open_error(&path, &e))?;
-            // still under the gate: no other run can take the lock in between
-            presence.unlock().map_err(fail)?;
-            f
-        } else {
-            let f = open_append(&path, true).map_err(|e| open_error(&path, &e))?;
-            f.lock().map_err(fail)?;
-            // the running one's file was removed: this run's header comes first
-            let empty = f.metadata().map_err(fail)?.len() == 0;
-            let written = if empty { (&f).write_all(header.as_bytes()) } else { Ok(()) };
-            let _ = f.unlock();
-            written.map_err(fail)?;
-            f
-        };
-        presence.lock_shared().map_err(fail)?;
-        drop(gate);
-        Ok((f, presence))
+            // another run writes the file: its rows and this run's go in it
+            // (a missing file is made by the first row, with the header)
+            Err(std::fs::TryLockError::WouldBlock) => presence.lock_shared().map_err(fail)?,
+            Err(std::fs::TryLockError::Error(e)) => return Err(fail(e)),
+        }
+        Ok(presence)
     }
 
     /// Appends one row: its columns taken from `row` by name (missing ones
@@ -204,17 +188,28 @@ impl Summary {
         if !self.opened {
             self.open();
         }
-        let Some(f) = self.out.as_ref() else { return };
+        if self.presence.is_none() {
+            return;
+        }
         let mut line: String = self.columns.iter().map(|c| cell(row.get(c))).collect::<Vec<_>>().join(",");
         line.push_str("\r\n");
-        let ok = f.lock().and_then(|()| {
-            let r = (&*f).write_all(line.as_bytes());
+        let path = self.path();
+        let header = &self.columns;
+        let ok = open_append(&path, true).map_err(|e| open_error(&path, &e)).and_then(|f| {
+            f.lock()?;
+            // removed while the batch runs: made again, with its header
+            let r = f.metadata().and_then(|m| {
+                if m.len() == 0 {
+                    line.insert_str(0, &format!("{}\r\n", header.join(",")));
+                }
+                (&f).write_all(line.as_bytes())
+            });
             let _ = f.unlock();
             r
         });
         if let Err(e) = ok {
-            self.error = Some(format!("cannot write {FILE_NAME}: {e}"));
-            self.out = None;
+            self.fail(&e);
+            self.presence = None;
         }
     }
 
@@ -222,6 +217,7 @@ impl Summary {
     /// `scores` (an object) spread over the score columns and
     /// `other_scores`, `flags` (a list) joined with commas; a skipped row
     /// without the fields gets them from its sidecar (a local file).
+    #[cfg_attr(not(feature = "python"), allow(dead_code))]
     pub fn add(&mut self, mut row: serde_json::Map<String, Value>) {
         if let Some(Value::Object(scores)) = row.remove("scores") {
             spread_scores(&scores, &mut row);
@@ -246,7 +242,6 @@ impl Summary {
 
     /// Closes the file and lets the folder's lock go (also when dropped).
     pub fn close(&mut self) {
-        self.out = None;
         self.presence = None;
     }
     /// A restored input: its sidecar `side`, its outputs in `dir`.
@@ -354,7 +349,7 @@ fn read_sidecar(path: &Path) -> Option<Value> {
     }
     let mut bytes = Vec::new();
     f.take(MAX_SIDECAR).read_to_end(&mut bytes).ok()?;
-    serde_json::from_slice(&bytes).ok()
+    crate::files::commit::parse_sidecar(&bytes)
 }
 
 fn path_text(p: &Path) -> String {

@@ -3,6 +3,7 @@
 //! function ([`to_py_err`]). No algorithm code lives here.
 
 mod color;
+mod outdir;
 #[cfg(feature = "internals")]
 mod hooks;
 
@@ -702,6 +703,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
     crate::python::color::register(m)?;
+    crate::python::outdir::register(m)?;
     m.add_class::<PyRestoration>()?;
     m.add_class::<PySequence>()?;
     m.add_class::<PyParams>()?;
