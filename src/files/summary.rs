@@ -232,7 +232,9 @@ impl Summary {
                 if let Some(side) = read_sidecar(&sidecar) {
                     let dir = sidecar.parent().map(Path::to_path_buf).unwrap_or_default();
                     for (k, v) in fields_from_sidecar(&side, &dir) {
-                        row.entry(k).or_insert(v);
+                        if row.get(&k).is_none_or(Value::is_null) {
+                            row.insert(k, v);
+                        }
                     }
                 }
             }
@@ -487,6 +489,34 @@ mod tests {
         next.close();
         let text = std::fs::read_to_string(out.join(FILE_NAME)).unwrap();
         assert_eq!(text.lines().count(), 2, "{text}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_python_row_is_spread_and_a_skipped_one_filled_from_its_sidecar() {
+        let d = folder("add");
+        let side = serde_json::json!({"water_type": "3C", "veiling_light": [0.1, 0.2, 0.3],
+            "scores": {"3C": 0.5}, "flags": ["f"], "outputs": {"image": "a.jpg"}});
+        std::fs::write(d.join("a.json"), side.to_string()).unwrap();
+        let mut s = Summary::create(&d);
+        let row = |v: Value| v.as_object().cloned().unwrap();
+        s.add(row(serde_json::json!({"input": "b.jpg", "status": "done", "water_type": "II",
+            "scores": {"II": 0.25, "mine": 1.0}, "flags": "x,y", "exit_code": 0})));
+        s.add(row(serde_json::json!({"input": "a.jpg", "status": "skipped", "water_type": null,
+            "sidecar": d.join("a.json"), "error": "already done", "exit_code": 0})));
+        s.close();
+        let text = std::fs::read_to_string(d.join(FILE_NAME)).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let col = |line: &str, name: &str| {
+            let k = columns().iter().position(|c| c == name).unwrap();
+            line.split(',').nth(k).unwrap_or_default().to_string()
+        };
+        assert_eq!(col(lines[1], "score_II"), "0.25");
+        assert_eq!(col(lines[1], "water_type"), "II");
+        assert!(lines[1].contains("\"{\"\"mine\"\":1.0}\""), "{}", lines[1]);
+        assert_eq!(col(lines[2], "water_type"), "3C");
+        assert_eq!(col(lines[2], "score_3C"), "0.5");
+        assert_eq!(col(lines[2], "image"), d.join("a.jpg").display().to_string());
         std::fs::remove_dir_all(&d).unwrap();
     }
 
