@@ -87,9 +87,19 @@ use crate::files::metadata::value_text as text;
 
 /// Opens `path` for appending without following a link at its name
 /// (`O_NOFOLLOW`: a link planted there fails with ELOOP, never written through).
+/// `O_NONBLOCK` too: a FIFO planted there fails at once instead of
+/// waiting for a reader, and anything but a regular file is refused.
 fn open_append(path: &Path, create: bool) -> std::io::Result<File> {
     use std::os::unix::fs::OpenOptionsExt;
-    std::fs::OpenOptions::new().append(true).create(create).custom_flags(libc::O_NOFOLLOW).open(path)
+    let f = std::fs::OpenOptions::new()
+        .append(true)
+        .create(create)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+        .open(path)?;
+    if !f.metadata()?.is_file() {
+        return Err(std::io::Error::other("not a regular file"));
+    }
+    Ok(f)
 }
 
 /// A clear message for a failed open: a link named as such.
@@ -443,6 +453,12 @@ mod tests {
         second.failed(Path::new("c.jpg"), "unreadable_input", "bad", 3);
         assert!(second.error.as_deref().is_some_and(|e| e.contains("symbolic link")), "{:?}", second.error);
         assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
+        // a FIFO planted there: refused at once, not waited on
+        std::fs::remove_file(out.join(FILE_NAME)).unwrap();
+        assert!(std::process::Command::new("mkfifo").arg(out.join(FILE_NAME)).status().unwrap().success());
+        let mut third = Summary::create(&out);
+        third.failed(Path::new("d.jpg"), "unreadable_input", "bad", 3);
+        assert!(third.error.as_deref().is_some_and(|e| e.contains("summary.csv")), "{:?}", third.error);
         drop(first);
         std::fs::remove_dir_all(&d).unwrap();
     }

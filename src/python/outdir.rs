@@ -39,7 +39,13 @@ fn value(v: &Bound<'_, PyAny>, depth: usize) -> PyResult<Value> {
         return Ok(serde_json::Number::from_f64(f.value()).map_or(Value::Null, Value::Number));
     }
     if let Ok(s) = v.cast::<PyString>() {
-        return Ok(Value::String(s.to_string_lossy().into_owned()));
+        // a file name's undecodable bytes (surrogate escapes) back to bytes
+        // first, so that each is one U+FFFD, as the binary writes it
+        let text = match s.extract::<std::ffi::OsString>() {
+            Ok(os) => os.to_string_lossy().into_owned(),
+            Err(_) => s.to_string_lossy().into_owned(),
+        };
+        return Ok(Value::String(text));
     }
     if let Ok(d) = v.cast::<PyDict>() {
         return Ok(Value::Object(map(d, depth + 1)?));
