@@ -133,8 +133,12 @@ def check_output_bucket(url: str, storage_options: dict | None) -> None:
     bucket = path.strip("/").split("/", 1)[0]
     if not bucket or not any(p in _BUCKET_STORES for p in protocols):
         return
+    # info, not exists: exists answers False for refused credentials too
     try:
-        there = fs.exists(bucket)
+        fs.info(bucket)
+        there = True
+    except FileNotFoundError:
+        there = False
     except Exception as e:  # the storage itself: credentials, endpoint, permissions
         raise storage_error(e, url) from None
     if not there:
