@@ -29,7 +29,8 @@ from .errors import EXIT, BatchError
 from .files import output_suffixes
 from .inputs import GLOB_CHARS, collect_inputs, supported
 from .outdir import FILE_NAME, SummaryWriter
-from .storage import EXTRA, filesystem, is_url, join, local_path, need, parse_storage_options, storage_error
+from .storage import (EXTRA, check_output_bucket, filesystem, is_url, join, local_path, need, parse_storage_options,
+                      storage_error)
 from .tasks import COLUMNS, Item, begin, context, row, scratch_root, skipped_row
 
 __all__ = ["restore_many", "run_batch", "BatchResult", "BatchError", "parse_storage_options", "plan_batch", "EXTRA",
@@ -195,6 +196,8 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
             os.makedirs(local_path(output), exist_ok=True)
         except OSError:
             pass  # each input's claim then says why its outputs cannot be written
+    else:
+        check_output_bucket(output, so)
     plan = plan_batch(inputs, output, format=fmt, contact=contact, storage_options=so)
     total = len(plan.items)
     if not is_url(output):
@@ -251,8 +254,15 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
             except Exception as e:  # the outputs are stored; only the summary is lost
                 summary_error = f"cannot upload {FILE_NAME} to {output}: {type(e).__name__}: {e}"
             shutil.rmtree(scratch, ignore_errors=True)
-    return BatchResult(problems + [rows[k] for k in sorted(rows)], total, interrupted,
-                       csv_rows.error or summary_error, len(problems))
+    summary_error = csv_rows.error or summary_error
+    if csv_rows.read_only and not any(r.get("status") == "done" for r in rows.values()):
+        # a rerun over a finished survey on a read-only mount: nothing was
+        # to be written, and the earlier summary.csv still holds
+        if listener is not None:
+            listener.note(f"{summary_error} (read-only output folder: the earlier {FILE_NAME} stays)")
+        summary_error = None
+    return BatchResult(problems + [rows[k] for k in sorted(rows)], total, interrupted, summary_error,
+                       len(problems))
 
 
 def _groups(plan: Plan, overwrite: bool, reuse: int | None, settle) -> list[list[Item]]:

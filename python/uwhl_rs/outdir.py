@@ -10,18 +10,17 @@ Rows are the dicts of ``uwhl_rs.tasks`` (its ``COLUMNS``).
 from __future__ import annotations
 
 import csv
-import json
 import os
 import posixpath
-import threading
 from dataclasses import dataclass
 
+from . import _core
 from .sidecars import MAX_BYTES as SIDECAR_MAX_BYTES
 from .sidecars import SidecarError, display
 from .sidecars import parse as parse_sidecar
 from .storage import Folder, read_regular
 
-__all__ = ["SummaryWriter", "CSV_COLUMNS", "row_fields_from_sidecar", "FILE_NAME", "REPORT_DIR", "Photo",
+__all__ = ["SummaryWriter", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
 
 FILE_NAME = "summary.csv"
@@ -41,14 +40,8 @@ SUMMARY_MAX_BYTES = 512 << 20
 #: flags that say something the operator should look at (``estimates_reused`` is the plan of a sequence)
 ROUTINE_FLAGS = ("estimates_reused",)
 
-#: the Jerlov types, one score column each (custom types go to other_scores)
-_TYPES = ("I", "IA", "IB", "II", "III", "1C", "3C", "5C", "7C", "9C")
-
-#: the columns of summary.csv, in order
-CSV_COLUMNS = (["input", "status", "water_type", "A_R", "A_G", "A_B"] + [f"score_{t}" for t in _TYPES]
-               + ["other_scores", "flags", "seconds", "taken_at", "latitude", "longitude", "altitude", "image",
-                  "transmission", "transmission_color", "contact_sheet", "sidecar", "error_kind", "error",
-                  "exit_code"])
+#: the columns of summary.csv, in order (the core's writer owns them)
+CSV_COLUMNS = _core.summary_columns()
 
 
 def row_fields_from_sidecar(side: dict) -> dict:
@@ -74,87 +67,41 @@ def _read_sidecar(path: str | None) -> dict | None:
         return None
 
 
-def _text(v) -> object:
-    """A field: None empty; undecodable bytes of a file name (surrogate
-    escapes) as U+FFFD, as uwhl-rs writes them."""
-    if v is None:
-        return ""
-    if isinstance(v, str):
-        return v.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
-    return v
+def summary_cell(text: str) -> str:
+    """A summary.csv cell as it was before the writer neutralised a
+    spreadsheet formula in it (``'=x`` back to ``=x``; docs/OUTPUTS.md):
+    what a reader of the file shows."""
+    return _core.summary_cell(text)
 
 
 class SummaryWriter:
-    """Appends one row per settled input to ``OUTDIR/summary.csv``,
-    flushing each (the file is started afresh by each run; skipped inputs
-    get their row from their sidecar, so it always covers every input)."""
+    """Appends one row per settled input to ``OUTDIR/summary.csv`` through
+    the core's writer (``_core.Summary``, the binary's): the same columns,
+    quoting and neutralised formula cells, each row one locked append, so
+    two runs on one folder keep every row whole. A skipped input's row is
+    filled from its sidecar."""
 
     def __init__(self, out_dir: str):
         self.out_dir = out_dir
-        self.path = os.path.join(out_dir, FILE_NAME)
-        #: why the summary cannot be written (the command reports it), or None
-        self.error = None
-        self._lock = threading.Lock()  # --jobs N settles inputs from N threads
-        self._f = None
-        self._opened = False
+        self._core = _core.Summary(out_dir)
+        self.path = os.fspath(self._core.path)
 
-    def _open(self) -> None:
-        """Made with the first row: a run refused before any input leaves no file."""
-        self._opened = True
-        try:
-            os.makedirs(self.out_dir, exist_ok=True)
-            self._f = open(self.path, "w", newline="", encoding="utf-8")
-            self._w = csv.DictWriter(self._f, fieldnames=CSV_COLUMNS, extrasaction="ignore")
-            self._w.writeheader()
-            self._f.flush()
-        except OSError as e:
-            self._fail(e)
+    @property
+    def error(self) -> str | None:
+        """Why the summary cannot be written (the command reports it), or None."""
+        return self._core.error
 
-    def _fail(self, e: OSError) -> None:
-        self.error = f"cannot write {self.path}: {e.strerror or e}"
-        if self._f is not None:
-            try:
-                self._f.close()
-            except OSError:
-                pass
-        self._f = None
+    @property
+    def read_only(self) -> bool:
+        """It cannot be written because the output folder is read-only."""
+        return self._core.read_only
 
     def add(self, row: dict) -> None:
-        """One input's row (a ``uwhl_rs.tasks`` row): a skipped input's
-        fields come from its sidecar when the row lacks them."""
-        r = dict(row)
-        if r.get("status") == "skipped" and r.get("water_type") is None:
-            side = _read_sidecar(r.get("sidecar"))
-            if side is not None:
-                r.update(row_fields_from_sidecar(side))
-                outs = side.get("outputs") or {}
-                folder = os.path.dirname(r["sidecar"])
-                for role in ("image", "transmission", "transmission_color", "contact_sheet"):
-                    if outs.get(role):
-                        r[role] = os.path.join(folder, outs[role])
-        scores = r.pop("scores", None) or {}
-        for t in _TYPES:
-            r[f"score_{t}"] = scores.get(t)
-        other = {k: v for k, v in scores.items() if k not in _TYPES}
-        r["other_scores"] = json.dumps(other) if other else None
-        with self._lock:
-            if not self._opened:
-                self._open()
-            if self._f is None:
-                return
-            try:
-                self._w.writerow({k: _text(v) for k, v in r.items()})
-                self._f.flush()
-            except OSError as e:
-                self._fail(e)
+        """One input's row (a ``uwhl_rs.tasks`` row)."""
+        self._core.add({k: v for k, v in row.items() if k in CSV_COLUMNS or k == "scores"})
 
     def close(self) -> None:
-        with self._lock:
-            if self._f is not None and not self._f.closed:
-                try:
-                    self._f.close()
-                except OSError as e:
-                    self._fail(e)
+        self._core.close()
 
 
 # ------------------------------------------------------------------ sidecars
@@ -194,7 +141,8 @@ def failed_inputs(out_dir, storage_options: dict | None = None) -> list[dict]:
     except (OSError, ValueError, csv.Error):
         return []
     # a short row has None for its missing cells, a long one a list under None
-    return [{k: display(v) if isinstance(v, str) else "" for k, v in r.items() if isinstance(k, str)} for r in rows]
+    return [{k: display(summary_cell(v)) if isinstance(v, str) else "" for k, v in r.items() if isinstance(k, str)}
+            for r in rows]
 
 
 def collect_sidecars(out_dir, storage_options: dict | None = None, *,

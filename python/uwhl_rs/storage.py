@@ -121,6 +121,34 @@ def filesystem(url: str, storage_options: dict | None):
         raise BatchError(f"{url}: bad storage options ({e})", "bad_arguments") from None
 
 
+#: fsspec protocols whose first path component is a bucket (a container)
+#: that a write does not create
+_BUCKET_STORES = ("s3", "s3a", "gs", "gcs", "az", "abfs", "abfss", "oss")
+
+
+def check_output_bucket(url: str, storage_options: dict | None) -> None:
+    """Refuses an output URL whose bucket does not exist, before any input
+    is restored (each upload would fail after its restoration, every one
+    naming its input instead of the bucket): one ``BatchError`` that
+    names the bucket. A URL of a store without buckets passes."""
+    fs, path = filesystem(url, storage_options)
+    protocols = fs.protocol if isinstance(fs.protocol, (tuple, list)) else (fs.protocol,)
+    bucket = path.strip("/").split("/", 1)[0]
+    if not bucket or not any(p in _BUCKET_STORES for p in protocols):
+        return
+    # info, not exists: exists answers False for refused credentials too
+    try:
+        fs.info(bucket)
+        there = True
+    except FileNotFoundError:
+        there = False
+    except Exception as e:  # the storage itself: credentials, endpoint, permissions
+        raise storage_error(e, url) from None
+    if not there:
+        raise BatchError(f"{url}: the output bucket does not exist (create it, or correct the URL); "
+                         "no input was restored", "write_failed")
+
+
 def _info_time(info: dict) -> float | None:
     """The modification time (seconds since the epoch) in an fsspec info
     record; each backend names it its own way."""

@@ -248,10 +248,19 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         report(err, opts.json_errors, None, &e);
         code = code.max(e.kind.exit_code());
     }
+    summary.close();
     if let Some(why) = summary.error.take() {
-        let e = Failure::new(Kind::Write, why);
-        report(err, opts.json_errors, None, &e);
-        code = code.max(e.kind.exit_code());
+        if summary.read_only && counts[0] == 0 {
+            // a rerun over a finished survey on a read-only mount: nothing
+            // was to be written, the earlier summary.csv still holds
+            if !opts.quiet {
+                let _ = writeln!(err, "uwhl-rs: note: {why} (read-only output folder: the earlier summary.csv stays)");
+            }
+        } else {
+            let e = Failure::new(Kind::Write, why);
+            report(err, opts.json_errors, None, &e);
+            code = code.max(e.kind.exit_code());
+        }
     }
     let [done, skipped, failed] = counts;
     if !opts.quiet {

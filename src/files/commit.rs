@@ -16,8 +16,15 @@
 //!
 //! A claim dropped without a commit removes its temporaries and its claim
 //! file. A claim file whose process no longer runs (kill -9, power cut) is
-//! stale: the next run takes the name over and replaces the outputs that
-//! run may have renamed in without their sidecar.
+//! stale: the next run takes the name over, and when the claim named the
+//! same input it replaces the outputs that run may have renamed in without
+//! their sidecar (a stale claim of another input leaves the files at the
+//! name alone: they are unrelated to this input).
+//!
+//! An input is recognised as the one a sidecar names however it is given
+//! now (another working directory, an absolute path, a name that is not
+//! UTF-8): by path, and else by the SHA-256 of its contents the sidecar
+//! records (`metadata.input_sha256`).
 
 use std::collections::HashMap;
 use std::fs::{self, File, OpenOptions};
@@ -124,21 +131,130 @@ fn input_key(p: &Path) -> PathBuf {
     fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
 }
 
-/// The `input` recorded in a sidecar; None if it cannot be read.
-fn sidecar_input(path: &Path) -> Option<PathBuf> {
-    let text = fs::read(path).ok()?;
-    let v: serde_json::Value = serde_json::from_slice(&text).ok()?;
-    v.get("input")?.as_str().map(PathBuf::from)
+/// The largest sidecar read when deciding whose it is (they are a few kilobytes).
+const MAX_SIDECAR: u64 = 16 << 20;
+
+/// What a sidecar says of its input: the path as given (`input`), the
+/// resolved one when it records it (`input_resolved`, absolute), and the
+/// SHA-256 of the input file (`metadata.input_sha256`). None if it cannot
+/// be read: a regular file only (a FIFO at its name is never waited on).
+fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String>)> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK).open(path).ok()?;
+    let m = f.metadata().ok()?;
+    if !m.is_file() || m.len() > MAX_SIDECAR {
+        return None;
+    }
+    let mut text = Vec::new();
+    f.take(MAX_SIDECAR).read_to_end(&mut text).ok()?;
+    let v = parse_sidecar(&text)?;
+    let input = PathBuf::from(v.get("input")?.as_str()?);
+    let resolved = v.get("input_resolved").and_then(|r| r.as_str()).map(PathBuf::from).filter(|p| p.is_absolute());
+    let hash = v
+        .pointer("/metadata/input_sha256")
+        .and_then(|h| h.as_str())
+        .filter(|h| h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()))
+        .map(str::to_ascii_lowercase);
+    Some((input, resolved, hash))
+}
+
+/// A sidecar's JSON. Python's `json` writes a name that is not UTF-8 with
+/// its undecodable bytes as lone surrogate escapes (`\udce9`), which
+/// serde_json refuses; those are read as U+FFFD, as the binary records them.
+pub(crate) fn parse_sidecar(text: &[u8]) -> Option<serde_json::Value> {
+    if let Ok(v) = serde_json::from_slice(text) {
+        return Some(v);
+    }
+    let mut fixed = Vec::with_capacity(text.len());
+    let mut i = 0;
+    while let Some(&b) = text.get(i) {
+        let esc = text.get(i..i + 6);
+        let low = esc.is_some_and(|e| e.starts_with(b"\\udc") || e.starts_with(b"\\uDC"));
+        // a low surrogate right after a high one is half of a valid pair
+        let paired = i >= 6 && text.get(i - 6..i).is_some_and(|h| {
+            h.starts_with(b"\\ud") && h.get(3).is_some_and(|c| b"89abAB".contains(c))
+        });
+        if low && !paired {
+            fixed.extend_from_slice(b"\\ufffd");
+            i += 6;
+        } else {
+            fixed.push(b);
+            i += 1;
+        }
+    }
+    serde_json::from_slice(&fixed).ok()
+}
+
+/// The SHA-256 of a regular file, streamed (None for anything else).
+fn file_sha256(p: &Path) -> Option<String> {
+    use sha2::Digest;
+    if !fs::metadata(p).is_ok_and(|m| m.is_file()) {
+        return None;
+    }
+    let mut f = File::open(p).ok()?;
+    let mut h = sha2::Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        match f.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => h.update(buf.get(..n)?),
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => return None,
+        }
+    }
+    Some(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Whether the sidecar at `path` is `input`'s, however the input is named
+/// now (docs/OUTPUTS.md "Names already in use"): the same path as given
+/// (the common rerun), the same resolved path, or, since a relative
+/// `input` says nothing once the working directory changed and a name that
+/// is not UTF-8 is recorded with U+FFFD, the same file contents (the
+/// sidecar's `input_sha256`, computed for the input only when the names
+/// do not decide). `hash` caches the input's hash over one [`claim`].
+fn sidecar_is_inputs(path: &Path, input: &Path, key: &Path, hash: &mut Option<Option<String>>) -> bool {
+    let Some((given, resolved, recorded)) = sidecar_input(path) else { return false };
+    let named = match &resolved {
+        // the resolved path, where recorded, decides alone: a relative
+        // `input` equal to ours may name another file from another folder
+        Some(r) => r == key,
+        None => given == input || (given.is_absolute() && input_key(&given) == key),
+    };
+    if named {
+        return true;
+    }
+    match recorded {
+        Some(h) => hash.get_or_insert_with(|| file_sha256(input)).as_deref() == Some(h.as_str()),
+        // a sidecar without the hash: its relative path, from here
+        None => resolved.is_none() && given.is_relative() && input_key(&given) == key,
+    }
+}
+
+/// The bytes of a path (a claim file records the input's exactly, names
+/// that are not UTF-8 included).
+fn path_bytes(p: &Path) -> &[u8] {
+    use std::os::unix::ffi::OsStrExt;
+    p.as_os_str().as_bytes()
 }
 
 /// The pid and input a claim file names.
 fn read_claim(path: &Path) -> Option<(u32, PathBuf)> {
-    let mut s = String::new();
-    File::open(path).ok()?.read_to_string(&mut s).ok()?;
-    let mut lines = s.lines();
-    let pid = lines.next()?.parse().ok()?;
+    use std::os::unix::ffi::OsStrExt;
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW).open(path).ok()?;
+    if !f.metadata().ok()?.is_file() {
+        return None;
+    }
+    let mut s = Vec::new();
+    f.take(1 << 16).read_to_end(&mut s).ok()?;
+    let mut lines = s.split(|&b| b == b'\n');
+    let pid = std::str::from_utf8(lines.next()?).ok()?.parse().ok()?;
     let _name = lines.next()?;
-    Some((pid, PathBuf::from(lines.next()?)))
+    let input = lines.next()?;
+    if input.is_empty() {
+        return None;
+    }
+    Some((pid, PathBuf::from(std::ffi::OsStr::from_bytes(input))))
 }
 
 fn in_flight<T>(f: impl FnOnce(&mut HashMap<PathBuf, PathBuf>) -> T) -> T {
@@ -222,6 +338,8 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
     fs::create_dir_all(req.dir)?;
     let key = input_key(req.input);
     let own = std::process::id();
+    // the input's SHA-256 once computed (only when a sidecar's names do not decide)
+    let mut hash: Option<Option<String>> = None;
     let tries = if req.rename { MAX_NAMES } else { 1 };
     for k in 1..=tries {
         let name = if k == 1 { req.base.to_string() } else { format!("{}_{k}", req.base) };
@@ -247,7 +365,10 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
         let owned = loop {
             match OpenOptions::new().write(true).create_new(true).open(&claim_file) {
                 Ok(mut f) => {
-                    writeln!(f, "{own}\n{name}\n{}", key.display())?;
+                    let mut record = format!("{own}\n{name}\n").into_bytes();
+                    record.extend_from_slice(path_bytes(&key));
+                    record.push(b'\n');
+                    f.write_all(&record)?;
                     break true;
                 }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => match read_claim(&claim_file) {
@@ -264,21 +385,41 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                         break false;
                     }
                     // the claim of a process that no longer runs (or an
-                    // earlier one with this process's pid): taken over
-                    Some(_) => {
-                        stale = true;
+                    // earlier one with this process's pid): taken over. Files
+                    // at the name are that run's half-committed outputs only
+                    // when it was restoring this same input; a claim naming
+                    // another input says nothing of them (they may be the
+                    // user's own x_t.png), so they stay unrelated files
+                    Some((_, holder)) => {
+                        stale = holder == key;
                         let _ = fs::remove_file(&claim_file);
                     }
                     None => {
                         // a claim being written this instant, or one cut short by a crash
                         std::thread::sleep(std::time::Duration::from_millis(20));
                         if read_claim(&claim_file).is_none() {
-                            stale = true;
+                            // whose it was cannot be told: files at the name stay unrelated
+                            stale = false;
                             let _ = fs::remove_file(&claim_file);
                         }
                     }
                 },
-                Err(e) => return Err(e),
+                Err(e) => {
+                    // a folder that cannot be written (a read-only mount of a
+                    // finished survey): an input whose sidecar is here is
+                    // done all the same, one whose name holds another's
+                    // sidecar looks on; anything else cannot be written
+                    if sidecar.exists() {
+                        if sidecar_is_inputs(&sidecar, req.input, &key, &mut hash) {
+                            if !req.overwrite {
+                                return Ok(Resolution::Skipped(Skip::Done, sidecar));
+                            }
+                        } else if req.rename {
+                            break false;
+                        }
+                    }
+                    return Err(e);
+                }
             }
         };
         if !owned {
@@ -288,7 +429,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
             let _ = fs::remove_file(claim_file);
         };
         if sidecar.exists() {
-            let mine = sidecar_input(&sidecar).is_some_and(|i| i == req.input || input_key(&i) == key);
+            let mine = sidecar_is_inputs(&sidecar, req.input, &key, &mut hash);
             if mine && !req.overwrite {
                 release(&claim_file);
                 return Ok(Resolution::Skipped(Skip::Done, sidecar));
@@ -298,8 +439,10 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                 release(&claim_file);
                 continue;
             }
-        } else if req.rename && !req.overwrite && !stale && paths.iter().any(|p| fs::symlink_metadata(p).is_ok()) {
-            // unrelated files at this name, not left by a killed run of ours
+        } else if req.rename && !stale && paths.iter().any(|p| fs::symlink_metadata(p).is_ok()) {
+            // unrelated files at this name, not left by a killed run of this
+            // input: never replaced, --overwrite or not (it redoes this
+            // input's own outputs, found by its sidecar at a later name)
             release(&claim_file);
             continue;
         }
@@ -475,8 +618,9 @@ mod tests {
         let c = claimed(claim(&request(&d, "x", &d.join("x.jpg"), &s, false)).unwrap());
         assert_eq!(c.name(), "x_2");
         drop(c);
+        // --overwrite redoes this input's own outputs, never unrelated files
         let c = claimed(claim(&request(&d, "x", &d.join("x.jpg"), &s, true)).unwrap());
-        assert_eq!(c.name(), "x");
+        assert_eq!(c.name(), "x_2");
         drop(c);
         assert_eq!(fs::read(d.join("x_t.png")).unwrap(), b"mine");
         fs::remove_dir_all(&d).unwrap();
@@ -541,6 +685,100 @@ mod tests {
         assert_eq!(fs::read_to_string(d.join("a.png")).unwrap(), "output 0");
         assert_eq!(fs::read_to_string(d.join("a.json")).unwrap(), side);
         assert_eq!(fs::read_dir(&d).unwrap().count(), 3);
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_python_sidecar_with_a_lone_surrogate_is_read_with_u_fffd() {
+        let v = parse_sidecar(br#"{"input": "caf\udce9.png", "x": "\ud83d\ude00\udc80"}"#).unwrap();
+        assert_eq!(v["input"], "caf\u{fffd}.png");
+        assert_eq!(v["x"], "\u{1f600}\u{fffd}");
+    }
+
+    fn sha256_of(p: &Path) -> String {
+        file_sha256(p).unwrap()
+    }
+
+    #[test]
+    fn a_rerun_recognises_the_input_however_it_is_named_now() {
+        use std::os::unix::ffi::OsStrExt;
+        let d = folder("rename");
+        let s = suffixes();
+        let out = d.join("out");
+        // the first run was elsewhere: its relative input does not resolve from here
+        let a = d.join("a.jpg");
+        fs::write(&a, b"photo a").unwrap();
+        let side = serde_json::json!({"input": "survey/in/a.jpg", "metadata": {"input_sha256": sha256_of(&a)}});
+        let mut c = claimed(claim(&request(&out, "a", &a, &s, false)).unwrap());
+        let temps = write_all(&mut c, &side.to_string());
+        c.commit(&temps).unwrap();
+        assert!(matches!(claim(&request(&out, "a", &a, &s, false)).unwrap(), Resolution::Skipped(Skip::Done, _)));
+        // another file of the same name and a sidecar naming it relatively: not ours
+        let b = d.join("other").join("a.jpg");
+        fs::create_dir_all(b.parent().unwrap()).unwrap();
+        fs::write(&b, b"photo b").unwrap();
+        let c = claimed(claim(&request(&out, "a", &b, &s, false)).unwrap());
+        assert_eq!(c.name(), "a_2");
+        drop(c);
+        // a name that is not UTF-8, recorded with U+FFFD
+        let raw = d.join(std::ffi::OsStr::from_bytes(b"caf\xe9.jpg"));
+        fs::write(&raw, b"photo c").unwrap();
+        let side = serde_json::json!({"input": d.join("caf\u{fffd}.jpg"), "metadata": {"input_sha256": sha256_of(&raw)}});
+        let mut c = claimed(claim(&request(&out, "caf\u{fffd}", &raw, &s, false)).unwrap());
+        let temps = write_all(&mut c, &side.to_string());
+        c.commit(&temps).unwrap();
+        assert!(matches!(claim(&request(&out, "caf\u{fffd}", &raw, &s, false)).unwrap(), Resolution::Skipped(Skip::Done, _)));
+        // a recorded resolved path decides over an equal relative one
+        let side = serde_json::json!({"input": "a.jpg", "input_resolved": input_key(&b)});
+        fs::write(out.join("r.json"), side.to_string()).unwrap();
+        let c = claimed(claim(&request(&out, "r", Path::new("a.jpg"), &s, false)).unwrap());
+        assert_eq!(c.name(), "r_2");
+        drop(c);
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn overwrite_redoes_the_inputs_own_name_and_keeps_foreign_files() {
+        let d = folder("overwrite");
+        let s = suffixes();
+        let a = d.join("a.jpg");
+        fs::write(&a, b"photo").unwrap();
+        // foreign files at a's names: a_t.png, and a.json that is no sidecar of a
+        fs::write(d.join("a_t.png"), b"foreign png").unwrap();
+        let first = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
+        assert_eq!(first.name(), "a_2");
+        let mut first = first;
+        let side = serde_json::json!({"input": a, "metadata": {"input_sha256": sha256_of(&a)}}).to_string();
+        let temps = write_all(&mut first, &side);
+        first.commit(&temps).unwrap();
+        fs::write(d.join("a.json"), b"{\"note\": \"not a sidecar of a\"}").unwrap();
+        for _ in 0..2 {
+            let c = claimed(claim(&request(&d, "a", &a, &s, true)).unwrap());
+            assert_eq!(c.name(), "a_2");
+        }
+        assert_eq!(fs::read(d.join("a_t.png")).unwrap(), b"foreign png");
+        assert_eq!(fs::read(d.join("a.json")).unwrap(), b"{\"note\": \"not a sidecar of a\"}");
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_stale_claim_of_another_input_does_not_hand_over_the_users_files() {
+        let d = folder("stale-other");
+        let s = suffixes();
+        let x = d.join("x.jpg");
+        fs::write(&x, b"photo").unwrap();
+        fs::write(d.join("x_t.png"), b"the user's own").unwrap();
+        let claim_file = d.join(format!(".uwhl-claim-{:016x}", name_hash("x")));
+        fs::write(&claim_file, format!("4194399\nx\n{}\n", d.join("elsewhere.jpg").display())).unwrap();
+        let c = claimed(claim(&request(&d, "x", &x, &s, false)).unwrap());
+        assert_eq!(c.name(), "x_2");
+        drop(c);
+        assert_eq!(fs::read(d.join("x_t.png")).unwrap(), b"the user's own");
+        // the same stale claim naming this input: its run's half-commit is replaced
+        fs::write(&claim_file, format!("4194399\nx\n{}\n", input_key(&x).display())).unwrap();
+        let c = claimed(claim(&request(&d, "x", &x, &s, false)).unwrap());
+        assert_eq!(c.name(), "x");
+        drop(c);
         fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -1,11 +1,13 @@
 //! `OUTDIR/summary.csv` of batch mode: one row per input, written and
 //! flushed as each input is settled, so an interrupted run keeps what it
-//! did. The columns and rows are those of the Python command
-//! (`uwhl_rs/summary.py`, docs/OUTPUTS.md "summary.csv").
+//! did. One writer for both commands: the Python command's rows come here
+//! through `_core.Summary` (`uwhl_rs.outdir.SummaryWriter`), so the
+//! columns, the quoting, the neutralised formulas and the locking live in
+//! this file only (docs/OUTPUTS.md "summary.csv").
 
 use serde_json::Value;
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 
 /// The file's name in OUTDIR.
@@ -38,55 +40,222 @@ fn field(s: &str) -> String {
     }
 }
 
+/// The first characters that make a spreadsheet take a cell as a formula
+/// (OWASP, "CSV Injection"): `=`, `+`, `-`, `@`, TAB and CR.
+const FORMULA_STARTS: [char; 6] = ['=', '+', '-', '@', '\t', '\r'];
+
+/// A text cell made safe to open in a spreadsheet: one that begins with a
+/// formula character gets a single quote in front (OWASP's advice), so
+/// `=HYPERLINK(...)` in a file name is shown, never evaluated. A cell that
+/// already begins with a quote followed by such a character (or by a
+/// second quote) gets one too, so that [`restore_cell`] gives back every
+/// text exactly. Numbers are never text cells here: `-33.5` stays a number.
+pub fn neutralise(s: &str) -> String {
+    let mut c = s.chars();
+    let guard = match c.next() {
+        Some(first) if FORMULA_STARTS.contains(&first) => true,
+        Some('\'') => c.next().is_some_and(|second| second == '\'' || FORMULA_STARTS.contains(&second)),
+        _ => false,
+    };
+    if guard {
+        format!("'{s}")
+    } else {
+        s.to_string()
+    }
+}
+
+/// The text a reader of summary.csv gets back from a cell written through
+/// [`neutralise`] (the inverse: the one quote taken off).
+#[cfg_attr(not(feature = "python"), allow(dead_code))]
+pub fn restore_cell(s: &str) -> &str {
+    let mut c = s.chars();
+    match (c.next(), c.next()) {
+        (Some('\''), Some(second)) if second == '\'' || FORMULA_STARTS.contains(&second) => &s[1..],
+        _ => s,
+    }
+}
+
+/// A cell of a row: text neutralised and quoted, numbers as JSON writes them.
+fn cell(v: Option<&Value>) -> String {
+    match v {
+        Some(Value::String(s)) => field(&neutralise(s)),
+        other => field(&text(other)),
+    }
+}
+
 use crate::files::metadata::value_text as text;
+
+/// Opens `path` for appending without following a link at its name
+/// (`O_NOFOLLOW`: a link planted there fails with ELOOP, never written through).
+/// `O_NONBLOCK` too: a FIFO planted there fails at once instead of
+/// waiting for a reader, and anything but a regular file is refused.
+fn open_append(path: &Path, create: bool) -> std::io::Result<File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = std::fs::OpenOptions::new()
+        .append(true)
+        .create(create)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+        .open(path)?;
+    if !f.metadata()?.is_file() {
+        return Err(std::io::Error::other("not a regular file"));
+    }
+    Ok(f)
+}
+
+/// A clear message for a failed open: a link named as such.
+fn open_error(path: &Path, e: &std::io::Error) -> std::io::Error {
+    if e.raw_os_error() == Some(libc::ELOOP) {
+        std::io::Error::other(format!("cannot write {}: it is a symbolic link (not written through)", path.display()))
+    } else {
+        std::io::Error::new(e.kind(), format!("cannot write {}: {e}", path.display()))
+    }
+}
 
 /// The summary of a batch: made with its first row (a run refused before
 /// any input leaves no file), or why it could not be written.
+///
+/// Each row is appended in one write under an exclusive `flock` of the
+/// file, opened for that row `O_APPEND | O_NOFOLLOW` (a link planted at
+/// the name fails with its name, never written through), so that two runs
+/// on one output folder (docs/OUTPUTS.md) give every row once, none
+/// spliced. Every writer holds a shared `flock` of the output folder while
+/// it runs: one that can take it exclusively is alone and starts the file
+/// afresh (a new file with the header, through an exclusive temporary
+/// renamed into place: whatever was at the name, a link included, is
+/// replaced, its target never touched); one that cannot appends to the
+/// running one's file.
 pub struct Summary {
     outdir: std::path::PathBuf,
-    out: Option<BufWriter<File>>,
+    /// the output folder, its lock held shared while the summary is in use
+    presence: Option<File>,
     opened: bool,
     /// the reason it cannot be written, if so
     pub error: Option<String>,
+    /// it cannot be written because the output folder is on a read-only
+    /// file system (a rerun over an archived survey: see docs/OUTPUTS.md)
+    pub read_only: bool,
     columns: Vec<String>,
 }
 
 impl Summary {
     /// The summary of a batch into `outdir/summary.csv` (started afresh).
     pub fn create(outdir: &Path) -> Self {
-        Self { outdir: outdir.to_path_buf(), out: None, opened: false, error: None, columns: columns() }
+        Self { outdir: outdir.to_path_buf(), presence: None, opened: false, error: None, read_only: false, columns: columns() }
+    }
+
+    /// The path of the file.
+    pub fn path(&self) -> std::path::PathBuf {
+        self.outdir.join(FILE_NAME)
+    }
+
+    fn fail(&mut self, e: &std::io::Error) {
+        self.read_only = e.kind() == std::io::ErrorKind::ReadOnlyFilesystem;
+        self.error = Some(e.to_string());
     }
 
     fn open(&mut self) {
         self.opened = true;
-        let path = self.outdir.join(FILE_NAME);
-        let header = self.columns.join(",");
-        let opened = std::fs::create_dir_all(&self.outdir).and_then(|()| File::create(&path)).and_then(|f| {
-            let mut w = BufWriter::new(f);
-            w.write_all(header.as_bytes())?;
-            w.write_all(b"\r\n")?;
-            w.flush()?;
-            Ok(w)
-        });
-        match opened {
-            Ok(w) => self.out = Some(w),
-            Err(e) => self.error = Some(format!("cannot write {}: {e}", path.display())),
+        match self.try_open() {
+            Ok(presence) => self.presence = Some(presence),
+            Err(e) => self.fail(&e),
         }
     }
 
-    fn write(&mut self, row: &serde_json::Map<String, Value>) {
+    fn try_open(&self) -> std::io::Result<File> {
+        let path = self.path();
+        let fail = |e: std::io::Error| std::io::Error::new(e.kind(), format!("cannot write {}: {e}", path.display()));
+        std::fs::create_dir_all(&self.outdir).map_err(fail)?;
+        let presence = File::open(&self.outdir).map_err(fail)?;
+        let header = format!("{}\r\n", self.columns.join(","));
+        match presence.try_lock() {
+            // alone: a new file. A run starting while this one takes the
+            // shared lock below (the exclusive one is let go first) may
+            // think itself alone too and replace the file: it holds the
+            // header only then, and rows open the file anew, so none is lost
+            Ok(()) => {
+                let (tmp, mut t) = crate::files::commit::create_temp_for(&path).map_err(fail)?;
+                let written = t.write_all(header.as_bytes()).and_then(|()| t.sync_all());
+                drop(t);
+                if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, &path)) {
+                    let _ = std::fs::remove_file(&tmp);
+                    return Err(fail(e));
+                }
+                presence.unlock().map_err(fail)?;
+                presence.lock_shared().map_err(fail)?;
+            }
+            // another run writes the file: its rows and this run's go in it
+            // (a missing file is made by the first row, with the header)
+            Err(std::fs::TryLockError::WouldBlock) => presence.lock_shared().map_err(fail)?,
+            Err(std::fs::TryLockError::Error(e)) => return Err(fail(e)),
+        }
+        Ok(presence)
+    }
+
+    /// Appends one row: its columns taken from `row` by name (missing ones
+    /// empty), text neutralised ([`neutralise`]) and quoted, in one write
+    /// under the file's lock.
+    pub fn write(&mut self, row: &serde_json::Map<String, Value>) {
         if !self.opened {
             self.open();
         }
-        let Some(w) = self.out.as_mut() else { return };
-        let line: Vec<String> = self.columns.iter().map(|c| field(&text(row.get(c)))).collect();
-        let ok = w.write_all(line.join(",").as_bytes()).and_then(|()| w.write_all(b"\r\n")).and_then(|()| w.flush());
+        if self.presence.is_none() {
+            return;
+        }
+        let mut line: String = self.columns.iter().map(|c| cell(row.get(c))).collect::<Vec<_>>().join(",");
+        line.push_str("\r\n");
+        let path = self.path();
+        let header = &self.columns;
+        let ok = open_append(&path, true).map_err(|e| open_error(&path, &e)).and_then(|f| {
+            f.lock()?;
+            // removed while the batch runs: made again, with its header
+            let r = f.metadata().and_then(|m| {
+                if m.len() == 0 {
+                    line.insert_str(0, &format!("{}\r\n", header.join(",")));
+                }
+                (&f).write_all(line.as_bytes())
+            });
+            let _ = f.unlock();
+            r
+        });
         if let Err(e) = ok {
-            self.error = Some(format!("cannot write {FILE_NAME}: {e}"));
-            self.out = None;
+            self.fail(&e);
+            self.presence = None;
         }
     }
 
+    /// Appends a row given as the Python command's rows are (`uwhl_rs.tasks`):
+    /// `scores` (an object) spread over the score columns and
+    /// `other_scores`, `flags` (a list) joined with commas; a skipped row
+    /// without the fields gets them from its sidecar (a local file).
+    #[cfg_attr(not(feature = "python"), allow(dead_code))]
+    pub fn add(&mut self, mut row: serde_json::Map<String, Value>) {
+        if let Some(Value::Object(scores)) = row.remove("scores") {
+            spread_scores(&scores, &mut row);
+        }
+        if let Some(Value::Array(flags)) = row.get("flags") {
+            let joined: Vec<String> = flags.iter().map(|f| text(Some(f))).collect();
+            row.insert("flags".into(), joined.join(",").into());
+        }
+        let skipped = row.get("status").and_then(Value::as_str) == Some("skipped");
+        if skipped && row.get("water_type").is_none_or(Value::is_null) {
+            if let Some(sidecar) = row.get("sidecar").and_then(Value::as_str).map(std::path::PathBuf::from) {
+                if let Some(side) = read_sidecar(&sidecar) {
+                    let dir = sidecar.parent().map(Path::to_path_buf).unwrap_or_default();
+                    for (k, v) in fields_from_sidecar(&side, &dir) {
+                        if row.get(&k).is_none_or(Value::is_null) {
+                            row.insert(k, v);
+                        }
+                    }
+                }
+            }
+        }
+        self.write(&row);
+    }
+
+    /// Closes the file and lets the folder's lock go (also when dropped).
+    pub fn close(&mut self) {
+        self.presence = None;
+    }
     /// A restored input: its sidecar `side`, its outputs in `dir`.
     pub fn done(&mut self, input: &Path, side: &Value, dir: &Path) {
         let mut row = fields_from_sidecar(side, dir);
@@ -106,7 +275,7 @@ impl Summary {
     /// An input not restored: its sidecar (read for the fields when it is
     /// there) and why.
     pub fn skipped(&mut self, input: &Path, sidecar: &Path, note: &str) {
-        let side = std::fs::read(sidecar).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok());
+        let side = read_sidecar(sidecar);
         let dir = sidecar.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut row = side.map(|s| fields_from_sidecar(&s, &dir)).unwrap_or_default();
         row.insert("input".into(), Value::String(input.to_string_lossy().into_owned()));
@@ -137,18 +306,8 @@ fn fields_from_sidecar(side: &Value, dir: &Path) -> serde_json::Map<String, Valu
     for (i, c) in ["A_R", "A_G", "A_B"].iter().enumerate() {
         row.insert((*c).into(), get(&format!("/veiling_light/{i}")));
     }
-    let mut other = serde_json::Map::new();
     if let Some(scores) = side.get("scores").and_then(Value::as_object) {
-        for (t, v) in scores {
-            if TYPES.contains(&t.as_str()) {
-                row.insert(format!("score_{t}"), v.clone());
-            } else {
-                other.insert(t.clone(), v.clone());
-            }
-        }
-    }
-    if !other.is_empty() {
-        row.insert("other_scores".into(), Value::String(Value::Object(other).to_string()));
+        spread_scores(scores, &mut row);
     }
     let flags: Vec<String> = side
         .get("flags")
@@ -168,6 +327,41 @@ fn fields_from_sidecar(side: &Value, dir: &Path) -> serde_json::Map<String, Valu
         }
     }
     row
+}
+
+/// The Jerlov types' scores in their columns, the others (custom types) as
+/// JSON in `other_scores`.
+fn spread_scores(scores: &serde_json::Map<String, Value>, row: &mut serde_json::Map<String, Value>) {
+    let mut other = serde_json::Map::new();
+    for (t, v) in scores {
+        if TYPES.contains(&t.as_str()) {
+            row.insert(format!("score_{t}"), v.clone());
+        } else {
+            other.insert(t.clone(), v.clone());
+        }
+    }
+    if !other.is_empty() {
+        row.insert("other_scores".into(), Value::String(Value::Object(other).to_string()));
+    }
+}
+
+/// The largest sidecar read for a row (they are a few kilobytes).
+const MAX_SIDECAR: u64 = 16 << 20;
+
+/// A skipped input's sidecar, for its row: a regular file only (a FIFO
+/// planted at its name is never waited on), of a sane size, parsed; None
+/// otherwise (the row then has no fields from it).
+fn read_sidecar(path: &Path) -> Option<Value> {
+    use std::io::Read;
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = std::fs::OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK).open(path).ok()?;
+    let m = f.metadata().ok()?;
+    if !m.is_file() || m.len() > MAX_SIDECAR {
+        return None;
+    }
+    let mut bytes = Vec::new();
+    f.take(MAX_SIDECAR).read_to_end(&mut bytes).ok()?;
+    crate::files::commit::parse_sidecar(&bytes)
 }
 
 fn path_text(p: &Path) -> String {
@@ -198,5 +392,156 @@ mod tests {
         assert_eq!(text(row.get("image")), "/o/x.jpg");
         assert_eq!(text(row.get("latitude")), "-33.5");
         assert_eq!(text(row.get("altitude")), "");
+    }
+
+    fn folder(tag: &str) -> std::path::PathBuf {
+        let d = std::env::temp_dir().join(format!("uwhl-summary-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn formula_cells_are_neutralised_and_given_back_exactly() {
+        for (given, written) in [
+            ("=HYPERLINK(\"http://x\")", "'=HYPERLINK(\"http://x\")"),
+            ("+1", "'+1"),
+            ("-2", "'-2"),
+            ("@SUM(A1)", "'@SUM(A1)"),
+            ("\tx", "'\tx"),
+            ("\rx", "'\rx"),
+            ("'=x", "''=x"),
+            ("''", "'''"),
+            ("'a", "'a"),
+            ("'", "'"),
+            ("a=b", "a=b"),
+            ("", ""),
+        ] {
+            assert_eq!(neutralise(given), written, "{given:?}");
+            assert_eq!(restore_cell(written), given, "{written:?}");
+        }
+        // numbers stay numbers, text is neutralised
+        assert_eq!(cell(Some(&serde_json::json!(-33.5))), "-33.5");
+        assert_eq!(cell(Some(&serde_json::json!("-33.5"))), "'-33.5");
+        assert_eq!(cell(Some(&serde_json::json!("=1,2"))), "\"'=1,2\"");
+    }
+
+    #[test]
+    fn a_link_at_summary_csv_is_replaced_never_written_through() {
+        let d = folder("link");
+        let victim = d.join("victim.txt");
+        std::fs::write(&victim, b"keep").unwrap();
+        let out = d.join("out");
+        std::fs::create_dir_all(&out).unwrap();
+        std::os::unix::fs::symlink(&victim, out.join(FILE_NAME)).unwrap();
+        let mut s = Summary::create(&out);
+        s.failed(Path::new("a.jpg"), "unreadable_input", "bad", 3);
+        s.close();
+        assert!(s.error.is_none(), "{:?}", s.error);
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
+        let m = std::fs::symlink_metadata(out.join(FILE_NAME)).unwrap();
+        assert!(m.is_file());
+        let text = std::fs::read_to_string(out.join(FILE_NAME)).unwrap();
+        assert!(text.starts_with("input,status,") && text.contains("a.jpg,failed"), "{text}");
+        // a link planted while another run writes (the file is joined, not
+        // replaced): refused with its name, not written through
+        let mut first = Summary::create(&out);
+        first.failed(Path::new("b.jpg"), "unreadable_input", "bad", 3);
+        std::fs::remove_file(out.join(FILE_NAME)).unwrap();
+        std::os::unix::fs::symlink(&victim, out.join(FILE_NAME)).unwrap();
+        let mut second = Summary::create(&out);
+        second.failed(Path::new("c.jpg"), "unreadable_input", "bad", 3);
+        assert!(second.error.as_deref().is_some_and(|e| e.contains("symbolic link")), "{:?}", second.error);
+        assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
+        // a FIFO planted there: refused at once, not waited on
+        std::fs::remove_file(out.join(FILE_NAME)).unwrap();
+        assert!(std::process::Command::new("mkfifo").arg(out.join(FILE_NAME)).status().unwrap().success());
+        let mut third = Summary::create(&out);
+        third.failed(Path::new("d.jpg"), "unreadable_input", "bad", 3);
+        assert!(third.error.as_deref().is_some_and(|e| e.contains("summary.csv")), "{:?}", third.error);
+        drop(first);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn concurrent_writers_give_every_row_once_and_a_later_run_starts_afresh() {
+        let d = folder("concurrent");
+        let out = d.join("out");
+        // the first writer is open before the others start: they join its file
+        let mut first = Summary::create(&out);
+        first.failed(Path::new("first"), "internal", "x", 6);
+        let threads: Vec<_> = (0..4)
+            .map(|t| {
+                let out = out.clone();
+                std::thread::spawn(move || {
+                    let mut s = Summary::create(&out);
+                    for k in 0..200 {
+                        let long = format!("{t}-{k}-{}", "y".repeat(3000));
+                        s.failed(Path::new(&format!("in{t}_{k}")), "internal", &long, 6);
+                    }
+                    assert!(s.error.is_none(), "{:?}", s.error);
+                })
+            })
+            .collect();
+        for t in threads {
+            t.join().unwrap();
+        }
+        first.close();
+        let text = std::fs::read_to_string(out.join(FILE_NAME)).unwrap();
+        let lines: Vec<&str> = text.split("\r\n").filter(|l| !l.is_empty()).collect();
+        assert_eq!(lines[0], columns().join(","));
+        assert_eq!(lines.iter().filter(|l| l.starts_with("input,")).count(), 1);
+        let mut inputs: Vec<&str> = lines[1..].iter().map(|l| l.split(',').next().unwrap()).collect();
+        assert_eq!(inputs.len(), 801);
+        inputs.sort_unstable();
+        inputs.dedup();
+        assert_eq!(inputs.len(), 801);
+        for l in &lines[1..] {
+            assert_eq!(l.split(',').count(), columns().len(), "{}", &l[..40.min(l.len())]);
+        }
+        // alone again: the next run's file has its own rows only
+        let mut next = Summary::create(&out);
+        next.failed(Path::new("again"), "internal", "x", 6);
+        next.close();
+        let text = std::fs::read_to_string(out.join(FILE_NAME)).unwrap();
+        assert_eq!(text.lines().count(), 2, "{text}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_python_row_is_spread_and_a_skipped_one_filled_from_its_sidecar() {
+        let d = folder("add");
+        let side = serde_json::json!({"water_type": "3C", "veiling_light": [0.1, 0.2, 0.3],
+            "scores": {"3C": 0.5}, "flags": ["f"], "outputs": {"image": "a.jpg"}});
+        std::fs::write(d.join("a.json"), side.to_string()).unwrap();
+        let mut s = Summary::create(&d);
+        let row = |v: Value| v.as_object().cloned().unwrap();
+        s.add(row(serde_json::json!({"input": "b.jpg", "status": "done", "water_type": "II",
+            "scores": {"II": 0.25, "mine": 1.0}, "flags": "x,y", "exit_code": 0})));
+        s.add(row(serde_json::json!({"input": "a.jpg", "status": "skipped", "water_type": null,
+            "sidecar": d.join("a.json"), "error": "already done", "exit_code": 0})));
+        s.close();
+        let text = std::fs::read_to_string(d.join(FILE_NAME)).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        let col = |line: &str, name: &str| {
+            let k = columns().iter().position(|c| c == name).unwrap();
+            line.split(',').nth(k).unwrap_or_default().to_string()
+        };
+        assert_eq!(col(lines[1], "score_II"), "0.25");
+        assert_eq!(col(lines[1], "water_type"), "II");
+        assert!(lines[1].contains("\"{\"\"mine\"\":1.0}\""), "{}", lines[1]);
+        assert_eq!(col(lines[2], "water_type"), "3C");
+        assert_eq!(col(lines[2], "score_3C"), "0.5");
+        assert_eq!(col(lines[2], "image"), d.join("a.jpg").display().to_string());
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_fifo_at_a_skipped_inputs_sidecar_is_not_waited_on() {
+        let d = folder("fifo");
+        let fifo = d.join("a.json");
+        assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+        assert!(read_sidecar(&fifo).is_none());
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }

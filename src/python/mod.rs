@@ -4,6 +4,7 @@
 
 mod color;
 mod files;
+mod outdir;
 #[cfg(feature = "internals")]
 mod hooks;
 
@@ -726,6 +727,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(restore_f32, m)?)?;
     crate::python::color::register(m)?;
     crate::python::files::register(m)?;
+    crate::python::outdir::register(m)?;
     m.add_class::<PyRestoration>()?;
     m.add_class::<PySequence>()?;
     m.add_class::<PyParams>()?;

@@ -1,0 +1,141 @@
+//! pyo3 bindings (feature "python") of [`crate::files::summary`]: the
+//! Python command writes its summary.csv rows through the core's writer,
+//! so both commands share the columns, the quoting, the neutralised
+//! formula cells and the locking of concurrent runs (docs/OUTPUTS.md
+//! "summary.csv").
+
+use crate::files::summary::{self, Summary};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use serde_json::Value;
+use std::sync::{Mutex, PoisonError};
+
+/// Deeper rows than this are not rows of `uwhl_rs.tasks` (they nest one level).
+const MAX_DEPTH: usize = 8;
+
+/// A row's value as JSON: text with undecodable bytes of a file name
+/// (surrogate escapes) as U+FFFD, as the binary writes them; NaN as empty.
+fn value(v: &Bound<'_, PyAny>, depth: usize) -> PyResult<Value> {
+    if depth > MAX_DEPTH {
+        return Err(PyValueError::new_err("a summary row nests too deep"));
+    }
+    if v.is_none() {
+        return Ok(Value::Null);
+    }
+    if let Ok(b) = v.cast::<PyBool>() {
+        return Ok(Value::Bool(b.is_true()));
+    }
+    if v.cast::<PyInt>().is_ok() {
+        if let Ok(i) = v.extract::<i64>() {
+            return Ok(i.into());
+        }
+        if let Ok(u) = v.extract::<u64>() {
+            return Ok(u.into());
+        }
+        return Ok(Value::String(v.str()?.to_string_lossy().into_owned()));
+    }
+    if let Ok(f) = v.cast::<PyFloat>() {
+        return Ok(serde_json::Number::from_f64(f.value()).map_or(Value::Null, Value::Number));
+    }
+    if let Ok(s) = v.cast::<PyString>() {
+        // a file name's undecodable bytes (surrogate escapes) back to bytes
+        // first, so that each is one U+FFFD, as the binary writes it
+        let text = match s.extract::<std::ffi::OsString>() {
+            Ok(os) => os.to_string_lossy().into_owned(),
+            Err(_) => s.to_string_lossy().into_owned(),
+        };
+        return Ok(Value::String(text));
+    }
+    if let Ok(d) = v.cast::<PyDict>() {
+        return Ok(Value::Object(map(d, depth + 1)?));
+    }
+    if v.cast::<PyList>().is_ok() || v.cast::<PyTuple>().is_ok() {
+        let items: PyResult<Vec<Value>> = v.try_iter()?.map(|x| value(&x?, depth + 1)).collect();
+        return Ok(Value::Array(items?));
+    }
+    if let Ok(p) = v.extract::<std::path::PathBuf>() {
+        return Ok(Value::String(p.to_string_lossy().into_owned()));
+    }
+    Ok(Value::String(v.str()?.to_string_lossy().into_owned()))
+}
+
+fn map(d: &Bound<'_, PyDict>, depth: usize) -> PyResult<serde_json::Map<String, Value>> {
+    let mut m = serde_json::Map::new();
+    for (k, v) in d.iter() {
+        let key = k.str()?.to_string_lossy().into_owned();
+        m.insert(key, value(&v, depth)?);
+    }
+    Ok(m)
+}
+
+/// `OUTDIR/summary.csv` of a batch (`crate::files::summary::Summary`):
+/// made with its first row; `add` appends one row as `uwhl_rs.tasks`
+/// gives it; `error` says why it cannot be written, if so.
+#[pyclass(name = "Summary", module = "uwhl_rs._core", frozen)]
+struct PySummary {
+    inner: Mutex<Summary>,
+    path: std::path::PathBuf,
+}
+
+#[pymethods]
+impl PySummary {
+    #[new]
+    fn new(out_dir: std::path::PathBuf) -> Self {
+        let s = Summary::create(&out_dir);
+        Self { path: s.path(), inner: Mutex::new(s) }
+    }
+
+    /// The file's path.
+    #[getter]
+    fn path(&self) -> std::path::PathBuf {
+        self.path.clone()
+    }
+
+    /// Why the file cannot be written, or None.
+    #[getter]
+    fn error(&self) -> Option<String> {
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).error.clone()
+    }
+
+    /// Whether it cannot be written because the folder is read-only.
+    #[getter]
+    fn read_only(&self) -> bool {
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).read_only
+    }
+
+    /// Appends one row (a dict of columns; `scores` a dict, spread over the
+    /// score columns), in one locked write.
+    fn add(&self, py: Python<'_>, row: &Bound<'_, PyDict>) -> PyResult<()> {
+        let row = map(row, 0)?;
+        let inner = &self.inner;
+        py.detach(|| inner.lock().unwrap_or_else(PoisonError::into_inner).add(row));
+        Ok(())
+    }
+
+    /// Closes the file (and lets the folder's lock go).
+    fn close(&self) {
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).close();
+    }
+}
+
+/// A summary.csv cell's text as it was before the writer neutralised a
+/// formula (`crate::files::summary::restore_cell`): for readers of the file.
+#[pyfunction]
+fn summary_cell(cell: &str) -> String {
+    summary::restore_cell(cell).to_string()
+}
+
+/// The columns of summary.csv, in order.
+#[pyfunction]
+fn summary_columns() -> Vec<String> {
+    summary::columns()
+}
+
+/// Adds the bindings of this file to `_core`.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySummary>()?;
+    m.add_function(wrap_pyfunction!(summary_cell, m)?)?;
+    m.add_function(wrap_pyfunction!(summary_columns, m)?)?;
+    Ok(())
+}
