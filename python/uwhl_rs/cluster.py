@@ -101,8 +101,9 @@ def _handshake(address: str, dask: str, timeout: float) -> None:
         if failed:
             raise failed[0]
     except (TimeoutError, asyncio.TimeoutError):
-        raise BatchError(f"--dask {dask}: no answer from a Dask scheduler within {timeout:g} s (is it one? "
-                         "UWHL_DASK_TIMEOUT sets the wait)") from None
+        # the same words as a refused connect: when nothing listens, either deadline may come first
+        raise BatchError(f"--dask {dask}: cannot reach the Dask scheduler (no answer within {timeout:g} s: not "
+                         "running, not a Dask scheduler, or slower than UWHL_DASK_TIMEOUT)") from None
     except OSError as e:
         raise BatchError(f"--dask {dask}: cannot reach the Dask scheduler ({type(e).__name__}: {e})") from None
     except (Exception, MemoryError) as e:

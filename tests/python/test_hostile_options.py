@@ -110,7 +110,7 @@ def test_a_mask_that_is_a_fifo_is_refused_not_waited_on(binary, tmp_path, face, 
     _png(tmp_path / "a.png", 40, 60)
     os.mkfifo(tmp_path / "m.png")
     r = _run(face, binary, [str(tmp_path / "a.png"), "-o", str(tmp_path / "out"), flag, str(tmp_path / "m.png")],
-             timeout=60)
+             timeout=20)
     assert r.returncode == CONTRACT["bad_arguments"], r.stderr
     assert any(flag in x and "m.png" in x and "not a regular file" in x for x in _error_lines(r)), r.stderr
 
