@@ -11,7 +11,7 @@ pub enum Error {
     #[error("bad image shape: {0}")]
     Shape(String),
     /// The image is too small for the method (it needs a neighbourhood).
-    #[error("image too small: {height}x{width} pixels; at least {min}x{min} are needed")]
+    #[error("image too small: {width} pixels wide and {height} high ({height}x{width}, height x width); the method needs at least {min} pixels on each side")]
     TooSmall {
         /// rows
         height: usize,

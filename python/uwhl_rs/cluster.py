@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import os
+import threading
 
 import uwhl_rs
 
@@ -44,11 +45,71 @@ def connect(client, dask: str | None, threads: int | None):
                                            silence_logs=40)
         return distributed.Client(cluster), cluster, threads if threads is not None else max(1, cores // n)
     address = dask if "://" in dask else f"tcp://{dask}"
+    timeout = _timeout()
+    _handshake(address, dask, timeout)
     try:
-        c = distributed.Client(address, timeout=float(os.environ.get("UWHL_DASK_TIMEOUT", "10")))
+        c = distributed.Client(address, timeout=timeout)
     except (OSError, TimeoutError) as e:
         raise BatchError(f"--dask {dask}: cannot reach the Dask scheduler ({type(e).__name__}: {e})") from None
+    except (Exception, MemoryError) as e:  # it answered the handshake, then something that is not Dask
+        raise BatchError(f"--dask {dask}: the Dask scheduler's answer cannot be read "
+                         f"({type(e).__name__}: {str(e)[:200]})") from None
     return c, None, threads
+
+
+def _timeout() -> float:
+    """UWHL_DASK_TIMEOUT, seconds (default 10): how long the scheduler has to answer."""
+    raw = os.environ.get("UWHL_DASK_TIMEOUT", "10")
+    try:
+        t = float(raw)
+    except ValueError:
+        t = float("nan")
+    if not 0 < t < 1e6:
+        raise BatchError(f"UWHL_DASK_TIMEOUT={raw!r}: a number of seconds > 0", "bad_arguments")
+    return t
+
+
+def _handshake(address: str, dask: str, timeout: float) -> None:
+    """Connects to ``address`` and completes Dask's handshake (its first
+    message each way) within ``timeout`` seconds in all, then closes. The
+    Client's own timeout covers only the connect: a server that accepts and
+    never answers (an HTTP server, a silent port) would hold it for good,
+    and one that sends other bytes makes distributed read them as a frame
+    length (exabytes). Either is refused here, naming the address."""
+    import asyncio
+
+    from distributed.comm import connect as dask_connect
+
+    async def shake():
+        comm = await dask_connect(address, timeout=timeout)
+        await comm.close()
+
+    def run():
+        # a loop of its own, in a thread: the caller may be inside a running event loop (a notebook)
+        try:
+            asyncio.run(asyncio.wait_for(shake(), timeout))
+        except BaseException as e:
+            failed.append(e)
+
+    failed: list[BaseException] = []
+    t = threading.Thread(target=run, name="uwhl-dask-handshake", daemon=True)
+    t.start()
+    t.join(2 * timeout + 5)  # wait_for ends it at timeout; this only guards a cancellation that hangs
+    try:
+        if t.is_alive():
+            raise TimeoutError
+        if failed:
+            raise failed[0]
+    except (TimeoutError, asyncio.TimeoutError):
+        # the same words as a refused connect: when nothing listens, either deadline may come first
+        raise BatchError(f"--dask {dask}: cannot reach the Dask scheduler (no answer within {timeout:g} s: not "
+                         "running, not a Dask scheduler, or slower than UWHL_DASK_TIMEOUT)") from None
+    except OSError as e:
+        raise BatchError(f"--dask {dask}: cannot reach the Dask scheduler ({type(e).__name__}: {e})") from None
+    except (Exception, MemoryError) as e:
+        # MemoryError: other bytes read as a frame length; the rest: a frame that is not Dask's
+        raise BatchError(f"--dask {dask}: the server does not speak Dask's protocol (its answer cannot be read: "
+                         f"{type(e).__name__}: {str(e)[:200]})") from None
 
 
 def check_workers(client) -> None:

@@ -25,137 +25,16 @@ import csv
 import json
 import math
 import os
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import _core
 from .errors import ManifestError
+# the manifest's format and reader, re-exported: uwhl_rs.evaluate is where the command and tests find them
+from .manifest import METHODS, TYPE_ORDER, Chart, Entry, load_manifest
 
-#: Profiles ``--method`` can name (METHOD §12), the default first.
-METHODS = tuple(next(o["choices"] for o in _core.OPTIONS if o["key"] == "method"))
-
-_ENTRY_KEYS = {"path", "distance", "water_type", "water_mask", "charts", "restore"}
-_CHART_KEYS = {"name", "gray_patches", "region"}
-_TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
-_METHOD_KEYS = {o["key"] for o in _core.OPTIONS if o["method"]}
-
-
-@dataclass
-class Chart:
-    """One chart of an image: its gray patches and the region it covers."""
-
-    name: str
-    gray_patches: list[tuple[int, int, int, int]]
-    region: list[tuple[int, int, int, int]] = field(default_factory=list)
-
-
-@dataclass
-class Entry:
-    """One image of a manifest."""
-
-    label: str
-    path: str
-    distance: str | None = None
-    water_type: str | None = None
-    charts: list[Chart] = field(default_factory=list)
-    restore: dict = field(default_factory=dict)
-    water_mask: str | None = None
-    #: the entry's ``path`` as written in the manifest (``path`` is it joined to the manifest's folder)
-    manifest_path: str = ""
-
-
-def _box(v, what: str) -> tuple[int, int, int, int]:
-    if not (isinstance(v, (list, tuple)) and len(v) == 4 and all(isinstance(x, int) and not isinstance(x, bool)
-                                                                 for x in v)):
-        raise ManifestError(f"{what}: a box is [x0, y0, x1, y1] in integer pixels, not {v!r}")
-    x0, y0, x1, y1 = v
-    if x0 < 0 or y0 < 0 or x1 <= x0 or y1 <= y0:
-        raise ManifestError(f"{what}: box {list(v)} is empty or starts before the image (need 0 <= x0 < x1, 0 <= y0 < y1)")
-    return x0, y0, x1, y1
-
-
-def _entry(k: int, raw, folder: str) -> Entry:
-    label = f"images[{k}]"
-    if not isinstance(raw, dict):
-        raise ManifestError(f"{label}: an entry is an object with a 'path', not {type(raw).__name__}")
-    if "path" in raw and isinstance(raw["path"], str):
-        label = f"images[{k}] ({raw['path']})"
-    unknown = sorted(set(raw) - _ENTRY_KEYS)
-    if unknown:
-        raise ManifestError(f"{label}: unknown key(s) {unknown} (known: {sorted(_ENTRY_KEYS)})")
-    if not isinstance(raw.get("path"), str):
-        raise ManifestError(f"{label}: 'path' (the image, relative to the manifest) is required")
-    path = os.path.join(folder, raw["path"])
-    if not os.path.isfile(path):
-        raise ManifestError(f"{label}: no such image file {path}")
-
-    def file_key(key: str, what: str):
-        # an optional file named by the entry, relative to the manifest
-        value = raw.get(key)
-        if value is None:
-            return None
-        if not isinstance(value, str):
-            raise ManifestError(f"{label}: '{key}' is a file path, not {value!r}")
-        value = os.path.join(folder, value)
-        if not os.path.isfile(value):
-            raise ManifestError(f"{label}: no such {what} file {value}")
-        return value
-
-    distance = file_key("distance", "distance")
-    water_mask = file_key("water_mask", "water-mask")
-    wt = raw.get("water_type")
-    if wt is not None and wt not in _TYPE_ORDER:
-        raise ManifestError(f"{label}: water_type {wt!r} is not one of {_TYPE_ORDER}")
-    charts = []
-    for c, ch in enumerate(raw.get("charts") or []):
-        what = f"{label} charts[{c}]"
-        if not isinstance(ch, dict):
-            raise ManifestError(f"{what}: a chart is an object, not {ch!r}")
-        unknown = sorted(set(ch) - _CHART_KEYS)
-        if unknown:
-            raise ManifestError(f"{what}: unknown key(s) {unknown} (known: {sorted(_CHART_KEYS)})")
-        patches = ch.get("gray_patches")
-        if not isinstance(patches, list) or not patches:
-            raise ManifestError(f"{what}: 'gray_patches' (a list of boxes) is required")
-        region = ch.get("region") or []
-        if not isinstance(region, list):
-            raise ManifestError(f"{what}: 'region' is a list of boxes")
-        name = ch.get("name", f"chart {c + 1}")
-        charts.append(Chart(str(name), [_box(b, f"{what} gray_patches[{i}]") for i, b in enumerate(patches)],
-                            [_box(b, f"{what} region[{i}]") for i, b in enumerate(region)]))
-    restore = raw.get("restore") or {}
-    if not isinstance(restore, dict):
-        raise ManifestError(f"{label}: 'restore' is an object of restore() keywords")
-    unknown = sorted(set(restore) - _METHOD_KEYS)
-    if unknown:
-        raise ManifestError(f"{label}: unknown restore keyword(s) {unknown} (known: {sorted(_METHOD_KEYS)})")
-    return Entry(label, path, distance, wt, charts, dict(restore), water_mask, raw["path"])
-
-
-def load_manifest(path: str) -> tuple[list[Entry], list[str]]:
-    """The entries of a manifest and one message per entry that cannot be
-    evaluated (the others are). A manifest that is not JSON, or has no
-    ``images`` list, raises :class:`ManifestError`."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
-    except OSError as e:
-        raise ManifestError(f"{path}: cannot read ({e.strerror or e})") from None
-    except json.JSONDecodeError as e:
-        raise ManifestError(f"{path}: not JSON ({e})") from None
-    if not isinstance(doc, dict) or not isinstance(doc.get("images"), list):
-        raise ManifestError(f"{path}: a manifest is an object with an 'images' list")
-    unknown = sorted(set(doc) - {"images"})
-    problems = [f"{path}: unknown top-level key(s) {unknown} (ignored)"] if unknown else []
-    folder = os.path.dirname(os.path.abspath(path))
-    entries = []
-    for k, raw in enumerate(doc["images"]):
-        try:
-            entries.append(_entry(k, raw, folder))
-        except ManifestError as e:
-            problems.append(str(e))
-    return entries, problems
+__all__ = ["METHODS", "Chart", "Entry", "ManifestError", "load_manifest", "evaluate_entry", "summarize",
+           "write_results", "write_report"]
 
 
 # ------------------------------------------------------------------ metrics
@@ -198,8 +77,8 @@ def pearson(a, b) -> float:
 
 def type_steps(a: str, b: str) -> int | None:
     """How many rows apart two Jerlov types are in the table order (None if either is custom)."""
-    if a in _TYPE_ORDER and b in _TYPE_ORDER:
-        return abs(_TYPE_ORDER.index(a) - _TYPE_ORDER.index(b))
+    if a in TYPE_ORDER and b in TYPE_ORDER:
+        return abs(TYPE_ORDER.index(a) - TYPE_ORDER.index(b))
     return None
 
 
@@ -296,6 +175,8 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
     import uwhl_rs
     from .images import read_image
 
+    # the entry's own restore.method is the method evaluated for it (its keywords override the command's)
+    method = entry.restore.get("method", method)
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, not {method!r}")
     compare = [m for m in METHODS if m != method] if compare is None else [m for m in compare if m != method]
@@ -321,7 +202,13 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
             kwargs["water_mask"] = read_mask(entry.water_mask, (h, w), "water_mask")
         except ValueError as e:
             raise ManifestError(f"{entry.label}: {e}") from None
-    res = uwhl_rs.restore(img, mask=mask, **kwargs)
+    try:
+        res = uwhl_rs.restore(img, mask=mask, **kwargs)
+    except uwhl_rs.ParameterError as e:
+        if not entry.restore:
+            raise
+        # a value only the image can check (the others were checked with the manifest): the entry is bad
+        raise ManifestError(f"{entry.label}: restore: {e}") from None
     images = {"input": img, "stretch": stretch(img), "grayworld": grayworld(img), method: res.image}
     restorations = {method: res}
     steps = {method: uwhl_rs.method_steps(**kwargs)}
@@ -332,8 +219,10 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
         images[m] = restorations[m].image
         steps[m] = uwhl_rs.method_steps(**other)
     types = {}
+    # a custom candidate is restored alone by its (name, beta_BR, beta_BG), a table type by its name
+    spec = {t[0] if isinstance(t, (tuple, list)) else t: t for t in kwargs.get("water_types") or []}
     for name in res.scores:
-        one = {**kwargs, "water_types": [name], "veiling_light": tuple(res.veiling_light)}
+        one = {**kwargs, "water_types": [spec.get(name, name)], "veiling_light": tuple(res.veiling_light)}
         r = uwhl_rs.restore(img, mask=mask, **one)
         images[f"type:{name}"] = r.image
         restorations[f"type:{name}"] = r
@@ -603,7 +492,7 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
         if r["charts"]:
             parts.append(f"<figure>{_bars(r['charts'], methods)}<figcaption>psi-bar per chart</figcaption></figure>")
         if r["_distance"] is not None:
-            rho = r["rho"].get(method, {}).get("rho_B")
+            rho = r["rho"].get(r["method"], {}).get("rho_B")
             parts.append(f"<figure>{_scatter(r['_distance'], r['_transmission'], rho)}</figure>")
         parts.append("</div><table class='types'><tr><th>type</th><th>score</th><th>excluded</th>"
                      "<th>psi-bar (deg)</th><th>rho (t_B)</th></tr>")

@@ -2,7 +2,9 @@
 //! work is in [`uwhl::cli`]; this file reads the process arguments and
 //! exits with the documented code (see `uwhl-rs --help`).
 
-#![forbid(unsafe_code)]
+// deny, not forbid: the one exception is the start-up hook below (a
+// `link_section`, which the unsafe_code lint counts), allowed where it is
+#![deny(unsafe_code)]
 #![deny(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -13,6 +15,44 @@
 use std::io::Write;
 use std::process::ExitCode;
 use uwhl::cli::{help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_stream, Command};
+
+/// Whether stdout was closed when the process started (`>&-`). Rust's
+/// runtime puts /dev/null on a closed standard descriptor before `main`,
+/// so every write then succeeds and stream mode's lines would be lost
+/// without a word; only a check that runs before it can tell.
+#[cfg(target_os = "linux")]
+mod closed_stdout {
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    static CLOSED: AtomicBool = AtomicBool::new(false);
+
+    extern "C" fn check() {
+        // without /proc there is no telling: taken as open
+        let fds = std::path::Path::new("/proc/self/fd");
+        if fds.is_dir() && std::fs::symlink_metadata(fds.join("1")).is_err() {
+            CLOSED.store(true, Ordering::Relaxed);
+        }
+    }
+
+    // run by the loader's start-up code, before the Rust runtime's
+    #[allow(unsafe_code)]
+    #[used]
+    #[link_section = ".init_array"]
+    static CHECK: extern "C" fn() = check;
+
+    /// What [`check`] found.
+    pub fn closed() -> bool {
+        CLOSED.load(Ordering::Relaxed)
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+mod closed_stdout {
+    /// Not known here: taken as open.
+    pub fn closed() -> bool {
+        false
+    }
+}
 
 fn main() -> ExitCode {
     let json_errors = std::env::args_os().any(|a| a == "--json-errors");
@@ -36,7 +76,15 @@ fn main() -> ExitCode {
         },
         Ok(Command::Run(opts)) => {
             init_threads(opts.params.threads);
-            if opts.stream {
+            if opts.stream && closed_stdout::closed() {
+                // each frame's outcome is only its line on stdout: restoring frames nobody hears of is refused
+                let e = uwhl::Failure::new(
+                    uwhl::Kind::Write,
+                    "stdout is closed: stream mode writes each frame's JSON line there; nothing was restored",
+                );
+                report(&mut stderr, opts.json_errors, None, &e);
+                e.kind.exit_code()
+            } else if opts.stream {
                 // unlocked (the lock is not Send): lines are read on a second thread
                 let mut stdin = std::io::BufReader::new(std::io::stdin());
                 run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)

@@ -96,6 +96,17 @@ pub struct Demo {
     pub seed: u64,
 }
 
+/// The value of `-o`: an empty name would be taken as the current folder,
+/// which is never what was meant (an unset shell variable), so it is refused.
+fn outdir_value(v: OsString) -> Result<PathBuf, Failure> {
+    if v.is_empty() {
+        return Err(Failure::usage(
+            "-o/--out: the output folder's name is empty (give a folder; '.' for the current one)",
+        ));
+    }
+    Ok(v.into())
+}
+
 /// Parses `demo`'s options (after the subcommand).
 fn parse_demo(p: &mut lexopt::Parser) -> Result<Command, Failure> {
     use lexopt::prelude::*;
@@ -110,7 +121,7 @@ fn parse_demo(p: &mut lexopt::Parser) -> Result<Command, Failure> {
     while let Some(arg) = p.next().map_err(lex)? {
         match arg {
             Short('h') | Long("help") => return Ok(Command::Help),
-            Short('o') | Long("out") | Long("output") => d.out = p.value().map_err(lex)?.into(),
+            Short('o') | Long("out") | Long("output") => d.out = outdir_value(p.value().map_err(lex)?)?,
             Long("water-type") => {
                 let v = text(p.value().map_err(lex)?, "--water-type")?;
                 d.water_type = WaterType::by_name(v.trim()).map_err(|e| Failure::usage(format!("--water-type: {e}")))?;
@@ -170,7 +181,7 @@ where
             Short('h') | Long("help") => return Ok(Command::Help),
             Short('V') | Long("version") => return Ok(Command::Version),
             Short('o') | Long("out") | Long("output") => {
-                outdir = Some(p.value().map_err(lex)?.into());
+                outdir = Some(outdir_value(p.value().map_err(lex)?)?);
                 continue;
             }
             Value(v) if is_first && v == "restore" => continue,
@@ -336,6 +347,17 @@ mod tests {
         assert_eq!(run(&["a.png", "restore", "-o", "o"]).unwrap().inputs.len(), 2);
         // --reuse-estimates is accepted in batch mode too
         assert_eq!(run(&["a", "b", "-o", "o", "--reuse-estimates", "3"]).unwrap().reuse_estimates, Some(3));
+    }
+
+    #[test]
+    fn an_empty_out_is_refused_not_the_current_folder() {
+        for args in [&["a.png", "-o", ""][..], &["a.png", "--out="], &["--stream", "--output", ""]] {
+            let e = run(args).err().unwrap();
+            assert_eq!(e.kind, Kind::Usage, "{args:?}");
+            assert!(e.message.contains("-o/--out") && e.message.contains("empty"), "{}", e.message);
+        }
+        let e = parse(["demo", "-o", ""].iter().copied()).err().unwrap();
+        assert_eq!(e.kind, Kind::Usage);
     }
 
     #[test]

@@ -56,6 +56,8 @@ pub struct Masks {
 
 /// Reads a mask file; an unreadable mask is a usage error (it is an argument).
 pub fn load_mask(path: &Path, flag: &str, opts: &Settings) -> Result<Mask, Failure> {
+    // a FIFO or a device would block the open or never end the read
+    crate::files::jobs::regular_file(path).map_err(|why| Failure::usage(format!("{flag} {}: {why}", path.display())))?;
     let file = File::open(path)
         .map_err(|e| Failure::usage(format!("{flag} {}: {e}", path.display())))?;
     let limits = Limits {

@@ -28,7 +28,7 @@ pub enum Selection {
     Exhaustive,
     /// The types are scored on a copy whose longer side is about
     /// `FAST_SIDE` (see `fast_factor`): one pixel (the centre) of every s x s block, s =
-    /// ceil(max(H, W) / 1024), with its water region and mask, and the
+    /// ceil(max(H, W) / 1024) (at most min(H, W) / 4), with its water region and mask, and the
     /// full-resolution veiling light. Where the copy's choice (METHOD §9 on
     /// the copy) is uncertain, up to 3 of its best surviving
     /// types are scored again at full resolution and METHOD §9 chooses among
@@ -66,8 +66,12 @@ impl Selection {
 pub const FAST_SIDE: usize = 1024;
 
 /// Block factor of the copy [`Selection::Fast`] scores on (1: no copy).
+/// At most min(H, W) / MIN_SIDE: a long thin image (10000x4) would
+/// otherwise give a copy thinner than the method can restore; it is
+/// scored on a shorter copy, or exhaustively.
 pub fn fast_factor(h: usize, w: usize) -> usize {
-    h.max(w).div_ceil(FAST_SIDE).max(1)
+    let thin = h.min(w) / crate::method::image::MIN_SIDE;
+    h.max(w).div_ceil(FAST_SIDE).min(thin).max(1)
 }
 
 /// Parameters of [`restore`](crate::restore); `Default` gives docs/METHOD.md's defaults.

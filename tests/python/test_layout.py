@@ -24,7 +24,6 @@ MAX_LINES = 600
 #: entry goes when its module is split (the test says so)
 LONGER = {
     f"{NAME}.synth": (900, "the scene renderer, one concern: noise, painting, the two scenes"),
-    f"{NAME}.evaluate": (700, "its results.csv is being reworked; split it after"),
 }
 
 

@@ -27,13 +27,17 @@ def run(a: argparse.Namespace, console: Console) -> int:
     kwargs = {k: v for k, v in method_kwargs(a, skip=("method",)).items() if v is not None}
     if types is not None:
         kwargs["water_types"] = types
+    def about_manifest(message: str) -> str:
+        # the line names the manifest once (the reader's messages start with its path)
+        return message.removeprefix(f"{a.manifest}: ")
+
     try:
         entries, problems = ev.load_manifest(a.manifest)
     except ManifestError as e:
-        raise CommandError(str(e), e.kind, a.manifest) from e
+        raise CommandError(about_manifest(str(e)), e.kind, a.manifest) from e
     code = 0
     for p in problems:
-        code = max(code, console.error("unreadable_input", p, a.manifest))
+        code = max(code, console.error("unreadable_input", about_manifest(p), a.manifest))
     results = []
     t0 = time.perf_counter()
     for k, entry in enumerate(entries, 1):
@@ -45,8 +49,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
             problems.append(f"{entry.label}: {describe(e, entry.path)}")
             continue
         results.append(r)
-        psi = [row["psi_deg"] for row in r["charts"] if row["method"] == a.method]
-        rho = r["rho"].get(a.method, {}).get("rho_B")
+        psi = [row["psi_deg"] for row in r["charts"] if row["method"] == r["method"]]
+        rho = r["rho"].get(r["method"], {}).get("rho_B")
         console.line(f"[{k}/{len(entries)}] {entry.label}: water type {r['water_type']}"
                      + (f", psi-bar {', '.join(f'{v:.1f}' for v in psi if v is not None)} deg" if psi else "")
                      + (f", rho {rho:.3f}" if rho is not None else "") + f" ({time.perf_counter() - t:.1f} s)")

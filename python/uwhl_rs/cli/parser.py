@@ -93,9 +93,17 @@ def water_types(values: list[str] | None):
     return out
 
 
+def _folder(value: str) -> str:
+    """An output folder's name as given: an empty one would be taken as the
+    current folder, never what was meant (an unset shell variable)."""
+    if not value:
+        raise argparse.ArgumentTypeError("the output folder's name is empty (give a folder; '.' for the current one)")
+    return value
+
+
 def _folder_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of the subcommands that read an output folder (report, ifdo)."""
-    p.add_argument("out", metavar="OUTDIR", help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
+    p.add_argument("out", metavar="OUTDIR", type=_folder, help="an output folder (or URL) of uwhl restore or uwhl-rs restore")
     p.add_argument("--storage-option", action="append", default=[], metavar="KEY=VALUE",
                    help="an fsspec option for a URL OUTDIR, as for restore")
     p.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
@@ -123,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     r.add_argument("inputs", nargs="+", metavar="INPUT", help="image files, folders or glob patterns")
-    r.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR",
+    r.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR", type=_folder,
                    help="output folder (created if needed)")
     _add_options(r)
 
@@ -133,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Render the package's synthetic underwater scene (nothing is downloaded), restore it, "
         "write input/restored/transmission/clean_truth PNGs and report true vs estimated water type and A.",
     )
-    d.add_argument("-o", "--out", "--output", dest="out", default="uwhl_demo", help="output folder (default: ./uwhl_demo)")
+    d.add_argument("-o", "--out", "--output", dest="out", default="uwhl_demo", type=_folder, help="output folder (default: ./uwhl_demo)")
     d.add_argument("--water-type", default="III", choices=list(uwhl_rs.WATER_TYPES), help="water type to render (default III)")
     d.add_argument("--size", default="480x640", help="HxW of the scene (default 480x640)")
     d.add_argument("--seed", type=int, default=7, help="scene seed (default 7)")
@@ -176,7 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
         "results.json, results.csv and report.html.",
     )
     e.add_argument("manifest", metavar="MANIFEST", help="the manifest (JSON; paths relative to it)")
-    e.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR",
+    e.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="OUTDIR", type=_folder,
                    help="output folder (created if needed)")
     e.add_argument("--mask-charts", action="store_true",
                    help="exclude the charts' regions from estimation (the mask of restore), as the paper does")

@@ -178,6 +178,21 @@ mod tests {
     }
 
     #[test]
+    fn fast_copy_is_never_thinner_than_the_method_needs() {
+        use crate::method::image::MIN_SIDE;
+        for (h, w) in [(4, 10000), (10000, 4), (5, 5000), (7, 9000), (40, 30000), (4, 4), (3000, 4000)] {
+            let s = fast_factor(h, w);
+            assert!(h.div_ceil(s) >= MIN_SIDE && w.div_ceil(s) >= MIN_SIDE, "{h}x{w}: s = {s}");
+        }
+        // ordinary photos keep the factor of METHOD §9 (and their outputs)
+        assert_eq!(fast_factor(3000, 4000), 4);
+        assert_eq!(fast_factor(1080, 1920), 2);
+        // a long thin one whose copy fits stays fast, with a smaller factor
+        assert_eq!(fast_factor(40, 30000), 10);
+        assert_eq!(fast_factor(4, 10000), 1);
+    }
+
+    #[test]
     fn fast_copy_samples_block_centres() {
         // 5 x 7 image, s = 2: rows 1, 3, 4 (last block clipped), columns 1, 3, 5, 6
         let (h, w) = (5usize, 7usize);

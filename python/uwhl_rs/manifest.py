@@ -1,0 +1,230 @@
+"""The manifest of ``uwhl evaluate`` (docs/EVALUATE.md): reading it
+safely (a regular file, bounded, UTF-8 JSON) and checking every entry, so
+that a bad entry is one line naming it before anything runs."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+from dataclasses import dataclass, field
+
+from . import _core
+from .errors import ManifestError
+
+#: Profiles ``--method`` can name (METHOD §12), the default first.
+METHODS = tuple(next(o["choices"] for o in _core.OPTIONS if o["key"] == "method"))
+
+_ENTRY_KEYS = {"path", "distance", "water_type", "water_mask", "charts", "restore"}
+_CHART_KEYS = {"name", "gray_patches", "region"}
+#: The Jerlov types in table order (METHOD §1).
+TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
+_METHOD_KEYS = {o["key"] for o in _core.OPTIONS if o["method"]}
+#: A manifest lists images and boxes; anything larger is not one (and is not read into memory).
+MAX_MANIFEST_BYTES = 16 << 20
+
+
+@dataclass
+class Chart:
+    """One chart of an image: its gray patches and the region it covers."""
+
+    name: str
+    gray_patches: list[tuple[int, int, int, int]]
+    region: list[tuple[int, int, int, int]] = field(default_factory=list)
+
+
+@dataclass
+class Entry:
+    """One image of a manifest."""
+
+    label: str
+    path: str
+    distance: str | None = None
+    water_type: str | None = None
+    charts: list[Chart] = field(default_factory=list)
+    restore: dict = field(default_factory=dict)
+    water_mask: str | None = None
+    #: the entry's ``path`` as written in the manifest (``path`` is it joined to the manifest's folder)
+    manifest_path: str = ""
+
+
+def _box(v, what: str) -> tuple[int, int, int, int]:
+    if not (isinstance(v, (list, tuple)) and len(v) == 4 and all(isinstance(x, int) and not isinstance(x, bool)
+                                                                 for x in v)):
+        raise ManifestError(f"{what}: a box is [x0, y0, x1, y1] in integer pixels, not {v!r}")
+    x0, y0, x1, y1 = v
+    if x0 < 0 or y0 < 0 or x1 <= x0 or y1 <= y0:
+        raise ManifestError(f"{what}: box {list(v)} is empty or starts before the image (need 0 <= x0 < x1, 0 <= y0 < y1)")
+    return x0, y0, x1, y1
+
+
+def _entry(k: int, raw, folder: str) -> Entry:
+    label = f"images[{k}]"
+    if not isinstance(raw, dict):
+        raise ManifestError(f"{label}: an entry is an object with a 'path', not {type(raw).__name__}")
+    if "path" in raw and isinstance(raw["path"], str):
+        label = f"images[{k}] ({raw['path']})"
+    unknown = sorted(set(raw) - _ENTRY_KEYS)
+    if unknown:
+        raise ManifestError(f"{label}: unknown key(s) {unknown} (known: {sorted(_ENTRY_KEYS)})")
+    if not isinstance(raw.get("path"), str):
+        raise ManifestError(f"{label}: 'path' (the image, relative to the manifest) is required")
+    path = os.path.join(folder, raw["path"])
+    if not os.path.isfile(path):
+        raise ManifestError(f"{label}: no such image file {path}")
+
+    def file_key(key: str, what: str):
+        # an optional file named by the entry, relative to the manifest
+        value = raw.get(key)
+        if value is None:
+            return None
+        if not isinstance(value, str):
+            raise ManifestError(f"{label}: '{key}' is a file path, not {value!r}")
+        value = os.path.join(folder, value)
+        if not os.path.isfile(value):
+            raise ManifestError(f"{label}: no such {what} file {value}")
+        return value
+
+    distance = file_key("distance", "distance")
+    water_mask = file_key("water_mask", "water-mask")
+    wt = raw.get("water_type")
+    if wt is not None and wt not in TYPE_ORDER:
+        raise ManifestError(f"{label}: water_type {wt!r} is not one of {TYPE_ORDER}")
+    charts = []
+    raw_charts = raw.get("charts")
+    if raw_charts is not None and not isinstance(raw_charts, list):
+        raise ManifestError(f"{label}: 'charts' is a list of chart objects, not {_short(raw_charts)}")
+    for c, ch in enumerate(raw_charts or []):
+        what = f"{label} charts[{c}]"
+        if not isinstance(ch, dict):
+            raise ManifestError(f"{what}: a chart is an object, not {ch!r}")
+        unknown = sorted(set(ch) - _CHART_KEYS)
+        if unknown:
+            raise ManifestError(f"{what}: unknown key(s) {unknown} (known: {sorted(_CHART_KEYS)})")
+        patches = ch.get("gray_patches")
+        if not isinstance(patches, list) or not patches:
+            raise ManifestError(f"{what}: 'gray_patches' (a list of boxes) is required")
+        region = ch.get("region") or []
+        if not isinstance(region, list):
+            raise ManifestError(f"{what}: 'region' is a list of boxes")
+        name = ch.get("name", f"chart {c + 1}")
+        charts.append(Chart(str(name), [_box(b, f"{what} gray_patches[{i}]") for i, b in enumerate(patches)],
+                            [_box(b, f"{what} region[{i}]") for i, b in enumerate(region)]))
+    restore = raw.get("restore") or {}
+    if not isinstance(restore, dict):
+        raise ManifestError(f"{label}: 'restore' is an object of restore() keywords")
+    unknown = sorted(set(restore) - _METHOD_KEYS)
+    if unknown:
+        raise ManifestError(f"{label}: unknown restore keyword(s) {unknown} (known: {sorted(_METHOD_KEYS)})")
+    restore = dict(restore)
+    if "water_types" in restore:
+        restore["water_types"] = _water_types(restore["water_types"], f"{label}: restore.water_types")
+    if "method" in restore and restore["method"] not in METHODS:
+        raise ManifestError(f"{label}: restore.method {_short(restore['method'])} is not one of {list(METHODS)}")
+    _check_restore(restore, label)
+    return Entry(label, path, distance, wt, charts, restore, water_mask, raw["path"])
+
+
+def _short(v, limit: int = 80) -> str:
+    """A value of the manifest as a message quotes it: its repr, cut short."""
+    r = repr(v)
+    return r if len(r) <= limit else r[:limit] + "..."
+
+
+def _water_types(value, what: str) -> list:
+    """restore.water_types as ``restore`` takes it. JSON has no tuples, so a
+    custom type is written ``[NAME, BETA_BR, BETA_BG]`` or
+    ``{"name": NAME, "beta_br": BETA_BR, "beta_bg": BETA_BG}``."""
+    if not isinstance(value, list):
+        raise ManifestError(f"{what}: a list of type names or custom types, not {_short(value)}")
+    out = []
+    for i, t in enumerate(value):
+        if isinstance(t, dict) and set(t) == {"name", "beta_br", "beta_bg"}:
+            t = [t["name"], t["beta_br"], t["beta_bg"]]
+        if isinstance(t, str):
+            if t not in TYPE_ORDER:
+                raise ManifestError(f"{what}[{i}]: unknown water type {_short(t)} (known: {', '.join(TYPE_ORDER)}; "
+                                    'a custom type is [NAME, BETA_BR, BETA_BG] or {"name": ..., "beta_br": ..., '
+                                    '"beta_bg": ...})')
+            out.append(t)
+        elif (isinstance(t, list) and len(t) == 3 and isinstance(t[0], str)
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in t[1:])):
+            out.append((t[0], float(t[1]), float(t[2])))
+        else:
+            raise ManifestError(f"{what}[{i}]: a water type is a name, [NAME, BETA_BR, BETA_BG] or "
+                                f'{{"name": ..., "beta_br": ..., "beta_bg": ...}}, not {_short(t)}')
+    return out
+
+
+def _check_restore(restore: dict, label: str) -> None:
+    """The entry's restore keywords checked now, without an image, so a bad
+    value is a bad entry (named, exit 3) before anything runs."""
+    import uwhl_rs
+
+    try:
+        uwhl_rs.Sequence(**restore)
+    except (uwhl_rs.ParameterError, TypeError, ValueError, OverflowError) as e:
+        raise ManifestError(f"{label}: restore: {e}") from None
+
+
+def _read_manifest(path: str) -> dict:
+    """The manifest's JSON document. Only a regular file is read (a FIFO or
+    a device would block or never end), at most MAX_MANIFEST_BYTES of it."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except OSError as e:
+        raise ManifestError(f"{path}: cannot read the manifest ({e.strerror or e})") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ManifestError(f"{path}: the manifest must be a regular file, not "
+                                f"{'a folder' if stat.S_ISDIR(st.st_mode) else 'a FIFO' if stat.S_ISFIFO(st.st_mode) else 'a device or socket'}")
+        if st.st_size > MAX_MANIFEST_BYTES:
+            raise ManifestError(f"{path}: the manifest is {st.st_size} bytes, over the limit of {MAX_MANIFEST_BYTES}")
+        chunks, size = [], 0
+        while size <= MAX_MANIFEST_BYTES:
+            b = os.read(fd, min(1 << 20, MAX_MANIFEST_BYTES + 1 - size))
+            if not b:
+                break
+            chunks.append(b)
+            size += len(b)
+    except OSError as e:
+        raise ManifestError(f"{path}: cannot read the manifest ({e.strerror or e})") from None
+    finally:
+        os.close(fd)
+    if size > MAX_MANIFEST_BYTES:  # it grew while read
+        raise ManifestError(f"{path}: the manifest is over the limit of {MAX_MANIFEST_BYTES} bytes")
+    data = b"".join(chunks)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise ManifestError(f"{path}: the manifest is not UTF-8 text (byte 0x{data[e.start]:02x} at offset "
+                            f"{e.start})") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ManifestError(f"{path}: not JSON ({e})") from None
+    except RecursionError:
+        raise ManifestError(f"{path}: not a manifest (JSON nested too deeply)") from None
+    except ValueError as e:  # e.g. an integer of more digits than Python converts
+        raise ManifestError(f"{path}: not a manifest ({e})") from None
+
+
+def load_manifest(path: str) -> tuple[list[Entry], list[str]]:
+    """The entries of a manifest and one message per entry that cannot be
+    evaluated (the others are). A manifest that is not JSON, or has no
+    ``images`` list, raises :class:`ManifestError`."""
+    doc = _read_manifest(path)
+    if not isinstance(doc, dict) or not isinstance(doc.get("images"), list):
+        raise ManifestError(f"{path}: a manifest is an object with an 'images' list")
+    unknown = sorted(set(doc) - {"images"})
+    # refused like an entry's unknown key (a misspelt key would otherwise go unnoticed); the entries still run
+    problems = [f"{path}: unknown top-level key(s) {unknown} (the manifest has only 'images')"] if unknown else []
+    folder = os.path.dirname(os.path.abspath(path))
+    entries = []
+    for k, raw in enumerate(doc["images"]):
+        try:
+            entries.append(_entry(k, raw, folder))
+        except ManifestError as e:
+            problems.append(str(e))
+    return entries, problems

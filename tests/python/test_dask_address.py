@@ -1,0 +1,124 @@
+"""``uwhl restore --dask ADDRESS`` pointed at something that is not a Dask
+scheduler (issue 30): an HTTP server, a port that sends other bytes, one
+that accepts and never answers. Each is refused within UWHL_DASK_TIMEOUT
+with one line naming the address, exit 7 (docs/CLI.md), nothing written.
+The servers run in this process, on loopback."""
+
+from __future__ import annotations
+
+import http.server
+import os
+import socket
+import subprocess
+import sys
+import threading
+
+import pytest
+
+from uwhl_rs import synth
+from uwhl_rs.images import write_image
+
+pytest.importorskip("distributed")
+
+
+class _Server:
+    """A loopback TCP server in a thread; ``answer(conn)`` handles each connection."""
+
+    def __init__(self, answer):
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(16)
+        self.port = self.sock.getsockname()[1]
+        self.conns: list[socket.socket] = []
+        self.answer = answer
+        threading.Thread(target=self._loop, daemon=True).start()
+
+    def _loop(self):
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            self.conns.append(conn)
+            threading.Thread(target=self.answer, args=(conn,), daemon=True).start()
+
+    def close(self):
+        for c in self.conns:
+            c.close()
+        self.sock.close()
+
+
+def _junk(conn):
+    # what a web server's status line looks like to a reader of Dask frames: an 8-byte length of ~3 EiB
+    try:
+        conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Length: 0\r\n\r\n")
+    except OSError:
+        pass
+
+
+def _silent(conn):
+    pass  # accepted, kept open, never a byte
+
+
+@pytest.fixture
+def http_server():
+    srv = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    srv.daemon_threads = True
+    threading.Thread(target=srv.serve_forever, daemon=True).start()
+    yield srv.server_address[1]
+    srv.shutdown()
+    srv.server_close()
+
+
+@pytest.fixture
+def photo(tmp_path):
+    img, _ = synth.demo_input(40, 60, seed=3)
+    path = tmp_path / "in" / "a.png"
+    path.parent.mkdir()
+    write_image(path, img, encoding="linear")
+    return path
+
+
+def _restore(tmp_path, photo, address):
+    env = {**os.environ, "UWHL_DASK_TIMEOUT": "2"}
+    # the subprocess timeout only turns a hang into a failure; the assertions are the code and the line
+    return subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(photo), "-o", str(tmp_path / "out"),
+                           "--dask", address], capture_output=True, text=True, env=env, timeout=120)
+
+
+def _refused(r, tmp_path, address, needle):
+    assert r.returncode == 7, (r.returncode, r.stderr)
+    assert "Traceback" not in r.stderr, r.stderr
+    line = [x for x in r.stderr.splitlines() if f"--dask {address}" in x]
+    assert line and needle in line[0], r.stderr
+    assert not os.path.exists(tmp_path / "out") or not os.listdir(tmp_path / "out")
+
+
+def test_an_http_server_is_not_waited_on_for_good(tmp_path, photo, http_server):
+    address = f"127.0.0.1:{http_server}"
+    _refused(_restore(tmp_path, photo, address), tmp_path, address, "cannot reach the Dask scheduler (no answer within 2 s")
+
+
+def test_a_port_that_sends_other_bytes_is_refused_not_a_traceback(tmp_path, photo):
+    srv = _Server(_junk)
+    try:
+        address = f"tcp://127.0.0.1:{srv.port}"
+        _refused(_restore(tmp_path, photo, address), tmp_path, address, "does not speak Dask's protocol")
+    finally:
+        srv.close()
+
+
+def test_a_server_that_accepts_and_never_answers_is_given_up_on(tmp_path, photo):
+    srv = _Server(_silent)
+    try:
+        address = f"127.0.0.1:{srv.port}"
+        _refused(_restore(tmp_path, photo, address), tmp_path, address, "cannot reach the Dask scheduler (no answer within 2 s")
+    finally:
+        srv.close()
+
+
+def test_a_bad_timeout_is_a_usage_error(tmp_path, photo):
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(photo), "-o", str(tmp_path / "out"),
+                        "--dask", "127.0.0.1:9"], capture_output=True, text=True,
+                       env={**os.environ, "UWHL_DASK_TIMEOUT": "soon"}, timeout=120)
+    assert r.returncode == 2 and "UWHL_DASK_TIMEOUT" in r.stderr and "Traceback" not in r.stderr, r.stderr

@@ -1,0 +1,152 @@
+"""uwhl evaluate's manifest from a hostile or careless hand (issue 30):
+what is not a manifest is one line naming it (exit 3, no traceback, no
+hang), and what the docs promise of an entry's ``restore`` holds."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import uwhl_rs
+from uwhl_rs import evaluate as ev
+from uwhl_rs import synth
+
+
+def _evaluate(tmp_path, manifest, *args, timeout=120):
+    """``uwhl evaluate MANIFEST`` in a subprocess (the timeout only guards a hang)."""
+    return subprocess.run([sys.executable, "-m", "uwhl_rs", "evaluate", str(manifest), "-o", str(tmp_path / "out"),
+                           *args], capture_output=True, text=True, timeout=timeout)
+
+
+def _one_line_about(r, manifest, needle):
+    assert r.returncode == 3, (r.returncode, r.stderr)
+    assert "Traceback" not in r.stderr and "Error:" not in r.stderr, r.stderr
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1, r.stderr
+    assert lines[0].startswith(f"uwhl: {manifest}: ") and lines[0].count(str(manifest)) == 1, lines
+    assert needle in lines[0], lines
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_a_fifo_manifest_is_refused_not_waited_on(tmp_path):
+    fifo = tmp_path / "m.json"
+    os.mkfifo(fifo)
+    _one_line_about(_evaluate(tmp_path, fifo, timeout=60), fifo, "regular file")
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="no /dev/zero")
+def test_a_device_manifest_is_refused_not_read_to_the_end(tmp_path):
+    _one_line_about(_evaluate(tmp_path, "/dev/zero", timeout=60), "/dev/zero", "regular file")
+
+
+def test_a_manifest_over_the_size_limit_is_refused_unread(tmp_path):
+    big = tmp_path / "m.json"
+    with open(big, "wb") as f:  # sparse: costs no disk; far over any manifest of boxes
+        f.truncate(64 << 20)
+    _one_line_about(_evaluate(tmp_path, big, timeout=60), big, "over the limit")
+
+
+@pytest.mark.parametrize("content, needle", [
+    (b'{"images": [], "note": "caf\xe9"}', "not UTF-8"),
+    (b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
+    (b'{"images": [' + b"1" * 5000 + b"]}", "not a manifest"),  # more digits than Python turns into an int
+    (b'{"images": [}', "not JSON"),
+], ids=["latin-1", "deep", "long-int", "broken"])
+def test_a_manifest_that_is_not_json_text_is_one_line(tmp_path, content, needle):
+    m = tmp_path / "m.json"
+    m.write_bytes(content)
+    _one_line_about(_evaluate(tmp_path, m, timeout=60), m, needle)
+
+
+def _scene(tmp_path, name="scene.png", h=60, w=80, water_type="3C", seed=1):
+    img, _ = synth.demo_input(h, w, water_type=water_type, seed=seed)
+    uwhl_rs.images.write_image(tmp_path / name, img, bits=8, encoding="linear")
+    return {"path": name, "charts": [{"gray_patches": [[10, h - 20, 20, h - 10]]}]}
+
+
+@pytest.mark.parametrize("field, value, needle", [
+    ("charts", 5, "'charts' is a list"),
+    ("charts", "chart", "'charts' is a list"),
+    ("restore", {"water_types": "3C"}, "restore.water_types"),
+    ("restore", {"water_types": [["x", "a", 1]]}, "restore.water_types[0]"),
+    ("restore", {"method": "fastest"}, "restore.method"),
+    ("restore", {"guided_radius": -3}, "guided_radius"),
+], ids=["charts-int", "charts-str", "types-str", "types-bad-custom", "method", "radius"])
+def test_a_malformed_entry_is_named_and_not_a_traceback(tmp_path, field, value, needle):
+    e = _scene(tmp_path)
+    e[field] = value
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert entries == [] and len(problems) == 1, problems
+    assert problems[0].startswith("images[0] (scene.png): ") and needle in problems[0], problems
+
+
+def test_an_unknown_restore_water_type_is_a_bad_entry_exit_3(tmp_path):
+    """docs/EVALUATE.md: an unknown water type in an entry is a bad entry,
+    exit 3 (not 2, a bad command-line argument)."""
+    e = _scene(tmp_path)
+    e["restore"] = {"water_types": ["3C", "XI"]}
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    r = _evaluate(tmp_path, tmp_path / "m.json")
+    assert r.returncode == 3, r.stderr
+    assert "images[0] (scene.png)" in r.stderr and "'XI'" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_restore_value_only_the_image_checks_is_a_bad_entry_exit_3(tmp_path):
+    e = _scene(tmp_path)
+    e["restore"] = {"guided_eps": -1.0, "water_types": ["3C"]}
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    r = _evaluate(tmp_path, tmp_path / "m.json")
+    assert r.returncode == 3, r.stderr
+    assert "images[0] (scene.png)" in r.stderr and "guided_eps" in r.stderr
+
+
+def test_custom_water_types_can_be_written_in_json(tmp_path):
+    """restore() takes a custom type as a (name, beta_BR, beta_BG) tuple;
+    JSON has no tuples, so the manifest takes a list or an object."""
+    e = _scene(tmp_path)
+    e["restore"] = {"water_types": ["3C", ["deep", 1.6, 1.3], {"name": "murky", "beta_br": 0.9, "beta_bg": 1.05}]}
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert not problems, problems
+    r = ev.evaluate_entry(entries[0])
+    assert set(r["types"]) == {"3C", "deep", "murky"}
+    img, _ = uwhl_rs.images.read_image(tmp_path / "scene.png")
+    want = uwhl_rs.restore(img, water_types=["3C", ("deep", 1.6, 1.3), ("murky", 0.9, 1.05)])
+    assert r["water_type"] == want.water_type
+
+
+def test_an_entrys_restore_method_is_the_method_evaluated(tmp_path):
+    """docs/EVALUATE.md: an entry's ``restore`` keywords override the
+    command's options, ``method`` too (it used to be dropped silently)."""
+    e = _scene(tmp_path)
+    e["restore"] = {"method": "paper", "water_types": ["3C", "II", "7C"]}
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert not problems, problems
+    r = ev.evaluate_entry(entries[0], method="revised")
+    img, _ = uwhl_rs.images.read_image(tmp_path / "scene.png")
+    paper = uwhl_rs.restore(img, method="paper", water_types=["3C", "II", "7C"])
+    revised = uwhl_rs.restore(img, method="revised", water_types=["3C", "II", "7C"])
+    assert not np.array_equal(paper.image, revised.image)  # else the test could not tell them apart
+    assert r["method"] == "paper"
+    assert r["veiling_light"] == [float(v) for v in paper.veiling_light]
+    np.testing.assert_array_equal(r["_images"]["paper"], paper.image)
+    # and the command's progress line reports that method's numbers
+    out = _evaluate(tmp_path, tmp_path / "m.json")
+    assert out.returncode == 0, out.stderr
+    assert json.load(open(tmp_path / "out" / "results.json"))["images"][0]["method"] == "paper"
+
+
+def test_an_unknown_top_level_key_is_an_error_and_says_so(tmp_path):
+    """The line and the exit code agree: an unknown key is refused (exit
+    3), as an entry's unknown key is; the line does not call it ignored."""
+    (tmp_path / "m.json").write_text(json.dumps({"images": [], "imges": []}))
+    r = _evaluate(tmp_path, tmp_path / "m.json", timeout=60)
+    assert r.returncode == 3, r.stderr
+    assert "'imges'" in r.stderr and "ignored" not in r.stderr, r.stderr
