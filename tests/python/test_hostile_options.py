@@ -18,7 +18,6 @@ import uwhl_rs
 
 CONTRACT = {"ok": 0, "bad_arguments": 2, "unreadable_input": 3, "write_failed": 5, "internal": 6}
 FACES = ["python", "rust"]
-PY_REWRITE = "python per-input path being rewritten"
 
 
 def _env() -> dict:
@@ -104,7 +103,7 @@ def test_a_tiff_of_two_sample_pixels_says_what_it_holds(binary, tmp_path, face):
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
 @pytest.mark.parametrize("flag", ["--mask", "--water-mask"])
-@pytest.mark.parametrize("face", [pytest.param("python", marks=pytest.mark.xfail(reason=PY_REWRITE, strict=False)),
+@pytest.mark.parametrize("face", ["python",
                                   "rust"])
 def test_a_mask_that_is_a_fifo_is_refused_not_waited_on(binary, tmp_path, face, flag):
     _png(tmp_path / "a.png", 40, 60)
@@ -124,7 +123,7 @@ def test_stream_mode_refuses_a_fifo_mask_too(binary, tmp_path):
 
 
 @pytest.mark.parametrize("flag", ["--mask", "--water-mask"])
-@pytest.mark.parametrize("face", [pytest.param("python", marks=pytest.mark.xfail(reason=PY_REWRITE, strict=False)),
+@pytest.mark.parametrize("face", ["python",
                                   "rust"])
 def test_a_mask_of_the_wrong_size_is_a_bad_argument_in_both(binary, tmp_path, face, flag):
     """A mask's size is the user's option value against the input: 2
