@@ -12,7 +12,8 @@
 use crate::error::{Failure, Kind};
 use crate::files::color::{decode_u16, decode_u8};
 use image::{ColorType, DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader};
-use std::io::{BufRead, Cursor, Seek};
+use crate::files::exif;
+use std::io::{BufRead, BufReader, Cursor, Read, Seek, SeekFrom};
 
 /// Limits on one decoded file.
 #[derive(Debug, Clone, Copy)]
@@ -58,6 +59,73 @@ pub struct Decoded {
     /// the embedded ICC profile: its description, whether the codes were
     /// converted through it (not sRGB), and why it could not be read
     pub icc_profile: Option<(String, bool, Option<String>)>,
+    /// what in the metadata was ignored and why (orientation), for the
+    /// sidecar's `source.notes`; the ICC profile's reason is in `icc_profile`
+    pub notes: Vec<String>,
+}
+
+/// A reader that presents `inner` without some byte ranges (whole PNG
+/// chunks the pixel decoder must not inflate or hold: the ICC profile,
+/// read with a cap by `files::exif`, and oversized text and EXIF chunks).
+struct Without<R> {
+    inner: R,
+    /// (start, length) in `inner`, sorted, not overlapping
+    holes: Vec<(u64, u64)>,
+    /// position as presented
+    pos: u64,
+    /// length as presented
+    len: u64,
+}
+
+impl<R: Read + Seek> Without<R> {
+    fn new(mut inner: R, holes: Vec<(u64, u64)>) -> std::io::Result<Self> {
+        let total = inner.seek(SeekFrom::End(0))?;
+        let len = total.saturating_sub(holes.iter().map(|h| h.1).sum());
+        inner.seek(SeekFrom::Start(0))?;
+        Ok(Self { inner, holes, pos: 0, len })
+    }
+
+    /// The position in `inner` of the presented position `pos`, and how
+    /// many bytes may be read from there before the next hole.
+    fn map(&self, pos: u64) -> (u64, u64) {
+        let mut phys = pos;
+        for &(start, n) in &self.holes {
+            if phys < start {
+                return (phys, start - phys);
+            }
+            phys += n;
+        }
+        (phys, u64::MAX)
+    }
+}
+
+impl<R: Read + Seek> Read for Without<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let (phys, room) = self.map(self.pos);
+        self.inner.seek(SeekFrom::Start(phys))?;
+        let n = buf.len().min(usize::try_from(room).unwrap_or(usize::MAX));
+        let got = self.inner.read(&mut buf[..n])?;
+        self.pos += got as u64;
+        Ok(got)
+    }
+}
+
+impl<R: Read + Seek> Seek for Without<R> {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        let target = match to {
+            SeekFrom::Start(p) => Some(p),
+            SeekFrom::End(d) => self.len.checked_add_signed(d),
+            SeekFrom::Current(d) => self.pos.checked_add_signed(d),
+        };
+        self.pos = target.ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "seek before the start"))?;
+        Ok(self.pos)
+    }
+}
+
+/// The largest ICC profile held for an input: [`exif::MAX_BLOCK`], and at
+/// most a sixteenth of the memory budget (it is counted in the budget).
+fn icc_cap(limits: &Limits) -> u64 {
+    exif::MAX_BLOCK.min(limits.max_memory / 16)
 }
 
 fn image_error(e: ImageError) -> Failure {
@@ -108,32 +176,68 @@ fn read_jpeg<R: BufRead + Seek>(mut reader: R, limits: &Limits) -> Result<Vec<u8
     Ok(bytes)
 }
 
+/// The metadata read before the pixels: the orientation (1 when not
+/// oriented) and why it was taken so, and the ICC profile (None: none;
+/// Err: refused, with the reason; Ok(None): left to the decoder).
+struct Meta {
+    orientation: u8,
+    note: Option<String>,
+    icc: Option<Result<Option<Vec<u8>>, String>>,
+}
+
 /// Opens a decoder on `reader`, checks the header (pixel count, then the
 /// caller's `check`), decodes and orients. Returns the image, its format
-/// name and the EXIF orientation code applied.
+/// name, the orientation applied and the metadata read. The orientation
+/// and the ICC profile are read by `files::exif` (bounded, one rule for
+/// both commands), not by the decoders; a PNG's iCCP chunk and oversized
+/// text chunks are hidden from the PNG decoder.
 fn open<R: BufRead + Seek>(
     reader: R,
     limits: &Limits,
     orient: bool,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
-) -> Result<(DynamicImage, &'static str, u8, Option<Vec<u8>>), Failure> {
+) -> Result<(DynamicImage, &'static str, Meta), Failure> {
+    let io = |e: std::io::Error| Failure::new(Kind::Input, format!("cannot read: {e}"));
     let reader = ImageReader::new(reader)
         .with_guessed_format()
-        .map_err(|e| Failure::new(Kind::Input, format!("cannot read: {e}")))?;
-    if reader.format() == Some(ImageFormat::Jpeg) {
-        let bytes = read_jpeg(reader.into_inner(), limits)?;
-        let reader = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
-        return open_reader(reader, limits, orient, check);
+        .map_err(io)?;
+    let cap = icc_cap(limits);
+    let oriented = |r: &mut dyn FnMut() -> (u8, Option<String>)| if orient { r() } else { (1, None) };
+    match reader.format() {
+        Some(ImageFormat::Jpeg) => {
+            let bytes = read_jpeg(reader.into_inner(), limits)?;
+            let (orientation, note) = oriented(&mut || exif::orientation_of(&bytes));
+            let icc = exif::jpeg(&mut Cursor::new(&bytes), cap).icc.map(|r| r.map(Some));
+            let reader = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
+            open_reader(reader, limits, Meta { orientation, note, icc }, check)
+        }
+        Some(ImageFormat::Png) => {
+            let mut inner = reader.into_inner();
+            let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
+            let (found, holes) = exif::png(&mut inner, cap);
+            let icc = found.icc.map(|r| r.map(Some));
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let hidden = BufReader::new(Without::new(inner, holes).map_err(io)?);
+            let reader = ImageReader::with_format(hidden, ImageFormat::Png);
+            open_reader(reader, limits, Meta { orientation, note, icc }, check)
+        }
+        Some(ImageFormat::Tiff) => {
+            let mut inner = reader.into_inner();
+            let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let reader = ImageReader::with_format(inner, ImageFormat::Tiff);
+            open_reader(reader, limits, Meta { orientation, note, icc: Some(Ok(None)) }, check)
+        }
+        _ => open_reader(reader, limits, Meta { orientation: 1, note: None, icc: None }, check),
     }
-    open_reader(reader, limits, orient, check)
 }
 
 fn open_reader<R: BufRead + Seek>(
     reader: ImageReader<R>,
     limits: &Limits,
-    orient: bool,
+    mut meta: Meta,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
-) -> Result<(DynamicImage, &'static str, u8, Option<Vec<u8>>), Failure> {
+) -> Result<(DynamicImage, &'static str, Meta), Failure> {
     let format = match reader.format() {
         Some(ImageFormat::Png) => "PNG",
         Some(ImageFormat::Jpeg) => "JPEG",
@@ -155,7 +259,12 @@ fn open_reader<R: BufRead + Seek>(
     let mut lim = image::Limits::default();
     lim.max_image_width = Some(side);
     lim.max_image_height = Some(side);
-    lim.max_alloc = Some(limits.max_memory);
+    // the ICC profile already held is part of the budget
+    let held = match &meta.icc {
+        Some(Ok(Some(p))) => p.len() as u64,
+        _ => 0,
+    };
+    lim.max_alloc = Some(limits.max_memory.saturating_sub(held));
     let mut reader = reader;
     reader.limits(lim);
     let mut decoder = reader.into_decoder().map_err(image_error)?;
@@ -173,14 +282,8 @@ fn open_reader<R: BufRead + Seek>(
     if w == 0 || h == 0 {
         return Err(Failure::new(Kind::Input, format!("empty image ({w}x{h})")));
     }
-    // A damaged EXIF block is not worth refusing the picture for.
-    let orientation = if orient {
-        decoder
-            .orientation()
-            .unwrap_or(image::metadata::Orientation::NoTransforms)
-    } else {
-        image::metadata::Orientation::NoTransforms
-    };
+    let orientation = image::metadata::Orientation::from_exif(meta.orientation)
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
     let code = orientation.to_exif();
     let swap = matches!(code, 5..=8);
     let ct = decoder.color_type();
@@ -194,11 +297,20 @@ fn open_reader<R: BufRead + Seek>(
         is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && format != "JPEG",
         oriented: code != 1,
     })?;
-    // a damaged profile is not either: the image is then read as sRGB
-    let icc = decoder.icc_profile().ok().flatten();
+    // TIFF: the decoder's profile (its tag values are bounded by the decoder's limits), capped alike
+    if let Some(Ok(None)) = meta.icc {
+        meta.icc = match decoder.icc_profile() {
+            Ok(Some(p)) if p.len() as u64 > icc_cap(limits) => {
+                Some(Err(format!("the ICC profile is {} bytes, over {}", p.len(), icc_cap(limits))))
+            }
+            Ok(Some(p)) => Some(Ok(Some(p))),
+            Ok(None) => None,
+            Err(e) => Some(Err(format!("the ICC profile cannot be read ({e})"))),
+        };
+    }
     let mut img = DynamicImage::from_decoder(decoder).map_err(image_error)?;
     img.apply_orientation(orientation);
-    Ok((img, format, code, icc))
+    Ok((img, format, meta))
 }
 
 /// Decodes one file's bytes from `reader` to H x W x 3 values in [0, 1],
@@ -210,27 +322,50 @@ pub fn decode<R: BufRead + Seek>(
     linearize: bool,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
 ) -> Result<Decoded, Failure> {
-    let (img, format, orientation, icc) = open(reader, limits, true, check)?;
+    let (img, format, meta) = open(reader, limits, true, check)?;
     let (height, width) = (img.height() as usize, img.width() as usize);
+    let (icc, refused) = match meta.icc {
+        Some(Ok(p)) => (p, None),
+        Some(Err(why)) => (None, Some(why)),
+        None => (None, None),
+    };
     // a profile other than sRGB: its codes go to the working space through it (src/files/icc.rs)
-    let (profile, convert) = match icc.as_deref().map(crate::files::icc::classify) {
-        None => (None, false),
+    let (mut profile, convert) = match icc.as_deref().map(crate::files::icc::classify) {
+        None => (refused.map(|why| (String::new(), false, Some(why))), false),
         Some(crate::files::icc::Profile::Srgb(name)) => (Some((name, false, None)), false),
         Some(crate::files::icc::Profile::Other(name)) => (Some((name, true, None)), true),
         Some(crate::files::icc::Profile::Unreadable(why)) => (Some((String::new(), false, Some(why))), false),
     };
-    let through = |codes: Vec<f32>| -> Result<Vec<f32>, Failure> {
-        let mut v = codes;
-        crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize)
-            .map_err(|e| Failure::new(Kind::Input, e))?;
-        Ok(v)
+    // a profile that cannot be applied, or that makes the image degenerate,
+    // is ignored (the codes read as sRGB), never a failure of the photo
+    let mut ignore = |why: String| {
+        if let Some(p) = profile.as_mut() {
+            p.1 = false;
+            p.2 = Some(why);
+        }
     };
     let (data, bits) = match img.color() {
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 if convert => {
-            (through(img.into_rgb8().as_raw().iter().map(|&c| f32::from(c) / 255.0).collect())?, 8)
+            let mut v: Vec<f32> = img.into_rgb8().as_raw().iter().map(|&c| f32::from(c) / 255.0).collect();
+            match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
+                Ok(()) => (v, 8),
+                Err(why) => {
+                    ignore(why);
+                    let codes: Vec<u8> = v.iter().map(|&c| (c * 255.0).round() as u8).collect();
+                    (decode_u8(&codes, linearize), 8)
+                }
+            }
         }
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 if convert => {
-            (through(img.into_rgb16().as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect())?, 16)
+            let mut v: Vec<f32> = img.into_rgb16().as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect();
+            match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
+                Ok(()) => (v, 16),
+                Err(why) => {
+                    ignore(why);
+                    let codes: Vec<u16> = v.iter().map(|&c| (c * 65535.0).round() as u16).collect();
+                    (decode_u16(&codes, linearize), 16)
+                }
+            }
         }
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
             (decode_u8(img.into_rgb8().as_raw(), linearize), 8)
@@ -253,7 +388,8 @@ pub fn decode<R: BufRead + Seek>(
         format,
         bits,
         is_float: bits == 32,
-        orientation,
+        orientation: meta.orientation,
+        notes: meta.note.into_iter().collect(),
         // float samples are taken as linear values, whatever their profile (as the Python reader does)
         icc_profile: if bits == 32 { None } else { profile },
     })
@@ -276,7 +412,7 @@ pub fn decode_mask<R: BufRead + Seek>(
     limits: &Limits,
 ) -> Result<(Vec<bool>, usize, usize), Failure> {
     let budget = limits.max_memory;
-    let (img, _, _, _) = open(reader, limits, false, |h| {
+    let (img, _, _) = open(reader, limits, false, |h| {
         let n = (h.height as u64).saturating_mul(h.width as u64);
         // decoded + converted (6 bytes per pixel) + the bools
         let need = n.saturating_mul(h.bpp.saturating_mul(2).saturating_add(7));
