@@ -537,4 +537,123 @@ mod tests {
         let (m, _, _) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
         assert_eq!(m, vec![true, false]);
     }
+
+    /// A PNG of `w` x `h` RGB pixels with `chunks` (kind, data) before IDAT,
+    /// framed with their CRCs by hand.
+    fn png_with(w: u32, h: u32, px: &[u8], chunks: &[(&[u8; 4], Vec<u8>)]) -> Vec<u8> {
+        let plain = png(w, h, image::ExtendedColorType::Rgb8, px);
+        let idat = plain.windows(4).position(|c| c == b"IDAT").unwrap() - 4;
+        let mut out = plain[..idat].to_vec();
+        for (k, d) in chunks {
+            out.extend((d.len() as u32).to_be_bytes());
+            let mut kd = k.to_vec();
+            kd.extend(d);
+            out.extend(&kd);
+            out.extend(crc32(&kd).to_be_bytes());
+        }
+        out.extend(&plain[idat..]);
+        out
+    }
+
+    /// CRC-32 (ISO 3309, PNG's), bit by bit.
+    fn crc32(data: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &b in data {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    }
+
+    fn exif_orientation_block(kind: u16, count: u32, value: [u8; 4], tail: &[u8]) -> Vec<u8> {
+        let mut b = b"II*\0\x08\0\0\0\x01\0\x12\x01".to_vec();
+        b.extend(kind.to_le_bytes());
+        b.extend(count.to_le_bytes());
+        b.extend(value);
+        b.extend([0; 4]);
+        b.extend(tail);
+        b
+    }
+
+    #[test]
+    fn orientation_stored_as_long_or_with_two_values_is_applied() {
+        // 3 x 1 pixels; orientation 6 (rotate 90 clockwise) makes them 1 x 3
+        let px: Vec<u8> = (0..9).map(|i| i as u8 * 20).collect();
+        let cases = [
+            exif_orientation_block(4, 1, 6u32.to_le_bytes(), &[]),
+            exif_orientation_block(3, 2, [6, 0, 1, 0], &[]),
+            // LONG x 2 out of line at 26
+            exif_orientation_block(4, 2, 26u32.to_le_bytes(), &[6, 0, 0, 0, 1, 0, 0, 0]),
+        ];
+        for block in cases {
+            let f = png_with(3, 1, &px, &[(b"eXIf", block)]);
+            let d = decode(Cursor::new(f), &NO_LIMIT, false, |h| {
+                assert!(h.oriented && (h.height, h.width) == (3, 1));
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!((d.orientation, d.height, d.width), (6, 3, 1));
+        }
+        // only in XMP
+        let mut itxt = b"XML:com.adobe.xmp\0\0\0\0\0".to_vec();
+        itxt.extend(b"<rdf:Description tiff:Orientation=\"8\"/>");
+        let d = decode(Cursor::new(png_with(3, 1, &px, &[(b"iTXt", itxt)])), &NO_LIMIT, false, |_| Ok(())).unwrap();
+        assert_eq!((d.orientation, d.height, d.width), (8, 3, 1));
+        // a looping EXIF block: upright, no failure
+        let mut looping = exif_orientation_block(3, 1, [6, 0, 0, 0], &[]);
+        looping[22..26].copy_from_slice(&8u32.to_le_bytes());
+        let d = decode(Cursor::new(png_with(3, 1, &px, &[(b"eXIf", looping)])), &NO_LIMIT, false, |_| Ok(())).unwrap();
+        assert_eq!(d.orientation, 6, "IFD0 itself is readable: its orientation counts");
+    }
+
+    fn iccp(profile: &[u8]) -> Vec<u8> {
+        let mut d = b"p\0\0".to_vec();
+        d.extend(fdeflate::compress_to_vec(profile));
+        d
+    }
+
+    #[test]
+    fn an_inflating_icc_chunk_is_refused_by_its_size_within_the_budget() {
+        let px = [90u8, 120, 30, 10, 200, 60];
+        let bomb = iccp(&vec![0u8; 64 << 20]);
+        let lim = Limits { max_pixels: 1 << 20, max_memory: 512 << 20 };
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", bomb.clone())])), &lim, false, |_| Ok(())).unwrap();
+        let (_, converted, why) = d.icc_profile.unwrap();
+        assert!(!converted && why.unwrap().contains("more than"));
+        assert_eq!(d.data, decode_u8(&px, false));
+        // under a small budget the cap is a sixteenth of it
+        let lim = Limits { max_pixels: 1 << 20, max_memory: 1 << 20 };
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", bomb)])), &lim, false, |_| Ok(())).unwrap();
+        assert!(d.icc_profile.unwrap().2.unwrap().contains("65536"));
+    }
+
+    #[test]
+    fn a_profile_that_makes_the_image_constant_or_is_not_rgb_is_ignored() {
+        use moxcms::{ColorProfile, ToneReprCurve};
+        let px = [90u8, 120, 30, 10, 200, 60];
+        let mut flat = ColorProfile::new_adobe_rgb();
+        let one = ToneReprCurve::Lut(vec![40000, 40000]);
+        flat.red_trc = Some(one.clone());
+        flat.green_trc = Some(one.clone());
+        flat.blue_trc = Some(one);
+        let flat = flat.encode().unwrap();
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", iccp(&flat))])), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        let (_, converted, why) = d.icc_profile.unwrap();
+        assert!(!converted && why.unwrap().contains("one colour"));
+        assert_eq!(d.data, decode_u8(&px, true));
+        // the data colour space of the header (bytes 16..20) said Lab
+        let mut lab = ColorProfile::new_adobe_rgb().encode().unwrap();
+        lab[16..20].copy_from_slice(b"Lab ");
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", iccp(&lab))])), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        let (_, converted, why) = d.icc_profile.unwrap();
+        assert!(!converted && why.unwrap().contains("not RGB"), "{:?}", d.notes);
+        assert_eq!(d.data, decode_u8(&px, true));
+        // a good Adobe RGB profile is still applied
+        let adobe = ColorProfile::new_adobe_rgb().encode().unwrap();
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", iccp(&adobe))])), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        assert!(d.icc_profile.unwrap().1);
+        assert_ne!(d.data, decode_u8(&px, true));
+    }
 }

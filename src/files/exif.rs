@@ -660,6 +660,75 @@ pub fn orientation_of(bytes: &[u8]) -> (u8, Option<String>) {
     orientation_from(&mut std::io::Cursor::new(bytes))
 }
 
+/// The bodies of the metadata fuzz targets (`fuzz/fuzz_targets/meta_*.rs`)
+/// and of their replay in `tests/fuzz_regressions.rs`: each reader is
+/// given arbitrary bytes and must return, never panic, hang or allocate
+/// past its limits (libFuzzer's `-rss_limit_mb` and `-timeout` catch those).
+#[cfg(any(test, feature = "internals"))]
+pub mod fuzzing {
+    use super::*;
+
+    /// An EXIF block: the validator and the orientation reader.
+    pub fn exif(data: &[u8]) {
+        let _ = check(&mut &data[..]);
+        let _ = exif_orientation(&mut &data[..]);
+        let _ = tiff_xmp(&mut &data[..]);
+    }
+
+    /// An XMP packet: its orientation, and the output packet made from it.
+    pub fn xmp(data: &[u8]) {
+        let text = String::from_utf8_lossy(data).into_owned();
+        let _ = xmp_orientation(&text);
+        let c = crate::files::metadata::Carried { xmp: Some(text), ..Default::default() };
+        let _ = crate::files::metadata::output_xmp(&c, &vec![("WaterType", "3C".into())]);
+    }
+
+    /// An ICC profile: classified, and applied to a few pixels when it is
+    /// one the decoder would apply.
+    pub fn icc(data: &[u8]) {
+        if let crate::files::icc::Profile::Other(_) = crate::files::icc::classify(data) {
+            let mut v = vec![0.0, 0.5, 1.0, 0.25, 0.75, 0.1];
+            let _ = crate::files::icc::convert(data, &mut v, true);
+        }
+    }
+
+    /// A whole file: its JPEG segments or PNG chunks, and the orientation rule.
+    pub fn container(data: &[u8]) {
+        let _ = scan(&mut std::io::Cursor::new(data), MAX_BLOCK);
+        let _ = png(&mut std::io::Cursor::new(data), 1 << 20);
+        let _ = orientation_of(data);
+    }
+
+    /// A whole file's metadata carried into a small encoded photo.
+    pub fn carry(data: &[u8]) {
+        let side = serde_json::json!({"water_type": "3C", "parameters": {}});
+        let _ = crate::files::metadata::carry(data.to_vec(), tiny_png(), &side, "x.json", 1, 1);
+    }
+
+    /// A 1 x 1 RGB PNG, framed by hand (the output side of [`carry`]).
+    fn tiny_png() -> Vec<u8> {
+        let chunk = |out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]| {
+            out.extend((data.len() as u32).to_be_bytes());
+            let mut kd = kind.to_vec();
+            kd.extend(data);
+            let mut c = !0u32;
+            for &b in &kd {
+                c ^= u32::from(b);
+                for _ in 0..8 {
+                    c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+                }
+            }
+            out.extend(&kd);
+            out.extend((!c).to_be_bytes());
+        };
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        chunk(&mut out, b"IHDR", &[0, 0, 0, 1, 0, 0, 0, 1, 8, 2, 0, 0, 0]);
+        chunk(&mut out, b"IDAT", &fdeflate::compress_to_vec(&[0, 10, 20, 30]));
+        chunk(&mut out, b"IEND", &[]);
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -620,4 +620,40 @@ mod tests {
         let c = read(b"not an image".to_vec());
         assert!(c.exif.is_none() && !c.notes.is_empty());
     }
+
+    /// A JPEG of 8 x 8 pixels with `app1` as its first APP1 segment.
+    #[cfg(feature = "cli")]
+    fn jpeg_with_app1(app1: &[u8]) -> Vec<u8> {
+        use image::ImageEncoder;
+        let mut j = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut j).write_image(&[80; 192], 8, 8, image::ExtendedColorType::Rgb8).unwrap();
+        let mut out = j[..2].to_vec();
+        out.extend([0xFF, 0xE1]);
+        out.extend(((app1.len() + 2) as u16).to_be_bytes());
+        out.extend(app1);
+        out.extend(&j[2..]);
+        out
+    }
+
+    /// "Exif\0\0" and a little-endian block: IFD0 with Make "Nikon" and
+    /// its next-IFD link `next`.
+    fn exif_with_make(next: u32) -> Vec<u8> {
+        let mut b = b"Exif\0\0II*\0\x08\0\0\0\x01\0\x0F\x01\x02\0\x06\0\0\0\x1A\0\0\0".to_vec();
+        b.extend(next.to_le_bytes());
+        b.extend(b"Nikon\0");
+        b
+    }
+
+    #[test]
+    #[cfg(feature = "cli")]
+    fn a_looping_exif_block_is_dropped_with_a_note_and_a_sound_one_carried() {
+        let c = read(jpeg_with_app1(&exif_with_make(0)));
+        assert!(c.notes.is_empty(), "{:?}", c.notes);
+        let m = c.exif.expect("the sound block is carried");
+        assert!(m.get_ifds().iter().flat_map(|i| i.get_tags()).any(|t| matches!(t, ExifTag::Make(s) if s.starts_with("Nikon"))));
+        // the next-IFD link pointing at IFD0 itself
+        let c = read(jpeg_with_app1(&exif_with_make(8)));
+        assert!(c.exif.is_none());
+        assert!(c.notes.iter().any(|n| n.contains("loop")), "{:?}", c.notes);
+    }
 }
