@@ -119,3 +119,38 @@ def test_huge_compressed_text_chunks_do_not_fail_the_photo(binary, tmp_path):
     r, side = run(binary, tmp_path, "text.png", png_with_chunks(*chunks), "--max-memory", "200M")
     assert r.returncode == 0, (r.returncode, r.stderr[-2000:])
     assert side["metadata"]["exif_tags_carried"] == 0
+
+
+def ifd0_orientation(kind: int, count: int, values: bytes) -> bytes:
+    """Big-endian EXIF block: IFD0 with only Orientation (type, count, the
+    value bytes inline, or after the IFD when longer than 4)."""
+    inline = values if len(values) <= 4 else struct.pack(">I", 8 + 2 + 12 + 4)
+    tail = b"" if len(values) <= 4 else values
+    return (b"MM\0*" + struct.pack(">I", 8) + struct.pack(">H", 1)
+            + struct.pack(">HHI", 0x0112, kind, count) + inline.ljust(4, b"\0") + struct.pack(">I", 0) + tail)
+
+
+XMP_HEADER = b"http://ns.adobe.com/xap/1.0/\0"
+
+
+@pytest.mark.parametrize("case,segments,expected", [
+    ("long", [b"Exif\0\0" + ifd0_orientation(4, 1, struct.pack(">I", 6))], 6),
+    ("short_count_2", [b"Exif\0\0" + ifd0_orientation(3, 2, struct.pack(">HH", 6, 1))], 6),
+    ("long_count_2", [b"Exif\0\0" + ifd0_orientation(4, 2, struct.pack(">II", 8, 1))], 8),
+    ("two_exif_first_wins", [b"Exif\0\0" + ifd0_orientation(3, 1, struct.pack(">H", 6)),
+                             b"Exif\0\0" + ifd0_orientation(3, 1, struct.pack(">H", 3))], 6),
+    ("xmp_only", [XMP_HEADER + b'<x:xmpmeta><rdf:RDF><rdf:Description tiff:Orientation="8"/></rdf:RDF></x:xmpmeta>'], 8),
+    ("xmp_malformed", [XMP_HEADER + b'<x:xmpmeta><rdf:Description tiff:Orientation="8'], 1),
+    ("exif_invalid_then_xmp", [b"Exif\0\0" + ifd0_orientation(3, 1, struct.pack(">H", 0)),
+                               XMP_HEADER + b"<tiff:Orientation>6</tiff:Orientation>"], 6),
+])
+def test_orientation_follows_the_one_rule(binary, tmp_path, case, segments, expected):
+    buf = io.BytesIO()
+    Image.fromarray(_pixels()).save(buf, format="JPEG", quality=90)
+    j = buf.getvalue()
+    segs = b"".join(b"\xff\xe1" + struct.pack(">H", len(s) + 2) + s for s in segments)
+    r, side = run(binary, tmp_path, case + ".jpg", j[:2] + segs + j[2:])
+    assert r.returncode == 0, (r.returncode, r.stderr[-2000:])
+    assert side["source"]["orientation"] == expected
+    with Image.open(tmp_path / "out" / (case + ".jpg")) as im:
+        assert im.size == ((48, 64) if expected in (5, 6, 7, 8) else (64, 48))
