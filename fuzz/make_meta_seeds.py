@@ -46,6 +46,10 @@ def exif_blocks():
         "loop_next": ifd_block([(0x0112, 3, 1, short(1))], next_ifd=8),
         "loop_subifd": ifd_block([(0x8769, 4, 1, long(8))]),
         "huge_count": ifd_block([(0x010F, 2, 0xFFFFFFFF, long(100))]),
+        # a DateTimeOriginal holding non-ASCII UTF-8 (meta_carry once panicked on it)
+        "time_not_ascii": ifd_block([(0x8769, 4, 1, long(8 + 2 + 12 + 4))], tail=struct.pack("<H", 1)
+                                    + struct.pack("<HHI", 0x9003, 2, 21) + long(8 + 2 + 12 + 4 + 2 + 12 + 4) + long(0)
+                                    + "2026:01:02 03:ÿÿÿ".encode() + b"\0"),
         "strips_too_big": ifd_block([(0x0111, 4, 1, long(0)), (0x0117, 4, 1, long(4000000000))]),
     }
 
@@ -64,8 +68,14 @@ def xmp_packets():
 
 
 def icc_profiles():
-    srgb = ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB")).tobytes()
-    lab = ImageCms.ImageCmsProfile(ImageCms.createProfile("LAB")).tobytes()
+    def fixed(name):
+        # the header's creation date and profile ID zeroed: the same seeds at every run
+        p = bytearray(ImageCms.ImageCmsProfile(ImageCms.createProfile(name)).tobytes())
+        p[24:36] = bytes(12)
+        p[84:100] = bytes(16)
+        return bytes(p)
+
+    srgb, lab = fixed("sRGB"), fixed("LAB")
     return {"srgb": srgb, "lab": lab, "truncated": srgb[:200]}
 
 
@@ -93,6 +103,7 @@ def files(exif, xmp, icc):
         "jpeg_exif6.jpg": jpeg_file((0xE1, b"Exif\0\0" + exif["camera_exif_subifd"])),
         "jpeg_two_exif.jpg": jpeg_file((0xE1, b"Exif\0\0" + exif["orientation_short"]),
                                        (0xE1, b"Exif\0\0" + exif["orientation_long_be"])),
+        "jpeg_time_not_ascii.jpg": jpeg_file((0xE1, b"Exif\0\0" + exif["time_not_ascii"])),
         "jpeg_loop.jpg": jpeg_file((0xE1, b"Exif\0\0" + exif["loop_next"])),
         "jpeg_xmp_icc.jpg": jpeg_file((0xE1, b"http://ns.adobe.com/xap/1.0/\0" + xmp["element"].encode()),
                                       (0xE2, b"ICC_PROFILE\0\1\1" + icc["srgb"])),

@@ -75,6 +75,8 @@ struct Without<R> {
     pos: u64,
     /// length as presented
     len: u64,
+    /// where `inner` is (seeks are saved when reads follow each other)
+    at: Option<u64>,
 }
 
 impl<R: Read + Seek> Without<R> {
@@ -82,7 +84,7 @@ impl<R: Read + Seek> Without<R> {
         let total = inner.seek(SeekFrom::End(0))?;
         let len = total.saturating_sub(holes.iter().map(|h| h.1).sum());
         inner.seek(SeekFrom::Start(0))?;
-        Ok(Self { inner, holes, pos: 0, len })
+        Ok(Self { inner, holes, pos: 0, len, at: Some(0) })
     }
 
     /// The position in `inner` of the presented position `pos`, and how
@@ -102,10 +104,15 @@ impl<R: Read + Seek> Without<R> {
 impl<R: Read + Seek> Read for Without<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let (phys, room) = self.map(self.pos);
-        self.inner.seek(SeekFrom::Start(phys))?;
+        if self.at != Some(phys) {
+            self.at = None;
+            self.inner.seek(SeekFrom::Start(phys))?;
+        }
         let n = buf.len().min(usize::try_from(room).unwrap_or(usize::MAX));
-        let got = self.inner.read(&mut buf[..n])?;
+        let got = self.inner.read(&mut buf[..n]);
+        let got = got.inspect_err(|_| self.at = None)?;
         self.pos += got as u64;
+        self.at = Some(phys + got as u64);
         Ok(got)
     }
 }
@@ -655,5 +662,31 @@ mod tests {
         let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", iccp(&adobe))])), &NO_LIMIT, true, |_| Ok(())).unwrap();
         assert!(d.icc_profile.unwrap().1);
         assert_ne!(d.data, decode_u8(&px, true));
+    }
+
+    #[test]
+    fn without_presents_the_file_minus_its_holes() {
+        let data: Vec<u8> = (0..100u8).collect();
+        let mut w = Without::new(Cursor::new(data.clone()), vec![(10, 5), (50, 20)]).unwrap();
+        let mut all: Vec<u8> = Vec::new();
+        // small reads cross the holes one piece at a time
+        let mut buf = [0u8; 7];
+        loop {
+            let n = w.read(&mut buf).unwrap();
+            if n == 0 {
+                break;
+            }
+            all.extend(&buf[..n]);
+        }
+        let expect: Vec<u8> = data.iter().copied().filter(|&b| !(10..15).contains(&b) && !(50..70).contains(&b)).collect();
+        assert_eq!(all, expect);
+        assert_eq!(w.seek(SeekFrom::End(0)).unwrap(), 75);
+        w.seek(SeekFrom::Start(44)).unwrap();
+        let mut b = [0u8; 3];
+        w.read_exact(&mut b).unwrap();
+        assert_eq!(b, [49, 70, 71]);
+        w.seek(SeekFrom::Current(-4)).unwrap();
+        w.read_exact(&mut b).unwrap();
+        assert_eq!(b, [48, 49, 70]);
     }
 }

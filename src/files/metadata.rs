@@ -234,10 +234,13 @@ pub fn taken_at(m: &Metadata) -> Option<String> {
     let raw = raw.trim_end_matches('\0').trim();
     // "YYYY:MM:DD HH:MM:SS"
     let (date, time) = raw.split_once(' ')?;
-    if date.len() != 10 || time.len() < 8 || !date.chars().all(|c| c.is_ascii_digit() || c == ':') {
+    // bytes, not characters: a hostile value may hold any UTF-8 (found by fuzz/meta_carry)
+    let time = time.as_bytes().get(..8)?;
+    let clock = |c: &u8| c.is_ascii_digit() || *c == b':';
+    if date.len() != 10 || !date.bytes().all(|c| clock(&c)) || !time.iter().all(clock) {
         return None;
     }
-    let mut iso = format!("{}T{}", date.replace(':', "-"), &time[..8]);
+    let mut iso = format!("{}T{}", date.replace(':', "-"), String::from_utf8_lossy(time));
     if let Some(sub) = subsec.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_digit())) {
         iso.push('.');
         iso.push_str(&sub);
@@ -655,5 +658,14 @@ mod tests {
         let c = read(jpeg_with_app1(&exif_with_make(8)));
         assert!(c.exif.is_none());
         assert!(c.notes.iter().any(|n| n.contains("loop")), "{:?}", c.notes);
+    }
+
+    #[test]
+    fn a_time_with_non_ascii_characters_is_no_time_not_a_panic() {
+        let mut m = Metadata::new();
+        m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:\u{ff}\u{ff}\u{ff}\u{ff}".into()));
+        assert_eq!(taken_at(&m), None);
+        m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:04:05".into()));
+        assert_eq!(taken_at(&m).as_deref(), Some("2026-01-02T03:04:05"));
     }
 }
