@@ -154,3 +154,16 @@ def test_orientation_follows_the_one_rule(binary, tmp_path, case, segments, expe
     assert side["source"]["orientation"] == expected
     with Image.open(tmp_path / "out" / (case + ".jpg")) as im:
         assert im.size == ((48, 64) if expected in (5, 6, 7, 8) else (64, 48))
+
+
+def test_a_non_ascii_date_time_original_is_no_time_not_a_crash(binary, tmp_path):
+    """The Exif sub-IFD's DateTimeOriginal holding UTF-8 beyond ASCII where
+    the clock is: the binary panicked slicing it (found by fuzz/meta_carry)."""
+    text = "2026:01:02 03:ÿÿÿ".encode() + b"\0"
+    sub = 8 + 2 + 12 + 4
+    block = (b"II*\0" + struct.pack("<I", 8) + struct.pack("<H", 1) + struct.pack("<HHII", 0x8769, 4, 1, sub)
+             + struct.pack("<I", 0) + struct.pack("<H", 1)
+             + struct.pack("<HHII", 0x9003, 2, len(text), sub + 2 + 12 + 4) + struct.pack("<I", 0) + text)
+    r, side = run(binary, tmp_path, "time.jpg", jpeg_with_app1(b"Exif\0\0" + block))
+    assert r.returncode == 0, (r.returncode, r.stderr[-2000:])
+    assert side["metadata"]["taken_at"] is None
