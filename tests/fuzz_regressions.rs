@@ -26,3 +26,25 @@ fn fuzz_seeds_and_regressions_give_results_or_clear_errors() {
     }
     assert!(n >= 10, "only {n} inputs replayed");
 }
+
+#[test]
+fn metadata_seeds_give_results_not_panics() {
+    use uwhl::files::exif::fuzzing;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz").join("meta_seeds");
+    let targets: [(&str, fn(&[u8])); 5] = [
+        ("exif", fuzzing::exif),
+        ("xmp", fuzzing::xmp),
+        ("icc", fuzzing::icc),
+        ("container", fuzzing::container),
+        ("carry", fuzzing::carry),
+    ];
+    let mut n = 0;
+    for (dir, body) in targets {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            let data = std::fs::read(entry.unwrap().path()).unwrap();
+            body(&data);
+            n += 1;
+        }
+    }
+    assert!(n >= 20, "only {n} metadata seeds replayed");
+}

@@ -210,16 +210,17 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
     except _core.ImageError as e:
         raise ImageReadError(f"{path}: {kind}: {e}") from None
     orientation = int(info["orientation"])
+    notes = tuple(info["notes"])
     if info["is_float"]:
         meta = ImageMeta(path, "linear", info["format"], int(info["bits"]), img.shape[0], img.shape[1], orientation,
-                         True, "none")
+                         True, "none", notes=notes)
         return img, meta
-    profile, notes = None, ()
+    profile = None
     if info["icc_profile"] is not None:
         description, converted, why = info["icc_profile"]
         profile = {"description": description, "converted": bool(converted)}
         if why is not None:
-            notes = (f"the ICC profile cannot be read ({why}); read as sRGB",)
+            notes += (f"the ICC profile cannot be read ({why}); read as sRGB",)
     if preprocess == "reference":
         img = _core._reference_srgb(img)
     meta = ImageMeta(path, "srgb", info["format"], int(info["bits"]), img.shape[0], img.shape[1], orientation,

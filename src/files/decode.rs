@@ -12,7 +12,8 @@
 use crate::error::{Failure, Kind};
 use crate::files::color::{decode_u16, decode_u8};
 use image::{ColorType, DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader};
-use std::io::{BufRead, Cursor, Seek};
+use crate::files::exif;
+use std::io::{BufRead, BufReader, Cursor, Read, Seek, SeekFrom};
 
 /// Limits on one decoded file.
 #[derive(Debug, Clone, Copy)]
@@ -58,6 +59,80 @@ pub struct Decoded {
     /// the embedded ICC profile: its description, whether the codes were
     /// converted through it (not sRGB), and why it could not be read
     pub icc_profile: Option<(String, bool, Option<String>)>,
+    /// what in the metadata was ignored and why (orientation), for the
+    /// sidecar's `source.notes`; the ICC profile's reason is in `icc_profile`
+    pub notes: Vec<String>,
+}
+
+/// A reader that presents `inner` without some byte ranges (whole PNG
+/// chunks the pixel decoder must not inflate or hold: the ICC profile,
+/// read with a cap by `files::exif`, and oversized text and EXIF chunks).
+struct Without<R> {
+    inner: R,
+    /// (start, length) in `inner`, sorted, not overlapping
+    holes: Vec<(u64, u64)>,
+    /// position as presented
+    pos: u64,
+    /// length as presented
+    len: u64,
+    /// where `inner` is (seeks are saved when reads follow each other)
+    at: Option<u64>,
+}
+
+impl<R: Read + Seek> Without<R> {
+    fn new(mut inner: R, holes: Vec<(u64, u64)>) -> std::io::Result<Self> {
+        let total = inner.seek(SeekFrom::End(0))?;
+        let len = total.saturating_sub(holes.iter().map(|h| h.1).sum());
+        inner.seek(SeekFrom::Start(0))?;
+        Ok(Self { inner, holes, pos: 0, len, at: Some(0) })
+    }
+
+    /// The position in `inner` of the presented position `pos`, and how
+    /// many bytes may be read from there before the next hole.
+    fn map(&self, pos: u64) -> (u64, u64) {
+        let mut phys = pos;
+        for &(start, n) in &self.holes {
+            if phys < start {
+                return (phys, start - phys);
+            }
+            phys += n;
+        }
+        (phys, u64::MAX)
+    }
+}
+
+impl<R: Read + Seek> Read for Without<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let (phys, room) = self.map(self.pos);
+        if self.at != Some(phys) {
+            self.at = None;
+            self.inner.seek(SeekFrom::Start(phys))?;
+        }
+        let n = buf.len().min(usize::try_from(room).unwrap_or(usize::MAX));
+        let got = self.inner.read(&mut buf[..n]);
+        let got = got.inspect_err(|_| self.at = None)?;
+        self.pos += got as u64;
+        self.at = Some(phys + got as u64);
+        Ok(got)
+    }
+}
+
+impl<R: Read + Seek> Seek for Without<R> {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        let target = match to {
+            SeekFrom::Start(p) => Some(p),
+            SeekFrom::End(d) => self.len.checked_add_signed(d),
+            SeekFrom::Current(d) => self.pos.checked_add_signed(d),
+        };
+        self.pos = target.ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "seek before the start"))?;
+        Ok(self.pos)
+    }
+}
+
+/// The largest ICC profile held for an input: [`exif::MAX_BLOCK`], and at
+/// most a sixteenth of the memory budget (it is counted in the budget).
+fn icc_cap(limits: &Limits) -> u64 {
+    exif::MAX_BLOCK.min(limits.max_memory / 16)
 }
 
 fn image_error(e: ImageError) -> Failure {
@@ -120,40 +195,73 @@ fn too_many_pixels(w: u32, h: u32, limits: &Limits) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The metadata read before the pixels: the orientation (1 when not
+/// oriented) and why it was taken so, and the ICC profile (None: none;
+/// Err: refused, with the reason; Ok(None): left to the decoder).
+struct Meta {
+    orientation: u8,
+    note: Option<String>,
+    icc: Option<Result<Option<Vec<u8>>, String>>,
+}
+
 /// Opens a decoder on `reader`, checks the header (pixel count, then the
 /// caller's `check`), decodes and orients. Returns the image, its format
-/// name and the EXIF orientation code applied.
+/// name, the orientation applied and the metadata read. The orientation
+/// and the ICC profile are read by `files::exif` (bounded, one rule for
+/// both commands), not by the decoders; a PNG's iCCP chunk and oversized
+/// text chunks are hidden from the PNG decoder.
 fn open<R: BufRead + Seek>(
     reader: R,
     limits: &Limits,
     orient: bool,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
-) -> Result<(DynamicImage, &'static str, u8, Option<Vec<u8>>), Failure> {
+) -> Result<(DynamicImage, &'static str, Meta), Failure> {
+    let io = |e: std::io::Error| Failure::new(Kind::Input, format!("cannot read: {e}"));
     let reader = ImageReader::new(reader)
         .with_guessed_format()
-        .map_err(|e| Failure::new(Kind::Input, format!("cannot read: {e}")))?;
-    if reader.format() == Some(ImageFormat::Png) {
-        // the PNG decoder reads up to the first data chunk before it tells
-        // the size: a header claiming an absurd size is refused from IHDR
-        let mut r = reader.into_inner();
-        let mut head = [0u8; 24];
-        let got = r.read(&mut head).map_err(|e| Failure::new(Kind::Input, format!("cannot read: {e}")))?;
-        r.seek(std::io::SeekFrom::Start(0)).map_err(|e| Failure::new(Kind::Input, format!("cannot read: {e}")))?;
-        let mut ihdr = None;
-        if got == head.len() && &head[12..16] == b"IHDR" {
-            let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]);
-            let (w, h) = (be(&head[16..20]), be(&head[20..24]));
-            too_many_pixels(w, h, limits)?;
-            ihdr = Some((w, h));
+        .map_err(io)?;
+    let cap = icc_cap(limits);
+    let oriented = |r: &mut dyn FnMut() -> (u8, Option<String>)| if orient { r() } else { (1, None) };
+    match reader.format() {
+        Some(ImageFormat::Jpeg) => {
+            let bytes = read_jpeg(reader.into_inner(), limits)?;
+            let (orientation, note) = oriented(&mut || exif::orientation_of(&bytes));
+            let icc = exif::jpeg(&mut Cursor::new(&bytes), cap).icc.map(|r| r.map(Some));
+            let reader = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
+            open_reader(reader, limits, Meta { orientation, note, icc }, check, None)
         }
-        return open_reader(ImageReader::with_format(r, ImageFormat::Png), limits, orient, check, ihdr);
+        Some(ImageFormat::Png) => {
+            let mut inner = reader.into_inner();
+            // the PNG decoder reads up to the first data chunk before it
+            // tells the size: a header claiming an absurd size is refused
+            // from IHDR
+            let mut head = [0u8; 24];
+            let got = inner.read(&mut head).map_err(io)?;
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let mut ihdr = None;
+            if got == head.len() && &head[12..16] == b"IHDR" {
+                let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]);
+                let (w, h) = (be(&head[16..20]), be(&head[20..24]));
+                too_many_pixels(w, h, limits)?;
+                ihdr = Some((w, h));
+            }
+            let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
+            let (found, holes) = exif::png(&mut inner, cap);
+            let icc = found.icc.map(|r| r.map(Some));
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let hidden = BufReader::new(Without::new(inner, holes).map_err(io)?);
+            let reader = ImageReader::with_format(hidden, ImageFormat::Png);
+            open_reader(reader, limits, Meta { orientation, note, icc }, check, ihdr)
+        }
+        Some(ImageFormat::Tiff) => {
+            let mut inner = reader.into_inner();
+            let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let reader = ImageReader::with_format(inner, ImageFormat::Tiff);
+            open_reader(reader, limits, Meta { orientation, note, icc: Some(Ok(None)) }, check, None)
+        }
+        _ => open_reader(reader, limits, Meta { orientation: 1, note: None, icc: None }, check, None),
     }
-    if reader.format() == Some(ImageFormat::Jpeg) {
-        let bytes = read_jpeg(reader.into_inner(), limits)?;
-        let reader = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
-        return open_reader(reader, limits, orient, check, None);
-    }
-    open_reader(reader, limits, orient, check, None)
 }
 
 /// `ihdr`: a PNG's size from its header chunk. The PNG decoder reads up to
@@ -163,10 +271,10 @@ fn open<R: BufRead + Seek>(
 fn open_reader<R: BufRead + Seek>(
     reader: ImageReader<R>,
     limits: &Limits,
-    orient: bool,
+    mut meta: Meta,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
     ihdr: Option<(u32, u32)>,
-) -> Result<(DynamicImage, &'static str, u8, Option<Vec<u8>>), Failure> {
+) -> Result<(DynamicImage, &'static str, Meta), Failure> {
     let format = match reader.format() {
         Some(ImageFormat::Png) => "PNG",
         Some(ImageFormat::Jpeg) => "JPEG",
@@ -188,7 +296,12 @@ fn open_reader<R: BufRead + Seek>(
     let mut lim = image::Limits::default();
     lim.max_image_width = Some(side);
     lim.max_image_height = Some(side);
-    lim.max_alloc = Some(limits.max_memory);
+    // the ICC profile already held is part of the budget
+    let held = match &meta.icc {
+        Some(Ok(Some(p))) => p.len() as u64,
+        _ => 0,
+    };
+    lim.max_alloc = Some(limits.max_memory.saturating_sub(held));
     let mut reader = reader;
     reader.limits(lim);
     let mut decoder = match reader.into_decoder() {
@@ -205,14 +318,8 @@ fn open_reader<R: BufRead + Seek>(
     if w == 0 || h == 0 {
         return Err(Failure::new(Kind::Input, format!("empty image ({w}x{h})")));
     }
-    // A damaged EXIF block is not worth refusing the picture for.
-    let orientation = if orient {
-        decoder
-            .orientation()
-            .unwrap_or(image::metadata::Orientation::NoTransforms)
-    } else {
-        image::metadata::Orientation::NoTransforms
-    };
+    let orientation = image::metadata::Orientation::from_exif(meta.orientation)
+        .unwrap_or(image::metadata::Orientation::NoTransforms);
     let code = orientation.to_exif();
     let swap = matches!(code, 5..=8);
     let ct = decoder.color_type();
@@ -226,11 +333,20 @@ fn open_reader<R: BufRead + Seek>(
         is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && format != "JPEG",
         oriented: code != 1,
     })?;
-    // a damaged profile is not either: the image is then read as sRGB
-    let icc = decoder.icc_profile().ok().flatten();
+    // TIFF: the decoder's profile (its tag values are bounded by the decoder's limits), capped alike
+    if let Some(Ok(None)) = meta.icc {
+        meta.icc = match decoder.icc_profile() {
+            Ok(Some(p)) if p.len() as u64 > icc_cap(limits) => {
+                Some(Err(format!("the ICC profile is {} bytes, over {}", p.len(), icc_cap(limits))))
+            }
+            Ok(Some(p)) => Some(Ok(Some(p))),
+            Ok(None) => None,
+            Err(e) => Some(Err(format!("the ICC profile cannot be read ({e})"))),
+        };
+    }
     let mut img = DynamicImage::from_decoder(decoder).map_err(image_error)?;
     img.apply_orientation(orientation);
-    Ok((img, format, code, icc))
+    Ok((img, format, meta))
 }
 
 /// Decodes one file's bytes from `reader` to H x W x 3 values in [0, 1],
@@ -242,27 +358,50 @@ pub fn decode<R: BufRead + Seek>(
     linearize: bool,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
 ) -> Result<Decoded, Failure> {
-    let (img, format, orientation, icc) = open(reader, limits, true, check)?;
+    let (img, format, meta) = open(reader, limits, true, check)?;
     let (height, width) = (img.height() as usize, img.width() as usize);
+    let (icc, refused) = match meta.icc {
+        Some(Ok(p)) => (p, None),
+        Some(Err(why)) => (None, Some(why)),
+        None => (None, None),
+    };
     // a profile other than sRGB: its codes go to the working space through it (src/files/icc.rs)
-    let (profile, convert) = match icc.as_deref().map(crate::files::icc::classify) {
-        None => (None, false),
+    let (mut profile, convert) = match icc.as_deref().map(crate::files::icc::classify) {
+        None => (refused.map(|why| (String::new(), false, Some(why))), false),
         Some(crate::files::icc::Profile::Srgb(name)) => (Some((name, false, None)), false),
         Some(crate::files::icc::Profile::Other(name)) => (Some((name, true, None)), true),
         Some(crate::files::icc::Profile::Unreadable(why)) => (Some((String::new(), false, Some(why))), false),
     };
-    let through = |codes: Vec<f32>| -> Result<Vec<f32>, Failure> {
-        let mut v = codes;
-        crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize)
-            .map_err(|e| Failure::new(Kind::Input, e))?;
-        Ok(v)
+    // a profile that cannot be applied, or that makes the image degenerate,
+    // is ignored (the codes read as sRGB), never a failure of the photo
+    let mut ignore = |why: String| {
+        if let Some(p) = profile.as_mut() {
+            p.1 = false;
+            p.2 = Some(why);
+        }
     };
     let (data, bits) = match img.color() {
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 if convert => {
-            (through(img.into_rgb8().as_raw().iter().map(|&c| f32::from(c) / 255.0).collect())?, 8)
+            let mut v: Vec<f32> = img.into_rgb8().as_raw().iter().map(|&c| f32::from(c) / 255.0).collect();
+            match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
+                Ok(()) => (v, 8),
+                Err(why) => {
+                    ignore(why);
+                    let codes: Vec<u8> = v.iter().map(|&c| (c * 255.0).round() as u8).collect();
+                    (decode_u8(&codes, linearize), 8)
+                }
+            }
         }
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 if convert => {
-            (through(img.into_rgb16().as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect())?, 16)
+            let mut v: Vec<f32> = img.into_rgb16().as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect();
+            match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
+                Ok(()) => (v, 16),
+                Err(why) => {
+                    ignore(why);
+                    let codes: Vec<u16> = v.iter().map(|&c| (c * 65535.0).round() as u16).collect();
+                    (decode_u16(&codes, linearize), 16)
+                }
+            }
         }
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
             (decode_u8(img.into_rgb8().as_raw(), linearize), 8)
@@ -285,7 +424,8 @@ pub fn decode<R: BufRead + Seek>(
         format,
         bits,
         is_float: bits == 32,
-        orientation,
+        orientation: meta.orientation,
+        notes: meta.note.into_iter().collect(),
         // float samples are taken as linear values, whatever their profile (as the Python reader does)
         icc_profile: if bits == 32 { None } else { profile },
     })
@@ -308,7 +448,7 @@ pub fn decode_mask<R: BufRead + Seek>(
     limits: &Limits,
 ) -> Result<(Vec<bool>, usize, usize), Failure> {
     let budget = limits.max_memory;
-    let (img, _, _, _) = open(reader, limits, false, |h| {
+    let (img, _, _) = open(reader, limits, false, |h| {
         let n = (h.height as u64).saturating_mul(h.width as u64);
         // decoded + converted (6 bytes per pixel) + the bools
         let need = n.saturating_mul(h.bpp.saturating_mul(2).saturating_add(7));
@@ -432,5 +572,150 @@ mod tests {
         let f = png(2, 1, image::ExtendedColorType::La8, &[0, 5, 0, 0]);
         let (m, _, _) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
         assert_eq!(m, vec![true, false]);
+    }
+
+    /// A PNG of `w` x `h` RGB pixels with `chunks` (kind, data) before IDAT,
+    /// framed with their CRCs by hand.
+    fn png_with(w: u32, h: u32, px: &[u8], chunks: &[(&[u8; 4], Vec<u8>)]) -> Vec<u8> {
+        let plain = png(w, h, image::ExtendedColorType::Rgb8, px);
+        let idat = plain.windows(4).position(|c| c == b"IDAT").unwrap() - 4;
+        let mut out = plain[..idat].to_vec();
+        for (k, d) in chunks {
+            out.extend((d.len() as u32).to_be_bytes());
+            let mut kd = k.to_vec();
+            kd.extend(d);
+            out.extend(&kd);
+            out.extend(crc32(&kd).to_be_bytes());
+        }
+        out.extend(&plain[idat..]);
+        out
+    }
+
+    /// CRC-32 (ISO 3309, PNG's), bit by bit.
+    fn crc32(data: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &b in data {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    }
+
+    fn exif_orientation_block(kind: u16, count: u32, value: [u8; 4], tail: &[u8]) -> Vec<u8> {
+        let mut b = b"II*\0\x08\0\0\0\x01\0\x12\x01".to_vec();
+        b.extend(kind.to_le_bytes());
+        b.extend(count.to_le_bytes());
+        b.extend(value);
+        b.extend([0; 4]);
+        b.extend(tail);
+        b
+    }
+
+    #[test]
+    fn orientation_stored_as_long_or_with_two_values_is_applied() {
+        // 3 x 1 pixels; orientation 6 (rotate 90 clockwise) makes them 1 x 3
+        let px: Vec<u8> = (0..9).map(|i| i as u8 * 20).collect();
+        let cases = [
+            exif_orientation_block(4, 1, 6u32.to_le_bytes(), &[]),
+            exif_orientation_block(3, 2, [6, 0, 1, 0], &[]),
+            // LONG x 2 out of line at 26
+            exif_orientation_block(4, 2, 26u32.to_le_bytes(), &[6, 0, 0, 0, 1, 0, 0, 0]),
+        ];
+        for block in cases {
+            let f = png_with(3, 1, &px, &[(b"eXIf", block)]);
+            let d = decode(Cursor::new(f), &NO_LIMIT, false, |h| {
+                assert!(h.oriented && (h.height, h.width) == (3, 1));
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!((d.orientation, d.height, d.width), (6, 3, 1));
+        }
+        // only in XMP
+        let mut itxt = b"XML:com.adobe.xmp\0\0\0\0\0".to_vec();
+        itxt.extend(b"<rdf:Description tiff:Orientation=\"8\"/>");
+        let d = decode(Cursor::new(png_with(3, 1, &px, &[(b"iTXt", itxt)])), &NO_LIMIT, false, |_| Ok(())).unwrap();
+        assert_eq!((d.orientation, d.height, d.width), (8, 3, 1));
+        // a looping EXIF block: upright, no failure
+        let mut looping = exif_orientation_block(3, 1, [6, 0, 0, 0], &[]);
+        looping[22..26].copy_from_slice(&8u32.to_le_bytes());
+        let d = decode(Cursor::new(png_with(3, 1, &px, &[(b"eXIf", looping)])), &NO_LIMIT, false, |_| Ok(())).unwrap();
+        assert_eq!(d.orientation, 6, "IFD0 itself is readable: its orientation counts");
+    }
+
+    fn iccp(profile: &[u8]) -> Vec<u8> {
+        let mut d = b"p\0\0".to_vec();
+        d.extend(fdeflate::compress_to_vec(profile));
+        d
+    }
+
+    #[test]
+    fn an_inflating_icc_chunk_is_refused_by_its_size_within_the_budget() {
+        let px = [90u8, 120, 30, 10, 200, 60];
+        let bomb = iccp(&vec![0u8; 64 << 20]);
+        let lim = Limits { max_pixels: 1 << 20, max_memory: 512 << 20 };
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", bomb.clone())])), &lim, false, |_| Ok(())).unwrap();
+        let (_, converted, why) = d.icc_profile.unwrap();
+        assert!(!converted && why.unwrap().contains("more than"));
+        assert_eq!(d.data, decode_u8(&px, false));
+        // under a small budget the cap is a sixteenth of it
+        let lim = Limits { max_pixels: 1 << 20, max_memory: 1 << 20 };
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", bomb)])), &lim, false, |_| Ok(())).unwrap();
+        assert!(d.icc_profile.unwrap().2.unwrap().contains("65536"));
+    }
+
+    #[test]
+    fn a_profile_that_makes_the_image_constant_or_is_not_rgb_is_ignored() {
+        use moxcms::{ColorProfile, ToneReprCurve};
+        let px = [90u8, 120, 30, 10, 200, 60];
+        let mut flat = ColorProfile::new_adobe_rgb();
+        let one = ToneReprCurve::Lut(vec![40000, 40000]);
+        flat.red_trc = Some(one.clone());
+        flat.green_trc = Some(one.clone());
+        flat.blue_trc = Some(one);
+        let flat = flat.encode().unwrap();
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", iccp(&flat))])), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        let (_, converted, why) = d.icc_profile.unwrap();
+        assert!(!converted && why.unwrap().contains("one colour"));
+        assert_eq!(d.data, decode_u8(&px, true));
+        // the data colour space of the header (bytes 16..20) said Lab
+        let mut lab = ColorProfile::new_adobe_rgb().encode().unwrap();
+        lab[16..20].copy_from_slice(b"Lab ");
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", iccp(&lab))])), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        let (_, converted, why) = d.icc_profile.unwrap();
+        assert!(!converted && why.unwrap().contains("not RGB"), "{:?}", d.notes);
+        assert_eq!(d.data, decode_u8(&px, true));
+        // a good Adobe RGB profile is still applied
+        let adobe = ColorProfile::new_adobe_rgb().encode().unwrap();
+        let d = decode(Cursor::new(png_with(2, 1, &px, &[(b"iCCP", iccp(&adobe))])), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        assert!(d.icc_profile.unwrap().1);
+        assert_ne!(d.data, decode_u8(&px, true));
+    }
+
+    #[test]
+    fn without_presents_the_file_minus_its_holes() {
+        let data: Vec<u8> = (0..100u8).collect();
+        let mut w = Without::new(Cursor::new(data.clone()), vec![(10, 5), (50, 20)]).unwrap();
+        let mut all: Vec<u8> = Vec::new();
+        // small reads cross the holes one piece at a time
+        let mut buf = [0u8; 7];
+        loop {
+            let n = w.read(&mut buf).unwrap();
+            if n == 0 {
+                break;
+            }
+            all.extend(&buf[..n]);
+        }
+        let expect: Vec<u8> = data.iter().copied().filter(|&b| !(10..15).contains(&b) && !(50..70).contains(&b)).collect();
+        assert_eq!(all, expect);
+        assert_eq!(w.seek(SeekFrom::End(0)).unwrap(), 75);
+        w.seek(SeekFrom::Start(44)).unwrap();
+        let mut b = [0u8; 3];
+        w.read_exact(&mut b).unwrap();
+        assert_eq!(b, [49, 70, 71]);
+        w.seek(SeekFrom::Current(-4)).unwrap();
+        w.read_exact(&mut b).unwrap();
+        assert_eq!(b, [48, 49, 70]);
     }
 }

@@ -5,7 +5,7 @@
 //! implementation for both commands. sRGB-tagged and untagged inputs keep
 //! the sRGB decoding of `color` bit for bit.
 
-use moxcms::{ColorProfile, Layout, ProfileText, RenderingIntent, ToneReprCurve, TransformOptions};
+use moxcms::{ColorProfile, DataColorSpace, Layout, ProfileText, RenderingIntent, ToneReprCurve, TransformOptions};
 
 /// The distance of a profile's colorants from sRGB's under which it is
 /// taken as sRGB (XYZ units; Adobe RGB's green is 0.07 away, P3's red 0.05).
@@ -56,9 +56,15 @@ pub enum Profile {
     Unreadable(String),
 }
 
-/// Classifies the ICC profile `icc` of an input.
+/// Classifies the ICC profile `icc` of an input. A profile whose data are
+/// not RGB (Lab, gray, CMYK) cannot describe the RGB codes decoded and is
+/// unreadable for them: the codes are read as sRGB, with the reason.
 pub fn classify(icc: &[u8]) -> Profile {
     match ColorProfile::new_from_slice(icc) {
+        Ok(p) if p.color_space != DataColorSpace::Rgb => Profile::Unreadable(format!(
+            "its colour space is {:?}, not RGB; ignored",
+            p.color_space
+        )),
         Ok(p) if is_srgb(&p) => Profile::Srgb(description(&p)),
         Ok(p) => Profile::Other(description(&p)),
         Err(e) => Profile::Unreadable(format!("{e:?}")),
@@ -69,6 +75,10 @@ pub fn classify(icc: &[u8]) -> Profile {
 /// from the profile `icc` to the working space, in place: linear when
 /// `linear`, else sRGB-encoded (`--preprocess reference`, which keeps the
 /// sRGB values). Values outside the sRGB gamut are clipped to [0, 1].
+///
+/// A profile whose transform gives non-numbers, or maps an image that is
+/// not constant to one colour, is broken: an error, and `values` are left
+/// as they were (the caller reads them as sRGB instead).
 pub fn convert(icc: &[u8], values: &mut [f32], linear: bool) -> Result<(), String> {
     let src = ColorProfile::new_from_slice(icc).map_err(|e| format!("the ICC profile cannot be read: {e:?}"))?;
     let dst = if linear { linear_srgb() } else { ColorProfile::new_srgb() };
@@ -81,11 +91,39 @@ pub fn convert(icc: &[u8], values: &mut [f32], linear: bool) -> Result<(), Strin
         .create_transform_f32(Layout::Rgb, &dst, Layout::Rgb, options)
         .map_err(|e| format!("no transform from the ICC profile {:?}: {e:?}", description(&src)))?;
     let input = values.to_vec();
-    t.transform(&input, values).map_err(|e| format!("ICC transform: {e:?}"))?;
+    t.transform(&input, values).map_err(|e| {
+        values.copy_from_slice(&input);
+        format!("ICC transform: {e:?}")
+    })?;
+    let broken = if values.iter().any(|v| !v.is_finite()) {
+        Some("the ICC profile's transform gives non-numbers; ignored")
+    } else if constant(values) && !constant(&input) {
+        Some("the ICC profile maps every pixel to one colour; ignored")
+    } else {
+        None
+    };
+    if let Some(why) = broken {
+        values.copy_from_slice(&input);
+        return Err(why.into());
+    }
     for v in values.iter_mut() {
-        *v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+        *v = v.clamp(0.0, 1.0);
     }
     Ok(())
+}
+
+/// Whether every RGB triple of `values` is the first one (once clipped to
+/// [0, 1], as the values are kept).
+fn constant(values: &[f32]) -> bool {
+    let clip = |p: &[f32]| [p[0].clamp(0.0, 1.0), p[1].clamp(0.0, 1.0), p[2].clamp(0.0, 1.0)];
+    let mut px = values.chunks_exact(3);
+    match px.next() {
+        Some(first) => {
+            let f = clip(first);
+            px.all(|p| clip(p) == f)
+        }
+        None => true,
+    }
 }
 
 #[cfg(test)]

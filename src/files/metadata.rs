@@ -12,7 +12,7 @@
 use bytes::Bytes;
 use img_parts::jpeg::{markers, Jpeg, JpegSegment};
 use img_parts::png::{Png, PngChunk};
-use img_parts::{ImageEXIF, ImageICC};
+use img_parts::ImageEXIF;
 use little_exif::exif_tag::ExifTag;
 use little_exif::filetype::FileExtension;
 use little_exif::ifd::ExifTagGroup;
@@ -101,50 +101,65 @@ impl Container {
 
 /// Reads the metadata of an input file (`bytes`, the whole file, taken so
 /// that it is not copied). Never fails: what cannot be read is a note.
+/// The blocks are found and checked by the bounded readers of
+/// `files::exif` (loops, counts, sizes, offsets) before `little_exif`
+/// parses the EXIF; a block refused there is dropped with its reason.
 pub fn read(bytes: Vec<u8>) -> Carried {
+    use crate::files::exif;
     let mut out = Carried::default();
     let Some(kind) = Container::sniff(&bytes) else {
         out.notes.push("metadata: not a JPEG, PNG or TIFF container; none carried".into());
         return out;
     };
-    // little_exif panics on some malformed files; a photo never fails because of its metadata
-    let parsed = std::panic::catch_unwind(|| Metadata::new_from_vec(&bytes, kind.extension()));
-    match parsed {
-        Ok(Ok(m)) => {
-            if kind == Container::Tiff {
-                out.xmp = m.get_tag_by_hex(TIFF_XMP_TAG, None).next().map(|t| {
-                    let raw = t.value_as_u8_vec(&m.get_endian());
-                    String::from_utf8_lossy(&raw).trim_end_matches('\0').to_string()
-                });
-            }
-            out.exif = carried_exif(&m);
-        }
-        Ok(Err(e)) if is_absent(&e) => {}
-        Ok(Err(e)) => out.notes.push(format!("metadata: the EXIF cannot be read ({e}); not carried")),
-        Err(_) => out.notes.push("metadata: the EXIF is malformed; not carried".into()),
+    let found = exif::scan(&mut std::io::Cursor::new(bytes.as_slice()), exif::MAX_BLOCK);
+    if found.exif_blocks > 1 {
+        out.notes.push(format!("metadata: {} EXIF blocks; the first one is carried", found.exif_blocks));
     }
-    match kind {
-        Container::Jpeg => {
-            if let Ok(j) = Jpeg::from_bytes(Bytes::from(bytes)) {
-                out.xmp = j
-                    .segments()
-                    .iter()
-                    .filter(|s| s.marker() == markers::APP1)
-                    .find_map(|s| s.contents().strip_prefix(XMP_JPEG_HEADER).map(|x| String::from_utf8_lossy(x).into_owned()));
-                out.icc = j.icc_profile().map(|b| b.to_vec());
+    // a TIFF file is its own EXIF block
+    let block: Option<Result<&[u8], String>> = match (kind, &found.exif) {
+        (Container::Tiff, _) => Some(Ok(bytes.as_slice())),
+        (_, Some(Ok(b))) => Some(Ok(b.as_slice())),
+        (_, Some(Err(e))) => Some(Err(e.clone())),
+        (_, None) => None,
+    };
+    let block = block.map(|b| b.and_then(|b| exif::check(&mut &b[..]).map(|_| b)));
+    match block {
+        None => {}
+        Some(Err(e)) => out.notes.push(format!("metadata: the EXIF is not carried ({e})")),
+        Some(Ok(b)) => {
+            let v;
+            let whole = if kind == Container::Tiff {
+                &bytes
             } else {
-                out.notes.push("metadata: the JPEG segments cannot be read; XMP and ICC not carried".into());
+                v = b.to_vec();
+                &v
+            };
+            // little_exif panics on some malformed blocks; a photo never fails because of its metadata
+            match std::panic::catch_unwind(|| Metadata::new_from_vec(whole, FileExtension::TIFF)) {
+                Ok(Ok(m)) => {
+                    if kind == Container::Tiff {
+                        out.xmp = m.get_tag_by_hex(TIFF_XMP_TAG, None).next().map(|t| {
+                            let raw = t.value_as_u8_vec(&m.get_endian());
+                            String::from_utf8_lossy(&raw).trim_end_matches('\0').to_string()
+                        });
+                    }
+                    out.exif = carried_exif(&m);
+                }
+                Ok(Err(e)) if is_absent(&e) => {}
+                Ok(Err(e)) => out.notes.push(format!("metadata: the EXIF cannot be read ({e}); not carried")),
+                Err(_) => out.notes.push("metadata: the EXIF is malformed; not carried".into()),
             }
         }
-        Container::Png => {
-            if let Ok(p) = Png::from_bytes(Bytes::from(bytes)) {
-                out.xmp = p.chunks().iter().filter(|c| &c.kind() == b"iTXt").find_map(|c| png_xmp(&c.contents()));
-                out.icc = p.icc_profile().map(|b| b.to_vec());
-            } else {
-                out.notes.push("metadata: the PNG chunks cannot be read; XMP and ICC not carried".into());
-            }
-        }
-        Container::Tiff => {}
+    }
+    match found.xmp {
+        Some(Ok(x)) => out.xmp = Some(x),
+        Some(Err(e)) => out.notes.push(format!("metadata: the XMP is not carried ({e})")),
+        None => {}
+    }
+    match found.icc {
+        Some(Ok(p)) => out.icc = Some(p),
+        Some(Err(e)) => out.notes.push(format!("metadata: the ICC profile is ignored ({e})")),
+        None => {}
     }
     out
 }
@@ -152,20 +167,6 @@ pub fn read(bytes: Vec<u8>) -> Carried {
 fn is_absent(e: &std::io::Error) -> bool {
     let s = e.to_string().to_ascii_lowercase();
     s.contains("no exif") || s.contains("no metadata") || s.contains("could not find") || s.contains("not found")
-}
-
-/// The XMP text of an uncompressed iTXt chunk with the XMP keyword.
-fn png_xmp(data: &[u8]) -> Option<String> {
-    let rest = data.strip_prefix(XMP_PNG_KEYWORD)?.strip_prefix(b"\0")?;
-    let (&compressed, rest) = rest.split_first()?;
-    if compressed != 0 {
-        return None;
-    }
-    let rest = rest.get(1..)?; // compression method
-    let lang_end = rest.iter().position(|&b| b == 0)?;
-    let rest = &rest[lang_end + 1..];
-    let tr_end = rest.iter().position(|&b| b == 0)?;
-    Some(String::from_utf8_lossy(&rest[tr_end + 1..]).into_owned())
 }
 
 /// The input's tags worth carrying: IFD0's descriptive ones, the Exif
@@ -233,10 +234,13 @@ pub fn taken_at(m: &Metadata) -> Option<String> {
     let raw = raw.trim_end_matches('\0').trim();
     // "YYYY:MM:DD HH:MM:SS"
     let (date, time) = raw.split_once(' ')?;
-    if date.len() != 10 || time.len() < 8 || !date.chars().all(|c| c.is_ascii_digit() || c == ':') {
+    // bytes, not characters: a hostile value may hold any UTF-8 (found by fuzz/meta_carry)
+    let time = time.as_bytes().get(..8)?;
+    let clock = |c: &u8| c.is_ascii_digit() || *c == b':';
+    if date.len() != 10 || !date.bytes().all(|c| clock(&c)) || !time.iter().all(clock) {
         return None;
     }
-    let mut iso = format!("{}T{}", date.replace(':', "-"), &time[..8]);
+    let mut iso = format!("{}T{}", date.replace(':', "-"), String::from_utf8_lossy(time));
     if let Some(sub) = subsec.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_digit())) {
         iso.push('.');
         iso.push_str(&sub);
@@ -613,19 +617,55 @@ mod tests {
     }
 
     #[test]
-    fn png_xmp_chunks_are_read() {
-        let mut d = XMP_PNG_KEYWORD.to_vec();
-        d.extend_from_slice(b"\0\0\0en\0\0<x/>");
-        assert_eq!(png_xmp(&d).as_deref(), Some("<x/>"));
-        d[XMP_PNG_KEYWORD.len() + 1] = 1; // compressed: not read
-        assert_eq!(png_xmp(&d), None);
-    }
-
-    #[test]
     fn garbage_is_a_note_not_a_failure() {
         let c = read(b"\xFF\xD8\xFF\xE1\x00\x10Exif\0\0garbage-garbage".to_vec());
         assert!(c.exif.is_none());
         let c = read(b"not an image".to_vec());
         assert!(c.exif.is_none() && !c.notes.is_empty());
+    }
+
+    /// A JPEG of 8 x 8 pixels with `app1` as its first APP1 segment.
+    #[cfg(feature = "cli")]
+    fn jpeg_with_app1(app1: &[u8]) -> Vec<u8> {
+        use image::ImageEncoder;
+        let mut j = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut j).write_image(&[80; 192], 8, 8, image::ExtendedColorType::Rgb8).unwrap();
+        let mut out = j[..2].to_vec();
+        out.extend([0xFF, 0xE1]);
+        out.extend(((app1.len() + 2) as u16).to_be_bytes());
+        out.extend(app1);
+        out.extend(&j[2..]);
+        out
+    }
+
+    /// "Exif\0\0" and a little-endian block: IFD0 with Make "Nikon" and
+    /// its next-IFD link `next`.
+    fn exif_with_make(next: u32) -> Vec<u8> {
+        let mut b = b"Exif\0\0II*\0\x08\0\0\0\x01\0\x0F\x01\x02\0\x06\0\0\0\x1A\0\0\0".to_vec();
+        b.extend(next.to_le_bytes());
+        b.extend(b"Nikon\0");
+        b
+    }
+
+    #[test]
+    #[cfg(feature = "cli")]
+    fn a_looping_exif_block_is_dropped_with_a_note_and_a_sound_one_carried() {
+        let c = read(jpeg_with_app1(&exif_with_make(0)));
+        assert!(c.notes.is_empty(), "{:?}", c.notes);
+        let m = c.exif.expect("the sound block is carried");
+        assert!(m.get_ifds().iter().flat_map(|i| i.get_tags()).any(|t| matches!(t, ExifTag::Make(s) if s.starts_with("Nikon"))));
+        // the next-IFD link pointing at IFD0 itself
+        let c = read(jpeg_with_app1(&exif_with_make(8)));
+        assert!(c.exif.is_none());
+        assert!(c.notes.iter().any(|n| n.contains("loop")), "{:?}", c.notes);
+    }
+
+    #[test]
+    fn a_time_with_non_ascii_characters_is_no_time_not_a_panic() {
+        let mut m = Metadata::new();
+        m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:\u{ff}\u{ff}\u{ff}\u{ff}".into()));
+        assert_eq!(taken_at(&m), None);
+        m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:04:05".into()));
+        assert_eq!(taken_at(&m).as_deref(), Some("2026-01-02T03:04:05"));
     }
 }

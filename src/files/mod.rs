@@ -22,6 +22,12 @@ stage_modules! { budget, commit, jobs, settings, decode, encode, pipeline, sidec
 #[forbid(unsafe_code)]
 pub mod metadata;
 
+/// Bounded readers of EXIF, XMP and ICC blocks, and the one reading of
+/// orientation (both commands).
+#[cfg(any(feature = "cli", feature = "python"))]
+#[forbid(unsafe_code)]
+pub mod exif;
+
 /// Inputs tagged with another colour profile converted to the working space.
 #[cfg(any(feature = "cli", feature = "python"))]
 #[forbid(unsafe_code)]

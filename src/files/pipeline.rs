@@ -239,7 +239,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         icc_profile: decoded.icc_profile.clone(),
         camera_matrix: None,
         white_balance: None,
-        notes: Vec::new(),
+        notes: decoded.notes.clone(),
     };
     Ok(Restored {
         res,

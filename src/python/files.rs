@@ -113,8 +113,9 @@ impl PyFileSettings {
 /// Decodes a PNG, JPEG or TIFF file with the binary's decoder: returns
 /// `(image, info)`, image float32 (H, W, 3) through the inverse sRGB curve
 /// when `linearize` (float TIFFs as they are), info a dict with `format`,
-/// `bits`, `is_float`, `orientation` (applied) and `icc_profile`
-/// (None or `(description, converted, why_unreadable)`).
+/// `bits`, `is_float`, `orientation` (applied), `icc_profile` (None or
+/// `(description, converted, why_unreadable)`) and `notes` (what the
+/// metadata readers dropped or chose, src/files/exif.rs).
 /// `on_header(height, width, bytes_per_pixel, oriented)` is called from
 /// the header before the pixels are decoded (the memory plan); what it
 /// raises propagates. A file the decoder refuses raises ImageError, one
@@ -153,6 +154,7 @@ fn decode_file<'py>(
     info.set_item("is_float", d.is_float)?;
     info.set_item("orientation", d.orientation)?;
     info.set_item("icc_profile", d.icc_profile.clone())?;
+    info.set_item("notes", d.notes.clone())?;
     let image = PyArray1::from_vec(py, d.data).reshape([d.height, d.width, 3])?.into_any();
     Ok((image, info))
 }

@@ -1,0 +1,943 @@
+//! Bounded readers of the metadata inside a JPEG, PNG or TIFF file, one
+//! implementation for both commands (docs/OUTPUTS.md "Metadata"): the JPEG
+//! segments and PNG chunks that hold EXIF, XMP and the ICC profile, a
+//! validator of TIFF-structured EXIF, and the one reading of orientation.
+//!
+//! Metadata is as hostile as pixels: the EXIF parser of `little_exif`
+//! follows IFD links without looking for loops and allocates what a count
+//! says, and PNG chunks inflate without bound. Everything here works on
+//! offsets checked against the data, inflates with a cap, and stops at
+//! [`MAX_IFDS`], [`MAX_ENTRIES`] and [`MAX_VALUE_BYTES`]; a block that
+//! breaks a limit is refused whole, with the reason, and the photo is read
+//! without it.
+
+use std::collections::HashSet;
+use std::io::{Read, Seek, SeekFrom};
+
+/// Most IFDs (IFD0, IFD1, ..., the Exif, GPS and Interop sub-IFDs) walked
+/// in one EXIF block or TIFF file.
+pub const MAX_IFDS: usize = 64;
+/// Most entries over all the IFDs of one block.
+pub const MAX_ENTRIES: usize = 8192;
+/// Most bytes of values stored outside their entries (text, arrays,
+/// rationals) in one block, not counting image strips and the thumbnail,
+/// which must lie inside the block and not add up to more than it.
+pub const MAX_VALUE_BYTES: u64 = 16 << 20;
+/// The largest EXIF block, XMP packet or ICC profile read (after
+/// inflating): real ones are well under a few MB.
+pub const MAX_BLOCK: u64 = 16 << 20;
+
+/// A TIFF-structured block (an EXIF block or a whole TIFF file) read by
+/// offset: a byte slice, or a file read through seeks.
+pub trait Source {
+    /// its length in bytes
+    fn size(&self) -> u64;
+    /// fills `buf` from offset `at`; false when that is past the end or unreadable
+    fn read_at(&mut self, at: u64, buf: &mut [u8]) -> bool;
+}
+
+impl Source for &[u8] {
+    fn size(&self) -> u64 {
+        self.len() as u64
+    }
+    fn read_at(&mut self, at: u64, buf: &mut [u8]) -> bool {
+        let Ok(at) = usize::try_from(at) else { return false };
+        match at.checked_add(buf.len()).and_then(|end| self.get(at..end)) {
+            Some(s) => {
+                buf.copy_from_slice(s);
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+/// A [`Source`] over a reader (a TIFF file, not held in memory).
+pub struct ReaderSource<'a, R> {
+    inner: &'a mut R,
+    len: u64,
+}
+
+impl<'a, R: Read + Seek> ReaderSource<'a, R> {
+    /// The reader's whole length is the block.
+    pub fn new(inner: &'a mut R) -> std::io::Result<Self> {
+        let len = inner.seek(SeekFrom::End(0))?;
+        Ok(Self { inner, len })
+    }
+}
+
+impl<R: Read + Seek> Source for ReaderSource<'_, R> {
+    fn size(&self) -> u64 {
+        self.len
+    }
+    fn read_at(&mut self, at: u64, buf: &mut [u8]) -> bool {
+        at.checked_add(buf.len() as u64).is_some_and(|end| end <= self.len)
+            && self.inner.seek(SeekFrom::Start(at)).is_ok()
+            && self.inner.read_exact(buf).is_ok()
+    }
+}
+
+/// One IFD entry: tag, type, count and the four value-or-offset bytes.
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    tag: u16,
+    kind: u16,
+    count: u32,
+    raw: [u8; 4],
+}
+
+/// The byte order of a TIFF header.
+#[derive(Debug, Clone, Copy)]
+struct Order(bool);
+
+impl Order {
+    fn u16(self, b: [u8; 2]) -> u16 {
+        if self.0 { u16::from_le_bytes(b) } else { u16::from_be_bytes(b) }
+    }
+    fn u32(self, b: [u8; 4]) -> u32 {
+        if self.0 { u32::from_le_bytes(b) } else { u32::from_be_bytes(b) }
+    }
+}
+
+/// Bytes per value of a TIFF type (6.0 and the IFD type 13); None if unknown.
+fn type_size(kind: u16) -> Option<u64> {
+    match kind {
+        1 | 2 | 6 | 7 => Some(1),
+        3 | 8 => Some(2),
+        4 | 9 | 11 | 13 => Some(4),
+        5 | 10 | 12 => Some(8),
+        _ => None,
+    }
+}
+
+/// The byte order and the offset of IFD0.
+fn header(src: &mut dyn Source) -> Result<(Order, u64), String> {
+    let mut h = [0u8; 8];
+    if !src.read_at(0, &mut h) {
+        return Err("the EXIF block is shorter than a TIFF header".into());
+    }
+    let order = match &h[..4] {
+        b"II*\0" => Order(true),
+        b"MM\0*" => Order(false),
+        _ => return Err("the EXIF block does not start with a TIFF header".into()),
+    };
+    Ok((order, u64::from(order.u32([h[4], h[5], h[6], h[7]]))))
+}
+
+/// The entries of the IFD at `at` and its link to the next IFD.
+fn ifd(src: &mut dyn Source, o: Order, at: u64) -> Result<(Vec<Entry>, u64), String> {
+    let mut n = [0u8; 2];
+    if !src.read_at(at, &mut n) {
+        return Err(format!("an EXIF IFD offset ({at}) is outside the block"));
+    }
+    let n = usize::from(o.u16(n));
+    let mut raw = vec![0u8; n * 12 + 4];
+    if !src.read_at(at + 2, &mut raw) {
+        return Err(format!("the EXIF IFD at {at} ({n} entries) runs past the block"));
+    }
+    let entries = raw
+        .chunks_exact(12)
+        .map(|e| Entry {
+            tag: o.u16([e[0], e[1]]),
+            kind: o.u16([e[2], e[3]]),
+            count: o.u32([e[4], e[5], e[6], e[7]]),
+            raw: [e[8], e[9], e[10], e[11]],
+        })
+        .collect();
+    let l = &raw[n * 12..];
+    Ok((entries, u64::from(o.u32([l[0], l[1], l[2], l[3]]))))
+}
+
+/// The integer values (BYTE, SHORT, LONG) of an entry, at most `max` of them.
+fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u32) -> Result<Vec<u64>, String> {
+    let size = match e.kind {
+        1 => 1,
+        3 => 2,
+        4 | 13 => 4,
+        k => return Err(format!("EXIF tag 0x{:04X} has type {k}, not an integer", e.tag)),
+    };
+    if e.count > max {
+        return Err(format!("EXIF tag 0x{:04X} has {} values, over {max}", e.tag, e.count));
+    }
+    let bytes = size * e.count as usize;
+    let data = if bytes <= 4 {
+        e.raw[..bytes].to_vec()
+    } else {
+        let mut v = vec![0u8; bytes];
+        if !src.read_at(u64::from(o.u32(e.raw)), &mut v) {
+            return Err(format!("the values of EXIF tag 0x{:04X} are outside the block", e.tag));
+        }
+        v
+    };
+    Ok(data
+        .chunks_exact(size)
+        .map(|c| match size {
+            1 => u64::from(c[0]),
+            2 => u64::from(o.u16([c[0], c[1]])),
+            _ => u64::from(o.u32([c[0], c[1], c[2], c[3]])),
+        })
+        .collect())
+}
+
+/// The tags whose value is the offset of a sub-IFD (Exif, GPS, Interop).
+const SUB_IFDS: [u16; 3] = [0x8769, 0x8825, 0xA005];
+
+/// What a valid block holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Walked {
+    /// IFDs walked
+    pub ifds: usize,
+    /// entries over all of them
+    pub entries: usize,
+}
+
+/// Checks a TIFF-structured block (an EXIF block, or a TIFF file) before
+/// a parser that trusts it is let near it: every IFD inside the block and
+/// reached once (a link back to an IFD already walked is a loop), at most
+/// [`MAX_IFDS`] IFDs and [`MAX_ENTRIES`] entries, every type known, every
+/// value inside the block, out-of-line values under [`MAX_VALUE_BYTES`] in
+/// all, image strips and the thumbnail inside the block and no larger than
+/// it. The reason is returned when one fails.
+pub fn check(src: &mut dyn Source) -> Result<Walked, String> {
+    let (o, ifd0) = header(src)?;
+    let len = src.size();
+    let mut seen = HashSet::new();
+    let mut todo = vec![(ifd0, true)];
+    let (mut ifds, mut entries, mut values) = (0usize, 0usize, 0u64);
+    while let Some((at, chained)) = todo.pop() {
+        if !seen.insert(at) {
+            return Err(format!("the EXIF IFDs form a loop (the IFD at offset {at} is reached twice)"));
+        }
+        ifds += 1;
+        if ifds > MAX_IFDS {
+            return Err(format!("the EXIF block has more than {MAX_IFDS} IFDs"));
+        }
+        let (list, next) = ifd(src, o, at)?;
+        entries += list.len();
+        if entries > MAX_ENTRIES {
+            return Err(format!("the EXIF block has more than {MAX_ENTRIES} entries"));
+        }
+        let (mut strips, mut counts, mut thumb, mut thumb_len) = (None, None, None, None);
+        for e in &list {
+            let size = type_size(e.kind).ok_or_else(|| format!("EXIF tag 0x{:04X} has an unknown type {}", e.tag, e.kind))?;
+            let bytes = size * u64::from(e.count);
+            if bytes > 4 {
+                let off = u64::from(o.u32(e.raw));
+                if off.checked_add(bytes).is_none_or(|end| end > len) {
+                    return Err(format!("the value of EXIF tag 0x{:04X} ({bytes} bytes at {off}) is outside the block", e.tag));
+                }
+                values += bytes;
+                if values > MAX_VALUE_BYTES {
+                    return Err(format!("the EXIF values add up to more than {MAX_VALUE_BYTES} bytes"));
+                }
+            }
+            match e.tag {
+                t if SUB_IFDS.contains(&t) => {
+                    let first = integers(src, o, e, 1 << 16)?;
+                    match first.first() {
+                        Some(&sub) if matches!(e.kind, 4 | 13) => todo.push((sub, false)),
+                        _ => return Err(format!("EXIF sub-IFD tag 0x{t:04X} is not a LONG offset")),
+                    }
+                }
+                0x0111 | 0x0144 => strips = Some(integers(src, o, e, 1 << 20)?),
+                0x0117 | 0x0145 => counts = Some(integers(src, o, e, 1 << 20)?),
+                0x0201 => thumb = Some(integers(src, o, e, 1 << 20)?),
+                0x0202 => thumb_len = Some(integers(src, o, e, 1 << 20)?),
+                _ => {}
+            }
+        }
+        for (offsets, sizes) in [(strips, counts), (thumb, thumb_len)] {
+            let (Some(offsets), Some(sizes)) = (offsets, sizes) else { continue };
+            let mut total = 0u64;
+            for (off, n) in offsets.iter().zip(&sizes) {
+                total += n;
+                if off.checked_add(*n).is_none_or(|end| end > len) || total > len {
+                    return Err(format!("the EXIF image data ({n} bytes at {off}) is outside the block"));
+                }
+            }
+        }
+        if chained && next != 0 {
+            todo.push((next, true));
+        }
+    }
+    Ok(Walked { ifds, entries })
+}
+
+/// The Orientation of IFD0 (tag 0x0112), read by the rule of
+/// [`orientation_of`]: Ok(None) without the tag, Err with the reason when
+/// it is there but unusable.
+pub fn exif_orientation(src: &mut dyn Source) -> Result<Option<u8>, String> {
+    let (o, ifd0) = header(src)?;
+    let (list, _) = ifd(src, o, ifd0)?;
+    let Some(e) = list.iter().find(|e| e.tag == 0x0112) else { return Ok(None) };
+    if !matches!(e.kind, 3 | 4) {
+        return Err(format!("the EXIF Orientation has type {}, not SHORT or LONG", e.kind));
+    }
+    if e.count == 0 {
+        return Err("the EXIF Orientation has no value".into());
+    }
+    // the first value: inline when all of them fit in the entry, else at its offset
+    let size = if e.kind == 3 { 2 } else { 4 };
+    let mut b = [0u8; 4];
+    if size * u64::from(e.count) <= 4 {
+        b[..size as usize].copy_from_slice(&e.raw[..size as usize]);
+    } else if !src.read_at(u64::from(o.u32(e.raw)), &mut b[..size as usize]) {
+        return Err("the EXIF Orientation's value is outside the block".into());
+    }
+    let v = if size == 2 { u32::from(o.u16([b[0], b[1]])) } else { o.u32(b) };
+    if (1..=8).contains(&v) {
+        Ok(Some(v as u8))
+    } else {
+        Err(format!("the EXIF Orientation is {v}, not 1-8"))
+    }
+}
+
+/// `tiff:Orientation` of an XMP packet, as an attribute (`tiff:Orientation="6"`)
+/// or an element (`<tiff:Orientation>6</tiff:Orientation>`), the first one
+/// written: Ok(None) without one, Err when its value is not one digit 1-8
+/// or it is not closed.
+pub fn xmp_orientation(xmp: &str) -> Result<Option<u8>, String> {
+    let Some(at) = xmp.find("tiff:Orientation") else { return Ok(None) };
+    let rest = &xmp[at + "tiff:Orientation".len()..];
+    let value = if let Some(r) = rest.strip_prefix("=\"") {
+        r.find('"').map(|e| &r[..e])
+    } else if let Some(r) = rest.strip_prefix("='") {
+        r.find('\'').map(|e| &r[..e])
+    } else if let Some(r) = rest.strip_prefix('>') {
+        r.find("</tiff:Orientation>").map(|e| &r[..e])
+    } else {
+        None
+    };
+    let Some(value) = value else { return Err("the XMP tiff:Orientation is malformed".into()) };
+    match value.trim().parse::<u8>() {
+        Ok(v) if (1..=8).contains(&v) => Ok(Some(v)),
+        _ => Err(format!("the XMP tiff:Orientation {:?} is not 1-8", value.chars().take(20).collect::<String>())),
+    }
+}
+
+/// What a container holds besides its pixels, each read with the limits
+/// above (None: absent; Err: present but refused, with the reason).
+#[derive(Debug, Default, Clone)]
+pub struct Found {
+    /// the first EXIF block, TIFF-structured (without `Exif\0\0`), unchecked
+    pub exif: Option<Result<Vec<u8>, String>>,
+    /// how many EXIF blocks the file has (JPEG APP1 `Exif`, PNG eXIf)
+    pub exif_blocks: usize,
+    /// the first XMP packet
+    pub xmp: Option<Result<String, String>>,
+    /// the ICC profile (JPEG: its APP2 chunks joined; PNG: iCCP inflated)
+    pub icc: Option<Result<Vec<u8>, String>>,
+}
+
+/// The header of an EXIF APP1 segment and, optionally, of a PNG eXIf chunk.
+const EXIF_HEADER: &[u8] = b"Exif\0\0";
+const XMP_JPEG_HEADER: &[u8] = b"http://ns.adobe.com/xap/1.0/\0";
+const ICC_JPEG_HEADER: &[u8] = b"ICC_PROFILE\0";
+
+/// `data` inflated (zlib), refused past `cap` bytes.
+pub fn inflate(data: &[u8], cap: u64, what: &str) -> Result<Vec<u8>, String> {
+    let cap = usize::try_from(cap).unwrap_or(usize::MAX);
+    match fdeflate::decompress_to_vec_bounded(data, cap) {
+        Ok(v) => Ok(v),
+        Err(fdeflate::BoundedDecompressionError::OutputTooLarge { .. }) => {
+            Err(format!("the {what} inflates to more than {cap} bytes"))
+        }
+        Err(fdeflate::BoundedDecompressionError::DecompressionError { inner }) => {
+            Err(format!("the {what} cannot be inflated ({inner:?})"))
+        }
+    }
+}
+
+/// Reads exactly `n` bytes at the reader's position, refusing more than `cap`.
+fn take<R: Read>(r: &mut R, n: u64, cap: u64, what: &str) -> Result<Vec<u8>, String> {
+    if n > cap {
+        return Err(format!("the {what} is {n} bytes, over {cap}"));
+    }
+    let mut v = vec![0u8; n as usize];
+    r.read_exact(&mut v).map_err(|e| format!("the {what} cannot be read ({e})"))?;
+    Ok(v)
+}
+
+/// The segments of a JPEG (read through `r`) before its first scan: the
+/// first EXIF and XMP APP1 segments, the ICC profile of the APP2 segments
+/// (at most `icc_cap` bytes, chunks joined in their order numbers). Other
+/// segments are skipped by seeking.
+pub fn jpeg<R: Read + Seek>(r: &mut R, icc_cap: u64) -> Found {
+    let mut f = Found::default();
+    let mut icc: Vec<(u8, Vec<u8>)> = Vec::new();
+    let mut icc_bytes = 0u64;
+    let mut at = 2u64;
+    let byte = |r: &mut R| -> Option<u8> {
+        let mut b = [0u8; 1];
+        r.read_exact(&mut b).ok().map(|_| b[0])
+    };
+    if r.seek(SeekFrom::Start(at)).is_err() {
+        return f;
+    }
+    loop {
+        if byte(r) != Some(0xFF) {
+            break;
+        }
+        let mut marker = 0xFF;
+        while marker == 0xFF {
+            match byte(r) {
+                Some(m) => marker = m,
+                None => return finish(f, icc, icc_bytes, icc_cap),
+            }
+        }
+        if marker == 0xD8 || marker == 0x01 || (0xD0..=0xD7).contains(&marker) {
+            continue;
+        }
+        if marker == 0xDA || marker == 0xD9 {
+            break;
+        }
+        let (Some(hi), Some(lo)) = (byte(r), byte(r)) else { break };
+        let len = u64::from(u16::from_be_bytes([hi, lo]));
+        if len < 2 {
+            break;
+        }
+        at = match r.stream_position() {
+            Ok(p) => p + len - 2,
+            Err(_) => break,
+        };
+        if marker == 0xE1 || (marker == 0xE2 && icc_cap > 0) {
+            let Ok(seg) = take(r, len - 2, 1 << 16, "segment") else { break };
+            if marker == 0xE1 {
+                if let Some(tiff) = seg.strip_prefix(EXIF_HEADER) {
+                    f.exif_blocks += 1;
+                    if f.exif.is_none() {
+                        f.exif = Some(Ok(tiff.to_vec()));
+                    }
+                } else if let Some(x) = seg.strip_prefix(XMP_JPEG_HEADER) {
+                    f.xmp.get_or_insert_with(|| Ok(String::from_utf8_lossy(x).into_owned()));
+                }
+            } else if let Some(c) = seg.strip_prefix(ICC_JPEG_HEADER).filter(|c| c.len() >= 2) {
+                icc_bytes += (c.len() - 2) as u64;
+                if icc_bytes <= icc_cap {
+                    icc.push((c[0], c[2..].to_vec()));
+                }
+            }
+        }
+        if r.seek(SeekFrom::Start(at)).is_err() {
+            break;
+        }
+    }
+    finish(f, icc, icc_bytes, icc_cap)
+}
+
+fn finish(mut f: Found, mut icc: Vec<(u8, Vec<u8>)>, icc_bytes: u64, icc_cap: u64) -> Found {
+    if icc_bytes > 0 {
+        f.icc = Some(if icc_bytes > icc_cap {
+            Err(format!("the ICC profile is {icc_bytes} bytes, over {icc_cap}"))
+        } else {
+            icc.sort_by_key(|c| c.0);
+            Ok(icc.into_iter().flat_map(|c| c.1).collect())
+        });
+    }
+    f
+}
+
+/// The keyword of the text chunk that holds XMP in PNG.
+const XMP_PNG_KEYWORD: &[u8] = b"XML:com.adobe.xmp";
+
+/// The text of an iTXt chunk's data (keyword already removed), inflated
+/// within `cap` when compressed.
+fn itxt_text(rest: &[u8], cap: u64) -> Result<String, String> {
+    let bad = || "the XMP iTXt chunk is malformed".to_string();
+    let (&compressed, rest) = rest.split_first().ok_or_else(bad)?;
+    let rest = rest.get(1..).ok_or_else(bad)?;
+    let lang = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
+    let rest = &rest[lang + 1..];
+    let tr = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
+    let text = &rest[tr + 1..];
+    if compressed != 0 {
+        Ok(String::from_utf8_lossy(&inflate(text, cap, "XMP iTXt chunk")?).into_owned())
+    } else {
+        Ok(String::from_utf8_lossy(text).into_owned())
+    }
+}
+
+/// The keyword of the text chunks in which ImageMagick (and others) keep
+/// EXIF in PNG, as hexadecimal digits.
+const RAW_EXIF_KEYWORD: &[u8] = b"Raw profile type exif";
+
+/// The EXIF block of a "Raw profile type exif" text chunk (`data` after
+/// the keyword's NUL): the text (inflated within [`MAX_BLOCK`] if
+/// compressed) is a line naming the profile, a line with its length, and
+/// hexadecimal digits; the block is returned without `Exif\0\0`.
+fn raw_profile(kind: &[u8; 4], data: &[u8]) -> Result<Vec<u8>, String> {
+    let bad = || "the raw EXIF text chunk is malformed".to_string();
+    let text = match kind {
+        b"tEXt" => data.to_vec(),
+        b"zTXt" => inflate(data.get(1..).ok_or_else(bad)?, MAX_BLOCK * 2, "raw EXIF text chunk")?,
+        _ => {
+            let (&compressed, rest) = data.split_first().ok_or_else(bad)?;
+            let rest = rest.get(1..).ok_or_else(bad)?;
+            let lang = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
+            let rest = &rest[lang + 1..];
+            let tr = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
+            let t = &rest[tr + 1..];
+            if compressed != 0 { inflate(t, MAX_BLOCK * 2, "raw EXIF text chunk")? } else { t.to_vec() }
+        }
+    };
+    // "\nexif\n   1234\n" then the digits
+    let mut lines = 0;
+    let start = text.iter().position(|&b| {
+        lines += usize::from(b == b'\n');
+        lines == 3
+    });
+    let digits = text.get(start.ok_or_else(bad)? + 1..).ok_or_else(bad)?;
+    let hex = |b: u8| (b as char).to_digit(16).map(|d| d as u8);
+    let nibbles: Vec<u8> = digits.iter().filter(|b| !b.is_ascii_whitespace()).map(|&b| hex(b).ok_or_else(bad)).collect::<Result<_, _>>()?;
+    let mut block: Vec<u8> = nibbles.chunks_exact(2).map(|p| p[0] << 4 | p[1]).collect();
+    if block.starts_with(EXIF_HEADER) {
+        block.drain(..EXIF_HEADER.len());
+    }
+    Ok(block)
+}
+
+/// The chunks of a PNG read through `r` (positioned anywhere; the
+/// signature is checked): the first eXIf, the first XMP iTXt, and iCCP
+/// inflated within `icc_cap`. Chunks are skipped by seeking, never read
+/// whole unless they are one of these and under [`MAX_BLOCK`]. Also
+/// returns where the metadata chunks (iCCP, eXIf, tEXt, zTXt, iTXt) lie in
+/// the file (offset and length of each whole chunk, in order) so that the
+/// pixel decoder can be kept from inflating or holding them.
+pub fn png<R: Read + Seek>(r: &mut R, icc_cap: u64) -> (Found, Vec<(u64, u64)>) {
+    let mut f = Found::default();
+    let mut holes = Vec::new();
+    let mut sig = [0u8; 8];
+    if r.seek(SeekFrom::Start(0)).is_err() || r.read_exact(&mut sig).is_err() || &sig != b"\x89PNG\r\n\x1a\n" {
+        return (f, holes);
+    }
+    let mut at = 8u64;
+    let mut raw_exif = None;
+    loop {
+        let mut h = [0u8; 8];
+        if r.seek(SeekFrom::Start(at)).is_err() || r.read_exact(&mut h).is_err() {
+            break;
+        }
+        let len = u64::from(u32::from_be_bytes([h[0], h[1], h[2], h[3]]));
+        let kind = [h[4], h[5], h[6], h[7]];
+        if matches!(&kind, b"iCCP" | b"eXIf" | b"tEXt" | b"zTXt" | b"iTXt") {
+            holes.push((at, len.saturating_add(12)));
+        }
+        match &kind {
+            b"IEND" => break,
+            b"eXIf" => {
+                f.exif_blocks += 1;
+                if f.exif.is_none() {
+                    f.exif = Some(take(r, len, MAX_BLOCK, "EXIF chunk").map(|mut v| {
+                        if v.starts_with(EXIF_HEADER) {
+                            v.drain(..EXIF_HEADER.len());
+                        }
+                        v
+                    }));
+                }
+            }
+            b"iCCP" if f.icc.is_none() => {
+                // the compressed profile is smaller than the inflated cap (deflate cannot beat 1032:1)
+                f.icc = Some(take(r, len, icc_cap.max(1 << 16), "ICC chunk").and_then(|d| {
+                    let name = d.iter().position(|&b| b == 0).filter(|&n| (1..80).contains(&n));
+                    match name.and_then(|n| d.get(n + 1..).map(|rest| (rest, n))) {
+                        Some((rest, _)) if rest.first() == Some(&0) => inflate(&rest[1..], icc_cap, "ICC profile"),
+                        _ => Err("the iCCP chunk is malformed".into()),
+                    }
+                }));
+            }
+            b"tEXt" | b"zTXt" | b"iTXt" => {
+                let mut key = vec![0u8; len.min(80) as usize];
+                let Some(end) = r.read_exact(&mut key).ok().and_then(|_| key.iter().position(|&b| b == 0)) else {
+                    at = at.saturating_add(len).saturating_add(12);
+                    continue;
+                };
+                let keyword = &key[..end];
+                let mut rest = || -> Result<Vec<u8>, String> {
+                    let _ = r.seek(SeekFrom::Start(at + 8 + end as u64 + 1));
+                    take(r, len - end as u64 - 1, MAX_BLOCK, "text chunk")
+                };
+                if keyword == XMP_PNG_KEYWORD && &kind == b"iTXt" && f.xmp.is_none() {
+                    f.xmp = Some(rest().and_then(|d| itxt_text(&d, MAX_BLOCK)));
+                } else if keyword == RAW_EXIF_KEYWORD && raw_exif.is_none() {
+                    raw_exif = Some(rest().and_then(|d| raw_profile(&kind, &d)));
+                }
+            }
+            _ => {}
+        }
+        at = at.saturating_add(len).saturating_add(12);
+    }
+    if f.exif.is_none() && raw_exif.is_some() {
+        f.exif = raw_exif;
+        f.exif_blocks += 1;
+    }
+    (f, holes)
+}
+
+/// The container's metadata blocks read from `r` (by its first bytes):
+/// JPEG segments, PNG chunks; for a TIFF file the file is its own EXIF
+/// block and is not copied (`exif` stays None, `exif_blocks` is 1).
+pub fn scan<R: Read + Seek>(r: &mut R, icc_cap: u64) -> Found {
+    let mut sig = [0u8; 8];
+    let n = r.seek(SeekFrom::Start(0)).and_then(|_| r.read(&mut sig)).unwrap_or(0);
+    let sig = &sig[..n];
+    if sig.starts_with(&[0xFF, 0xD8]) {
+        jpeg(r, icc_cap)
+    } else if sig.starts_with(b"\x89PNG") {
+        png(r, icc_cap).0
+    } else if sig.starts_with(b"II*\0") || sig.starts_with(b"MM\0*") {
+        Found { exif_blocks: 1, ..Found::default() }
+    } else {
+        Found::default()
+    }
+}
+
+/// The XMP packet of a TIFF file (tag 700 of IFD0), within [`MAX_BLOCK`].
+fn tiff_xmp(src: &mut dyn Source) -> Result<Option<String>, String> {
+    let (o, ifd0) = header(src)?;
+    let (list, _) = ifd(src, o, ifd0)?;
+    let Some(e) = list.iter().find(|e| e.tag == 700) else { return Ok(None) };
+    let n = u64::from(e.count) * type_size(e.kind).unwrap_or(1);
+    if n > MAX_BLOCK {
+        return Err(format!("the XMP packet is {n} bytes, over {MAX_BLOCK}"));
+    }
+    let mut v = vec![0u8; n as usize];
+    if n <= 4 {
+        v.copy_from_slice(&e.raw[..n as usize]);
+    } else if !src.read_at(u64::from(o.u32(e.raw)), &mut v) {
+        return Err("the XMP packet is outside the file".into());
+    }
+    Ok(Some(String::from_utf8_lossy(&v).into_owned()))
+}
+
+/// The orientation of a photo (1-8, EXIF's codes) and a note when
+/// something was ignored, the one rule for both commands:
+///
+/// 1. the first EXIF block (JPEG: the first APP1 `Exif` segment; PNG: the
+///    first eXIf chunk; TIFF: the file's IFD0): its IFD0 Orientation tag,
+///    of type SHORT or LONG, count 1 or more, first value 1-8;
+/// 2. else the XMP packet's `tiff:Orientation`, if well-formed (one value
+///    1-8, attribute or element);
+/// 3. else 1 (upright).
+///
+/// An Orientation present but unusable in either place, or a second EXIF
+/// block, is named in the note.
+pub fn orientation_from<R: Read + Seek>(r: &mut R) -> (u8, Option<String>) {
+    let mut notes = Vec::new();
+    let mut sig = [0u8; 4];
+    let n = r.seek(SeekFrom::Start(0)).and_then(|_| r.read(&mut sig)).unwrap_or(0);
+    let is_tiff = n == 4 && (&sig == b"II*\0" || &sig == b"MM\0*");
+    let (exif, xmp) = if is_tiff {
+        match ReaderSource::new(r) {
+            Ok(mut src) => (Some(exif_orientation(&mut src)), tiff_xmp(&mut src).transpose()),
+            Err(e) => (Some(Err(format!("the file cannot be read ({e})"))), None),
+        }
+    } else {
+        let found = scan(r, 0);
+        if found.exif_blocks > 1 {
+            notes.push(format!("{} EXIF blocks; the first one is read", found.exif_blocks));
+        }
+        let exif = found.exif.map(|b| b.and_then(|b| exif_orientation(&mut b.as_slice())));
+        (exif, found.xmp)
+    };
+    let _ = r.seek(SeekFrom::Start(0));
+    let mut pick = |v: Option<Result<Option<u8>, String>>| match v {
+        Some(Ok(Some(o))) => Some(o),
+        Some(Err(e)) => {
+            notes.push(e);
+            None
+        }
+        _ => None,
+    };
+    let code = pick(exif)
+        .or_else(|| pick(xmp.map(|x| x.and_then(|x| xmp_orientation(&x)))))
+        .unwrap_or(1);
+    let note = (!notes.is_empty()).then(|| format!("orientation: {} (read as {code})", notes.join("; ")));
+    (code, note)
+}
+
+/// [`orientation_from`] over a whole file held in memory.
+pub fn orientation_of(bytes: &[u8]) -> (u8, Option<String>) {
+    orientation_from(&mut std::io::Cursor::new(bytes))
+}
+
+/// The bodies of the metadata fuzz targets (`fuzz/fuzz_targets/meta_*.rs`)
+/// and of their replay in `tests/fuzz_regressions.rs`: each reader is
+/// given arbitrary bytes and must return, never panic, hang or allocate
+/// past its limits (libFuzzer's `-rss_limit_mb` and `-timeout` catch those).
+#[cfg(any(test, feature = "internals"))]
+pub mod fuzzing {
+    use super::*;
+
+    /// An EXIF block: the validator and the orientation reader.
+    pub fn exif(data: &[u8]) {
+        let _ = check(&mut &data[..]);
+        let _ = exif_orientation(&mut &data[..]);
+        let _ = tiff_xmp(&mut &data[..]);
+    }
+
+    /// An XMP packet: its orientation, and the output packet made from it.
+    pub fn xmp(data: &[u8]) {
+        let text = String::from_utf8_lossy(data).into_owned();
+        let _ = xmp_orientation(&text);
+        let c = crate::files::metadata::Carried { xmp: Some(text), ..Default::default() };
+        let _ = crate::files::metadata::output_xmp(&c, &vec![("WaterType", "3C".into())]);
+    }
+
+    /// An ICC profile: classified, and applied to a few pixels when it is
+    /// one the decoder would apply.
+    pub fn icc(data: &[u8]) {
+        if let crate::files::icc::Profile::Other(_) = crate::files::icc::classify(data) {
+            let mut v = vec![0.0, 0.5, 1.0, 0.25, 0.75, 0.1];
+            let _ = crate::files::icc::convert(data, &mut v, true);
+        }
+    }
+
+    /// A whole file: its JPEG segments or PNG chunks, and the orientation rule.
+    pub fn container(data: &[u8]) {
+        let _ = scan(&mut std::io::Cursor::new(data), MAX_BLOCK);
+        let _ = png(&mut std::io::Cursor::new(data), 1 << 20);
+        let _ = orientation_of(data);
+    }
+
+    /// A whole file's metadata carried into a small encoded photo.
+    pub fn carry(data: &[u8]) {
+        let side = serde_json::json!({"water_type": "3C", "parameters": {}});
+        let _ = crate::files::metadata::carry(data.to_vec(), tiny_png(), &side, "x.json", 1, 1);
+    }
+
+    /// A 1 x 1 RGB PNG, framed by hand (the output side of [`carry`]).
+    fn tiny_png() -> Vec<u8> {
+        let chunk = |out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]| {
+            out.extend((data.len() as u32).to_be_bytes());
+            let mut kd = kind.to_vec();
+            kd.extend(data);
+            let mut c = !0u32;
+            for &b in &kd {
+                c ^= u32::from(b);
+                for _ in 0..8 {
+                    c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+                }
+            }
+            out.extend(&kd);
+            out.extend((!c).to_be_bytes());
+        };
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        chunk(&mut out, b"IHDR", &[0, 0, 0, 1, 0, 0, 0, 1, 8, 2, 0, 0, 0]);
+        chunk(&mut out, b"IDAT", &fdeflate::compress_to_vec(&[0, 10, 20, 30]));
+        chunk(&mut out, b"IEND", &[]);
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A little- or big-endian TIFF block with one IFD0 of `entries`
+    /// (tag, type, count, 4 value bytes), its link `next`, then `tail`.
+    pub(crate) fn tiff(le: bool, entries: &[(u16, u16, u32, [u8; 4])], next: u32, tail: &[u8]) -> Vec<u8> {
+        let u16b = |v: u16| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        let u32b = |v: u32| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        let mut b = if le { b"II*\0".to_vec() } else { b"MM\0*".to_vec() };
+        b.extend(u32b(8));
+        b.extend(u16b(entries.len() as u16));
+        for &(t, k, c, v) in entries {
+            b.extend(u16b(t));
+            b.extend(u16b(k));
+            b.extend(u32b(c));
+            b.extend(v);
+        }
+        b.extend(u32b(next));
+        b.extend(tail);
+        b
+    }
+
+    fn short(v: u16, le: bool) -> [u8; 4] {
+        let b = if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        [b[0], b[1], 0, 0]
+    }
+
+    #[test]
+    fn a_valid_block_is_walked() {
+        let b = tiff(true, &[(0x0112, 3, 1, short(6, true))], 0, &[]);
+        assert_eq!(check(&mut b.as_slice()), Ok(Walked { ifds: 1, entries: 1 }));
+    }
+
+    #[test]
+    fn loops_are_found_in_the_chain_and_through_sub_ifds() {
+        // next-IFD link to itself
+        let b = tiff(true, &[(0x0112, 3, 1, short(1, true))], 8, &[]);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("loop"));
+        // the Exif sub-IFD pointing back at IFD0, big-endian
+        let b = tiff(false, &[(0x8769, 4, 1, 8u32.to_be_bytes())], 0, &[]);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("loop"));
+        // two IFDs linking to each other: 8 -> 26 -> 8
+        let mut b = tiff(true, &[(0x0100, 3, 1, short(1, true))], 26, &[]);
+        b.extend(1u16.to_le_bytes());
+        b.extend([0x01, 0x01, 3, 0, 1, 0, 0, 0, 1, 0, 0, 0]);
+        b.extend(8u32.to_le_bytes());
+        assert_eq!(b.len(), 26 + 18);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("loop"));
+    }
+
+    #[test]
+    fn counts_sizes_and_offsets_are_bounded() {
+        // a value of 4 G bytes
+        let b = tiff(true, &[(0x010F, 2, u32::MAX, 100u32.to_le_bytes())], 0, &[]);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("outside"));
+        // an IFD offset past the end
+        let mut b = tiff(true, &[], 0, &[]);
+        b[4..8].copy_from_slice(&1000u32.to_le_bytes());
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("outside"));
+        // an unknown type
+        let b = tiff(true, &[(0x010F, 99, 1, [0; 4])], 0, &[]);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("unknown type"));
+        // strips larger than the block, and a thumbnail past its end
+        let b = tiff(true, &[(0x0111, 4, 1, 0u32.to_le_bytes()), (0x0117, 4, 1, 4_000_000_000u32.to_le_bytes())], 0, &[]);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("image data"));
+        let b = tiff(true, &[(0x0201, 4, 1, 20u32.to_le_bytes()), (0x0202, 4, 1, 30u32.to_le_bytes())], 0, &[]);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("image data"));
+        // many values all pointing at the same bytes: inside, but over the total
+        let tail = vec![b'a'; 1 << 16];
+        let entries: Vec<_> = (0..300u16).map(|t| (0x9000 + t, 7, 1 << 16, (8 + 2 + 300 * 12 + 4u32).to_le_bytes())).collect();
+        let b = tiff(true, &entries, 0, &tail);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("add up"));
+        // a chain of more IFDs than allowed, each a new offset
+        let mut b = b"II*\0".to_vec();
+        b.extend(8u32.to_le_bytes());
+        for i in 0..(MAX_IFDS as u32 + 1) {
+            b.extend(0u16.to_le_bytes());
+            b.extend((8 + 6 * (i + 1)).to_le_bytes());
+        }
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("IFDs"));
+    }
+
+    #[test]
+    fn exif_orientation_takes_short_or_long_and_the_first_value() {
+        for le in [true, false] {
+            let u32b = |v: u32| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+            let b = tiff(le, &[(0x0112, 3, 1, short(6, le))], 0, &[]);
+            assert_eq!(exif_orientation(&mut b.as_slice()), Ok(Some(6)));
+            let b = tiff(le, &[(0x0112, 4, 1, u32b(8))], 0, &[]);
+            assert_eq!(exif_orientation(&mut b.as_slice()), Ok(Some(8)));
+            // SHORT count 2: both inline, the first taken
+            let two = if le { [3, 0, 5, 0] } else { [0, 3, 0, 5] };
+            let b = tiff(le, &[(0x0112, 3, 2, two)], 0, &[]);
+            assert_eq!(exif_orientation(&mut b.as_slice()), Ok(Some(3)));
+            // LONG count 2: out of line, at 8 + 2 + 12 + 4 = 26
+            let mut tail = u32b(7).to_vec();
+            tail.extend(u32b(2));
+            let b = tiff(le, &[(0x0112, 4, 2, u32b(26))], 0, &tail);
+            assert_eq!(exif_orientation(&mut b.as_slice()), Ok(Some(7)));
+            let b = tiff(le, &[(0x0112, 3, 1, short(9, le))], 0, &[]);
+            assert!(exif_orientation(&mut b.as_slice()).unwrap_err().contains("not 1-8"));
+            let b = tiff(le, &[(0x0112, 2, 1, [b'6', 0, 0, 0])], 0, &[]);
+            assert!(exif_orientation(&mut b.as_slice()).is_err());
+            let b = tiff(le, &[(0x0112, 3, 0, [0; 4])], 0, &[]);
+            assert!(exif_orientation(&mut b.as_slice()).is_err());
+            let b = tiff(le, &[(0x010F, 2, 1, [0; 4])], 0, &[]);
+            assert_eq!(exif_orientation(&mut b.as_slice()), Ok(None));
+        }
+    }
+
+    #[test]
+    fn xmp_orientation_is_read_when_well_formed() {
+        assert_eq!(xmp_orientation("<rdf:Description tiff:Orientation=\"6\"/>"), Ok(Some(6)));
+        assert_eq!(xmp_orientation("<rdf:Description tiff:Orientation='3'/>"), Ok(Some(3)));
+        assert_eq!(xmp_orientation("<tiff:Orientation> 8 </tiff:Orientation>"), Ok(Some(8)));
+        assert_eq!(xmp_orientation("<x:xmpmeta/>"), Ok(None));
+        assert!(xmp_orientation("<tiff:Orientation>6").is_err());
+        assert!(xmp_orientation("tiff:Orientation=\"6").is_err());
+        assert!(xmp_orientation("tiff:Orientation=\"66\"").is_err());
+        assert!(xmp_orientation("tiff:Orientation=\"0\"").is_err());
+        assert!(xmp_orientation("tiff:Orientation=6").is_err());
+    }
+
+    fn jpeg_of(segments: &[(u8, Vec<u8>)]) -> Vec<u8> {
+        let mut j = vec![0xFF, 0xD8];
+        for (m, data) in segments {
+            j.extend([0xFF, *m]);
+            j.extend(((data.len() + 2) as u16).to_be_bytes());
+            j.extend(data);
+        }
+        j.extend([0xFF, 0xDA, 0, 2, 0xFF, 0xD9]);
+        j
+    }
+
+    fn app1_exif(orientation: u16) -> Vec<u8> {
+        let mut s = EXIF_HEADER.to_vec();
+        s.extend(tiff(false, &[(0x0112, 3, 1, short(orientation, false))], 0, &[]));
+        s
+    }
+
+    fn app1_xmp(x: &str) -> Vec<u8> {
+        let mut s = XMP_JPEG_HEADER.to_vec();
+        s.extend(x.as_bytes());
+        s
+    }
+
+    #[test]
+    fn orientation_of_files_follows_the_rule() {
+        // EXIF first, then the XMP
+        let j = jpeg_of(&[(0xE1, app1_exif(6)), (0xE1, app1_xmp("tiff:Orientation=\"3\""))]);
+        assert_eq!(orientation_of(&j), (6, None));
+        // two EXIF segments: the first one wins, with a note
+        let j = jpeg_of(&[(0xE1, app1_exif(8)), (0xE1, app1_exif(3))]);
+        let (o, note) = orientation_of(&j);
+        assert_eq!(o, 8);
+        assert!(note.unwrap().contains("2 EXIF blocks"));
+        // only in XMP
+        assert_eq!(orientation_of(&jpeg_of(&[(0xE1, app1_xmp("<tiff:Orientation>5</tiff:Orientation>"))])), (5, None));
+        // EXIF unusable: the XMP's, with a note
+        let (o, note) = orientation_of(&jpeg_of(&[(0xE1, app1_exif(0)), (0xE1, app1_xmp("tiff:Orientation=\"2\""))]));
+        assert_eq!(o, 2);
+        assert!(note.unwrap().contains("not 1-8"));
+        // malformed XMP: upright, with a note
+        let (o, note) = orientation_of(&jpeg_of(&[(0xE1, app1_xmp("tiff:Orientation=\"7"))]));
+        assert_eq!(o, 1);
+        assert!(note.unwrap().contains("malformed"));
+        assert_eq!(orientation_of(&jpeg_of(&[])), (1, None));
+        assert_eq!(orientation_of(b"junk"), (1, None));
+        // a TIFF file: its own IFD0
+        assert_eq!(orientation_of(&tiff(true, &[(0x0112, 4, 1, 5u32.to_le_bytes())], 0, &[])), (5, None));
+        // a PNG eXIf chunk, with and without the Exif header
+        for header in [&b""[..], EXIF_HEADER] {
+            let mut data = header.to_vec();
+            data.extend(tiff(true, &[(0x0112, 3, 1, short(7, true))], 0, &[]));
+            assert_eq!(orientation_of(&png_of(&[(*b"eXIf", data)])), (7, None));
+        }
+        let mut itxt = XMP_PNG_KEYWORD.to_vec();
+        itxt.extend(b"\0\0\0\0\0<tiff:Orientation>4</tiff:Orientation>");
+        assert_eq!(orientation_of(&png_of(&[(*b"iTXt", itxt)])), (4, None));
+    }
+
+    pub(crate) fn png_of(chunks: &[([u8; 4], Vec<u8>)]) -> Vec<u8> {
+        let mut p = b"\x89PNG\r\n\x1a\n".to_vec();
+        for (k, d) in chunks.iter().chain([(*b"IEND", vec![])].iter()) {
+            p.extend((d.len() as u32).to_be_bytes());
+            p.extend(k);
+            p.extend(d);
+            p.extend([0; 4]); // CRC: not read here
+        }
+        p
+    }
+
+    #[test]
+    fn png_icc_is_inflated_within_the_cap() {
+        let zeros = vec![0u8; 1 << 20];
+        let z = fdeflate_compress(&zeros);
+        let mut d = b"bomb\0\0".to_vec();
+        d.extend(&z);
+        let p = png_of(&[(*b"iCCP", d)]);
+        let (f, at) = png(&mut std::io::Cursor::new(&p), 1 << 16);
+        assert!(f.icc.unwrap().unwrap_err().contains("more than 65536"));
+        assert_eq!(at, vec![(8, z.len() as u64 + 6 + 12)]);
+        let (f, _) = png(&mut std::io::Cursor::new(&p), 1 << 21);
+        assert_eq!(f.icc.unwrap().unwrap().len(), 1 << 20);
+    }
+
+    /// zlib of `data` with stored blocks' worth of effort: enough for a test.
+    pub(crate) fn fdeflate_compress(data: &[u8]) -> Vec<u8> {
+        fdeflate::compress_to_vec(data)
+    }
+}
