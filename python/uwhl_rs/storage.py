@@ -21,8 +21,8 @@ import posixpath
 import re
 import stat
 
-from . import _core
 from .errors import BatchError
+from .images import atomic_write_bytes
 
 __all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "need", "filesystem", "storage_error",
            "on_storage", "read_bytes", "open_regular", "read_regular", "modified", "Folder"]
@@ -370,16 +370,10 @@ class Folder:
                               "a symbolic link or not a folder (not written through)", d)
         # the same exclusive temporary and durable rename as the photos
         # (files::commit): a link planted at a temporary's name is never opened
-        tmp = os.fspath(_core.create_temp(where))
-        try:
+        def fill(tmp: str) -> None:
             fd = os.open(tmp, os.O_WRONLY | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0))
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
-        except BaseException:
-            try:
-                os.remove(tmp)
-            except OSError:
-                pass
-            raise
-        _core.place(tmp, where)
+
+        atomic_write_bytes(where, fill)
         return where

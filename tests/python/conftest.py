@@ -34,3 +34,29 @@ def binary():
                 msg["target"]["name"] == "uwhl-rs":
             return msg["executable"]
     pytest.fail("cargo built no uwhl-rs executable")
+
+
+@pytest.fixture(scope="module")
+def moto_s3():
+    """moto's S3 server on 127.0.0.1 (the tests' object storage) with test
+    credentials in the environment: ``(fs, endpoint)``, fs an fsspec
+    filesystem on it; the caller makes its buckets."""
+    pytest.importorskip("moto")
+    s3fs = pytest.importorskip("s3fs")
+    from moto.server import ThreadedMotoServer
+
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    host, port = server.get_host_and_port()
+    endpoint = f"http://{host}:{port}"
+    creds = dict(AWS_ACCESS_KEY_ID="testing", AWS_SECRET_ACCESS_KEY="testing", AWS_DEFAULT_REGION="us-east-1",
+                 AWS_EC2_METADATA_DISABLED="true")
+    old = {k: os.environ.get(k) for k in creds}
+    os.environ.update(creds)
+    yield s3fs.S3FileSystem(endpoint_url=endpoint), endpoint
+    server.stop()
+    for k, v in old.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v

@@ -30,7 +30,7 @@ ENV = {"PYTHONUNBUFFERED": "1"}
 #: sidecar keys that differ between runs by nature (timings) or name the
 #: resources of the process that ran it (a worker has its own share)
 RUN_KEYS = ("seconds",)
-RESOURCE_PARAMETERS = ("threads", "max_memory")
+RESOURCE_PARAMETERS = ("threads", "max_memory", "max_memory_used")
 
 
 def run(*args, env=None, timeout=300):
@@ -306,29 +306,11 @@ def test_a_photo_over_every_workers_memory_fails_over_budget(cluster, inputs, tm
 
 
 @pytest.fixture(scope="module")
-def s3():
-    """moto's S3 server on 127.0.0.1 and an fsspec filesystem on it."""
-    pytest.importorskip("moto")
-    s3fs = pytest.importorskip("s3fs")
-    from moto.server import ThreadedMotoServer
-
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
-    server.start()
-    host, port = server.get_host_and_port()
-    endpoint = f"http://{host}:{port}"
-    creds = dict(AWS_ACCESS_KEY_ID="testing", AWS_SECRET_ACCESS_KEY="testing", AWS_DEFAULT_REGION="us-east-1",
-                 AWS_EC2_METADATA_DISABLED="true")
-    old = {k: os.environ.get(k) for k in creds}
-    os.environ.update(creds)
-    fs = s3fs.S3FileSystem(endpoint_url=endpoint)
+def s3(moto_s3):
+    """moto's S3 server (conftest) with the bucket "survey"."""
+    fs, endpoint = moto_s3
     fs.mkdir("survey")
-    yield fs, endpoint
-    server.stop()
-    for k, v in old.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
+    return fs, endpoint
 
 
 def test_s3_round_trip_on_a_cluster(s3, cluster, inputs, local_run):

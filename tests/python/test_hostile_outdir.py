@@ -294,29 +294,11 @@ def test_a_finished_input_on_a_read_only_mount_is_skipped(face, binary, tmp_path
 
 
 @pytest.fixture(scope="module")
-def s3():
-    """moto's S3 server on 127.0.0.1 (as in test_batch)."""
-    pytest.importorskip("moto")
-    s3fs = pytest.importorskip("s3fs")
-    from moto.server import ThreadedMotoServer
-
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
-    server.start()
-    host, port = server.get_host_and_port()
-    endpoint = f"http://{host}:{port}"
-    creds = dict(AWS_ACCESS_KEY_ID="testing", AWS_SECRET_ACCESS_KEY="testing", AWS_DEFAULT_REGION="us-east-1",
-                 AWS_EC2_METADATA_DISABLED="true")
-    old = {k: os.environ.get(k) for k in creds}
-    os.environ.update(creds)
-    fs = s3fs.S3FileSystem(endpoint_url=endpoint)
+def s3(moto_s3):
+    """moto's S3 server (conftest) with the bucket "present"."""
+    fs, endpoint = moto_s3
     fs.mkdir("present")
-    yield fs, endpoint
-    server.stop()
-    for k, v in old.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
+    return fs, endpoint
 
 
 def test_a_missing_output_bucket_is_found_before_any_input_is_restored(s3, tmp_path):
