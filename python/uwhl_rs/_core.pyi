@@ -26,6 +26,7 @@ __all__ = [
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
     "options_help", "check_combination", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "write_input_outputs",
+    "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
 ]
@@ -137,6 +138,31 @@ def write_input_outputs(
     sheet_seconds: Optional[float], elapsed: float,
 ) -> str:
     """Writes one input's outputs through its claim (encodes, metadata, sidecar, commit): the sidecar as JSON."""
+
+# ---- summary.csv (src/files/summary.rs) ----
+
+@final
+class Summary:
+    """OUTDIR/summary.csv, written by the binary's writer: one locked append per row."""
+    def __new__(cls, out_dir: _PathArg) -> "Summary": ...
+    @property
+    def path(self) -> Path:
+        """The file's path."""
+    @property
+    def error(self) -> Optional[str]:
+        """Why the file cannot be written, or None."""
+    @property
+    def read_only(self) -> bool:
+        """Whether it cannot be written because the folder is read-only."""
+    def add(self, row: dict[str, Any]) -> None:
+        """Appends one row (a dict of columns; `scores` a dict), in one locked write."""
+    def close(self) -> None:
+        """Closes the file (and lets the folder's lock go)."""
+
+def summary_cell(cell: str) -> str:
+    """A summary.csv cell's text as it was before a formula was neutralised."""
+def summary_columns() -> list[str]:
+    """The columns of summary.csv, in order."""
 
 # ---- memory budget ----
 

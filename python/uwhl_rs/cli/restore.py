@@ -35,7 +35,9 @@ def _check(a: argparse.Namespace, options: dict) -> None:
         raise _bad(str(e)) from None
     for flag, path in (("--mask", a.mask), ("--water-mask", a.water_mask)):
         if path is not None and not os.path.isfile(path):
-            raise _bad(f"{flag} {path}: no such file")
+            # a FIFO or a device would block or never end: it is not opened
+            why = "not a regular file (not opened)" if os.path.exists(path) else "no such file"
+            raise _bad(f"{flag} {path}: {why}")
     if a.reuse_estimates is not None:
         # the sequence's keywords checked once here, not by every input
         method = {k: options[k] for k in files.METHOD_KEYS if k in options}
