@@ -99,20 +99,17 @@ def test_an_http_server_is_not_waited_on_for_good(tmp_path, photo, http_server):
     _refused(_restore(tmp_path, photo, address), tmp_path, address, "cannot reach the Dask scheduler (no answer within 2 s")
 
 
-def test_a_port_that_sends_other_bytes_is_refused_not_a_traceback(tmp_path, photo):
-    srv = _Server(_junk)
+@pytest.mark.parametrize("handler, scheme, words", [
+    # a port that sends other bytes: refused, not a traceback
+    (_junk, "tcp://", "does not speak Dask's protocol"),
+    # a server that accepts and never answers: given up on
+    (_silent, "", "cannot reach the Dask scheduler (no answer within 2 s"),
+], ids=["sends_other_bytes", "accepts_and_never_answers"])
+def test_a_server_that_is_no_scheduler_is_refused(tmp_path, photo, handler, scheme, words):
+    srv = _Server(handler)
     try:
-        address = f"tcp://127.0.0.1:{srv.port}"
-        _refused(_restore(tmp_path, photo, address), tmp_path, address, "does not speak Dask's protocol")
-    finally:
-        srv.close()
-
-
-def test_a_server_that_accepts_and_never_answers_is_given_up_on(tmp_path, photo):
-    srv = _Server(_silent)
-    try:
-        address = f"127.0.0.1:{srv.port}"
-        _refused(_restore(tmp_path, photo, address), tmp_path, address, "cannot reach the Dask scheduler (no answer within 2 s")
+        address = f"{scheme}127.0.0.1:{srv.port}"
+        _refused(_restore(tmp_path, photo, address), tmp_path, address, words)
     finally:
         srv.close()
 
