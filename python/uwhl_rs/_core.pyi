@@ -118,11 +118,6 @@ def place(tmp: _PathArg, path: _PathArg) -> None:
 class FileSettings:
     """The settings of one input's processing: method and file keywords, checked by the option table."""
     def __new__(cls, **kwargs: object) -> "FileSettings": ...
-    def parameters(self) -> str:
-        """The sidecar's `parameters` object, as JSON text."""
-    @property
-    def bits(self) -> int:
-        """Bits per sample of the restored image."""
     @property
     def max_memory(self) -> int:
         """The memory budget in bytes."""

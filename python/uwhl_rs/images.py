@@ -198,13 +198,8 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
     (src/files/decode.rs): the same pixels, orientation and ICC handling in
     both commands."""
     linearize = preprocess == "none"
-
-    def header(h: int, w: int, bpp: int, oriented: bool) -> None:
-        if on_header is not None:
-            on_header(h, w, bpp, oriented)
-
     try:
-        img, info = _core.decode_file(path, linearize, int(max_pixels), int(_core.default_max_memory()), header)
+        img, info = _core.decode_file(path, linearize, int(max_pixels), int(_core.default_max_memory()), on_header)
     except MemoryError as e:
         raise ImageTooLargeError(f"{path}: {e}") from None
     except _core.ImageError as e:

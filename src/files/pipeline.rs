@@ -332,6 +332,13 @@ pub fn output_suffixes(opts: &Settings) -> Vec<String> {
     crate::files::settings::output_suffixes(opts.format, false)
 }
 
+/// Opens an input to decode it: regular files only (a FIFO, socket or
+/// device is never opened: opening a FIFO blocks).
+pub fn open_input(path: &Path) -> Result<File, Failure> {
+    crate::files::jobs::regular_file(path).map_err(|m| Failure::new(Kind::Input, m))?;
+    File::open(path).map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))
+}
+
 /// The first half of [`process`]: the output names claimed (or the input
 /// skipped), decoding and `restore`.
 pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Sequence>, room: Room<'_>) -> Result<Prepared, Failure> {
@@ -357,10 +364,7 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
             "raw files are decoded by the Python command (uwhl restore); uwhl-rs reads PNG, JPEG and TIFF",
         ));
     }
-    // a FIFO, socket or device is never opened (opening a FIFO blocks)
-    crate::files::jobs::regular_file(&job.input).map_err(|m| Failure::new(Kind::Input, m))?;
-    let file = File::open(&job.input)
-        .map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))?;
+    let file = open_input(&job.input)?;
     let restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, room)?;
     Ok(Prepared::Restored(Box::new((restored, claimed, t0))))
 }

@@ -6,7 +6,7 @@
 //! commit). Python keeps what Rust cannot do: raw decoding (rawpy), object
 //! storage (fsspec), Dask, and the contact sheet's drawing.
 
-use super::{mask_slice, parse_choices, ImageError, ParameterError, PyClaim, PyRestoration};
+use super::{failure_to_py, mask_slice, parse_choices, ParameterError, PyClaim, PyRestoration};
 use crate::error::{Failure, Kind};
 use crate::files::decode::{decode, Header, Limits};
 use crate::files::options::{spec, Kind as OptKind, Value};
@@ -14,22 +14,11 @@ use crate::files::pipeline::{write_outputs, Outputs, Timing};
 use crate::files::settings::{Preprocess, Settings};
 use crate::files::sidecar::{parameters, Estimates, Source};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyTypeError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-
-/// A failure of the files layer as the Python exception of its kind.
-pub(crate) fn failure_to_py(f: Failure) -> PyErr {
-    match f.kind {
-        Kind::Input => ImageError::new_err(f.message),
-        Kind::Usage => ParameterError::new_err(f.message),
-        Kind::Budget => PyMemoryError::new_err(f.message),
-        Kind::Write => PyOSError::new_err(f.message),
-        Kind::Internal => PyRuntimeError::new_err(f.message),
-    }
-}
 
 /// The settings of one input's processing (core `Settings`): every
 /// keyword of `uwhl_rs.files.restore_file` that the option table knows,
@@ -92,17 +81,6 @@ impl PyFileSettings {
         Ok(Self(s))
     }
 
-    /// The sidecar's `parameters` object, as JSON text.
-    fn parameters(&self) -> String {
-        parameters(&self.0).to_string()
-    }
-
-    /// Bits per sample of the restored image.
-    #[getter]
-    fn bits(&self) -> u8 {
-        self.0.bits()
-    }
-
     /// The memory budget in bytes.
     #[getter]
     fn max_memory(&self) -> u64 {
@@ -130,8 +108,7 @@ fn decode_file<'py>(
     max_memory: u64,
     on_header: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
-    crate::files::jobs::regular_file(&path).map_err(ImageError::new_err)?;
-    let file = std::fs::File::open(&path).map_err(|e| ImageError::new_err(format!("cannot open: {e}")))?;
+    let file = crate::files::pipeline::open_input(&path).map_err(failure_to_py)?;
     let limits = Limits { max_pixels, max_memory };
     let mut hook_error: Option<PyErr> = None;
     // the header hook runs Python, so the GIL is held while decoding

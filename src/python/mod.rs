@@ -1,6 +1,6 @@
 //! pyo3 bindings (feature "python"): numpy in, numpy out, the GIL released
-//! for the whole Rust call, core errors mapped to Python exceptions in one
-//! function ([`to_py_err`]). No algorithm code lives here.
+//! for the whole Rust call, failures mapped to Python exceptions in one
+//! function ([`failure_to_py`]). No algorithm code lives here.
 
 mod color;
 mod files;
@@ -40,16 +40,23 @@ create_exception!(
     "A parameter, mask or water type is invalid."
 );
 
-/// The one place where core errors become Python exceptions.
-pub(crate) fn to_py_err(e: Error) -> PyErr {
+/// The one place where failures become Python exceptions: by kind, input
+/// -> ImageError, usage -> ParameterError, budget -> MemoryError, write ->
+/// OSError, internal -> RuntimeError.
+pub(crate) fn failure_to_py(f: crate::error::Failure) -> PyErr {
     use crate::error::Kind;
-    let msg = e.to_string();
-    match e.kind() {
-        Kind::Input => ImageError::new_err(msg),
-        Kind::Usage => ParameterError::new_err(msg),
-        Kind::Budget => PyMemoryError::new_err(msg),
-        Kind::Write | Kind::Internal => PyRuntimeError::new_err(msg),
+    match f.kind {
+        Kind::Input => ImageError::new_err(f.message),
+        Kind::Usage => ParameterError::new_err(f.message),
+        Kind::Budget => PyMemoryError::new_err(f.message),
+        Kind::Write => pyo3::exceptions::PyOSError::new_err(f.message),
+        Kind::Internal => PyRuntimeError::new_err(f.message),
     }
+}
+
+/// A core error as its Python exception ([`failure_to_py`]).
+pub(crate) fn to_py_err(e: Error) -> PyErr {
+    failure_to_py(e.into())
 }
 
 /// Result of `restore` (see `uwhl_rs.Restoration` in the stubs for fields).
