@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "write_input_outputs",
+    "options_help", "check_combination", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
@@ -127,6 +127,8 @@ def decode_file(
     on_header: Optional[Callable[[int, int, int, bool], object]] = None,
 ) -> tuple[_F32, dict[str, Any]]:
     """A PNG, JPEG or TIFF decoded by the binary's decoder: (image, info)."""
+def decode_mask_file(path: _PathArg, what: str, max_pixels: int, max_memory: int) -> _Bool:
+    """A mask file as H x W bools (nonzero = True), read by the binary's mask reader."""
 def write_input_outputs(
     claim: Claim, res: Restoration, image: _F32, source: dict[str, Any], settings: FileSettings, input: _PathArg,
     label: str, contact_sheet: Optional[bytes], reused: Optional[bool], read: float, restore: float,

@@ -6,7 +6,6 @@ from __future__ import annotations
 import inspect
 import json
 import os
-import stat
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -64,26 +63,17 @@ def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = Fals
     return p
 
 
-def read_mask(mask, shape, what: str) -> np.ndarray | None:
+def read_mask(mask, shape, what: str, *, max_pixels: int | None = None, max_memory: int | None = None) -> np.ndarray | None:
     """A bool mask from an array or an image file (nonzero = True). A mask
     is an argument: one that cannot be read, or of another size than the
-    image, is a ``ParameterError`` (exit 2, as in the binary)."""
+    image, is a ``ParameterError`` (exit 2, as in the binary). Files are
+    read by the binary's mask reader (``_core.decode_mask_file``: regular
+    files only, ``max_pixels`` and ``max_memory`` checked from the header)."""
     if mask is None:
         return None
     if isinstance(mask, (str, os.PathLike)):
-        import imageio.v3 as iio
-
-        path = os.fspath(mask)
-        try:
-            # a FIFO or a device would block or never end: regular files only
-            if not stat.S_ISREG(os.stat(path).st_mode):
-                raise ParameterError(f"{what} {path}: not a regular file")
-            a = np.asarray(iio.imread(path))
-        except ParameterError:
-            raise
-        except Exception as e:
-            raise ParameterError(f"{what} {path}: cannot read ({type(e).__name__}: {e})") from None
-        m = (a != 0) if a.ndim == 2 else (a[..., :3] != 0).any(axis=-1)
+        m = _core.decode_mask_file(os.fspath(mask), what, int(max_pixels or _D["max_pixels"]),
+                                   int(max_memory or _core.default_max_memory()))
     else:
         m = np.asarray(mask, dtype=bool)
     if m.shape != tuple(shape):
@@ -231,8 +221,8 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels,
                              _on_header=plan)
     full_hw = image.shape[:2]
-    m = read_mask(mask, full_hw, "mask")
-    wm = read_mask(water_mask, full_hw, "water_mask")
+    m = read_mask(mask, full_hw, "mask", max_pixels=max_pixels, max_memory=budget)
+    wm = read_mask(water_mask, full_hw, "water_mask", max_pixels=max_pixels, max_memory=budget)
     s = _max_side_factor(*full_hw, max_side)
     if s > 1:
         image = _core._downscale(image, s)

@@ -237,6 +237,7 @@ where
         o.reuse_water_mask,
         o.linear,
         o.preprocess.name(),
+        crate::files::options::Names::Flags,
     )
     .map_err(Failure::usage)?;
     Ok(Command::Run(Box::new(o)))

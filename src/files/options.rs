@@ -542,19 +542,44 @@ pub fn check_combination(
     reuse_water_mask: bool,
     linear: bool,
     preprocess: &str,
+    names: Names,
 ) -> Result<(), String> {
+    let n = |key: &str| names.of(key);
     if reuse_water_mask && reuse_estimates.is_none() {
-        return Err("--reuse-water-mask needs --reuse-estimates N".into());
+        return Err(format!("{} needs {} N", n("reuse_water_mask"), n("reuse_estimates")));
     }
     if format == "jpg" && bits == Some(16) {
-        return Err("--bits 16 needs --format png or tiff (JPEG holds 8 bits)".into());
+        return Err(format!("{} 16 needs {} png or tiff (JPEG holds 8 bits)", n("bits"), n("format")));
     }
     if linear && preprocess == "reference" {
-        return Err(
-            "--preprocess reference is the METHOD §2 treatment of sRGB inputs; it cannot be used with --linear".into(),
-        );
+        return Err(format!(
+            "{} reference is the METHOD §2 treatment of sRGB inputs; it cannot be used with {}",
+            n("preprocess"),
+            n("linear")
+        ));
     }
     Ok(())
+}
+
+/// How a message names an option: by its command-line flag or by its
+/// Python keyword (the option table's two faces).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Names {
+    /// `--bits`, as the commands print it
+    Flags,
+    /// `bits`, as `restore_file` and `FileSettings` take it
+    Keywords,
+}
+
+impl Names {
+    /// The name of the option `key` in this face (the key itself when the
+    /// table has no such row).
+    pub fn of(self, key: &str) -> String {
+        match (self, spec(key)) {
+            (Names::Flags, Some(s)) => s.flag.to_string(),
+            _ => key.to_string(),
+        }
+    }
 }
 
 /// The exit codes of both commands (docs/CLI.md), defined with the failure kinds.
@@ -637,6 +662,22 @@ impl crate::method::params::Params {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn combination_messages_name_options_in_the_face_asked_for() {
+        let cases = [
+            (("jpg", Some(16), None, false, false, "none"), "bits 16 needs format png or tiff", "--bits 16 needs --format png or tiff"),
+            (("png", None, None, true, false, "none"), "reuse_water_mask needs reuse_estimates N", "--reuse-water-mask needs --reuse-estimates N"),
+            (("png", None, None, false, true, "reference"), "with linear", "with --linear"),
+        ];
+        for ((f, b, r, w, l, p), keyword, flag) in cases {
+            let k = check_combination(f, b, r, w, l, p, Names::Keywords).unwrap_err();
+            assert!(k.contains(keyword) && !k.contains("--"), "{k}");
+            let g = check_combination(f, b, r, w, l, p, Names::Flags).unwrap_err();
+            assert!(g.contains(flag), "{g}");
+        }
+        assert!(check_combination("png", Some(16), Some(3), true, false, "none", Names::Flags).is_ok());
+    }
 
     #[test]
     fn keys_and_flags_are_unique_and_spelled_alike() {

@@ -54,17 +54,15 @@ pub struct Masks {
     pub water: Option<Mask>,
 }
 
-/// Reads a mask file; an unreadable mask is a usage error (it is an argument).
-pub fn load_mask(path: &Path, flag: &str, opts: &Settings) -> Result<Mask, Failure> {
+/// Reads a mask file (nonzero = true) under `limits`; an unreadable mask is
+/// a usage error naming `flag` (it is an argument). Both commands read
+/// masks here.
+pub fn load_mask(path: &Path, flag: &str, limits: &Limits) -> Result<Mask, Failure> {
     // a FIFO or a device would block the open or never end the read
     crate::files::jobs::regular_file(path).map_err(|why| Failure::usage(format!("{flag} {}: {why}", path.display())))?;
     let file = File::open(path)
         .map_err(|e| Failure::usage(format!("{flag} {}: {e}", path.display())))?;
-    let limits = Limits {
-        max_pixels: opts.max_pixels,
-        max_memory: opts.params.max_memory,
-    };
-    let (data, height, width) = decode_mask(BufReader::new(file), &limits).map_err(|e| {
+    let (data, height, width) = decode_mask(BufReader::new(file), limits).map_err(|e| {
         let kind = if e.kind == Kind::Budget { Kind::Budget } else { Kind::Usage };
         Failure::new(kind, format!("{flag} {}: {}", path.display(), e.message))
     })?;
@@ -73,7 +71,11 @@ pub fn load_mask(path: &Path, flag: &str, opts: &Settings) -> Result<Mask, Failu
 
 /// Reads `--mask` and `--water-mask`.
 pub fn load_masks(opts: &Settings) -> Result<Masks, Failure> {
-    let read = |p: &Option<PathBuf>, flag: &str| p.as_deref().map(|p| load_mask(p, flag, opts)).transpose();
+    let limits = Limits {
+        max_pixels: opts.max_pixels,
+        max_memory: opts.params.max_memory,
+    };
+    let read = |p: &Option<PathBuf>, flag: &str| p.as_deref().map(|p| load_mask(p, flag, &limits)).transpose();
     Ok(Masks {
         mask: read(&opts.mask, "--mask")?,
         water: read(&opts.water_mask, "--water-mask")?,
@@ -95,7 +97,7 @@ fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, nee
     let Some(m) = m else { return Ok(None) };
     if (m.height, m.width) != (h, w) {
         return Err(Failure::usage(format!(
-            "{flag} is {}x{} pixels but the input is {h}x{w}",
+            "{flag} is {}x{} pixels but the input is {w}x{h}",
             m.width, m.height
         )));
     }

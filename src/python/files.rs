@@ -76,8 +76,16 @@ impl PyFileSettings {
             }
         }
         let bits = s.bits.map(u64::from);
-        crate::files::options::check_combination(s.format.name(), bits, None, false, s.linear, s.preprocess.name())
-            .map_err(|m| ParameterError::new_err(m.replace("--", "").replace('-', "_")))?;
+        crate::files::options::check_combination(
+            s.format.name(),
+            bits,
+            None,
+            false,
+            s.linear,
+            s.preprocess.name(),
+            crate::files::options::Names::Keywords,
+        )
+        .map_err(ParameterError::new_err)?;
         Ok(Self(s))
     }
 
@@ -134,6 +142,25 @@ fn decode_file<'py>(
     info.set_item("notes", d.notes.clone())?;
     let image = PyArray1::from_vec(py, d.data).reshape([d.height, d.width, 3])?.into_any();
     Ok((image, info))
+}
+
+/// A mask file as H x W bools (nonzero = true), read by the binary's mask
+/// reader (`crate::files::pipeline::load_mask`: regular files only, the
+/// pixel limit and the memory budget from its header). `what` names the
+/// argument in messages; a mask that cannot be read raises ParameterError,
+/// one over the budget MemoryError.
+#[pyfunction]
+#[pyo3(signature = (path, what, max_pixels, max_memory))]
+fn decode_mask_file<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    what: &str,
+    max_pixels: u64,
+    max_memory: u64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let limits = Limits { max_pixels, max_memory };
+    let m = crate::files::pipeline::load_mask(&path, what, &limits).map_err(failure_to_py)?;
+    Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
 }
 
 /// The sidecar's `source` from the Python reader's fields (`ImageMeta`
@@ -256,6 +283,7 @@ fn write_input_outputs(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFileSettings>()?;
     m.add_function(wrap_pyfunction!(decode_file, m)?)?;
+    m.add_function(wrap_pyfunction!(decode_mask_file, m)?)?;
     m.add_function(wrap_pyfunction!(write_input_outputs, m)?)?;
     Ok(())
 }

@@ -348,7 +348,8 @@ fn check_combination(
     linear: bool,
     preprocess: &str,
 ) -> PyResult<()> {
-    crate::files::options::check_combination(format, bits, reuse_estimates, reuse_water_mask, linear, preprocess)
+    use crate::files::options::Names;
+    crate::files::options::check_combination(format, bits, reuse_estimates, reuse_water_mask, linear, preprocess, Names::Flags)
         .map_err(PyValueError::new_err)
 }
 
