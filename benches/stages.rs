@@ -4,8 +4,8 @@
 //! (one type, veiling light given) at 1920 x 1080, also as the frames of a
 //! `Sequence`; and the encoding of a restored 1080p frame's outputs.
 //!
-//!     cargo bench --bench stages                 # everything (minutes)
-//!     cargo bench --bench stages -- stage/       # only the stages
+//!     cargo bench --manifest-path benches/stages/Cargo.toml              # everything (minutes)
+//!     cargo bench --manifest-path benches/stages/Cargo.toml -- stage/    # only the stages
 //!
 //! Timings on a shared machine are noisy: compare runs made together.
 

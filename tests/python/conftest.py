@@ -13,9 +13,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 
 @pytest.fixture(scope="session")
 def binary():
-    """The ``uwhl-rs`` executable: built with ``cargo build --profile test
-    --features cli,internals``, which reuses what ``cargo test --features
-    cli,internals`` (the CI command) compiled; ``UWHL_RS_BIN`` points the tests at another build."""
+    """The ``uwhl-rs`` executable: the one ``cargo test --release --features
+    cli,internals`` (the CI command) builds, asked of cargo with ``--no-run``
+    so that nothing is compiled again (a plain ``cargo build`` would resolve
+    the dependencies' features without the dev-dependencies and rebuild
+    them); ``UWHL_RS_BIN`` points the tests at another build."""
     path = os.environ.get("UWHL_RS_BIN")
     if path:
         return path
@@ -23,7 +25,7 @@ def binary():
     if cargo is None:
         pytest.skip("cargo is not installed: cannot build the uwhl-rs binary")
     r = subprocess.run(
-        [cargo, "build", "--profile", "test", "--features", "cli,internals", "--bin", "uwhl-rs",
+        [cargo, "test", "--release", "--no-run", "--features", "cli,internals",
          "--message-format=json-render-diagnostics"],
         cwd=ROOT, capture_output=True, text=True, timeout=1800,
     )
@@ -31,7 +33,7 @@ def binary():
     for line in r.stdout.splitlines():
         msg = json.loads(line)
         if msg.get("reason") == "compiler-artifact" and msg.get("executable") and \
-                msg["target"]["name"] == "uwhl-rs":
+                msg["target"]["name"] == "uwhl-rs" and msg["target"]["kind"] == ["bin"] and not msg["profile"]["test"]:
             return msg["executable"]
     pytest.fail("cargo built no uwhl-rs executable")
 

@@ -6,7 +6,6 @@ profile as the paper's steps, the sidecar's record and every error path."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 
@@ -162,12 +161,6 @@ def test_haze_floor_names_are_case_insensitive_on_the_command_line():
             uwhl_rs._core.parse_option(key, bad)
 
 
-def _binary():
-    path = os.environ.get("UWHL_RS_BIN") or os.path.join(os.path.dirname(__file__), "..", "..", "target",
-                                                           "release", "uwhl-rs")
-    return path if os.path.exists(path) else None
-
-
 @pytest.mark.parametrize("flags, steps", [
     ([], {"method": "revised", "selection": "fast", "white_balance": "shades_of_gray",
           "type_choice": "shades_of_gray", "haze_floor": "3C", "t_scale": 0.9}),
@@ -178,13 +171,11 @@ def _binary():
     (["--method", "paper", "--white-balance", "white_patch", "--haze-floor", "1c"],
      {"method": "paper", "white_balance": "white_patch", "type_choice": "gray_world", "haze_floor": "1C"}),
 ])
-def test_both_commands_record_the_steps_used(tmp_path, flags, steps):
+def test_both_commands_record_the_steps_used(tmp_path, binary, flags, steps):
     img, _ = synth.demo_input(48, 64, seed=4)
     src = tmp_path / "in.png"
     uwhl_rs.images.write_image(str(src), img, bits=16, encoding="linear")
-    cmds = {"uwhl": [sys.executable, "-m", "uwhl_rs", "restore"]}
-    if _binary():
-        cmds["uwhl-rs"] = [_binary()]
+    cmds = {"uwhl": [sys.executable, "-m", "uwhl_rs", "restore"], "uwhl-rs": [binary]}
     images = {}
     for name, cmd in cmds.items():
         out = tmp_path / name
@@ -199,18 +190,18 @@ def test_both_commands_record_the_steps_used(tmp_path, flags, steps):
 
 
 @pytest.mark.parametrize("flag", [["--method", "best"], ["--t-scale", "2"], ["--haze-floor", "XI"]])
-def test_bad_step_flags_are_usage_errors_in_both_commands(tmp_path, flag):
+def test_bad_step_flags_are_usage_errors_in_both_commands(tmp_path, binary, flag):
     img, _ = synth.demo_input(32, 40, seed=1)
     src = tmp_path / "in.png"
     uwhl_rs.images.write_image(str(src), img, bits=8)
-    cmds = [[sys.executable, "-m", "uwhl_rs", "restore"]] + ([[_binary()]] if _binary() else [])
+    cmds = [[sys.executable, "-m", "uwhl_rs", "restore"], [binary]]
     for cmd in cmds:
         r = subprocess.run([*cmd, str(src), "-o", str(tmp_path / "o"), *flag], capture_output=True, text=True)
         assert r.returncode == 2 and flag[0] in r.stderr, (cmd, r.returncode, r.stderr)
         assert not (tmp_path / "o" / "in.jpg").exists()
 
 
-def test_the_demo_finds_its_own_water_type(tmp_path):
+def test_the_demo_finds_its_own_water_type(tmp_path, binary):
     """The README's first command on its built-in scene (type III): the
     revised profile names III (the paper's choice named 3C, with III
     excluded by the t_R rule); the binary's own rendered scene is within one
@@ -219,8 +210,7 @@ def test_the_demo_finds_its_own_water_type(tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "true water type:      III" in r.stdout and "estimated water type: III " in r.stdout, r.stdout
-    if _binary():
-        r = subprocess.run([_binary(), "demo", "-o", str(tmp_path / "rs")], capture_output=True, text=True, timeout=120)
-        assert r.returncode == 0, r.stderr
-        est = r.stdout.split("estimated water type:")[1].split()[0]
-        assert abs(NAMES.index(est) - NAMES.index("III")) <= 1, r.stdout
+    r = subprocess.run([binary, "demo", "-o", str(tmp_path / "rs")], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    est = r.stdout.split("estimated water type:")[1].split()[0]
+    assert abs(NAMES.index(est) - NAMES.index("III")) <= 1, r.stdout
