@@ -20,6 +20,7 @@ import numpy as np
 
 from . import _core
 from .errors import ManifestError
+from .images import DEFAULT_MAX_PIXELS
 
 __all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "pixel_angles", "angle_stats", "best_gains", "score",
            "resize_nearest", "read_truth", "read_truth_mask"]
@@ -28,7 +29,7 @@ __all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "pixel_angles", "angle_stats", "
 #: worth scoring: their angle is dominated by quantisation and noise.
 MIN_TRUTH_SUM = 0.02
 #: A truth or truth mask is resized to its photo; a file claiming more pixels than a photo may have is not read.
-MAX_TRUTH_PIXELS = 400_000_000
+MAX_TRUTH_PIXELS = DEFAULT_MAX_PIXELS
 
 
 def pixel_angles(out: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
