@@ -381,17 +381,17 @@ def compare(results_path: str, rows: list[dict]) -> str:
             ours, theirs = mine.get((scene, row)), im["truth_angles"].get(m)
             if ours is None or theirs is None:
                 continue
-            w = worst.setdefault(row, [0.0, 0.0, 0.0, 0])
+            w = worst.setdefault(row, [0.0, 0.0, None, 0])
             w[0] = max(w[0], abs(ours["median"] - theirs["median_deg"]), abs(ours["p90"] - theirs["p90_deg"]))
             w[1] = max(w[1], abs(ours["gain_median"] - theirs["gain_median_deg"]),
                        abs(ours["gain_p90"] - theirs["gain_p90_deg"]))
             rho = im["rho"].get(m, {}).get("rho_B")
             if rho is not None and ours.get("rho") is not None:
-                w[2] = max(w[2], abs(ours["rho"] - rho))
+                w[2] = max(w[2] or 0.0, abs(ours["rho"] - rho))
             w[3] += 1
     lines = ["| row | renders | max diff, median/p90 raw (deg) | after gains (deg) | rho |", "|---|---|---|---|---|"]
     for row, (a, g, rho, n) in worst.items():
-        lines.append(f"| {row} | {n} | {a:.2e} | {g:.2e} | {rho:.2e} |")
+        lines.append(f"| {row} | {n} | {a:.2e} | {g:.2e} | {'-' if rho is None else f'{rho:.2e}'} |")
     return "\n".join(lines)
 
 

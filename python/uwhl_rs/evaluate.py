@@ -293,8 +293,6 @@ def read_truth(entry: Entry, height: int, width: int, water=None) -> tuple[np.nd
     return img, scored
 
 
-
-
 def _median(xs) -> float:
     xs = [x for x in xs if x is not None and not (isinstance(x, float) and math.isnan(x))]
     return float(np.median(xs)) if xs else float("nan")

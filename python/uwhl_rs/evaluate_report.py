@@ -50,12 +50,13 @@ def _map_uri(v: np.ndarray, max_side: int = 480, scale=None) -> str:
 
 
 def _truth_figures(r: dict) -> str:
-    """The true radiance (gray where it is not scored) and the method's per-pixel angle to it (0 to 30 degrees)."""
+    """The true radiance (magenta where it is not scored: no scene has that hue over a region) and the
+    method's per-pixel angle to it (0 to 30 degrees; black where not scored)."""
     scored = r["_truth_scored"]
-    shown = np.where(scored[:, :, None], np.clip(r["_truth"], 0, 1), 0.5).astype(np.float32)
+    shown = np.where(scored[:, :, None], np.clip(r["_truth"], 0, 1), np.array([1.0, 0.0, 1.0])).astype(np.float32)
     ang = np.full(scored.shape, np.nan)
     ang[scored] = pixel_angles(r["_images"][r["method"]], r["_truth"], scored)
-    return (f'<figure><img src="{_png_data_uri(shown)}"><figcaption>truth (gray: not scored)</figcaption></figure>'
+    return (f'<figure><img src="{_png_data_uri(shown)}"><figcaption>truth (magenta: not scored)</figcaption></figure>'
             f'<figure><img src="{_map_uri(ang, scale=(0.0, 30.0))}"><figcaption>angle to the truth '
             f'({_esc(r["method"])}), 0 to 30&#176;</figcaption></figure>')
 
