@@ -105,7 +105,7 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
                 raise ManifestError(f"{path}: a PNG distance map is 16-bit, in millimetres (this one is {im.mode})")
             d = a.astype(np.float64) / 1000.0
         elif ext == ".npy":
-            d = np.load(path, allow_pickle=False).astype(np.float64)
+            d = gt.load_npy(path, "distance map")
         elif ext == ".mat":
             try:
                 from scipy.io import loadmat

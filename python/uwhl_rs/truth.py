@@ -23,7 +23,7 @@ from .errors import ManifestError
 from .images import DEFAULT_MAX_PIXELS
 
 __all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "pixel_angles", "angle_stats", "best_gains", "score",
-           "resize_nearest", "read_truth", "read_truth_mask"]
+           "resize_nearest", "load_npy", "read_truth", "read_truth_mask"]
 
 #: Truth pixels darker than this (sum of R, G, B, linear) carry no colour
 #: worth scoring: their angle is dominated by quantisation and noise.
@@ -135,6 +135,22 @@ def _check_size(path: str, shape, what: str) -> None:
                             f"{MAX_TRUTH_PIXELS}")
 
 
+def load_npy(path: str, what: str) -> np.ndarray:
+    """The numbers of a ``.npy`` file as float64, for a message that names
+    it as ``what``. Another file under that name is said to be one (numpy's
+    own message would suggest unpickling it); a header claiming more than
+    ``MAX_TRUTH_PIXELS`` pixels is refused before anything is read."""
+    with open(path, "rb") as f:
+        if f.read(6) != b"\x93NUMPY":
+            raise ManifestError(f"{path}: cannot read the {what}: not a .npy file (no NumPy header)")
+    # mapped, not read: a header claiming a huge array costs nothing until its size is checked
+    a = np.load(path, mmap_mode="r", allow_pickle=False)
+    _check_size(path, a.shape, what)
+    if a.dtype.kind not in "biuf":
+        raise ManifestError(f"{path}: a .npy {what} holds numbers, not {a.dtype}")
+    return np.array(a, dtype=np.float64)
+
+
 def _png16(path: str, what: str) -> np.ndarray:
     """A 16-bit PNG's codes / 65535, as they are (no sRGB curve: the truth is linear)."""
     def header(h, w, bpp, oriented):
@@ -165,12 +181,7 @@ def _load_array(path: str, what: str) -> np.ndarray:
                 raise ManifestError(f"{path}: a TIFF {what} holds floats or 16-bit integers (linear / 65535), "
                                     f"not {a.dtype}")
         elif ext == ".npy":
-            # mapped, not read: a header claiming a huge array costs nothing until its size is checked
-            a = np.load(path, mmap_mode="r", allow_pickle=False)
-            _check_size(path, a.shape, what)
-            if a.dtype.kind not in "iuf":
-                raise ManifestError(f"{path}: a .npy {what} holds numbers, not {a.dtype}")
-            a = np.array(a, dtype=np.float64)
+            a = load_npy(path, what)
         elif ext == ".png":
             a = _png16(path, what)
         else:
@@ -212,9 +223,7 @@ def read_truth_mask(path: str, height: int, width: int) -> np.ndarray:
     _regular(path, "truth mask")
     try:
         if path.lower().endswith(".npy"):
-            m = np.load(path, mmap_mode="r", allow_pickle=False)
-            _check_size(path, m.shape, "truth mask")
-            m = np.array(m)
+            m = load_npy(path, "truth mask")
         else:
             import imageio.v3 as iio
 
