@@ -1,6 +1,9 @@
 """Colours against ground truth: renders of natural photographs through water.
 
     python3 benches/truth.py [--split tune|held|all] [--size 360] [--json OUT.json] [--only default,input,...]
+    python3 benches/truth.py --split held --write DIR      # the renders as files, then:
+    uwhl evaluate DIR/truth.json -o OUT                      # the same scores through the command
+    python3 benches/truth.py --split held --compare OUT/results.json   # how far the two agree
 
 Needs scikit-image for its bundled photographs (``pip install scikit-image``;
 nothing is downloaded). Each scene is a natural photograph used as the true
@@ -25,6 +28,15 @@ noise levels alternate.
 
 Split: ``tune`` = chelsea, coffee, rocket; ``held`` = astronaut, motorcycle.
 Nothing is tuned on ``held``; report on it.
+
+``--write DIR`` writes each render of the split as files a user's
+``uwhl evaluate`` manifest would name: the observed image as a float32 TIFF
+(read as linear, exactly: no sRGB curve is applied to float TIFFs), its true
+radiance (``truth``, float32 TIFF), the object pixels (``truth_mask``, PNG),
+the distance (``.npy``, 0 = open water), the true type, and for scenes with
+open water its region (``water_mask``, PNG). ``truth.json`` lets the method
+find the water itself, as the ``default`` row here does; ``truth_given.json``
+gives the water region where there is one.
 
 Scores (uwhl_rs.truth): median per-pixel angle to the truth over the object
 pixels, raw and after the best global per-channel gains; type exact / within
@@ -320,19 +332,94 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def write_split(split: str, side: int, folder: str, conditions=None) -> int:
+    """Write every render of a split as files and two manifests (module docstring); returns the count."""
+    import os
+
+    import tifffile
+    from PIL import Image
+
+    os.makedirs(folder, exist_ok=True)
+    plain, given = [], []
+    for r in scenes(split, side, conditions):
+        obj = r.objects
+        tifffile.imwrite(os.path.join(folder, f"{r.name}.tif"), np.ascontiguousarray(r.image, np.float32),
+                         compression="zlib", photometric="rgb")
+        tifffile.imwrite(os.path.join(folder, f"{r.name}_truth.tif"), np.ascontiguousarray(r.truth, np.float32),
+                         compression="zlib", photometric="rgb")
+        Image.fromarray((obj * 255).astype(np.uint8)).save(os.path.join(folder, f"{r.name}_objects.png"))
+        np.save(os.path.join(folder, f"{r.name}_distance.npy"), np.where(obj, r.distance, 0.0))
+        entry = {"path": f"{r.name}.tif", "truth": f"{r.name}_truth.tif", "truth_mask": f"{r.name}_objects.png",
+                 "distance": f"{r.name}_distance.npy", "water_type": r.water_type}
+        plain.append(entry)
+        if not obj.all():
+            Image.fromarray((~obj * 255).astype(np.uint8)).save(os.path.join(folder, f"{r.name}_water.png"))
+            entry = {**entry, "water_mask": f"{r.name}_water.png"}
+        given.append(entry)
+    for name, entries in (("truth.json", plain), ("truth_given.json", given)):
+        with open(os.path.join(folder, name), "w") as f:
+            json.dump({"images": entries}, f, indent=1)
+    return len(plain)
+
+
+#: ``uwhl evaluate``'s names for the rows this bench also computes.
+EVALUATE_ROWS = {"input": "input", "grayworld": "gray_world", "stretch": "stretch", "revised": "default",
+                 "paper": "paper"}
+
+
+def compare(results_path: str, rows: list[dict]) -> str:
+    """The largest differences between ``uwhl evaluate``'s results on the written renders and this bench's rows."""
+    import os
+
+    with open(results_path) as f:
+        doc = json.load(f)
+    mine = {(r["scene"], r["row"]): r for r in rows}
+    worst: dict[str, list] = {}
+    for im in doc["images"]:
+        scene = os.path.splitext(os.path.basename(im["manifest_path"]))[0]
+        for m, row in EVALUATE_ROWS.items():
+            ours, theirs = mine.get((scene, row)), im["truth_angles"].get(m)
+            if ours is None or theirs is None:
+                continue
+            w = worst.setdefault(row, [0.0, 0.0, None, 0])
+            w[0] = max(w[0], abs(ours["median"] - theirs["median_deg"]), abs(ours["p90"] - theirs["p90_deg"]))
+            w[1] = max(w[1], abs(ours["gain_median"] - theirs["gain_median_deg"]),
+                       abs(ours["gain_p90"] - theirs["gain_p90_deg"]))
+            rho = im["rho"].get(m, {}).get("rho_B")
+            if rho is not None and ours.get("rho") is not None:
+                w[2] = max(w[2] or 0.0, abs(ours["rho"] - rho))
+            w[3] += 1
+    lines = ["| row | renders | max diff, median/p90 raw (deg) | after gains (deg) | rho |", "|---|---|---|---|---|"]
+    for row, (a, g, rho, n) in worst.items():
+        lines.append(f"| {row} | {n} | {a:.2e} | {g:.2e} | {'-' if rho is None else f'{rho:.2e}'} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--split", default="tune", choices=["tune", "held", "all"])
     p.add_argument("--size", type=int, default=360, help="longer side of the renders (default 360)")
     p.add_argument("--only", default=None, help="comma list of method rows to run (baselines always run)")
     p.add_argument("--json", default=None, help="write every per-scene row to this file")
+    p.add_argument("--write", default=None, metavar="DIR",
+                   help="write the split's renders, truths and manifests to DIR instead of scoring them")
+    p.add_argument("--compare", default=None, metavar="RESULTS",
+                   help="compare with uwhl evaluate's results.json on the renders --write wrote")
     a = p.parse_args(argv)
+    if a.write:
+        n = write_split(a.split, a.size, a.write)
+        print(f"{n} renders in {a.write}; uwhl evaluate {a.write}/truth.json -o OUT")
+        return 0
     only = set(a.only.split(",")) if a.only else None
+    if a.compare and only is None:
+        only = {"default", "paper"}
     if only is not None:
         only |= {"input", "gray_world", "stretch", "floor_truth"}
     rows = run(a.split, a.size, only)
     print(f"split {a.split}, {a.size} px; cells: median angle (after best gains), type exact/within one/of n, rho")
     print(table(rows))
+    if a.compare:
+        print(compare(a.compare, rows))
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)

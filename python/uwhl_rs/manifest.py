@@ -15,7 +15,7 @@ from .errors import ManifestError
 #: Profiles ``--method`` can name (METHOD §12), the default first.
 METHODS = tuple(next(o["choices"] for o in _core.OPTIONS if o["key"] == "method"))
 
-_ENTRY_KEYS = {"path", "distance", "water_type", "water_mask", "charts", "restore"}
+_ENTRY_KEYS = {"path", "distance", "water_type", "water_mask", "charts", "restore", "truth", "truth_mask"}
 _CHART_KEYS = {"name", "gray_patches", "region"}
 #: The Jerlov types in table order (METHOD §1).
 TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
@@ -46,6 +46,9 @@ class Entry:
     water_mask: str | None = None
     #: the entry's ``path`` as written in the manifest (``path`` is it joined to the manifest's folder)
     manifest_path: str = ""
+    #: the true radiance (linear) and the pixels to score against it (uwhl_rs.truth)
+    truth: str | None = None
+    truth_mask: str | None = None
 
 
 def _box(v, what: str) -> tuple[int, int, int, int]:
@@ -87,6 +90,10 @@ def _entry(k: int, raw, folder: str) -> Entry:
 
     distance = file_key("distance", "distance")
     water_mask = file_key("water_mask", "water-mask")
+    truth = file_key("truth", "truth")
+    truth_mask = file_key("truth_mask", "truth-mask")
+    if truth_mask is not None and truth is None:
+        raise ManifestError(f"{label}: 'truth_mask' says which pixels to score against 'truth', which is missing")
     wt = raw.get("water_type")
     if wt is not None and wt not in TYPE_ORDER:
         raise ManifestError(f"{label}: water_type {wt!r} is not one of {TYPE_ORDER}")
@@ -122,7 +129,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
     if "method" in restore and restore["method"] not in METHODS:
         raise ManifestError(f"{label}: restore.method {_short(restore['method'])} is not one of {list(METHODS)}")
     _check_restore(restore, label)
-    return Entry(label, path, distance, wt, charts, restore, water_mask, raw["path"])
+    return Entry(label, path, distance, wt, charts, restore, water_mask, raw["path"], truth, truth_mask)
 
 
 def _short(v, limit: int = 80) -> str:

@@ -5,17 +5,31 @@ object's colours under white light), pixel by pixel, as the angle between the
 two RGB vectors. The angle ignores each pixel's brightness but not its colour,
 so a white balance is part of what is scored. ``best_gains`` gives the floor
 that any global per-channel balance of the same output could reach.
+
+``read_truth`` and ``read_truth_mask`` read the files a manifest entry of
+``uwhl evaluate`` names in its ``truth`` and ``truth_mask`` keys
+(docs/EVALUATE.md).
 """
 
 from __future__ import annotations
 
+import os
+import stat
+
 import numpy as np
 
-__all__ = ["pixel_angles", "angle_stats", "best_gains", "score"]
+from . import _core
+from .errors import ManifestError
+from .images import DEFAULT_MAX_PIXELS
+
+__all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "pixel_angles", "angle_stats", "best_gains", "score",
+           "resize_nearest", "load_npy", "read_truth", "read_truth_mask"]
 
 #: Truth pixels darker than this (sum of R, G, B, linear) carry no colour
 #: worth scoring: their angle is dominated by quantisation and noise.
 MIN_TRUTH_SUM = 0.02
+#: A truth or truth mask is resized to its photo; a file claiming more pixels than a photo may have is not read.
+MAX_TRUTH_PIXELS = DEFAULT_MAX_PIXELS
 
 
 def pixel_angles(out: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
@@ -77,9 +91,10 @@ def best_gains(out: np.ndarray, truth: np.ndarray, valid: np.ndarray, samples: i
 def score(out: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None, gains: bool = True) -> dict:
     """Angles of ``out`` to ``truth``: raw and after the best global per-channel gains.
 
-    ``valid`` defaults to the pixels whose truth is bright enough to have a
-    colour (``MIN_TRUTH_SUM``). Returns ``median``, ``p90`` and, with
-    ``gains``, ``gain_median`` and ``gain_p90``.
+    Scored: the pixels of ``valid`` (default: all) whose truth is bright
+    enough to have a colour (R + G + B > ``MIN_TRUTH_SUM``). Returns
+    ``median``, ``p90`` and, with ``gains``, ``gain_median`` and ``gain_p90``
+    (NaN when no pixel is scored).
     """
     truth = np.asarray(truth, dtype=np.float64)
     ok = truth.sum(axis=2) > MIN_TRUTH_SUM
@@ -91,3 +106,136 @@ def score(out: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None, g
         st = angle_stats(pixel_angles(np.asarray(out, dtype=np.float64) * g, truth, ok))
         res["gain_median"], res["gain_p90"] = st["median"], st["p90"]
     return res
+
+
+# ------------------------------------------------------------------ files
+
+
+def resize_nearest(a: np.ndarray, height: int, width: int) -> np.ndarray:
+    """``a`` (H x W or H x W x C) resized to height x width by nearest neighbour
+    (the pixel whose area holds each output pixel's top-left corner)."""
+    rows = (np.arange(height) * a.shape[0]) // height
+    cols = (np.arange(width) * a.shape[1]) // width
+    return a[rows][:, cols]
+
+
+def _regular(path: str, what: str) -> None:
+    # a FIFO or a device would block or never end: regular files only
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise ManifestError(f"{path}: cannot read the {what} ({e.strerror or e})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ManifestError(f"{path}: the {what} must be a regular file")
+
+
+def _check_size(path: str, shape, what: str) -> None:
+    if len(shape) >= 2 and int(np.prod(shape[:2], dtype=np.int64)) > MAX_TRUTH_PIXELS:
+        raise ManifestError(f"{path}: the {what} is {shape[1]}x{shape[0]} pixels, over the limit of "
+                            f"{MAX_TRUTH_PIXELS}")
+
+
+def load_npy(path: str, what: str) -> np.ndarray:
+    """The numbers of a ``.npy`` file as float64, for a message that names
+    it as ``what``. Another file under that name is said to be one (numpy's
+    own message would suggest unpickling it); a header claiming more than
+    ``MAX_TRUTH_PIXELS`` pixels is refused before anything is read."""
+    with open(path, "rb") as f:
+        if f.read(6) != b"\x93NUMPY":
+            raise ManifestError(f"{path}: cannot read the {what}: not a .npy file (no NumPy header)")
+    # mapped, not read: a header claiming a huge array costs nothing until its size is checked
+    a = np.load(path, mmap_mode="r", allow_pickle=False)
+    _check_size(path, a.shape, what)
+    if a.dtype.kind not in "biuf":
+        raise ManifestError(f"{path}: a .npy {what} holds numbers, not {a.dtype}")
+    return np.array(a, dtype=np.float64)
+
+
+def _png16(path: str, what: str) -> np.ndarray:
+    """A 16-bit PNG's codes / 65535, as they are (no sRGB curve: the truth is linear)."""
+    def header(h, w, bpp, oriented):
+        _check_size(path, (h, w), what)
+
+    img, info = _core.decode_file(path, False, MAX_TRUTH_PIXELS, int(_core.default_max_memory()), header)
+    if info["bits"] != 16 or info["is_float"]:
+        raise ManifestError(f"{path}: a PNG {what} is 16-bit, read as linear / 65535 (this one is "
+                            f"{info['bits']}-bit; an 8-bit file is sRGB, too coarse to be a truth)")
+    return np.asarray(img, dtype=np.float64)
+
+
+def _load_array(path: str, what: str) -> np.ndarray:
+    """The numbers of a float TIFF, a ``.npy`` or a 16-bit PNG (linear / 65535)."""
+    ext = os.path.splitext(path)[1].lower()
+    _regular(path, what)
+    try:
+        if ext in (".tif", ".tiff"):
+            import tifffile
+
+            with tifffile.TiffFile(path) as tf:
+                page = tf.pages[0]
+                _check_size(path, page.shape, what)
+                a = page.asarray()
+            if a.dtype.kind == "u" and a.dtype.itemsize == 2:
+                a = a.astype(np.float64) / 65535.0
+            elif a.dtype.kind != "f":
+                raise ManifestError(f"{path}: a TIFF {what} holds floats or 16-bit integers (linear / 65535), "
+                                    f"not {a.dtype}")
+        elif ext == ".npy":
+            a = load_npy(path, what)
+        elif ext == ".png":
+            a = _png16(path, what)
+        else:
+            raise ManifestError(f"{path}: a {what} is a float TIFF, a .npy or a 16-bit PNG, not {ext or 'none'}")
+    except ManifestError:
+        raise
+    except Exception as e:  # decoders raise many types; name the file and the reason
+        raise ManifestError(f"{path}: cannot read the {what} ({type(e).__name__}: {e})") from None
+    return np.asarray(a, dtype=np.float64)
+
+
+def read_truth(path: str, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """A true radiance image for a photo of height x width: ``(truth, usable)``.
+
+    ``truth`` is H x W x 3 linear RGB (float TIFF or ``.npy`` as stored,
+    16-bit PNG or TIFF as code / 65535; gray is replicated, alpha dropped),
+    resized by nearest neighbour; ``usable`` is False where a value is
+    non-finite or negative (those pixels hold 0 and are not scored).
+    Raises :class:`ManifestError` naming the file for anything else.
+    """
+    a = _load_array(path, "truth")
+    if a.ndim == 2:
+        a = np.repeat(a[:, :, None], 3, axis=2)
+    elif a.ndim == 3 and a.shape[2] == 1:
+        a = np.repeat(a, 3, axis=2)
+    elif a.ndim == 3 and a.shape[2] == 4:
+        a = a[:, :, :3]
+    if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] == 0 or a.shape[1] == 0:
+        raise ManifestError(f"{path}: a truth is an H x W x 3 RGB image, not shape {a.shape}")
+    usable = np.isfinite(a).all(axis=2) & (a >= 0).all(axis=2)
+    a = np.where(usable[:, :, None], a, 0.0)
+    return resize_nearest(a, height, width), resize_nearest(usable, height, width)
+
+
+def read_truth_mask(path: str, height: int, width: int) -> np.ndarray:
+    """A truth mask (nonzero = score this pixel; any channel of a colour
+    image), any size, resized by nearest neighbour to height x width. PNG,
+    TIFF, JPEG or ``.npy``."""
+    _regular(path, "truth mask")
+    try:
+        if path.lower().endswith(".npy"):
+            m = load_npy(path, "truth mask")
+        else:
+            import imageio.v3 as iio
+
+            meta = iio.improps(path)
+            _check_size(path, meta.shape, "truth mask")
+            m = np.asarray(iio.imread(path))
+    except ManifestError:
+        raise
+    except Exception as e:
+        raise ManifestError(f"{path}: cannot read the truth mask ({type(e).__name__}: {e})") from None
+    if m.ndim == 3:
+        m = (m[..., :3] != 0).any(axis=-1)
+    if m.ndim != 2 or m.size == 0:
+        raise ManifestError(f"{path}: a truth mask is one 2-D image, not shape {m.shape}")
+    return resize_nearest(np.asarray(m != 0), height, width)

@@ -51,9 +51,12 @@ def run(a: argparse.Namespace, console: Console) -> int:
         results.append(r)
         psi = [row["psi_deg"] for row in r["charts"] if row["method"] == r["method"]]
         rho = r["rho"].get(r["method"], {}).get("rho_B")
+        ang = r["truth_angles"].get(r["method"], {}).get("median_deg")
         console.line(f"[{k}/{len(entries)}] {entry.label}: water type {r['water_type']}"
                      + (f", psi-bar {', '.join(f'{v:.1f}' for v in psi if v is not None)} deg" if psi else "")
-                     + (f", rho {rho:.3f}" if rho is not None else "") + f" ({time.perf_counter() - t:.1f} s)")
+                     + (f", rho {rho:.3f}" if rho is not None else "")
+                     + (f", angle to truth {ang:.1f} deg" if ang is not None else "")
+                     + f" ({time.perf_counter() - t:.1f} s)")
     try:
         parameters = {"method": a.method, "mask_charts": a.mask_charts,
                       **{k: v if not isinstance(v, tuple) else list(v) for k, v in kwargs.items()},
@@ -63,11 +66,14 @@ def run(a: argparse.Namespace, console: Console) -> int:
         ev.write_report(a.out, doc, results, entries, a.method, ev.METHODS)
     except OSError as e:
         raise CommandError(describe(e), "write_failed", a.out) from e
-    console.line(f"\n{'method':<12} {'psi-bar':>8} {'rho t_B':>8}")
+    truth = any(v.get("images_with_truth") for m, v in doc["summary"].items() if m != "water_type")
+    # with a truth: the median over images of the per-image median angle, raw and after the best gains
+    console.line(f"\n{'method':<12} {'psi-bar':>8} {'rho t_B':>8}" + (f" {'truth':>8} {'gains':>8}" if truth else ""))
     for m, v in doc["summary"].items():
         if m == "water_type":
             continue
-        console.line(f"{m:<12} {_fmt(v['psi_deg']):>8} {_fmt(v['rho_B']):>8}")
+        console.line(f"{m:<12} {_fmt(v['psi_deg']):>8} {_fmt(v['rho_B']):>8}"
+                     + (f" {_fmt(v['truth_median_deg']):>8} {_fmt(v['truth_gain_median_deg']):>8}" if truth else ""))
     if "water_type" in doc["summary"]:
         for m, wt in doc["summary"]["water_type"].items():
             console.line(f"water type ({m}): {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step")
