@@ -222,6 +222,12 @@ class Restoration:
     @property
     def flags(self) -> list[str]: ...
     @property
+    def confidence(self) -> Optional[_F32]:
+        """H x W in [0, 1]: how far each displayed colour can be trusted (METHOD §12.5); None without a fallback."""
+    @property
+    def veil_excess(self) -> Optional[float]:
+        """Share of object pixels whose estimated veil exceeds the light (METHOD §12.5); None without a fallback."""
+    @property
     def guided_radius(self) -> int: ...
     @property
     def guided_subsample(self) -> int: ...

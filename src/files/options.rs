@@ -244,6 +244,12 @@ gray-world choice with the t_R rule, exhaustive selection)",
         default: Default::None, help: "how the radiance is displayed: stretch (METHOD §8), or gains from the \
 object pixels' gray_world / shades_of_gray / white_patch color, then exposure (METHOD §12.1); default: the profile's",
         group: Group::Method, faces: Faces::Both, method: true },
+    Spec { key: "fallback", flag: "--fallback", short: None, metavar: "MODE",
+        kind: Kind::Choice(&["none", "input_balance"]),
+        default: Default::None, help: "where the restoration cannot be trusted: none, or input_balance: blend \
+the colours toward a shades-of-gray balance of the input where confidence is low, and flag the photo unreliable \
+(METHOD §12.5); default: the profile's (revised input_balance, paper none)",
+        group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "type_choice", flag: "--type-choice", short: None, metavar: "RULE",
         kind: Kind::Choice(&["gray_world", "shades_of_gray"]),
         default: Default::None, help: "how the water type is chosen: gray_world of the stretched image with the \
@@ -628,6 +634,7 @@ impl crate::method::params::Params {
             ("method", V::Text(t)) => self.method = crate::method::profile::Method::from_name(t)?,
             ("white_balance", V::Text(t)) => self.white_balance = Some(crate::method::profile::WhiteBalance::from_name(t)?),
             ("type_choice", V::Text(t)) => self.type_choice = Some(crate::method::profile::TypeChoice::from_name(t)?),
+            ("fallback", V::Text(t)) => self.fallback = Some(crate::method::profile::Fallback::from_name(t)?),
             ("haze_floor", V::Text(t)) => self.haze_floor = Some(crate::method::params::haze_floor_from_name(t)?),
             _ => return Err(bad()),
         }

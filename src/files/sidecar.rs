@@ -80,6 +80,8 @@ pub struct Estimates<'a> {
     pub guided_radius: usize,
     /// its subsampling factor used
     pub guided_subsample: usize,
+    /// the share of object pixels whose estimated veil exceeds the light (METHOD §12.5)
+    pub veil_excess: Option<f64>,
 }
 
 impl<'a> Estimates<'a> {
@@ -95,6 +97,7 @@ impl<'a> Estimates<'a> {
             flags: res.flags.iter().map(|f| f.name()).collect(),
             guided_radius: res.guided_radius,
             guided_subsample: res.guided_subsample,
+            veil_excess: res.veil_excess,
         }
     }
 }
@@ -249,6 +252,7 @@ pub fn sidecar(
         "vl_pixels": est.vl_pixels,
         "vl_fraction": est.vl_pixels as f64 / est.pixels.max(1) as f64,
         "flags": est.flags,
+        "veil_excess": est.veil_excess,
         "guided_radius": est.guided_radius,
         "guided_subsample": est.guided_subsample,
         "beta_ratios": [est.water_type.beta_br, est.water_type.beta_bg],

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::method::image::{check_mask, ImageRef};
-use crate::method::profile::{Method, TypeChoice, WhiteBalance};
+use crate::method::profile::{Fallback, Method, TypeChoice, WhiteBalance};
 use crate::method::recover::Recovery;
 use crate::method::water::{jerlov_types, validate_types, WaterType};
 use rayon::prelude::*;
@@ -111,6 +111,8 @@ pub struct Params {
     /// the haze-line floor: Some(None) none, Some(Some(name)) a Jerlov type;
     /// default the profile's (METHOD §12.3)
     pub haze_floor: Option<Option<&'static str>>,
+    /// what is done where the result cannot be trusted; default the profile's (METHOD §12.5)
+    pub fallback: Option<Fallback>,
 }
 
 /// Window radius, in blocks, that [`auto_subsample`] keeps at least.
@@ -140,6 +142,7 @@ impl Default for Params {
             white_balance: None,
             type_choice: None,
             haze_floor: None,
+            fallback: None,
         }
     }
 }
@@ -161,17 +164,21 @@ pub enum Flag {
     MattingSkipped,
     /// a sequence frame reused the water type and A of an earlier frame (METHOD §10)
     EstimatesReused,
+    /// the estimated veil exceeds the observed light at more than 30% of the
+    /// object pixels: the colours are not to be trusted (METHOD §12.5)
+    Unreliable,
 }
 
 impl Flag {
     /// Every flag.
-    pub const ALL: [Flag; 6] = [
+    pub const ALL: [Flag; 7] = [
         Flag::NoWaterRegion,
         Flag::VeilingFallback,
         Flag::VeilingLightClamped,
         Flag::ExclusionRelaxed,
         Flag::MattingSkipped,
         Flag::EstimatesReused,
+        Flag::Unreliable,
     ];
 
     /// The stable name (sidecar, Python `Restoration.flags`).
@@ -183,6 +190,7 @@ impl Flag {
             Flag::ExclusionRelaxed => "exclusion_relaxed",
             Flag::MattingSkipped => "matting_skipped",
             Flag::EstimatesReused => "estimates_reused",
+            Flag::Unreliable => "unreliable",
         }
     }
 }
@@ -272,6 +280,11 @@ impl Params {
         self.type_choice.unwrap_or_else(|| self.method.type_choice())
     }
 
+    /// The fallback used: the one given, else the profile's (METHOD §12.5).
+    pub fn fallback_used(&self) -> Fallback {
+        self.fallback.unwrap_or_else(|| self.method.fallback())
+    }
+
     /// The selection used: the one given, else the profile's.
     pub fn selection_used(&self) -> Selection {
         self.selection.unwrap_or_else(|| self.method.selection())
@@ -291,13 +304,14 @@ impl Params {
 
     /// The profile and the steps used, as (keyword, name) pairs: what the
     /// sidecar and the evaluation record (METHOD §12).
-    pub fn steps(&self) -> [(&'static str, &'static str); 5] {
+    pub fn steps(&self) -> [(&'static str, &'static str); 6] {
         [
             ("method", self.method.name()),
             ("selection", self.selection_used().name()),
             ("white_balance", self.white_balance_used().name()),
             ("type_choice", self.type_choice_used().name()),
             ("haze_floor", self.haze_floor_used().unwrap_or("none")),
+            ("fallback", self.fallback_used().name()),
         ]
     }
 
@@ -359,6 +373,12 @@ pub struct Restoration {
     pub veiling_mask: Vec<bool>,
     /// documented fallbacks and decisions, in the order they were taken
     pub flags: Vec<Flag>,
+    /// how far each pixel's displayed colour can be trusted, in [0, 1]
+    /// (METHOD §12.5); None when the fallback is `none`
+    pub confidence: Option<Vec<f32>>,
+    /// the share of object pixels where the estimated veil exceeds the
+    /// observed light (METHOD §12.5); None when the fallback is `none`
+    pub veil_excess: Option<f64>,
     /// the guided-filter radius used
     pub guided_radius: usize,
     /// the guided-filter subsampling factor used at full resolution (1: exact)

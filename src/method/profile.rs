@@ -33,6 +33,39 @@ pub enum WhiteBalance {
     WhitePatch,
 }
 
+/// What is done where the restoration cannot be trusted (METHOD §12.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fallback {
+    /// nothing: the displayed image is the white balance's (or the stretch's) alone
+    None,
+    /// the displayed colours blended toward a shades-of-gray balance of the
+    /// input where confidence is low, with a confidence map and the
+    /// `unreliable` flag (METHOD §12.5)
+    InputBalance,
+}
+
+impl Fallback {
+    /// Every name.
+    pub const NAMES: [&'static str; 2] = ["none", "input_balance"];
+
+    /// The name used by both commands, the Python keyword and the sidecar.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fallback::None => "none",
+            Fallback::InputBalance => "input_balance",
+        }
+    }
+
+    /// The fallback called `name`; a parameter error naming the choices.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "none" => Ok(Fallback::None),
+            "input_balance" => Ok(Fallback::InputBalance),
+            other => Err(unknown("fallback", &Self::NAMES, other)),
+        }
+    }
+}
+
 /// How the water type is chosen among the candidates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TypeChoice {
@@ -100,6 +133,14 @@ impl Method {
         match self {
             Method::Paper => Selection::Exhaustive,
             Method::Revised => Selection::Fast,
+        }
+    }
+
+    /// The profile's fallback where the result cannot be trusted (METHOD §12.5).
+    pub fn fallback(self) -> Fallback {
+        match self {
+            Method::Paper => Fallback::None,
+            Method::Revised => Fallback::InputBalance,
         }
     }
 

@@ -243,6 +243,7 @@ fn write_input_outputs(
         flags: res.flags.iter().map(String::as_str).collect(),
         guided_radius: res.guided_radius,
         guided_subsample: res.guided_subsample,
+        veil_excess: res.veil_excess,
     };
     let sheet = contact_sheet.as_ref().map(|b| b.as_bytes().to_vec());
     let claimed = claim

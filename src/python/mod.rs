@@ -83,6 +83,10 @@ pub struct PyRestoration {
     #[pyo3(get)]
     flags: Vec<String>,
     #[pyo3(get)]
+    confidence: Option<Py<PyAny>>,
+    #[pyo3(get)]
+    pub(crate) veil_excess: Option<f64>,
+    #[pyo3(get)]
     guided_radius: usize,
     #[pyo3(get)]
     guided_subsample: usize,
@@ -614,6 +618,11 @@ fn to_py(py: Python<'_>, res: Restoration) -> PyResult<PyRestoration> {
             .into_any()
             .unbind(),
         flags: res.flags.iter().map(|f| f.name().to_string()).collect(),
+        confidence: match res.confidence {
+            Some(c) => Some(PyArray1::from_vec(py, c).reshape([h, w])?.into_any().unbind()),
+            None => None,
+        },
+        veil_excess: res.veil_excess,
         guided_radius: res.guided_radius,
         guided_subsample: res.guided_subsample,
         timings: timings.unbind(),

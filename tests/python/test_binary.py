@@ -29,7 +29,7 @@ try:
 except ImportError:
     HAVE_PY_CLI = False
 
-ESTIMATES = ["water_type", "scores", "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags",
+ESTIMATES = ["water_type", "scores", "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags", "veil_excess",
              "guided_radius", "guided_subsample", "beta_ratios"]
 
 

@@ -52,10 +52,11 @@ def _psi(img, boxes):
 def test_white_balance_follows_its_formula():
     """image = clip(radiance * g * s): g makes the object pixels' 4-norm (or
     mean) color gray, s maps the largest balanced channel's 99th percentile
-    over the masked-in pixels to 1 (METHOD §12.1), computed here in NumPy."""
+    over the masked-in pixels to 1 (METHOD §12.1), computed here in NumPy
+    (without the fallback of §12.5, which blends after it)."""
     img, mask, _, water, a = _chart_scene(96, 128, "III", 3)
     for wb, p in [("shades_of_gray", 4.0), ("gray_world", 1.0), ("white_patch", None)]:
-        r = uwhl_rs.restore(img, mask=mask, water_mask=water, water_types=["III"], white_balance=wb)
+        r = uwhl_rs.restore(img, mask=mask, water_mask=water, water_types=["III"], white_balance=wb, fallback="none")
         j = r.radiance.astype(np.float64)
         obj = mask & ~r.veiling_mask
         top = np.array([np.quantile(j[mask][:, c], 0.99) for c in range(3)])
@@ -123,13 +124,13 @@ def test_paper_profile_is_the_paper_steps():
     img, _ = synth.demo_input(64, 80, seed=2)
     paper = uwhl_rs.restore(img, method="paper")
     steps = uwhl_rs.restore(img, white_balance="stretch", type_choice="gray_world", haze_floor="none",
-                            selection="exhaustive")
+                            selection="exhaustive", fallback="none")
     assert np.array_equal(paper.image, steps.image) and paper.scores == steps.scores
     assert uwhl_rs.method_steps(method="paper") == {"method": "paper", "selection": "exhaustive",
                                                     "white_balance": "stretch", "type_choice": "gray_world",
-                                                    "haze_floor": "none"}
+                                                    "haze_floor": "none", "fallback": "none"}
     assert uwhl_rs.method_steps() == {"method": "revised", "selection": "fast", "white_balance": "shades_of_gray",
-                                      "type_choice": "shades_of_gray", "haze_floor": "3C"}
+                                      "type_choice": "shades_of_gray", "haze_floor": "3C", "fallback": "input_balance"}
     # an explicit step overrides the profile's
     assert uwhl_rs.method_steps(method="paper", white_balance="white_patch")["white_balance"] == "white_patch"
     # the revised choice reports its scores and never excludes a type
@@ -163,10 +164,10 @@ def test_haze_floor_names_are_case_insensitive_on_the_command_line():
 
 @pytest.mark.parametrize("flags, steps", [
     ([], {"method": "revised", "selection": "fast", "white_balance": "shades_of_gray",
-          "type_choice": "shades_of_gray", "haze_floor": "3C", "t_scale": 0.9}),
+          "type_choice": "shades_of_gray", "haze_floor": "3C", "t_scale": 0.9, "fallback": "input_balance"}),
     (["--method", "paper", "--t-scale", "0.8"], {"method": "paper", "selection": "exhaustive",
                                                  "white_balance": "stretch", "type_choice": "gray_world",
-                                                 "haze_floor": "none", "t_scale": 0.8}),
+                                                 "haze_floor": "none", "t_scale": 0.8, "fallback": "none"}),
     (["--selection", "exhaustive"], {"method": "revised", "selection": "exhaustive"}),
     (["--method", "paper", "--white-balance", "white_patch", "--haze-floor", "1c"],
      {"method": "paper", "white_balance": "white_patch", "type_choice": "gray_world", "haze_floor": "1C"}),

@@ -16,7 +16,8 @@ use crate::method::veiling::Veiling;
 use crate::method::sphere::SphereIndex;
 use crate::kernels::util::{channel_percentiles, Normalize};
 use crate::method::water::WaterType;
-use crate::method::profile::{conditioned, gains_from, PowerSums, TypeChoice, WhiteBalance, SOG_P, WHITE_PATCH_Q};
+use crate::method::fallback::{trust, Trust};
+use crate::method::profile::{conditioned, gains_from, Fallback, PowerSums, TypeChoice, WhiteBalance, SOG_P, WHITE_PATCH_Q};
 use rayon::prelude::*;
 
 /// Per-image state shared by every water type.
@@ -37,6 +38,8 @@ pub(crate) struct Shared<'a> {
     pub(crate) t_scale: f32,
     /// the haze-line floor's ratios (METHOD §12.3)
     pub(crate) floor: Option<[f64; 2]>,
+    /// the fallback where the result cannot be trusted (METHOD §12.5)
+    pub(crate) fallback: Fallback,
 }
 
 /// The selection statistics of the scored types, the choice among them,
@@ -101,6 +104,7 @@ impl<'a> Shared<'a> {
             balance: params.white_balance_used(),
             t_scale: params.t_scale as f32,
             floor: params.haze_floor_ratios(),
+            fallback: params.fallback_used(),
         }
     }
 
@@ -420,6 +424,8 @@ pub(crate) struct Final {
     pub(crate) transmission: Vec<f32>,
     pub(crate) image: Vec<f32>,
     pub(crate) stats: TypeStats,
+    /// the trust step's confidence and veil excess (METHOD §12.5), with a fallback
+    pub(crate) trust: Option<Trust>,
 }
 
 /// Restores the image with one water type (METHOD §4-8): the outputs and the
@@ -468,7 +474,7 @@ pub(crate) fn finish(
     let mut radiance = std::mem::take(&mut work.j);
     let clamp = ArtifactClamp::new(st.lo, st.hi);
     radiance.par_iter_mut().for_each(|v| *v = clamp.apply(*v));
-    let (image, stats) = match display {
+    let (mut image, stats) = match display {
         Some(sp) => {
             let image = sp.limits.map_rgb(&radiance, |v| sp.norm.apply(v));
             let stats = match shared.choice {
@@ -488,6 +494,12 @@ pub(crate) fn finish(
             (shared.balance_image(&radiance, &objects), stats)
         }
     };
+    // METHOD §12.5: confidence, veil excess and the blend toward the input's balance
+    let trust = (shared.fallback == Fallback::InputBalance).then(|| {
+        let (mask, vl) = (shared.mask, shared.vl);
+        let objects = move |i: usize| mask.is_none_or(|m| m.get(i).copied().unwrap_or(false)) && !vl.get(i).copied().unwrap_or(false);
+        trust(&shared.img, &objects, shared.a, wt, &transmission, &radiance, &mut image, true)
+    });
     if pool.keep {
         pool.guide = shared.guide.into_guide();
     }
@@ -497,6 +509,7 @@ pub(crate) fn finish(
         transmission,
         image,
         stats,
+        trust,
     }
 }
 

@@ -131,6 +131,9 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     if matting_skipped {
         flags.push(Flag::MattingSkipped);
     }
+    if out.trust.as_ref().is_some_and(|t| t.unreliable()) {
+        flags.push(Flag::Unreliable);
+    }
     let named = |keep: &dyn Fn(usize) -> bool| -> Vec<String> {
         types.iter().enumerate().filter(|(i, _)| keep(*i)).map(|(_, t)| t.name.clone()).collect()
     };
@@ -146,6 +149,8 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
         veiling_light: a,
         veiling_mask: vl,
         flags,
+        veil_excess: out.trust.as_ref().map(|t| t.veil_excess),
+        confidence: out.trust.map(|t| t.confidence),
         guided_radius: radius,
         guided_subsample: params.subsample_at(radius),
         timings: clock.laps,

@@ -1,0 +1,281 @@
+//! Do no harm (METHOD §12.5): how far each restored colour can be trusted,
+//! a per-photo `unreliable` flag, and a blend of the displayed colours
+//! toward a balance of the input where trust is low.
+//!
+//! Two signals, both measured on the ground-truth renders of
+//! `benches/truth.py` (METHOD §12.5 has the numbers):
+//!
+//! - **veil excess**, per photo: the share of object pixels where the
+//!   estimated veil (1 - t_c) A_c exceeds the observed light I_c by more than
+//!   the noise. The model cannot produce such a pixel with a non-negative
+//!   radiance, so the estimated transmission or type is wrong for it; a
+//!   large share means the whole photo's colours are suspect (a type too
+//!   clear, red amplified into magenta).
+//! - **noise angle**, per pixel: the angle the image noise, amplified by
+//!   1/t_c and the white-balance gains, makes with the displayed colour.
+//!   Where it is large, a channel is below the noise floor and its colour
+//!   is a guess.
+
+use crate::method::image::ImageRef;
+use crate::method::profile::{gains_from, PowerSums, SOG_P};
+use crate::method::recover::Recovery;
+use crate::method::water::WaterType;
+use rayon::prelude::*;
+
+/// Veil excess below which a photo is trusted fully (METHOD §12.5).
+pub const EXCESS_LO: f64 = 0.02;
+/// Veil excess at which the photo's colours fall back fully.
+pub const EXCESS_HI: f64 = 0.2;
+/// Veil excess above which the photo is flagged `unreliable`.
+pub const EXCESS_FLAG: f64 = 0.3;
+/// Noise angle (radians) at which a pixel's local confidence is 1/2.
+pub const THETA0: f64 = 0.15;
+/// Largest share of a pixel's colour that low local confidence alone moves
+/// toward the fallback.
+pub const LOCAL_WEIGHT: f64 = 0.3;
+/// At most this many interior pixels are sampled for the noise estimate.
+const NOISE_SAMPLES: usize = 1 << 20;
+
+/// What the trust step found: the confidence map and the veil excess.
+#[derive(Debug, Clone)]
+pub struct Trust {
+    /// per pixel, in [0, 1]: local confidence times (1 - the photo's fallback weight)
+    pub confidence: Vec<f32>,
+    /// share of object pixels whose estimated veil exceeds the observed light
+    pub veil_excess: f64,
+}
+
+impl Trust {
+    /// Whether the photo is to be flagged `unreliable`.
+    pub fn unreliable(&self) -> bool {
+        self.veil_excess > EXCESS_FLAG
+    }
+}
+
+/// Per-channel noise standard deviation of `img` (METHOD §12.5): the median
+/// absolute response of the 3x3 kernel [[1,-2,1],[-2,4,-2],[1,-2,1]] (which
+/// cancels planes and has gain 6 on white noise), over the interior pixels
+/// (on a regular grid of at most 2^20 of them), divided by 6 x 0.6745
+/// (Immerkaer's estimator made robust to edges by the median).
+pub fn noise_sigma(img: &ImageRef) -> [f64; 3] {
+    let (h, w) = (img.height, img.width);
+    if h < 3 || w < 3 {
+        return [0.0; 3];
+    }
+    let interior = (h - 2) * (w - 2);
+    let step = ((interior as f64 / NOISE_SAMPLES as f64).sqrt().ceil() as usize).max(1);
+    let d = img.data;
+    let at = |y: usize, x: usize, c: usize| f64::from(d[(y * w + x) * 3 + c]);
+    let mut out = [0.0; 3];
+    for (c, o) in out.iter_mut().enumerate() {
+        let mut r: Vec<f64> = (1..h - 1)
+            .step_by(step)
+            .flat_map(|y| (1..w - 1).step_by(step).map(move |x| (y, x)))
+            .map(|(y, x)| {
+                let corners = at(y - 1, x - 1, c) + at(y - 1, x + 1, c) + at(y + 1, x - 1, c) + at(y + 1, x + 1, c);
+                let edges = at(y - 1, x, c) + at(y + 1, x, c) + at(y, x - 1, c) + at(y, x + 1, c);
+                (corners - 2.0 * edges + 4.0 * at(y, x, c)).abs()
+            })
+            .collect();
+        *o = median(&mut r) / (6.0 * 0.6745);
+    }
+    out
+}
+
+/// The median of `v` (the mean of the two middle values for an even count; 0 when empty).
+fn median(v: &mut [f64]) -> f64 {
+    let n = v.len();
+    if n == 0 {
+        return 0.0;
+    }
+    let (_, &mut hi, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
+    if n % 2 == 1 {
+        return hi;
+    }
+    let lo = v[..n / 2].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    0.5 * (lo + hi)
+}
+
+/// Per-row sums of the first pass, combined in row order.
+#[derive(Default, Clone, Copy)]
+struct RowSums {
+    objects: f64,
+    excess: f64,
+    input: PowerSums,
+    radiance: PowerSums,
+}
+
+/// The trust step of METHOD §12.5 for the chosen type `wt` with veiling
+/// light `a`: the returned t_B `t_b`, the clamped radiance `radiance` and
+/// the displayed image `image` (blended in place when `blend`).
+/// `objects(i)` says whether pixel i is an object pixel (masked-in, not
+/// VL). Sums are per row in f64, combined in row order, so the result does
+/// not depend on the thread count.
+pub fn trust(
+    img: &ImageRef,
+    objects: &(dyn Fn(usize) -> bool + Sync),
+    a: [f32; 3],
+    wt: &WaterType,
+    t_b: &[f32],
+    radiance: &[f32],
+    image: &mut [f32],
+    blend: bool,
+) -> Trust {
+    let w = img.width;
+    let sigma = noise_sigma(img);
+    let rec = Recovery::new(a, wt);
+    let af = a.map(f64::from);
+    // t_c of METHOD §7 and the raw radiance J_c = A_c + (I_c - A_c) / t_c, before the artifact clamp
+    let pixel = |i: usize| -> ([f64; 3], [f64; 3]) {
+        let t = rec.channel_t(rec.clamp_tb(t_b[i]));
+        let p = &img.data[3 * i..3 * i + 3];
+        let t = t.map(f64::from);
+        let j = [0, 1, 2].map(|c| af[c] + (f64::from(p[c]) - af[c]) / t[c]);
+        (t, j)
+    };
+    let rows: Vec<RowSums> = (0..img.height)
+        .into_par_iter()
+        .map(|y| {
+            let mut s = RowSums::default();
+            for i in y * w..(y + 1) * w {
+                if !objects(i) {
+                    continue;
+                }
+                let (t, j) = pixel(i);
+                s.objects += 1.0;
+                // t_c J_c = I_c - (1 - t_c) A_c: the light left after the veil
+                if (0..3).any(|c| t[c] * j[c] < -sigma[c]) {
+                    s.excess += 1.0;
+                }
+                let p = &img.data[3 * i..3 * i + 3];
+                s.input.push([p[0], p[1], p[2]]);
+                let r = &radiance[3 * i..3 * i + 3];
+                s.radiance.push([r[0], r[1], r[2]]);
+            }
+            s
+        })
+        .collect();
+    let total = rows.iter().fold(RowSums::default(), |mut acc, r| {
+        acc.objects += r.objects;
+        acc.excess += r.excess;
+        acc.input.add(&r.input);
+        acc.radiance.add(&r.radiance);
+        acc
+    });
+    let veil_excess = if total.objects > 0.0 { total.excess / total.objects } else { 0.0 };
+    let w_photo = ((veil_excess - EXCESS_LO) / (EXCESS_HI - EXCESS_LO)).clamp(0.0, 1.0);
+    // the display's gains (METHOD §12.1) and the input's own shades-of-gray balance
+    let g = gains_from(total.radiance.color(SOG_P));
+    let k = gains_from(total.input.color(SOG_P));
+    let mut confidence = vec![0f32; t_b.len()];
+    confidence
+        .par_chunks_mut(w)
+        .zip(image.par_chunks_mut(3 * w))
+        .enumerate()
+        .for_each(|(y, (conf_row, img_row))| {
+            for (x, (cf, d)) in conf_row.iter_mut().zip(img_row.chunks_exact_mut(3)).enumerate() {
+                let i = y * w + x;
+                let (t, j) = pixel(i);
+                let shown = (0..3).map(|c| (g[c] * j[c].max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
+                let noise = (0..3).map(|c| (g[c] * sigma[c] / t[c]).powi(2)).sum::<f64>();
+                let theta = (2.0 / 3.0 * noise).sqrt() / shown;
+                let local = 1.0 / (1.0 + (theta / THETA0).powi(2));
+                *cf = (local * (1.0 - w_photo)) as f32;
+                if blend {
+                    let wgt = 1.0 - (1.0 - w_photo) * (1.0 - LOCAL_WEIGHT * (1.0 - local));
+                    let p = &img.data[3 * i..3 * i + 3];
+                    let base = [0, 1, 2].map(|c| (f64::from(p[c]) * k[c]).max(0.0));
+                    let sum_d: f64 = d.iter().map(|&v| f64::from(v)).sum();
+                    let scale = sum_d / (base[0] + base[1] + base[2]).max(1e-9);
+                    for c in 0..3 {
+                        let v = (1.0 - wgt) * f64::from(d[c]) + wgt * base[c] * scale;
+                        d[c] = v.clamp(0.0, 1.0) as f32;
+                    }
+                }
+            }
+        });
+    Trust { confidence, veil_excess }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn noise_sigma_finds_the_noise_of_a_smooth_image() {
+        // a linear ramp (cancelled by the kernel) plus a +-s checkerboard in
+        // red only: the kernel's response to (-1)^(x+y) is 16 s everywhere,
+        // so sigma_R = 16 s / (6 x 0.6745) and G, B (ramps) are 0
+        let (h, w, s) = (20, 30, 0.01f32);
+        let mut d = vec![0f32; h * w * 3];
+        for y in 0..h {
+            for x in 0..w {
+                let ramp = 0.2 + 0.01 * x as f32 + 0.005 * y as f32;
+                let sign = if (x + y) % 2 == 0 { 1.0 } else { -1.0 };
+                d[(y * w + x) * 3] = ramp + s * sign;
+                d[(y * w + x) * 3 + 1] = ramp;
+                d[(y * w + x) * 3 + 2] = 0.5 * ramp;
+            }
+        }
+        let sg = noise_sigma(&ImageRef::new(&d, h, w).unwrap());
+        let want = 16.0 * f64::from(s) / (6.0 * 0.6745);
+        assert!((sg[0] - want).abs() < 1e-4 * want, "{sg:?} vs {want}");
+        assert!(sg[1] < 1e-5 && sg[2] < 1e-5, "{sg:?}");
+    }
+
+    fn water(name: &str, br: f64, bg: f64) -> WaterType {
+        WaterType { name: name.into(), beta_br: br, beta_bg: bg }
+    }
+
+    #[test]
+    fn a_clear_flat_scene_keeps_its_colours_and_full_confidence() {
+        // t_B = 1 everywhere: t_c = 1, J = I >= 0, no veil excess; a flat
+        // image has sigma = 0, so theta = 0, c = 1, w = 0: nothing moves
+        let (h, w) = (4, 5);
+        let px = [0.3f32, 0.5, 0.2];
+        let d: Vec<f32> = (0..h * w).flat_map(|_| px).collect();
+        let img = ImageRef::new(&d, h, w).unwrap();
+        let tb = vec![1.0f32; h * w];
+        let shown = vec![0.25f32, 0.5, 0.75].repeat(h * w);
+        let mut out = shown.clone();
+        let tr = trust(&img, &|_| true, [0.1, 0.4, 0.6], &water("II", 0.2773, 0.7937), &tb, &d, &mut out, true);
+        assert_eq!(tr.veil_excess, 0.0);
+        assert!(!tr.unreliable());
+        assert!(tr.confidence.iter().all(|&c| c == 1.0));
+        assert_eq!(out, shown);
+    }
+
+    #[test]
+    fn a_veil_brighter_than_the_light_falls_back_to_the_inputs_balance() {
+        // red is 0 where A_R = 0.5 and t_R < 1: t_R J_R = -(1 - t_R) 0.5 < 0 = -sigma
+        // at every pixel, so veil_excess = 1 > 0.3 (unreliable), w_p = 1 and the
+        // output is the input's shades-of-gray balance at the displayed brightness:
+        // input (0, 0.4, 0.2) has e = (0, 0.4, 0.2), gains (1 (e_R = 0), 0.5, 1),
+        // B = (0, 0.2, 0.2), sum(D) = 0.9 -> B' = (0, 0.45, 0.45); confidence 0
+        let (h, w) = (3, 4);
+        let d: Vec<f32> = (0..h * w).flat_map(|_| [0.0f32, 0.4, 0.2]).collect();
+        let img = ImageRef::new(&d, h, w).unwrap();
+        let tb = vec![0.5f32; h * w];
+        let radiance = vec![0.0f32, 0.3, 0.3].repeat(h * w);
+        let mut out = vec![0.2f32, 0.3, 0.4].repeat(h * w);
+        let tr = trust(&img, &|_| true, [0.5, 0.4, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut out, true);
+        assert_eq!(tr.veil_excess, 1.0);
+        assert!(tr.unreliable());
+        assert!(tr.confidence.iter().all(|&c| c == 0.0));
+        for p in out.chunks(3) {
+            assert!(p[0].abs() < 1e-6 && (p[1] - 0.45).abs() < 1e-6 && (p[2] - 0.45).abs() < 1e-6, "{p:?}");
+        }
+        // without the blend the image stays and the findings are the same
+        let mut kept = vec![0.2f32, 0.3, 0.4].repeat(h * w);
+        let tr2 = trust(&img, &|_| true, [0.5, 0.4, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut kept, false);
+        assert_eq!(kept, vec![0.2f32, 0.3, 0.4].repeat(h * w));
+        assert_eq!(tr2.veil_excess, 1.0);
+    }
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert_eq!(median(&mut []), 0.0);
+    }
+}
