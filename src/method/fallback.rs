@@ -252,7 +252,7 @@ mod tests {
         // output is the input's shades-of-gray balance at the displayed brightness:
         // input (0, 0.4, 0.2) has e = (0, 0.4, 0.2), gains (1 (e_R = 0), 0.5, 1),
         // B = (0, 0.2, 0.2), sum(D) = 0.9 -> B' = (0, 0.45, 0.45); confidence 0
-        let (h, w) = (3, 4);
+        let (h, w) = (4, 4);
         let d: Vec<f32> = (0..h * w).flat_map(|_| [0.0f32, 0.4, 0.2]).collect();
         let img = ImageRef::new(&d, h, w).unwrap();
         let tb = vec![0.5f32; h * w];
