@@ -256,11 +256,42 @@ fn open<R: BufRead + Seek>(
         Some(ImageFormat::Tiff) => {
             let mut inner = reader.into_inner();
             let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
+            // what the file holds, read before the decoder takes the reader:
+            // its words for a layout it cannot read are its own type names
+            // ("color type Unknown(16)")
+            let layout = exif::ReaderSource::new(&mut inner).ok().and_then(|mut s| exif::tiff_layout(&mut s));
             inner.seek(SeekFrom::Start(0)).map_err(io)?;
             let reader = ImageReader::with_format(inner, ImageFormat::Tiff);
-            open_reader(reader, limits, Meta { orientation, note, icc: Some(Ok(None)) }, check, None)
+            open_reader(reader, limits, Meta { orientation, note, icc: Some(Ok(None)) }, check, None).map_err(|f| {
+                match layout {
+                    Some(l) if f.kind == Kind::Input && f.message.starts_with("unsupported") => Failure::new(
+                        Kind::Input,
+                        format!(
+                            "unsupported TIFF layout: {l}; gray, RGB, RGBA and CMYK of 8 or 16 bits, and RGB of \
+                             32-bit floats, are read ({})",
+                            f.message
+                        ),
+                    ),
+                    _ => f,
+                }
+            })
         }
-        _ => open_reader(reader, limits, Meta { orientation: 1, note: None, icc: None }, check, None),
+        _ => {
+            // BigTIFF ("II+", "MM\0+"): a TIFF the decoder does not recognise; say so, not "unrecognised"
+            let guessed = reader.format();
+            let mut inner = reader.into_inner();
+            let mut sig = [0u8; 4];
+            let got = inner.read(&mut sig).map_err(io)?;
+            if got == 4 && (&sig == b"II+\0" || &sig == b"MM\0+") {
+                return Err(Failure::new(Kind::Input, "a BigTIFF file: not read (save it as a classic TIFF, PNG or JPEG)"));
+            }
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let mut reader = ImageReader::new(inner);
+            if let Some(f) = guessed {
+                reader.set_format(f);
+            }
+            open_reader(reader, limits, Meta { orientation: 1, note: None, icc: None }, check, None)
+        }
     }
 }
 

@@ -492,6 +492,11 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
     // the input's EXIF and XMP, and the restoration's record, into the photo
     // (src/files/metadata.rs); the record is made of the sidecar's fields
     let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    // a TIFF input is re-read whole for its tags (the EXIF parser takes the
+    // whole file): at most what its pixels took when decoded (RGBA at its
+    // bits) and a block of tags, memory the plan already gave this input
+    let tiff_cap = (out.source.height as u64 * out.source.width as u64 * 4 * u64::from(out.source.bits.max(8)) / 8)
+        .saturating_add(crate::files::exif::MAX_BLOCK);
     let (image_bytes, carried) = crate::files::metadata::carry_from(
         out.input,
         image_bytes?,
@@ -499,6 +504,7 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
         &sidecar_name,
         wp as u32,
         hp as u32,
+        tiff_cap,
     );
     let mut files = vec![(image_path.clone(), image_bytes), (t_path.clone(), t_bytes?), (tc_path.clone(), tc_bytes?)];
     if let (Some(p), Some(sheet)) = (&sheet_path, out.contact_sheet) {
