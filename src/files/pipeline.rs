@@ -194,7 +194,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         max_pixels: opts.max_pixels,
         max_memory: opts.params.max_memory,
     };
-    let decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
+    let mut decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
         check_plan(h, opts, masks, room)
     })?;
     let (h, w) = (decoded.height, decoded.width);
@@ -203,13 +203,21 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n));
     let mask = fit_mask(masks.mask.as_ref(), "--mask", h, w, factor, 1.0)?;
     let water = fit_mask(masks.water.as_ref(), "--water-mask", h, w, factor, 0.5)?;
+    // the full-size values are dropped as soon as the next copy is made: a
+    // shadowed binding would hold them (12 bytes a pixel of the input)
+    // through the restoration, which the memory plan does not count
+    let full = std::mem::take(&mut decoded.data);
     let data = if linear {
-        decoded.data
+        full
     } else {
-        reference_srgb_stretch(&decoded.data, None)
+        let stretched = reference_srgb_stretch(&full, None);
+        drop(full);
+        stretched
     };
     let (data, hp, wp) = if factor > 1 {
-        downscale(&data, h, w, 3, factor)
+        let small = downscale(&data, h, w, 3, factor);
+        drop(data);
+        small
     } else {
         (data, h, w)
     };

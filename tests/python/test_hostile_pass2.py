@@ -287,3 +287,30 @@ def test_a_jpeg_is_hashed_whole_and_its_metadata_found_without_reading_it_all(bi
     assert md["input_sha256"] == hashlib.sha256((tmp_path / "a.jpg").read_bytes()).hexdigest()
     assert md["gps"]["latitude"] == 10.0 and md["taken_at"] == "2026-01-02T03:04:05"
     assert struct.unpack(">H", (tmp_path / "out" / "a.jpg").read_bytes()[:2])[0] == 0xFFD8
+
+
+# ------------------------------------------------------------------ bytes after a JPEG's end
+
+
+@pytest.mark.parametrize("face", FACES)
+def test_a_jpeg_with_a_video_appended_after_its_end_is_restored(binary, tmp_path, face):
+    """Phones append a video after the end-of-image marker (Motion Photos).
+    A start-of-scan marker in those bytes with no end marker after it made
+    the photo "truncated"; completeness is the segments' walk to the end
+    marker now, whatever follows it."""
+    _gps_jpeg(tmp_path / "m.jpg", lat_deg=10)
+    with open(tmp_path / "m.jpg", "ab") as f:
+        f.write(b"\0\0\0\x18ftypmp42" + b"\xff\xda\x00\x08" + b"\x11" * 1000)
+    r = _run(face, binary, [tmp_path / "m.jpg", "-o", tmp_path / "out", "-q"])
+    assert r.returncode == 0, r.stderr
+    side = json.loads((tmp_path / "out" / "m.json").read_text())
+    assert (side["source"]["height"], side["source"]["width"]) == (48, 64)
+
+
+@pytest.mark.parametrize("face", FACES)
+def test_a_jpeg_cut_inside_its_scan_is_still_truncated(binary, tmp_path, face):
+    _gps_jpeg(tmp_path / "c.jpg", lat_deg=10)
+    data = (tmp_path / "c.jpg").read_bytes()
+    (tmp_path / "c.jpg").write_bytes(data[:data.index(b"\xff\xda") + 200])
+    r = _run(face, binary, [tmp_path / "c.jpg", "-o", tmp_path / "out"])
+    assert r.returncode == 3 and "truncated" in r.stderr, r.stderr
