@@ -314,3 +314,55 @@ def test_a_jpeg_cut_inside_its_scan_is_still_truncated(binary, tmp_path, face):
     (tmp_path / "c.jpg").write_bytes(data[:data.index(b"\xff\xda") + 200])
     r = _run(face, binary, [tmp_path / "c.jpg", "-o", tmp_path / "out"])
     assert r.returncode == 3 and "truncated" in r.stderr, r.stderr
+
+
+# ------------------------------------------------------------------ the memory plan holds for a tagged photo
+
+
+def _peak_rss_of(argv) -> tuple[int, str]:
+    """Peak resident bytes of one run of ``argv``, measured by a fresh
+    Python parent (so no earlier child of the test session counts)."""
+    import subprocess
+    import sys
+
+    code = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); print(r.returncode); print(r.stderr)")
+    out = subprocess.run([sys.executable, "-c", code, *map(str, argv)], capture_output=True, text=True, timeout=600)
+    kib, rc, err = out.stdout.split("\n", 2)
+    return int(kib) * 1024, f"{rc}: {err}"
+
+
+def test_a_large_tagged_jpeg_with_max_side_stays_within_its_memory_plan(binary, tmp_path):
+    """A 12 MP JPEG in Adobe RGB restored with --max-side 1024 peaked far
+    over the plan the binary checks (docs/PERFORMANCE.md): the ICC
+    conversion copied the whole image (24 bytes a pixel against the plan's
+    18) and the full-size values stayed alive through the restoration of
+    the small copy. The plan is the binary's own number (its refusal at a
+    budget too small names it); the run must peak within it, above what the
+    same binary holds when it refuses the file before decoding."""
+    from test_icc import ADOBE_PHOTO
+
+    if not ADOBE_PHOTO.exists():
+        pytest.skip("../shared/data is not here")
+    with Image.open(ADOBE_PHOTO) as im:
+        icc = im.info["icc_profile"]
+    h, w = 3000, 4000
+    y, x = np.mgrid[0:h, 0:w]
+    rgb = np.stack([40 + 60 * x / w, 90 + 80 * y / h, 150 + 40 * (x + y) / (w + h)], -1)
+    rgb += np.random.default_rng(4).normal(0, 6, rgb.shape)
+    photo = tmp_path / "big.jpg"
+    Image.fromarray(np.clip(rgb, 0, 255).astype(np.uint8)).save(photo, quality=85, icc_profile=icc)
+    args = [binary, "restore", photo, "-q", "--threads", "1", "--max-side", "1024"]
+    # the plan, as the binary states it when refusing
+    _, said = _peak_rss_of([*args, "-o", tmp_path / "o1", "--max-memory", str(photo.stat().st_size + (1 << 20))])
+    import re
+
+    m = re.search(r"need about (\d+) bytes", said)
+    assert m, said
+    plan = int(m.group(1))
+    # what the process holds with nothing decoded (the file refused by its size)
+    base, said = _peak_rss_of([*args, "-o", tmp_path / "o2", "--max-memory", "1M"])
+    assert "over --max-memory" in said, said
+    peak, said = _peak_rss_of([*args, "-o", tmp_path / "o3", "--max-memory", str(2 * plan)])
+    assert said.startswith("0:"), said
+    assert peak - base <= plan, f"peak {peak - base} bytes over the process's own, plan {plan}"
