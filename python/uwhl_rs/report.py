@@ -123,10 +123,11 @@ def _input_file(p: Photo, folder):
         return f, None
     if not want:
         return None, f"{shown}: the sidecar records no input hash (metadata.input_sha256); not shown"
-    # refused before anything is opened or hashed: a name a batch never takes as an input
-    # (a planted sidecar naming /etc/shadow, a database, a key) is no input of the batch
+    # refused before anything is opened or hashed: a planted sidecar naming /etc/shadow, a
+    # database or a key with its true hash would have it read and shown; an input given by
+    # name with another extension (x.dat) loses its thumbnail, not its row
     if os.path.splitext(src)[1].lower() not in IMAGE_EXTENSIONS | RAW_EXTENSIONS:
-        return None, f"{shown}: not the name of an image a batch restores; not opened"
+        return None, f"{shown}: not an image file name (a JPEG, PNG, TIFF or raw extension); not opened"
     why = "not found"
     for c in _candidates(src, folder):
         try:
