@@ -139,6 +139,11 @@ fn image_error(e: ImageError) -> Failure {
     match e {
         ImageError::Limits(l) => Failure::new(Kind::Budget, format!("decoder limit: {l}")),
         ImageError::Unsupported(u) => Failure::new(Kind::Input, format!("unsupported: {u}")),
+        // the I/O error's own words ("failed to fill whole buffer") say nothing of the file
+        ImageError::IoError(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Failure::new(
+            Kind::Input,
+            "cannot decode: the file ends before its image data does (truncated, or its offsets point past its end)",
+        ),
         other => Failure::new(Kind::Input, format!("cannot decode: {other}")),
     }
 }

@@ -366,3 +366,16 @@ def test_a_large_tagged_jpeg_with_max_side_stays_within_its_memory_plan(binary, 
     peak, said = _peak_rss_of([*args, "-o", tmp_path / "o3", "--max-memory", str(2 * plan)])
     assert said.startswith("0:"), said
     assert peak - base <= plan, f"peak {peak - base} bytes over the process's own, plan {plan}"
+
+
+@pytest.mark.parametrize("face", FACES)
+def test_a_tiff_cut_short_says_so(binary, tmp_path, face):
+    """It said "cannot decode: failed to fill whole buffer"."""
+    tifffile = pytest.importorskip("tifffile")
+    buf = io.BytesIO()
+    tifffile.imwrite(buf, _pixels(), photometric="rgb")
+    data = buf.getvalue()
+    (tmp_path / "cut.tif").write_bytes(data[:len(data) // 2])
+    r = _run(face, binary, [tmp_path / "cut.tif", "-o", tmp_path / "out"])
+    assert r.returncode == 3, r.stderr
+    assert any("cut.tif" in x and "ends before its image data" in x for x in _error_lines(r)), r.stderr
