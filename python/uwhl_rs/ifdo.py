@@ -310,7 +310,10 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         entities.append({"name": key, "id": f"urn:uuid:{item['image-uuid']}", "created-at": _rfc3339(written),
                          "attributed-to": [agent], "generated-by": [activity_id]})
     if not items:
-        raise IfdoError(f"{out}: no restored photo with an embedded image UUID (no sidecar of uwhl restore found)")
+        # the sidecars left out are why: their notes are the message, not "none found"
+        why = (f" ({len(notes)} left out: " + "; ".join(printable(n) for n in notes[:3])
+               + ("; ..." if len(notes) > 3 else "") + ")") if notes else " (no sidecar of uwhl restore found)"
+        raise IfdoError(f"{out}: no restored photo with an embedded image UUID{why}")
 
     derived: dict[str, Any] = {
         "image-set-name": folder.name or "uwhl_rs restored images",

@@ -28,7 +28,7 @@ import numpy as np
 
 import uwhl_rs
 
-from .images import RAW_EXTENSIONS, read_image, to_srgb
+from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import REPORT_DIR, Photo, collect_sidecars, failed_inputs
 from .sidecars import display, printable
 from .storage import Folder, is_url, on_storage, open_regular, read_bytes
@@ -123,6 +123,11 @@ def _input_file(p: Photo, folder):
         return f, None
     if not want:
         return None, f"{shown}: the sidecar records no input hash (metadata.input_sha256); not shown"
+    # refused before anything is opened or hashed: a planted sidecar naming /etc/shadow, a
+    # database or a key with its true hash would have it read and shown; an input given by
+    # name with another extension (x.dat) loses its thumbnail, not its row
+    if os.path.splitext(src)[1].lower() not in IMAGE_EXTENSIONS | RAW_EXTENSIONS:
+        return None, f"{shown}: not an image file name (a JPEG, PNG, TIFF or raw extension); not opened"
     why = "not found"
     for c in _candidates(src, folder):
         try:

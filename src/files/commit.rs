@@ -87,6 +87,12 @@ impl Skip {
     }
 }
 
+/// Names an input's outputs never take when they may go elsewhere: their
+/// sidecar would be a file the commands write themselves at the top of an
+/// output folder (`uwhl ifdo --format json` writes `ifdo.json`), so an
+/// input `ifdo.jpg` is written as `ifdo_2` (in every folder, one rule).
+pub const RESERVED: &[&str] = &["ifdo"];
+
 /// What to claim.
 #[derive(Debug, Clone, Copy)]
 pub struct Request<'a> {
@@ -343,6 +349,9 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
     let tries = if req.rename { MAX_NAMES } else { 1 };
     for k in 1..=tries {
         let name = if k == 1 { req.base.to_string() } else { format!("{}_{k}", req.base) };
+        if req.rename && RESERVED.contains(&name.as_str()) {
+            continue;
+        }
         let mut paths: Vec<PathBuf> = req.suffixes.iter().map(|s| req.dir.join(format!("{name}{s}"))).collect();
         let sidecar = req.dir.join(format!("{name}.json"));
         paths.push(sidecar.clone());

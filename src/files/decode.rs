@@ -139,21 +139,63 @@ fn image_error(e: ImageError) -> Failure {
     match e {
         ImageError::Limits(l) => Failure::new(Kind::Budget, format!("decoder limit: {l}")),
         ImageError::Unsupported(u) => Failure::new(Kind::Input, format!("unsupported: {u}")),
+        // the I/O error's own words ("failed to fill whole buffer") say nothing of the file
+        ImageError::IoError(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Failure::new(
+            Kind::Input,
+            "cannot decode: the file ends before its image data does (truncated, or its offsets point past its end)",
+        ),
         other => Failure::new(Kind::Input, format!("cannot decode: {other}")),
     }
 }
 
-/// Whether a JPEG stream is complete: an end-of-image marker (FF D9)
-/// follows its last start-of-scan marker (FF DA). Inside entropy-coded data
-/// 0xFF is always followed by 0x00 or a restart marker, so the only FF D9
-/// after the last scan header is the real end. The JPEG decoder fills a
-/// truncated scan with gray and reports success; a cut-off frame must be an
-/// error instead (Pillow refuses it too).
+/// Whether a JPEG stream is complete: walking its segments from SOI (each
+/// marker's length, and past each scan's entropy-coded data, where 0xFF is
+/// followed only by 0x00, a restart marker or fill bytes) reaches the
+/// end-of-image marker (FF D9) before the data ends. What follows that
+/// marker is not looked at: phones append a video or a depth map after it
+/// (Motion Photos, MPF), whose bytes hold FF DA and FF D9 at random. The
+/// JPEG decoder fills a truncated scan with gray and reports success; a
+/// cut-off frame must be an error instead (Pillow refuses it too).
 pub fn jpeg_complete(bytes: &[u8]) -> bool {
-    let last_sos = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
-    match last_sos.and_then(|i| bytes.get(i..)) {
-        Some(tail) => tail.windows(2).any(|w| w == [0xFF, 0xD9]),
-        None => false,
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return false;
+    }
+    let mut i = 2usize;
+    loop {
+        // a marker: 0xFF, any fill bytes (0xFF), then its code; stray bytes
+        // before it (some cameras pad segments) are passed over, as libjpeg does
+        while bytes.get(i).is_some_and(|b| *b != 0xFF) {
+            i += 1;
+        }
+        while bytes.get(i) == Some(&0xFF) {
+            i += 1;
+        }
+        let Some(&code) = bytes.get(i) else { return false };
+        i += 1;
+        match code {
+            0xD9 => return true,
+            0x01 | 0xD0..=0xD7 => continue,
+            _ => {}
+        }
+        let Some(len) = bytes.get(i..i + 2).map(|b| usize::from(u16::from_be_bytes([b[0], b[1]]))) else {
+            return false;
+        };
+        if len < 2 {
+            return false;
+        }
+        i += len;
+        if code == 0xDA {
+            // the entropy-coded data runs to the next marker that is not a restart
+            loop {
+                match bytes.get(i..i + 2) {
+                    None => return false,
+                    Some([0xFF, b]) if *b == 0x00 || (0xD0..=0xD7).contains(b) => i += 2,
+                    Some([0xFF, 0xFF]) => i += 1,
+                    Some([0xFF, _]) => break,
+                    Some(_) => i += 1,
+                }
+            }
+        }
     }
 }
 
@@ -256,11 +298,42 @@ fn open<R: BufRead + Seek>(
         Some(ImageFormat::Tiff) => {
             let mut inner = reader.into_inner();
             let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
+            // what the file holds, read before the decoder takes the reader:
+            // its words for a layout it cannot read are its own type names
+            // ("color type Unknown(16)")
+            let layout = exif::ReaderSource::new(&mut inner).ok().and_then(|mut s| exif::tiff_layout(&mut s));
             inner.seek(SeekFrom::Start(0)).map_err(io)?;
             let reader = ImageReader::with_format(inner, ImageFormat::Tiff);
-            open_reader(reader, limits, Meta { orientation, note, icc: Some(Ok(None)) }, check, None)
+            open_reader(reader, limits, Meta { orientation, note, icc: Some(Ok(None)) }, check, None).map_err(|f| {
+                match layout {
+                    Some(l) if f.kind == Kind::Input && f.message.starts_with("unsupported") => Failure::new(
+                        Kind::Input,
+                        format!(
+                            "unsupported TIFF layout: {l}; gray, RGB, RGBA and CMYK of 8 or 16 bits, and RGB of \
+                             32-bit floats, are read ({})",
+                            f.message
+                        ),
+                    ),
+                    _ => f,
+                }
+            })
         }
-        _ => open_reader(reader, limits, Meta { orientation: 1, note: None, icc: None }, check, None),
+        _ => {
+            // BigTIFF ("II+", "MM\0+"): a TIFF the decoder does not recognise; say so, not "unrecognised"
+            let guessed = reader.format();
+            let mut inner = reader.into_inner();
+            let mut sig = [0u8; 4];
+            let got = inner.read(&mut sig).map_err(io)?;
+            if got == 4 && (&sig == b"II+\0" || &sig == b"MM\0+") {
+                return Err(Failure::new(Kind::Input, "a BigTIFF file: not read (save it as a classic TIFF, PNG or JPEG)"));
+            }
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let mut reader = ImageReader::new(inner);
+            if let Some(f) = guessed {
+                reader.set_format(f);
+            }
+            open_reader(reader, limits, Meta { orientation: 1, note: None, icc: None }, check, None)
+        }
     }
 }
 
@@ -381,25 +454,29 @@ pub fn decode<R: BufRead + Seek>(
         }
     };
     let (data, bits) = match img.color() {
+        // the codes are kept beside the converted values (no third copy): a
+        // profile found broken midway leaves them to be read as sRGB
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 if convert => {
-            let mut v: Vec<f32> = img.into_rgb8().as_raw().iter().map(|&c| f32::from(c) / 255.0).collect();
+            let codes = img.into_rgb8();
+            let mut v: Vec<f32> = codes.as_raw().iter().map(|&c| f32::from(c) / 255.0).collect();
             match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
                 Ok(()) => (v, 8),
                 Err(why) => {
                     ignore(why);
-                    let codes: Vec<u8> = v.iter().map(|&c| (c * 255.0).round() as u8).collect();
-                    (decode_u8(&codes, linearize), 8)
+                    drop(v);
+                    (decode_u8(codes.as_raw(), linearize), 8)
                 }
             }
         }
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 if convert => {
-            let mut v: Vec<f32> = img.into_rgb16().as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect();
+            let codes = img.into_rgb16();
+            let mut v: Vec<f32> = codes.as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect();
             match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
                 Ok(()) => (v, 16),
                 Err(why) => {
                     ignore(why);
-                    let codes: Vec<u16> = v.iter().map(|&c| (c * 65535.0).round() as u16).collect();
-                    (decode_u16(&codes, linearize), 16)
+                    drop(v);
+                    (decode_u16(codes.as_raw(), linearize), 16)
                 }
             }
         }
@@ -559,6 +636,33 @@ mod tests {
         let e = decode(Cursor::new(cut), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
         assert_eq!(e.kind, Kind::Input);
         assert!(e.message.contains("truncated"), "{e}");
+    }
+
+    #[test]
+    fn a_jpeg_is_complete_by_its_segments_whatever_follows_its_end() {
+        use image::ImageEncoder;
+        let px: Vec<u8> = (0..16 * 16 * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let mut jpg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 90)
+            .write_image(&px, 16, 16, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        // a video appended after the end (a Motion Photo) holding a start-of-scan and no end marker
+        let mut motion = jpg.clone();
+        motion.extend_from_slice(b"\0\0\0\x18ftypmp42\xff\xda\x00\x08junk");
+        assert!(jpeg_complete(&motion));
+        let d = decode(Cursor::new(motion), &NO_LIMIT, true, |_| Ok(())).unwrap();
+        assert_eq!((d.height, d.width), (16, 16));
+        // stray bytes between two segments
+        let mut padded = jpg[..2].to_vec();
+        padded.extend_from_slice(&[0, 0]);
+        padded.extend_from_slice(&jpg[2..]);
+        assert!(jpeg_complete(&padded));
+        // cut inside the scan, or right after its header
+        let sos = jpg.windows(2).position(|w| w == [0xFF, 0xDA]).unwrap();
+        assert!(!jpeg_complete(&jpg[..sos + 20]));
+        assert!(!jpeg_complete(&jpg[..sos + 1]));
+        assert!(!jpeg_complete(b"\xff\xd8"));
+        assert!(!jpeg_complete(b"not a jpeg"));
     }
 
     #[test]

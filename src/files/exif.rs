@@ -263,6 +263,43 @@ pub fn check(src: &mut dyn Source) -> Result<Walked, String> {
     Ok(Walked { ifds, entries })
 }
 
+/// How the pixels of a TIFF file's first image are laid out, from its
+/// IFD0, in words (`2 samples per pixel (gray + alpha), 8 bits each`): what
+/// a decoder that cannot read them names. None when IFD0 cannot be read.
+pub fn tiff_layout(src: &mut dyn Source) -> Option<String> {
+    let (o, ifd0) = header(src).ok()?;
+    let (list, _) = ifd(src, o, ifd0).ok()?;
+    let mut get = |tag: u16| list.iter().find(|e| e.tag == tag).and_then(|e| integers(src, o, e, 64).ok());
+    let samples = get(0x0115).and_then(|v| v.first().copied()).unwrap_or(1);
+    let bits = get(0x0102).unwrap_or_else(|| vec![1]);
+    let photometric = get(0x0106).and_then(|v| v.first().copied());
+    let extra = get(0x0152).map_or(0, |v| v.len() as u64);
+    let format = get(0x0153).and_then(|v| v.first().copied()).unwrap_or(1);
+    let colour = match (photometric, samples.saturating_sub(extra)) {
+        (Some(0 | 1), 1) => "gray",
+        (Some(2), 3) => "RGB",
+        (Some(3), 1) => "palette",
+        (Some(5), 4) => "CMYK",
+        (Some(6), 3) => "YCbCr",
+        _ => "",
+    };
+    let what = match (colour, extra) {
+        ("", _) => String::new(),
+        (c, 0) => format!(" ({c})"),
+        (c, 1) => format!(" ({c} + alpha)"),
+        (c, n) => format!(" ({c} + {n} extra samples)"),
+    };
+    let bits = if bits.iter().all(|b| *b == bits[0]) { format!("{} bits each", bits[0]) } else {
+        format!("{bits:?} bits")
+    };
+    let kind = match format {
+        2 => ", signed integers",
+        3 => ", floating point",
+        _ => "",
+    };
+    Some(format!("{samples} sample{} per pixel{what}, {bits}{kind}", if samples == 1 { "" } else { "s" }))
+}
+
 /// The Orientation of IFD0 (tag 0x0112), read by the rule of
 /// [`orientation_of`]: Ok(None) without the tag, Err with the reason when
 /// it is there but unusable.

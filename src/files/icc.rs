@@ -77,8 +77,12 @@ pub fn classify(icc: &[u8]) -> Profile {
 /// sRGB values). Values outside the sRGB gamut are clipped to [0, 1].
 ///
 /// A profile whose transform gives non-numbers, or maps an image that is
-/// not constant to one colour, is broken: an error, and `values` are left
-/// as they were (the caller reads them as sRGB instead).
+/// not constant to one colour, is broken: an error, and `values` are then
+/// partly converted (the caller reads its codes as sRGB instead).
+///
+/// The values are converted a block of pixels at a time through a small
+/// copy, not through a copy of the whole image: the decode phase of the
+/// memory plan (`files::budget`) holds the codes and these values only.
 pub fn convert(icc: &[u8], values: &mut [f32], linear: bool) -> Result<(), String> {
     let src = ColorProfile::new_from_slice(icc).map_err(|e| format!("the ICC profile cannot be read: {e:?}"))?;
     let dst = if linear { linear_srgb() } else { ColorProfile::new_srgb() };
@@ -90,21 +94,35 @@ pub fn convert(icc: &[u8], values: &mut [f32], linear: bool) -> Result<(), Strin
     let t = src
         .create_transform_f32(Layout::Rgb, &dst, Layout::Rgb, options)
         .map_err(|e| format!("no transform from the ICC profile {:?}: {e:?}", description(&src)))?;
-    let input = values.to_vec();
-    t.transform(&input, values).map_err(|e| {
-        values.copy_from_slice(&input);
-        format!("ICC transform: {e:?}")
-    })?;
-    let broken = if values.iter().any(|v| !v.is_finite()) {
-        Some("the ICC profile's transform gives non-numbers; ignored")
-    } else if constant(values) && !constant(&input) {
-        Some("the ICC profile maps every pixel to one colour; ignored")
-    } else {
-        None
-    };
-    if let Some(why) = broken {
-        values.copy_from_slice(&input);
-        return Err(why.into());
+    let clip = |p: &[f32]| [p[0].clamp(0.0, 1.0), p[1].clamp(0.0, 1.0), p[2].clamp(0.0, 1.0)];
+    // the first pixel before and after, and whether any other differs from it
+    let (mut first_in, mut first_out) = (None, None);
+    let (mut input_varies, mut output_varies) = (false, false);
+    let mut block = Vec::with_capacity(BLOCK_VALUES.min(values.len()));
+    for chunk in values.chunks_mut(BLOCK_VALUES) {
+        block.clear();
+        block.extend_from_slice(chunk);
+        for p in block.chunks_exact(3) {
+            let c = clip(p);
+            match first_in {
+                None => first_in = Some(c),
+                Some(f) => input_varies |= c != f,
+            }
+        }
+        t.transform(&block, chunk).map_err(|e| format!("ICC transform: {e:?}"))?;
+        if chunk.iter().any(|v| !v.is_finite()) {
+            return Err("the ICC profile's transform gives non-numbers; ignored".into());
+        }
+        for p in chunk.chunks_exact(3) {
+            let c = clip(p);
+            match first_out {
+                None => first_out = Some(c),
+                Some(f) => output_varies |= c != f,
+            }
+        }
+    }
+    if input_varies && !output_varies {
+        return Err("the ICC profile maps every pixel to one colour; ignored".into());
     }
     for v in values.iter_mut() {
         *v = v.clamp(0.0, 1.0);
@@ -112,19 +130,8 @@ pub fn convert(icc: &[u8], values: &mut [f32], linear: bool) -> Result<(), Strin
     Ok(())
 }
 
-/// Whether every RGB triple of `values` is the first one (once clipped to
-/// [0, 1], as the values are kept).
-fn constant(values: &[f32]) -> bool {
-    let clip = |p: &[f32]| [p[0].clamp(0.0, 1.0), p[1].clamp(0.0, 1.0), p[2].clamp(0.0, 1.0)];
-    let mut px = values.chunks_exact(3);
-    match px.next() {
-        Some(first) => {
-            let f = clip(first);
-            px.all(|p| clip(p) == f)
-        }
-        None => true,
-    }
-}
+/// Values (a multiple of 3: whole pixels) converted at a time by [`convert`].
+const BLOCK_VALUES: usize = 3 * 16384;
 
 #[cfg(test)]
 mod tests {
@@ -157,5 +164,29 @@ mod tests {
         let mut r = vec![1.0, 0.0, 0.0];
         convert(&icc, &mut r, true).unwrap();
         assert!(r[0] > 0.99 && r[1] < 1e-3 && r[2] < 1e-3, "{r:?}");
+    }
+
+    #[test]
+    fn block_by_block_is_the_whole_image_at_once() {
+        // a few blocks and a part block: the values of one transform of the whole, bit for bit
+        let icc = encoded(ColorProfile::new_display_p3());
+        let n = 3 * (2 * BLOCK_VALUES / 3 + 1001);
+        let v0: Vec<f32> = (0..n).map(|i| ((i * 7919) % 1000) as f32 / 999.0).collect();
+        let mut v = v0.clone();
+        convert(&icc, &mut v, true).unwrap();
+        let src = ColorProfile::new_from_slice(&icc).unwrap();
+        let options = TransformOptions {
+            rendering_intent: RenderingIntent::RelativeColorimetric,
+            prefer_fixed_point: false,
+            ..TransformOptions::default()
+        };
+        let t = src.create_transform_f32(Layout::Rgb, &linear_srgb(), Layout::Rgb, options).unwrap();
+        let mut whole = vec![0.0f32; n];
+        t.transform(&v0, &mut whole).unwrap();
+        let whole: Vec<f32> = whole.iter().map(|x| x.clamp(0.0, 1.0)).collect();
+        assert!(v.iter().zip(&whole).all(|(a, b)| a.to_bits() == b.to_bits()));
+        // a constant image stays a valid conversion (not "every pixel to one colour")
+        let mut gray = vec![0.5f32; n];
+        assert!(convert(&icc, &mut gray, true).is_ok());
     }
 }

@@ -105,19 +105,26 @@ impl Container {
 /// `files::exif` (loops, counts, sizes, offsets) before `little_exif`
 /// parses the EXIF; a block refused there is dropped with its reason.
 pub fn read(bytes: Vec<u8>) -> Carried {
+    let Some(kind) = Container::sniff(&bytes) else {
+        return Carried { notes: vec![NOT_A_CONTAINER.into()], ..Carried::default() };
+    };
+    let found = crate::files::exif::scan(&mut std::io::Cursor::new(bytes.as_slice()), crate::files::exif::MAX_BLOCK);
+    read_found(kind, found, &bytes)
+}
+
+const NOT_A_CONTAINER: &str = "metadata: not a JPEG, PNG or TIFF container; none carried";
+
+/// [`read`] from the blocks `found` in a file of container `kind`; `bytes`
+/// is the whole file for a TIFF (its own EXIF block), unused otherwise.
+fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -> Carried {
     use crate::files::exif;
     let mut out = Carried::default();
-    let Some(kind) = Container::sniff(&bytes) else {
-        out.notes.push("metadata: not a JPEG, PNG or TIFF container; none carried".into());
-        return out;
-    };
-    let found = exif::scan(&mut std::io::Cursor::new(bytes.as_slice()), exif::MAX_BLOCK);
     if found.exif_blocks > 1 {
         out.notes.push(format!("metadata: {} EXIF blocks; the first one is carried", found.exif_blocks));
     }
     // a TIFF file is its own EXIF block
     let block: Option<Result<&[u8], String>> = match (kind, &found.exif) {
-        (Container::Tiff, _) => Some(Ok(bytes.as_slice())),
+        (Container::Tiff, _) => Some(Ok(bytes)),
         (_, Some(Ok(b))) => Some(Ok(b.as_slice())),
         (_, Some(Err(e))) => Some(Err(e.clone())),
         (_, None) => None,
@@ -127,13 +134,8 @@ pub fn read(bytes: Vec<u8>) -> Carried {
         None => {}
         Some(Err(e)) => out.notes.push(format!("metadata: the EXIF is not carried ({e})")),
         Some(Ok(b)) => {
-            let v;
-            let whole = if kind == Container::Tiff {
-                &bytes
-            } else {
-                v = b.to_vec();
-                &v
-            };
+            let v = b.to_vec();
+            let whole = &v;
             // little_exif panics on some malformed blocks; a photo never fails because of its metadata
             match std::panic::catch_unwind(|| Metadata::new_from_vec(whole, FileExtension::TIFF)) {
                 Ok(Ok(m)) => {
@@ -240,6 +242,9 @@ pub fn taken_at(m: &Metadata) -> Option<String> {
     if date.len() != 10 || !date.bytes().all(|c| clock(&c)) || !time.iter().all(clock) {
         return None;
     }
+    if !is_calendar_time(date.as_bytes(), time) {
+        return None;
+    }
     let mut iso = format!("{}T{}", date.replace(':', "-"), String::from_utf8_lossy(time));
     if let Some(sub) = subsec.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_digit())) {
         iso.push('.');
@@ -249,6 +254,30 @@ pub fn taken_at(m: &Metadata) -> Option<String> {
         iso.push_str(&off);
     }
     Some(iso)
+}
+
+/// Whether `YYYY:MM:DD` and `HH:MM:SS` (digits and colons already checked)
+/// name a time that exists: year 1-9999, month 1-12, the day within its
+/// month, hour 0-23, minute and second 0-59. A camera with no clock set
+/// writes `0000:00:00 00:00:00`; a hostile file any digits. Such a value is
+/// no time: the readers of the sidecar refuse what ISO 8601 cannot be.
+fn is_calendar_time(date: &[u8], time: &[u8]) -> bool {
+    let num = |b: &[u8]| b.iter().try_fold(0u32, |n, c| c.is_ascii_digit().then(|| n * 10 + u32::from(c - b'0')));
+    let field = |b: &[u8], at: usize, n: usize| b.get(at..at + n).and_then(num);
+    let (Some(y), Some(m), Some(d)) = (field(date, 0, 4), field(date, 5, 2), field(date, 8, 2)) else { return false };
+    let (Some(hh), Some(mm), Some(ss)) = (field(time, 0, 2), field(time, 3, 2), field(time, 6, 2)) else { return false };
+    if date.get(4) != Some(&b':') || date.get(7) != Some(&b':') || time.get(2) != Some(&b':') || time.get(5) != Some(&b':') {
+        return false;
+    }
+    let leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+    let days = match m {
+        1 | 3 | 5 | 7 | 8 | 10 | 12 => 31,
+        4 | 6 | 9 | 11 => 30,
+        2 if leap => 29,
+        2 => 28,
+        _ => return false,
+    };
+    y >= 1 && (1..=days).contains(&d) && hh < 24 && mm < 60 && ss < 60
 }
 
 /// Where the photograph was taken, from its EXIF GPS IFD: latitude and
@@ -276,7 +305,13 @@ pub fn position(m: &Metadata) -> Option<(f64, f64, Option<f64>)> {
         }
     }
     let sign = |r: &Option<String>, neg: &str| if r.as_deref() == Some(neg) { -1.0 } else { 1.0 };
-    Some((lat? * sign(&lat_ref, "S"), lon? * sign(&lon_ref, "W"), alt.map(|a| if below { -a } else { a })))
+    let (lat, lon) = (lat? * sign(&lat_ref, "S"), lon? * sign(&lon_ref, "W"));
+    // a position off the globe (latitude 1000, minutes of 99 past 89 degrees)
+    // is none: the sidecar's readers and the iFDO's schema refuse it
+    if !(lat.is_finite() && lon.is_finite() && lat.abs() <= 90.0 && lon.abs() <= 180.0) {
+        return None;
+    }
+    Some((lat, lon, alt.filter(|a| a.is_finite()).map(|a| if below { -a } else { a })))
 }
 
 /// Lowercase hexadecimal SHA-256 of `bytes`.
@@ -510,7 +545,12 @@ pub fn record_from_sidecar(side: &serde_json::Value, sidecar_name: &str) -> Reco
 pub fn carry(input: Vec<u8>, encoded: Vec<u8>, side: &serde_json::Value, sidecar_name: &str, width: u32, height: u32)
     -> (Vec<u8>, serde_json::Value) {
     let input_sha256 = sha256_hex(&input);
-    let c = read(input);
+    carry_read(read(input), input_sha256, encoded, side, sidecar_name, width, height)
+}
+
+/// [`carry`] with the input's metadata already read (`c`) and its hash.
+fn carry_read(c: Carried, input_sha256: String, encoded: Vec<u8>, side: &serde_json::Value, sidecar_name: &str,
+    width: u32, height: u32) -> (Vec<u8>, serde_json::Value) {
     let exif_tags = c.exif.as_ref().map_or(0, |m| m.get_ifds().iter().map(|i| i.get_tags().len()).sum::<usize>());
     let input_uuid = c.exif.as_ref().and_then(unique_id);
     let record = record_from_sidecar(side, sidecar_name);
@@ -542,6 +582,12 @@ pub fn carry(input: Vec<u8>, encoded: Vec<u8>, side: &serde_json::Value, sidecar
         }
     };
     let taken = c.exif.as_ref().and_then(taken_at);
+    if taken.is_none() && c.exif.as_ref().is_some_and(has_time) {
+        notes.push("metadata: the EXIF time is not a date and time that exists; no time recorded".into());
+    }
+    if c.exif.as_ref().is_some_and(|m| has_position(m) && position(m).is_none()) {
+        notes.push("metadata: the EXIF GPS position is incomplete or off the globe; no position recorded".into());
+    }
     let gps = c.exif.as_ref().and_then(position).map(|(lat, lon, alt)| {
         serde_json::json!({"latitude": lat, "longitude": lon, "altitude": alt})
     });
@@ -563,11 +609,16 @@ pub fn carry(input: Vec<u8>, encoded: Vec<u8>, side: &serde_json::Value, sidecar
 
 /// [`carry`] with the input read from `input_path` (both commands write
 /// the photo before the input is read again): when it cannot be read, the
-/// photo is returned as encoded and the reason noted.
+/// photo is returned as encoded and the reason noted. Only what the
+/// metadata needs is held: the hash is streamed over the file, a JPEG's or
+/// PNG's metadata segments are found by seeking past the others, and a
+/// TIFF (its own EXIF block, which the EXIF parser takes whole) is read
+/// only when it is at most `tiff_cap` bytes (what the memory plan holds
+/// for it, `files::budget`); a larger one's EXIF is not carried, with a note.
 pub fn carry_from(input_path: &std::path::Path, encoded: Vec<u8>, side: &serde_json::Value, sidecar_name: &str,
-    width: u32, height: u32) -> (Vec<u8>, serde_json::Value) {
-    match std::fs::read(input_path) {
-        Ok(input) => carry(input, encoded, side, sidecar_name, width, height),
+    width: u32, height: u32, tiff_cap: u64) -> (Vec<u8>, serde_json::Value) {
+    match read_from(input_path, tiff_cap) {
+        Ok((c, input_sha256)) => carry_read(c, input_sha256, encoded, side, sidecar_name, width, height),
         Err(e) => {
             let photo_sha256 = sha256_hex(&encoded);
             (
@@ -579,6 +630,64 @@ pub fn carry_from(input_path: &std::path::Path, encoded: Vec<u8>, side: &serde_j
             )
         }
     }
+}
+
+/// The metadata of the file at `path` and its SHA-256, reading what
+/// [`carry_from`] says.
+fn read_from(path: &std::path::Path, tiff_cap: u64) -> std::io::Result<(Carried, String)> {
+    use sha2::Digest;
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::io::BufReader::with_capacity(1 << 16, std::fs::File::open(path)?);
+    let mut hasher = sha2::Sha256::new();
+    let mut head = Vec::with_capacity(8);
+    let mut len = 0u64;
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        if head.len() < 8 {
+            head.extend_from_slice(&buf[..n.min(8 - head.len())]);
+        }
+        hasher.update(&buf[..n]);
+        len += n as u64;
+    }
+    let sha = hasher.finalize().iter().map(|b| format!("{b:02x}")).collect::<String>();
+    let Some(kind) = Container::sniff(&head) else {
+        return Ok((Carried { notes: vec![NOT_A_CONTAINER.into()], ..Carried::default() }, sha));
+    };
+    f.seek(SeekFrom::Start(0))?;
+    let carried = match kind {
+        Container::Tiff if len > tiff_cap => Carried {
+            notes: vec![format!(
+                "metadata: the TIFF file is {len} bytes, more than the {tiff_cap} its memory plan holds for \
+                 reading its tags again; its EXIF is not carried"
+            )],
+            ..Carried::default()
+        },
+        Container::Tiff => {
+            let mut bytes = Vec::new();
+            bytes.try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX)).map_err(std::io::Error::other)?;
+            f.read_to_end(&mut bytes)?;
+            read(bytes)
+        }
+        _ => {
+            let found = crate::files::exif::scan(&mut f, crate::files::exif::MAX_BLOCK);
+            read_found(kind, found, &[])
+        }
+    };
+    Ok((carried, sha))
+}
+
+/// Whether the EXIF has a time tag (DateTimeOriginal or DateTime).
+fn has_time(m: &Metadata) -> bool {
+    m.get_ifds().iter().flat_map(|i| i.get_tags()).any(|t| matches!(t, ExifTag::DateTimeOriginal(_) | ExifTag::ModifyDate(_)))
+}
+
+/// Whether the EXIF has a GPS latitude or longitude tag.
+fn has_position(m: &Metadata) -> bool {
+    m.get_ifds().iter().flat_map(|i| i.get_tags()).any(|t| matches!(t, ExifTag::GPSLatitude(_) | ExifTag::GPSLongitude(_)))
 }
 
 #[cfg(test)]

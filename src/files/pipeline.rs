@@ -196,7 +196,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         max_pixels: opts.max_pixels,
         max_memory: opts.params.max_memory,
     };
-    let decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
+    let mut decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
         check_plan(h, opts, masks, room)
     })?;
     let (h, w) = (decoded.height, decoded.width);
@@ -205,13 +205,21 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n));
     let mask = fit_mask(masks.mask.as_ref(), "--mask", h, w, factor, 1.0)?;
     let water = fit_mask(masks.water.as_ref(), "--water-mask", h, w, factor, 0.5)?;
+    // the full-size values are dropped as soon as the next copy is made: a
+    // shadowed binding would hold them (12 bytes a pixel of the input)
+    // through the restoration, which the memory plan does not count
+    let full = std::mem::take(&mut decoded.data);
     let data = if linear {
-        decoded.data
+        full
     } else {
-        reference_srgb_stretch(&decoded.data, None)
+        let stretched = reference_srgb_stretch(&full, None);
+        drop(full);
+        stretched
     };
     let (data, hp, wp) = if factor > 1 {
-        downscale(&data, h, w, 3, factor)
+        let small = downscale(&data, h, w, 3, factor);
+        drop(data);
+        small
     } else {
         (data, h, w)
     };
@@ -494,6 +502,11 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
     // the input's EXIF and XMP, and the restoration's record, into the photo
     // (src/files/metadata.rs); the record is made of the sidecar's fields
     let sidecar_name = sidecar_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    // a TIFF input is re-read whole for its tags (the EXIF parser takes the
+    // whole file): at most what its pixels took when decoded (RGBA at its
+    // bits) and a block of tags, memory the plan already gave this input
+    let tiff_cap = (out.source.height as u64 * out.source.width as u64 * 4 * u64::from(out.source.bits.max(8)) / 8)
+        .saturating_add(crate::files::exif::MAX_BLOCK);
     let (image_bytes, carried) = crate::files::metadata::carry_from(
         out.input,
         image_bytes?,
@@ -501,6 +514,7 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
         &sidecar_name,
         wp as u32,
         hp as u32,
+        tiff_cap,
     );
     let mut files = vec![(image_path.clone(), image_bytes), (t_path.clone(), t_bytes?), (tc_path.clone(), tc_bytes?)];
     if let (Some(p), Some(sheet)) = (&sheet_path, out.contact_sheet) {

@@ -163,6 +163,12 @@ pub(crate) fn parse_choices(obj: &Bound<'_, PyAny>) -> PyResult<Vec<crate::files
             )));
         }
     }
+    // a name listed twice is refused here, as the binary's parser does, not by every input's restore
+    for (i, c) in out.iter().enumerate() {
+        if out[..i].iter().any(|o| o.water_type.name == c.water_type.name) {
+            return Err(ParameterError::new_err(format!("water type {:?} is listed twice", c.water_type.name)));
+        }
+    }
     Ok(out)
 }
 

@@ -33,6 +33,13 @@ def _check(a: argparse.Namespace, options: dict) -> None:
         _core.check_combination(a.format, a.bits, a.reuse_estimates, a.reuse_water_mask, False, a.preprocess)
     except ValueError as e:
         raise _bad(str(e)) from None
+    if options.get("water_types") is not None:
+        # the core's check of the list (a type listed twice, a custom type's betas), once, as the binary's parser
+        # does: not a failure of every input
+        try:
+            _core.Params(water_types=options["water_types"])
+        except UwhlError as e:
+            raise _bad(f"--water-type: {e}") from None
     for flag, path in (("--mask", a.mask), ("--water-mask", a.water_mask)):
         if path is not None and not os.path.isfile(path):
             # a FIFO or a device would block or never end: it is not opened
