@@ -61,6 +61,20 @@ def _box(v, what: str) -> tuple[int, int, int, int]:
     return x0, y0, x1, y1
 
 
+def _regular(path: str, label: str, what: str) -> None:
+    """A file an entry names must be a regular file: one that is missing,
+    and a FIFO, device or folder (which could block or never end), are
+    each called what they are."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        raise ManifestError(f"{label}: no such {what} file {path}") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else \
+            "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file"
+        raise ManifestError(f"{label}: the {what} file {path} is {kind}, not a regular file")
+
+
 def _entry(k: int, raw, folder: str) -> Entry:
     label = f"images[{k}]"
     if not isinstance(raw, dict):
@@ -73,8 +87,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
     if not isinstance(raw.get("path"), str):
         raise ManifestError(f"{label}: 'path' (the image, relative to the manifest) is required")
     path = os.path.join(folder, raw["path"])
-    if not os.path.isfile(path):
-        raise ManifestError(f"{label}: no such image file {path}")
+    _regular(path, label, "image")
 
     def file_key(key: str, what: str):
         # an optional file named by the entry, relative to the manifest
@@ -84,8 +97,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
         if not isinstance(value, str):
             raise ManifestError(f"{label}: '{key}' is a file path, not {value!r}")
         value = os.path.join(folder, value)
-        if not os.path.isfile(value):
-            raise ManifestError(f"{label}: no such {what} file {value}")
+        _regular(value, label, what)
         return value
 
     distance = file_key("distance", "distance")

@@ -150,3 +150,26 @@ def test_an_unknown_top_level_key_is_an_error_and_says_so(tmp_path):
     r = _evaluate(tmp_path, tmp_path / "m.json", timeout=60)
     assert r.returncode == 3, r.stderr
     assert "'imges'" in r.stderr and "ignored" not in r.stderr, r.stderr
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+@pytest.mark.parametrize("field", ["path", "distance", "water_mask"])
+def test_an_entry_naming_a_fifo_says_so_and_the_others_are_evaluated(tmp_path, field):
+    good = _scene(tmp_path)
+    bad = _scene(tmp_path, "other.png", seed=2)
+    os.mkfifo(tmp_path / "pipe.png")
+    bad[field] = "pipe.png"
+    (tmp_path / "m.json").write_text(json.dumps({"images": [good, bad]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert [e.path for e in entries] == [str(tmp_path / "scene.png")], problems
+    assert len(problems) == 1 and "pipe.png is a FIFO, not a regular file" in problems[0], problems
+
+
+def test_a_box_outside_the_image_names_its_entry_once(tmp_path):
+    e = _scene(tmp_path)
+    e["charts"] = [{"gray_patches": [[0, 0, 10**12, 10**12]]}]
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    r = _evaluate(tmp_path, tmp_path / "m.json")
+    assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
+    line = [x for x in r.stderr.splitlines() if "outside" in x]
+    assert len(line) == 1 and line[0].count("images[0] (scene.png)") == 1, r.stderr

@@ -45,8 +45,10 @@ def run(a: argparse.Namespace, console: Console) -> int:
         try:
             r = ev.evaluate_entry(entry, a.method, a.mask_charts, **kwargs)
         except (Exception, MemoryError) as e:  # one entry's failure is its line; the others go on
-            code = max(code, console.error(kind_of(e), describe(e, entry.path), entry.label))
-            problems.append(f"{entry.label}: {describe(e, entry.path)}")
+            # the line is prefixed with the entry's label once, whether or not the error already named it
+            text = describe(e, entry.path).removeprefix(f"{entry.label}: ")
+            code = max(code, console.error(kind_of(e), text, entry.label))
+            problems.append(f"{entry.label}: {text}")
             continue
         results.append(r)
         psi = [row["psi_deg"] for row in r["charts"] if row["method"] == r["method"]]
