@@ -177,3 +177,21 @@ def test_stream_mode_into_dev_null_still_runs(binary, tmp_path):
                        timeout=120)
     assert r.returncode == 0, r.stderr
     assert (out / "f.json").exists()
+
+
+@pytest.mark.parametrize("face", FACES)
+@pytest.mark.parametrize("args, needle", [
+    (["--max-memory", "-5M"], '"-5M" is not a byte count > 0'),
+    (["-j", "-2"], "-2"),
+    (["--t-scale", "-0.5"], "-0.5"),
+])
+def test_a_value_that_starts_with_a_dash_reaches_the_options_own_check(binary, tmp_path, face, args, needle):
+    """``--max-memory -5M`` is a byte count that is wrong, not a missing
+    value: both commands take the next word as the value (as lexopt does)
+    and say what is wrong with it, exit 2."""
+    _png(tmp_path / "a.png", 32, 40)
+    if face == "rust" and args[0] == "-j":
+        pytest.skip("-j is the Python command's (the binary has no --jobs)")
+    r = _run(face, binary, [str(tmp_path / "a.png"), "-o", str(tmp_path / "o"), *args])
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert needle in r.stderr and "expected one argument" not in r.stderr, r.stderr

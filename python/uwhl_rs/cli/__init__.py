@@ -14,7 +14,9 @@ from __future__ import annotations
 
 from . import demo, evaluate, ifdo, report, restore
 from ..console import Console
-from .parser import build_parser
+import sys
+
+from .parser import attach_values, build_parser
 
 __all__ = ["main", "build_parser"]
 
@@ -25,7 +27,7 @@ _COMMANDS = {"restore": restore.run, "demo": demo.run, "report": report.run, "if
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``uwhl`` command; returns the exit status."""
     p = build_parser()
-    a = p.parse_args(argv)
+    a = p.parse_args(attach_values(list(sys.argv[1:] if argv is None else argv)))
     if a.cmd == "demo":
         try:
             h, w = (int(v) for v in a.size.lower().split("x"))

@@ -211,3 +211,26 @@ def method_kwargs(a: argparse.Namespace, skip=()) -> dict:
     table's flags (``water_types`` is parsed apart), less those in ``skip``."""
     return {o["key"]: getattr(a, o["key"]) for o in _core.OPTIONS
             if o["method"] and o["faces"] != "rust" and o["key"] not in ("water_types", *skip)}
+
+
+def attach_values(argv: list[str]) -> list[str]:
+    """``--flag VALUE`` as ``--flag=VALUE`` for every option of the table
+    that takes a value, so that a value beginning with ``-`` (``--max-memory
+    -5M``, ``-o -out``) reaches the option's own check, as in ``uwhl-rs``,
+    instead of being taken by argparse for an unknown flag."""
+    valued = [o for o in _core.OPTIONS if o["kind"] != "flag"]
+    takes = {o["flag"] for o in valued} | {o["short"] for o in valued if o["short"]} | {"-o", "--out", "--output"}
+    out, i = [], 0
+    while i < len(argv):
+        tok = argv[i]
+        if tok == "--":
+            out.extend(argv[i:])
+            break
+        if tok in takes and i + 1 < len(argv) and argv[i + 1].startswith("-") and argv[i + 1] != "--":
+            out.append(f"{tok}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
