@@ -336,10 +336,14 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
     place(&tmp, path)
 }
 
+/// The longest file name (in bytes) the common file systems hold (ext4, XFS, APFS, NTFS).
+pub const NAME_MAX: usize = 255;
+
 /// Claims a name for `req.input`'s outputs (see the module documentation).
 /// Tries `NAME`, then (with `rename`) `NAME_2`, ... until one is free or
 /// holds this input's own sidecar. Errors: the folder cannot be created or
-/// written, or (without `rename`) another process holds the name.
+/// written, an output name longer than [`NAME_MAX`] bytes, or (without
+/// `rename`) another process holds the name.
 pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
     fs::create_dir_all(req.dir)?;
     let key = input_key(req.input);
@@ -351,6 +355,13 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
         let name = if k == 1 { req.base.to_string() } else { format!("{}_{k}", req.base) };
         if req.rename && RESERVED.contains(&name.as_str()) {
             continue;
+        }
+        // a name the file system cannot hold fails here, before the input is decoded and restored
+        if let Some(long) = req.suffixes.iter().map(|s| format!("{name}{s}")).find(|f| f.len() > NAME_MAX) {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidFilename,
+                format!("the output name {long} is {} bytes, more than the {NAME_MAX} a file name may have", long.len()),
+            ));
         }
         let mut paths: Vec<PathBuf> = req.suffixes.iter().map(|s| req.dir.join(format!("{name}{s}"))).collect();
         let sidecar = req.dir.join(format!("{name}.json"));

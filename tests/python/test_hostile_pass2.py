@@ -379,3 +379,24 @@ def test_a_tiff_cut_short_says_so(binary, tmp_path, face):
     r = _run(face, binary, [tmp_path / "cut.tif", "-o", tmp_path / "out"])
     assert r.returncode == 3, r.stderr
     assert any("cut.tif" in x and "ends before its image data" in x for x in _error_lines(r)), r.stderr
+
+
+# ------------------------------------------------------------------ an output name the file system cannot hold
+
+
+@pytest.mark.parametrize("face", FACES)
+def test_an_input_whose_output_names_are_too_long_fails_before_it_is_decoded(tmp_path, binary, face):
+    """A 250-byte stem fits as an input name (254 bytes with .png) but its
+    outputs (``_t_color.png``: 262 bytes) do not fit the 255 bytes a file
+    name may have. The input is refused when its names are claimed, before
+    it is decoded: its bytes are no image at all, and the error is the
+    name's, not the decoder's. The other input is restored."""
+    d = tmp_path / "in"
+    d.mkdir()
+    (d / ("a" * 250 + ".png")).write_bytes(b"not an image")
+    Image.fromarray(_pixels()).save(d / "ok.png")
+    r = _run(face, binary, [str(d), "-o", str(tmp_path / "out"), "-q"])
+    assert r.returncode == 5, (r.returncode, r.stderr)
+    assert "more than the 255 a file name may have" in r.stderr and "decode" not in r.stderr.lower(), r.stderr
+    assert (tmp_path / "out" / "ok.json").exists()
+    assert not [p for p in os.listdir(tmp_path / "out") if p.startswith("a" * 20)]

@@ -74,8 +74,12 @@ def test_an_interrupted_run_keeps_its_rows(tmp_path):
         img, _ = synth.demo_input(360, 480, water_type="3C", seed=k)
         write_image(src / f"f{k:02d}.png", img, encoding="linear")
     out = tmp_path / "out"
+    # SIGINT back to its default in the child: a parent that ignores it (a
+    # pytest-xdist worker, a shell's background job) would have the child
+    # ignore it too, and Python then installs no KeyboardInterrupt
     p = subprocess.Popen([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 120
     while time.time() < deadline and (not (out / "summary.csv").exists() or len(rows(out)) < 3):
         time.sleep(0.05)
