@@ -454,31 +454,21 @@ pub fn decode<R: BufRead + Seek>(
         }
     };
     let (data, bits) = match img.color() {
-        // the codes are kept beside the converted values (no third copy): a
-        // profile found broken midway leaves them to be read as sRGB
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 if convert => {
             let codes = img.into_rgb8();
-            let mut v: Vec<f32> = codes.as_raw().iter().map(|&c| f32::from(c) / 255.0).collect();
-            match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
-                Ok(()) => (v, 8),
-                Err(why) => {
-                    ignore(why);
-                    drop(v);
-                    (decode_u8(codes.as_raw(), linearize), 8)
-                }
+            let (v, why) = through_profile(codes.as_raw(), 255.0, icc.as_deref().unwrap_or_default(), linearize, decode_u8);
+            if let Some(why) = why {
+                ignore(why);
             }
+            (v, 8)
         }
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 if convert => {
             let codes = img.into_rgb16();
-            let mut v: Vec<f32> = codes.as_raw().iter().map(|&c| f32::from(c) / 65535.0).collect();
-            match crate::files::icc::convert(icc.as_deref().unwrap_or_default(), &mut v, linearize) {
-                Ok(()) => (v, 16),
-                Err(why) => {
-                    ignore(why);
-                    drop(v);
-                    (decode_u16(codes.as_raw(), linearize), 16)
-                }
+            let (v, why) = through_profile(codes.as_raw(), 65535.0, icc.as_deref().unwrap_or_default(), linearize, decode_u16);
+            if let Some(why) = why {
+                ignore(why);
             }
+            (v, 16)
         }
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
             (decode_u8(img.into_rgb8().as_raw(), linearize), 8)
@@ -515,6 +505,27 @@ fn nonzero<T: PartialEq + Default>(raw: &[T], channels: usize) -> Vec<bool> {
     raw.chunks_exact(channels.max(1))
         .map(|p| p.iter().take(3).any(|v| *v != zero))
         .collect()
+}
+
+/// `codes` (full scale `full`) through the ICC profile `icc`
+/// (src/files/icc.rs), or, when the profile turns out broken midway, read as
+/// sRGB by `plain` with the reason. The codes are kept beside the converted
+/// values, not copied a third time.
+fn through_profile<T: Copy + Into<f32>>(
+    codes: &[T],
+    full: f32,
+    icc: &[u8],
+    linearize: bool,
+    plain: fn(&[T], bool) -> Vec<f32>,
+) -> (Vec<f32>, Option<String>) {
+    let mut v: Vec<f32> = codes.iter().map(|&c| c.into() / full).collect();
+    match crate::files::icc::convert(icc, &mut v, linearize) {
+        Ok(()) => (v, None),
+        Err(why) => {
+            drop(v);
+            (plain(codes, linearize), Some(why))
+        }
+    }
 }
 
 /// Decodes a mask image (not oriented): a pixel is true when any of its
@@ -620,14 +631,20 @@ mod tests {
         }
     }
 
-    #[test]
-    fn truncated_jpeg_is_an_input_error() {
+    /// A 16x16 baseline JPEG of a fixed pattern.
+    fn small_jpeg() -> Vec<u8> {
         use image::ImageEncoder;
         let px: Vec<u8> = (0..16 * 16 * 3).map(|i| (i * 7 % 251) as u8).collect();
         let mut jpg = Vec::new();
         image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 90)
             .write_image(&px, 16, 16, image::ExtendedColorType::Rgb8)
             .unwrap();
+        jpg
+    }
+
+    #[test]
+    fn truncated_jpeg_is_an_input_error() {
+        let jpg = small_jpeg();
         assert!(jpeg_complete(&jpg));
         let d = decode(Cursor::new(jpg.clone()), &NO_LIMIT, true, |_| Ok(())).unwrap();
         assert_eq!((d.format, d.height, d.width), ("JPEG", 16, 16));
@@ -640,12 +657,7 @@ mod tests {
 
     #[test]
     fn a_jpeg_is_complete_by_its_segments_whatever_follows_its_end() {
-        use image::ImageEncoder;
-        let px: Vec<u8> = (0..16 * 16 * 3).map(|i| (i * 7 % 251) as u8).collect();
-        let mut jpg = Vec::new();
-        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 90)
-            .write_image(&px, 16, 16, image::ExtendedColorType::Rgb8)
-            .unwrap();
+        let jpg = small_jpeg();
         // a video appended after the end (a Motion Photo) holding a start-of-scan and no end marker
         let mut motion = jpg.clone();
         motion.extend_from_slice(b"\0\0\0\x18ftypmp42\xff\xda\x00\x08junk");

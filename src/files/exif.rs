@@ -480,18 +480,24 @@ const XMP_PNG_KEYWORD: &[u8] = b"XML:com.adobe.xmp";
 /// The text of an iTXt chunk's data (keyword already removed), inflated
 /// within `cap` when compressed.
 fn itxt_text(rest: &[u8], cap: u64) -> Result<String, String> {
-    let bad = || "the XMP iTXt chunk is malformed".to_string();
-    let (&compressed, rest) = rest.split_first().ok_or_else(bad)?;
-    let rest = rest.get(1..).ok_or_else(bad)?;
-    let lang = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
-    let rest = &rest[lang + 1..];
-    let tr = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
-    let text = &rest[tr + 1..];
-    if compressed != 0 {
+    let (compressed, text) = itxt_payload(rest).ok_or_else(|| "the XMP iTXt chunk is malformed".to_string())?;
+    if compressed {
         Ok(String::from_utf8_lossy(&inflate(text, cap, "XMP iTXt chunk")?).into_owned())
     } else {
         Ok(String::from_utf8_lossy(text).into_owned())
     }
+}
+
+/// An iTXt chunk's data after its keyword's NUL: whether the text is
+/// compressed, and the text's bytes (after the compression method, the
+/// language tag and the translated keyword); None when a field is missing.
+fn itxt_payload(rest: &[u8]) -> Option<(bool, &[u8])> {
+    let (&compressed, rest) = rest.split_first()?;
+    let rest = rest.get(1..)?;
+    let lang = rest.iter().position(|&b| b == 0)?;
+    let rest = &rest[lang + 1..];
+    let tr = rest.iter().position(|&b| b == 0)?;
+    Some((compressed != 0, &rest[tr + 1..]))
 }
 
 /// The keyword of the text chunks in which ImageMagick (and others) keep
@@ -507,15 +513,10 @@ fn raw_profile(kind: &[u8; 4], data: &[u8]) -> Result<Vec<u8>, String> {
     let text = match kind {
         b"tEXt" => data.to_vec(),
         b"zTXt" => inflate(data.get(1..).ok_or_else(bad)?, MAX_BLOCK * 2, "raw EXIF text chunk")?,
-        _ => {
-            let (&compressed, rest) = data.split_first().ok_or_else(bad)?;
-            let rest = rest.get(1..).ok_or_else(bad)?;
-            let lang = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
-            let rest = &rest[lang + 1..];
-            let tr = rest.iter().position(|&b| b == 0).ok_or_else(bad)?;
-            let t = &rest[tr + 1..];
-            if compressed != 0 { inflate(t, MAX_BLOCK * 2, "raw EXIF text chunk")? } else { t.to_vec() }
-        }
+        _ => match itxt_payload(data).ok_or_else(bad)? {
+            (true, t) => inflate(t, MAX_BLOCK * 2, "raw EXIF text chunk")?,
+            (false, t) => t.to_vec(),
+        },
     };
     // "\nexif\n   1234\n" then the digits
     let mut lines = 0;
