@@ -177,7 +177,7 @@ fn writes_the_contract_files_then_skips_then_overwrites() {
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     assert_eq!(
         files(&out),
-        ["dive.json", "dive.png", "dive_t.png", "dive_t_color.png"]
+        ["dive.json", "dive.png", "dive_confidence.png", "dive_t.png", "dive_t_color.png"]
     );
     let side: Value = serde_json::from_slice(&fs::read(out.join("dive.json")).unwrap()).unwrap();
     assert_eq!(side["implementation"], "rust");
@@ -196,6 +196,9 @@ fn writes_the_contract_files_then_skips_then_overwrites() {
     assert_eq!(t.color(), image::ColorType::L16);
     let tc = image::open(out.join("dive_t_color.png")).unwrap();
     assert_eq!((tc.color(), tc.width(), tc.height()), (image::ColorType::Rgb8, 64, 48));
+    assert_eq!(side["outputs"]["confidence"], "dive_confidence.png");
+    let c = image::open(out.join("dive_confidence.png")).unwrap();
+    assert_eq!((c.color(), c.width(), c.height()), (image::ColorType::L16, 64, 48));
 
     let before = fs::metadata(out.join("dive.json")).unwrap().modified().unwrap();
     let o = run(&[&img, &"-o", &out, &"--format", &"png"]);
@@ -248,7 +251,7 @@ fn a_bad_input_leaves_nothing_and_the_batch_goes_on() {
     assert!(errs.iter().any(|e| e["message"].as_str().unwrap().contains("constant")));
     assert_eq!(
         files(&out),
-        ["good.jpg", "good.json", "good_t.png", "good_t_color.png"]
+        ["good.jpg", "good.json", "good_confidence.png", "good_t.png", "good_t_color.png"]
     );
 }
 
@@ -405,7 +408,7 @@ fn colliding_names_get_their_extension() {
     assert!(o.stdout.is_empty());
     let f = files(&out);
     assert!(f.contains(&"x_png.json".into()) && f.contains(&"x_jpg.json".into()), "{f:?}");
-    assert_eq!(f.len(), 8);
+    assert_eq!(f.len(), 10);
 }
 
 #[test]

@@ -34,7 +34,8 @@ class FileResult:
 
     restoration: object
     meta: ImageMeta
-    #: role ("image", "transmission", "transmission_color", "contact_sheet", "sidecar") -> path
+    #: role ("image", "transmission", "transmission_color", "confidence" when
+    #: the method made a confidence map, "contact_sheet", "sidecar") -> path
     paths: dict = field(default_factory=dict)
     sidecar: dict = field(default_factory=dict)
 
@@ -56,8 +57,10 @@ def claim_outputs(out_dir: str, name: str, in_path: str, fmt: str, contact: bool
 
 def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = False) -> dict:
     """The files written for an input whose outputs are called ``name``:
-    role -> path, in writing order (:func:`output_suffixes`), the sidecar last."""
-    roles = ["image", "transmission", "transmission_color"] + (["contact_sheet"] if contact else [])
+    role -> path, in writing order (:func:`output_suffixes`), the sidecar last.
+    ``confidence`` is written only when the method makes a confidence map
+    (METHOD §12.5; the default profile does, ``method="paper"`` does not)."""
+    roles = ["image", "transmission", "transmission_color", "confidence"] + (["contact_sheet"] if contact else [])
     p = {role: os.path.join(out_dir, name + s) for role, s in zip(roles, output_suffixes(fmt, contact))}
     p["sidecar"] = os.path.join(out_dir, name + ".json")
     return p
@@ -119,7 +122,8 @@ def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwarg
     image files, nonzero = True, of the input's size), and writes into
     ``out_dir``: the corrected photo (``format`` "jpg", "tiff" (16-bit) or
     "png"; ``bits`` 8/16), t_B as a 16-bit PNG and colour-mapped, the
-    contact sheet when ``contact``, and the JSON sidecar last. Every file
+    confidence map as a 16-bit PNG when the method makes one, the contact
+    sheet when ``contact``, and the JSON sidecar last. Every file
     is written atomically; if anything fails, the files already written
     for this input are removed and the error propagates.
 
@@ -256,7 +260,8 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
         finally:
             # committed: nothing left to release; failed: the temporaries go
             claim.release()
-        return FileResult(res, meta, paths, json.loads(text))
+        written = {k: v for k, v in paths.items() if k != "confidence" or res.confidence is not None}
+        return FileResult(res, meta, written, json.loads(text))
 
     return write
 

@@ -216,7 +216,8 @@ def _hex(pattern_check, what):
 #: the fields the readers use, and what each must be (absent is fine unless in REQUIRED)
 FIELDS = {
     "input": _path_text,
-    "outputs": _object({r: _output_name for r in ("image", "transmission", "transmission_color", "contact_sheet")}),
+    "outputs": _object({r: _output_name for r in ("image", "transmission", "transmission_color", "confidence",
+                                                       "contact_sheet")}),
     "uwhl_version": _text,
     "implementation": _text,
     "water_type": _nonempty_text,

@@ -36,7 +36,7 @@ _HEADER_BYTES = 1 << 18
 
 #: a row's columns, in order (``restore_many``'s DataFrame)
 COLUMNS = ["input", "status", "water_type", "A_R", "A_G", "A_B", "flags", "seconds", "image", "transmission",
-           "transmission_color", "contact_sheet", "sidecar", "reused_estimates", "error_kind", "error", "exit_code",
+           "transmission_color", "confidence", "contact_sheet", "sidecar", "reused_estimates", "error_kind", "error", "exit_code",
            "worker", "scores", "taken_at", "latitude", "longitude", "altitude"]
 
 #: the note of an input skipped because its sidecar exists (uwhl-rs's words)
@@ -108,7 +108,7 @@ def _done_row(item: Item, result, seconds: float, outputs: dict) -> dict:
     return row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=round(seconds, 4), exit_code=0,
                reused_estimates=result.sidecar.get("reused_estimates"),
                **{role: outputs.get(role) for role in ("image", "transmission", "transmission_color",
-                                                        "contact_sheet", "sidecar")})
+                                                        "confidence", "contact_sheet", "sidecar")})
 
 
 # ------------------------------------------------------------------ storage

@@ -67,7 +67,8 @@ usage:
                                                  restore the built-in rendered scene
 
 For INPUT NAME.EXT writes OUTDIR/NAME.jpg (or .png/.tif), NAME_t.png (16-bit t_B),
-NAME_t_color.png (colour-mapped t_B) and NAME.json (sidecar, written last).
+NAME_t_color.png (colour-mapped t_B), NAME_confidence.png (16-bit, 1 = the colours
+can be trusted; not with --fallback none) and NAME.json (sidecar, written last).
 Inputs are sRGB (decoded to linear) unless --linear. The options, outputs and exit
 codes are those of the Python command 'uwhl restore' (docs/CLI.md).
 

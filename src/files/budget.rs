@@ -30,10 +30,11 @@
 use crate::method::params::memory_estimate;
 
 /// Bytes per processed pixel an input holds while its outputs are written:
-/// the restoration (29), the three outputs' codes and encoded files (16),
+/// the restoration (33: the image and the radiance, t_B, the confidence
+/// map, the water mask), the four outputs' codes and encoded files (18),
 /// and carrying the metadata ([`METADATA_PER_PIXEL`], with the input file
 /// read again: at most 6 bytes a pixel for an uncompressed 16-bit file).
-pub const HELD_WHILE_WRITING: u64 = 29 + 16 + METADATA_PER_PIXEL + 6;
+pub const HELD_WHILE_WRITING: u64 = 33 + 18 + METADATA_PER_PIXEL + 6;
 
 /// Bytes per processed pixel of carrying the metadata into the corrected
 /// photo (`crate::files::metadata::carry`): the encoded photo and up to two copies

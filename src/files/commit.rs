@@ -124,6 +124,9 @@ pub struct Claim {
     paths: Vec<PathBuf>,
     claim_file: PathBuf,
     temps: Vec<PathBuf>,
+    /// indices of outputs not written this time: an earlier run's file at
+    /// such a path is removed on commit
+    omitted: Vec<usize>,
 }
 
 /// FNV-1a of the name: a claim file's name stays short whatever the
@@ -477,6 +480,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
             paths,
             claim_file,
             temps: Vec::new(),
+            omitted: Vec::new(),
         }));
     }
     Err(io::Error::other(format!("no free output name for {} in {}", req.base, req.dir.display())))
@@ -502,14 +506,25 @@ impl Claim {
         Ok((tmp, f))
     }
 
-    /// Puts the written temporaries (one per path, in the order of
-    /// [`Claim::paths`], each made by [`Claim::temp`]) in place: syncs
-    /// them, removes an earlier sidecar, renames the outputs, syncs the
-    /// folder, renames the sidecar, syncs the folder. On an error the
-    /// outputs renamed so far are removed (there is no sidecar then, so
-    /// the next run redoes the input).
+    /// Marks output `index` (not the sidecar) as not written by this run:
+    /// [`Claim::commit`] then takes no temporary for it and removes the
+    /// file an earlier run left at its path, so the folder never holds an
+    /// output that belongs to another restoration.
+    pub fn omit(&mut self, index: usize) {
+        if index + 1 < self.paths.len() && !self.omitted.contains(&index) {
+            self.omitted.push(index);
+        }
+    }
+
+    /// Puts the written temporaries (one per path not omitted, in the
+    /// order of [`Claim::paths`], each made by [`Claim::temp`]) in place:
+    /// syncs them, removes an earlier sidecar, removes the omitted outputs'
+    /// old files, renames the outputs, syncs the folder, renames the
+    /// sidecar, syncs the folder. On an error the outputs renamed so far
+    /// are removed (there is no sidecar then, so the next run redoes the
+    /// input).
     pub fn commit(self, temps: &[PathBuf]) -> io::Result<()> {
-        if temps.len() != self.paths.len() || !temps.iter().all(|t| self.temps.contains(t)) {
+        if temps.len() + self.omitted.len() != self.paths.len() || !temps.iter().all(|t| self.temps.contains(t)) {
             return Err(io::Error::other("commit needs one temporary of this claim per output"));
         }
         for t in temps {
@@ -526,9 +541,22 @@ impl Claim {
             Err(e) if e.kind() == io::ErrorKind::NotFound => {}
             Err(e) => return Err(e),
         }
+        let written: Vec<&PathBuf> = outputs
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !self.omitted.contains(i))
+            .map(|(_, p)| p)
+            .collect();
+        for &i in &self.omitted {
+            match fs::remove_file(&outputs[i]) {
+                Ok(()) => {}
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => return Err(e),
+            }
+        }
         let mut renamed = Vec::new();
         let result = (|| {
-            for (t, p) in output_temps.iter().zip(outputs) {
+            for (t, p) in output_temps.iter().zip(written) {
                 fs::rename(t, p)?;
                 renamed.push(p.clone());
             }
@@ -595,6 +623,36 @@ mod tests {
 
     fn request<'a>(dir: &'a Path, base: &'a str, input: &'a Path, s: &'a [String], overwrite: bool) -> Request<'a> {
         Request { dir, base, input, suffixes: s, overwrite, rename: true }
+    }
+
+    #[test]
+    fn an_omitted_output_is_not_written_and_an_old_file_at_its_path_goes() {
+        let d = folder("omit");
+        let s = suffixes();
+        let a = d.join("a.jpg");
+        let mut first = claimed(claim(&request(&d, "a", &a, &s, true)).unwrap());
+        let side = format!("{{\"input\": \"{}\"}}", a.display());
+        let temps = write_all(&mut first, &side);
+        first.commit(&temps).unwrap();
+        assert_eq!(fs::read_to_string(d.join("a_t.png")).unwrap(), "output 1");
+        // a rerun that makes no second output: a_t.png of the first run goes
+        let mut again = claimed(claim(&request(&d, "a", &a, &s, true)).unwrap());
+        again.omit(1);
+        // the sidecar cannot be omitted
+        again.omit(2);
+        let (t0, mut f0) = again.temp(0).unwrap();
+        f0.write_all(b"new image").unwrap();
+        let (t2, mut f2) = again.temp(2).unwrap();
+        f2.write_all(side.as_bytes()).unwrap();
+        // one temporary too few (the omitted output's index is not the sidecar's)
+        let mut short = claimed(claim(&request(&d, "b", &d.join("b.jpg"), &s, true)).unwrap());
+        short.omit(1);
+        let (tb, _) = short.temp(0).unwrap();
+        assert!(short.commit(&[tb]).is_err());
+        again.commit(&[t0, t2]).unwrap();
+        assert_eq!(fs::read_to_string(d.join("a.png")).unwrap(), "new image");
+        assert!(!d.join("a_t.png").exists());
+        assert_eq!(fs::read_to_string(d.join("a.json")).unwrap(), side);
     }
 
     #[test]

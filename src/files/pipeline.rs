@@ -400,6 +400,7 @@ fn finish(job: &Job, (restored, claimed, t0): (Restored, Claim, Instant), opts: 
             estimates: Estimates::of(&res),
             image: &res.image,
             transmission: &res.transmission,
+            confidence: res.confidence.as_deref(),
             contact_sheet: None,
             reused: opts.reuse_estimates.map(|_| res.flags.contains(&Flag::EstimatesReused)),
             parameters: &parameters,
@@ -428,6 +429,9 @@ pub struct Outputs<'a> {
     pub image: &'a [f32],
     /// t_B, of the processed size
     pub transmission: &'a [f32],
+    /// the confidence map of the processed size, when the method made one
+    /// (METHOD §12.5); without, the claim's `_confidence.png` is omitted
+    pub confidence: Option<&'a [f32]>,
     /// the contact sheet, encoded (PNG): the claim's fourth output
     pub contact_sheet: Option<&'a [u8]>,
     /// with `--reuse-estimates`: whether this input reused them
@@ -458,8 +462,8 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
     let t2 = Instant::now();
     let paths = claimed.paths().to_vec();
     let sheet_path = match (paths.len(), out.contact_sheet) {
-        (4, None) => None,
-        (5, Some(_)) => Some(paths[3].clone()),
+        (5, None) => None,
+        (6, Some(_)) => Some(paths[4].clone()),
         (n, sheet) => {
             return Err(Failure::new(
                 Kind::Internal,
@@ -468,6 +472,10 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
         }
     };
     let (image_path, t_path, tc_path) = (paths[0].clone(), paths[1].clone(), paths[2].clone());
+    let conf_path = out.confidence.map(|_| paths[3].clone());
+    if out.confidence.is_none() {
+        claimed.omit(3);
+    }
     let sidecar_path = paths[paths.len() - 1].clone();
     let enc = Encoding {
         format: opts.format,
@@ -477,8 +485,16 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
     };
     // the three encoders (each single-threaded) run at once; the files are
     // then written in order
-    let (image_bytes, (t_bytes, tc_bytes)) = rayon::join(
-        || encode_image(&image_path, out.image, hp, wp, enc),
+    let ((image_bytes, conf_bytes), (t_bytes, tc_bytes)) = rayon::join(
+        || {
+            rayon::join(
+                || encode_image(&image_path, out.image, hp, wp, enc),
+                || match (&conf_path, out.confidence) {
+                    (Some(p), Some(c)) => encode_transmission(p, c, hp, wp).map(Some),
+                    _ => Ok(None),
+                },
+            )
+        },
         || {
             rayon::join(
                 || encode_transmission(&t_path, out.transmission, hp, wp),
@@ -490,6 +506,7 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
         image: &image_path,
         transmission: &t_path,
         transmission_color: &tc_path,
+        confidence: conf_path.as_deref(),
         contact_sheet: sheet_path.as_deref(),
     };
     let make = |seconds: Seconds| {
@@ -517,11 +534,15 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
         tiff_cap,
     );
     let mut files = vec![(image_path.clone(), image_bytes), (t_path.clone(), t_bytes?), (tc_path.clone(), tc_bytes?)];
+    if let (Some(p), Some(bytes)) = (&conf_path, conf_bytes?) {
+        files.push((p.clone(), bytes));
+    }
     if let (Some(p), Some(sheet)) = (&sheet_path, out.contact_sheet) {
         files.push((p.clone(), sheet.to_vec()));
     }
     let mut temps = Vec::with_capacity(files.len() + 1);
-    for (i, (path, bytes)) in files.iter().enumerate() {
+    for (path, bytes) in &files {
+        let i = paths.iter().position(|p| p == path).unwrap_or(0);
         temps.push(write_temp(&mut claimed, i, path, bytes)?);
     }
     let seconds = Seconds {
@@ -543,7 +564,7 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
     let mut bytes = serde_json::to_vec_pretty(&side)
         .map_err(|e| Failure::new(Kind::Internal, format!("sidecar: {e}")))?;
     bytes.push(b'\n');
-    temps.push(write_temp(&mut claimed, files.len(), &sidecar_path, &bytes)?);
+    temps.push(write_temp(&mut claimed, paths.len() - 1, &sidecar_path, &bytes)?);
     let dir = sidecar_path.parent().unwrap_or(Path::new(".")).to_path_buf();
     claimed
         .commit(&temps)

@@ -46,12 +46,14 @@ impl Format {
 }
 
 /// What follows `NAME` in the names of an input's outputs, in writing
-/// order: the photo, t_B as 16-bit PNG, t_B colour-mapped, and the contact
-/// sheet when asked for (the Python command's `--contact-sheet`). The
+/// order: the photo, t_B as 16-bit PNG, t_B colour-mapped, the confidence
+/// map (written when the method makes one, METHOD §12.5; the name is
+/// claimed in any case so that a rerun without it removes an old one), and
+/// the contact sheet when asked for (the Python command's `--contact-sheet`). The
 /// sidecar's `.json` comes last, added by `crate::files::commit`
 /// (docs/OUTPUTS.md).
 pub fn output_suffixes(format: Format, contact: bool) -> Vec<String> {
-    let mut s = vec![format!(".{}", format.extension()), "_t.png".into(), "_t_color.png".into()];
+    let mut s = vec![format!(".{}", format.extension()), "_t.png".into(), "_t_color.png".into(), "_confidence.png".into()];
     if contact {
         s.push("_sheet.png".into());
     }
@@ -276,8 +278,11 @@ mod tests {
 
     #[test]
     fn output_names_follow_the_format_and_the_sheet() {
-        assert_eq!(output_suffixes(Format::Tiff, false), [".tif", "_t.png", "_t_color.png"]);
-        assert_eq!(output_suffixes(Format::Jpg, true), [".jpg", "_t.png", "_t_color.png", "_sheet.png"]);
+        assert_eq!(output_suffixes(Format::Tiff, false), [".tif", "_t.png", "_t_color.png", "_confidence.png"]);
+        assert_eq!(
+            output_suffixes(Format::Jpg, true),
+            [".jpg", "_t.png", "_t_color.png", "_confidence.png", "_sheet.png"]
+        );
         assert_eq!(Format::from_name("png"), Some(Format::Png));
         assert_eq!(Format::from_name("tif"), None);
     }

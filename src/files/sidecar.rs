@@ -53,6 +53,8 @@ pub struct OutputPaths<'a> {
     pub transmission: &'a Path,
     /// `NAME_t_color.png`
     pub transmission_color: &'a Path,
+    /// `NAME_confidence.png`, when the method made a confidence map
+    pub confidence: Option<&'a Path>,
     /// `NAME_sheet.png` (the Python command's `--contact-sheet`)
     pub contact_sheet: Option<&'a Path>,
 }
@@ -212,6 +214,9 @@ pub fn sidecar(
     names.insert("image".into(), json!(file_name(outputs.image)));
     names.insert("transmission".into(), json!(file_name(outputs.transmission)));
     names.insert("transmission_color".into(), json!(file_name(outputs.transmission_color)));
+    if let Some(c) = outputs.confidence {
+        names.insert("confidence".into(), json!(file_name(c)));
+    }
     if let Some(sheet) = outputs.contact_sheet {
         names.insert("contact_sheet".into(), json!(file_name(sheet)));
     }

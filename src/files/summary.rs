@@ -23,7 +23,7 @@ pub fn columns() -> Vec<String> {
     c.extend(
         [
             "other_scores", "flags", "seconds", "taken_at", "latitude", "longitude", "altitude", "image",
-            "transmission", "transmission_color", "contact_sheet", "sidecar", "error_kind", "error", "exit_code",
+            "transmission", "transmission_color", "confidence", "contact_sheet", "sidecar", "error_kind", "error", "exit_code",
         ]
         .map(String::from),
     );

@@ -227,6 +227,17 @@ fn write_input_outputs(
     let t = res.transmission.bind(py).cast::<numpy::PyArray2<f32>>()?.readonly();
     let vm = res.veiling_mask.bind(py).cast::<numpy::PyArray2<bool>>()?.readonly();
     let transmission = t.as_slice().map_err(|_| PyRuntimeError::new_err("transmission is not contiguous"))?;
+    let conf = match &res.confidence {
+        Some(c) => Some(c.bind(py).cast::<numpy::PyArray2<f32>>()?.readonly()),
+        None => None,
+    };
+    let confidence = match &conf {
+        Some(c) if c.shape() == [h, w] => {
+            Some(c.as_slice().map_err(|_| PyRuntimeError::new_err("confidence is not contiguous"))?)
+        }
+        Some(_) => return Err(PyRuntimeError::new_err("the confidence map and the restoration disagree on the size")),
+        None => None,
+    };
     let vm = Some(vm);
     let water = mask_slice("veiling_mask", &vm, h, w)?.unwrap_or_default();
     let mut scores = Vec::new();
@@ -268,6 +279,7 @@ fn write_input_outputs(
                     estimates,
                     image,
                     transmission,
+                    confidence,
                     contact_sheet: sheet.as_deref(),
                     reused,
                     parameters: &params,

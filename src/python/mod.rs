@@ -83,7 +83,7 @@ pub struct PyRestoration {
     #[pyo3(get)]
     flags: Vec<String>,
     #[pyo3(get)]
-    confidence: Option<Py<PyAny>>,
+    pub(crate) confidence: Option<Py<PyAny>>,
     #[pyo3(get)]
     pub(crate) veil_excess: Option<f64>,
     #[pyo3(get)]

@@ -183,7 +183,7 @@ def test_sequence_chunks_equal_a_local_sequence(cluster, inputs, tmp_path):
     # a rerun after losing the middle of a chunk: the chunk's first frame
     # (done) estimates again, unwritten, so frame 4 reuses what it reused
     first = open(os.path.join(out, "frame004.jpg"), "rb").read()
-    for suffix in (".json", ".jpg", "_t.png", "_t_color.png"):
+    for suffix in (".json", ".jpg", "_t.png", "_t_color.png", "_confidence.png"):
         os.remove(os.path.join(out, "frame004" + suffix))
     again = batch.restore_many(frames, out, client=client, threads=threads, reuse_estimates=3)
     assert list(again.status) == ["skipped"] * 4 + ["done"] + ["skipped"] * 2

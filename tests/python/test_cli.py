@@ -146,7 +146,8 @@ def test_staged_restore_writes_nothing_until_asked(scenes, tmp_path):
     # only the claim of the name (docs/OUTPUTS.md) is there until the outputs are written
     assert [p.name[:12] for p in out.iterdir()] == [".uwhl-claim-"]
     r = write()
-    assert sorted(os.listdir(out)) == ["scene_3C.json", "scene_3C.png", "scene_3C_t.png", "scene_3C_t_color.png"]
+    assert sorted(os.listdir(out)) == ["scene_3C.json", "scene_3C.png", "scene_3C_confidence.png", "scene_3C_t.png",
+                                       "scene_3C_t_color.png"]
     want = uwhl_rs.restore_file(scenes / "scene_3C.png", tmp_path / "again", format="png")
     assert np.array_equal(r.restoration.image, want.restoration.image)
     with pytest.raises(Exception, match="truncated|decode"):
@@ -162,7 +163,7 @@ def test_something_foreign_at_the_sidecars_name_is_kept(scenes, tmp_path):
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "scene_II.json").is_dir()
     assert sorted(os.listdir(tmp_path)) == ["scene_II.json", "scene_II_2.jpg", "scene_II_2.json",
-                                            "scene_II_2_t.png", "scene_II_2_t_color.png", "summary.csv"]
+                                            "scene_II_2_confidence.png", "scene_II_2_t.png", "scene_II_2_t_color.png", "summary.csv"]
 
 
 def test_options_reach_restore(scenes, tmp_path):

@@ -82,9 +82,9 @@ def test_the_core_raises_its_errors_with_their_kind():
 def test_output_names_are_the_files_layers():
     from uwhl_rs import files
 
-    # docs/OUTPUTS.md: NAME.tif, NAME_t.png, NAME_t_color.png, NAME_sheet.png, then NAME.json
-    assert files.output_suffixes("tiff", True) == [".tif", "_t.png", "_t_color.png", "_sheet.png"]
-    assert files.output_suffixes() == [".jpg", "_t.png", "_t_color.png"]
+    # docs/OUTPUTS.md: NAME.tif, NAME_t.png, NAME_t_color.png, NAME_confidence.png, NAME_sheet.png, then NAME.json
+    assert files.output_suffixes("tiff", True) == [".tif", "_t.png", "_t_color.png", "_confidence.png", "_sheet.png"]
+    assert files.output_suffixes() == [".jpg", "_t.png", "_t_color.png", "_confidence.png"]
     with pytest.raises(ValueError):
         files.output_suffixes("gif")
 

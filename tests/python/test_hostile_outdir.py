@@ -223,7 +223,7 @@ def test_overwrite_beside_foreign_files_redoes_the_input_in_place_and_keeps_them
     theirs = {n: f"someone else's {n}".encode() for n in foreign}
     for n, body in theirs.items():
         (out / n).write_bytes(body)
-    ours = {"a_2.png", "a_2_t.png", "a_2_t_color.png", "a_2.json"}
+    ours = {"a_2.png", "a_2_t.png", "a_2_t_color.png", "a_2_confidence.png", "a_2.json"}
     r = _run(face, binary, [tmp_path / "a.png", "-o", out, "--format", "png", "-q"])
     assert r.returncode == 0, r.stderr
     assert _names(out) == set(theirs) | ours

@@ -125,13 +125,13 @@ def _run(face, binary, args, tmp, stdin=None):
 # (id, arguments with {d} = input folder and {o} = output folder, expected kind, expected output names)
 CASES = [
     ("good", ["{d}/f0.png", "{d}/f1.png", "-o", "{o}", "--format", "png"], "ok",
-     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json", "f1.png", "f1_t.png", "f1_t_color.png", "f1.json"}),
+     {f"f{k}{s}" for k in range(2) for s in (".png", "_t.png", "_t_color.png", "_confidence.png", ".json")}),
     ("out spelled --out", ["{d}/f0.png", "--out", "{o}", "--format", "png"], "ok",
-     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json"}),
+     {"f0.png", "f0_t.png", "f0_t_color.png", "f0_confidence.png", "f0.json"}),
     ("out spelled --output", ["{d}/f0.png", "--output", "{o}", "--format", "png"], "ok",
-     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json"}),
+     {"f0.png", "f0_t.png", "f0_t_color.png", "f0_confidence.png", "f0.json"}),
     ("truncated beside good", ["{d}/truncated.png", "{d}/f2.png", "-o", "{o}", "--format", "png"],
-     "unreadable_input", {"f2.png", "f2_t.png", "f2_t_color.png", "f2.json"}),
+     "unreadable_input", {"f2.png", "f2_t.png", "f2_t_color.png", "f2_confidence.png", "f2.json"}),
     ("garbage jpeg", ["{d}/garbage.jpg", "-o", "{o}"], "unreadable_input", set()),
     ("missing input", ["{d}/nope.png", "-o", "{o}"], "unreadable_input", set()),
     ("quality 0", ["{d}/f0.png", "-o", "{o}", "--quality", "0"], "bad_arguments", set()),
@@ -147,10 +147,10 @@ CASES = [
     ("over max-memory", ["{d}/f0.png", "-o", "{o}", "--max-memory", "64K"], "over_budget", set()),
     ("output is a file", ["{d}/f0.png", "-o", "{d}/a_file"], "write_failed", set()),
     ("FIFO named like an image", ["{d}/fifo.jpg", "{d}/f0.png", "-o", "{o}", "--format", "png"], "unreadable_input",
-     {"f0.png", "f0_t.png", "f0_t_color.png", "f0.json"}),
+     {"f0.png", "f0_t.png", "f0_t_color.png", "f0_confidence.png", "f0.json"}),
     ("sequence", ["{d}/f0.png", "{d}/f1.png", "{d}/f2.png", "-o", "{o}", "--format", "png",
                   "--reuse-estimates", "2", "--guided-subsample", "auto"], "ok",
-     {f"f{k}{s}" for k in range(3) for s in (".png", "_t.png", "_t_color.png", ".json")}),
+     {f"f{k}{s}" for k in range(3) for s in (".png", "_t.png", "_t_color.png", "_confidence.png", ".json")}),
 ]
 
 
@@ -320,15 +320,15 @@ def test_stream_refuses_a_fifo_line_and_goes_on(binary, files, tmp_path):
 
 
 def test_long_file_names_fit_their_temporaries(binary, files, tmp_path):
-    """An input stem of 240 bytes: NAME_t_color.png is 252 bytes, within the
-    255 a name may have; the temporary names are short in both commands."""
+    """An input stem of 240 bytes: NAME_confidence.png is 255 bytes, the
+    most a name may have; the temporary names are short in both commands."""
     src = tmp_path / ("n" * 240 + ".png")
     src.write_bytes((files / "f2.png").read_bytes())
     for face in ("python", "rust"):
         out = tmp_path / face
         r = _run(face, binary, [str(src), "-o", str(out), "--format", "png"], tmp_path)
         assert r.returncode == 0, (face, r.stderr)
-        assert len(_listing(out)) == 4 and not [f for f in os.listdir(out) if f.startswith(".")], face
+        assert len(_listing(out)) == 5 and not [f for f in os.listdir(out) if f.startswith(".")], face
 
 
 def test_stream_stops_when_its_output_is_gone(binary, files, tmp_path):
@@ -428,8 +428,8 @@ def test_stream_frames_with_one_name_keep_both(binary, files, tmp_path):
     assert objs[2]["outputs"]["image"] == "frame_2.png"
     # camA's restoration is still the one under frame.png
     assert sorted(f for f in os.listdir(out)) == ["frame.json", "frame.png", "frame_2.json", "frame_2.png",
-                                                   "frame_2_t.png", "frame_2_t_color.png", "frame_t.png",
-                                                   "frame_t_color.png"]
+                                                   "frame_2_confidence.png", "frame_2_t.png", "frame_2_t_color.png",
+                                                   "frame_confidence.png", "frame_t.png", "frame_t_color.png"]
     # a rerun of the same lines does nothing more
     r = subprocess.run([binary, "restore", "--stream", "-o", str(out), "--format", "png"],
                        input=f"{a}\n{b}\n", capture_output=True, text=True, timeout=120)
@@ -532,7 +532,7 @@ def test_memory_the_system_will_not_give_fails_one_input_not_the_process(binary,
             import re
 
             assert re.search(why, r.stderr), (face, extra, r.stderr)
-            assert _listing(out) == ["f0.json", "f0.png", "f0_t.png", "f0_t_color.png"], (face, extra)
+            assert _listing(out) == ["f0.json", "f0.png", "f0_confidence.png", "f0_t.png", "f0_t_color.png"], (face, extra)
     r = subprocess.run([binary, "restore", "--stream", "-o", str(tmp_path / "s"), "--format", "png", "--max-memory",
                         "60G"], input=f"{big}\n{files / 'f1.png'}\n", capture_output=True, text=True, timeout=120,
                        preexec_fn=_address_space(limit))
@@ -589,7 +589,7 @@ def test_peak_memory_stays_under_max_memory(binary, tmp_path):
     budget = int(re.search(r"need about (\d+) bytes", err).group(1)) + margin["rust"]
     code, peak, err = _peak_rss([binary, "restore", "--stream", "-o", str(tmp_path / "s"), "--max-memory",
                                  str(budget)], lines)
-    assert code == 0 and len(os.listdir(tmp_path / "s")) == 24, err
+    assert code == 0 and len(os.listdir(tmp_path / "s")) == 30, err
     assert peak <= budget, (peak, budget)
 
 
@@ -633,5 +633,5 @@ def test_non_utf8_names_are_named_alike_by_both(binary, files, tmp_path):
                            capture_output=True, timeout=120, env=_env(), cwd=tmp_path)
         assert r.returncode == 0, (face, r.stderr)
         names[face] = sorted(f for f in os.listdir(os.fsencode(out)) if f != b"summary.csv")
-    assert names["python"] == names["rust"] and len(names["rust"]) == 8, names
+    assert names["python"] == names["rust"] and len(names["rust"]) == 10, names
     _same_summaries(_summary_rows(tmp_path / "python"), _summary_rows(tmp_path / "rust"))

@@ -21,6 +21,8 @@ outputs (per input NAME, in OUTDIR, mirroring sub-folders of folder inputs):
   NAME.jpg|.tif|.png   the corrected photo (sRGB)
   NAME_t.png           transmission t_B, 16-bit gray (-ln t_B is a distance proxy)
   NAME_t_color.png     transmission, colour-mapped (dark = far, yellow = near)
+  NAME_confidence.png  how far the colours can be trusted, 16-bit gray (1 = fully);
+                       not with --fallback none or --method paper
   NAME_sheet.png       with --contact-sheet: every water type side by side
   NAME.json            sidecar: water type, scores, A, VL size, flags, parameters,
                        version, timings; written last, it marks the input as done
