@@ -42,7 +42,12 @@ Scores (uwhl_rs.truth): median per-pixel angle to the truth over the object
 pixels, raw and after the best global per-channel gains; type exact / within
 one step; rho(z, -ln t_B). Rows: the baselines (input, gray world of the
 input, contrast stretch), the default profile, the default told the true
-type, the paper profile, and three floors: ``floor_truth`` (true t, A and
+type, the paper profile, the default told the distance (METHOD §13:
+``distance`` the true map, open water unknown; ``distance_holes`` with 30%
+of it lost in blocks; ``distance_noise`` with 10% log-normal noise;
+``distance_other`` another scene's map, which must be rejected; with the
+share of fitted beta within 10% of the truth and the share of maps used),
+and three floors: ``floor_truth`` (true t, A and
 light: only noise and clipping remain), ``floor_tA_gw`` (the estimated t_B
 of a restoration told the true type and A, recovered with the true A and a
 gray-world balance) and ``floor_affine`` (the same t_B after the best affine
@@ -202,6 +207,19 @@ def scenes(split: str = "tune", side: int = 360, conditions=None):
                 yield render(cname, wt, stats, light, noise, geom, side, seed=1000 * ci + 100 * ni + ti)
 
 
+def holes(z: np.ndarray, share: float, seed: int) -> np.ndarray:
+    """``z`` with rectangles set to NaN until ``share`` of it is unknown, as
+    depth maps lose it (reflections, textureless sand, the far field)."""
+    rng = np.random.default_rng(seed)
+    out = z.copy()
+    h, w = z.shape
+    while np.isnan(out).mean() < share + np.isnan(z).mean() * (1 - share):
+        bh, bw = int(rng.integers(h // 10, h // 3)), int(rng.integers(w // 10, w // 3))
+        y, x = int(rng.integers(0, h - bh)), int(rng.integers(0, w - bw))
+        out[y:y + bh, x:x + bw] = np.nan
+    return out
+
+
 def type_steps(chosen: str, true: str) -> int | None:
     """|index difference| in the Jerlov order, None for a custom type."""
     if chosen not in TYPES:
@@ -259,6 +277,24 @@ def method_rows(r: Render, only=None) -> tuple[dict, dict]:
         res = uwhl_rs.restore(r.image, method="paper")
         out["paper"] = res.image
         facts["paper"] = {"type": res.water_type, "rho": rho_of(r.distance, res.transmission)}
+    # METHOD §13: the true distance given (open water unknown), with 30% of
+    # it lost in blocks, with 10% multiplicative noise, and another scene's map
+    z = np.where(np.isfinite(r.distance), r.distance, np.nan).astype(np.float32)
+    beta_true = np.array([BETA_B[r.water_type] / synth.JERLOV[r.water_type][0],
+                          BETA_B[r.water_type] / synth.JERLOV[r.water_type][1], BETA_B[r.water_type]])
+    variants = {"distance": z, "distance_holes": holes(z, 0.3, seed=len(r.name)),
+                "distance_noise": z * np.random.default_rng(len(r.name)).lognormal(0.0, 0.1, z.shape).astype(np.float32),
+                "distance_other": np.ascontiguousarray(z[::-1, ::-1])}
+    for key, zz in variants.items():
+        if not want(key):
+            continue
+        res = uwhl_rs.restore(r.image, distance=zz)
+        out[key] = res.image
+        f = {"type": res.water_type, "rho": rho_of(r.distance, res.transmission), "used": res.distance["used"]}
+        if res.water is not None:
+            beta = np.array(res.water["beta"])
+            f["beta_err"] = float(np.max(np.abs(beta / beta_true - 1)))
+        facts[key] = f
     if want("floor_tA_gw") or want("floor_affine"):
         a = tuple(float(x) for x in np.clip(r.a, 1e-4, 1))
         res = uwhl_rs.restore(r.image, water_types=[r.water_type], veiling_light=a)
@@ -300,6 +336,9 @@ def run(split: str, side: int, only=None, candidates=None, conditions=None, verb
                 row["steps"] = type_steps(f["type"], r.water_type)
             if "rho" in f:
                 row["rho"] = f["rho"]
+            for k in ("beta_err", "used"):
+                if k in f:
+                    row[k] = f[k]
             rows.append(row)
         if verbose:
             print(f"{r.name}: {time.time() - t0:.1f}s", file=sys.stderr)
@@ -327,6 +366,12 @@ def table(rows: list[dict]) -> str:
             rhos = [r["rho"] for r in sel if r.get("rho") is not None and math.isfinite(r["rho"])]
             if rhos:
                 cell += f" rho {np.median(rhos):.2f}"
+            errs = [r["beta_err"] for r in sel if r.get("beta_err") is not None]
+            if errs:
+                cell += f" beta±10% {sum(e <= 0.1 for e in errs)}/{len(sel)}"
+            used = [r["used"] for r in sel if r.get("used") is not None]
+            if used:
+                cell += f" used {sum(used)}/{len(sel)}"
             cells.append(cell)
         lines.append(f"| {n} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

@@ -60,6 +60,9 @@ pub enum Error {
     /// An unknown or invalid water type.
     #[error("bad water type: {0}")]
     WaterType(String),
+    /// A distance map that cannot be this image's (METHOD §13).
+    #[error("bad distance: {0}")]
+    Distance(String),
     /// A parameter out of its domain.
     #[error("bad parameter {name}: {msg}")]
     Param {
@@ -165,7 +168,7 @@ impl Error {
             | Error::NonFinite { .. }
             | Error::OutOfRange { .. }
             | Error::Constant(_) => Kind::Input,
-            Error::Mask { .. } | Error::WaterType(_) | Error::Param { .. } => Kind::Usage,
+            Error::Mask { .. } | Error::WaterType(_) | Error::Distance(_) | Error::Param { .. } => Kind::Usage,
             Error::Memory { .. } | Error::Unavailable { .. } => Kind::Budget,
             Error::Internal(_) => Kind::Internal,
         }

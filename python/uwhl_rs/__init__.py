@@ -159,7 +159,7 @@ def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     return np.ascontiguousarray(m)
 
 
-def restore(image, *, water_mask=None, mask=None, **method) -> Restoration:
+def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **method) -> Restoration:
     """Restore the colors of one underwater image (METHOD §2-§10).
 
     Parameters
@@ -182,6 +182,19 @@ def restore(image, *, water_mask=None, mask=None, **method) -> Restoration:
         False = do not use this pixel for estimation (e.g. a color chart);
         such regions are filled (METHOD §4.5) and get one transmission each
         (METHOD §6). At least one pixel must be True.
+    distance : float ndarray (h, w), optional
+        The distance of each pixel in metres (NaN, 0 or negative = unknown),
+        of any size with the image's aspect ratio (resized by nearest
+        neighbour). The water (attenuation per channel, A) is then fitted
+        from it and the transmission taken from it where known (METHOD §13);
+        ``water`` of the result holds the fit. A map that does not fit the
+        photo is not used: the result is flagged ``distance_rejected``.
+    water : dict, optional
+        A water fitted on another photo of the same water (the ``water`` of
+        a restoration given ``distance``, or a sidecar's ``distance.water``):
+        its attenuation ratios become the one candidate type, named after
+        its nearest Jerlov type; A is this photo's own. Not with
+        ``water_types``.
     guided_radius : int, optional
         Guided-filter radius; default ``round(min(H, W) / 4)`` (METHOD §6).
     guided_eps : float
@@ -268,7 +281,27 @@ def restore(image, *, water_mask=None, mask=None, **method) -> Restoration:
     hw = img.shape[:2]
     wm = _as_mask(water_mask, "water_mask", hw)
     m = _as_mask(mask, "mask", hw)
-    return _core.restore_f32(img, _method_params(**method), water_mask=wm, mask=m)
+    if water is not None:
+        if method.get("water_types") is not None:
+            raise ParameterError("water and water_types both name the water: give one")
+        try:
+            br, bg, bb = (float(v) for v in water["beta"])
+            name = str(water.get("nearest_type") or "fitted")
+        except (TypeError, KeyError, ValueError):
+            raise ParameterError("water must be a dict with 'beta': three attenuations in 1/m "
+                                 "(the water of a restoration given distance)") from None
+        if not all(np.isfinite(v) and v > 0 for v in (br, bg, bb)):
+            raise ParameterError(f"water's beta must be three positive numbers, not {water['beta']!r}")
+        method["water_types"] = [(name, bb / br, bb / bg)]
+    z = None
+    if distance is not None:
+        z = np.asarray(distance)
+        if z.ndim == 3 and z.shape[2] == 1:
+            z = z[:, :, 0]
+        if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
+            raise ParameterError(f"distance must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
+        z = np.ascontiguousarray(z, dtype=np.float32)
+    return _core.restore_f32(img, _method_params(**method), water_mask=wm, mask=m, distance=z)
 
 
 def _method_params(**kw) -> _core.Params:
@@ -395,4 +428,4 @@ class Sequence:
         )
 
 
-_signature_from_table(restore, ["image", "water_mask", "mask"])
+_signature_from_table(restore, ["image", "water_mask", "mask", "distance", "water"])

@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "write_input_outputs",
+    "options_help", "check_combination", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
@@ -121,6 +121,9 @@ class FileSettings:
     @property
     def max_memory(self) -> int:
         """The memory budget in bytes."""
+    @property
+    def dive_water_type(self) -> Optional[tuple[str, float, float]]:
+        """With water_from: the dive's water type (name, beta_BR, beta_BG); else None."""
 
 def decode_file(
     path: _PathArg, linearize: bool, max_pixels: int, max_memory: int,
@@ -129,10 +132,15 @@ def decode_file(
     """A PNG, JPEG or TIFF decoded by the binary's decoder: (image, info)."""
 def decode_mask_file(path: _PathArg, what: str, max_pixels: int, max_memory: int) -> _Bool:
     """A mask file as H x W bools (nonzero = True), read by the binary's mask reader."""
+def read_distance_for(
+    template: str, input: _PathArg, max_pixels: int, max_memory: int,
+) -> tuple[str, Optional[_F32], Optional[str]]:
+    """An input's distance map for a --distance template: (path, H x W metres or None, why not or None)."""
 def write_input_outputs(
     claim: Claim, res: Restoration, image: _F32, source: dict[str, Any], settings: FileSettings, input: _PathArg,
     label: str, contact_sheet: Optional[bytes], reused: Optional[bool], read: float, restore: float,
-    sheet_seconds: Optional[float], elapsed: float,
+    sheet_seconds: Optional[float], elapsed: float, distance_source: Optional[str] = None,
+    distance_missing: Optional[str] = None,
 ) -> str:
     """Writes one input's outputs through its claim (encodes, metadata, sidecar, commit): the sidecar as JSON."""
 
@@ -228,6 +236,12 @@ class Restoration:
     def veil_excess(self) -> Optional[float]:
         """Share of object pixels whose estimated veil exceeds the light (METHOD §12.5); None without a fallback."""
     @property
+    def distance(self) -> Optional[dict[str, Any]]:
+        """With a distance: what became of it (docs/OUTPUTS.md "Distance", METHOD §13)."""
+    @property
+    def water(self) -> Optional[dict[str, Any]]:
+        """With a distance: the fitted water (beta per channel in 1/m, A, nearest type)."""
+    @property
     def guided_radius(self) -> int: ...
     @property
     def guided_subsample(self) -> int: ...
@@ -252,6 +266,7 @@ def restore_f32(
     *,
     water_mask: Optional[_Bool] = None,
     mask: Optional[_Bool] = None,
+    distance: Optional[_F32] = None,
 ) -> Restoration:
     """Restores a C-contiguous float32 (H, W, 3) image, the GIL released."""
 

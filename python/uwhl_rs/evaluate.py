@@ -224,6 +224,14 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
         restorations[m] = uwhl_rs.restore(img, mask=mask, **other)
         images[m] = restorations[m].image
         steps[m] = uwhl_rs.method_steps(**other)
+    if distance is not None:
+        # METHOD §13: the same method told the distance, beside it without
+        r = uwhl_rs.restore(img, mask=mask, distance=distance, **kwargs)
+        images[f"{method}+distance"] = r.image
+        restorations[f"{method}+distance"] = r
+        distance_use = r.distance
+    else:
+        distance_use = None
     types = {}
     # a custom candidate is restored alone by its (name, beta_BR, beta_BG), a table type by its name
     spec = {t[0] if isinstance(t, (tuple, list)) else t: t for t in kwargs.get("water_types") or []}
@@ -266,6 +274,7 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
         "orientation": meta.orientation,
         "water_type": res.water_type, "veiling_light": [float(v) for v in res.veiling_light],
         "flags": list(res.flags), "charts": rows, "rho": rho, "water_type_truth": truth, "types": types,
+        "distance_use": distance_use,
         "method": method, "profiles": profiles,
         "truth_pixels": None if scored is None else int(scored.sum()), "truth_angles": angles,
         "_images": images, "_transmission": res.transmission, "_distance": distance,

@@ -152,6 +152,8 @@ def restore_staged(
     max_pixels: int = _D["max_pixels"],
     mask=None,
     water_mask=None,
+    distance=None,
+    water_from=None,
     contact: bool = False,
     sequence=None,
     _claim=None,
@@ -184,7 +186,12 @@ def restore_staged(
     # every option checked by the core's table (the binary's checks and messages)
     settings = _core.FileSettings(format=format, bits=bits, quality=quality, preprocess=preprocess,
                                   half_size=half_size, max_side=max_side, max_pixels=max_pixels,
-                                  mask=_mask_label(mask), water_mask=_mask_label(water_mask), **restore_kwargs)
+                                  mask=_mask_label(mask), water_mask=_mask_label(water_mask),
+                                  distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
+                                  water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
+    if settings.dive_water_type is not None:
+        # METHOD §13, a dive learns once: the water of its calibrated photos
+        restore_kwargs = {**restore_kwargs, "water_types": [settings.dive_water_type]}
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     if _claim is None:
         status, sidecar_path, reason, _claim = claim_outputs(out_dir, name, in_path, format, contact,
@@ -196,7 +203,7 @@ def restore_staged(
     try:
         staged = _read_and_restore(in_path, out_dir, claim, settings, format=format, preprocess=preprocess,
                                    half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask,
-                                   water_mask=water_mask, contact=contact, sequence=sequence,
+                                   water_mask=water_mask, distance=distance, contact=contact, sequence=sequence,
                                    restore_kwargs=restore_kwargs, t_start=t_start, base=_base,
                                    label=_label or in_path)
     except BaseException:
@@ -206,7 +213,8 @@ def restore_staged(
 
 
 def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, half_size, max_side, max_pixels, mask,
-                      water_mask, contact, sequence, restore_kwargs, t_start, base, label) -> Callable[[], FileResult]:
+                      water_mask, distance, contact, sequence, restore_kwargs, t_start, base, label
+                      ) -> Callable[[], FileResult]:
     """The body of :func:`restore_staged` once the names are claimed."""
     paths = output_paths(out_dir, claim.name, format, contact)
     budget = settings.max_memory
@@ -232,11 +240,20 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
         image = _core._downscale(image, s)
         m = _shrink_mask(m, s, "all")
         wm = _shrink_mask(wm, s, "half")
+    # METHOD §13: a template names the input's map (the binary's reader); one
+    # that cannot be read leaves the photo restored without it, flagged
+    z, z_source, z_missing = None, None, None
+    if isinstance(distance, (str, os.PathLike)):
+        z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), int(budget))
+    elif distance is not None:
+        z, z_source = distance, "array"
+    if z is not None and sequence is not None:
+        raise ParameterError("distance fits each photo's water: it does not go with a sequence")
     t_read = time.perf_counter()
     if sequence is not None:
         res = sequence.restore(image, mask=m, water_mask=wm)
     else:
-        res = uwhl_rs.restore(image, mask=m, water_mask=wm, **restore_kwargs)
+        res = uwhl_rs.restore(image, mask=m, water_mask=wm, distance=z, **restore_kwargs)
     t_restore = time.perf_counter()
 
     def write() -> FileResult:
@@ -256,7 +273,8 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
             # the binary's writing half: encodes, metadata, sidecar, commit (src/files/pipeline.rs)
             text = _core.write_input_outputs(claim, res, display_linear(res.image, meta), source, settings, in_path,
                                              label, sheet, reused, t_read - t_start, t_restore - t_read, t_sheet,
-                                             time.perf_counter() - t_start)
+                                             time.perf_counter() - t_start, distance_source=z_source,
+                                             distance_missing=z_missing)
         finally:
             # committed: nothing left to release; failed: the temporaries go
             claim.release()

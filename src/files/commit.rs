@@ -148,15 +148,7 @@ const MAX_SIDECAR: u64 = 16 << 20;
 /// SHA-256 of the input file (`metadata.input_sha256`). None if it cannot
 /// be read: a regular file only (a FIFO at its name is never waited on).
 fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String>)> {
-    use std::os::unix::fs::OpenOptionsExt;
-    let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK).open(path).ok()?;
-    let m = f.metadata().ok()?;
-    if !m.is_file() || m.len() > MAX_SIDECAR {
-        return None;
-    }
-    let mut text = Vec::new();
-    f.take(MAX_SIDECAR).read_to_end(&mut text).ok()?;
-    let v = parse_sidecar(&text)?;
+    let v = read_sidecar(path)?;
     let input = PathBuf::from(v.get("input")?.as_str()?);
     let resolved = v.get("input_resolved").and_then(|r| r.as_str()).map(PathBuf::from).filter(|p| p.is_absolute());
     let hash = v
@@ -165,6 +157,21 @@ fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String
         .filter(|h| h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()))
         .map(str::to_ascii_lowercase);
     Some((input, resolved, hash))
+}
+
+/// A sidecar's JSON read from `path`: a regular file of at most 16 MiB
+/// (a FIFO at its name is never waited on), None otherwise or when it is
+/// not JSON.
+pub(crate) fn read_sidecar(path: &Path) -> Option<serde_json::Value> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK).open(path).ok()?;
+    let m = f.metadata().ok()?;
+    if !m.is_file() || m.len() > MAX_SIDECAR {
+        return None;
+    }
+    let mut text = Vec::new();
+    f.take(MAX_SIDECAR).read_to_end(&mut text).ok()?;
+    parse_sidecar(&text)
 }
 
 /// A sidecar's JSON. Python's `json` writes a name that is not UTF-8 with

@@ -224,6 +224,16 @@ zero = ignore it (e.g. a color chart)",
     Spec { key: "water_mask", flag: "--water-mask", short: None, metavar: "PATH", kind: Kind::Path,
         default: Default::None, help: "image of the input's size: nonzero = water region VL (replaces detection)",
         group: Group::Input, faces: Faces::Both, method: false },
+    Spec { key: "distance", flag: "--distance", short: None, metavar: "TEMPLATE", kind: Kind::Path,
+        default: Default::None, help: "each input's distance map, e.g. 'depth/{stem}.tif' ({stem}: the input's \
+name without its extension, {name}: with it): .npy or float TIFF in metres, 16-bit PNG or TIFF in millimetres, \
+NaN or 0 = unknown, any size of the input's aspect; the water is fitted from it (METHOD §13); a photo without a \
+readable map is restored without and flagged distance_missing",
+        group: Group::Input, faces: Faces::Both, method: false },
+    Spec { key: "water_from", flag: "--water-from", short: None, metavar: "DIR", kind: Kind::Path,
+        default: Default::None, help: "restore with the water fitted on the photos of DIR that had a distance \
+(their sidecars' median attenuation ratios; each photo keeps its own veiling light); not with --water-type",
+        group: Group::Method, faces: Faces::Both, method: false },
     // method
     Spec { key: "water_types", flag: "--water-type", short: None, metavar: "TYPES", kind: Kind::WaterTypes,
         default: Default::None, help: JERLOV_HELP, group: Group::Method, faces: Faces::Both, method: true },

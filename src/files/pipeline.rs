@@ -162,6 +162,8 @@ pub struct Restored {
     pub t_read: f64,
     /// seconds spent in `restore`
     pub t_restore: f64,
+    /// the sidecar's `distance` of a `--distance` run (METHOD §13)
+    pub distance: Option<Value>,
 }
 
 #[cfg(any(test, feature = "internals"))]
@@ -179,7 +181,7 @@ pub fn decode_and_restore<R: BufRead + Seek>(
     masks: &Masks,
     seq: Option<&mut Sequence>,
 ) -> Result<Restored, Failure> {
-    decode_and_restore_gated(reader, opts, masks, seq, None)
+    decode_and_restore_gated(reader, opts, masks, seq, None, None)
 }
 
 /// [`decode_and_restore`], with the memory check waiting at `gate` when given.
@@ -189,6 +191,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     masks: &Masks,
     seq: Option<&mut Sequence>,
     room: Room<'_>,
+    distance: Option<&crate::files::depth::DistanceMap>,
 ) -> Result<Restored, Failure> {
     let t0 = Instant::now();
     let reference = opts.preprocess == Preprocess::Reference;
@@ -230,9 +233,10 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         water_mask: water.as_deref(),
     };
     let t1 = Instant::now();
-    let res = match seq {
-        Some(seq) => seq.restore(&input)?,
-        None => restore(&input, &opts.method_params())?,
+    let res = match (seq, distance) {
+        (Some(seq), _) => seq.restore(&input)?,
+        (None, Some(d)) => crate::restore_at_distance(&input, &d.data, d.height, d.width, &opts.method_params())?,
+        (None, None) => restore(&input, &opts.method_params())?,
     };
     let t_restore = t1.elapsed().as_secs_f64();
     let source = Source {
@@ -256,6 +260,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         source,
         t_read,
         t_restore,
+        distance: None,
     })
 }
 
@@ -375,7 +380,32 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
         ));
     }
     let file = open_input(&job.input)?;
-    let restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, room)?;
+    // METHOD §13: the input's distance map; one that cannot be read leaves
+    // the photo to be restored without it, flagged
+    let given = opts.distance.as_deref().map(|t| {
+        let path = crate::files::depth::expand(t, &job.input);
+        let map = crate::files::depth::read_distance(&path, opts.max_pixels, opts.params.max_memory)
+            .map_err(|f| format!("{}: {}", path.display(), f.message));
+        (path, map)
+    });
+    let (map, missing) = match &given {
+        Some((_, Ok(m))) => (Some(m), None),
+        Some((_, Err(why))) => (None, Some(why.clone())),
+        None => (None, None),
+    };
+    let mut restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, room, map)?;
+    if let Some((path, _)) = &given {
+        let record = restored.res.distance.as_ref().map(|d| crate::files::sidecar::distance_record(d, None));
+        restored.distance = crate::files::sidecar::distance_entry(record, &path.to_string_lossy(), missing.as_deref());
+        if let (Some(m), Some(Value::Object(o))) = (map, restored.distance.as_mut()) {
+            if m.out_of_range > 0 {
+                o.insert("out_of_range".into(), Value::from(m.out_of_range));
+            }
+        }
+        if missing.is_some() {
+            restored.res.flags.push(Flag::DistanceMissing);
+        }
+    }
     Ok(Prepared::Restored(Box::new((restored, claimed, t0))))
 }
 
@@ -387,6 +417,7 @@ fn finish(job: &Job, (restored, claimed, t0): (Restored, Claim, Instant), opts: 
         source,
         t_read,
         t_restore,
+        distance,
     } = restored;
     let label = job.input.to_string_lossy();
     let parameters = crate::files::sidecar::parameters(opts);
@@ -397,7 +428,7 @@ fn finish(job: &Job, (restored, claimed, t0): (Restored, Claim, Instant), opts: 
             input: &job.input,
             implementation: "rust",
             source: &source,
-            estimates: Estimates::of(&res),
+            estimates: Estimates { distance: distance.or_else(|| Estimates::of(&res).distance), ..Estimates::of(&res) },
             image: &res.image,
             transmission: &res.transmission,
             confidence: res.confidence.as_deref(),

@@ -7,7 +7,7 @@ use crate::error::{Failure, Kind};
 use crate::files::options::Value as Val;
 use crate::method::params::Params;
 use crate::method::water::{jerlov_types, WaterType};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The encoded format of the restored image (`--format`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -103,6 +103,11 @@ pub struct Settings {
     pub mask: Option<PathBuf>,
     /// `--water-mask PATH`: a given water region (nonzero = water)
     pub water_mask: Option<PathBuf>,
+    /// `--distance TEMPLATE`: each input's distance map (METHOD §13;
+    /// `crate::files::depth::expand`)
+    pub distance: Option<String>,
+    /// `--water-from DIR`: the water fitted on a folder's calibrated photos
+    pub water_from: Option<crate::files::dive::DiveWater>,
     /// `--max-side`
     pub max_side: Option<usize>,
     /// `--preprocess`
@@ -137,6 +142,8 @@ impl Default for Settings {
             veiling_light: None,
             mask: None,
             water_mask: None,
+            distance: None,
+            water_from: None,
             max_side: None,
             preprocess: Preprocess::None,
             linear: false,
@@ -168,9 +175,10 @@ impl Settings {
     /// global pool once, `cli::init_threads`).
     pub fn method_params(&self) -> Params {
         Params {
-            water_types: match &self.water_types {
-                None => jerlov_types(),
-                Some(list) => list.iter().map(|c| c.water_type.clone()).collect(),
+            water_types: match (&self.water_from, &self.water_types) {
+                (Some(d), _) => vec![d.water_type.clone()],
+                (None, None) => jerlov_types(),
+                (None, Some(list)) => list.iter().map(|c| c.water_type.clone()).collect(),
             },
             threads: None,
             ..self.params.clone()
@@ -206,6 +214,8 @@ impl Settings {
             "max_pixels" => self.max_pixels = int(&v)?,
             "mask" => self.mask = Some(text(v)?.into()),
             "water_mask" => self.water_mask = Some(text(v)?.into()),
+            "distance" => self.distance = Some(text(v)?),
+            "water_from" => self.water_from = Some(crate::files::dive::water_from(Path::new(&text(v)?))?),
             "water_types" => water_types(self.water_types.get_or_insert_with(Vec::new), &text(v)?)?,
             "reuse_estimates" => self.reuse_estimates = Some(usize_of(&v)?),
             "reuse_water_mask" => self.reuse_water_mask = true,

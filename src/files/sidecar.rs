@@ -84,6 +84,8 @@ pub struct Estimates<'a> {
     pub guided_subsample: usize,
     /// the share of object pixels whose estimated veil exceeds the light (METHOD §12.5)
     pub veil_excess: Option<f64>,
+    /// what became of a given distance map (METHOD §13; [`distance_record`])
+    pub distance: Option<Value>,
 }
 
 impl<'a> Estimates<'a> {
@@ -100,8 +102,54 @@ impl<'a> Estimates<'a> {
             guided_radius: res.guided_radius,
             guided_subsample: res.guided_subsample,
             veil_excess: res.veil_excess,
+            distance: res.distance.as_ref().map(|d| distance_record(d, None)),
         }
     }
+}
+
+/// The sidecar's `distance` of a file input: the restoration's record
+/// with its `source` (the map's path), or, when `--distance` named no
+/// readable map (`missing`: why), a record saying so (both commands).
+pub fn distance_entry(record: Option<Value>, source: &str, missing: Option<&str>) -> Option<Value> {
+    match (record, missing) {
+        (_, Some(why)) => Some(json!({
+            "source": source, "coverage": 0.0, "used": false, "rejected": why, "water": null, "light_path": null,
+        })),
+        (Some(mut r), None) => {
+            if let Some(o) = r.as_object_mut() {
+                o.insert("source".into(), json!(source));
+            }
+            Some(r)
+        }
+        (None, None) => None,
+    }
+}
+
+/// The sidecar's `distance` (docs/OUTPUTS.md "Distance"): where the map
+/// came from (`source`: a path, or "array"), the share of pixels with a
+/// known distance, whether it was used and why not, the fitted water
+/// (attenuation per channel in 1/m, the veiling light, the nearest Jerlov
+/// type and how far from it, the fit's residual and pixels) and the
+/// light path whose tint the display removed (metres of the same water).
+pub fn distance_record(d: &crate::DistanceUse, source: Option<&str>) -> Value {
+    let water = d.fit.as_ref().map(|f| {
+        json!({
+            "beta": f.beta.map(f64::from),
+            "veiling_light": f.veiling_light.map(f64::from),
+            "nearest_type": d.nearest.as_ref().map(|n| n.0.clone()),
+            "type_distance": d.nearest.as_ref().map(|n| f64::from(n.1)),
+            "residual": f64::from(f.residual),
+            "pixels": f.pixels,
+        })
+    });
+    json!({
+        "source": source,
+        "coverage": f64::from(d.coverage),
+        "used": d.rejected.is_none(),
+        "rejected": d.rejected,
+        "water": water,
+        "light_path": d.light_path.map(f64::from),
+    })
 }
 
 /// Seconds spent per phase.
@@ -167,6 +215,12 @@ pub fn parameters(o: &Settings) -> Value {
     if let Value::Object(f) = files {
         p.extend(f);
     }
+    if let Some(d) = &o.distance {
+        p.insert("distance".into(), json!(d));
+    }
+    if let Some(d) = &o.water_from {
+        p.insert("water_from".into(), d.record());
+    }
     Value::Object(p)
 }
 
@@ -228,7 +282,7 @@ pub fn sidecar(
         secs.insert("contact_sheet".into(), json!(sheet));
     }
     secs.insert("total".into(), json!(seconds.total));
-    json!({
+    let mut side = json!({
         "input": input,
         "outputs": names,
         "uwhl_version": env!("CARGO_PKG_VERSION"),
@@ -263,5 +317,9 @@ pub fn sidecar(
         "beta_ratios": [est.water_type.beta_br, est.water_type.beta_bg],
         "parameters": parameters,
         "seconds": secs,
-    })
+    });
+    if let (Some(d), Some(obj)) = (&est.distance, side.as_object_mut()) {
+        obj.insert("distance".into(), d.clone());
+    }
+    side
 }

@@ -239,7 +239,7 @@ impl Summary {
         let skipped = row.get("status").and_then(Value::as_str) == Some("skipped");
         if skipped && row.get("water_type").is_none_or(Value::is_null) {
             if let Some(sidecar) = row.get("sidecar").and_then(Value::as_str).map(std::path::PathBuf::from) {
-                if let Some(side) = read_sidecar(&sidecar) {
+                if let Some(side) = crate::files::commit::read_sidecar(&sidecar) {
                     let dir = sidecar.parent().map(Path::to_path_buf).unwrap_or_default();
                     for (k, v) in fields_from_sidecar(&side, &dir) {
                         if row.get(&k).is_none_or(Value::is_null) {
@@ -275,7 +275,7 @@ impl Summary {
     /// An input not restored: its sidecar (read for the fields when it is
     /// there) and why.
     pub fn skipped(&mut self, input: &Path, sidecar: &Path, note: &str) {
-        let side = read_sidecar(sidecar);
+        let side = crate::files::commit::read_sidecar(sidecar);
         let dir = sidecar.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut row = side.map(|s| fields_from_sidecar(&s, &dir)).unwrap_or_default();
         row.insert("input".into(), Value::String(input.to_string_lossy().into_owned()));
@@ -343,25 +343,6 @@ fn spread_scores(scores: &serde_json::Map<String, Value>, row: &mut serde_json::
     if !other.is_empty() {
         row.insert("other_scores".into(), Value::String(Value::Object(other).to_string()));
     }
-}
-
-/// The largest sidecar read for a row (they are a few kilobytes).
-const MAX_SIDECAR: u64 = 16 << 20;
-
-/// A skipped input's sidecar, for its row: a regular file only (a FIFO
-/// planted at its name is never waited on), of a sane size, parsed; None
-/// otherwise (the row then has no fields from it).
-fn read_sidecar(path: &Path) -> Option<Value> {
-    use std::io::Read;
-    use std::os::unix::fs::OpenOptionsExt;
-    let f = std::fs::OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK).open(path).ok()?;
-    let m = f.metadata().ok()?;
-    if !m.is_file() || m.len() > MAX_SIDECAR {
-        return None;
-    }
-    let mut bytes = Vec::new();
-    f.take(MAX_SIDECAR).read_to_end(&mut bytes).ok()?;
-    crate::files::commit::parse_sidecar(&bytes)
 }
 
 fn path_text(p: &Path) -> String {
@@ -541,7 +522,7 @@ mod tests {
         let d = folder("fifo");
         let fifo = d.join("a.json");
         assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
-        assert!(read_sidecar(&fifo).is_none());
+        assert!(crate::files::commit::read_sidecar(&fifo).is_none());
         std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -167,11 +167,17 @@ pub enum Flag {
     /// the estimated veil exceeds the observed light at more than 30% of the
     /// object pixels: the colours are not to be trusted (METHOD §12.5)
     Unreliable,
+    /// a distance map was given but not used: too little of it known, no
+    /// fit, or a fit that does not explain the photo (METHOD §13)
+    DistanceRejected,
+    /// `--distance` named no readable map for this photo: it was restored
+    /// without one (docs/OUTPUTS.md "Distance")
+    DistanceMissing,
 }
 
 impl Flag {
     /// Every flag.
-    pub const ALL: [Flag; 7] = [
+    pub const ALL: [Flag; 9] = [
         Flag::NoWaterRegion,
         Flag::VeilingFallback,
         Flag::VeilingLightClamped,
@@ -179,6 +185,8 @@ impl Flag {
         Flag::MattingSkipped,
         Flag::EstimatesReused,
         Flag::Unreliable,
+        Flag::DistanceRejected,
+        Flag::DistanceMissing,
     ];
 
     /// The stable name (sidecar, Python `Restoration.flags`).
@@ -191,6 +199,8 @@ impl Flag {
             Flag::MattingSkipped => "matting_skipped",
             Flag::EstimatesReused => "estimates_reused",
             Flag::Unreliable => "unreliable",
+            Flag::DistanceRejected => "distance_rejected",
+            Flag::DistanceMissing => "distance_missing",
         }
     }
 }
@@ -379,6 +389,9 @@ pub struct Restoration {
     /// the share of object pixels where the estimated veil exceeds the
     /// observed light (METHOD §12.5); None when the fallback is `none`
     pub veil_excess: Option<f64>,
+    /// with a known distance ([`crate::restore_at_distance`]): what became
+    /// of it and the water fitted from it (METHOD §13); None without
+    pub distance: Option<crate::method::pipeline::given::DistanceUse>,
     /// the guided-filter radius used
     pub guided_radius: usize,
     /// the guided-filter subsampling factor used at full resolution (1: exact)

@@ -94,6 +94,13 @@ impl PyFileSettings {
     fn max_memory(&self) -> u64 {
         self.0.params.max_memory
     }
+
+    /// With `water_from`: the dive's water type `(name, beta_BR, beta_BG)`
+    /// (`crate::files::dive`), the one candidate of every photo; else None.
+    #[getter]
+    fn dive_water_type(&self) -> Option<(String, f64, f64)> {
+        self.0.water_from.as_ref().map(|d| (d.water_type.name.clone(), d.water_type.beta_br, d.water_type.beta_bg))
+    }
 }
 
 /// Decodes a PNG, JPEG or TIFF file with the binary's decoder: returns
@@ -163,6 +170,30 @@ fn decode_mask_file<'py>(
     Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
 }
 
+/// An input's distance map for `--distance TEMPLATE` (the binary's reader,
+/// `crate::files::depth`): `(path, map or None, why not or None)`. A map
+/// that cannot be read is not an error: the photo is restored without it
+/// and flagged `distance_missing`.
+#[pyfunction]
+#[pyo3(signature = (template, input, max_pixels, max_memory))]
+fn read_distance_for<'py>(
+    py: Python<'py>,
+    template: &str,
+    input: PathBuf,
+    max_pixels: u64,
+    max_memory: u64,
+) -> PyResult<(String, Option<Bound<'py, PyAny>>, Option<String>)> {
+    let path = crate::files::depth::expand(template, &input);
+    let shown = path.to_string_lossy().into_owned();
+    match py.detach(|| crate::files::depth::read_distance(&path, max_pixels, max_memory)) {
+        Ok(m) => Ok((shown, Some(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any()), None)),
+        Err(f) => {
+            let why = format!("{shown}: {}", f.message);
+            Ok((shown, None, Some(why)))
+        }
+    }
+}
+
 /// The sidecar's `source` from the Python reader's fields (`ImageMeta`
 /// plus the restored size): the keys of `crate::files::sidecar::Source`.
 fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
@@ -200,7 +231,7 @@ fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
 /// seconds spent reading, restoring, drawing the sheet and in all so far.
 /// The claim is used up; on failure its temporaries are removed.
 #[pyfunction]
-#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed))]
+#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None))]
 #[allow(clippy::too_many_arguments)]
 fn write_input_outputs(
     py: Python<'_>,
@@ -217,8 +248,15 @@ fn write_input_outputs(
     restore: f64,
     sheet_seconds: Option<f64>,
     elapsed: f64,
+    distance_source: Option<String>,
+    distance_missing: Option<String>,
 ) -> PyResult<String> {
     let source = source_of(source)?;
+    let record = res.distance_json.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
+    let distance = match &distance_source {
+        Some(src) => crate::files::sidecar::distance_entry(record, src, distance_missing.as_deref()),
+        None => record,
+    };
     let (h, w) = res.shape;
     if (source.processed_height, source.processed_width) != (h, w) || image.shape() != [h, w, 3] {
         return Err(PyRuntimeError::new_err("the image, the restoration and the source disagree on the size"));
@@ -251,10 +289,16 @@ fn write_input_outputs(
         veiling_light: [res.veiling_light.0, res.veiling_light.1, res.veiling_light.2],
         vl_pixels: water.iter().filter(|&&b| b).count(),
         pixels: h.saturating_mul(w),
-        flags: res.flags.iter().map(String::as_str).collect(),
+        flags: res
+            .flags
+            .iter()
+            .map(String::as_str)
+            .chain(distance_missing.as_ref().map(|_| crate::Flag::DistanceMissing.name()))
+            .collect(),
         guided_radius: res.guided_radius,
         guided_subsample: res.guided_subsample,
         veil_excess: res.veil_excess,
+        distance,
     };
     let sheet = contact_sheet.as_ref().map(|b| b.as_bytes().to_vec());
     let claimed = claim
@@ -297,6 +341,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFileSettings>()?;
     m.add_function(wrap_pyfunction!(decode_file, m)?)?;
     m.add_function(wrap_pyfunction!(decode_mask_file, m)?)?;
+    m.add_function(wrap_pyfunction!(read_distance_for, m)?)?;
     m.add_function(wrap_pyfunction!(write_input_outputs, m)?)?;
     Ok(())
 }

@@ -86,6 +86,9 @@ pub struct PyRestoration {
     pub(crate) confidence: Option<Py<PyAny>>,
     #[pyo3(get)]
     pub(crate) veil_excess: Option<f64>,
+    /// the sidecar's `distance` record as JSON text (METHOD §13), None
+    /// without a distance
+    pub(crate) distance_json: Option<String>,
     #[pyo3(get)]
     guided_radius: usize,
     #[pyo3(get)]
@@ -98,6 +101,32 @@ pub struct PyRestoration {
 
 #[pymethods]
 impl PyRestoration {
+    /// With a distance (METHOD §13): what became of it, as a dict (the
+    /// sidecar's `distance`: `coverage`, `used`, `rejected`, `water` with
+    /// `beta` (1/m per channel), `veiling_light`, `nearest_type`,
+    /// `type_distance`, `residual`, `pixels`, and `calibration`); None
+    /// without a distance.
+    #[getter]
+    fn distance<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        match &self.distance_json {
+            Some(t) => Ok(Some(py.import("json")?.call_method1("loads", (t.as_str(),))?)),
+            None => Ok(None),
+        }
+    }
+
+    /// The water fitted from a given distance (the `water` of
+    /// [`distance`](Self::distance)), None without a distance or when no fit was made.
+    #[getter]
+    fn water<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        match self.distance(py)? {
+            Some(d) => {
+                let w = d.get_item("water")?;
+                Ok((!w.is_none()).then_some(w))
+            }
+            None => Ok(None),
+        }
+    }
+
     /// Per-channel transmissions (t_R, t_G, t_B) of the chosen type as an
     /// HxWx3 float32 array (METHOD §7).
     fn channel_transmissions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
@@ -555,29 +584,43 @@ fn image_data<'a>(image: &'a PyReadonlyArray3<'a, f32>) -> PyResult<(&'a [f32], 
 /// Native entry point behind `uwhl_rs.restore` (which checks dtypes and
 /// converts float64 to float32 first). Releases the GIL while it works.
 #[pyfunction]
-#[pyo3(signature = (image, params, *, water_mask=None, mask=None))]
+#[pyo3(signature = (image, params, *, water_mask=None, mask=None, distance=None))]
 fn restore_f32(
     py: Python<'_>,
     image: PyReadonlyArray3<'_, f32>,
     params: &PyParams,
     water_mask: Option<PyReadonlyArray2<'_, bool>>,
     mask: Option<PyReadonlyArray2<'_, bool>>,
+    distance: Option<PyReadonlyArray2<'_, f32>>,
 ) -> PyResult<PyRestoration> {
     let (data, h, w) = image_data(&image)?;
     let params = &params.0;
     let wm = mask_slice("water_mask", &water_mask, h, w)?;
     let mk = mask_slice("mask", &mask, h, w)?;
+    let z = match &distance {
+        Some(d) => {
+            let shape = d.shape();
+            let (zh, zw) = (shape[0], shape[1]);
+            let zs = match d.as_slice() {
+                Ok(s) => s.to_vec(),
+                Err(_) => d.as_array().iter().copied().collect::<Vec<f32>>(),
+            };
+            Some((zs, zh, zw))
+        }
+        None => None,
+    };
     let res = py
         .detach(|| {
             let img = ImageRef::new(data, h, w)?;
-            restore(
-                &Input {
-                    image: img,
-                    mask: mk,
-                    water_mask: wm,
-                },
-                params,
-            )
+            let input = Input {
+                image: img,
+                mask: mk,
+                water_mask: wm,
+            };
+            match &z {
+                Some((z, zh, zw)) => crate::restore_at_distance(&input, z, *zh, *zw, params),
+                None => restore(&input, params),
+            }
         })
         .map_err(to_py_err)?;
     to_py(py, res)
@@ -629,6 +672,10 @@ fn to_py(py: Python<'_>, res: Restoration) -> PyResult<PyRestoration> {
             None => None,
         },
         veil_excess: res.veil_excess,
+        distance_json: res
+            .distance
+            .as_ref()
+            .map(|d| crate::files::sidecar::distance_record(d, Some("array")).to_string()),
         guided_radius: res.guided_radius,
         guided_subsample: res.guided_subsample,
         timings: timings.unbind(),

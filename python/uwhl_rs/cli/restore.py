@@ -40,6 +40,15 @@ def _check(a: argparse.Namespace, options: dict) -> None:
             _core.Params(water_types=options["water_types"])
         except UwhlError as e:
             raise _bad(f"--water-type: {e}") from None
+    if a.water_from is not None:
+        if a.water_types:
+            raise _bad("--water-from gives the water type: it does not go with --water-type")
+        try:
+            _core.FileSettings(water_from=a.water_from)
+        except UwhlError as e:
+            raise _bad(str(e)) from None
+    if a.distance is not None and a.reuse_estimates is not None:
+        raise _bad("--distance fits each photo's water: it does not go with --reuse-estimates")
     for flag, path in (("--mask", a.mask), ("--water-mask", a.water_mask)):
         if path is not None and not os.path.isfile(path):
             # a FIFO or a device would block or never end: it is not opened

@@ -13,6 +13,7 @@
 
 mod evaluate;
 pub(crate) mod fast;
+pub(crate) mod given;
 pub(crate) mod work;
 
 use crate::error::{Error, Result};
@@ -150,6 +151,7 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
         veiling_mask: vl,
         flags,
         veil_excess: out.trust.as_ref().map(|t| t.veil_excess),
+        distance: None,
         confidence: out.trust.map(|t| t.confidence),
         guided_radius: radius,
         guided_subsample: params.subsample_at(radius),

@@ -1,0 +1,366 @@
+//! Distance maps read from files (`--distance`, docs/OUTPUTS.md
+//! "Distance"): NumPy `.npy` arrays and TIFF floats in metres, 16-bit PNG
+//! and 16-bit TIFF in millimetres. Unknown distance (NaN, infinite, zero,
+//! negative, or beyond [`MAX_DISTANCE`]) is NaN in the map; the method
+//! treats it as a hole (METHOD §13).
+
+use std::fs::File;
+use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+
+use crate::error::{Failure, Kind};
+
+/// Distances beyond this many metres are unknown: no underwater photo sees
+/// that far (at 1000 m even the clearest ocean's blue transmission is
+/// below e^-20), so such a value is a sentinel or a unit error.
+pub const MAX_DISTANCE: f32 = 1000.0;
+
+/// Longest `.npy` header read (NumPy writes 64 to a few hundred bytes).
+const MAX_NPY_HEADER: usize = 1 << 16;
+
+/// A distance map as read: metres, NaN where unknown.
+#[derive(Debug, Clone)]
+pub struct DistanceMap {
+    /// row-major metres, NaN = unknown
+    pub data: Vec<f32>,
+    /// rows
+    pub height: usize,
+    /// columns
+    pub width: usize,
+    /// how many values were out of range (unknown from then on)
+    pub out_of_range: usize,
+}
+
+/// The path of an input's distance map from a `--distance` template:
+/// `{stem}` is the input's file name without its extension, `{name}` the
+/// whole file name; a template without either names one map for every input.
+pub fn expand(template: &str, input: &Path) -> PathBuf {
+    let name = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = input.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    PathBuf::from(template.replace("{stem}", &stem).replace("{name}", &name))
+}
+
+/// Reads a distance map (regular files only; the size is checked from the
+/// header against `max_pixels` and `max_memory` before anything large is
+/// allocated).
+pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<DistanceMap, Failure> {
+    crate::files::jobs::regular_file(path).map_err(|m| Failure::new(Kind::Input, m))?;
+    let f = File::open(path).map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))?;
+    let mut r = BufReader::new(f);
+    let mut magic = [0u8; 8];
+    let got = read_up_to(&mut r, &mut magic)?;
+    r.seek(SeekFrom::Start(0)).map_err(io)?;
+    let check = |h: u64, w: u64, bytes_per: u64| -> Result<(), Failure> {
+        let n = h.saturating_mul(w);
+        if h == 0 || w == 0 {
+            return Err(Failure::new(Kind::Input, "the distance map has no pixels"));
+        }
+        if n > max_pixels {
+            return Err(Failure::new(Kind::Budget, format!("the distance map is {w}x{h} pixels, over --max-pixels {max_pixels}")));
+        }
+        // the decoded samples and the metres
+        let need = n.saturating_mul(bytes_per.saturating_add(4));
+        if need > max_memory {
+            return Err(Failure::new(Kind::Budget, format!("the distance map of {w}x{h} pixels needs about {need} bytes, over --max-memory {max_memory}")));
+        }
+        Ok(())
+    };
+    let (values, h, w) = match &magic[..got] {
+        [0x93, b'N', b'U', b'M', b'P', b'Y', ..] => read_npy(&mut r, check)?,
+        [0x89, b'P', b'N', b'G', ..] => read_png(r, check)?,
+        [b'I', b'I', 42, 0, ..] | [b'M', b'M', 0, 42, ..] => read_tiff(r, check, max_memory)?,
+        _ => {
+            return Err(Failure::new(
+                Kind::Input,
+                "not a distance map: expected a .npy array (metres), a 16-bit PNG (millimetres) or a TIFF (float metres or 16-bit millimetres)",
+            ))
+        }
+    };
+    let mut out_of_range = 0;
+    let data = values
+        .into_iter()
+        .map(|v| {
+            if v.is_finite() && v > MAX_DISTANCE {
+                out_of_range += 1;
+            }
+            if v.is_finite() && v > 0.0 && v <= MAX_DISTANCE {
+                v
+            } else {
+                f32::NAN
+            }
+        })
+        .collect();
+    Ok(DistanceMap { data, height: h, width: w, out_of_range })
+}
+
+fn io(e: std::io::Error) -> Failure {
+    Failure::new(Kind::Input, format!("cannot read the distance map: {e}"))
+}
+
+fn read_up_to<R: Read>(r: &mut R, buf: &mut [u8]) -> Result<usize, Failure> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(buf.get_mut(n..).unwrap_or(&mut [])) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) => return Err(io(e)),
+        }
+    }
+    Ok(n)
+}
+
+/// A `.npy` file (format versions 1-3): a 2-D array, or (H, W, 1), of
+/// little- or big-endian float32/float64 (metres) or uint16 (millimetres).
+fn read_npy<R: Read>(r: &mut R, check: impl Fn(u64, u64, u64) -> Result<(), Failure>) -> Result<(Vec<f32>, usize, usize), Failure> {
+    let bad = |m: &str| Failure::new(Kind::Input, format!("a .npy file {m}"));
+    let mut pre = [0u8; 8];
+    if read_up_to(r, &mut pre)? < 8 {
+        return Err(bad("ends inside its header"));
+    }
+    let len = match pre[6] {
+        1 => {
+            let mut b = [0u8; 2];
+            if read_up_to(r, &mut b)? < 2 {
+                return Err(bad("ends inside its header"));
+            }
+            usize::from(u16::from_le_bytes(b))
+        }
+        2 | 3 => {
+            let mut b = [0u8; 4];
+            if read_up_to(r, &mut b)? < 4 {
+                return Err(bad("ends inside its header"));
+            }
+            u32::from_le_bytes(b) as usize
+        }
+        v => return Err(bad(&format!("of format version {v}: not read (versions 1 to 3 are)"))),
+    };
+    if len > MAX_NPY_HEADER {
+        return Err(bad(&format!("with a header of {len} bytes: over the {MAX_NPY_HEADER} read")));
+    }
+    let mut head = vec![0u8; len];
+    if read_up_to(r, &mut head)? < len {
+        return Err(bad("ends inside its header"));
+    }
+    let text = String::from_utf8_lossy(&head);
+    let field = |key: &str| -> Option<String> {
+        let at = text.find(&format!("'{key}'"))?;
+        let rest = text.get(at + key.len() + 2..)?;
+        let rest = rest.trim_start().strip_prefix(':')?.trim_start();
+        if let Some(inner) = rest.strip_prefix('(') {
+            return inner.find(')').and_then(|e| inner.get(..e)).map(str::to_string);
+        }
+        if let Some(inner) = rest.strip_prefix('\'') {
+            return inner.find('\'').and_then(|e| inner.get(..e)).map(str::to_string);
+        }
+        let end = rest.find([',', '}']).unwrap_or(rest.len());
+        rest.get(..end).map(|s| s.trim().to_string())
+    };
+    let descr = field("descr").ok_or_else(|| bad("without a 'descr' in its header"))?;
+    if field("fortran_order").as_deref() != Some("False") {
+        return Err(bad("in Fortran order: not read (save it with numpy.ascontiguousarray)"));
+    }
+    let shape: Vec<u64> = field("shape")
+        .ok_or_else(|| bad("without a 'shape' in its header"))?
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.trim_end_matches('L').parse::<u64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| bad("with an unreadable 'shape'"))?;
+    let (h, w) = match shape.as_slice() {
+        [h, w] | [h, w, 1] => (*h, *w),
+        other => return Err(bad(&format!("of shape {other:?}: a distance map is 2-D (H, W)"))),
+    };
+    let (size, mm) = match descr.get(1..) {
+        Some("f4") => (4, false),
+        Some("f8") => (8, false),
+        Some("u2") => (2, true),
+        _ => return Err(bad(&format!("of dtype '{descr}': float32 or float64 metres, or uint16 millimetres, are read"))),
+    };
+    let big = descr.starts_with('>');
+    if !(descr.starts_with('<') || big || descr.starts_with('|') || descr.starts_with('=')) {
+        return Err(bad(&format!("of dtype '{descr}'")));
+    }
+    check(h, w, size as u64)?;
+    let n = (h * w) as usize;
+    let mut raw = vec![0u8; n * size];
+    if read_up_to(r, &mut raw)? < raw.len() {
+        return Err(bad(&format!("ends before its {w}x{h} values do")));
+    }
+    let vals: Vec<f32> = match size {
+        4 => raw
+            .chunks_exact(4)
+            .map(|c| {
+                let b = [c[0], c[1], c[2], c[3]];
+                if big { f32::from_be_bytes(b) } else { f32::from_le_bytes(b) }
+            })
+            .collect(),
+        8 => raw
+            .chunks_exact(8)
+            .map(|c| {
+                let b = [c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]];
+                (if big { f64::from_be_bytes(b) } else { f64::from_le_bytes(b) }) as f32
+            })
+            .collect(),
+        _ => raw
+            .chunks_exact(2)
+            .map(|c| {
+                let b = [c[0], c[1]];
+                let v = if big { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) };
+                if mm { f32::from(v) / 1000.0 } else { f32::from(v) }
+            })
+            .collect(),
+    };
+    Ok((vals, h as usize, w as usize))
+}
+
+/// A 16-bit grayscale PNG in millimetres (0 = unknown).
+fn read_png<R: std::io::BufRead + Seek>(r: R, check: impl Fn(u64, u64, u64) -> Result<(), Failure>) -> Result<(Vec<f32>, usize, usize), Failure> {
+    let dec = png::Decoder::new(r);
+    let bad = |m: String| Failure::new(Kind::Input, format!("a PNG distance map {m}"));
+    let mut reader = dec.read_info().map_err(|e| bad(format!("cannot be read: {e}")))?;
+    let info = reader.info();
+    let (w, h) = (u64::from(info.width), u64::from(info.height));
+    if info.bit_depth != png::BitDepth::Sixteen || info.color_type != png::ColorType::Grayscale {
+        return Err(bad(format!(
+            "is {:?} at {} bits: write 16-bit grayscale in millimetres (8 bits cannot hold a distance)",
+            info.color_type, info.bit_depth as u8
+        )));
+    }
+    check(h, w, 2)?;
+    let mut buf = vec![0u8; reader.output_buffer_size().unwrap_or(0)];
+    let frame = reader.next_frame(&mut buf).map_err(|e| bad(format!("cannot be decoded: {e}")))?;
+    let bytes = buf.get(..frame.buffer_size()).unwrap_or(&[]);
+    let vals = bytes.chunks_exact(2).map(|c| f32::from(u16::from_be_bytes([c[0], c[1]])) / 1000.0).collect();
+    Ok((vals, h as usize, w as usize))
+}
+
+/// A single-channel TIFF: float32/float64 metres, or 16-bit millimetres.
+fn read_tiff<R: Read + Seek>(r: R, check: impl Fn(u64, u64, u64) -> Result<(), Failure>, max_memory: u64) -> Result<(Vec<f32>, usize, usize), Failure> {
+    use tiff::decoder::{Decoder, DecodingResult, Limits};
+    let bad = |m: String| Failure::new(Kind::Input, format!("a TIFF distance map {m}"));
+    let mut limits = Limits::default();
+    limits.decoding_buffer_size = usize::try_from(max_memory).unwrap_or(usize::MAX);
+    let mut d = Decoder::new(r).map_err(|e| bad(format!("cannot be read: {e}")))?.with_limits(limits);
+    let (w, h) = d.dimensions().map_err(|e| bad(format!("cannot be read: {e}")))?;
+    let ct = d.colortype().map_err(|e| bad(format!("cannot be read: {e}")))?;
+    let bits = match ct {
+        tiff::ColorType::Gray(b) => b,
+        other => return Err(bad(format!("is {other:?}: a distance map has one channel"))),
+    };
+    check(u64::from(h), u64::from(w), u64::from(bits.max(8)) / 8)?;
+    let data = d.read_image().map_err(|e| bad(format!("cannot be decoded: {e}")))?;
+    let vals: Vec<f32> = match data {
+        DecodingResult::F32(v) => v,
+        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
+        DecodingResult::U16(v) => v.into_iter().map(|x| f32::from(x) / 1000.0).collect(),
+        _ => return Err(bad(format!("of {bits}-bit samples: float32/float64 metres or 16-bit millimetres are read"))),
+    };
+    if vals.len() != (h as usize).saturating_mul(w as usize) {
+        return Err(bad("holds fewer values than its size says".into()));
+    }
+    Ok((vals, h as usize, w as usize))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    fn tmp(name: &str, bytes: &[u8]) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("uwhl-depth-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join(name);
+        File::create(&p).unwrap().write_all(bytes).unwrap();
+        p
+    }
+
+    fn npy(descr: &str, shape: &str, body: &[u8]) -> Vec<u8> {
+        let mut head = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+        while (10 + head.len() + 1) % 64 != 0 {
+            head.push(' ');
+        }
+        head.push('\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend_from_slice(&(head.len() as u16).to_le_bytes());
+        out.extend_from_slice(head.as_bytes());
+        out.extend_from_slice(body);
+        out
+    }
+
+    #[test]
+    fn npy_float32_metres_with_unknowns() {
+        let vals = [1.5f32, f32::NAN, -2.0, 0.0, 2500.0, 7.25];
+        let body: Vec<u8> = vals.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let p = tmp("a.npy", &npy("<f4", "(2, 3)", &body));
+        let m = read_distance(&p, 1 << 20, 1 << 30).unwrap();
+        assert_eq!((m.height, m.width, m.out_of_range), (2, 3, 1));
+        assert_eq!(m.data[0], 1.5);
+        assert_eq!(m.data[5], 7.25);
+        assert!(m.data[1..5].iter().all(|v| v.is_nan()));
+    }
+
+    #[test]
+    fn npy_uint16_is_millimetres_and_big_endian_float64_is_read() {
+        let body: Vec<u8> = [1500u16, 0].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let m = read_distance(&tmp("mm.npy", &npy("<u2", "(1, 2, 1)", &body)), 1 << 20, 1 << 30).unwrap();
+        assert_eq!(m.data[0], 1.5);
+        assert!(m.data[1].is_nan());
+        let body: Vec<u8> = [3.0f64, 4.0].iter().flat_map(|v| v.to_be_bytes()).collect();
+        let m = read_distance(&tmp("be.npy", &npy(">f8", "(2, 1)", &body)), 1 << 20, 1 << 30).unwrap();
+        assert_eq!(m.data, vec![3.0, 4.0]);
+    }
+
+    #[test]
+    fn hostile_npy_files_get_clear_errors() {
+        let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+            ("short.npy", npy("<f4", "(100, 100)", &[0; 12]), "ends before"),
+            ("rgb.npy", npy("<f4", "(2, 2, 3)", &[0; 48]), "2-D"),
+            ("int.npy", npy("<i8", "(1, 1)", &[0; 8]), "dtype"),
+            ("huge.npy", npy("<f4", "(100000, 100000)", &[]), "max-pixels"),
+            ("cut.npy", b"\x93NUMPY\x01\x00\xff\xff{'descr'".to_vec(), "ends inside"),
+            ("v9.npy", b"\x93NUMPY\x09\x00\x00\x00".to_vec(), "version 9"),
+            ("text.npy", b"hello world".to_vec(), "not a distance map"),
+        ];
+        for (name, bytes, want) in cases {
+            let e = read_distance(&tmp(name, &bytes), 1 << 20, 1 << 30).unwrap_err();
+            assert!(e.message.contains(want), "{name}: {}", e.message);
+        }
+        let fortran = npy("<f4", "(1, 1)", &[0; 4]);
+        let text = String::from_utf8_lossy(&fortran).replace("False", "True ");
+        let e = read_distance(&tmp("f.npy", text.as_bytes()), 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("Fortran"), "{}", e.message);
+    }
+
+    #[test]
+    fn sixteen_bit_png_is_millimetres_and_eight_bit_is_refused() {
+        let mut buf = Vec::new();
+        {
+            let mut e = png::Encoder::new(&mut buf, 2, 1);
+            e.set_color(png::ColorType::Grayscale);
+            e.set_depth(png::BitDepth::Sixteen);
+            let mut w = e.write_header().unwrap();
+            w.write_image_data(&[0x0b, 0xb8, 0, 0]).unwrap();
+        }
+        let m = read_distance(&tmp("d.png", &buf), 1 << 20, 1 << 30).unwrap();
+        assert_eq!(m.data[0], 3.0);
+        assert!(m.data[1].is_nan());
+        let mut buf = Vec::new();
+        {
+            let mut e = png::Encoder::new(&mut buf, 1, 1);
+            e.set_color(png::ColorType::Grayscale);
+            let mut w = e.write_header().unwrap();
+            w.write_image_data(&[7]).unwrap();
+        }
+        let e = read_distance(&tmp("d8.png", &buf), 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("16-bit"), "{}", e.message);
+    }
+
+    #[test]
+    fn the_template_names_each_inputs_map() {
+        let p = expand("depth/{stem}_d.tif", Path::new("/x/dive 01.JPG"));
+        assert_eq!(p, PathBuf::from("depth/dive 01_d.tif"));
+        assert_eq!(expand("maps/{name}.npy", Path::new("a.b.png")), PathBuf::from("maps/a.b.png.npy"));
+        assert_eq!(expand("one.npy", Path::new("a.png")), PathBuf::from("one.npy"));
+    }
+}

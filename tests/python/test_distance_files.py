@@ -1,0 +1,153 @@
+"""``--distance TEMPLATE`` in both commands (docs/OUTPUTS.md "Distance"):
+each input's map is found by its name, read in every documented format,
+recorded in the sidecar; a photo whose map is missing, unreadable or of
+another photo's shape is restored without it and flagged, never failed."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from uwhl_rs import synth
+
+tifffile = pytest.importorskip("tifffile")
+
+H, W = 90, 120
+
+
+@pytest.fixture(scope="module")
+def dive(tmp_path_factory):
+    """Two photos of a seabed and their true distance, with a hole of
+    known size in the map (the top 30 rows: 1/3 of the pixels unknown)."""
+    d = tmp_path_factory.mktemp("dive")
+    sc = synth.scene(H, W, kind="looking_down", seed=3)
+    z = np.where(np.isfinite(sc.distance), sc.distance, np.nan).astype(np.float32)
+    z[:30] = np.nan
+    for k in (1, 2):
+        img = synth.render(sc.clean, sc.distance, "3C", beta_b=0.3, noise=0.004, seed=k)
+        tifffile.imwrite(d / f"p{k}.tif", np.ascontiguousarray(img, np.float32), photometric="rgb")
+    (d / "depth").mkdir()
+    np.save(d / "depth" / "p1.npy", z)
+    mm = np.where(np.isfinite(z), np.round(z * 1000), 0).astype(np.uint16)
+    Image.fromarray(mm).save(d / "depth" / "p2.png")
+    tifffile.imwrite(d / "depth" / "p1.tif", z)
+    return d, z
+
+
+def _cmds(binary):
+    return {"python": [sys.executable, "-m", "uwhl_rs"], "rust": [binary]}
+
+
+def _run(cmd, *args):
+    return subprocess.run([*cmd, "restore", *map(str, args), "-q"], capture_output=True, text=True, timeout=300)
+
+
+def _side(out, name):
+    return json.loads((out / f"{name}.json").read_text())
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_each_photo_gets_its_own_map_by_name(impl, binary, dive, tmp_path):
+    d, z = dive
+    out = tmp_path / impl
+    r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", out, "--distance", d / "depth" / "{stem}.npy")
+    assert r.returncode == 0, r.stderr
+    side = _side(out, "p1")
+    rec = side["distance"]
+    assert rec["source"] == str(d / "depth" / "p1.npy")
+    # 30 of 90 rows unknown: 2/3 of the pixels known
+    assert abs(rec["coverage"] - 2 / 3) < 1e-6
+    assert side["parameters"]["distance"] == str(d / "depth" / "{stem}.npy")
+    assert "distance_missing" not in side["flags"]
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+@pytest.mark.parametrize("template", ["{stem}.png", "p1.tif"])
+def test_millimetre_png_and_float_tiff_give_the_same_coverage(impl, binary, dive, tmp_path, template):
+    d, z = dive
+    src = d / ("p2.tif" if template.endswith(".png") else "p1.tif")
+    out = tmp_path / impl
+    r = _run(_cmds(binary)[impl], src, "-o", out, "--distance", d / "depth" / template)
+    assert r.returncode == 0, r.stderr
+    assert abs(_side(out, src.stem)["distance"]["coverage"] - 2 / 3) < 1e-6
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_a_missing_or_unreadable_map_restores_the_photo_without_it_and_flags_it(impl, binary, dive, tmp_path):
+    d, _ = dive
+    out = tmp_path / impl
+    bad = tmp_path / "maps"
+    bad.mkdir()
+    Image.fromarray(np.full((H, W), 7, np.uint8)).save(bad / "p2.png")  # 8 bits cannot hold a distance
+    r = _run(_cmds(binary)[impl], d / "p1.tif", d / "p2.tif", "-o", out, "--distance", bad / "{stem}.png")
+    assert r.returncode == 0, r.stderr
+    for name, why in (("p1", "no such file"), ("p2", "16-bit")):
+        side = _side(out, name)
+        assert "distance_missing" in side["flags"], side["flags"]
+        assert side["distance"]["used"] is False and why in side["distance"]["rejected"], side["distance"]
+        assert (out / f"{name}.jpg").exists()
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_a_map_of_another_shape_is_rejected_not_stretched(impl, binary, dive, tmp_path):
+    d, z = dive
+    np.save(tmp_path / "wide.npy", np.ones((H, 2 * W), np.float32))
+    out = tmp_path / impl
+    r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", out, "--distance", tmp_path / "wide.npy")
+    assert r.returncode == 0, r.stderr
+    side = _side(out, "p1")
+    assert "distance_rejected" in side["flags"]
+    assert "aspect ratio" in side["distance"]["rejected"]
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_distance_does_not_go_with_reuse_estimates(impl, binary, dive, tmp_path):
+    d, _ = dive
+    r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", tmp_path / impl, "--distance", "x.npy", "--reuse-estimates", "2")
+    assert r.returncode == 2 and "--reuse-estimates" in r.stderr, r.stderr
+    assert not (tmp_path / impl / "p1.json").exists()
+
+
+def _nearest(br, bg):
+    """The Jerlov type nearest to the ratios in log space (METHOD §13)."""
+    return min(synth.JERLOV, key=lambda t: np.log(br / synth.JERLOV[t][0]) ** 2 + np.log(bg / synth.JERLOV[t][1]) ** 2)
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_water_from_takes_the_median_of_the_calibrated_photos(impl, binary, dive, tmp_path):
+    """Three calibrated sidecars (hand-made), one not used and one hostile:
+    every photo of the run gets the median ratios as its one water type."""
+    d, _ = dive
+    cal = tmp_path / "calibrated"
+    cal.mkdir()
+    fits = [(0.50, 0.12, 0.06), (0.40, 0.10, 0.05), (0.66, 0.13, 0.06)]
+    for k, b in enumerate(fits):
+        (cal / f"c{k}.json").write_text(json.dumps({"distance": {"used": True, "water": {"beta": b}}}))
+    (cal / "x.json").write_text(json.dumps({"distance": {"used": False, "water": {"beta": [9, 9, 0.01]}}}))
+    (cal / "y.json").write_text("{" * 100000)
+    out = tmp_path / impl
+    r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", out, "--water-from", cal)
+    assert r.returncode == 0, r.stderr
+    side = _side(out, "p1")
+    br = float(np.median([b[2] / b[0] for b in fits]))
+    bg = float(np.median([b[2] / b[1] for b in fits]))
+    assert side["beta_ratios"] == pytest.approx([br, bg], rel=1e-9)
+    assert side["water_type"] == _nearest(br, bg)
+    assert list(side["scores"]) == [side["water_type"]]
+    rec = side["parameters"]["water_from"]
+    assert rec["photos"] == 3 and rec["folder"] == str(cal)
+    assert rec["ratio_range"][0] == pytest.approx([0.06 / 0.66, 0.125], rel=1e-9)
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_water_from_a_folder_without_fits_is_a_usage_error(impl, binary, dive, tmp_path):
+    d, _ = dive
+    (tmp_path / "empty").mkdir()
+    for args in (["--water-from", tmp_path / "empty"], ["--water-from", tmp_path / "nope"],
+                 ["--water-from", d, "--water-type", "3C"]):
+        r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", tmp_path / impl, *args)
+        assert r.returncode == 2 and "--water-from" in r.stderr, (args, r.stderr)
+    assert not (tmp_path / impl / "p1.json").exists()
