@@ -232,7 +232,7 @@ readable map is restored without and flagged distance_missing",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "water_from", flag: "--water-from", short: None, metavar: "DIR", kind: Kind::Path,
         default: Default::None, help: "restore with the water fitted on the photos of DIR that had a distance \
-(their sidecars' median attenuation ratios; each photo keeps its own veiling light); not with --water-type",
+(their sidecars' median attenuation ratios; each photo keeps its own veiling light); not with a water type given",
         group: Group::Method, faces: Faces::Both, method: false },
     // method
     Spec { key: "water_types", flag: "--water-type", short: None, metavar: "TYPES", kind: Kind::WaterTypes,
