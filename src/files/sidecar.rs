@@ -139,6 +139,7 @@ pub fn distance_record(d: &crate::DistanceUse, source: Option<&str>) -> Value {
             "nearest_type": d.nearest.as_ref().map(|n| n.0.clone()),
             "type_distance": d.nearest.as_ref().map(|n| f64::from(n.1)),
             "residual": f64::from(f.residual),
+            "optical_depth": f64::from(f.optical_depth),
             "pixels": f.pixels,
         })
     });

@@ -15,7 +15,6 @@ use crate::method::distance::{fit_water, nearest_type, WaterFit};
 use crate::method::fallback::trust;
 use crate::method::params::{Flag, Input, Params, Restoration, Stage};
 use crate::method::profile::Fallback;
-use crate::method::recover::ArtifactClamp;
 use crate::method::veiling::estimate;
 use crate::method::water::WaterType;
 
@@ -180,26 +179,27 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
                 }
             }
         });
-    // §7's artifact clamp, over the masked-in pixels' channels
+    // J below 0 (noise over a far, dark pixel) is clipped; no artifact
+    // clamp of §7: its shift by min J adds gray to every pixel, and with the
+    // distance known there is no haze-line artifact to hide (METHOD §13.3)
+    radiance.par_iter_mut().for_each(|v| *v = v.max(0.0));
     let inside = |i: usize| input.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false));
-    let (lo, hi) = radiance
-        .chunks(3)
-        .enumerate()
-        .filter(|(i, _)| inside(*i))
-        .flat_map(|(_, v)| v.iter().copied())
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
-    let clamp = ArtifactClamp::new(lo, hi);
-    radiance.par_iter_mut().for_each(|v| *v = clamp.apply(*v));
     // §13.4: the tint of light that crossed the same water, then exposure
     let objects = |i: usize| inside(i) && known(z.get(i).copied().unwrap_or(f32::NAN)) && !veil.vl.get(i).copied().unwrap_or(false);
     let d = light_path(&radiance, &objects, fit.beta);
     let gains: [f32; 3] = std::array::from_fn(|c| (f64::from(fit.beta[c]) * d).exp() as f32);
     let mut image = expose(&radiance, &gains, &inside);
+    // the output radiance is J in [0, 1] (METHOD §10)
+    radiance.par_iter_mut().for_each(|v| *v = v.min(1.0));
     let flags = veil.flags.clone();
+    // METHOD §12.5's confidence and flag, without the blend toward the
+    // input's balance: with the distance known the transmission is not a
+    // guess, and the blend took the held renders' own-colour scenes under
+    // white light from 7.0 to 10.9 degrees (METHOD §13.5)
     let tr = (params.fallback_used() == Fallback::InputBalance).then(|| {
         let vl = &veil.vl;
         let objects = move |i: usize| inside(i) && !vl.get(i).copied().unwrap_or(false);
-        trust(img, &objects, a, &wt, &transmission, &radiance, &mut image, true)
+        trust(img, &objects, a, &wt, &transmission, &radiance, &mut image, false)
     });
     let mut flags = flags;
     if tr.as_ref().is_some_and(|t| t.unreliable()) {
@@ -285,29 +285,24 @@ pub fn light_path(radiance: &[f32], objects: &dyn Fn(usize) -> bool, beta: [f32;
     best.1
 }
 
-/// §12.1 step 2 after the gains: one factor s = 1 / max_c(g_c pct(J_c, 0.99))
-/// over the masked-in pixels, then clipping to [0, 1].
+/// Exposure after the gains: one factor s = 1 / pct(max_c g_c J_c, 0.99)
+/// over the masked-in pixels, then clipping to [0, 1] (METHOD §13.4).
 fn expose(radiance: &[f32], gains: &[f32; 3], inside: &dyn Fn(usize) -> bool) -> Vec<f32> {
-    let mut top = 0f32;
-    for c in 0..3 {
-        let mut v: Vec<f32> = radiance
-            .chunks_exact(3)
-            .enumerate()
-            .filter(|(i, _)| inside(*i))
-            .filter_map(|(_, px)| px.get(c).map(|x| x * gains.get(c).copied().unwrap_or(1.0)))
-            .collect();
-        if v.is_empty() {
-            continue;
-        }
-        let k = ((v.len() - 1) as f64 * 0.99).round() as usize;
-        let (_, q, _) = v.select_nth_unstable_by(k, f32::total_cmp);
-        top = top.max(*q);
-    }
-    let s = if top > 0.0 { 1.0 / top } else { 1.0 };
-    radiance
+    let g = |px: &[f32], c: usize| px.get(c).copied().unwrap_or(0.0) * gains.get(c).copied().unwrap_or(1.0);
+    let mut tops: Vec<f32> = radiance
         .chunks_exact(3)
-        .flat_map(|px| (0..3).map(move |c| (px.get(c).copied().unwrap_or(0.0) * gains.get(c).copied().unwrap_or(1.0) * s).clamp(0.0, 1.0)))
-        .collect()
+        .enumerate()
+        .filter(|(i, _)| inside(*i))
+        .map(|(_, px)| g(px, 0).max(g(px, 1)).max(g(px, 2)))
+        .collect();
+    let top = if tops.is_empty() {
+        0.0
+    } else {
+        let k = ((tops.len() - 1) as f64 * 0.99).round() as usize;
+        *tops.select_nth_unstable_by(k, f32::total_cmp).1
+    };
+    let s = if top > 0.0 { 1.0 / top } else { 1.0 };
+    radiance.chunks_exact(3).flat_map(|px| (0..3).map(move |c| (g(px, c) * s).clamp(0.0, 1.0))).collect()
 }
 
 #[cfg(test)]
