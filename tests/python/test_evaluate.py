@@ -167,7 +167,9 @@ def test_end_to_end_on_a_rendered_scene(tmp_path):
     assert doc["parameters"]["profiles"]["paper"]["white_balance"] == "stretch"
     for img in doc["images"]:
         methods = {row["method"] for row in img["charts"]}
-        assert methods == {"input", "stretch", "grayworld", "revised", "paper"} | {f"type:{t}" for t in types}
+        # the scenes have distance maps: the method told the distance too (METHOD §13)
+        assert methods == {"input", "stretch", "grayworld", "revised", "paper", "revised+distance"} | \
+            {f"type:{t}" for t in types}
         for m in ("revised", "paper"):
             assert img["rho"][m]["rho_B"] > 0.5  # -ln t_B grows with the rendered distance
             assert img["profiles"][m]["truth"]["true"] == img["water_type_truth"]["true"] in types
@@ -213,7 +215,7 @@ def test_results_csv_joins_to_the_manifest_by_path(tmp_path):
         joined = [row for row in by_path[entry["path"]] if row["label"] == f"images[{k}] ({entry['path']})"]
         # one row per method and baseline on the entry's one chart
         assert {row["method"] for row in joined} == {"input", "stretch", "grayworld", "revised", "paper",
-                                                     "type:3C", "type:II"}, (k, joined)
+                                                     "revised+distance", "type:3C", "type:II"}, (k, joined)
         assert all(row["true_water_type"] == entry["water_type"] and row["chart"] == "chart 1" for row in joined)
     # the twice-listed image: two entries under one path, told apart by label
     assert {row["label"] for row in by_path["a.png"]} == {"images[0] (a.png)", "images[3] (a.png)"}

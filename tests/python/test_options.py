@@ -20,8 +20,8 @@ TABLE = {o["key"]: o for o in _core.OPTIONS}
 def test_restore_and_sequence_take_the_tables_method_keywords_with_its_defaults():
     params = inspect.signature(uwhl_rs.restore).parameters
     method = {k for k, o in TABLE.items() if o["method"]}
-    # the per-call arrays are not options
-    assert set(params) - {"image", "mask", "water_mask"} == method
+    # the per-call arrays (and a fitted water) are not options
+    assert set(params) - {"image", "mask", "water_mask", "distance", "water"} == method
     for k in method:
         assert params[k].default == TABLE[k]["default"], k
     # Sequence takes the same keywords (an unknown one is refused)
