@@ -11,7 +11,7 @@
 //! | reference stretch | `12 n` in + `12 n` out + `4 n` one channel's percentile copy |
 //! | downscale | `12 n` + `12 m` |
 //! | restore | `12 m` input + `params::memory_estimate(h, w, k)` |
-//! | write | `12 m` input + the restoration (`29 m`) + the three outputs' codes and encoded files, encoded at once (`16 m`) + the photo's metadata carried (`18 m`: three copies of its encoding; `b n`: the input file read again, `crate::files::metadata`) |
+//! | write | `12 m` input + the restoration (`33 m`) + the four outputs' codes and encoded files, encoded at once (`22 m`) + the photo's metadata carried (`18 m`: three copies of its encoding; `b n`: the input file read again, `crate::files::metadata`) + the allocator's slack (`8 m`) |
 //!
 //! plus `n` bytes per mask given (`--mask`, `--water-mask`; read once per run)
 //! and `2 m` for their downscaled copies. The plan is the largest phase.
@@ -31,10 +31,17 @@ use crate::method::params::memory_estimate;
 
 /// Bytes per processed pixel an input holds while its outputs are written:
 /// the restoration (33: the image and the radiance, t_B, the confidence
-/// map, the water mask), the four outputs' codes and encoded files (18),
+/// map, the water mask), the four outputs' codes and encoded files, all
+/// four encoded at once (22: 6, 4, 6 and 4, and PNG's slack),
 /// and carrying the metadata ([`METADATA_PER_PIXEL`], with the input file
-/// read again: at most 6 bytes a pixel for an uncompressed 16-bit file).
-pub const HELD_WHILE_WRITING: u64 = 33 + 18 + METADATA_PER_PIXEL + 6;
+/// read again: at most 6 bytes a pixel for an uncompressed 16-bit file),
+/// and [`ALLOCATOR_SLACK`].
+pub const HELD_WHILE_WRITING: u64 = 33 + 22 + METADATA_PER_PIXEL + 6 + ALLOCATOR_SLACK;
+
+/// Bytes per pixel that the allocator keeps resident after the encoders
+/// free their buffers (glibc returns them to the system late): counted so
+/// that the next input of a stream does not start beside them too early.
+pub const ALLOCATOR_SLACK: u64 = 8;
 
 /// Bytes per processed pixel of carrying the metadata into the corrected
 /// photo (`crate::files::metadata::carry`): the encoded photo and up to two copies

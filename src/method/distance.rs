@@ -1,6 +1,5 @@
-//! Distance given (docs/METHOD.md "§13 Distance given"; draft in
-//! docs/METHOD_13_draft.md): the water fitted from a photo and its distance
-//! map, and the nearest Jerlov type to it.
+//! Distance given (docs/METHOD.md §13): the water fitted from a photo and
+//! its distance map, and the nearest Jerlov type to it.
 //!
 //! With the distance z known, the model of METHOD §0 per channel is
 //! I_c = A_c + (J_c - A_c) e^(-beta_c z). Where the radiance J is locally
@@ -488,34 +487,6 @@ pub fn nearest_type(beta: [f32; 3]) -> (&'static str, f32) {
     (best.0, best.1 as f32)
 }
 
-/// A per-photo affine calibration of the haze-line transmission to the known
-/// distance (METHOD §13): the least-squares (s, o) of
-/// beta_B z = s (-ln t_B) + o over the pixels with a known distance and
-/// t_B in (0, 1]. Where the distance is unknown, t_B' = e^-(s (-ln t_B) + o).
-/// Returns (1, 0) when fewer than two such pixels or no spread of -ln t_B.
-pub fn calibrate(t_b: &[f32], distance: &[f32], beta_b: f32) -> (f32, f32) {
-    let (mut n, mut sx, mut sy, mut sxx, mut sxy) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
-    for (&t, &z) in t_b.iter().zip(distance.iter()) {
-        if !(known(z) && t > 0.0 && t <= 1.0) {
-            continue;
-        }
-        let x = -(t as f64).ln();
-        let y = beta_b as f64 * z as f64;
-        n += 1.0;
-        sx += x;
-        sy += y;
-        sxx += x * x;
-        sxy += x * y;
-    }
-    let var = sxx - sx * sx / n.max(1.0);
-    if n < 2.0 || var <= 1e-12 * n {
-        return (1.0, 0.0);
-    }
-    let s = (sxy - sx * sy / n) / var;
-    let o = (sy - s * sx) / n;
-    (s as f32, o as f32)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -712,19 +683,4 @@ mod tests {
         assert!((d - (1.2f32.ln() - 1.0f32.ln()).abs()).abs() < 1e-4, "{d}");
     }
 
-    #[test]
-    fn calibrate_by_hand() {
-        // -ln t_B = x = 0.5 z - 0.1, so z = 2 x + 0.2 and with beta_B = 0.2: beta_B z = 0.4 x + 0.04
-        let z: Vec<f32> = (1..=20).map(|v| v as f32).collect();
-        let t: Vec<f32> = z.iter().map(|&zz| (-(0.5 * zz - 0.1)).exp()).collect();
-        let (s, o) = calibrate(&t, &z, 0.2);
-        assert!((s - 0.4).abs() < 1e-4 && (o - 0.04).abs() < 1e-4, "{s} {o}");
-        // unknown distances are left out; nothing known gives the identity
-        let mut z2 = z.clone();
-        z2[3] = f32::NAN;
-        z2[4] = 0.0;
-        let (s2, o2) = calibrate(&t, &z2, 0.2);
-        assert!((s2 - s).abs() < 1e-4 && (o2 - o).abs() < 1e-4);
-        assert_eq!(calibrate(&t, &vec![f32::NAN; 20], 0.2), (1.0, 0.0));
-    }
 }

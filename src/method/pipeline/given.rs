@@ -205,6 +205,9 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
     if tr.as_ref().is_some_and(|t| t.unreliable()) {
         flags.push(Flag::Unreliable);
     }
+    if let Some(t) = &tr {
+        settle_noise(&mut image, &t.confidence, img.height, img.width);
+    }
     timings.push((Stage::ChosenOutputs, t1.elapsed().as_secs_f64()));
     Ok(Restoration {
         height: img.height,
@@ -231,6 +234,37 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
         guided_subsample: 1,
         timings,
     })
+}
+
+/// METHOD §13.4: where the confidence is low (the noise, magnified by
+/// 1/t far away, is of the size of the colour) the displayed chromaticity
+/// is blended toward that of its local mean, so that far pixels show the
+/// surface's colour rather than coloured speckle, while the brightness
+/// keeps every detail: m = c image + (1 - c) box(image), box of radius
+/// max(2, min(H, W) / 80), c the confidence; then m is scaled so that its
+/// channel sum is the image's.
+fn settle_noise(image: &mut [f32], confidence: &[f32], h: usize, w: usize) {
+    if confidence.iter().all(|&c| c >= 1.0) {
+        return;
+    }
+    let r = (h.min(w) / 80).max(2);
+    let means: Vec<Vec<f32>> = (0..3)
+        .map(|c| {
+            let plane: Vec<f32> = image.iter().skip(c).step_by(3).copied().collect();
+            crate::kernels::filters::box_mean(&plane, h, w, r)
+        })
+        .collect();
+    image.par_chunks_exact_mut(3).zip(confidence.par_iter()).enumerate().for_each(|(i, (px, &k))| {
+        let mixed: [f32; 3] = std::array::from_fn(|c| {
+            let m = means.get(c).and_then(|p| p.get(i)).copied().unwrap_or(0.0);
+            k * px.get(c).copied().unwrap_or(0.0) + (1.0 - k) * m
+        });
+        let (sv, sm) = (px.iter().sum::<f32>(), mixed.iter().sum::<f32>());
+        let scale = if sm > 0.0 { sv / sm } else { 0.0 };
+        for (v, m) in px.iter_mut().zip(mixed) {
+            *v = (m * scale).clamp(0.0, 1.0);
+        }
+    });
 }
 
 /// Every 7th pixel in raster order is enough for the casts of the search.
