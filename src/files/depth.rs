@@ -10,10 +10,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Failure, Kind};
 
-/// Distances beyond this many metres are unknown: no underwater photo sees
-/// that far (at 1000 m even the clearest ocean's blue transmission is
-/// below e^-20), so such a value is a sentinel or a unit error.
-pub const MAX_DISTANCE: f32 = 1000.0;
+pub use crate::method::distance::MAX_DISTANCE;
 
 /// Longest `.npy` header read (NumPy writes 64 to a few hundred bytes).
 const MAX_NPY_HEADER: usize = 1 << 16;
@@ -83,7 +80,7 @@ pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<Di
             if v.is_finite() && v > MAX_DISTANCE {
                 out_of_range += 1;
             }
-            if v.is_finite() && v > 0.0 && v <= MAX_DISTANCE {
+            if crate::method::distance::known(v) {
                 v
             } else {
                 f32::NAN

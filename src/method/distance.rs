@@ -30,7 +30,9 @@ pub const MIN_TILE_PIXELS: usize = TILE * TILE / 2;
 /// Fewer usable tiles than this: no fit (`Err`).
 pub const MIN_TILES: usize = 40;
 /// Distances above this (metres) are treated as unknown, as are NaN, inf, 0
-/// and negative values.
+/// and negative values: no underwater photo sees that far (at 1000 m even
+/// the clearest ocean's blue transmission is below e^-20), so such a value
+/// is a sentinel or a unit error.
 pub const MAX_DISTANCE: f32 = 1000.0;
 /// The attenuation grid: `BETA_STEPS` values evenly spaced in ln beta over
 /// [`BETA_MIN`, `BETA_MAX`] (1/m).

@@ -11,7 +11,7 @@ use std::collections::VecDeque;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::method::distance::{fit_water, nearest_type, WaterFit};
+use crate::method::distance::{fit_water, known, nearest_type, WaterFit};
 use crate::method::fallback::trust;
 use crate::method::params::{Flag, Input, Params, Restoration, Stage};
 use crate::method::profile::Fallback;
@@ -73,11 +73,6 @@ pub fn resize_distance(z: &[f32], zh: usize, zw: usize, h: usize, w: usize) -> R
         out.extend(xs.iter().map(|&sx| row.get(sx).copied().unwrap_or(f32::NAN)));
     }
     Ok(out)
-}
-
-/// Whether a distance value is known (METHOD §13.1).
-pub(crate) fn known(z: f32) -> bool {
-    crate::method::distance::known(z)
 }
 
 /// Each unknown distance replaced by that of the nearest known pixel (in
@@ -191,7 +186,6 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
     let mut image = expose(&radiance, &gains, &inside);
     // the output radiance is J in [0, 1] (METHOD §10)
     radiance.par_iter_mut().for_each(|v| *v = v.min(1.0));
-    let flags = veil.flags.clone();
     // METHOD §12.5's confidence and flag, without the blend toward the
     // input's balance: with the distance known the transmission is not a
     // guess, and the blend took the held renders' own-colour scenes under
@@ -201,7 +195,7 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
         let objects = move |i: usize| inside(i) && !vl.get(i).copied().unwrap_or(false);
         trust(img, &objects, a, &wt, &transmission, &radiance, &mut image, false)
     });
-    let mut flags = flags;
+    let mut flags = veil.flags.clone();
     if tr.as_ref().is_some_and(|t| t.unreliable()) {
         flags.push(Flag::Unreliable);
     }
