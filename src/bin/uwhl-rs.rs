@@ -2,8 +2,9 @@
 //! work is in [`uwhl::cli`]; this file reads the process arguments and
 //! exits with the documented code (see `uwhl-rs --help`).
 
-// deny, not forbid: the one exception is the start-up hook below (a
-// `link_section`, which the unsafe_code lint counts), allowed where it is
+// deny, not forbid: the exceptions are the start-up hook below (a
+// `link_section`, which the unsafe_code lint counts) and the allocator's
+// setting, allowed where they are
 #![deny(unsafe_code)]
 #![deny(
     clippy::unwrap_used,
@@ -54,7 +55,29 @@ mod closed_stdout {
     }
 }
 
+/// Makes freed image buffers leave the process at once, so that its
+/// resident size follows what it holds and `--max-memory` can bound it.
+///
+/// glibc serves a large allocation from its own mapping and unmaps it on
+/// free, but after the first such free it raises that threshold (up to
+/// 32 MiB on 64-bit), and later buffers of the same size come from the
+/// heap, whose freed pages can stay resident: a stream of 0.3 MP frames
+/// peaked up to 1 MB over its budget on some runs, depending on which
+/// thread freed first. A fixed threshold of 128 KiB keeps every buffer of
+/// an image on its own mapping; its cost, a page fault per page first
+/// touched, is in docs/PERFORMANCE.md.
+fn release_freed_buffers_promptly() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets a parameter of the allocator, and it runs
+    // first in main, before the process starts another thread.
+    #[allow(unsafe_code)]
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 128 << 10);
+    }
+}
+
 fn main() -> ExitCode {
+    release_freed_buffers_promptly();
     let json_errors = std::env::args_os().any(|a| a == "--json-errors");
     let mut stdout = std::io::stdout().lock();
     let mut stderr = std::io::stderr().lock();
