@@ -35,6 +35,7 @@ from .errors import (
 
 __all__ = [
     "restore",
+    "floor_distance",
     "Sequence",
     "Restoration",
     "WATER_TYPES",
@@ -302,6 +303,38 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
             raise ParameterError(f"distance must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
         z = np.ascontiguousarray(z, dtype=np.float32)
     return _core.restore_f32(img, _method_params(**method), water_mask=wm, mask=m, distance=z)
+
+
+def floor_distance(shape, altitude: float, fov: float, *, pitch: float = 0.0, roll: float = 0.0,
+                   port: str = "flat") -> np.ndarray:
+    """The distance map of a downward camera over a flat seabed (METHOD
+    §13.7), for ``restore(image, distance=...)``.
+
+    Parameters
+    ----------
+    shape : (height, width), or an image whose first two dimensions are used
+    altitude : float
+        Metres from the camera down to the seabed.
+    fov : float
+        The lens's horizontal field of view in air across the photo's
+        width, degrees.
+    pitch, roll : float
+        Degrees from looking straight down: pitch positive nose up (the
+        camera looks towards the photo's top), roll positive starboard down
+        (towards the photo's left).
+    port : "flat" or "dome"
+        The housing's window: a flat one narrows the angle in water
+        (Snell's law), a dome does not.
+
+    Returns
+    -------
+    float32 ndarray (height, width): the range in metres along each pixel's
+    ray, NaN where the ray does not meet the seabed.
+    """
+    hw = tuple(np.shape(shape)[:2]) if isinstance(shape, np.ndarray) else tuple(shape)[:2]
+    if len(hw) != 2:
+        raise ParameterError(f"shape must be (height, width), not {shape!r}")
+    return _core.floor_distance(int(hw[0]), int(hw[1]), float(altitude), float(fov), float(pitch), float(roll), port)
 
 
 def _method_params(**kw) -> _core.Params:

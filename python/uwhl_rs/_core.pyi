@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
@@ -74,6 +74,12 @@ def check_combination(
     preprocess: str,
 ) -> None:
     """The checks of several options at once; ValueError with the usage message."""
+def check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool) -> None:
+    """The checks of the distance options together (one source, no sequence, --fov with --altitude);
+    ValueError with the usage message."""
+def floor_distance(height: int, width: int, altitude: float, fov: float, pitch: float, roll: float,
+                   port: str) -> _F32:
+    """Range in metres along each pixel's ray to a flat seabed (METHOD §13.7); NaN where none."""
 
 # ---- batches: jobs, output names, claims, metadata ----
 
@@ -124,6 +130,9 @@ class FileSettings:
     @property
     def dive_water_type(self) -> Optional[tuple[str, float, float]]:
         """With water_from: the dive's water type (name, beta_BR, beta_BG); else None."""
+    @property
+    def altitude(self) -> Optional[str]:
+        """With altitude: what the sidecar's distance.source says of it; else None."""
 
 def decode_file(
     path: _PathArg, linearize: bool, max_pixels: int, max_memory: int,
@@ -136,11 +145,16 @@ def read_distance_for(
     template: str, input: _PathArg, max_pixels: int, max_memory: int,
 ) -> tuple[str, Optional[_F32], Optional[str]]:
     """An input's distance map for a --distance template: (path, H x W metres or None, why not or None)."""
+def floor_for(
+    settings: FileSettings, input: _PathArg, height: int, width: int, processed_height: int, processed_width: int,
+) -> tuple[str, Optional[_F32], Optional[str], Optional[str]]:
+    """An input's distance from --altitude at the processed size: (source, map or None, why not or None,
+    the sidecar's distance.floor as JSON or None)."""
 def write_input_outputs(
     claim: Claim, res: Restoration, image: _F32, source: dict[str, Any], settings: FileSettings, input: _PathArg,
     label: str, contact_sheet: Optional[bytes], reused: Optional[bool], read: float, restore: float,
     sheet_seconds: Optional[float], elapsed: float, distance_source: Optional[str] = None,
-    distance_missing: Optional[str] = None,
+    distance_missing: Optional[str] = None, distance_floor: Optional[str] = None,
 ) -> str:
     """Writes one input's outputs through its claim (encodes, metadata, sidecar, commit): the sidecar as JSON."""
 

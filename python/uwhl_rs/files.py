@@ -153,6 +153,9 @@ def restore_staged(
     mask=None,
     water_mask=None,
     distance=None,
+    altitude=None,
+    fov=None,
+    port: str = _D["port"],
     water_from=None,
     contact: bool = False,
     sequence=None,
@@ -181,6 +184,8 @@ def restore_staged(
     (``input``, ``source.path``) and in errors, when ``in_path`` is a local
     copy of it."""
     t_start = time.perf_counter()
+    if altitude is not None and distance is not None:
+        raise ParameterError("distance and altitude are two sources of distance: give one")
     in_path = os.fspath(in_path)
     out_dir = os.fspath(out_dir)
     # every option checked by the core's table (the binary's checks and messages)
@@ -188,6 +193,7 @@ def restore_staged(
                                   half_size=half_size, max_side=max_side, max_pixels=max_pixels,
                                   mask=_mask_label(mask), water_mask=_mask_label(water_mask),
                                   distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
+                                  altitude=None if altitude is None else os.fspath(altitude), fov=fov, port=port,
                                   water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
     if settings.dive_water_type is not None:
         # METHOD §13, a dive learns once: the water of its calibrated photos
@@ -242,11 +248,14 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
         wm = _shrink_mask(wm, s, "half")
     # METHOD §13: a template names the input's map (the binary's reader); one
     # that cannot be read leaves the photo restored without it, flagged
-    z, z_source, z_missing = None, None, None
+    z, z_source, z_missing, z_floor = None, None, None, None
     if isinstance(distance, (str, os.PathLike)):
         z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), int(budget))
     elif distance is not None:
         z, z_source = distance, "array"
+    elif settings.altitude is not None:
+        # METHOD §13.7: the camera over a flat seabed, at the processed size
+        z_source, z, z_missing, z_floor = _core.floor_for(settings, in_path, *full_hw, *image.shape[:2])
     if z is not None and sequence is not None:
         raise ParameterError("distance fits each photo's water: it does not go with a sequence")
     t_read = time.perf_counter()
@@ -274,7 +283,7 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
             text = _core.write_input_outputs(claim, res, display_linear(res.image, meta), source, settings, in_path,
                                              label, sheet, reused, t_read - t_start, t_restore - t_read, t_sheet,
                                              time.perf_counter() - t_start, distance_source=z_source,
-                                             distance_missing=z_missing)
+                                             distance_missing=z_missing, distance_floor=z_floor)
         finally:
             # committed: nothing left to release; failed: the temporaries go
             claim.release()

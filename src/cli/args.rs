@@ -244,10 +244,14 @@ where
     if o.water_from.is_some() && o.water_types.is_some() {
         return Err(Failure::usage("--water-from gives the water type: it does not go with --water-type"));
     }
-    if o.distance.is_some() && o.reuse_estimates.is_some() {
-        // a sequence reuses one water for its frames; a distance map fits each photo's own
-        return Err(Failure::usage("--distance fits each photo's water: it does not go with --reuse-estimates"));
-    }
+    crate::files::options::check_distance(
+        o.distance.is_some(),
+        o.altitude.is_some(),
+        o.fov.is_some(),
+        o.reuse_estimates.is_some(),
+        crate::files::options::Names::Flags,
+    )
+    .map_err(Failure::usage)?;
     Ok(Command::Run(Box::new(o)))
 }
 

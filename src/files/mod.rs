@@ -14,7 +14,7 @@ pub mod options;
 pub mod color;
 
 #[cfg(any(feature = "cli", feature = "python"))]
-stage_modules! { budget, commit, jobs, settings, decode, depth, dive, encode, pipeline, sidecar, summary }
+stage_modules! { budget, commit, jobs, settings, decode, depth, dive, encode, nav, pipeline, sidecar, summary }
 
 /// The input's metadata carried into the corrected photo, and the
 /// restoration recorded in XMP (both commands).

@@ -230,6 +230,20 @@ name without its extension, {name}: with it): .npy or float TIFF in metres, 16-b
 NaN or 0 = unknown, any size of the input's aspect; the water is fitted from it (METHOD §13); a photo without a \
 readable map is restored without and flagged distance_missing",
         group: Group::Input, faces: Faces::Both, method: false },
+    Spec { key: "altitude", flag: "--altitude", short: None, metavar: "SOURCE", kind: Kind::Path,
+        default: Default::None, help: "distance from the camera's altitude over a flat seabed (METHOD §13.7): metres for \
+every photo, a navigation CSV (columns altitude and file or time, optional pitch and roll in degrees; by time, \
+interpolated between records at most 10 s apart), or xmp (the photo's iFDO field image-meters-above-ground); \
+not with a distance map",
+        group: Group::Input, faces: Faces::Both, method: false },
+    Spec { key: "fov", flag: "--fov", short: None, metavar: "DEG", kind: Kind::Float { gt: 0.0, le: 170.0 },
+        default: Default::None, help: "with --altitude: the lens's horizontal field of view in air across the photo's \
+width, degrees (default: from the EXIF focal length)",
+        group: Group::Input, faces: Faces::Both, method: false },
+    Spec { key: "port", flag: "--port", short: None, metavar: "PORT", kind: Kind::Choice(&["flat", "dome"]),
+        default: Default::Name("flat"), help: "with --altitude: the housing's window; flat: refraction narrows the \
+field of view in water; dome: it does not",
+        group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "water_from", flag: "--water-from", short: None, metavar: "DIR", kind: Kind::Path,
         default: Default::None, help: "restore with the water fitted on the photos of DIR that had a distance \
 (their sidecars' median attenuation ratios; each photo keeps its own veiling light); not with a water type given",
@@ -573,6 +587,25 @@ pub fn check_combination(
             n("preprocess"),
             n("linear")
         ));
+    }
+    Ok(())
+}
+
+/// The checks of the distance options together (METHOD §13), made by both
+/// commands before any input is read: one source of distance, none with
+/// a sequence (it reuses one water for its frames; a distance fits each
+/// photo's own), and the lens options only with `--altitude`.
+pub fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, names: Names) -> Result<(), String> {
+    let n = |key: &str| names.of(key);
+    if distance && altitude {
+        return Err(format!("{} and {} are two sources of distance: give one", n("distance"), n("altitude")));
+    }
+    if (distance || altitude) && reuse_estimates {
+        let by = if distance { n("distance") } else { n("altitude") };
+        return Err(format!("{by} fits each photo's water: it does not go with {}", n("reuse_estimates")));
+    }
+    if fov && !altitude {
+        return Err(format!("{} is the lens of {}: give both", n("fov"), n("altitude")));
     }
     Ok(())
 }

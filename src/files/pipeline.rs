@@ -164,6 +164,21 @@ pub struct Restored {
     pub t_restore: f64,
     /// the sidecar's `distance` of a `--distance` run (METHOD §13)
     pub distance: Option<Value>,
+    /// with `--altitude`: the sidecar's `distance.floor`, or why the photo
+    /// has no distance
+    pub floor: Option<Result<Value, String>>,
+}
+
+/// A distance an input is restored with (METHOD §13).
+#[derive(Clone, Copy)]
+pub enum Given<'a> {
+    /// none
+    None,
+    /// a map read from a file
+    Map(&'a crate::files::depth::DistanceMap),
+    /// a camera over a flat seabed (`--altitude`, METHOD §13.7): the map is
+    /// made at the processed size
+    Floor(&'a crate::files::nav::Camera, crate::method::floor::Port),
 }
 
 #[cfg(any(test, feature = "internals"))]
@@ -181,7 +196,7 @@ pub fn decode_and_restore<R: BufRead + Seek>(
     masks: &Masks,
     seq: Option<&mut Sequence>,
 ) -> Result<Restored, Failure> {
-    decode_and_restore_gated(reader, opts, masks, seq, None, None)
+    decode_and_restore_gated(reader, opts, masks, seq, None, Given::None)
 }
 
 /// [`decode_and_restore`], with the memory check waiting at `gate` when given.
@@ -191,7 +206,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     masks: &Masks,
     seq: Option<&mut Sequence>,
     room: Room<'_>,
-    distance: Option<&crate::files::depth::DistanceMap>,
+    given: Given<'_>,
 ) -> Result<Restored, Failure> {
     let t0 = Instant::now();
     let reference = opts.preprocess == Preprocess::Reference;
@@ -233,6 +248,23 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         water_mask: water.as_deref(),
     };
     let t1 = Instant::now();
+    let mut floor = None;
+    let made;
+    let distance = match given {
+        Given::None => None,
+        Given::Map(d) => Some(d),
+        Given::Floor(camera, port) => match crate::files::nav::floor_map(camera, port, (h, w), (hp, wp)) {
+            Ok((map, record)) => {
+                floor = Some(Ok(record));
+                made = map;
+                Some(&made)
+            }
+            Err(why) => {
+                floor = Some(Err(why));
+                None
+            }
+        },
+    };
     let res = match (seq, distance) {
         (Some(seq), _) => seq.restore(&input)?,
         (None, Some(d)) => crate::restore_at_distance(&input, &d.data, d.height, d.width, &opts.method_params())?,
@@ -261,6 +293,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         t_read,
         t_restore,
         distance: None,
+        floor,
     })
 }
 
@@ -388,12 +421,35 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
             .map_err(|f| format!("{}: {}", path.display(), f.message));
         (path, map)
     });
-    let (map, missing) = match &given {
+    let (map, mut missing) = match &given {
         Some((_, Ok(m))) => (Some(m), None),
         Some((_, Err(why))) => (None, Some(why.clone())),
         None => (None, None),
     };
-    let mut restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, room, map)?;
+    // METHOD §13.7: the camera over a flat seabed; without its pose or lens
+    // the photo is restored without distance, flagged
+    let camera = opts.altitude.as_ref().map(|src| crate::files::nav::camera_for(src, opts.fov, &job.input));
+    let target = match (&camera, map) {
+        (Some(Ok(c)), _) => Given::Floor(c, opts.port),
+        (_, Some(m)) => Given::Map(m),
+        _ => Given::None,
+    };
+    let mut restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, room, target)?;
+    if let Some(src) = &opts.altitude {
+        let floor = match camera {
+            Some(Err(why)) => Err(why),
+            _ => restored.floor.take().unwrap_or_else(|| Err("no camera".into())),
+        };
+        let record = restored.res.distance.as_ref().map(|d| crate::files::sidecar::distance_record(d, None));
+        missing = floor.as_ref().err().cloned();
+        restored.distance = crate::files::sidecar::distance_entry(record, &src.label(), missing.as_deref());
+        if let (Ok(f), Some(Value::Object(o))) = (floor, restored.distance.as_mut()) {
+            o.insert("floor".into(), f);
+        }
+        if missing.is_some() {
+            restored.res.flags.push(Flag::DistanceMissing);
+        }
+    }
     if let Some((path, _)) = &given {
         let record = restored.res.distance.as_ref().map(|d| crate::files::sidecar::distance_record(d, None));
         restored.distance = crate::files::sidecar::distance_entry(record, &path.to_string_lossy(), missing.as_deref());
@@ -418,6 +474,7 @@ fn finish(job: &Job, (restored, claimed, t0): (Restored, Claim, Instant), opts: 
         t_read,
         t_restore,
         distance,
+        ..
     } = restored;
     let label = job.input.to_string_lossy();
     let parameters = crate::files::sidecar::parameters(opts);

@@ -106,6 +106,13 @@ pub struct Settings {
     /// `--distance TEMPLATE`: each input's distance map (METHOD §13;
     /// `crate::files::depth::expand`)
     pub distance: Option<String>,
+    /// `--altitude SOURCE`: distance from the altitude over a flat seabed
+    /// (METHOD §13.7; `crate::files::nav`)
+    pub altitude: Option<crate::files::nav::AltitudeSource>,
+    /// `--fov DEG`: the lens's horizontal field of view in air
+    pub fov: Option<f64>,
+    /// `--port`: the housing's window
+    pub port: crate::method::floor::Port,
     /// `--water-from DIR`: the water fitted on a folder's calibrated photos
     pub water_from: Option<crate::files::dive::DiveWater>,
     /// `--max-side`
@@ -143,6 +150,9 @@ impl Default for Settings {
             mask: None,
             water_mask: None,
             distance: None,
+            altitude: None,
+            fov: None,
+            port: crate::method::floor::Port::Flat,
             water_from: None,
             max_side: None,
             preprocess: Preprocess::None,
@@ -215,6 +225,14 @@ impl Settings {
             "mask" => self.mask = Some(text(v)?.into()),
             "water_mask" => self.water_mask = Some(text(v)?.into()),
             "distance" => self.distance = Some(text(v)?),
+            "altitude" => self.altitude = Some(crate::files::nav::altitude_source(&text(v)?)?),
+            "fov" => {
+                self.fov = Some(match v {
+                    Val::Float(f) => f,
+                    other => return Err(Failure::new(Kind::Internal, format!("{key}: {other:?} is not a number"))),
+                })
+            }
+            "port" => self.port = crate::method::floor::Port::parse(&text(v)?).unwrap_or(crate::method::floor::Port::Flat),
             "water_from" => self.water_from = Some(crate::files::dive::water_from(Path::new(&text(v)?))?),
             "water_types" => water_types(self.water_types.get_or_insert_with(Vec::new), &text(v)?)?,
             "reuse_estimates" => self.reuse_estimates = Some(usize_of(&v)?),

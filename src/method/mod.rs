@@ -17,12 +17,13 @@
 //! | `guided.rs` | guided filter, its fast form, the masked fill (§6) |
 //! | `recover.rs` | recovery, artifact clamp, display stretch (§7, §8) |
 //! | `distance.rs` | the water fitted from a known distance (§13) |
+//! | `floor.rs` | distance from the altitude over a flat seabed (§13.7) |
 //! | `fallback.rs` | confidence, the unreliable flag, the fallback blend (§12.5) |
 //! | `select.rs` | selection sums, scores, exclusion, the choice (§9) |
 //! | `pipeline/` | `restore()`, per-type evaluation, fast selection, buffers |
 //! | `sequence.rs` | estimates reused from frame to frame (§10) |
 
 stage_modules! {
-    distance, fallback, guided, hazelines, image, matting, params, pipeline, profile, recover, select, sequence, sphere, stretch,
+    distance, fallback, floor, guided, hazelines, image, matting, params, pipeline, profile, recover, select, sequence, sphere, stretch,
     veiling, water,
 }

@@ -86,7 +86,21 @@ impl PyFileSettings {
             crate::files::options::Names::Keywords,
         )
         .map_err(ParameterError::new_err)?;
+        crate::files::options::check_distance(
+            s.distance.is_some(),
+            s.altitude.is_some(),
+            s.fov.is_some(),
+            false,
+            crate::files::options::Names::Keywords,
+        )
+        .map_err(ParameterError::new_err)?;
         Ok(Self(s))
+    }
+
+    /// With `altitude`: what the sidecar's `distance.source` says of it; else None.
+    #[getter]
+    fn altitude(&self) -> Option<String> {
+        self.0.altitude.as_ref().map(crate::files::nav::AltitudeSource::label)
     }
 
     /// The memory budget in bytes.
@@ -194,6 +208,44 @@ fn read_distance_for<'py>(
     }
 }
 
+/// An input's distance from `--altitude` (METHOD §13.7, the binary's
+/// `crate::files::nav`): the camera over a flat seabed seen in a photo of
+/// `height` x `width` upright pixels, made at the processed size:
+/// `(source, map or None, why not or None, the sidecar's distance.floor as
+/// JSON or None)`. A photo without a pose or a lens is not an error: it is
+/// restored without distance and flagged `distance_missing`.
+#[pyfunction]
+#[pyo3(signature = (settings, input, height, width, processed_height, processed_width))]
+#[allow(clippy::type_complexity)]
+fn floor_for<'py>(
+    py: Python<'py>,
+    settings: &PyFileSettings,
+    input: PathBuf,
+    height: usize,
+    width: usize,
+    processed_height: usize,
+    processed_width: usize,
+) -> PyResult<(String, Option<Bound<'py, PyAny>>, Option<String>, Option<String>)> {
+    let opts = &settings.0;
+    let Some(src) = opts.altitude.as_ref() else {
+        return Err(PyRuntimeError::new_err("floor_for needs settings with altitude"));
+    };
+    let (fov, port) = (opts.fov, opts.port);
+    let made = py.detach(|| {
+        let camera = crate::files::nav::camera_for(src, fov, &input)?;
+        crate::files::nav::floor_map(&camera, port, (height, width), (processed_height, processed_width))
+    });
+    Ok(match made {
+        Ok((m, record)) => (
+            src.label(),
+            Some(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any()),
+            None,
+            Some(record.to_string()),
+        ),
+        Err(why) => (src.label(), None, Some(why), None),
+    })
+}
+
 /// The sidecar's `source` from the Python reader's fields (`ImageMeta`
 /// plus the restored size): the keys of `crate::files::sidecar::Source`.
 fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
@@ -231,7 +283,7 @@ fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
 /// seconds spent reading, restoring, drawing the sheet and in all so far.
 /// The claim is used up; on failure its temporaries are removed.
 #[pyfunction]
-#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None))]
+#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None, distance_floor=None))]
 #[allow(clippy::too_many_arguments)]
 fn write_input_outputs(
     py: Python<'_>,
@@ -250,13 +302,18 @@ fn write_input_outputs(
     elapsed: f64,
     distance_source: Option<String>,
     distance_missing: Option<String>,
+    distance_floor: Option<String>,
 ) -> PyResult<String> {
     let source = source_of(source)?;
     let record = res.distance_json.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
-    let distance = match &distance_source {
+    let mut distance = match &distance_source {
         Some(src) => crate::files::sidecar::distance_entry(record, src, distance_missing.as_deref()),
         None => record,
     };
+    let floor = distance_floor.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
+    if let (Some(f), Some(serde_json::Value::Object(o))) = (floor, distance.as_mut()) {
+        o.insert("floor".into(), f);
+    }
     let (h, w) = res.shape;
     if (source.processed_height, source.processed_width) != (h, w) || image.shape() != [h, w, 3] {
         return Err(PyRuntimeError::new_err("the image, the restoration and the source disagree on the size"));
@@ -342,6 +399,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(decode_file, m)?)?;
     m.add_function(wrap_pyfunction!(decode_mask_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_for, m)?)?;
+    m.add_function(wrap_pyfunction!(floor_for, m)?)?;
     m.add_function(wrap_pyfunction!(write_input_outputs, m)?)?;
     Ok(())
 }

@@ -392,6 +392,42 @@ fn check_combination(
         .map_err(PyValueError::new_err)
 }
 
+/// The range in metres along each pixel's ray to a flat seabed (METHOD
+/// §13.7, `crate::method::floor::Floor::distances`): float32 (height,
+/// width), NaN where a ray does not meet it; ParameterError for values out
+/// of range.
+#[pyfunction]
+#[pyo3(signature = (height, width, altitude, fov, pitch, roll, port))]
+#[allow(clippy::too_many_arguments)]
+fn floor_distance<'py>(
+    py: Python<'py>,
+    height: usize,
+    width: usize,
+    altitude: f64,
+    fov: f64,
+    pitch: f64,
+    roll: f64,
+    port: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    use crate::method::floor::{Floor, Port};
+    let port = Port::parse(port).ok_or_else(|| ParameterError::new_err(format!("port {port:?} is not flat or dome")))?;
+    let floor = Floor { altitude, fov, pitch, roll, port };
+    floor.check().map_err(ParameterError::new_err)?;
+    if height == 0 || width == 0 || height.saturating_mul(width) > crate::files::options::DEFAULT_MAX_PIXELS as usize {
+        return Err(ParameterError::new_err(format!("shape ({height}, {width}) is empty or over the largest input")));
+    }
+    let z = py.detach(|| floor.distances(height, width));
+    Ok(numpy::PyArray1::from_vec(py, z).reshape([height, width])?.into_any())
+}
+
+/// The checks of the distance options (`crate::files::options::check_distance`);
+/// ValueError with the usage message.
+#[pyfunction]
+fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool) -> PyResult<()> {
+    use crate::files::options::Names;
+    crate::files::options::check_distance(distance, altitude, fov, reuse_estimates, Names::Flags).map_err(PyValueError::new_err)
+}
+
 /// The jobs of a batch (`crate::files::jobs::collect_jobs`, output files `NAME` +
 /// each suffix): `(jobs, problems)`,
 /// jobs as `(input, output folder, name)`, problems as `(input, reason)`.
@@ -826,6 +862,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(parse_option, m)?)?;
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
+    m.add_function(wrap_pyfunction!(check_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(floor_distance, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;

@@ -202,7 +202,7 @@ def file_kwargs(a: argparse.Namespace, water_types) -> dict:
     that restores)."""
     kw = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
               max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
-              distance=a.distance, water_from=a.water_from, contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
+              distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port, water_from=a.water_from, contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
     if a.max_memory is not None:
         kw["max_memory"] = a.max_memory
     return kw

@@ -47,8 +47,17 @@ def _check(a: argparse.Namespace, options: dict) -> None:
             _core.FileSettings(water_from=a.water_from)
         except UwhlError as e:
             raise _bad(str(e)) from None
-    if a.distance is not None and a.reuse_estimates is not None:
-        raise _bad("--distance fits each photo's water: it does not go with --reuse-estimates")
+    try:
+        _core.check_distance(a.distance is not None, a.altitude is not None, a.fov is not None,
+                             a.reuse_estimates is not None)
+    except ValueError as e:
+        raise _bad(str(e)) from None
+    if a.altitude is not None:
+        # a navigation log read and checked once, before any input (its line and column named)
+        try:
+            _core.FileSettings(altitude=a.altitude)
+        except UwhlError as e:
+            raise _bad(str(e)) from None
     for flag, path in (("--mask", a.mask), ("--water-mask", a.water_mask)):
         if path is not None and not os.path.isfile(path):
             # a FIFO or a device would block or never end: it is not opened

@@ -1,0 +1,647 @@
+//! `--altitude`: where each photo's camera was over a flat seabed (METHOD
+//! §13.7, docs/OUTPUTS.md "Distance"). The altitude comes from a number
+//! (every photo), from a navigation log (CSV, by file name or by time), or
+//! from the photo's own XMP (the iFDO field `image-meters-above-ground`);
+//! the field of view from `--fov` or the photo's EXIF lens fields.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde_json::{json, Value};
+
+use crate::error::Failure;
+use crate::method::floor::{Floor, Port};
+
+/// Largest navigation log read, in bytes.
+const MAX_LOG_BYTES: u64 = 256 << 20;
+
+/// Longest field of a log shown in a message, in characters.
+const SHOWN: usize = 40;
+
+/// A photo between two log records further apart than this (seconds) is
+/// not interpolated: a gap in the log.
+pub const MAX_GAP: f64 = 10.0;
+
+/// A photo this near (seconds) to a record at the log's end, or by a gap,
+/// takes that record.
+pub const NEAREST: f64 = 1.0;
+
+/// Half the diagonal of a 35 mm frame (36 x 24 mm), mm: the reference of
+/// EXIF's FocalLengthIn35mmFormat.
+const HALF_DIAGONAL_35MM: f64 = 21.633_307_652_783_937;
+
+/// Where a camera was: metres above the seabed and its tilt in degrees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    /// metres above the seabed
+    pub altitude: f64,
+    /// degrees, positive nose up
+    pub pitch: f64,
+    /// degrees, positive starboard down
+    pub roll: f64,
+}
+
+/// A navigation log: the rows by file name and by time.
+#[derive(Debug, Clone, Default)]
+pub struct NavLog {
+    /// the file read
+    pub path: PathBuf,
+    /// by the file name and its stem: (line, pose)
+    by_name: HashMap<String, (usize, Pose)>,
+    /// (seconds, line, pose) sorted by time
+    by_time: Vec<(f64, usize, Pose)>,
+    /// whether the log names its photos
+    named: bool,
+}
+
+/// What `--altitude` gave.
+#[derive(Debug, Clone)]
+pub enum AltitudeSource {
+    /// one altitude for every photo, metres
+    Constant(f64),
+    /// each photo's XMP
+    Xmp,
+    /// a navigation log
+    Log(Arc<NavLog>),
+}
+
+/// How the field of view was found: the horizontal angle in air across
+/// the photo's width, the tangent of half the diagonal angle, or a focal
+/// length in millimetres with the sensor's millimetres per pixel (and its
+/// pixel size when the EXIF gives it; else the photo's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Lens {
+    Horizontal(f64),
+    HalfDiagonalTan(f64),
+    FocalPlane { focal: f64, mm_per_px: f64, pixels: Option<(f64, f64)> },
+}
+
+/// One photo's camera: its pose and lens, and where each came from.
+#[derive(Debug, Clone)]
+pub struct Camera {
+    /// altitude and tilt
+    pub pose: Pose,
+    /// where the pose came from (the sidecar's `distance.floor.pose_from`)
+    pub pose_from: Value,
+    lens: Lens,
+    lens_from: String,
+}
+
+impl Camera {
+    /// The seabed seen by this camera in a photo of `h` x `w` pixels
+    /// (upright, before `--max-side`: the angle is the same after it),
+    /// checked ([`Floor::check`]: a lens of the EXIF may give any angle).
+    pub fn floor(&self, h: usize, w: usize, port: Port) -> Result<Floor, String> {
+        let (hf, wf) = (h as f64, w as f64);
+        let across = |t: f64| 2.0 * (t * wf / (hf * hf + wf * wf).sqrt()).atan().to_degrees();
+        let fov = match self.lens {
+            Lens::Horizontal(deg) => deg,
+            Lens::HalfDiagonalTan(t) => across(t),
+            Lens::FocalPlane { focal, mm_per_px, pixels } => {
+                let (px, py) = pixels.unwrap_or((wf, hf));
+                across((px * px + py * py).sqrt() * mm_per_px / 2.0 / focal)
+            }
+        };
+        let floor = Floor { altitude: self.pose.altitude, fov, pitch: self.pose.pitch, roll: self.pose.roll, port };
+        floor.check().map_err(|e| format!("{e} (field of view from {})", self.lens_from))?;
+        Ok(floor)
+    }
+
+    /// The sidecar's `distance.floor` for `floor`.
+    pub fn record(&self, floor: &Floor) -> Value {
+        json!({
+            "altitude": floor.altitude,
+            "pitch": floor.pitch,
+            "roll": floor.roll,
+            "pose_from": self.pose_from,
+            "fov": floor.fov,
+            "fov_from": self.lens_from,
+            "fov_in_water": floor.fov_in_water(),
+            "port": floor.port.name(),
+        })
+    }
+}
+
+impl AltitudeSource {
+    /// What the sidecar's `distance.source` says.
+    pub fn label(&self) -> String {
+        match self {
+            AltitudeSource::Constant(h) => format!("altitude {h} m"),
+            AltitudeSource::Xmp => "altitude from the photo's XMP".into(),
+            AltitudeSource::Log(l) => format!("altitude from {}", l.path.display()),
+        }
+    }
+}
+
+fn shown(s: &str) -> String {
+    let t: String = s.chars().take(SHOWN).flat_map(char::escape_default).collect();
+    if s.chars().count() > SHOWN {
+        format!("{t}...")
+    } else {
+        t
+    }
+}
+
+/// `--altitude VALUE`: a number of metres, `xmp`, or a navigation log's
+/// path (read once per process: every photo of a run sees the same log).
+pub fn altitude_source(value: &str) -> Result<AltitudeSource, Failure> {
+    if value == "xmp" {
+        return Ok(AltitudeSource::Xmp);
+    }
+    if let Ok(h) = value.trim().parse::<f64>() {
+        let max = f64::from(crate::method::distance::MAX_DISTANCE);
+        if !(h.is_finite() && h > 0.0 && h <= max) {
+            return Err(Failure::usage(format!("--altitude {}: an altitude is in (0, {max}] metres", shown(value))));
+        }
+        return Ok(AltitudeSource::Constant(h));
+    }
+    Ok(AltitudeSource::Log(read_log_once(Path::new(value))?))
+}
+
+fn read_log_once(path: &Path) -> Result<Arc<NavLog>, Failure> {
+    use std::sync::{Mutex, OnceLock};
+    static SEEN: OnceLock<Mutex<HashMap<PathBuf, Arc<NavLog>>>> = OnceLock::new();
+    let key = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    let cache = SEEN.get_or_init(|| Mutex::new(HashMap::new()));
+    if let Some(l) = cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).get(&key) {
+        return Ok(l.clone());
+    }
+    let log = Arc::new(read_log(path)?);
+    cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert(key, log.clone());
+    Ok(log)
+}
+
+/// Reads a navigation log (a regular file of at most 256 MiB, UTF-8 CSV);
+/// a malformed one is a usage error naming its line and column.
+pub fn read_log(path: &Path) -> Result<NavLog, Failure> {
+    let bad = |why: String| Failure::usage(format!("--altitude {}: {why}", path.display()));
+    crate::files::jobs::regular_file(path).map_err(bad)?;
+    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    if size > MAX_LOG_BYTES {
+        return Err(bad(format!("{size} bytes, over the {MAX_LOG_BYTES} a navigation log may have")));
+    }
+    let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+    let text = String::from_utf8(bytes).map_err(|e| bad(format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))?;
+    let mut log = parse_log(&text).map_err(bad)?;
+    log.path = path.to_path_buf();
+    Ok(log)
+}
+
+/// The fields of one CSV line: commas (or the header's delimiter), double
+/// quotes around a field that holds one, `""` for a quote inside.
+fn fields(line: &str, delim: char) -> Result<Vec<String>, String> {
+    let mut out = Vec::new();
+    let mut cur = String::new();
+    let mut chars = line.chars().peekable();
+    let mut quoted = false;
+    let mut was_quoted = false;
+    while let Some(c) = chars.next() {
+        if quoted {
+            if c == '"' {
+                if chars.peek() == Some(&'"') {
+                    cur.push('"');
+                    chars.next();
+                } else {
+                    quoted = false;
+                }
+            } else {
+                cur.push(c);
+            }
+        } else if c == '"' && cur.trim().is_empty() && !was_quoted {
+            quoted = true;
+            was_quoted = true;
+            cur.clear();
+        } else if c == delim {
+            out.push(std::mem::take(&mut cur).trim().to_string());
+            was_quoted = false;
+        } else {
+            cur.push(c);
+        }
+    }
+    if quoted {
+        return Err("a quote is not closed".into());
+    }
+    out.push(cur.trim().to_string());
+    Ok(out)
+}
+
+/// The column of each role, from the header's names (case, spaces,
+/// dashes and underscores ignored).
+fn column(header: &[String], names: &[&str]) -> Option<usize> {
+    let norm = |s: &str| s.chars().filter(|c| c.is_alphanumeric()).flat_map(char::to_lowercase).collect::<String>();
+    header.iter().position(|h| names.iter().any(|n| norm(h) == norm(n)))
+}
+
+/// Parses a navigation log: a header naming its columns, then one row per
+/// record. Columns: `altitude` (metres above the seabed; also `alt`,
+/// `altitude_m`, `image-meters-above-ground`), a file name (`file`,
+/// `filename`, `image`, `image-filename`, `name`) or a time (`time`,
+/// `timestamp`, `datetime`, `image-datetime`: ISO 8601, or seconds since
+/// 1970), and optionally `pitch` and `roll` in degrees. Blank lines and
+/// lines starting with `#` are skipped.
+pub fn parse_log(text: &str) -> Result<NavLog, String> {
+    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim_start_matches('\u{feff}')));
+    let (head_no, head) = lines
+        .by_ref()
+        .find(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .ok_or("no header line (the first line names the columns)")?;
+    let delim = [',', ';', '\t'].into_iter().max_by_key(|d| head.matches(*d).count()).unwrap_or(',');
+    let header = fields(head, delim).map_err(|e| format!("line {head_no}: {e}"))?;
+    let alt = column(&header, &["altitude", "alt", "altitude_m", "image-meters-above-ground", "meters_above_ground"])
+        .ok_or_else(|| format!("line {head_no}: no altitude column (expected a column named altitude)"))?;
+    let name = column(&header, &["file", "filename", "file_name", "image", "image-filename", "name", "photo"]);
+    let time = column(&header, &["time", "timestamp", "datetime", "date_time", "image-datetime", "utc"]);
+    if name.is_none() && time.is_none() {
+        return Err(format!("line {head_no}: no file-name or time column (expected a column named file or time)"));
+    }
+    let pitch = column(&header, &["pitch", "pitch_deg"]);
+    let roll = column(&header, &["roll", "roll_deg"]);
+    let mut log = NavLog { named: name.is_some(), ..NavLog::default() };
+    let max = f64::from(crate::method::distance::MAX_DISTANCE);
+    for (no, line) in lines {
+        if line.trim().is_empty() || line.trim_start().starts_with('#') {
+            continue;
+        }
+        let row = fields(line, delim).map_err(|e| format!("line {no}: {e}"))?;
+        let cell = |col: usize, what: &str| -> Result<&str, String> {
+            row.get(col).map(String::as_str).filter(|s| !s.is_empty()).ok_or_else(|| {
+                format!("line {no}, column {} ({what}): empty or missing", col + 1)
+            })
+        };
+        let number = |col: usize, what: &str, lo: f64, hi: f64| -> Result<f64, String> {
+            let s = cell(col, what)?;
+            let v: f64 = s.parse().map_err(|_| format!("line {no}, column {} ({what}): {:?} is not a number", col + 1, shown(s)))?;
+            if !(v.is_finite() && v > lo && v <= hi) {
+                return Err(format!("line {no}, column {} ({what}): {v} is not in ({lo}, {hi}]", col + 1));
+            }
+            Ok(v)
+        };
+        let tilt = |col: Option<usize>, what: &str| -> Result<f64, String> {
+            let lim = crate::method::floor::MAX_TILT;
+            col.map_or(Ok(0.0), |c| number(c, what, -lim - 1e-9, lim))
+        };
+        let pose = Pose { altitude: number(alt, "altitude", 0.0, max)?, pitch: tilt(pitch, "pitch")?, roll: tilt(roll, "roll")? };
+        if let Some(c) = name {
+            let n = cell(c, "file name")?;
+            // a path in the log names the file by its last part
+            let file = n.rsplit(['/', '\\']).next().unwrap_or(n).to_string();
+            let stem = Path::new(&file).file_stem().map(|s| s.to_string_lossy().into_owned());
+            if let Some((first, _)) = log.by_name.get(&file) {
+                return Err(format!("line {no}: {:?} is also on line {first}", shown(&file)));
+            }
+            if let Some(stem) = stem.filter(|s| *s != file) {
+                log.by_name.entry(stem).or_insert((no, pose));
+            }
+            log.by_name.insert(file, (no, pose));
+        }
+        if let Some(c) = time {
+            let s = cell(c, "time")?;
+            let t = parse_time(s).ok_or_else(|| {
+                format!("line {no}, column {} (time): {:?} is not an ISO 8601 time nor seconds since 1970", c + 1, shown(s))
+            })?;
+            log.by_time.push((t, no, pose));
+        }
+    }
+    if log.by_name.is_empty() && log.by_time.is_empty() {
+        return Err("no records after the header".into());
+    }
+    log.by_time.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(log)
+}
+
+/// Days from 1970-01-01 to a civil date (proleptic Gregorian).
+fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+/// Seconds since 1970-01-01 UTC of `YYYY-MM-DD[T ]HH:MM:SS[.fff][Z|+HH:MM]`
+/// (dashes or colons in the date, as EXIF writes it), or a plain number of
+/// seconds. A time without an offset is taken as UTC.
+pub fn parse_time(s: &str) -> Option<f64> {
+    let s = s.trim();
+    if let Ok(v) = s.parse::<f64>() {
+        return v.is_finite().then_some(v);
+    }
+    let b = s.as_bytes();
+    let num = |a: usize, n: usize| -> Option<i64> {
+        let part = b.get(a..a + n)?;
+        part.iter().all(u8::is_ascii_digit).then(|| part.iter().fold(0i64, |v, c| v * 10 + i64::from(c - b'0')))
+    };
+    let (y, mo, d) = (num(0, 4)?, num(5, 2)?, num(8, 2)?);
+    if !matches!(b.get(4), Some(b'-' | b':')) || b.get(7) != b.get(4) || !matches!(b.get(10), Some(b'T' | b' ')) {
+        return None;
+    }
+    let (hh, mm, ss) = (num(11, 2)?, num(14, 2)?, num(17, 2)?);
+    if b.get(13) != Some(&b':') || b.get(16) != Some(&b':') {
+        return None;
+    }
+    let leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
+    let days = [31, if leap { 29 } else { 28 }, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31];
+    let month_days = usize::try_from(mo - 1).ok().and_then(|i| days.get(i).copied())?;
+    if !(1..=month_days).contains(&d) || hh > 23 || mm > 59 || ss > 60 {
+        return None;
+    }
+    let mut t = (days_from_civil(y, mo, d) * 86_400 + hh * 3600 + mm * 60 + ss) as f64;
+    let mut rest = s.get(19..)?;
+    if let Some(frac) = rest.strip_prefix('.') {
+        let digits = frac.bytes().take_while(u8::is_ascii_digit).count();
+        if digits == 0 {
+            return None;
+        }
+        t += format!("0.{}", frac.get(..digits)?).parse::<f64>().ok()?;
+        rest = frac.get(digits..)?;
+    }
+    match rest.as_bytes() {
+        [] | [b'Z'] => {}
+        [sign @ (b'+' | b'-'), h1, h2, b':', m1, m2] if [h1, h2, m1, m2].iter().all(|c| c.is_ascii_digit()) => {
+            let off = (i64::from(h1 - b'0') * 10 + i64::from(h2 - b'0')) * 3600 + (i64::from(m1 - b'0') * 10 + i64::from(m2 - b'0')) * 60;
+            t -= if *sign == b'+' { off } else { -off } as f64;
+        }
+        _ => return None,
+    }
+    Some(t)
+}
+
+impl NavLog {
+    /// The pose of the photo `input` (by its file name or stem when the
+    /// log names files, else by `taken`, seconds since 1970), and where it
+    /// came from; why not when the log has none for it.
+    pub fn pose(&self, input: &Path, taken: Option<(f64, &str)>) -> Result<(Pose, Value), String> {
+        let file = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let stem = input.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        if self.named {
+            return match self.by_name.get(&file).or_else(|| self.by_name.get(&stem)) {
+                Some((line, p)) => Ok((*p, json!({"log": self.path.to_string_lossy(), "line": line, "matched": "name"}))),
+                None => Err(format!("{} has no row for {}", self.path.display(), shown(&file))),
+            };
+        }
+        let Some((t, iso)) = taken else {
+            return Err(format!(
+                "{} is matched by time and the photo has no time (EXIF DateTimeOriginal)",
+                self.path.display()
+            ));
+        };
+        let rows = &self.by_time;
+        let after = rows.partition_point(|r| r.0 < t);
+        let prev = after.checked_sub(1).and_then(|i| rows.get(i));
+        let next = rows.get(after);
+        let from = |lines: Vec<usize>, how: &str, gap: f64| {
+            json!({"log": self.path.to_string_lossy(), "line": lines, "matched": how, "taken_at": iso, "seconds_from_record": gap})
+        };
+        if let (Some(a), Some(b)) = (prev, next) {
+            if b.0 - a.0 <= MAX_GAP {
+                let k = if b.0 > a.0 { (t - a.0) / (b.0 - a.0) } else { 0.0 };
+                let mix = |x: f64, y: f64| x + (y - x) * k;
+                let p = Pose { altitude: mix(a.2.altitude, b.2.altitude), pitch: mix(a.2.pitch, b.2.pitch), roll: mix(a.2.roll, b.2.roll) };
+                return Ok((p, from(vec![a.1, b.1], "time, interpolated", (t - a.0).min(b.0 - t))));
+            }
+        }
+        let nearest = [prev, next].into_iter().flatten().min_by(|x, y| (x.0 - t).abs().total_cmp(&(y.0 - t).abs()));
+        match nearest {
+            Some(r) if (r.0 - t).abs() <= NEAREST => Ok((r.2, from(vec![r.1], "time, nearest", (r.0 - t).abs()))),
+            Some(r) => Err(format!(
+                "{} has no record within {NEAREST} s of the photo's time {iso} (the nearest, line {}, is {:.1} s away)",
+                self.path.display(),
+                r.1,
+                (r.0 - t).abs()
+            )),
+            None => Err(format!("{} has no records", self.path.display())),
+        }
+    }
+}
+
+/// The iFDO field `image-meters-above-ground` in an XMP packet, as an
+/// attribute (`...:image-meters-above-ground="2.4"`) or an element
+/// (`<...:image-meters-above-ground>2.4</...>`).
+pub fn xmp_altitude(xmp: &str) -> Option<f64> {
+    const KEY: &str = "image-meters-above-ground";
+    let mut rest = xmp;
+    while let Some(i) = rest.find(KEY) {
+        let after = rest.get(i + KEY.len()..)?;
+        let value = if let Some(v) = after.trim_start().strip_prefix('=') {
+            let v = v.trim_start();
+            let q = v.chars().next().filter(|c| *c == '"' || *c == '\'')?;
+            v.get(1..)?.split(q).next()
+        } else if let Some(v) = after.strip_prefix('>') {
+            v.split('<').next()
+        } else {
+            None
+        };
+        if let Some(h) = value.and_then(|v| v.trim().parse::<f64>().ok()) {
+            return Some(h);
+        }
+        rest = after;
+    }
+    None
+}
+
+/// The lens of a photo from its EXIF: FocalLengthIn35mmFormat, else
+/// FocalLength with FocalPlaneXResolution and its unit (the sensor's
+/// pixel diagonal from ExifImageWidth and ExifImageHeight, else the photo's).
+fn exif_lens(m: &little_exif::metadata::Metadata) -> Option<(Lens, String)> {
+    use little_exif::exif_tag::ExifTag;
+    let (mut f35, mut focal, mut res, mut unit, mut px, mut py) = (None, None, None, None, None, None);
+    let ratio = |v: &[little_exif::rational::uR64]| {
+        v.first().filter(|r| r.denominator != 0).map(|r| f64::from(r.nominator) / f64::from(r.denominator))
+    };
+    for ifd in m.get_ifds() {
+        for tag in ifd.get_tags() {
+            match tag {
+                ExifTag::FocalLengthIn35mmFormat(v) => f35 = v.first().copied().filter(|f| *f > 0).map(f64::from),
+                ExifTag::FocalLength(v) => focal = ratio(v),
+                ExifTag::FocalPlaneXResolution(v) => res = ratio(v),
+                ExifTag::FocalPlaneResolutionUnit(v) => unit = v.first().copied(),
+                ExifTag::ExifImageWidth(v) => px = v.first().copied().filter(|x| *x > 0).map(f64::from),
+                ExifTag::ExifImageHeight(v) => py = v.first().copied().filter(|x| *x > 0).map(f64::from),
+                _ => {}
+            }
+        }
+    }
+    if let Some(f) = f35 {
+        return Some((Lens::HalfDiagonalTan(HALF_DIAGONAL_35MM / f), format!("EXIF FocalLengthIn35mmFormat {f} mm")));
+    }
+    let mm_per_unit = match unit {
+        Some(2) => 25.4,
+        Some(3) => 10.0,
+        Some(4) => 1.0,
+        Some(5) => 1e-3,
+        _ => return None,
+    };
+    let (focal, res) = (focal.filter(|f| f.is_finite() && *f > 0.0)?, res.filter(|r| r.is_finite() && *r > 0.0)?);
+    let lens = Lens::FocalPlane { focal, mm_per_px: mm_per_unit / res, pixels: px.zip(py) };
+    Some((lens, format!("EXIF FocalLength {focal} mm and FocalPlaneXResolution {res} per {mm_per_unit} mm")))
+}
+
+/// The camera of photo `input`: the pose from `source`, the lens from
+/// `fov` (degrees in air across the width) or the photo's EXIF. Why not,
+/// when either is missing (the photo is then restored without distance
+/// and flagged `distance_missing`).
+pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Result<Camera, String> {
+    let needs_file = fov.is_none() || matches!(source, AltitudeSource::Xmp)
+        || matches!(source, AltitudeSource::Log(l) if !l.named);
+    let carried = if needs_file {
+        let bytes = std::fs::read(input).map_err(|e| format!("cannot read the photo's metadata: {e}"))?;
+        Some(crate::files::metadata::read(bytes))
+    } else {
+        None
+    };
+    let exif = carried.as_ref().and_then(|c| c.exif.as_ref());
+    let (pose, pose_from) = match source {
+        AltitudeSource::Constant(a) => (Pose { altitude: *a, pitch: 0.0, roll: 0.0 }, json!("--altitude")),
+        AltitudeSource::Xmp => {
+            let a = carried.as_ref().and_then(|c| c.xmp.as_deref()).and_then(xmp_altitude).ok_or(
+                "the photo's XMP has no image-meters-above-ground (the iFDO field)".to_string(),
+            )?;
+            (Pose { altitude: a, pitch: 0.0, roll: 0.0 }, json!("xmp"))
+        }
+        AltitudeSource::Log(log) => {
+            let iso = exif.and_then(crate::files::metadata::taken_at);
+            let taken = iso.as_deref().and_then(|s| parse_time(s).map(|t| (t, s)));
+            log.pose(input, taken)?
+        }
+    };
+    let (lens, lens_from) = match fov {
+        Some(f) => (Lens::Horizontal(f), "--fov".to_string()),
+        None => exif.and_then(exif_lens).ok_or(
+            "no field of view: the photo's EXIF has neither FocalLengthIn35mmFormat nor FocalLength with FocalPlaneXResolution (give --fov)"
+                .to_string(),
+        )?,
+    };
+    let max = f64::from(crate::method::distance::MAX_DISTANCE);
+    if !(pose.altitude.is_finite() && pose.altitude > 0.0 && pose.altitude <= max) {
+        return Err(format!("altitude {} m is not in (0, {max}]", pose.altitude));
+    }
+    Ok(Camera { pose, pose_from, lens, lens_from })
+}
+
+/// The distance map of photo `input` seen as a flat seabed (`--altitude`),
+/// at `hp` x `wp` (its processed size; `h` x `w` upright before
+/// `--max-side`), with the sidecar's `distance.floor`; why not, as text.
+pub fn floor_map(
+    camera: &Camera,
+    port: Port,
+    (h, w): (usize, usize),
+    (hp, wp): (usize, usize),
+) -> Result<(crate::files::depth::DistanceMap, Value), String> {
+    let floor = camera.floor(h, w, port)?;
+    let data = floor.distances(hp, wp);
+    Ok((crate::files::depth::DistanceMap { data, height: hp, width: wp, out_of_range: 0 }, camera.record(&floor)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_in_iso_8601_and_exif_forms_and_offsets() {
+        // 2026-11-30 is day 20787 after 1970-01-01 (hand count: 56 years with 14 leap days = 20454, plus 333 days)
+        let day = 20_787.0 * 86_400.0;
+        assert_eq!(parse_time("2026-11-30T00:00:00"), Some(day));
+        assert_eq!(parse_time("2026:11:30 10:15:42"), Some(day + 36_942.0));
+        assert_eq!(parse_time("2026-11-30T10:15:42.5Z"), Some(day + 36_942.5));
+        assert_eq!(parse_time("2026-11-30T10:15:42+10:00"), Some(day + 36_942.0 - 36_000.0));
+        assert_eq!(parse_time("1764497742.25"), Some(1_764_497_742.25));
+        for bad in ["2026-13-01T00:00:00", "2026-02-30T00:00:00", "2026-11-30", "noon", "2026-11-30T10:15:42+1", "", "2026-11-30T10:15:42.", "NaN"] {
+            assert_eq!(parse_time(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_log_by_name_matches_the_file_or_its_stem() {
+        let log = parse_log("file,altitude,pitch,roll\n\"dives/a.jpg\",2.5,3,-1\nb.png,4,0,0\n").unwrap();
+        let (p, from) = log.pose(Path::new("/x/a.jpg"), None).unwrap();
+        assert_eq!(p, Pose { altitude: 2.5, pitch: 3.0, roll: -1.0 });
+        assert_eq!(from["line"], 2);
+        // the stem: the same photo converted to another format
+        assert_eq!(log.pose(Path::new("b.tif"), None).unwrap().0.altitude, 4.0);
+        let e = log.pose(Path::new("c.jpg"), None).unwrap_err();
+        assert!(e.contains("no row for c.jpg"), "{e}");
+    }
+
+    #[test]
+    fn a_log_by_time_interpolates_between_records_and_not_across_gaps() {
+        let log = parse_log(
+            "time;altitude;pitch\n2026-11-30T10:00:00Z;2;0\n2026-11-30T10:00:04Z;4;8\n2026-11-30T10:05:00Z;3;0\n",
+        )
+        .unwrap();
+        let t0 = parse_time("2026-11-30T10:00:00Z").unwrap();
+        let (p, from) = log.pose(Path::new("a.jpg"), Some((t0 + 1.0, "x"))).unwrap();
+        // a quarter of the way from line 2 to line 3
+        assert!((p.altitude - 2.5).abs() < 1e-12 && (p.pitch - 2.0).abs() < 1e-12);
+        assert_eq!(from["line"], json!([2, 3]));
+        // 296 s between lines 3 and 4: no interpolation; 0.5 s after line 3 takes it
+        assert_eq!(log.pose(Path::new("a.jpg"), Some((t0 + 4.5, "x"))).unwrap().0.altitude, 4.0);
+        let e = log.pose(Path::new("a.jpg"), Some((t0 + 60.0, "x"))).unwrap_err();
+        assert!(e.contains("nearest, line 3, is 56.0 s away"), "{e}");
+        // before the log's start
+        assert!(log.pose(Path::new("a.jpg"), Some((t0 - 30.0, "x"))).is_err());
+        let e = log.pose(Path::new("a.jpg"), None).unwrap_err();
+        assert!(e.contains("no time"), "{e}");
+    }
+
+    #[test]
+    fn a_malformed_log_names_its_line_and_column() {
+        for (text, want) in [
+            ("", "no header"),
+            ("file,depth\na.jpg,3\n", "no altitude column"),
+            ("altitude,pitch\n3,0\n", "no file-name or time column"),
+            ("file,altitude\na.jpg,abc\n", "line 2, column 2 (altitude): \"abc\" is not a number"),
+            ("file,altitude\n# note\n\na.jpg,2\nb.jpg,-1\n", "line 5, column 2 (altitude): -1 is not in"),
+            ("file,altitude\na.jpg,1e9\n", "line 2, column 2 (altitude)"),
+            ("file,altitude\na.jpg\n", "line 2, column 2 (altitude): empty or missing"),
+            ("file,altitude,pitch\na.jpg,2,120\n", "line 2, column 3 (pitch)"),
+            ("time,altitude\nyesterday,2\n", "line 2, column 1 (time)"),
+            ("file,altitude\n\"a.jpg,2\n", "line 2: a quote is not closed"),
+            ("file,altitude\na.jpg,2\na.jpg,3\n", "line 3: \"a.jpg\" is also on line 2"),
+            ("file,altitude\n", "no records"),
+        ] {
+            let e = parse_log(text).unwrap_err();
+            assert!(e.contains(want), "{text:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn the_xmp_field_as_attribute_or_element() {
+        assert_eq!(xmp_altitude(r#"<rdf:Description ifdo:image-meters-above-ground="2.75"/>"#), Some(2.75));
+        assert_eq!(xmp_altitude("<ifdo:image-meters-above-ground> 3 </ifdo:image-meters-above-ground>"), Some(3.0));
+        assert_eq!(xmp_altitude("<x:image-meters-above-ground-note>n</x><a image-meters-above-ground='1.5'/>"), Some(1.5));
+        assert_eq!(xmp_altitude("<x/>"), None);
+    }
+
+    #[test]
+    fn a_35mm_equivalent_focal_length_gives_the_angle_across_the_width() {
+        // 24 mm equivalent on a 3:2 photo: its width is the 36 mm frame's, 2 atan(18/24) = 73.74 degrees
+        let cam = Camera { pose: Pose { altitude: 2.0, pitch: 0.0, roll: 0.0 }, pose_from: json!(null), lens: Lens::HalfDiagonalTan(HALF_DIAGONAL_35MM / 24.0), lens_from: String::new() };
+        let fl = cam.floor(2000, 3000, Port::Flat).unwrap();
+        assert!((fl.fov - 73.7398).abs() < 1e-3, "{}", fl.fov);
+        // upright after a 90-degree turn the width is the short side: 2 atan(12/24) = 53.13 degrees
+        assert!((cam.floor(3000, 2000, Port::Flat).unwrap().fov - 53.1301).abs() < 1e-3);
+        // 8.8 mm on a sensor of 4 um pixels, 3000 x 2000: 12 mm wide, 2 atan(6/8.8) = 68.574 degrees
+        let fp = Camera { lens: Lens::FocalPlane { focal: 8.8, mm_per_px: 0.004, pixels: None }, ..cam.clone() };
+        assert!((fp.floor(2000, 3000, Port::Flat).unwrap().fov - 68.5738).abs() < 1e-3);
+        // a photo resized after capture keeps the EXIF's own pixel size
+        let resized = Camera { lens: Lens::FocalPlane { focal: 8.8, mm_per_px: 0.004, pixels: Some((3000.0, 2000.0)) }, ..cam.clone() };
+        assert!((resized.floor(200, 300, Port::Flat).unwrap().fov - 68.5738).abs() < 1e-3);
+        // an absurd EXIF focal length: refused by name
+        let wide = Camera { lens: Lens::HalfDiagonalTan(1e6), lens_from: "EXIF x".into(), ..cam };
+        assert!(wide.floor(2000, 3000, Port::Flat).unwrap_err().contains("field of view from EXIF x"));
+    }
+
+    #[test]
+    fn altitude_values_are_checked() {
+        assert!(matches!(altitude_source("2.5").unwrap(), AltitudeSource::Constant(h) if h == 2.5));
+        assert!(matches!(altitude_source("xmp").unwrap(), AltitudeSource::Xmp));
+        for bad in ["0", "-3", "1e9", "inf"] {
+            assert!(altitude_source(bad).unwrap_err().message.contains("an altitude is in"), "{bad}");
+        }
+        let e = altitude_source("/nonexistent/nav.csv").unwrap_err();
+        assert!(e.message.contains("--altitude /nonexistent/nav.csv: no such file"), "{}", e.message);
+    }
+}
