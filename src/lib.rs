@@ -102,5 +102,5 @@ pub use crate::method::pipeline::given::{resize_distance, restore_at_distance, D
 pub use crate::method::pipeline::restore;
 pub use crate::method::distance::WaterFit;
 pub use crate::method::profile::{Method, TypeChoice, WhiteBalance};
-pub use crate::method::sequence::{Estimates, Sequence};
+pub use crate::method::sequence::{Decision, Estimates, Sequence, Signature, VIDEO_SCENE_CUT, VIDEO_SMOOTHING};
 pub use crate::method::water::{jerlov_types, WaterType, JERLOV};

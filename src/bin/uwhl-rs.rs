@@ -15,7 +15,7 @@
 
 use std::io::Write;
 use std::process::ExitCode;
-use uwhl::cli::{help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_stream, Command};
+use uwhl::cli::{help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_frames, run_stream, Command};
 
 /// Whether stdout was closed when the process started (`>&-`). Rust's
 /// runtime puts /dev/null on a closed standard descriptor before `main`,
@@ -107,6 +107,10 @@ fn main() -> ExitCode {
                 );
                 report(&mut stderr, opts.json_errors, None, &e);
                 e.kind.exit_code()
+            } else if opts.raw_frames.is_some() {
+                // the frames are read and written as they come; SIGINT ends the run at once (a pipe)
+                let mut stdin = std::io::stdin().lock();
+                run_frames(&opts, &mut stdin, &mut stdout, &mut stderr)
             } else if opts.stream {
                 // unlocked (the lock is not Send): lines are read on a second thread
                 let mut stdin = std::io::BufReader::new(std::io::stdin());

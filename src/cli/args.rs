@@ -25,6 +25,12 @@ pub struct Options {
     pub stream: bool,
     /// `-q`: no progress lines on stdout (batch mode)
     pub quiet: bool,
+    /// `--raw-frames WxH`: frames of this width and height on stdin
+    pub raw_frames: Option<(usize, usize)>,
+    /// `--pix-fmt`: bits a sample of the raw frames (8: rgb24, 16: rgb48le)
+    pub pix_fmt_bits: u32,
+    /// `--pix-fmt` was given
+    pub pix_fmt_given: bool,
 }
 
 impl std::ops::Deref for Options {
@@ -151,6 +157,18 @@ impl Options {
     fn set(&mut self, key: &str, v: Val) -> Result<(), Failure> {
         match key {
             "stream" => self.stream = true,
+            "raw_frames" => {
+                if let Val::Size(w, h) = v {
+                    self.raw_frames = Some((w, h));
+                }
+            }
+            "pix_fmt" => {
+                self.pix_fmt_given = true;
+                self.pix_fmt_bits = match v {
+                    Val::Text(t) if t == "rgb48le" => 16,
+                    _ => 8,
+                }
+            }
             "json_errors" => self.json_errors = true,
             "quiet" => self.quiet = true,
             _ => {
@@ -223,13 +241,33 @@ where
         o.set(spec.key, value)?;
     }
     o.outdir = outdir.ok_or_else(|| Failure::usage("-o OUTDIR is required"))?;
+    if o.pix_fmt_bits == 0 {
+        o.pix_fmt_bits = 8;
+    }
+    if o.raw_frames.is_some() {
+        if o.stream || !o.inputs.is_empty() {
+            return Err(Failure::usage("--raw-frames reads the frames from stdin; give no INPUT arguments and no --stream"));
+        }
+        if o.outdir.as_os_str() == "-" && o.max_side.is_some() {
+            return Err(Failure::usage(
+                "--max-side with --raw-frames -o -: the frames out would not be the size of the frames in (write to a folder instead)",
+            ));
+        }
+        if o.distance.is_some() || o.altitude.is_some() || o.water_from.is_some() {
+            return Err(Failure::usage("--raw-frames restores a sequence: --distance, --altitude and --water-from are for photos"));
+        }
+    } else if o.outdir.as_os_str() == "-" {
+        return Err(Failure::usage("-o - (stdout) is for --raw-frames; give an output folder"));
+    } else if o.pix_fmt_given {
+        return Err(Failure::usage("--pix-fmt is for --raw-frames"));
+    }
     if o.stream && !o.inputs.is_empty() {
         return Err(Failure::usage(
             "--stream reads the input paths from stdin; give no INPUT arguments",
         ));
     }
-    if !o.stream && o.inputs.is_empty() {
-        return Err(Failure::usage("no INPUT given (or use --stream)"));
+    if !o.stream && o.raw_frames.is_none() && o.inputs.is_empty() {
+        return Err(Failure::usage("no INPUT given (or use --stream or --raw-frames)"));
     }
     crate::files::options::check_combination(
         o.format.name(),

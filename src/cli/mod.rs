@@ -18,7 +18,7 @@ macro_rules! cli_modules {
     };
 }
 
-cli_modules!(args, demo, run);
+cli_modules!(args, demo, frames, run);
 
 /// The rendered scene of `uwhl-rs demo` (and, included by path, of the Rust tests).
 mod scene;
@@ -27,5 +27,6 @@ use crate::method::water::WaterType;
 
 pub use args::{help, parse, Command, Demo, Format, Options, Preprocess, WaterChoice};
 pub use demo::run_demo;
+pub use frames::run_frames;
 pub use run::{init_threads, install_interrupt_handler, report, run_batch, run_stream};
 pub use crate::error::{Failure, Kind};

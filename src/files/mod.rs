@@ -13,6 +13,10 @@ pub mod options;
 #[forbid(unsafe_code)]
 pub mod color;
 
+/// Transfer curves of video and raw-frame samples, both commands.
+#[forbid(unsafe_code)]
+pub mod transfer;
+
 #[cfg(any(feature = "cli", feature = "python"))]
 stage_modules! { budget, commit, jobs, settings, decode, depth, dive, encode, nav, pipeline, sidecar, summary }
 

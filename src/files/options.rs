@@ -80,6 +80,8 @@ pub enum Kind {
     Address,
     /// repeatable: `KEY=VALUE`
     KeyValue,
+    /// a frame size `WxH`, each side in 4..=65535
+    Size,
 }
 
 impl Kind {
@@ -97,6 +99,7 @@ impl Kind {
             Kind::WaterTypes => "water_types",
             Kind::Address => "address",
             Kind::KeyValue => "key_value",
+            Kind::Size => "size",
         }
     }
 }
@@ -199,7 +202,26 @@ the sequence, flagged photos first (uwhl report)",
         default: Default::None, help: "after the batch, write OUTDIR/ifdo.yaml (ifdo.json for a .json HEADER): the \
 iFDO of the corrected photos, with the set's fields from the HEADER file (uwhl ifdo)",
         group: Group::Output, faces: Faces::Python, method: false },
+    Spec { key: "every", flag: "--every", short: None, metavar: "N", kind: Kind::Int { min: 1, max: u32::MAX as u64 },
+        default: Default::None, help: "videos: instead of a restored video, write every N-th frame as a photo \
+NAME_00h01m02s345.jpg (its time in the video) with its maps and sidecar",
+        group: Group::Output, faces: Faces::Python, method: false },
+    Spec { key: "video_codec", flag: "--video-codec", short: None, metavar: "CODEC",
+        kind: Kind::Choice(&["h264", "hevc", "prores", "ffv1", "mjpeg", "input"]),
+        default: Default::Name("h264"), help: "codec of a restored video: h264 (8- or 10-bit as the input), hevc, \
+prores (.mov), ffv1 (lossless, .mkv/.mov/.avi), mjpeg, or input: the input's codec when it can be written",
+        group: Group::Output, faces: Faces::Python, method: false },
+    Spec { key: "video_quality", flag: "--video-quality", short: None, metavar: "CRF", kind: Kind::Int { min: 0, max: 51 },
+        default: Default::Int(18), help: "h264/hevc constant rate factor 0-51, lower is better (0 lossless, 18 \
+visually lossless)",
+        group: Group::Output, faces: Faces::Python, method: false },
     // input
+    Spec { key: "transfer", flag: "--transfer", short: None, metavar: "CURVE",
+        kind: Kind::Choice(&["bt709", "srgb", "gamma22", "gamma28", "linear"]),
+        default: Default::None, help: "transfer curve of video and raw-frame samples, undone before and applied \
+after the restoration: bt709 (also BT.601 and BT.2020 SDR), srgb, gamma22, gamma28, linear (default: a video's \
+tag, else bt709)",
+        group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "preprocess", flag: "--preprocess", short: None, metavar: "MODE", kind: Kind::Choice(&["none", "reference"]),
         default: Default::Name("none"), help: "none: sRGB decoded to linear; reference: the reference code's \
 preprocessing of METHOD §2 (sRGB kept, pulled stretch)",
@@ -312,6 +334,16 @@ restored input and reuse them in between",
         default: Default::Off, help: "with --reuse-estimates: reuse the estimating input's water region too \
 (a camera that holds its attitude; skips the water detection)",
         group: Group::Method, faces: Faces::Both, method: false },
+    Spec { key: "scene_cut", flag: "--scene-cut", short: None, metavar: "X", kind: Kind::Float { gt: 0.0, le: 1.0 },
+        default: Default::None, help: "in a sequence, estimate afresh when a frame's colours differ from the \
+previous frame's (a cut) or the last estimate's (a drift) by more than X, 0-1 (METHOD §10; default 0.3 for videos \
+and raw frames, 1 = never for photo sequences)",
+        group: Group::Method, faces: Faces::Both, method: false },
+    Spec { key: "smoothing", flag: "--smoothing", short: None, metavar: "W", kind: Kind::Float { gt: 0.0, le: 1.0 },
+        default: Default::None, help: "in a sequence, a scheduled or drift estimate moves the veiling light W of \
+the way to the new value; a cut takes it whole (METHOD §10; default 0.25 for videos and raw frames, 1 for photo \
+sequences)",
+        group: Group::Method, faces: Faces::Both, method: false },
     // resources
     Spec { key: "threads", flag: "--threads", short: None, metavar: "N", kind: Kind::Int { min: 1, max: MAX_THREADS },
         default: Default::None, help: "worker threads per restore (default: all cores); results do not depend on N",
@@ -336,6 +368,14 @@ endpoint_url=http://127.0.0.1:9000, anon=true, profile=survey; values true/false
     Spec { key: "stream", flag: "--stream", short: None, metavar: "", kind: Kind::Flag,
         default: Default::Off, help: "read image paths from stdin, one per line; one JSON line per frame on \
 stdout; a bad frame never stops the loop",
+        group: Group::Mode, faces: Faces::Rust, method: false },
+    Spec { key: "raw_frames", flag: "--raw-frames", short: None, metavar: "WxH", kind: Kind::Size,
+        default: Default::None, help: "read raw frames of WxH pixels from stdin (see --pix-fmt) as one sequence; \
+-o - writes the restored frames to stdout in the same format, -o DIR each frame's outputs and a JSON line",
+        group: Group::Mode, faces: Faces::Rust, method: false },
+    Spec { key: "pix_fmt", flag: "--pix-fmt", short: None, metavar: "FMT", kind: Kind::Choice(&["rgb24", "rgb48le"]),
+        default: Default::Name("rgb24"), help: "with --raw-frames: rgb24 (8 bits a sample) or rgb48le (16 bits, \
+little-endian), FFmpeg's names",
         group: Group::Mode, faces: Faces::Rust, method: false },
     Spec { key: "json_errors", flag: "--json-errors", short: None, metavar: "", kind: Kind::Flag,
         default: Default::Off, help: "report each error as one JSON object on stderr",
@@ -363,6 +403,15 @@ pub enum Value {
     Text(String),
     /// R, G, B
     Rgb([f64; 3]),
+    /// a frame size (width, height)
+    Size(usize, usize),
+}
+
+/// Parses `WxH` (each side in 4..=65535); None for anything else.
+pub fn parse_size(s: &str) -> Option<(usize, usize)> {
+    let (w, h) = s.trim().to_ascii_lowercase().split_once('x').map(|(w, h)| (w.trim().to_string(), h.trim().to_string()))?;
+    let side = |v: &str| v.parse::<usize>().ok().filter(|n| (4..=65535).contains(n));
+    Some((side(&w)?, side(&h)?))
 }
 
 /// Parses a byte count with an optional suffix K, M, G, T (powers of 1024;
@@ -414,6 +463,9 @@ impl Spec {
                 let lower = t.to_ascii_lowercase();
                 let alias = match (self.key, lower.as_str()) {
                     ("format", "jpeg") => "jpg",
+                    ("pix_fmt", "rgb48") => "rgb48le",
+                    ("video_codec", "h265" | "x265") => "hevc",
+                    ("video_codec", "x264" | "avc") => "h264",
                     ("format", "tif") => "tiff",
                     (_, other) => other,
                 };
@@ -452,6 +504,9 @@ impl Spec {
 (tcp://HOST:PORT)".into()))
                 }
             }
+            Kind::Size => parse_size(t)
+                .map(|(w, h)| Value::Size(w, h))
+                .ok_or_else(|| bad("is not WIDTHxHEIGHT with each side in 4..65535 (e.g. 1920x1080)".into())),
             Kind::KeyValue => match t.split_once('=') {
                 Some((k, _)) if !k.trim().is_empty() => Ok(Value::Text(t.to_string())),
                 _ => Err(bad("is not KEY=VALUE".into())),

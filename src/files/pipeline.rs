@@ -482,7 +482,7 @@ fn finish(job: &Job, (restored, claimed, t0): (Restored, Claim, Instant), opts: 
         claimed,
         Outputs {
             label: &label,
-            input: &job.input,
+            input: Some(&job.input),
             implementation: "rust",
             source: &source,
             estimates: Estimates { distance: distance.or_else(|| Estimates::of(&res).distance), ..Estimates::of(&res) },
@@ -504,8 +504,9 @@ fn finish(job: &Job, (restored, claimed, t0): (Restored, Claim, Instant), opts: 
 pub struct Outputs<'a> {
     /// the input as the batch names it (the sidecar's `input`: a path, or a URL)
     pub label: &'a str,
-    /// the local file whose metadata is carried into the photo
-    pub input: &'a Path,
+    /// the local file whose metadata is carried into the photo; None for a
+    /// frame of a video or a pipe, which has no file of its own
+    pub input: Option<&'a Path>,
     /// the command: "rust" or "python"
     pub implementation: &'a str,
     /// where the input came from
@@ -612,15 +613,18 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
     // bits) and a block of tags, memory the plan already gave this input
     let tiff_cap = (out.source.height as u64 * out.source.width as u64 * 4 * u64::from(out.source.bits.max(8)) / 8)
         .saturating_add(crate::files::exif::MAX_BLOCK);
-    let (image_bytes, carried) = crate::files::metadata::carry_from(
-        out.input,
-        image_bytes?,
-        &make(Seconds::default()),
-        &sidecar_name,
-        wp as u32,
-        hp as u32,
-        tiff_cap,
-    );
+    let (image_bytes, carried) = match out.input {
+        Some(input) => crate::files::metadata::carry_from(
+            input,
+            image_bytes?,
+            &make(Seconds::default()),
+            &sidecar_name,
+            wp as u32,
+            hp as u32,
+            tiff_cap,
+        ),
+        None => crate::files::metadata::not_carried(image_bytes?, "metadata: a frame of a video or a pipe; no file to carry metadata from"),
+    };
     let mut files = vec![(image_path.clone(), image_bytes), (t_path.clone(), t_bytes?), (tc_path.clone(), tc_bytes?)];
     if let (Some(p), Some(bytes)) = (&conf_path, conf_bytes?) {
         files.push((p.clone(), bytes));

@@ -139,6 +139,12 @@ pub struct Settings {
     pub reuse_water_mask: bool,
     /// `--max-memory` was given (else the budget follows the machine: "auto")
     pub max_memory_given: bool,
+    /// `--scene-cut X`: a sequence's cut and drift threshold (METHOD §10)
+    pub scene_cut: Option<f32>,
+    /// `--smoothing W`: a sequence's weight of a scheduled estimate of A
+    pub smoothing: Option<f32>,
+    /// `--transfer`: the transfer curve of video and raw-frame samples
+    pub transfer: Option<crate::files::transfer::Transfer>,
 }
 
 impl Default for Settings {
@@ -166,6 +172,9 @@ impl Default for Settings {
             reuse_estimates: None,
             reuse_water_mask: false,
             max_memory_given: false,
+            scene_cut: None,
+            smoothing: None,
+            transfer: None,
         }
     }
 }
@@ -237,6 +246,19 @@ impl Settings {
             "water_types" => water_types(self.water_types.get_or_insert_with(Vec::new), &text(v)?)?,
             "reuse_estimates" => self.reuse_estimates = Some(usize_of(&v)?),
             "reuse_water_mask" => self.reuse_water_mask = true,
+            "scene_cut" | "smoothing" => {
+                let x = match v {
+                    Val::Float(f) => f as f32,
+                    other => return Err(Failure::new(Kind::Internal, format!("{key}: {other:?} is not a number"))),
+                };
+                *(if key == "scene_cut" { &mut self.scene_cut } else { &mut self.smoothing }) = Some(x);
+            }
+            "transfer" => {
+                let name = text(v)?;
+                self.transfer = Some(crate::files::transfer::Transfer::parse(&name).ok_or_else(|| {
+                    Failure::new(Kind::Internal, format!("{key}: {name:?} is not a transfer curve"))
+                })?);
+            }
             "max_memory" => {
                 self.params.set(key, &v).map_err(Failure::from)?;
                 self.max_memory_given = true;

@@ -337,6 +337,18 @@ pub fn reuse<T: Copy + Default>(buf: Vec<T>, n: usize) -> Vec<T> {
     }
 }
 
+/// `buf` set to n default values: its allocation is reused when it holds
+/// exactly n (the values are reset, so no result depends on them).
+pub fn reuse_zeroed<T: Copy + Default>(mut buf: Vec<T>, n: usize) -> Vec<T> {
+    if buf.len() == n {
+        buf.fill(T::default());
+        buf
+    } else {
+        drop(buf);
+        vec![T::default(); n]
+    }
+}
+
 #[cfg(test)]
 pub(crate) fn test_noise(n: usize, seed: u64) -> Vec<f32> {
     let mut s = seed;

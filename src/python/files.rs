@@ -279,8 +279,10 @@ fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
 /// writing half): `image` is the restored image to encode (raw inputs:
 /// through the camera matrix), `source` the reader's fields,
 /// `contact_sheet` an encoded PNG when asked for, `reused` whether a
-/// sequence reused its estimates (None outside a sequence), and the
-/// seconds spent reading, restoring, drawing the sheet and in all so far.
+/// sequence reused its estimates (None outside a sequence), `input` the
+/// file whose metadata is carried into the photo (None for a video's
+/// frame), and the seconds spent reading, restoring, drawing the sheet and
+/// in all so far.
 /// The claim is used up; on failure its temporaries are removed.
 #[pyfunction]
 #[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None, distance_floor=None))]
@@ -292,7 +294,7 @@ fn write_input_outputs(
     image: PyReadonlyArray3<'_, f32>,
     source: &Bound<'_, PyDict>,
     settings: &PyFileSettings,
-    input: PathBuf,
+    input: Option<PathBuf>,
     label: PathBuf,
     contact_sheet: Option<Bound<'_, PyBytes>>,
     reused: Option<bool>,
@@ -374,7 +376,7 @@ fn write_input_outputs(
                 claimed,
                 Outputs {
                     label: &label,
-                    input: &input,
+                    input: input.as_deref(),
                     implementation: "python",
                     source: &source,
                     estimates,

@@ -247,7 +247,7 @@ pub(crate) fn method_value(
                 .ok_or_else(|| wrong("3 numbers (R, G, B)"))?;
             Value::Rgb([rgb[0], rgb[1], rgb[2]])
         }
-        Kind::Flag | Kind::Path | Kind::Address | Kind::KeyValue => return Err(wrong("a value of this keyword")),
+        Kind::Flag | Kind::Path | Kind::Address | Kind::KeyValue | Kind::Size => return Err(wrong("a value of this keyword")),
     }))
 }
 
@@ -372,6 +372,7 @@ fn parse_option(py: Python<'_>, key: &str, text: &str) -> PyResult<Py<PyAny>> {
         Value::Float(x) => x.into_pyobject(py)?.into_any().unbind(),
         Value::Text(t) => t.into_pyobject(py)?.into_any().unbind(),
         Value::Rgb([r, g, b]) => (r, g, b).into_pyobject(py)?.into_any().unbind(),
+        Value::Size(w, h) => (w, h).into_pyobject(py)?.into_any().unbind(),
     })
 }
 

@@ -14,7 +14,7 @@ use crate::method::select::{choose, combine, counted_sums, row_stats, Choice, Ro
 use crate::method::stretch::guide_image_into;
 use crate::method::veiling::Veiling;
 use crate::method::sphere::SphereIndex;
-use crate::kernels::util::{channel_percentiles, Normalize};
+use crate::kernels::util::{channel_percentiles, reuse, reuse_zeroed, Normalize};
 use crate::method::water::WaterType;
 use crate::method::fallback::{trust, Trust};
 use crate::method::profile::{conditioned, gains_from, Fallback, PowerSums, TypeChoice, WhiteBalance, SOG_P, WHITE_PATCH_Q};
@@ -373,7 +373,7 @@ impl<'a> Shared<'a> {
     /// [0, 1]. `sums` are the object pixels' power sums of `radiance`.
     /// The exposure is the display mapping, kept apart from the color
     /// correction: the gains alone set the colors.
-    pub(crate) fn balance_image(&self, radiance: &[f32], sums: &PowerSums) -> Vec<f32> {
+    pub(crate) fn balance_image(&self, radiance: &[f32], sums: &PowerSums, spare: Vec<f32>) -> Vec<f32> {
         let pct = channel_percentiles(radiance, self.mask, &[WHITE_PATCH_Q], |_, v| v);
         let at = |c: usize| pct.get(c).and_then(|v| v.first()).copied().unwrap_or(1.0);
         let estimate = match self.balance {
@@ -385,8 +385,9 @@ impl<'a> Shared<'a> {
         let top = (0..3).map(|c| gains[c] * at(c)).fold(0.0f64, f64::max);
         let scale = if top > 0.0 { 1.0 / top } else { 1.0 };
         let k: [f32; 3] = gains.map(|g| (g * scale) as f32);
-        // allocated at its size once: the memory plan counts one image
-        let mut image = vec![0f32; radiance.len()];
+        // allocated at its size once (or the previous frame's, given back):
+        // the memory plan counts one image; every value is written below
+        let mut image = reuse(spare, radiance.len());
         image.par_chunks_mut(3).zip(radiance.par_chunks(3)).for_each(|(o, p)| {
             for ((o, &v), &g) in o.iter_mut().zip(p).zip(&k) {
                 *o = (v * g).clamp(0.0, 1.0);
@@ -449,7 +450,7 @@ pub(crate) fn finish(
                 work.aux = Vec::new();
             }
             work.q = q;
-            let mut transmission = vec![0f32; n];
+            let mut transmission = reuse_zeroed(std::mem::take(&mut pool.spare.transmission), n);
             let st = shared.recover_from_q(wt, &mut work, Some(&mut transmission));
             clock.lap(Stage::ChosenFromKept);
             (st, transmission)
@@ -459,7 +460,7 @@ pub(crate) fn finish(
             clock.lap(Stage::ChosenFirstPass);
             // the guide statistics serve only the first pass
             shared.guide.release_stats();
-            let mut transmission = vec![0f32; n];
+            let mut transmission = reuse_zeroed(std::mem::take(&mut pool.spare.transmission), n);
             let st = shared.recover(wt, bounds, &mut work, Some(&mut transmission));
             clock.lap(Stage::ChosenSecondPass);
             (st, transmission)
@@ -491,7 +492,7 @@ pub(crate) fn finish(
             // METHOD §12.1-12.2: one pass of power sums serves the balance and the choice
             let objects = shared.object_sums(&radiance, None);
             let stats = gray_world.unwrap_or(TypeStats { score: objects.spread(), tr_diff: None });
-            (shared.balance_image(&radiance, &objects), stats)
+            (shared.balance_image(&radiance, &objects, std::mem::take(&mut pool.spare.image)), stats)
         }
     };
     // METHOD §12.5: confidence, veil excess and the blend toward the input's balance

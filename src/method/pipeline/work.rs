@@ -2,7 +2,7 @@
 //! type being evaluated, the row scratch, and the planes a
 //! [`Sequence`](crate::Sequence) keeps between frames.
 
-use crate::kernels::util::reuse;
+use crate::kernels::util::{reuse, reuse_zeroed};
 use std::ops::Range;
 
 /// Row buffers of [`Shared::recover_row`], reused from row to row.
@@ -49,7 +49,7 @@ impl Work {
     /// do not matter.
     pub(crate) fn from_pool(n: usize, pool: &mut Buffers) -> Self {
         Self {
-            j: vec![0.0; 3 * n],
+            j: reuse_zeroed(std::mem::take(&mut pool.spare.j), 3 * n),
             aux: reuse(std::mem::take(&mut pool.aux), n),
             q: reuse(std::mem::take(&mut pool.q), n),
         }
@@ -70,6 +70,21 @@ pub struct Buffers {
     /// keep the planes at the end of a call (else they are freed as soon as
     /// they are no longer needed)
     pub(crate) keep: bool,
+    /// the output planes of a finished restoration, given back for the
+    /// next call's outputs ([`Buffers::recycle`])
+    pub(crate) spare: Spare,
+}
+
+/// Output planes of a [`crate::Restoration`] given back to be written
+/// again (zeroed first, so results do not depend on them).
+#[derive(Debug, Default)]
+pub(crate) struct Spare {
+    /// the radiance (J, 3 per pixel), the next call's J
+    pub(crate) j: Vec<f32>,
+    /// t_B
+    pub(crate) transmission: Vec<f32>,
+    /// the displayed image (3 per pixel)
+    pub(crate) image: Vec<f32>,
 }
 
 impl Buffers {
@@ -80,7 +95,17 @@ impl Buffers {
 
     /// Bytes currently held.
     pub fn bytes(&self) -> usize {
-        4 * (self.guide.len() + 4 * self.aux.len() + self.q.len())
+        let s = &self.spare;
+        4 * (self.guide.len() + 4 * self.aux.len() + self.q.len() + s.j.len() + s.transmission.len() + s.image.len())
+    }
+
+    /// Takes back the output planes of a restoration the caller is done
+    /// with, so that the next call of the same size makes none (a video or
+    /// a pipe of frames in steady state). Only kept buffers take them.
+    pub fn recycle(&mut self, res: crate::method::params::Restoration) {
+        if self.keep {
+            self.spare = Spare { j: res.radiance, transmission: res.transmission, image: res.image };
+        }
     }
 
     /// Takes back the work planes at the end of a call (drops them unless kept).
