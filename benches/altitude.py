@@ -452,14 +452,28 @@ def _cell(sel: list[dict]) -> str:
 
 
 def _facts(sel: list[dict]) -> str:
-    """used / n, beta within 10% / n, median beta error of the used fits."""
+    """used / n (rejected for the span, as suspect), beta within 10% / n, median beta error of the used fits."""
     if not sel:
         return "-"
     used = [x for x in sel if x.get("used")]
     good = sum(x.get("beta_err", 9) <= 0.1 for x in used)
     errs = [x["beta_err"] for x in used if "beta_err" in x]
     e = f", {100 * np.median(errs):.0f}%" if errs else ""
-    return f"{len(used)}/{len(sel)} used, {good} ±10%{e}"
+    nspan = sum(x.get("why") == "span" for x in sel)
+    nsus = sum(x.get("why") == "suspect" for x in sel)
+    return f"{len(used)}/{len(sel)} ({nspan} span, {nsus} suspect), {good} ±10%{e}"
+
+
+def _harm(sel: list[dict], base: dict) -> str:
+    """Over the renders whose map was used: median angle with it / without (default), and how many
+    came out more than 2 degrees worse than without."""
+    used = [x for x in sel if x.get("used")]
+    if not used:
+        return "-"
+    w = np.median([x["median"] for x in used])
+    d = np.median([base[x["scene"]]["median"] for x in used])
+    worse = sum(x["median"] > base[x["scene"]]["median"] + 2 for x in used)
+    return f"{w:.1f} / {d:.1f}, {worse} worse"
 
 
 def variant_table(rows: list[dict], view: str) -> str:
@@ -472,10 +486,13 @@ def variant_table(rows: list[dict], view: str) -> str:
     names = [n for n in ROW_NAMES if any(x["row"] == n for x in rows)]
     for n in names:
         lines.append(f"| {ROW_NAMES[n]} | " + " | ".join(_cell(sel(n, k, p)) for k, p in cols) + " |")
+    base = {x["scene"]: x for x in rows if x["row"] == "default"}
     for n in ("flat", "true"):
         if n in names:
-            lines.append(f"| {n} map: used, beta ±10%, median err | "
+            lines.append(f"| {n} map: used (rejected: span, suspect), beta ±10%, median err | "
                          + " | ".join(_facts(sel(n, k, p)) for k, p in cols) + " |")
+            lines.append(f"| {n} map used: angle with / without, > 2° worse | "
+                         + " | ".join(_harm(sel(n, k, p), base) for k, p in cols) + " |")
     if "flat" in names:
         cells = []
         for k, p in cols:
@@ -502,9 +519,12 @@ def condition_table(rows: list[dict], kind: str, view: str) -> str:
             continue
         cells = [_cell([x for x in sel if x["row"] == n and x["condition"] == c]) for c in conds]
         lines.append(f"| {ROW_NAMES[n]} | " + " | ".join(cells) + " |")
+    base = {x["scene"]: x for x in sel if x["row"] == "default"}
     for n in ("flat", "true"):
         cells = [_facts([x for x in sel if x["row"] == n and x["condition"] == c]) for c in conds]
-        lines.append(f"| {n}: used, beta ±10%, median err | " + " | ".join(cells) + " |")
+        lines.append(f"| {n}: used (rejected: span, suspect), beta ±10%, median err | " + " | ".join(cells) + " |")
+        cells = [_harm([x for x in sel if x["row"] == n and x["condition"] == c], base) for c in conds]
+        lines.append(f"| {n} used: angle with / without, > 2° worse | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -530,8 +550,11 @@ def sweep(size: tuple[int, int], verbose: bool = True) -> list[dict]:
 
 
 def sweep_table(rows: list[dict], split: str) -> str:
-    lines = [f"| pitch | span | used | beta ±10% | beta_B fitted/true (used: min-max) | with distance | default "
-             f"| gray world | used and > 2° worse than default |", "|---|---|---|---|---|---|---|---|---|"]
+    """Per pitch: the span, how many fits the core used, how good their attenuation was, and the
+    colours with the distance against without it (over every render, and over the used ones)."""
+    lines = ["| pitch | span | used | beta ±10% | median beta err (used) | beta_B fitted/true (used) "
+             "| with distance | default | gray world | used: with / default | used and > 2° worse |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for pitch in SWEEP_PITCHES:
         sel = [x for x in rows if x["split"] == split and x["pitch"] == pitch]
         if not sel:
@@ -543,13 +566,25 @@ def sweep_table(rows: list[dict], split: str) -> str:
         good = sum(x["beta_err"] <= 0.1 for x in used)
         ratios = [x["beta_b_ratio"] for x in used]
         rr = f"{min(ratios):.2f}-{max(ratios):.2f}" if ratios else "-"
+        err = f"{100 * np.median([x['beta_err'] for x in used]):.0f}%" if used else "-"
+        pair = (f"{np.median([x['median'] for x in used]):.1f} / "
+                f"{np.median([base[x['scene']]['median'] for x in used]):.1f}") if used else "-"
         worse = sum(x["median"] > base[x["scene"]]["median"] + 2 for x in used)
         sp = np.median([x["span"] for x in d.values()])
-        lines.append(f"| {pitch:g}° | {sp:.2f} | {len(used)}/{len(d)} | {good}/{len(d)} | {rr} "
+        lines.append(f"| {pitch:g}° | {sp:.2f} | {len(used)}/{len(d)} | {good}/{len(d)} | {err} | {rr} "
                      f"| {np.median([x['median'] for x in d.values()]):.1f} "
                      f"| {np.median([x['median'] for x in base.values()]):.1f} | {np.median(gw):.1f} "
-                     f"| {worse}/{len(used)} |")
+                     f"| {pair} | {worse}/{len(used)} |")
     return "\n".join(lines)
+
+
+def limit(rows: list[dict]) -> str:
+    """The span limit recorded with a run's rows (each row carries it), or this build's."""
+    if not rows or "span_limit" not in rows[0]:
+        lim = build_limit()
+        for x in rows:
+            x["span_limit"] = lim
+    return rows[0]["span_limit"] if rows else build_limit()
 
 
 def build_limit() -> str:
@@ -599,27 +634,34 @@ def main(argv=None) -> int:
     p.add_argument("--sweep", action="store_true", help="the pitch sweep over a level floor (module docstring)")
     p.add_argument("--write", default=None, metavar="DIR", help="write a few renders as PNGs and stop")
     p.add_argument("--json", default=None, help="write every per-render row to this file")
+    p.add_argument("--tables", default=None, metavar="JSON", help="print the tables of a run's --json and stop")
     a = p.parse_args(argv)
     size = tuple(int(v) for v in a.size.split("x"))
     if a.write:
         write_pngs(a.write, size)
         return 0
     t0 = time.time()
+    old = None
+    if a.tables:
+        with open(a.tables) as f:
+            old = json.load(f)
+        a.sweep = any("split" in x for x in old)
     if a.sweep:
         size = (240, 320) if a.size == "192x256" else size
-        rows = sweep(size)
-        print(f"sweep: 2 m over a level floor, 70° lens, flat port, {size[0]}x{size[1]}; span limit of this build: "
-              f"{build_limit()}; 40 renders per pitch (10 types x 4 conditions); angles raw, median over renders")
+        rows = old if old is not None else sweep(size)
+        print(f"sweep: 2 m over a level floor, 70° lens, flat port, {size[0]}x{size[1]}; span limit of the build: "
+              f"{limit(rows)}; 40 renders per pitch (10 types x 4 conditions); angles raw, median over renders")
         for split, cname in SWEEP_CONTENT.items():
             print(f"\n{cname} ({split})\n")
             print(sweep_table(rows, split))
     else:
-        rows = []
-        for s in shots(a.split, size):
-            t1 = time.time()
-            rows.extend(score_shot(s))
-            print(f"{s.r.name}: {time.time() - t1:.1f}s", file=sys.stderr)
-        print(f"split {a.split}, {size[0]}x{size[1]}, span limit of this build: {build_limit()}; cells: median angle "
+        rows = old if old is not None else []
+        if old is None:
+            for s in shots(a.split, size):
+                t1 = time.time()
+                rows.extend(score_shot(s))
+                print(f"{s.r.name}: {time.time() - t1:.1f}s", file=sys.stderr)
+        print(f"split {a.split}, {size[0]}x{size[1]}, span limit of the build: {limit(rows)}; cells: median angle "
               f"(after best gains), median over renders; used/n, beta within 10%/n, median beta error of the used")
         for view in VIEWS:
             print(f"\n### {view}, by floor (conditions pooled)\n")
@@ -629,7 +671,7 @@ def main(argv=None) -> int:
                 print(f"\n### {kind}, {view}, by condition\n")
                 print(condition_table(rows, kind, view))
     print(f"\n{time.time() - t0:.0f} s", file=sys.stderr)
-    if a.json:
+    if a.json and old is None:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)
     return 0
