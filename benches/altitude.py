@@ -476,36 +476,49 @@ def _harm(sel: list[dict], base: dict) -> str:
     return f"{w:.1f} / {d:.1f}, {worse} worse"
 
 
-def variant_table(rows: list[dict], view: str) -> str:
-    """Rows x floor variants for one view, pooled over conditions and contents."""
-    cols = [(k, p) for k, ps in KINDS.items() for p in ps]
-    head = ["level" if k == "level" else (f"tilted {p:g}°" if k == "tilted" else f"bumpy {p:g} m") for k, p in cols]
-    sel = lambda n, k, p: [x for x in rows if x["row"] == n and x["view"] == view and x["kind"] == k  # noqa: E731
-                           and x["param"] == p]
-    lines = [f"| {view} | " + " | ".join(head) + " |", "|---|" + "---|" * len(cols)]
+def column_table(rows: list[dict], cols: list[tuple[str, object]], corner: str) -> str:
+    """Rows x columns, each column the renders a predicate keeps, pooled over conditions and contents."""
+    sel = lambda n, keep: [x for x in rows if x["row"] == n and keep(x)]  # noqa: E731
+    lines = [f"| {corner} | " + " | ".join(h for h, _ in cols) + " |", "|---|" + "---|" * len(cols)]
     names = [n for n in ROW_NAMES if any(x["row"] == n for x in rows)]
     for n in names:
-        lines.append(f"| {ROW_NAMES[n]} | " + " | ".join(_cell(sel(n, k, p)) for k, p in cols) + " |")
+        lines.append(f"| {ROW_NAMES[n]} | " + " | ".join(_cell(sel(n, k)) for _, k in cols) + " |")
     base = {x["scene"]: x for x in rows if x["row"] == "default"}
     for n in ("flat", "true"):
         if n in names:
             lines.append(f"| {n} map: used (rejected: span, suspect), beta ±10%, median err | "
-                         + " | ".join(_facts(sel(n, k, p)) for k, p in cols) + " |")
+                         + " | ".join(_facts(sel(n, k)) for _, k in cols) + " |")
             lines.append(f"| {n} map used: angle with / without, > 2° worse | "
-                         + " | ".join(_harm(sel(n, k, p), base) for k, p in cols) + " |")
+                         + " | ".join(_harm(sel(n, k), base) for _, k in cols) + " |")
     if "flat" in names:
         cells = []
-        for k, p in cols:
-            s = sel("flat", k, p)
+        for _, k in cols:
+            s = sel("flat", k)
             cells.append(f"{100 * np.nanmedian([x['flat_err'] for x in s]):.1f}%" if s else "-")
         lines.append("| flat map's error, median \\|z_flat/z_true - 1\\| | " + " | ".join(cells) + " |")
         cells = []
-        for k, p in cols:
-            s = sel("true", k, p) or sel("flat", k, p)
+        for _, k in cols:
+            s = sel("true", k) or sel("flat", k)
             sp = [x["span"] for x in s]
             cells.append(f"{np.nanmedian(sp):.2f}, {sum(v >= 2.5 for v in sp)}/{len(sp)} ≥2.5" if sp else "-")
         lines.append("| true span (median), spans ≥ 2.5 | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def variant_table(rows: list[dict], view: str) -> str:
+    """Rows x floor variants (level, each slope, each relief) for one view."""
+    cols = []
+    for k, ps in KINDS.items():
+        for p in ps:
+            head = "level" if k == "level" else (f"tilted {p:g}°" if k == "tilted" else f"bumpy {p:g} m")
+            cols.append((head, lambda x, k=k, p=p: x["view"] == view and x["kind"] == k and x["param"] == p))
+    return column_table(rows, cols, view)
+
+
+def kind_table(rows: list[dict]) -> str:
+    """Rows x (view, floor kind), slopes and reliefs pooled: the summary."""
+    cols = [(f"{v}, {k}", lambda x, v=v, k=k: x["view"] == v and x["kind"] == k) for v in VIEWS for k in KINDS]
+    return column_table(rows, cols, "view, floor")
 
 
 def condition_table(rows: list[dict], kind: str, view: str) -> str:
@@ -661,8 +674,11 @@ def main(argv=None) -> int:
                 t1 = time.time()
                 rows.extend(score_shot(s))
                 print(f"{s.r.name}: {time.time() - t1:.1f}s", file=sys.stderr)
-        print(f"split {a.split}, {size[0]}x{size[1]}, span limit of the build: {limit(rows)}; cells: median angle "
+        split = next((k for k, v in T.SPLITS.items() if rows and rows[0]["content"] in v), a.split)
+        print(f"split {split}, {size[0]}x{size[1]}, {len(rows) // len(ROW_NAMES)} renders, span limit of the build: {limit(rows)}; cells: median angle "
               f"(after best gains), median over renders; used/n, beta within 10%/n, median beta error of the used")
+        print("\n### by view and floor kind (slopes, reliefs and conditions pooled)\n")
+        print(kind_table(rows))
         for view in VIEWS:
             print(f"\n### {view}, by floor (conditions pooled)\n")
             print(variant_table(rows, view))
