@@ -663,37 +663,42 @@ def main(argv=None) -> int:
         with open(a.tables) as f:
             old = json.load(f)
         a.sweep = any("split" in x for x in old)
-    if a.sweep:
-        size = (240, 320) if a.size == "192x256" else size
-        rows = old if old is not None else sweep(size)
-        print(f"sweep: 2 m over a level floor, 70° lens, flat port, {size[0]}x{size[1]}; span limit of the build: "
-              f"{limit(rows)}; 40 renders per pitch (10 types x 4 conditions); angles raw, median over renders")
-        for split, cname in SWEEP_CONTENT.items():
-            print(f"\n{cname} ({split})\n")
-            print(sweep_table(rows, split))
-    else:
-        rows = old if old is not None else []
-        if old is None:
+    if a.sweep and a.size == "192x256":
+        size = (240, 320)
+    rows = old
+    if rows is None:
+        rows = sweep(size) if a.sweep else []
+        if not a.sweep:
             for s in shots(a.split, size):
                 t1 = time.time()
                 rows.extend(score_shot(s))
                 print(f"{s.r.name}: {time.time() - t1:.1f}s", file=sys.stderr)
-        split = next((k for k, v in T.SPLITS.items() if rows and rows[0]["content"] in v), a.split)
-        print(f"split {split}, {size[0]}x{size[1]}, {len(rows) // len(ROW_NAMES)} renders, span limit of the build: {limit(rows)}; cells: median angle "
-              f"(after best gains), median over renders; used/n, beta within 10%/n, median beta error of the used")
-        print("\n### by view and floor kind (slopes, reliefs and conditions pooled)\n")
-        print(kind_table(rows))
+        lim = limit(rows)
+        print(f"{time.time() - t0:.0f} s", file=sys.stderr)
+        if a.json:  # saved before the tables: a closed pipe does not lose the run
+            with open(a.json, "w") as f:
+                json.dump(rows, f, indent=1)
+    lim = limit(rows)
+    if a.sweep:
+        print(f"sweep: 2 m over a level floor, 70° lens, flat port, {size[0]}x{size[1]}; span limit of the build: "
+              f"{lim}; 40 renders per pitch (10 types x 4 conditions); angles raw, median over renders")
+        for split, cname in SWEEP_CONTENT.items():
+            print(f"\n{cname} ({split})\n")
+            print(sweep_table(rows, split))
+        return 0
+    split = next((k for k, v in T.SPLITS.items() if rows and rows[0]["content"] in v), a.split)
+    print(f"split {split}, {size[0]}x{size[1]}, {len(rows) // len(ROW_NAMES)} renders, span limit of the build: "
+          f"{lim}; cells: median angle (after best gains), median over renders; used/n, beta within 10%/n, "
+          f"median beta error of the used")
+    print("\n### by view and floor kind (slopes, reliefs and conditions pooled)\n")
+    print(kind_table(rows))
+    for view in VIEWS:
+        print(f"\n### {view}, by floor (conditions pooled)\n")
+        print(variant_table(rows, view))
+    for kind in KINDS:
         for view in VIEWS:
-            print(f"\n### {view}, by floor (conditions pooled)\n")
-            print(variant_table(rows, view))
-        for kind in KINDS:
-            for view in VIEWS:
-                print(f"\n### {kind}, {view}, by condition\n")
-                print(condition_table(rows, kind, view))
-    print(f"\n{time.time() - t0:.0f} s", file=sys.stderr)
-    if a.json and old is None:
-        with open(a.json, "w") as f:
-            json.dump(rows, f, indent=1)
+            print(f"\n### {kind}, {view}, by condition\n")
+            print(condition_table(rows, kind, view))
     return 0
 
 
