@@ -161,9 +161,19 @@ def geometry(kind: str, h: int, w: int) -> np.ndarray:
 def render(cname: str, wtype: str, stats: str, light: str, noise: float, geom: str, side: int, seed: int) -> Render:
     """Render one scene (METHOD §0) with its truth."""
     rho, zmap = content(cname, side)
-    rho = rho.copy()
     h, w = rho.shape[:2]
     z = zmap if zmap is not None else geometry(geom, h, w)
+    name = f"{cname}_{geom}_{stats}_{light}_{wtype}_n{noise:g}"
+    return through_water(name, cname, geom, rho, z, wtype, stats, light, noise, seed)
+
+
+def through_water(name: str, cname: str, geom: str, rho: np.ndarray, z: np.ndarray, wtype: str, stats: str,
+                  light: str, noise: float, seed: int) -> Render:
+    """The radiance ``rho`` at distances ``z`` (inf = open water) seen through
+    water of type ``wtype`` (METHOD §0) in one condition of the module
+    docstring, exposed and with noise; benches/altitude.py renders its ray-cast
+    seabeds through this too."""
+    rho = rho.copy()
     obj = np.isfinite(z)
     if stats == "gray":
         means = rho[obj].mean(axis=0)
@@ -187,7 +197,6 @@ def render(cname: str, wtype: str, stats: str, light: str, noise: float, geom: s
     clean *= k
     rng = np.random.default_rng(seed)
     img = np.clip(clean + rng.normal(0.0, noise, clean.shape), 0, 1).astype(np.float32)
-    name = f"{cname}_{geom}_{stats}_{light}_{wtype}_n{noise:g}"
     return Render(name, cname, geom, stats, light, wtype, noise, img, rho, z, t, a * k, e * k)
 
 

@@ -79,6 +79,45 @@ def test_pitch_and_roll_rotate_the_rays_as_a_vehicle_does():
     assert up[0].mean() > up[-1].mean()
 
 
+def _bench():
+    """benches/altitude.py, whose ray-surface intersection makes the true ranges of its renders."""
+    import importlib.util
+    import os
+
+    path = os.path.join(os.path.dirname(__file__), "..", "..", "benches", "altitude.py")
+    spec = importlib.util.spec_from_file_location("altitude_bench", path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # its dataclasses look themselves up there
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_benchs_marching_meets_a_tilted_plane_where_the_closed_form_does():
+    """The bench measures --altitude against ranges found by marching along
+    each ray to a heightfield. On a plane h below the camera's foot sloping
+    by a towards azimuth psi, depth = h + tan(a)(X cos psi + Y sin psi), so
+    the ray t w meets it at t = h / (w_Z - tan(a)(w_X cos psi + w_Y sin psi))
+    (a bilinear grid of a plane is the plane). Over a level floor the bench's
+    rays give floor_distance's ranges."""
+    A = _bench()
+    h, a, psi = 2.5, math.radians(20.0), math.radians(130.0)
+    gx, gy = math.tan(a) * math.cos(psi), math.tan(a) * math.sin(psi)
+    step, half = 0.1, 20.0
+    xs = -half + step * np.arange(int(2 * half / step) + 1)
+    field = A.Heightfield(h, gx * xs[:, None] + gy * xs[None, :], step, half)
+    w = A.camera_rays(24, 32, 70.0, pitch=35.0, roll=-6.0)
+    want = h / (w[..., 2] - gx * w[..., 0] - gy * w[..., 1])
+    want = np.where(want > 0, want, np.nan)
+    near = np.hypot(want * w[..., 0], want * w[..., 1]) < half - 1  # where the grid holds the plane
+    assert near.mean() > 0.5
+    got = A.march(field.depth, w, 0.0, 2 * half)
+    np.testing.assert_allclose(got[near], want[near], rtol=1e-6)
+    # the nadir of a level camera meets the sloping plane at the altitude itself
+    assert abs(float(A.march(field.depth, np.array([[0.0, 0.0, 1.0]]), 0.0, 10.0)[0]) - h) < 1e-6
+    level = A.Plane(h).intersect(A.camera_rays(H, W, 80.0, pitch=12.0, roll=-7.0))
+    np.testing.assert_allclose(level, uwhl_rs.floor_distance((H, W), h, 80.0, pitch=12.0, roll=-7.0), rtol=1e-5)
+
+
 def test_values_out_of_range_are_parameter_errors():
     for kw in ({"altitude": 0.0, "fov": 70}, {"altitude": 2, "fov": 190}, {"altitude": 2, "fov": 70, "pitch": 95}):
         with pytest.raises(uwhl_rs.ParameterError):
