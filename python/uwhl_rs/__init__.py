@@ -15,6 +15,7 @@ converts the numpy inputs and documents the API.
 
 from __future__ import annotations
 
+import math
 import os as _os
 
 import numpy as np
@@ -400,8 +401,17 @@ class Sequence:
     Parameters
     ----------
     refresh_every : int >= 0
-        Re-estimate on every N-th frame (0, the default: on the first
-        frame only, until :meth:`reset`).
+        Re-estimate once N frames have passed since the last estimate (0,
+        the default: on the first frame only, until :meth:`reset`).
+    scene_cut : float in [0, 1]
+        Re-estimate when a frame's colours (its chromaticity histogram,
+        METHOD §10) differ from the previous frame's by more than this (a
+        cut: estimated afresh) or from the last estimating frame's (a
+        drift). 0 (the default) or 1: never. Videos use 0.3.
+    smoothing : float in (0, 1]
+        A scheduled or drift estimate moves A this share of the way from
+        the A in use (1, the default: all the way); the frame is restored
+        with the new type and that A. Videos use 0.25.
     reuse_water_mask : bool
         Reuse the estimating frame's water region (default False: each
         frame detects its own).
@@ -413,12 +423,18 @@ class Sequence:
         ``type_choice``, ``haze_floor``).
     """
 
-    def __init__(self, *, refresh_every: int = 0, reuse_water_mask: bool = False, **kwargs):
+    def __init__(self, *, refresh_every: int = 0, reuse_water_mask: bool = False, scene_cut: float = 0.0,
+                 smoothing: float = 1.0, **kwargs):
         refresh_every = _int_param("refresh_every", refresh_every, 0)
         if not isinstance(reuse_water_mask, (bool, np.bool_)):
             raise ParameterError(f"reuse_water_mask must be True or False; got {reuse_water_mask!r}")
+        for name, v, lo_open in (("scene_cut", scene_cut, False), ("smoothing", smoothing, True)):
+            ok = isinstance(v, (int, float, np.floating)) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+            if not ok or not ((0 < v) if lo_open else (0 <= v)) or v > 1:
+                raise ParameterError(f"{name} must be a number in {'(0, 1]' if lo_open else '[0, 1]'}; got {v!r}")
         params = _method_params(**kwargs)
-        self._core = _core.Sequence(params, refresh_every=refresh_every, reuse_water_mask=bool(reuse_water_mask))
+        self._core = _core.Sequence(params, refresh_every=refresh_every, reuse_water_mask=bool(reuse_water_mask),
+                                    scene_cut=float(scene_cut), smoothing=float(smoothing))
 
     def restore(self, image, *, mask=None, water_mask=None) -> Restoration:
         """Restore the next frame; ``image``, ``mask`` and ``water_mask`` as
@@ -443,6 +459,13 @@ class Sequence:
     def veiling_light(self) -> tuple[float, float, float] | None:
         """The veiling light A the next frame reuses (None before the first frame)."""
         return self._core.veiling_light
+
+    @property
+    def last_decision(self) -> tuple[str, float]:
+        """Why the last frame estimated or reused ("first", "scheduled",
+        "cut", "drift" or "reused") and how much its colours changed from
+        the previous frame's (0-1; 0 when ``scene_cut`` is off)."""
+        return self._core.last_decision
 
     @property
     def estimates_next(self) -> bool:

@@ -19,7 +19,7 @@ _RGB = tuple[float, float, float]
 #: every name the module registers, in registration order (the _stage_*
 #: names only in a build with the ``internals`` feature)
 __all__ = [
-    "restore_f32", "_decode_u16", "_quantize", "_colormap",
+    "restore_f32", "transfer_of_tag", "frame_to_linear", "frame_from_linear", "_decode_u16", "_quantize", "_colormap",
     "_downscale", "_reference_srgb", "_reference_raw", "_decode_png", "_encode_png", "Restoration", "Sequence",
     "Params", "_after_fork", "_stage_stretch", "_stage_guide", "_stage_edge_map", "_stage_veiling",
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
@@ -28,7 +28,7 @@ __all__ = [
     "options_help", "check_combination", "check_distance", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
-    "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS",
+    "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
 ]
 
 __version__: str
@@ -46,6 +46,11 @@ STAGES: list[str]
 #: the file extensions (lower case, no dot) a batch takes as images / as camera raw files
 IMAGE_EXTENSIONS: list[str]
 RAW_EXTENSIONS: list[str]
+#: extensions read as videos by the Python command (refused by uwhl-rs)
+VIDEO_EXTENSIONS: list[str]
+#: the scene-cut threshold and A smoothing of videos and raw frames (METHOD §10)
+VIDEO_SCENE_CUT: float
+VIDEO_SMOOTHING: float
 
 class UwhlError(ValueError):
     """Bad input to uwhl_rs (a ValueError)."""
@@ -128,6 +133,9 @@ class FileSettings:
     def max_memory(self) -> int:
         """The memory budget in bytes."""
     @property
+    def parameters(self) -> str:
+        """The sidecar's parameters of these settings, as JSON text."""
+    @property
     def dive_water_type(self) -> Optional[tuple[str, float, float]]:
         """With water_from: the dive's water type (name, beta_BR, beta_BG); else None."""
     @property
@@ -151,7 +159,7 @@ def floor_for(
     """An input's distance from --altitude at the processed size: (source, map or None, why not or None,
     the sidecar's distance.floor as JSON or None)."""
 def write_input_outputs(
-    claim: Claim, res: Restoration, image: _F32, source: dict[str, Any], settings: FileSettings, input: _PathArg,
+    claim: Claim, res: Restoration, image: _F32, source: dict[str, Any], settings: FileSettings, input: Optional[_PathArg],
     label: str, contact_sheet: Optional[bytes], reused: Optional[bool], read: float, restore: float,
     sheet_seconds: Optional[float], elapsed: float, distance_source: Optional[str] = None,
     distance_missing: Optional[str] = None, distance_floor: Optional[str] = None,
@@ -199,6 +207,14 @@ def can_allocate(bytes: int) -> bool:
 
 # ---- pixel conventions (docs/OUTPUTS.md) ----
 
+def transfer_of_tag(tag: str) -> Optional[str]:
+    """The --transfer name of a video stream's transfer tag (None: unspecified); ValueError for HDR/log."""
+def frame_to_linear(codes: Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]], transfer: str) -> _F32:
+    """8- or 16-bit frame codes (H, W, 3) to linear light through the inverse of the curve."""
+def frame_from_linear(
+    image: _F32, transfer: str, bits: Literal[8, 16]
+) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
+    """Linear light (H, W, 3) to 8- or 16-bit codes through the curve."""
 def _decode_u16(codes: npt.NDArray[np.uint16], linearize: bool) -> _F32:
     """16-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`."""
 def _quantize(data: _F32, bits: Literal[8, 16], srgb: bool) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
@@ -287,7 +303,15 @@ def restore_f32(
 @final
 class Sequence:
     """Restores the frames of one sequence, reusing the water type and A between estimates."""
-    def __new__(cls, params: Params, *, refresh_every: int = 0, reuse_water_mask: bool = False) -> "Sequence": ...
+    def __new__(
+        cls,
+        params: Params,
+        *,
+        refresh_every: int = 0,
+        reuse_water_mask: bool = False,
+        scene_cut: float = 0.0,
+        smoothing: float = 1.0,
+    ) -> "Sequence": ...
     def restore(
         self,
         image: _F32,
@@ -304,6 +328,9 @@ class Sequence:
     @property
     def veiling_light(self) -> Optional[_RGB]:
         """The veiling light A the next frame reuses (None before the first frame)."""
+    @property
+    def last_decision(self) -> tuple[str, float]:
+        """Why the last frame estimated or reused, and its colour change (METHOD §10)."""
     @property
     def estimates_next(self) -> bool:
         """Whether the next frame runs the estimation (water type and A)."""

@@ -84,7 +84,7 @@ def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[li
                     rels.append((tuple(parts), f))
                 rels.sort()
                 if not rels:
-                    problems.append((url, "folder holds no JPEG, PNG, TIFF or raw file"))
+                    problems.append((url, "folder holds no JPEG, PNG, TIFF, raw or video file"))
                 found += [(full(f), "/".join(parts[:-1])) for parts, f in rels]
             elif fs.isfile(path):
                 found.append((url, ""))
@@ -229,7 +229,7 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
     try:
         if client is None and dask is None:
             _run_here(plan.items, opts, so, overwrite, reuse_estimates, reuse_water_mask, jobs, settle,
-                      set() if overwrite else plan.done)
+                      set() if overwrite else plan.done, getattr(listener, "note", None))
         else:
             groups = _groups(plan, overwrite, reuse_estimates, settle)
             if groups:
@@ -282,7 +282,7 @@ def _groups(plan: Plan, overwrite: bool, reuse: int | None, settle) -> list[list
 
 
 def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: int | None, reuse_water_mask: bool,
-              jobs: int, settle, done: set) -> None:
+              jobs: int, settle, done: set, progress=None) -> None:
     """The batch in this process, one sequence over every input with
     ``reuse`` (as uwhl-rs runs it). With ``jobs`` 1, one input is written
     (the encoders release the GIL) while the next is read and restored (the
@@ -296,6 +296,7 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
     with tempfile.TemporaryDirectory(prefix="uwhl-run-", dir=scratch_root()) if remote \
             else contextlib.nullcontext("") as scratch:
         ctx = context(opts, so, overwrite, reuse, reuse_water_mask, scratch)
+        ctx.progress = progress
 
         def start(it: Item):
             if it.index in done and is_url(it.out_dir):

@@ -84,6 +84,9 @@ class Console:
         else:
             self.line(f"[{k}/{total}] {row['input']} -> {row['image']} "
                       f"(water type {row['water_type']}, {row['seconds'] or 0.0:.2f} s)")
+            if row.get("error"):
+                # done, but not all of it (a video that stops part way)
+                self.error(row["error_kind"], row["error"], row["input"])
 
     def summary(self, rows: list[dict], seconds: float) -> None:
         """The batch's last line: how many inputs were done, skipped, failed."""

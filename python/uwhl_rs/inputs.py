@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from . import _core
 from .files import output_suffixes
 from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS
+from .video import VIDEO_EXTENSIONS
 
 __all__ = ["Job", "GLOB_CHARS", "supported", "collect_inputs"]
 
@@ -30,9 +31,10 @@ class Job:
 
 
 def supported(path: str) -> bool:
-    """Whether ``path``'s extension is one a folder walk or a glob takes."""
+    """Whether ``path``'s extension is one a folder walk or a glob takes
+    (an image, a raw file or a video)."""
     ext = os.path.splitext(path)[1].lower()
-    return ext in IMAGE_EXTENSIONS or ext in RAW_EXTENSIONS
+    return ext in IMAGE_EXTENSIONS or ext in RAW_EXTENSIONS or ext in VIDEO_EXTENSIONS
 
 
 def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",

@@ -28,6 +28,7 @@ import numpy as np
 
 import uwhl_rs
 
+from . import report_video
 from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import REPORT_DIR, Photo, collect_sidecars, failed_inputs
 from .sidecars import display, printable
@@ -429,6 +430,8 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     listed = folder.files()
     written_at = dict(listed)
     photos, problems = collect_sidecars(folder, listed=listed)
+    videos = [p for p in photos if report_video.is_video(p)]
+    photos = [p for p in photos if not report_video.is_video(p)]
     thumbs_at = dict(folder.files(under=REPORT_DIR + "/thumbs"))
     jobs, cells = [], []
     for p in photos:
@@ -436,7 +439,9 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         img = p.output("image")
         made = written_at.get(img, p.modified) if img else p.modified
         missing = bool(img) and img not in written_at
-        jobs += [(p, "in", ti, made, False), (p, "out", to, made, missing) if img else None]
+        # a frame of a video or a pipe has no input file of its own to show
+        frame = str((p.doc.get("source") or {}).get("format") or "").startswith(("video frame", "raw "))
+        jobs += [None if frame else (p, "in", ti, made, False), (p, "out", to, made, missing) if img else None]
         cells.append((p, ti, to))
     with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
         notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2])), jobs))
@@ -457,8 +462,11 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
             "t": _rel_url(p.output("transmission_color")),
             "side": _rel_url(p.sidecar),
         })
+    for p in videos:
+        counts[p.doc["water_type"]] = counts.get(p.doc["water_type"], 0) + 1
     counts = {t: n for t, n in counts.items() if n}
     flagged = sum(1 for d in data if d["flags"])
+    flagged_videos = [p for p in videos if report_video.needs_a_look(p)]
     failed = failed_inputs(folder)
     failed_html = "" if not failed else (
         f'<section id="failed"><h2>Failed: {len(failed)} (from summary.csv)</h2><table class="failed">'
@@ -470,14 +478,16 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {html.escape(folder.name)}</title><style>{_CSS}</style></head><body>
 <h1>{html.escape(folder.display)}</h1>
-<p class="meta" id="summary">{len(photos)} photos restored, {flagged} flagged, {len(failed)} failed; water types:
+<p class="meta" id="summary">{len(photos)} photos{f" and {len(videos)} videos" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {len(failed)} failed; water types:
 {', '.join(f'{html.escape(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
 {html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
 {failed_html}
-<section id="flagged"><h2>Needs a look: {flagged} flagged (fallbacks, clamps; docs/OUTPUTS.md "Flags")</h2>
+<section id="flagged"><h2>Needs a look: {flagged + len(flagged_videos)} flagged (fallbacks, clamps; docs/OUTPUTS.md "Flags")</h2>
+{''.join(f'<p class="flags">video {html.escape(p.sidecar[:-5])}: {html.escape(", ".join(p.flags))}</p>' for p in flagged_videos)}
 <div id="flagged-grid"></div></section>
 <h2>Water types</h2>{_histogram_svg(counts)}
 <h2>Over the sequence ({'EXIF time' if axis.by_time else 'frame index, in name order'})</h2>{_series_svg(axis, types) if photos else ''}
+{report_video.videos_html(videos, types, _rel_url)}
 <section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
 {''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
 <div id="view" onclick="if(event.target===this)hide()"></div>
@@ -486,7 +496,8 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
 """
     # lone surrogates (undecodable names) cannot be UTF-8: shown as U+FFFD
     path = folder.write(REPORT_DIR + "/index.html", display(page).encode("utf-8"))
-    return {"path": path, "photos": len(photos), "flagged": flagged, "failed": len(failed), "thumbnails_written": written,
+    return {"path": path, "photos": len(photos), "videos": len(videos), "flagged": flagged + len(flagged_videos),
+            "failed": len(failed), "thumbnails_written": written,
             "problems": problems, "seconds": time.perf_counter() - t0}
 
 

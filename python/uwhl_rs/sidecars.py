@@ -34,6 +34,9 @@ MAX_BYTES = 1 << 20
 #: the deepest nesting of arrays and objects accepted (the writers use 3)
 MAX_DEPTH = 16
 
+#: the most estimates a video's sidecar lists (its cuts first, then its scheduled estimates thinned evenly)
+VIDEO_ESTIMATES = 5000
+
 #: the longest text field accepted (names, paths, notes)
 MAX_TEXT = 4096
 
@@ -217,7 +220,18 @@ def _hex(pattern_check, what):
 FIELDS = {
     "input": _path_text,
     "outputs": _object({r: _output_name for r in ("image", "transmission", "transmission_color", "confidence",
-                                                       "contact_sheet")}),
+                                                       "contact_sheet", "video", "strip")}),
+    "kind": _text,
+    # a video's sidecar (docs/OUTPUTS.md "Videos")
+    "video": _object({
+        "estimates": _list_of(_object({"frame": _count, "time": _optional(_number), "event": _text,
+                                       "change": _optional(_number), "water_type": _text,
+                                       "veiling_light": _list_of(_number, 3)}), most=VIDEO_ESTIMATES),
+        "frames": _object({"decoded": _count, "restored": _count, "reused": _count, "every": _count}),
+        "stopped": _optional(_object({"frame": _count, "time": _optional(_number), "error": _text})),
+        "stream": _object({"width": _optional(_count), "height": _optional(_count), "rate": _optional(_number),
+                           "codec": _optional(_text), "duration": _optional(_number)}),
+    }),
     "uwhl_version": _text,
     "implementation": _text,
     "water_type": _nonempty_text,

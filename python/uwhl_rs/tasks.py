@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import uwhl_rs
 
-from . import _core, files
+from . import _core, files, video
 from .errors import EXIT, CommandError, ImageReadError, UwhlError, describe, kind_of
 from .images import DEFAULT_MAX_PIXELS, read_image
 from .outdir import row_fields_from_sidecar
@@ -30,6 +30,9 @@ __all__ = ["COLUMNS", "MEMORY", "DONE_NOTE", "Item", "Context", "begin", "restor
 
 #: the Dask worker resource a task asks for: bytes of its memory plan
 MEMORY = "MEMORY"
+
+#: the options of videos and sequences (the photos' restore_file does not take them)
+VIDEO_KEYS = ("every", "video_codec", "video_quality", "transfer", "scene_cut", "smoothing")
 
 #: header bytes fetched from object storage to plan an input's memory
 _HEADER_BYTES = 1 << 18
@@ -195,6 +198,11 @@ class Context:
     sequence: object = None
     #: what the process holds anyway, counted in every input's memory check
     base: int = 0
+    #: --reuse-estimates N (a video's own schedule of estimates), None without
+    reuse: int | None = None
+    reuse_water_mask: bool = False
+    #: called with a line of a long input's progress (a video's frames), or None
+    progress: Callable[[str], None] | None = None
 
 
 def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | None, reuse_water_mask: bool,
@@ -210,7 +218,10 @@ def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | Non
     method = {k: opts[k] for k in files.METHOD_KEYS if k in opts}
     sequence = None
     if reuse is not None:
-        sequence = uwhl_rs.Sequence(refresh_every=reuse, reuse_water_mask=reuse_water_mask, **method)
+        # photos: a cut or drift re-estimates only when asked for (--scene-cut), A smoothed only with --smoothing
+        sequence = uwhl_rs.Sequence(refresh_every=reuse, reuse_water_mask=reuse_water_mask,
+                                    scene_cut=opts.get("scene_cut") or 0.0, smoothing=opts.get("smoothing") or 1.0,
+                                    **method)
     # --max-memory bounds the process's peak: what it holds before the
     # first input (the interpreter, numpy, the codecs, imported now so that
     # they are counted here and not while the first input is written) counts
@@ -218,7 +229,8 @@ def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | Non
     from PIL import Image  # noqa: F401
 
     # (and 4 MiB for the writer threads' stacks and allocator arenas)
-    return Context(opts, dict(storage_options), overwrite, scratch, sequence, _core.process_base() + (4 << 20))
+    return Context(opts, dict(storage_options), overwrite, scratch, sequence, _core.process_base() + (4 << 20),
+                   reuse, reuse_water_mask)
 
 
 def _worker_resources(threads_default: int | None) -> tuple[int | None, int | None]:
@@ -247,8 +259,11 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
 
     One input's failure is its row; an interrupt propagates (the claim is
     released)."""
+    if video.is_video(item.input):
+        return _begin_video(item, ctx)
     t0 = time.perf_counter()
-    opts, so = ctx.opts, ctx.storage_options
+    so = ctx.storage_options
+    opts = {k: v for k, v in ctx.opts.items() if k not in VIDEO_KEYS}
     fmt, contact = opts.get("format", "jpg"), opts.get("contact", False)
     remote_out = is_url(item.out_dir)
     local_in = None
@@ -295,6 +310,81 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
         if remote_out:
             shutil.rmtree(out_dir, ignore_errors=True)
         return done
+
+    return finish
+
+
+def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
+    """:func:`begin` for a video: its output names claimed (or the video
+    skipped), then the function that restores and writes it whole
+    (``uwhl_rs.videofiles.restore_video``): its frames are read, restored
+    and encoded as they come, so nothing is done before the write."""
+    from . import videofiles
+
+    t0 = time.perf_counter()
+    opts, so = dict(ctx.opts), ctx.storage_options
+    for k in ("contact", "sequence"):
+        opts.pop(k, None)
+    every, codec = opts.get("every"), opts.get("video_codec") or "h264"
+    remote_out = is_url(item.out_dir)
+    suffixes = videofiles.video_suffixes(item.input, every=every, codec=codec)
+    out_dir = os.path.join(ctx.scratch, f"out{item.index}") if remote_out else local_path(item.out_dir)
+    if remote_out:
+        sidecar = join(item.out_dir, item.name + ".json")
+        fs, side = filesystem(sidecar, so)
+        try:
+            if not ctx.overwrite and _stored("unreadable_input", fs.exists, side):
+                return skipped_row(item, sidecar)
+        except (Exception, MemoryError) as e:
+            return failure_row(item, e, False, None)
+    try:
+        status, sidecar, reason, claim = _core.claim_outputs(out_dir, item.name, item.input, suffixes,
+                                                             ctx.overwrite or remote_out, not remote_out)
+    except OSError as e:
+        return failure_row(item, OSError(e.errno, f"cannot claim output names in {out_dir}: {e}"), True, None)
+    if status != "claimed":
+        return skipped_row(item, sidecar, DONE_NOTE if status == "done" else reason)
+
+    def finish() -> dict:
+        local_in = None
+        try:
+            local_in = local_input(item.input, ctx.scratch, so)
+            result = videofiles.restore_video(local_in, out_dir, name=claim.name, _claim=claim, _label=item.input,
+                                              reuse_estimates=ctx.reuse, reuse_water_mask=ctx.reuse_water_mask,
+                                              overwrite=ctx.overwrite, progress=ctx.progress, **opts)
+        except (Exception, MemoryError) as e:
+            claim.release()
+            return failure_row(item, e, False, time.perf_counter() - t0, local_in)
+        finally:
+            if local_in is not None and local_in != local_path(item.input):
+                _unlink(local_in)
+        written = {"sidecar": result.paths["sidecar"], "strip": result.paths["strip"]}
+        if "video" in result.paths:
+            written["video"] = result.paths["video"]
+        if remote_out:
+            stills = [os.path.join(out_dir, f) for f in sorted(os.listdir(out_dir))
+                      if f.endswith(tuple(files.output_suffixes(opts.get("format", "jpg")) + [".json"]))
+                      and os.path.join(out_dir, f) not in written.values()]
+            try:
+                dest = _stored("write_failed", _publish, {**{f"still{i}": p for i, p in enumerate(stills)}, **written},
+                               item, so, ctx.overwrite)
+            except (Exception, MemoryError) as e:
+                return failure_row(item, e, True, time.perf_counter() - t0)
+            finally:
+                shutil.rmtree(out_dir, ignore_errors=True)
+            written = {k: v for k, v in dest.items() if not k.startswith("still")}
+        side = result.sidecar
+        shown = written.get("video") or f"{len(side['video']['stills'])} stills beside {written['strip']}"
+        r = row(item, "done", **row_fields_from_sidecar(side), seconds=round(time.perf_counter() - t0, 4),
+                exit_code=0, image=shown, sidecar=written["sidecar"], reused_estimates=None)
+        if result.stopped is not None:
+            # restored up to where the file stops: its outputs stand, and the run says so
+            stop = result.stopped
+            where = f"frame {stop['frame']}" + ("" if stop["time"] is None else f" ({stop['time']:.3f} s)")
+            r.update(error_kind="unreadable_input", exit_code=EXIT["unreadable_input"],
+                     error=f"the video stops at {where}: {stop['error']}; the {side['video']['frames']['restored']} "
+                           "frames before it are restored")
+        return r
 
     return finish
 

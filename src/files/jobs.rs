@@ -21,6 +21,14 @@ pub const RAW_EXTENSIONS: [&str; 46] = [
     "rwl", "rwz", "sr2", "srf", "srw", "sti", "x3f",
 ];
 
+/// Video extensions (the Python command reads them through FFmpeg, PyAV):
+/// taken when walking a folder, so that output names agree between the
+/// commands, and refused with an input error by the binary, which restores
+/// a video's frames piped in (`--raw-frames`).
+pub const VIDEO_EXTENSIONS: [&str; 14] = [
+    "mp4", "m4v", "mov", "mkv", "avi", "mts", "m2ts", "ts", "webm", "mxf", "mpg", "mpeg", "wmv", "3gp",
+];
+
 /// The lower-case extension of `p` ("" for none).
 pub fn extension(p: &Path) -> String {
     p.extension()
@@ -28,10 +36,11 @@ pub fn extension(p: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// Whether a folder walk takes `p` (an image or raw extension).
+/// Whether a folder walk takes `p` (an image, raw or video extension).
 pub fn supported(p: &Path) -> bool {
     let ext = extension(p);
-    IMAGE_EXTENSIONS.contains(&ext.as_str()) || RAW_EXTENSIONS.contains(&ext.as_str())
+    let e = ext.as_str();
+    IMAGE_EXTENSIONS.contains(&e) || RAW_EXTENSIONS.contains(&e) || VIDEO_EXTENSIONS.contains(&e)
 }
 
 /// Ok when `path` is a regular file (after symlinks); else why it is
@@ -134,7 +143,7 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path, suffixes: &[String]) -> (
             match walk(input, Path::new(""), &out_real, &mut found) {
                 Err(e) => errors.push((input.clone(), e)),
                 Ok(()) if found.len() == before => {
-                    errors.push((input.clone(), "folder holds no JPEG, PNG, TIFF or raw file".into()))
+                    errors.push((input.clone(), "folder holds no JPEG, PNG, TIFF, raw or video file".into()))
                 }
                 Ok(()) => {}
             }

@@ -13,7 +13,7 @@ use crate::files::color::{max_side_factor, reference_srgb_stretch};
 use crate::files::commit::{claim, Claim, Request, Resolution, Skip};
 use crate::files::decode::{decode, decode_mask, Limits};
 use crate::files::encode::{encode_image, encode_transmission, encode_transmission_color, Encoding};
-use crate::files::jobs::{extension, Job, RAW_EXTENSIONS};
+use crate::files::jobs::{extension, Job, RAW_EXTENSIONS, VIDEO_EXTENSIONS};
 use crate::files::settings::{Preprocess, Settings};
 use crate::files::sidecar::{sidecar, Estimates, OutputPaths, Seconds, Source};
 use crate::kernels::filters::downscale;
@@ -410,6 +410,13 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
         return Err(Failure::new(
             Kind::Input,
             "raw files are decoded by the Python command (uwhl restore); uwhl-rs reads PNG, JPEG and TIFF",
+        ));
+    }
+    if VIDEO_EXTENSIONS.contains(&extension(&job.input).as_str()) {
+        return Err(Failure::new(
+            Kind::Input,
+            "a video: the Python command restores video files (uwhl restore); uwhl-rs restores its frames piped \
+             in with --raw-frames (docs/CLI.md)",
         ));
     }
     let file = open_input(&job.input)?;

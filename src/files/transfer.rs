@@ -54,15 +54,18 @@ impl Transfer {
     /// nothing (unspecified, reserved), an error naming a curve that is
     /// not read (HDR: PQ, HLG; log curves).
     pub fn from_tag(tag: &str) -> Result<Option<Self>, String> {
-        Ok(Some(match tag {
-            "bt709" | "smpte170m" | "bt2020-10" | "bt2020-12" | "bt2020_10bit" | "bt2020_12bit" | "bt1361e"
-            | "bt1361" | "smpte240m" => Transfer::Bt709,
-            "iec61966-2-1" | "iec61966_2_1" | "iec61966-2-4" | "iec61966_2_4" => Transfer::Srgb,
+        // FFmpeg spells them bt2020-10 and iec61966-2-1, PyAV BT2020_10 and IEC61966_2_1
+        let norm = tag.trim().to_ascii_lowercase().replace('_', "-");
+        Ok(Some(match norm.as_str() {
+            "bt709" | "smpte170m" | "bt2020-10" | "bt2020-12" | "bt2020-10bit" | "bt2020-12bit" | "bt1361e"
+            | "bt1361" | "bt1361-ecg" | "smpte240m" => Transfer::Bt709,
+            "iec61966-2-1" | "iec61966-2-4" => Transfer::Srgb,
             "bt470m" | "gamma22" => Transfer::Gamma22,
             "bt470bg" | "gamma28" => Transfer::Gamma28,
             "linear" => Transfer::Linear,
             "" | "unknown" | "unspecified" | "reserved" | "reserved0" => return Ok(None),
-            other => {
+            _ => {
+                let other = tag.trim();
                 return Err(format!(
                     "the stream's transfer curve {other} is not read (HDR and log curves are not): give \
                      --transfer to say how its samples are to be read"
@@ -240,6 +243,8 @@ mod tests {
     fn tags_name_curves_and_refuse_hdr() {
         assert_eq!(Transfer::from_tag("smpte170m"), Ok(Some(Transfer::Bt709)));
         assert_eq!(Transfer::from_tag("iec61966-2-1"), Ok(Some(Transfer::Srgb)));
+        assert_eq!(Transfer::from_tag("IEC61966_2_1"), Ok(Some(Transfer::Srgb)));
+        assert_eq!(Transfer::from_tag("BT2020_10"), Ok(Some(Transfer::Bt709)));
         assert_eq!(Transfer::from_tag("unknown"), Ok(None));
         let e = Transfer::from_tag("smpte2084").unwrap_err();
         assert!(e.contains("smpte2084") && e.contains("--transfer"), "{e}");

@@ -3,6 +3,7 @@
 //! (docs/OUTPUTS.md). Each call releases the GIL.
 
 use crate::files::color;
+use crate::files::transfer::{Codec, Transfer};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -230,7 +231,76 @@ fn _encode_png<'py>(py: Python<'py>, a: &Bound<'py, PyAny>) -> PyResult<Bound<'p
 }
 
 /// Adds the colour functions to `uwhl_rs._core`.
+/// The curve named `transfer` (`--transfer`'s names); ValueError otherwise.
+fn curve(transfer: &str) -> PyResult<Transfer> {
+    Transfer::parse(transfer).ok_or_else(|| {
+        PyValueError::new_err(format!("transfer {transfer:?} is not one of bt709, srgb, gamma22, gamma28, linear"))
+    })
+}
+
+/// The curve a video stream's transfer tag (FFmpeg's name) says: its
+/// `--transfer` name, None when the tag says nothing; ValueError naming a
+/// curve that is not read (HDR, log).
+#[pyfunction]
+fn transfer_of_tag(tag: &str) -> PyResult<Option<&'static str>> {
+    Transfer::from_tag(tag).map(|t| t.map(Transfer::name)).map_err(PyValueError::new_err)
+}
+
+/// A video frame's 8- or 16-bit codes (uint8 or uint16, (H, W, 3)) to
+/// linear light (float32) through the inverse of `transfer`
+/// (`crate::files::transfer`).
+#[pyfunction]
+fn frame_to_linear<'py>(py: Python<'py>, codes: &Bound<'py, PyAny>, transfer: &str) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let t = curve(transfer)?;
+    if let Ok(a) = codes.extract::<PyReadonlyArrayDyn<'py, u8>>() {
+        rgb_shape(a.shape(), "codes")?;
+        let s = slice(&a, "codes")?;
+        let mut out = vec![0f32; s.len()];
+        py.detach(|| Codec::new(t, 8).decode_u8(s, &mut out));
+        return same_shape(py, out, a.shape());
+    }
+    let a = codes
+        .extract::<PyReadonlyArrayDyn<'py, u16>>()
+        .map_err(|_| PyValueError::new_err("codes must be a uint8 or uint16 array"))?;
+    rgb_shape(a.shape(), "codes")?;
+    let s = slice(&a, "codes")?;
+    let mut out = vec![0f32; s.len()];
+    py.detach(|| Codec::new(t, 16).decode_u16(s, &mut out));
+    same_shape(py, out, a.shape())
+}
+
+/// Linear light (float32, (H, W, 3)) to `bits` (8 or 16) codes through
+/// `transfer`, rounded to nearest (`crate::files::transfer`).
+#[pyfunction]
+fn frame_from_linear<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArrayDyn<'py, f32>,
+    transfer: &str,
+    bits: u32,
+) -> PyResult<Bound<'py, PyAny>> {
+    let t = curve(transfer)?;
+    rgb_shape(image.shape(), "image")?;
+    let s = slice(&image, "image")?;
+    let shape = image.shape().to_vec();
+    match bits {
+        8 => {
+            let mut out = vec![0u8; s.len()];
+            py.detach(|| Codec::new(t, 8).encode_u8(s, &mut out));
+            Ok(same_shape(py, out, &shape)?.into_any())
+        }
+        16 => {
+            let mut out = vec![0u16; s.len()];
+            py.detach(|| Codec::new(t, 16).encode_u16(s, &mut out));
+            Ok(same_shape(py, out, &shape)?.into_any())
+        }
+        _ => Err(PyValueError::new_err(format!("bits must be 8 or 16, got {bits}"))),
+    }
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(transfer_of_tag, m)?)?;
+    m.add_function(wrap_pyfunction!(frame_to_linear, m)?)?;
+    m.add_function(wrap_pyfunction!(frame_from_linear, m)?)?;
     m.add_function(wrap_pyfunction!(_decode_u16, m)?)?;
     m.add_function(wrap_pyfunction!(_quantize, m)?)?;
     m.add_function(wrap_pyfunction!(_colormap, m)?)?;

@@ -109,6 +109,13 @@ impl PyFileSettings {
         self.0.params.max_memory
     }
 
+    /// The sidecar's `parameters` of these settings, as JSON text
+    /// (`crate::files::sidecar::parameters`, what every sidecar records).
+    #[getter]
+    fn parameters(&self) -> String {
+        parameters(&self.0).to_string()
+    }
+
     /// With `water_from`: the dive's water type `(name, beta_BR, beta_BG)`
     /// (`crate::files::dive`), the one candidate of every photo; else None.
     #[getter]

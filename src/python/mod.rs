@@ -740,13 +740,26 @@ impl PySequence {
 #[pymethods]
 impl PySequence {
     #[new]
-    #[pyo3(signature = (params, *, refresh_every=0, reuse_water_mask=false))]
-    fn new(params: &PyParams, refresh_every: usize, reuse_water_mask: bool) -> PyResult<Self> {
+    #[pyo3(signature = (params, *, refresh_every=0, reuse_water_mask=false, scene_cut=0.0, smoothing=1.0))]
+    fn new(params: &PyParams, refresh_every: usize, reuse_water_mask: bool, scene_cut: f32, smoothing: f32) -> PyResult<Self> {
         let params = params.0.clone();
         let mut seq = Sequence::new(params);
         seq.refresh_every = refresh_every;
         seq.reuse_water_mask = reuse_water_mask;
+        seq.cut_threshold = scene_cut;
+        seq.smoothing = smoothing;
         Ok(Self { inner: Mutex::new(seq) })
+    }
+
+    /// Why the last frame estimated or reused ("first", "scheduled",
+    /// "cut", "drift", "reused") and its colour change from the previous
+    /// frame (METHOD §10).
+    #[getter]
+    fn last_decision(&self, py: Python<'_>) -> (&'static str, f32) {
+        py.detach(|| {
+            let (d, c) = self.lock().last_decision();
+            (d.name(), c)
+        })
     }
 
     /// Restores the next frame (float32 (H, W, 3), C-contiguous).
@@ -860,6 +873,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("STAGES", crate::Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>())?;
     m.add("EXIT_CODES", crate::files::options::EXIT_CODES.to_vec())?;
     m.add("EXIT_CODES_HELP", crate::files::options::exit_code_text())?;
+    m.add("VIDEO_SCENE_CUT", crate::VIDEO_SCENE_CUT)?;
+    m.add("VIDEO_SMOOTHING", crate::VIDEO_SMOOTHING)?;
+    m.add("VIDEO_EXTENSIONS", crate::files::jobs::VIDEO_EXTENSIONS.to_vec())?;
     m.add_function(wrap_pyfunction!(parse_option, m)?)?;
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;

@@ -15,6 +15,9 @@ from ..errors import CommandError
 
 __all__ = ["build_parser", "water_types", "method_kwargs", "file_kwargs"]
 
+#: every option's default in the table
+_DEFAULTS = {o["key"]: o["default"] for o in _core.OPTIONS}
+
 _EPILOG_RESTORE = _core.EXIT_CODES_HELP + """
 
 outputs (per input NAME, in OUTDIR, mirroring sub-folders of folder inputs):
@@ -202,7 +205,13 @@ def file_kwargs(a: argparse.Namespace, water_types) -> dict:
     that restores)."""
     kw = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
               max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
-              distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port, water_from=a.water_from, contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
+              distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port, water_from=a.water_from,
+              contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
+    # videos (uwhl_rs.videofiles): set only when given, so that photos see none of them
+    for key in ("every", "video_codec", "video_quality", "transfer", "scene_cut", "smoothing"):
+        v = getattr(a, key, None)
+        if v is not None and v != _DEFAULTS.get(key):
+            kw[key] = v
     if a.max_memory is not None:
         kw["max_memory"] = a.max_memory
     return kw

@@ -1,0 +1,362 @@
+"""Videos: frames read through FFmpeg (PyAV), restored as one sequence
+(:class:`uwhl_rs.Sequence`, METHOD §10: the water type and A estimated on
+the first frame, on a schedule, at cuts and drifts, A smoothed between
+estimates), and frames out (docs/API.md "Videos").
+
+>>> for frame in restore_frames("dive_017.mp4"):     # doctest: +SKIP
+...     frame.image          # float32 (H, W, 3), linear light, as restore() gives it
+...     frame.decision       # "first", "scheduled", "cut", "drift" or "reused"
+
+A frame's samples are decoded to 16-bit RGB by FFmpeg with the stream's
+own matrix and range (BT.709 when an HD stream does not say, BT.601 below
+720 lines), then made linear by undoing the stream's transfer curve
+(``_core.frame_to_linear``: BT.709 when the stream does not say), so 8-
+and 10-bit streams are read without banding and the model of METHOD §0
+holds. The files a video becomes are written by :mod:`uwhl_rs.videofiles`.
+
+PyAV is a dependency of the package: its wheels carry their own FFmpeg
+(H.264, H.265, ProRes, MJPEG, FFV1, VP9 and more; libx264 and libx265 to
+write), so nothing has to be installed on the system.
+"""
+
+from __future__ import annotations
+
+import fractions
+import math
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import uwhl_rs
+
+from . import _core
+from .errors import ImageReadError, ParameterError
+
+__all__ = ["VIDEO_EXTENSIONS", "StreamInfo", "Frame", "RestoredFrame", "is_video", "probe", "read_frames",
+           "restore_frames", "refresh_for"]
+
+#: file extensions read as videos (lower case, with the dot)
+VIDEO_EXTENSIONS = frozenset("." + e for e in _core.VIDEO_EXTENSIONS)
+
+#: H.273 colour matrices (FFmpeg's colorspace codes) -> swscale's names
+_MATRICES = {1: "ITU709", 4: "FCC", 5: "ITU601", 6: "SMPTE170M", 7: "SMPTE240M", 9: "BT2020", 10: "BT2020"}
+
+
+def is_video(path: str | os.PathLike) -> bool:
+    """Whether ``path``'s extension is a video's."""
+    return os.path.splitext(os.fspath(path))[1].lower() in VIDEO_EXTENSIONS
+
+
+def _av():
+    try:
+        import av
+    except ImportError:  # pragma: no cover - a dependency of the package
+        raise ImageReadError("reading videos needs PyAV (pip install av)") from None
+    return av
+
+
+def _enum_name(enum_cls, value) -> str:
+    try:
+        return enum_cls(int(value)).name.lower()
+    except (ValueError, TypeError):
+        return "unspecified"
+
+
+@dataclass
+class StreamInfo:
+    """A video file's first video stream, as FFmpeg reports it."""
+
+    path: str
+    container: str
+    codec: str
+    width: int
+    height: int
+    #: frames a second (the stream's average rate), None when unknown
+    rate: fractions.Fraction | None
+    time_base: fractions.Fraction
+    #: the frame count the container states (0 or None: unknown)
+    frames: int | None
+    #: seconds, None when unknown
+    duration: float | None
+    pix_fmt: str
+    #: bits a sample of the coded frames
+    bits: int
+    #: the stream's tags (H.273 names as FFmpeg gives them)
+    transfer_tag: str
+    primaries_tag: str
+    matrix_tag: str
+    range_tag: str
+    #: the curve its samples are read with (``--transfer``'s names) and why
+    transfer: str
+    transfer_from: str
+    #: the matrix used to convert YUV to RGB, and why
+    matrix: str
+    matrix_from: str
+    #: the audio and other streams (kept in a restored video when the container takes them)
+    others: list = field(default_factory=list)
+    metadata: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """The sidecar's ``video.stream``."""
+        d = {k: getattr(self, k) for k in ("container", "codec", "width", "height", "frames", "duration", "pix_fmt",
+                                            "bits", "transfer_tag", "primaries_tag", "matrix_tag", "range_tag",
+                                            "transfer", "transfer_from", "matrix", "matrix_from")}
+        d["rate"] = None if self.rate is None else float(self.rate)
+        d["rate_fraction"] = None if self.rate is None else f"{self.rate.numerator}/{self.rate.denominator}"
+        d["time_base"] = f"{self.time_base.numerator}/{self.time_base.denominator}"
+        d["other_streams"] = list(self.others)
+        return d
+
+
+def _open(path: str):
+    """The container at ``path`` opened for reading, with an error naming
+    what is wrong (not a file, not a video FFmpeg reads)."""
+    av = _av()
+    if not os.path.isfile(path):
+        why = "no such file" if not os.path.exists(path) else "not a regular file (not opened)"
+        raise ImageReadError(f"{path}: {why}")
+    try:
+        return av.open(path, metadata_errors="replace")
+    except av.FFmpegError as e:
+        raise ImageReadError(f"{path}: not a video FFmpeg can read ({e})") from None
+
+
+def _info(path: str, container, transfer: str | None) -> StreamInfo:
+    av = _av()
+    if not container.streams.video:
+        raise ImageReadError(f"{path}: the file holds no video stream")
+    vs = container.streams.video[0]
+    cc = vs.codec_context
+    if cc.codec is None or not getattr(cc.codec, "name", None):
+        raise ImageReadError(f"{path}: the video stream's codec is unknown to FFmpeg")
+    if cc.width < 4 or cc.height < 4:
+        raise ImageReadError(f"{path}: the video is {cc.width}x{cc.height} pixels; at least 4x4 is restored")
+    from av.video.reformatter import ColorPrimaries, ColorRange, Colorspace, ColorTrc  # noqa: F401
+
+    trc_tag = _enum_name(ColorTrc, cc.color_trc)
+    matrix_tag = _enum_name(Colorspace, cc.colorspace)
+    if transfer is not None:
+        curve, why = transfer, "--transfer"
+    else:
+        try:
+            curve = _core.transfer_of_tag(trc_tag)
+        except ValueError as e:
+            raise ImageReadError(f"{path}: {e}") from None
+        why = "the stream's tag"
+        if curve is None:
+            curve, why = "bt709", "the stream does not say: BT.709, the curve of video cameras"
+    code = int(cc.colorspace or 2)
+    if code in _MATRICES:
+        matrix, matrix_from = _MATRICES[code], "the stream's tag"
+    else:
+        matrix = "ITU709" if cc.height >= 720 else "ITU601"
+        matrix_from = f"the stream does not say: {'BT.709 (HD)' if cc.height >= 720 else 'BT.601 (SD)'}"
+    bits = 8
+    fmt = cc.format
+    if fmt is not None and fmt.components:
+        bits = max(int(c.bits) for c in fmt.components)
+    rate = vs.average_rate or vs.guessed_rate or vs.base_rate
+    others = []
+    for s in container.streams:
+        if s.index == vs.index:
+            continue
+        name = getattr(getattr(s, "codec_context", None), "name", None) or "unknown"
+        others.append({"index": int(s.index), "type": s.type, "codec": name})
+    duration = None
+    if vs.duration is not None and vs.time_base is not None:
+        duration = float(vs.duration * vs.time_base)
+    elif container.duration is not None:
+        duration = container.duration / av.time_base
+    return StreamInfo(
+        path=path, container=container.format.name, codec=cc.codec.name, width=int(cc.width), height=int(cc.height),
+        rate=fractions.Fraction(rate) if rate else None,
+        time_base=fractions.Fraction(vs.time_base) if vs.time_base else fractions.Fraction(1, 90000),
+        frames=int(vs.frames) or None, duration=duration, pix_fmt=str(cc.pix_fmt), bits=bits,
+        transfer_tag=trc_tag, primaries_tag=_enum_name(ColorPrimaries, cc.color_primaries), matrix_tag=matrix_tag,
+        range_tag=_enum_name(ColorRange, cc.color_range), transfer=curve, transfer_from=why, matrix=matrix,
+        matrix_from=matrix_from, others=others, metadata=dict(container.metadata),
+    )
+
+
+def probe(path: str | os.PathLike, *, transfer: str | None = None) -> StreamInfo:
+    """The first video stream of the file at ``path`` (ImageReadError when
+    it is not a video FFmpeg reads, or its transfer curve is not read and
+    ``transfer`` does not say one)."""
+    path = os.fspath(path)
+    with _open(path) as c:
+        return _info(path, c, transfer)
+
+
+@dataclass
+class Frame:
+    """One decoded frame."""
+
+    #: its place in the stream, from 0
+    index: int
+    #: its timestamp in the stream's time base, and in seconds (None when the stream has none)
+    pts: int | None
+    time: float | None
+    #: float32 (H, W, 3), linear light
+    image: np.ndarray
+
+
+class FrameReader:
+    """The frames of a video, decoded in order (:func:`read_frames`).
+    Iterating stops at the end of the stream, or at the first frame FFmpeg
+    cannot decode: :attr:`stopped` then says where and why (a truncated or
+    corrupt file restores the frames before it)."""
+
+    def __init__(self, path: str, *, transfer: str | None = None, every: int = 1, max_side: int | None = None):
+        self.path = path
+        self._c = _open(path)
+        try:
+            self.info = _info(path, self._c, transfer)
+        except BaseException:
+            self._c.close()
+            raise
+        self.every = max(1, int(every))
+        self.max_side = max_side
+        #: None, or where decoding stopped: {"frame": k, "time": seconds or None, "error": text}
+        self.stopped: dict | None = None
+        #: frames decoded (read, whether or not ``every`` kept them)
+        self.decoded = 0
+        #: called with every packet of the other streams, in file order
+        #: (a restored video copies them); None: they are not read
+        self.on_packet = None
+        #: the linear image of the last frame given
+        self.last_input: np.ndarray | None = None
+
+    def close(self) -> None:
+        self._c.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _linear(self, frame) -> np.ndarray:
+        from av.video.reformatter import ColorRange
+
+        rng = frame.color_range
+        if int(rng or 0) == 0:
+            rng = ColorRange.JPEG if str(frame.format.name).startswith("yuvj") else ColorRange.MPEG
+        rgb = frame.to_ndarray(format="rgb48le", src_colorspace=self.info.matrix, src_color_range=rng)
+        img = _core.frame_to_linear(np.ascontiguousarray(rgb), self.info.transfer)
+        if self.max_side:
+            s = -(-max(img.shape[:2]) // int(self.max_side))
+            if s > 1:
+                img = _core._downscale(img, s)
+        return img
+
+    def __iter__(self) -> Iterator[Frame]:
+        av = _av()
+        vs = self._c.streams.video[0]
+        vs.thread_type = "AUTO"
+        tb = vs.time_base
+        streams = [vs] + ([s for s in self._c.streams if s.index != vs.index] if self.on_packet else [])
+        k = 0
+        try:
+            for packet in self._c.demux(*streams):
+                if packet.stream.index != vs.index:
+                    self.on_packet(packet)
+                    continue
+                for frame in packet.decode():
+                    self.decoded = k + 1
+                    if k % self.every == 0:
+                        pts = frame.pts
+                        t = float(pts * tb) if pts is not None and tb is not None else None
+                        self.last_input = self._linear(frame)
+                        yield Frame(k, pts, t, self.last_input)
+                    k += 1
+        except (av.FFmpegError, EOFError) as e:
+            t = None
+            if k > 0 and self.info.rate:
+                t = round(k / float(self.info.rate), 3)
+            self.stopped = {"frame": k, "time": t, "error": f"{type(e).__name__}: {e}"[:500]}
+
+
+def read_frames(path: str | os.PathLike, *, transfer: str | None = None, every: int = 1,
+                max_side: int | None = None) -> FrameReader:
+    """The frames of the video at ``path`` as linear light (a
+    :class:`FrameReader`: iterate it; use it in a ``with`` block to close
+    the file). ``transfer`` overrides the stream's curve (``--transfer``'s
+    names), ``every`` keeps every N-th frame, ``max_side`` block-averages
+    each frame so its longer side is at most N."""
+    return FrameReader(os.fspath(path), transfer=transfer, every=every, max_side=max_side)
+
+
+@dataclass
+class RestoredFrame:
+    """One restored frame of :func:`restore_frames`."""
+
+    index: int
+    pts: int | None
+    time: float | None
+    #: the restored frame, float32 (H, W, 3), linear light (``restoration.image``)
+    image: np.ndarray
+    #: the whole :class:`uwhl_rs.Restoration`
+    restoration: object
+    #: why it estimated or reused: "first", "scheduled", "cut", "drift", "reused"
+    decision: str
+    #: its colour change from the previous frame (0-1, METHOD §10)
+    change: float
+
+
+def refresh_for(rate, every: int = 1) -> int:
+    """Restored frames between scheduled estimates when none is given: about
+    a second of video (30 when the rate is unknown)."""
+    if not rate:
+        return 30
+    return max(1, int(round(float(rate) / max(1, every))))
+
+
+def restore_frames(video, *, every: int = 1, refresh_every: int | None = None,
+                   scene_cut: float = _core.VIDEO_SCENE_CUT, smoothing: float = _core.VIDEO_SMOOTHING,
+                   reuse_water_mask: bool = False, transfer: str | None = None, max_side: int | None = None,
+                   **method) -> Iterator[RestoredFrame]:
+    """Restore a video's frames in order as one sequence (METHOD §10).
+
+    ``video``: a path, a :class:`FrameReader` (whose ``stopped`` then says
+    whether the file ended early), or an iterable of linear float32 frames
+    (numpy (H, W, 3) arrays or :class:`Frame`). The water type and A are estimated
+    on the first frame, every ``refresh_every`` restored frames (default:
+    about a second of the video's frames, 30 for frames without a rate),
+    when a frame's colours change from the previous frame's by more than
+    ``scene_cut`` (a cut: estimated afresh) or drift by as much from the
+    last estimate's, and a scheduled or drift estimate moves A only
+    ``smoothing`` of the way (docs/API.md "Videos"). ``every`` restores
+    every N-th frame only; ``transfer`` and ``max_side`` as in
+    :func:`read_frames`; ``method``: the keywords of :func:`uwhl_rs.restore`.
+
+    Yields :class:`RestoredFrame`. A video that stops decoding part way ends
+    the iteration; pass a :func:`read_frames` reader to read its
+    ``stopped`` (as :func:`uwhl_rs.videofiles.restore_video` does).
+    """
+    for name, v, ok in (("scene_cut", scene_cut, 0 <= scene_cut <= 1), ("smoothing", smoothing, 0 < smoothing <= 1)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not ok:
+            raise ParameterError(f"{name} must be a number in {'[0, 1]' if name == 'scene_cut' else '(0, 1]'}; got {v!r}")
+    reader = None
+    if isinstance(video, FrameReader):
+        frames, rate = iter(video), video.info.rate
+    elif isinstance(video, (str, os.PathLike)):
+        reader = read_frames(video, transfer=transfer, every=every, max_side=max_side)
+        frames = iter(reader)
+        rate = reader.info.rate
+    else:
+        frames = (f if isinstance(f, Frame) else Frame(k, None, None, np.asarray(f, dtype=np.float32))
+                  for k, f in enumerate(video))
+        rate = None
+    n = refresh_for(rate, every) if refresh_every is None else int(refresh_every)
+    seq = uwhl_rs.Sequence(refresh_every=n, reuse_water_mask=reuse_water_mask, scene_cut=scene_cut,
+                           smoothing=smoothing, **method)
+    try:
+        for f in frames:
+            res = seq.restore(f.image)
+            decision, change = seq.last_decision
+            yield RestoredFrame(f.index, f.pts, f.time, res.image, res, decision, float(change))
+    finally:
+        if reader is not None:
+            reader.close()
