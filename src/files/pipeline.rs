@@ -682,12 +682,17 @@ fn write_temp(claimed: &mut Claim, index: usize, path: &Path, bytes: &[u8]) -> R
 }
 
 /// The core sequence of `--reuse-estimates N`: restored inputs 0, N, 2N,
-/// ... estimate the water type and veiling light, the others reuse them.
+/// ... estimate the water type and veiling light, the others reuse them;
+/// a cut or a drift re-estimates only with `--scene-cut`, and A is
+/// smoothed only with `--smoothing` (photos of a dive are not a video's
+/// frames: the defaults of videos are not theirs).
 pub fn sequence(opts: &Settings) -> Option<Sequence> {
     opts.reuse_estimates.map(|n| {
         let mut s = Sequence::new(opts.method_params());
         s.refresh_every = n;
         s.reuse_water_mask = opts.reuse_water_mask;
+        s.cut_threshold = opts.scene_cut.unwrap_or(0.0);
+        s.smoothing = opts.smoothing.unwrap_or(1.0);
         s
     })
 }
