@@ -113,7 +113,7 @@ def gains_from(e):
     return np.where((e > 0) & (mu > 0), mu / np.where(e > 0, e, 1), 1.0)
 
 
-def finish(st: Image, wt, q, fallback=True, scale_tb=None):
+def finish(st: Image, wt, q, fallback=True, scale_tb=None, balance='sog'):
     """METHOD §7 (clamp of t_B, recovery, artifact clamp), §12.1 (shades of gray,
     exposure) and §12.5 (trust and blend) for type ``wt`` and refined t ``q``.
     Returns (image, J clamped, t_B, veil excess)."""
@@ -134,7 +134,10 @@ def finish(st: Image, wt, q, fallback=True, scale_tb=None):
         jc = jc / div
     jc = np.minimum(jc, 1)
     obj = st.objects
-    g = gains_from(sog(jc, obj))
+    if balance == 'sog':
+        g = gains_from(sog(jc, obj))
+    else:
+        g = path_gains(jc, obj, wt, p=float(balance.split(':')[1]))
     pct = np.array([np.quantile(jc[..., c], 0.99) for c in range(3)])
     top = (g * pct).max()
     k = g * (1 / top if top > 0 else 1)
@@ -154,6 +157,23 @@ def finish(st: Image, wt, q, fallback=True, scale_tb=None):
         scale = image.sum(-1) / np.maximum(base.sum(-1), 1e-9)
         image = np.clip((1 - wgt[..., None]) * image + wgt[..., None] * base * scale[..., None], 0, 1)
     return image, jc, tb, ve
+
+
+def path_gains(jc, valid, wt, p=4.0):
+    """Gains that undo light which crossed x = beta_B d of the same water
+    (E_c = exp(-beta_c d), METHOD §0), x >= 0 chosen so that the p-norm
+    colour of the balanced J is grayest: one unknown instead of two."""
+    br, bg = JER[wt]
+    e = sog(jc, valid, p) if p != 1 else np.maximum(jc[valid], 0).mean(0)
+    best = (np.inf, np.ones(3))
+    for x in np.linspace(0, 4, 161):
+        g = np.exp(x * np.array([1 / br, 1 / bg, 1.0]))
+        c = g * e
+        sp = np.std(c, ddof=1) / c.mean()
+        if sp < best[0]:
+            best = (sp, g)
+    g = best[1]
+    return g * (e.mean() / np.maximum((g * e).mean(), 1e-12))
 
 
 def spread(jc, valid):
