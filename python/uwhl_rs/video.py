@@ -120,7 +120,8 @@ def _open(path: str):
     try:
         return av.open(path, metadata_errors="replace")
     except av.FFmpegError as e:
-        raise ImageReadError(f"{path}: not a video FFmpeg can read ({e})") from None
+        raise ImageReadError(f"{path}: not a video FFmpeg can read ({e}); an MP4 or MOV cut short loses the index "
+                             "at its end and cannot be read at all") from None
 
 
 def _info(path: str, container, transfer: str | None) -> StreamInfo:
@@ -272,10 +273,17 @@ class FrameReader:
                         yield Frame(k, pts, t, self.last_input)
                     k += 1
         except (av.FFmpegError, EOFError) as e:
-            t = None
-            if k > 0 and self.info.rate:
-                t = round(k / float(self.info.rate), 3)
-            self.stopped = {"frame": k, "time": t, "error": f"{type(e).__name__}: {e}"[:500]}
+            self.stopped = {"frame": k, "time": self._time_of(k), "error": f"{type(e).__name__}: {e}"[:500]}
+            return
+        # a file cut short may end without an error: fewer frames than its header states
+        expected = self.info.frames or (round(self.info.duration * float(self.info.rate))
+                                        if self.info.duration and self.info.rate else None)
+        if expected and k < expected - 1:
+            self.stopped = {"frame": k, "time": self._time_of(k),
+                            "error": f"the file ends after {k} frames; its header states {expected}: cut short?"}
+
+    def _time_of(self, k: int) -> float | None:
+        return round(k / float(self.info.rate), 3) if k > 0 and self.info.rate else None
 
 
 def read_frames(path: str | os.PathLike, *, transfer: str | None = None, every: int = 1,

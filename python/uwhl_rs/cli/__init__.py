@@ -13,6 +13,7 @@ exit status (docs/CLI.md "Exit codes").
 from __future__ import annotations
 
 from . import demo, evaluate, ifdo, report, restore
+from .. import _core
 from ..console import Console
 import sys
 
@@ -24,10 +25,27 @@ _COMMANDS = {"restore": restore.run, "demo": demo.run, "report": report.run, "if
              "evaluate": evaluate.run}
 
 
+def _binary_only(argv: list[str]) -> str | None:
+    """The first flag of ``argv`` that only the binary takes (the table's
+    "rust" face: --stream, --raw-frames, ...), or None."""
+    flags = {o["flag"] for o in _core.OPTIONS if o["faces"] == "rust"}
+    for tok in argv:
+        if tok == "--":
+            break
+        if tok.split("=", 1)[0] in flags:
+            return tok.split("=", 1)[0]
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``uwhl`` command; returns the exit status."""
     p = build_parser()
-    a = p.parse_args(attach_values(list(sys.argv[1:] if argv is None else argv)))
+    args = list(sys.argv[1:] if argv is None else argv)
+    flag = _binary_only(args)
+    if flag is not None:
+        # as uwhl-rs names the command that has an option of the Python command's
+        p.exit(2, f"uwhl: {flag} is an option of the binary only: run 'uwhl-rs restore' (docs/CLI.md)\n")
+    a = p.parse_args(attach_values(args))
     if a.cmd == "demo":
         try:
             h, w = (int(v) for v in a.size.lower().split("x"))
