@@ -411,7 +411,7 @@ class Sequence:
     smoothing : float in (0, 1]
         A scheduled or drift estimate moves A this share of the way from
         the A in use (1, the default: all the way); the frame is restored
-        with the new type and that A. Videos use 0.25.
+        with the new type and that A. Videos use 0.5.
     reuse_water_mask : bool
         Reuse the estimating frame's water region (default False: each
         frame detects its own).

@@ -341,7 +341,7 @@ and raw frames, 1 = never for photo sequences)",
         group: Group::Method, faces: Faces::Both, method: false },
     Spec { key: "smoothing", flag: "--smoothing", short: None, metavar: "W", kind: Kind::Float { gt: 0.0, le: 1.0 },
         default: Default::None, help: "in a sequence, a scheduled or drift estimate moves the veiling light W of \
-the way to the new value; a cut takes it whole (METHOD §10; default 0.25 for videos and raw frames, 1 for photo \
+the way to the new value; a cut takes it whole (METHOD §10; default 0.5 for videos and raw frames, 1 for photo \
 sequences)",
         group: Group::Method, faces: Faces::Both, method: false },
     // resources
