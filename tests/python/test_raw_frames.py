@@ -10,14 +10,13 @@ from the system's packages when missing)."""
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import subprocess
 
 import numpy as np
 import pytest
 
 import uwhl_rs
+from systools import installed
 from uwhl_rs import _core, clip
 
 H, W = 48, 64
@@ -133,18 +132,7 @@ def test_frames_over_the_budget_are_refused_before_reading(binary):
 
 
 def _ffmpeg() -> str:
-    path = shutil.which("ffmpeg")
-    if path:
-        return path
-    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    for step in (["apt-get", "update", "-qq"], ["apt-get", "install", "-y", "-qq", "--no-install-recommends", "ffmpeg"]):
-        r = subprocess.run(step, capture_output=True, text=True, env=env, timeout=900)
-        if r.returncode != 0:
-            pytest.fail(f"cannot install FFmpeg for the pipeline test ({' '.join(step)}): {r.stderr[-800:]}")
-    path = shutil.which("ffmpeg")
-    if not path:
-        pytest.fail("apt-get installed ffmpeg but it is not on PATH")
-    return path
+    return installed("ffmpeg", "ffmpeg")
 
 
 def test_it_sits_in_an_ffmpeg_pipeline(binary, frames, tmp_path):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 
@@ -19,26 +18,14 @@ import numpy as np
 import pytest
 
 import uwhl_rs
+from systools import installed
 from uwhl_rs import synth
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def _chromium() -> str:
-    for name in ("chromium", "chromium-browser"):
-        path = shutil.which(name)
-        if path:
-            return path
-    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    steps = [["apt-get", "update", "-qq"], ["apt-get", "install", "-y", "-qq", "--no-install-recommends", "chromium"]]
-    for step in steps:
-        r = subprocess.run(step, capture_output=True, text=True, env=env, timeout=900)
-        if r.returncode != 0:
-            pytest.fail(f"cannot install Chromium for the report test ({' '.join(step)}): {r.stderr[-800:]}")
-    path = shutil.which("chromium")
-    if not path:
-        pytest.fail("apt-get installed chromium but it is not on PATH")
-    return path
+    return installed("chromium", "chromium", "chromium-browser")
 
 
 def _run(browser: str, *args: str, timeout: int = 120) -> subprocess.CompletedProcess:
