@@ -130,8 +130,8 @@ class _Strip:
             return
         s = max(1, -(-max(frame_in.shape[:2]) // _STRIP_CELL))
         small = (lambda a: _core._downscale(np.ascontiguousarray(a, dtype=np.float32), s)) if s > 1 else (lambda a: a)
-        t = "" if rf.time is None else f"{rf.time:.1f} s "
-        self.cells.append((small(frame_in), small(rf.image), f"{t}{rf.restoration.water_type}"))
+        t = f"frame {rf.index}" if rf.time is None else f"{rf.time:.1f} s"
+        self.cells.append((small(frame_in), small(rf.image), f"{t}, {rf.restoration.water_type}"))
 
     def encode(self) -> bytes:
         from PIL import Image, ImageDraw
