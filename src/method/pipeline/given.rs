@@ -336,7 +336,7 @@ pub fn light_path(radiance: &[f32], h: usize, w: usize, objects: &dyn Fn(usize) 
                 continue;
             }
             seen += 1;
-            if (seen - 1) % SAMPLE != 0 {
+            if !(seen - 1).is_multiple_of(SAMPLE) {
                 continue;
             }
             for c in 0..3 {
@@ -367,7 +367,7 @@ pub fn light_path(radiance: &[f32], h: usize, w: usize, objects: &dyn Fn(usize) 
         let lm = (l[0] + l[1] + l[2]) / 3.0;
         let l = l.map(|v| v - lm);
         let d = -(l[0] * bt[0] + l[1] * bt[1] + l[2] * bt[2]) / bb;
-        let r = (0..3).map(|c| (l[c] + d * bt[c]).powi(2)).sum::<f64>().sqrt();
+        let r = l.iter().zip(bt.iter()).map(|(lc, bc)| (lc + d * bc).powi(2)).sum::<f64>().sqrt();
         let r = if k == 0 { r * GRAY_WORLD_MARGIN } else { r };
         if r < best.0 {
             best = (r, d);
