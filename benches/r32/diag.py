@@ -1,6 +1,6 @@
 """Diagnosis of the distance path on a split: fit errors and display errors per render.
 
-    PYTHONPATH=/work/research_pkg RAYON_NUM_THREADS=1 python3 research32/diag.py tune
+    PYTHONPATH=/work/research_pkg RAYON_NUM_THREADS=1 python3 benches/r32/diag.py tune
 """
 
 import json
