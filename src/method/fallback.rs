@@ -67,16 +67,21 @@ pub fn noise_sigma(img: &ImageRef) -> [f64; 3] {
     let d = img.data;
     let at = |y: usize, x: usize, c: usize| f64::from(d[(y * w + x) * 3 + c]);
     let mut out = [0.0; 3];
+    // one buffer of the grid's exact size for the three channels: the
+    // responses of a frame are not collected into a growing list
+    let mut r: Vec<f64> = Vec::with_capacity((h - 2).div_ceil(step) * (w - 2).div_ceil(step));
     for (c, o) in out.iter_mut().enumerate() {
-        let mut r: Vec<f64> = (1..h - 1)
-            .step_by(step)
-            .flat_map(|y| (1..w - 1).step_by(step).map(move |x| (y, x)))
-            .map(|(y, x)| {
-                let corners = at(y - 1, x - 1, c) + at(y - 1, x + 1, c) + at(y + 1, x - 1, c) + at(y + 1, x + 1, c);
-                let edges = at(y - 1, x, c) + at(y + 1, x, c) + at(y, x - 1, c) + at(y, x + 1, c);
-                (corners - 2.0 * edges + 4.0 * at(y, x, c)).abs()
-            })
-            .collect();
+        r.clear();
+        r.extend(
+            (1..h - 1)
+                .step_by(step)
+                .flat_map(|y| (1..w - 1).step_by(step).map(move |x| (y, x)))
+                .map(|(y, x)| {
+                    let corners = at(y - 1, x - 1, c) + at(y - 1, x + 1, c) + at(y + 1, x - 1, c) + at(y + 1, x + 1, c);
+                    let edges = at(y - 1, x, c) + at(y + 1, x, c) + at(y, x - 1, c) + at(y, x + 1, c);
+                    (corners - 2.0 * edges + 4.0 * at(y, x, c)).abs()
+                }),
+        );
         *o = median(&mut r) / (6.0 * 0.6745);
     }
     out
