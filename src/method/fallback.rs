@@ -66,22 +66,21 @@ pub fn noise_sigma(img: &ImageRef) -> [f64; 3] {
     let step = ((interior as f64 / NOISE_SAMPLES as f64).sqrt().ceil() as usize).max(1);
     let d = img.data;
     let at = |y: usize, x: usize, c: usize| f64::from(d[(y * w + x) * 3 + c]);
+    let ys: Vec<usize> = (1..h - 1).step_by(step).collect();
+    let cols = (w - 2).div_ceil(step);
+    // one buffer of the grid's exact size for the three channels, filled
+    // by rows in parallel at fixed places: the same values, and the same
+    // median, whatever the thread count
+    let mut r = vec![0f64; ys.len() * cols];
     let mut out = [0.0; 3];
-    // one buffer of the grid's exact size for the three channels: the
-    // responses of a frame are not collected into a growing list
-    let mut r: Vec<f64> = Vec::with_capacity((h - 2).div_ceil(step) * (w - 2).div_ceil(step));
     for (c, o) in out.iter_mut().enumerate() {
-        r.clear();
-        r.extend(
-            (1..h - 1)
-                .step_by(step)
-                .flat_map(|y| (1..w - 1).step_by(step).map(move |x| (y, x)))
-                .map(|(y, x)| {
-                    let corners = at(y - 1, x - 1, c) + at(y - 1, x + 1, c) + at(y + 1, x - 1, c) + at(y + 1, x + 1, c);
-                    let edges = at(y - 1, x, c) + at(y + 1, x, c) + at(y, x - 1, c) + at(y, x + 1, c);
-                    (corners - 2.0 * edges + 4.0 * at(y, x, c)).abs()
-                }),
-        );
+        r.par_chunks_mut(cols).zip(ys.par_iter()).for_each(|(row, &y)| {
+            for (v, x) in row.iter_mut().zip((1..w - 1).step_by(step)) {
+                let corners = at(y - 1, x - 1, c) + at(y - 1, x + 1, c) + at(y + 1, x - 1, c) + at(y + 1, x + 1, c);
+                let edges = at(y - 1, x, c) + at(y + 1, x, c) + at(y, x - 1, c) + at(y, x + 1, c);
+                *v = (corners - 2.0 * edges + 4.0 * at(y, x, c)).abs();
+            }
+        });
         *o = median(&mut r) / (6.0 * 0.6745);
     }
     out
@@ -99,6 +98,17 @@ fn median(v: &mut [f64]) -> f64 {
     }
     let lo = v[..n / 2].iter().copied().fold(f64::NEG_INFINITY, f64::max);
     0.5 * (lo + hi)
+}
+
+/// t_c of METHOD §7 (`Recovery::channel_t` of the clamped t_B) for a row
+/// of t_B into `out`: a loop the compiler vectorizes (AVX2 where the CPU
+/// has it, picked at run time; the same bits either way,
+/// [`crate::kernels::fastmath`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn row_t(rec: &Recovery, t_b: &[f32], out: &mut [[f32; 3]]) {
+    for (o, &t) in out.iter_mut().zip(t_b) {
+        *o = rec.channel_t(rec.clamp_tb(t));
+    }
 }
 
 /// Per-row sums of the first pass, combined in row order.
@@ -130,23 +140,25 @@ pub fn trust(
     let sigma = noise_sigma(img);
     let rec = Recovery::new(a, wt);
     let af = a.map(f64::from);
-    // t_c of METHOD §7 and the raw radiance J_c = A_c + (I_c - A_c) / t_c, before the artifact clamp
-    let pixel = |i: usize| -> ([f64; 3], [f64; 3]) {
-        let t = rec.channel_t(rec.clamp_tb(t_b[i]));
+    // t_c of METHOD §7 (a row at a time, [`row_t`]) and the raw radiance
+    // J_c = A_c + (I_c - A_c) / t_c, before the artifact clamp
+    let pixel = |i: usize, t: [f32; 3]| -> ([f64; 3], [f64; 3]) {
         let p = &img.data[3 * i..3 * i + 3];
         let t = t.map(f64::from);
         let j = [0, 1, 2].map(|c| af[c] + (f64::from(p[c]) - af[c]) / t[c]);
         (t, j)
     };
+    let scratch = || vec![[0f32; 3]; w];
     let rows: Vec<RowSums> = (0..img.height)
         .into_par_iter()
-        .map(|y| {
+        .map_init(scratch, |tc, y| {
             let mut s = RowSums::default();
-            for i in y * w..(y + 1) * w {
+            row_t(&rec, &t_b[y * w..(y + 1) * w], tc);
+            for (i, &t) in (y * w..(y + 1) * w).zip(tc.iter()) {
                 if !objects(i) {
                     continue;
                 }
-                let (t, j) = pixel(i);
+                let (t, j) = pixel(i, t);
                 s.objects += 1.0;
                 // t_c J_c = I_c - (1 - t_c) A_c: the light left after the veil
                 if (0..3).any(|c| t[c] * j[c] < -sigma[c]) {
@@ -177,10 +189,11 @@ pub fn trust(
         .par_chunks_mut(w)
         .zip(image.par_chunks_mut(3 * w))
         .enumerate()
-        .for_each(|(y, (conf_row, img_row))| {
-            for (x, (cf, d)) in conf_row.iter_mut().zip(img_row.chunks_exact_mut(3)).enumerate() {
+        .for_each_init(scratch, |tc, (y, (conf_row, img_row))| {
+            row_t(&rec, &t_b[y * w..(y + 1) * w], tc);
+            for (x, ((cf, d), &t)) in conf_row.iter_mut().zip(img_row.chunks_exact_mut(3)).zip(tc.iter()).enumerate() {
                 let i = y * w + x;
-                let (t, j) = pixel(i);
+                let (t, j) = pixel(i, t);
                 let shown = (0..3).map(|c| (g[c] * j[c].max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
                 let noise = (0..3).map(|c| (g[c] * sigma[c] / t[c]).powi(2)).sum::<f64>();
                 let theta = (2.0 / 3.0 * noise).sqrt() / shown;
