@@ -68,6 +68,9 @@ pub fn help() -> String {
 usage:
   uwhl-rs restore [OPTIONS] INPUT... -o OUTDIR   restore files and folders (PNG, JPEG, TIFF)
   uwhl-rs restore --stream [OPTIONS] -o OUTDIR   read image paths from stdin, one per line
+  uwhl-rs restore --raw-frames WxH [OPTIONS] -o -|OUTDIR
+                                                 restore raw frames from stdin (rgb24 or rgb48le) as one
+                                                 sequence, to stdout or to OUTDIR
   uwhl-rs [OPTIONS] INPUT... -o OUTDIR           the same as 'uwhl-rs restore'
   uwhl-rs demo [-o DIR] [--water-type T] [--size HxW] [--seed N]
                                                  restore the built-in rendered scene
@@ -83,7 +86,8 @@ codes are those of the Python command 'uwhl restore' (docs/CLI.md).
   -V, --version              the version
 
 {}In stream mode the exit code is 0 at the end of stdin unless the arguments were bad (2)
-or the run was interrupted (130).
+or the run was interrupted (130). With --raw-frames it is 0 at a clean end of stdin, 3 when
+stdin ends inside a frame, 4 when a frame does not fit --max-memory, 5 when stdout closes.
 ",
         help_text(Faces::Rust, 100),
         exit_code_text()
