@@ -283,3 +283,27 @@ def test_sequence_mode_flickers_less_than_frames_restored_alone():
     alone = flicker([uwhl_rs.restore(f).image for f in c.frames])
     together = flicker([r.image for r in video.restore_frames(c.frames, refresh_every=12)])
     assert together < 0.75 * alone, (together, alone)
+
+
+def test_videos_to_and_from_object_storage(moto_s3, clips, tmp_path):
+    """A video on S3 restored to S3 (moto's server on 127.0.0.1): the video, its
+    strip and sidecar stored, the sidecar last; with --every the stills too."""
+    fs, endpoint = moto_s3
+    d, _ = clips
+    fs.mkdir("vids")
+    fs.put(str(d / "cut.mkv"), "vids/in/cut.mkv")
+    so = f"endpoint_url={endpoint}"
+    r = _cmd("s3://vids/in/", "-o", "s3://vids/out/", "--storage-option", so, "-q")
+    assert r.returncode == 0, r.stderr
+    assert sorted(fs.ls("vids/out/")) == ["vids/out/cut.json", "vids/out/cut.mkv", "vids/out/cut_strip.jpg",
+                                          "vids/out/summary.csv"]
+    side = json.loads(fs.cat("vids/out/cut.json"))
+    assert side["input"] == "s3://vids/in/cut.mkv" and side["video"]["frames"]["restored"] == 28
+    r = _cmd("s3://vids/in/cut.mkv", "-o", "s3://vids/stills/", "--storage-option", so, "--every", "14", "-q")
+    assert r.returncode == 0, r.stderr
+    names = {p.rsplit("/", 1)[1] for p in fs.ls("vids/stills/")}
+    assert {"cut.json", "cut_strip.jpg", "cut_00h00m00s000.jpg", "cut_00h00m00s000.json",
+            "cut_00h00m00s583.jpg", "cut_00h00m00s583_t.png"} <= names, names
+    # a rerun skips it: its sidecar is on the store
+    r = _cmd("s3://vids/in/cut.mkv", "-o", "s3://vids/stills/", "--storage-option", so, "--every", "14")
+    assert r.returncode == 0 and "skipped" in r.stdout, r.stdout + r.stderr
