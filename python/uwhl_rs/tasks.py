@@ -431,7 +431,13 @@ class _Planned(ImageReadError):
 
 
 def _header_need(path: str, opts: dict) -> int:
-    """Bytes the input at local ``path`` needs (files.input_need), from its header."""
+    """Bytes the input at local ``path`` needs (files.input_need; a video's
+    frame plan, ``videofiles``), from its header."""
+    if video.is_video(path):
+        from . import videofiles
+
+        info = video.probe(path, transfer=opts.get("transfer"))
+        return videofiles.frame_need(info, opts.get("max_side"))
     got = []
     masks = int(opts.get("mask") is not None) + int(opts.get("water_mask") is not None)
 

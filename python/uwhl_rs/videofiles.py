@@ -34,7 +34,7 @@ import uwhl_rs
 from . import _core, files, video
 from .errors import CommandError, ImageTooLargeError, ParameterError
 
-__all__ = ["VideoResult", "video_suffixes", "restore_video", "still_name", "CODECS"]
+__all__ = ["VideoResult", "video_suffixes", "restore_video", "still_name", "frame_need", "CODECS"]
 
 #: --video-codec: (FFmpeg encoder, pixel format for 8-bit input, for deeper input, containers it goes in)
 CODECS = {
@@ -106,6 +106,11 @@ class VideoResult:
     sidecar: dict = field(default_factory=dict)
     #: None, or where decoding stopped (``{"frame", "time", "error"}``)
     stopped: dict | None = None
+
+
+def frame_need(info: video.StreamInfo, max_side: int | None = None) -> int:
+    """Bytes restoring a video of this stream needs at its peak (a frame's plan)."""
+    return _plan(info, _factor(info, max_side), 6.0 if info.bits > 8 else 3.0)
 
 
 def _plan(info: video.StreamInfo, s: int, out_bpp: float) -> int:
@@ -294,8 +299,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     codec = _codec(video_codec, info)
     if max_pixels is not None and info.width * info.height > int(max_pixels):
         raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over max_pixels {max_pixels}")
-    s = 1 if not max_side else max(1, -(-max(info.height, info.width) // int(max_side)))
-    need = _plan(info, s, 6.0 if info.bits > 8 else 3.0)
+    need = frame_need(info, max_side)
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
                                  f"max_memory {budget} (use max_side or raise max_memory)")
