@@ -77,12 +77,15 @@ def _extension(in_path: str, codec: str) -> str:
 def video_suffixes(in_path: str, *, every: int | None, codec: str = "h264") -> list[str]:
     """What follows ``NAME`` in the names of a video's outputs, in writing
     order, without the sidecar's ``.json``: the restored video (not with
-    ``every``) and the strip. ``codec`` "input" is taken as h264 here (the
-    extension is checked against the stream when it is opened)."""
+    ``every``) and the strip. With ``codec`` "input" the video keeps the
+    input's extension (checked against its codec once it is opened)."""
     if every:
         return ["_strip.jpg"]
-    c = "h264" if codec == "input" else codec
-    return [_extension(in_path, c), "_strip.jpg"]
+    if codec == "input":
+        # the input's own container when any codec goes in it (checked against its codec once it is opened)
+        ext = os.path.splitext(in_path)[1].lower()
+        return [ext if any(ext in c[3] for c in CODECS.values()) else ".mp4", "_strip.jpg"]
+    return [_extension(in_path, codec), "_strip.jpg"]
 
 
 def still_name(name: str, t: float | None, index: int) -> str:
@@ -329,6 +332,10 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
     notes: list[str] = []
     try:
         if not every:
+            ext = os.path.splitext(paths[0])[1].lower()
+            if ext not in CODECS[codec][3]:
+                raise ParameterError(f"--video-codec {codec} cannot be written into a {ext} file (it goes into "
+                                     f"{', '.join(CODECS[codec][3])}); give --video-codec h264")
             tmp = str(claim.temp(0))
             temps.append(tmp)
             size = (-(-info.height // _factor(info, o["max_side"])), -(-info.width // _factor(info, o["max_side"])))
@@ -407,8 +414,9 @@ def _write_still(video_name: str, rf, info: video.StreamInfo, settings, o) -> di
     res = rf.restoration
     label = f"{o['label']}#{rf.index}"
     d = o["still_dir"]
+    # a name another input's outputs hold (a photo called like a still) is never written over: NAME_2, ...
     status, side, _why, claim = files.claim_outputs(d, name, label, o["fmt"], False, overwrite=o["overwrite"],
-                                                    rename=False)
+                                                    rename=True)
     entry = {"frame": rf.index, "time": rf.time, "image": None, "sidecar": os.path.basename(str(side))}
     if status != "claimed":
         entry["skipped"] = "sidecar exists"
