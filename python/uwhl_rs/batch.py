@@ -322,6 +322,11 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
                             pending.append((it, writer.submit(step)))
                         else:
                             settle(it.index, step)
+                    settle_pending()  # (here, so that an interrupt while the last input is written stops a video)
+                except KeyboardInterrupt:
+                    # a photo's write finishes; a video (minutes of frames) stops at its next frame
+                    ctx.stop.set()
+                    raise
                 finally:
                     settle_pending()
             return
@@ -336,6 +341,7 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
                 for f in as_completed(futures):
                     settle(futures[f].index, f.result())
             except KeyboardInterrupt:
+                ctx.stop.set()
                 for f in futures:
                     f.cancel()
                 raise

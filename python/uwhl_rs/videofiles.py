@@ -20,6 +20,7 @@ way is restored up to there; its sidecar says where it stopped and why.
 
 from __future__ import annotations
 
+import fractions
 import json
 import math
 import os
@@ -33,8 +34,9 @@ import uwhl_rs
 
 from . import _core, files, video
 from .errors import CommandError, ImageTooLargeError, ParameterError
+from .sidecars import display
 
-__all__ = ["VideoResult", "video_suffixes", "restore_video", "still_name", "CODECS"]
+__all__ = ["VideoResult", "video_suffixes", "restore_video", "still_name", "resolve_codec", "CODECS"]
 
 #: --video-codec: (FFmpeg encoder, pixel format for 8-bit input, for deeper input, containers it goes in)
 CODECS = {
@@ -53,6 +55,12 @@ _STRIP_FRAMES = 8
 #: the longer side of a strip cell
 _STRIP_CELL = 240
 
+#: --video-codec: the sides the codec's chroma subsampling needs even (width, height)
+_EVEN = {"h264": (True, True), "hevc": (True, True), "prores": (True, False)}
+
+#: frames not restored listed in the sidecar (the count is always there)
+_UNRESTORED_LISTED = 100
+
 #: the keywords of restore_video that are not the method's
 _FILE_KEYS = ("format", "bits", "quality", "mask", "water_mask", "max_memory", "max_pixels")
 
@@ -65,6 +73,41 @@ def _codec(choice: str, info: video.StreamInfo) -> str:
         raise ParameterError(f"--video-codec input: the input's codec {info.codec} cannot be written; give "
                              f"--video-codec h264, hevc, prores, ffv1 or mjpeg")
     return got
+
+
+def resolve_codec(choice: str, path: str) -> str:
+    """``choice`` with "input" replaced by the codec of the video at local
+    ``path`` when it is one that can be written (so that its output names
+    are claimed with that codec's container); ``choice`` unchanged when the
+    file cannot be read (:func:`restore_video` then says why)."""
+    if choice != "input":
+        return choice
+    try:
+        with video._open(path) as c:
+            return _codec(choice, video._info(path, c, "bt709"))
+    except (ValueError, OSError):
+        return choice
+
+
+def _ffmpeg_text(e: BaseException) -> str:
+    """FFmpeg's reason without the file name it names (a temporary's, which means nothing to the user)."""
+    why = getattr(e, "strerror", None) or str(e) or type(e).__name__
+    log = getattr(e, "log", None)
+    if isinstance(log, tuple) and len(log) == 3 and log[2]:
+        why += f" ({str(log[2]).strip()})"
+    return why
+
+
+def _check_size(codec: str, size: tuple[int, int], label: str, max_side) -> None:
+    """ParameterError when ``codec`` cannot hold frames of ``size`` (H, W):
+    4:2:0 needs an even width and height, 4:2:2 an even width."""
+    need_w, need_h = _EVEN.get(codec, (False, False))
+    h, w = size
+    if (need_w and w % 2) or (need_h and h % 2):
+        sub, sides = ("4:2:2", "an even width") if not need_h else ("4:2:0", "an even width and height")
+        raise ParameterError(f"{label}: the restored frames are {w}x{h} pixels; {codec} is written {sub}, which "
+                             f"needs {sides}: give --video-codec ffv1 or mjpeg (any size)"
+                             + (", or another --max-side" if max_side else ""))
 
 
 def _extension(in_path: str, codec: str) -> str:
@@ -121,15 +164,21 @@ def _plan(info: video.StreamInfo, s: int, out_bpp: float) -> int:
 class _Strip:
     """Thumbnails of frames spread over the video: input above, restored below."""
 
-    def __init__(self, expected: int | None):
+    def __init__(self, expected: int | None, rotation: int = 0):
         self.every = max(1, (expected or 240) // _STRIP_FRAMES)
         self.cells: list[tuple[np.ndarray, np.ndarray, str]] = []
+        #: quarter turns counter-clockwise (np.rot90) that show the frames as a player does
+        self.turns = (rotation // 90) % 4
 
     def offer(self, k: int, frame_in: np.ndarray, rf) -> None:
-        if k % self.every or len(self.cells) >= 4 * _STRIP_FRAMES:
+        if k % self.every or len(self.cells) >= 4 * _STRIP_FRAMES or rf.restoration is None:
             return
         s = max(1, -(-max(frame_in.shape[:2]) // _STRIP_CELL))
-        small = (lambda a: _core._downscale(np.ascontiguousarray(a, dtype=np.float32), s)) if s > 1 else (lambda a: a)
+
+        def small(a):
+            a = _core._downscale(np.ascontiguousarray(a, dtype=np.float32), s) if s > 1 else a
+            return np.ascontiguousarray(np.rot90(a, self.turns)) if self.turns else a
+
         t = f"frame {rf.index}" if rf.time is None else f"{rf.time:.1f} s"
         self.cells.append((small(frame_in), small(rf.image), f"{t}, {rf.restoration.water_type}"))
 
@@ -168,11 +217,14 @@ class _Writer:
         self.pix = pix_deep if info.bits > 8 else pix8
         self.bits = 16
         self.transfer = info.transfer
+        #: streams dropped part way (a packet the container refused), and frames whose timestamp was not increasing
+        self.notes: list[str] = []
+        self.retimed = 0
         fmt = {".mkv": "matroska", ".ts": "mpegts", ".mts": "mpegts", ".m2ts": "mpegts", ".m4v": "mp4"}.get(ext)
         try:
             self.out = av.open(tmp, "w", format=fmt or ext.lstrip("."))
         except (av.FFmpegError, ValueError) as e:
-            raise CommandError(f"cannot write a {ext} video: {e}", "write_failed") from None
+            raise CommandError(f"cannot write a {ext} video: {_ffmpeg_text(e)}", "write_failed") from None
         try:
             vs = src.streams.video[0]
             rate = info.rate or 30
@@ -181,8 +233,17 @@ class _Writer:
             st.pix_fmt = self.pix
             st.time_base = vs.time_base
             st.codec_context.time_base = vs.time_base
+            # a frame's length in the stream's time base: the step given to a timestamp that does not increase
+            tb = vs.time_base or fractions.Fraction(1, 90000)
+            self.step = max(1, int(round(1 / (float(rate) * float(tb)))))
             if codec in ("h264", "hevc"):
                 st.options = {"crf": str(crf), "preset": "medium"}
+            if codec == "hevc":
+                # x265 prints its banner and statistics on stderr, which is for the errors
+                st.options = {**st.options, "x265-params": "log-level=error"}
+            if info.rotation:
+                # a phone's upright video stays upright: the display matrix is the input's
+                st.set_display_rotation(info.rotation if info.rotation <= 180 else info.rotation - 360)
             cc = st.codec_context
             # the tags of what is written: the input's primaries, the curve
             # the frames were encoded with, BT.709's matrix, limited range
@@ -211,6 +272,12 @@ class _Writer:
                 if k not in ("encoder", "major_brand", "minor_version", "compatible_brands"):
                     self.out.metadata[k] = v
             self.out.metadata["comment"] = f"restored by uwhl_rs {uwhl_rs.__version__} (haze-lines, sequence mode)"
+            # the encoder is opened now, so that one that refuses the size or format says so before any frame
+            st.codec_context.open()
+        except av.FFmpegError as e:
+            self.out.close()
+            raise CommandError(f"FFmpeg cannot write {size[1]}x{size[0]} frames as {codec} ({encoder}) in a {ext} "
+                               f"file: {_ffmpeg_text(e)}", "unreadable_input") from None
         except BaseException:
             self.out.close()
             raise
@@ -218,12 +285,20 @@ class _Writer:
         self.last_pts = None
 
     def copy(self, packet) -> None:
-        """A packet of another stream, remuxed unchanged."""
+        """A packet of another stream, remuxed unchanged; a stream whose
+        packet the container refuses (its timestamps) is dropped from there
+        on, with a note, and the video goes on."""
         st = self.audio.get(packet.stream.index)
         if st is None or packet.dts is None:
             return
+        index = packet.stream.index
         packet.stream = st
-        self.out.mux(packet)
+        try:
+            self.out.mux(packet)
+        except self.av.FFmpegError as e:
+            del self.audio[index]
+            self.notes.append(f"stream #{index} ({st.type}) copied up to {float(packet.dts * st.time_base):.3f} s only: "
+                              f"the container refused a packet ({_ffmpeg_text(e)})")
 
     def write(self, image: np.ndarray, pts: int | None) -> None:
         codes = _core.frame_from_linear(np.ascontiguousarray(image, dtype=np.float32), self.transfer, 16)
@@ -231,12 +306,18 @@ class _Writer:
         if not self.rgb:
             f = f.reformat(format=self.pix, dst_colorspace="ITU709", dst_color_range=self.range)
         if pts is None or (self.last_pts is not None and pts <= self.last_pts):
-            pts = None
+            # a container takes increasing timestamps only: a missing, repeated or earlier one
+            # becomes a frame after the previous (counted in the sidecar's notes)
+            pts = 0 if self.last_pts is None else self.last_pts + self.step
+            self.retimed += 1
         f.pts = pts
-        if pts is not None:
-            self.last_pts = pts
-        for p in self.video.encode(f):
-            self.out.mux(p)
+        self.last_pts = pts
+        try:
+            for p in self.video.encode(f):
+                self.out.mux(p)
+        except self.av.FFmpegError as e:
+            raise CommandError(f"cannot write the restored video at frame {self.frames}: {_ffmpeg_text(e)}",
+                               "write_failed") from None
         self.frames += 1
 
     def close(self, flush: bool = True) -> None:
@@ -244,6 +325,8 @@ class _Writer:
             if flush:
                 for p in self.video.encode():
                     self.out.mux(p)
+        except self.av.FFmpegError as e:
+            raise CommandError(f"cannot finish the restored video: {_ffmpeg_text(e)}", "write_failed") from None
         finally:
             self.out.close()
 
@@ -267,7 +350,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
                   max_side: int | None = None, reuse_estimates: int | None = None, reuse_water_mask: bool = False,
                   scene_cut: float | None = None, smoothing: float | None = None, overwrite: bool = True,
                   progress: Callable[[str], None] | None = None, _claim=None, _label: str | None = None,
-                  **options) -> VideoResult:
+                  _stop=None, **options) -> VideoResult:
     """Restore the video at ``in_path`` into ``out_dir`` (module docs).
 
     ``options``: the photo options of :func:`uwhl_rs.files.restore_file`
@@ -277,10 +360,15 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     ``scene_cut`` and ``smoothing`` those of :func:`uwhl_rs.video.restore_frames`.
     ``progress`` is called with a line of text now and then. ``_claim``
     (the command's): the claimed output names (:func:`video_suffixes`).
+    ``_stop`` (the command's): a ``threading.Event`` that, once set (an
+    interrupt), stops the video at its next frame: nothing of it is kept.
+    A frame that holds nothing to restore (black, flat) is written as it
+    came in and counted (the sidecar's ``video.unrestored``).
     """
     t_start = time.perf_counter()
     in_path, out_dir = os.fspath(in_path), os.fspath(out_dir)
-    label = _label or in_path
+    # the name as sidecars and lines hold it (undecodable bytes of a file name as U+FFFD)
+    label = display(_label or in_path)
     fmt, bits, jpeg_quality = options.pop("format", "jpg"), options.pop("bits", None), options.pop("quality", 95)
     for k in ("mask", "water_mask", "distance", "altitude", "fov", "water_from", "contact", "half_size",
               "preprocess", "port"):
@@ -295,6 +383,8 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     if max_pixels is not None and info.width * info.height > int(max_pixels):
         raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over max_pixels {max_pixels}")
     s = 1 if not max_side else max(1, -(-max(info.height, info.width) // int(max_side)))
+    if not every:
+        _check_size(codec, (-(-info.height // s), -(-info.width // s)), label, max_side)
     need = _plan(info, s, 6.0 if info.bits > 8 else 3.0)
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
@@ -311,7 +401,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
             every=every, video_quality=video_quality, transfer=transfer, max_side=max_side,
             reuse_estimates=reuse_estimates, reuse_water_mask=reuse_water_mask, scene_cut=scene_cut,
             smoothing=smoothing, overwrite=overwrite, progress=progress, label=label, t_start=t_start, fmt=fmt,
-            method=options, still_dir=os.path.dirname(str(claim.paths[-1]))))
+            method=options, still_dir=os.path.dirname(str(claim.paths[-1])), stop=_stop))
     finally:
         claim.release()
 
@@ -329,21 +419,41 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
             temps.append(tmp)
             size = (-(-info.height // _factor(info, o["max_side"])), -(-info.width // _factor(info, o["max_side"])))
             writer = _Writer(tmp, os.path.splitext(paths[0])[1], codec, info, size, int(o["video_quality"]), reader._c)
-            dropped = [x for x in info.others if x["index"] not in writer.audio]
+            dropped = [x for x in info.others if x["index"] not in writer.audio and x["type"] != "video"]
             if dropped:
                 notes.append("streams not copied (the container or codec does not take them): "
                              + ", ".join(f"#{x['index']} {x['type']} {x['codec']}" for x in dropped))
+            videos = [x for x in info.others if x["type"] == "video"]
+            if videos:
+                notes.append("only the first video stream is restored; not copied: "
+                             + ", ".join(f"#{x['index']} video {x['codec']}" for x in videos))
             reader.on_packet = writer.copy
-        strip = _Strip((info.frames or 0) // (every or 1) or None)
+        strip = _Strip((info.frames or 0) // (every or 1) or None, info.rotation)
         events, stills, counts = [], [], {"restored": 0, "reused": 0, "flags": {}}
+        unrestored: list[dict] = []
+        n_unrestored = 0
         refresh = o["reuse_estimates"] or video.refresh_for(info.rate, every or 1)
         last_note = time.perf_counter()
         restored = video.restore_frames(
             reader, refresh_every=refresh, reuse_water_mask=o["reuse_water_mask"],
             scene_cut=_core.VIDEO_SCENE_CUT if o["scene_cut"] is None else o["scene_cut"],
-            smoothing=_core.VIDEO_SMOOTHING if o["smoothing"] is None else o["smoothing"], **o["method"])
+            smoothing=_core.VIDEO_SMOOTHING if o["smoothing"] is None else o["smoothing"], unrestored="input",
+            **o["method"])
         t_loop = time.perf_counter()
         for rf in restored:
+            if o["stop"] is not None and o["stop"].is_set():
+                raise KeyboardInterrupt  # the claim's release removes the temporaries: nothing of the video stays
+            if rf.restoration is None:
+                # nothing to restore (a black or flat frame): written as it came in, so no frame goes missing
+                n_unrestored += 1
+                if len(unrestored) < _UNRESTORED_LISTED:
+                    unrestored.append({"frame": rf.index, "time": rf.time, "error": rf.error})
+                if writer is not None:
+                    writer.write(rf.image, rf.pts)
+                else:
+                    stills.append({"frame": rf.index, "time": rf.time, "image": None, "sidecar": None,
+                                   "skipped": f"not restored: {rf.error}"})
+                continue
             res = rf.restoration
             counts["restored"] += 1
             for f in res.flags:
@@ -363,18 +473,27 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
                 last_note = time.perf_counter()
                 total = info.frames // (every or 1) if info.frames else None
                 o["progress"](_progress_text(label, counts["restored"], total, t_loop))
+        writer_notes = []
         if writer is not None:
             writer.close()
+            writer_notes = list(writer.notes)
+            if writer.retimed:
+                writer_notes.append(f"{writer.retimed} frames' timestamps were missing or did not increase (repeated "
+                                    "or out of order): each was written one frame after the frame before it")
             writer = None
         t_done = time.perf_counter()
         if counts["restored"] == 0:
-            why = reader.stopped["error"] if reader.stopped else "the stream has no frame"
+            why = unrestored[0]["error"] + f" (every one of its {n_unrestored} frames)" if unrestored else \
+                reader.stopped["error"] if reader.stopped else "the stream has no frame"
             raise CommandError(f"no frame could be restored: {why}", "unreadable_input")
+        if writer_notes:
+            notes.extend(writer_notes)
         strip_bytes = strip.encode()
         tmp = str(claim.temp(len(paths) - 2))
         with open(tmp, "wb") as f:
             f.write(strip_bytes)
         temps.append(tmp)
+        counts["unrestored"], counts["unrestored_list"] = n_unrestored, unrestored
         side = _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, counts, reader, notes,
                         t_loop - o["t_start"], t_done - t_loop)
         tmp = str(claim.temp(len(paths) - 1))
@@ -403,11 +522,12 @@ def _write_still(video_name: str, rf, info: video.StreamInfo, settings, o) -> di
     res = rf.restoration
     label = f"{o['label']}#{rf.index}"
     d = o["still_dir"]
-    status, side, _why, claim = files.claim_outputs(d, name, label, o["fmt"], False, overwrite=o["overwrite"],
-                                                    rename=False)
+    # a name another input holds (a photo called as the still would be) is not this still's: the next is taken
+    status, side, why, claim = files.claim_outputs(d, name, label, o["fmt"], False, overwrite=o["overwrite"],
+                                                   rename=True)
     entry = {"frame": rf.index, "time": rf.time, "image": None, "sidecar": os.path.basename(str(side))}
     if status != "claimed":
-        entry["skipped"] = "sidecar exists"
+        entry["skipped"] = "sidecar exists" if status == "done" else (why or status)
         return entry
     try:
         h, w = res.transmission.shape
@@ -480,7 +600,8 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
             "stream": info.to_dict(),
             "output": output,
             "frames": {"decoded": int(reader.decoded), "restored": counts["restored"], "reused": counts["reused"],
-                       "every": int(every or 1)},
+                       "unrestored": counts["unrestored"], "every": int(every or 1)},
+            "unrestored": counts["unrestored_list"],
             "stopped": reader.stopped,
             "schedule": {"refresh_every": int(o["reuse_estimates"] or video.refresh_for(info.rate, every or 1)),
                          "scene_cut": _core.VIDEO_SCENE_CUT if o["scene_cut"] is None else float(o["scene_cut"]),
