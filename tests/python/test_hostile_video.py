@@ -425,6 +425,40 @@ def test_sigint_stops_a_video_at_the_next_frame_and_leaves_nothing(tmp_path):
     assert [n for n in _listing(out) if n != "summary.csv"] == [], _listing(out)
 
 
+def _tgkill(pid: int, tid: int, sig: int) -> None:
+    """``sig`` to one thread of process ``pid`` (Linux's tgkill)."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.syscall(234, pid, tid, sig) != 0:  # SYS_tgkill on x86-64
+        raise OSError(ctypes.get_errno(), "tgkill")
+
+
+@pytest.mark.skipif(sys.platform != "linux" or os.uname().machine != "x86_64", reason="tgkill's number is x86-64's")
+def test_sigint_that_the_kernel_gives_a_worker_thread_still_stops_the_video(tmp_path):
+    """The kernel delivers a process's SIGINT to any thread that does not
+    block it (a decoder's, the core's); the main thread must notice it
+    though it waits for the video's write."""
+    src = tmp_path / "long.mkv"
+    _long(src)
+    out = tmp_path / "out"
+    p = subprocess.Popen([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "-q"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert _wait_for_temporary(out, p)
+    time.sleep(0.3)  # the main thread is then waiting on the write
+    others = [int(t) for t in os.listdir(f"/proc/{p.pid}/task") if int(t) != p.pid]
+    assert others
+    _tgkill(p.pid, others[-1], signal.SIGINT)
+    try:
+        _, err = p.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.communicate()
+        pytest.fail("a SIGINT taken by a worker thread did not stop the video")
+    assert p.returncode == 130, err
+    assert [n for n in _listing(out) if n != "summary.csv"] == [], _listing(out)
+
+
 # ------------------------------------------------------------------ the report
 
 
