@@ -20,7 +20,7 @@ import os
 import shutil
 import sys
 import tempfile
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 
 from . import _core, cluster
@@ -310,7 +310,7 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
                 def settle_pending() -> None:
                     while pending:
                         it, written = pending[0]
-                        r = written.result()  # an interrupt here leaves it pending
+                        r = _result(written)  # an interrupt here leaves it pending
                         pending.pop()
                         settle(it.index, r)
 
@@ -322,6 +322,11 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
                             pending.append((it, writer.submit(step)))
                         else:
                             settle(it.index, step)
+                    settle_pending()  # (here, so that an interrupt while the last input is written stops a video)
+                except KeyboardInterrupt:
+                    # a photo's write finishes; a video (minutes of frames) stops at its next frame
+                    ctx.stop.set()
+                    raise
                 finally:
                     settle_pending()
             return
@@ -333,12 +338,34 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             futures = {pool.submit(one, it): it for it in items}
             try:
-                for f in as_completed(futures):
-                    settle(futures[f].index, f.result())
+                left = set(futures)
+                while left:
+                    # in slices: SIGINT delivered to a worker thread reaches the main thread only between waits
+                    done_now, left = wait(left, timeout=_WAIT_SLICE, return_when=FIRST_COMPLETED)
+                    for f in done_now:
+                        settle(futures[f].index, f.result())
             except KeyboardInterrupt:
+                ctx.stop.set()
                 for f in futures:
                     f.cancel()
                 raise
+
+
+#: seconds the main thread waits on a write at a time: the kernel may deliver SIGINT to
+#: any thread (a decoder's, the core's), and only a main thread that returns to Python now
+#: and then runs the handler that stops the run (a wait without a timeout would sleep
+#: through it until a video's last frame)
+_WAIT_SLICE = 0.2
+
+
+def _result(future):
+    """``future``'s result, waited for in slices (:data:`_WAIT_SLICE`)."""
+    while True:
+        try:
+            return future.result(timeout=_WAIT_SLICE)
+        except TimeoutError:
+            if future.done():
+                raise  # the task's own TimeoutError
 
 
 def restore_many(inputs, output: str, *, client=None, dask: str | None = None, storage_options: dict | None = None,

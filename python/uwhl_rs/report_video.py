@@ -11,6 +11,7 @@ escaped as text; the strip is a bare file name beside its sidecar.
 from __future__ import annotations
 
 import html
+import math
 
 import numpy as np
 
@@ -34,15 +35,20 @@ def _series_svg(p: Photo, types: list[str]) -> str:
     """Water type and A (R, G, B) over the video's time (or frames): steps
     from one estimate to the next."""
     v = p.doc["video"]
-    ev = v.get("estimates") or []
+    # a sidecar is untrusted: its estimates drawn in frame order, its times only when they make an axis
+    ev = sorted(v.get("estimates") or [], key=lambda e: e["frame"])
     if not ev:
         return ""
     frames = v.get("frames") or {}
-    rate = (v.get("stream") or {}).get("rate") or 0
+    rate = _rate(p)
     end_frame = max(int(frames.get("decoded") or 0), ev[-1]["frame"] + 1)
-    by_time = all(e.get("time") is not None for e in ev) and rate > 0
-    xs = [e["time"] if by_time else e["frame"] for e in ev]
-    x_end = end_frame / rate if by_time else end_frame
+    times = [e.get("time") for e in ev]
+    by_time = rate is not None and all(t is not None and 0 <= t <= _MAX_SECONDS for t in times) \
+        and all(b >= a for a, b in zip(times, times[1:])) and end_frame / rate >= times[-1]
+    xs = [float(e["time"]) if by_time else float(e["frame"]) for e in ev]
+    x_end = end_frame / rate if by_time else float(end_frame)
+    if not all(math.isfinite(x) for x in (*xs, x_end)):
+        return ""  # numbers no browser draws: no series rather than a broken one
     W, H, left = 900, 110, 48
     span = max(x_end - min(xs), 1e-9)
 
@@ -64,8 +70,10 @@ def _series_svg(p: Photo, types: list[str]) -> str:
         y = H - 8 - (H - 30) * (k / max(1, len(types) - 1))
         out.append(f'<text x="{left - 6}" y="{y + 4:.1f}" text-anchor="end" class="tick">{html.escape(t)}</text>')
     out.append(steps([idx.get(e["water_type"], 0) for e in ev], 0, max(1, len(types) - 1), 0, "#333"))
-    a = np.array([e["veiling_light"] for e in ev], dtype=float)
+    a = np.clip(np.array([e["veiling_light"] for e in ev], dtype=float), 0.0, None)
     hi = float(a.max()) if a.size else 1.0
+    if not math.isfinite(hi):
+        return ""
     out.append(f'<text x="{left}" y="{H + 12}" class="lab">A (R, G, B), 0 to {hi:.3f}</text>')
     for c, color in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
         out.append(steps(list(a[:, c]), 0.0, hi, H, color))
@@ -79,6 +87,16 @@ def _series_svg(p: Photo, types: list[str]) -> str:
     return "".join(out)
 
 
+#: the longest video time drawn (seconds: a year); beyond, the series is by frame
+_MAX_SECONDS = 3.2e7
+
+
+def _rate(p: Photo) -> float | None:
+    """The stream's rate when it is one a video has (0.001 to 1000 frames a second), else None."""
+    rate = (p.doc["video"].get("stream") or {}).get("rate")
+    return float(rate) if isinstance(rate, (int, float)) and 1e-3 <= rate <= 1000 else None
+
+
 def videos_html(videos: list[Photo], types: list[str], rel_url) -> str:
     """The page's section of the videos (empty without any)."""
     if not videos:
@@ -90,14 +108,17 @@ def videos_html(videos: list[Photo], types: list[str], rel_url) -> str:
         st = v.get("stream") or {}
         ev = v.get("estimates") or []
         cuts = sum(e["event"] == "cut" for e in ev)
+        unrestored = int(fr.get("unrestored") or 0)
         strip = rel_url(p.output("strip"))
         flags = needs_a_look(p)
         stop = v.get("stopped")
         size = "" if not st.get("width") else f" of {int(st['width'])}x{int(st.get('height') or 0)}"
-        rate = "" if not st.get("rate") else f" at {float(st['rate']):.3g} frames/s"
+        rate = "" if _rate(p) is None else f" at {_rate(p):.3g} frames/s"
         flagged = " flagged" if flags else ""
         parts.append(f'<div class="cell{flagged}"><p><b>{html.escape(p.sidecar[:-5])}</b>: '
-                     f'{int(fr.get("restored") or 0)} frames restored{size}{rate}; water type '
+                     f'{int(fr.get("restored") or 0)} frames restored{size}{rate}'
+                     + (f" ({unrestored} held nothing to restore: written as they came)" if unrestored else "")
+                     + '; water type '
                      f'<b>{html.escape(p.doc["water_type"])}</b> most of the time; {len(ev)} estimates, {cuts} at cuts'
                      + (f'; <span class="flags">{", ".join(html.escape(f) for f in flags)}</span>' if flags else "")
                      + "</p>")

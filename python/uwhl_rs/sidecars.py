@@ -18,6 +18,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+import os
 import re
 
 from .errors import UwhlError
@@ -71,9 +72,13 @@ class SidecarError(UwhlError):
 
 
 def display(text: str) -> str:
-    """``text`` as it can be shown and written as UTF-8: lone surrogates
-    (undecodable bytes of a file name) become U+FFFD."""
-    return text.encode("utf-8", "surrogatepass").decode("utf-8", "replace")
+    """``text`` as it can be shown and written as UTF-8: the undecodable
+    bytes of a file name (lone surrogates) become U+FFFD, one a byte, as
+    the core writes them (docs/OUTPUTS.md "Names")."""
+    try:
+        return os.fsencode(text).decode("utf-8", "replace")
+    except UnicodeEncodeError:  # a surrogate no file name's byte gives
+        return text.encode("utf-8", "surrogatepass").decode("utf-8", "replace")
 
 
 def printable(text: str) -> str:
@@ -177,10 +182,13 @@ def _map_of(check, most: int = 1000):
     return f
 
 
-def _object(fields: dict):
+def _object(fields: dict, required: tuple = ()):
     def f(v):
         if not isinstance(v, dict):
             return "must be an object"
+        for k in required:
+            if k not in v:
+                return f"has no {k}"
         for k, check in fields.items():
             if k in v:
                 why = check(v[k])
@@ -224,11 +232,18 @@ FIELDS = {
     "kind": _text,
     # a video's sidecar (docs/OUTPUTS.md "Videos")
     "video": _object({
+        # the report draws every estimate: each has what it draws
         "estimates": _list_of(_object({"frame": _count, "time": _optional(_number), "event": _text,
                                        "change": _optional(_number), "water_type": _text,
-                                       "veiling_light": _list_of(_number, 3)}), most=VIDEO_ESTIMATES),
-        "frames": _object({"decoded": _count, "restored": _count, "reused": _count, "every": _count}),
-        "stopped": _optional(_object({"frame": _count, "time": _optional(_number), "error": _text})),
+                                       "veiling_light": _list_of(_number, 3)},
+                                      required=("frame", "event", "water_type", "veiling_light")),
+                              most=VIDEO_ESTIMATES),
+        "frames": _object({"decoded": _count, "restored": _count, "reused": _count, "unrestored": _count,
+                           "every": _count}),
+        "stopped": _optional(_object({"frame": _count, "time": _optional(_number), "error": _text},
+                                     required=("frame", "error"))),
+        "unrestored": _list_of(_object({"frame": _count, "time": _optional(_number), "error": _optional(_text)}),
+                               most=1000),
         "stream": _object({"width": _optional(_count), "height": _optional(_count), "rate": _optional(_number),
                            "codec": _optional(_text), "duration": _optional(_number)}),
     }),

@@ -14,9 +14,10 @@ import os
 import shutil
 import socket
 import tempfile
+import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import uwhl_rs
 
@@ -203,6 +204,8 @@ class Context:
     reuse_water_mask: bool = False
     #: called with a line of a long input's progress (a video's frames), or None
     progress: Callable[[str], None] | None = None
+    #: set on an interrupt: a video being restored stops at its next frame (a photo's write finishes)
+    stop: threading.Event = field(default_factory=threading.Event)
 
 
 def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | None, reuse_water_mask: bool,
@@ -327,6 +330,9 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
         opts.pop(k, None)
     every, codec = opts.get("every"), opts.get("video_codec") or "h264"
     remote_out = is_url(item.out_dir)
+    if codec == "input" and not is_url(item.input):
+        # the container the input's codec goes in is part of the names claimed (FFV1 in an AVI stays an AVI)
+        codec = videofiles.resolve_codec(codec, local_path(item.input))
     suffixes = videofiles.video_suffixes(item.input, every=every, codec=codec)
     out_dir = os.path.join(ctx.scratch, f"out{item.index}") if remote_out else local_path(item.out_dir)
     if remote_out:
@@ -351,7 +357,8 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
             local_in = local_input(item.input, ctx.scratch, so)
             result = videofiles.restore_video(local_in, out_dir, name=claim.name, _claim=claim, _label=item.input,
                                               reuse_estimates=ctx.reuse, reuse_water_mask=ctx.reuse_water_mask,
-                                              overwrite=ctx.overwrite, progress=ctx.progress, **opts)
+                                              overwrite=ctx.overwrite, progress=ctx.progress, _stop=ctx.stop,
+                                              **opts)
         except (Exception, MemoryError) as e:
             claim.release()
             return failure_row(item, e, False, time.perf_counter() - t0, local_in)

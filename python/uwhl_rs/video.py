@@ -97,12 +97,18 @@ class StreamInfo:
     #: the audio and other streams (kept in a restored video when the container takes them)
     others: list = field(default_factory=list)
     metadata: dict = field(default_factory=dict)
+    #: where the stream ends, in seconds of its timestamps (None: unknown)
+    end: float | None = None
+    #: the counter-clockwise rotation of its display matrix, degrees (0, 90, 180, 270; :func:`probe`)
+    rotation: int = 0
 
     def to_dict(self) -> dict:
         """The sidecar's ``video.stream``."""
         d = {k: getattr(self, k) for k in ("container", "codec", "width", "height", "frames", "duration", "pix_fmt",
                                             "bits", "transfer_tag", "primaries_tag", "matrix_tag", "range_tag",
                                             "transfer", "transfer_from", "matrix", "matrix_from")}
+        # FFmpeg's sign: -90 is a phone held upright (turned a quarter clockwise to show)
+        d["rotation"] = -90 if self.rotation == 270 else self.rotation
         d["rate"] = None if self.rate is None else float(self.rate)
         d["rate_fraction"] = None if self.rate is None else f"{self.rate.numerator}/{self.rate.denominator}"
         d["time_base"] = f"{self.time_base.numerator}/{self.time_base.denominator}"
@@ -120,18 +126,23 @@ def _open(path: str):
     try:
         return av.open(path, metadata_errors="replace")
     except av.FFmpegError as e:
-        raise ImageReadError(f"{path}: not a video FFmpeg can read ({e}); an MP4 or MOV cut short loses the index "
-                             "at its end and cannot be read at all") from None
+        # an MP4 or MOV written to the end keeps its index there: cut short, it is unreadable as a whole
+        hint = "; an MP4 or MOV cut short loses the index at its end and cannot be read at all" \
+            if os.path.splitext(path)[1].lower() in (".mp4", ".m4v", ".mov", ".3gp") else ""
+        raise ImageReadError(f"{path}: not a video FFmpeg can read ({e}){hint}") from None
 
 
 def _info(path: str, container, transfer: str | None) -> StreamInfo:
-    av = _av()
     if not container.streams.video:
         raise ImageReadError(f"{path}: the file holds no video stream")
     vs = container.streams.video[0]
     cc = vs.codec_context
     if cc.codec is None or not getattr(cc.codec, "name", None):
         raise ImageReadError(f"{path}: the video stream's codec is unknown to FFmpeg")
+    if cc.width <= 0 or cc.height <= 0:
+        # FFmpeg leaves the size 0x0 when the header's is absurd or missing (cut short before the first frame)
+        raise ImageReadError(f"{path}: the video stream states no usable frame size ({cc.width}x{cc.height}): "
+                             "cut short or corrupt?")
     if cc.width < 4 or cc.height < 4:
         raise ImageReadError(f"{path}: the video is {cc.width}x{cc.height} pixels; at least 4x4 is restored")
     from av.video.reformatter import ColorPrimaries, ColorRange, Colorspace, ColorTrc  # noqa: F401
@@ -165,11 +176,7 @@ def _info(path: str, container, transfer: str | None) -> StreamInfo:
             continue
         name = getattr(getattr(s, "codec_context", None), "name", None) or "unknown"
         others.append({"index": int(s.index), "type": s.type, "codec": name})
-    duration = None
-    if vs.duration is not None and vs.time_base is not None:
-        duration = float(vs.duration * vs.time_base)
-    elif container.duration is not None:
-        duration = container.duration / av.time_base
+    duration, end = _stream_span(container, vs)
     return StreamInfo(
         path=path, container=container.format.name, codec=cc.codec.name, width=int(cc.width), height=int(cc.height),
         rate=fractions.Fraction(rate) if rate else None,
@@ -177,8 +184,49 @@ def _info(path: str, container, transfer: str | None) -> StreamInfo:
         frames=int(vs.frames) or None, duration=duration, pix_fmt=str(cc.pix_fmt), bits=bits,
         transfer_tag=trc_tag, primaries_tag=_enum_name(ColorPrimaries, cc.color_primaries), matrix_tag=matrix_tag,
         range_tag=_enum_name(ColorRange, cc.color_range), transfer=curve, transfer_from=why, matrix=matrix,
-        matrix_from=matrix_from, others=others, metadata=dict(container.metadata),
+        matrix_from=matrix_from, others=others, metadata=dict(container.metadata), end=end,
     )
+
+
+def _stream_span(container, vs) -> tuple[float | None, float | None]:
+    """(duration, end) of the video stream in seconds, each None when the
+    file does not say: its own duration (the header's, or Matroska's
+    DURATION tag, which is where the stream ends); the container's only
+    when the video is its one stream (else it may be the sound's, longer)."""
+    av = _av()
+    tb = vs.time_base
+    start = float(vs.start_time * tb) if vs.start_time is not None and tb else 0.0
+    if vs.duration is not None and tb:
+        d = float(vs.duration * tb)
+        return d, start + d
+    tag = (vs.metadata or {}).get("DURATION")
+    if isinstance(tag, str):
+        try:
+            h, m, sec = tag.strip().split(":")
+            end = int(h) * 3600 + int(m) * 60 + float(sec)
+            if math.isfinite(end) and end > 0:
+                return max(end - start, 0.0), end
+        except ValueError:
+            pass
+    if container.duration is not None and len(container.streams) == 1:
+        d = container.duration / av.time_base
+        return d, start + d
+    return None, None
+
+
+def _rotation(path: str) -> int:
+    """The counter-clockwise rotation (degrees) a player applies to the
+    stream's frames (a phone's display matrix), read from its first frame;
+    0 when it has none or the frame cannot be decoded."""
+    av = _av()
+    try:
+        with av.open(path, metadata_errors="replace") as c:
+            for frame in c.decode(c.streams.video[0]):
+                r = getattr(frame, "rotation", 0) or 0
+                return int(round(float(r) / 90.0)) * 90 % 360 if math.isfinite(float(r)) else 0
+    except (av.FFmpegError, EOFError, ValueError, OverflowError, IndexError):
+        pass
+    return 0
 
 
 def probe(path: str | os.PathLike, *, transfer: str | None = None) -> StreamInfo:
@@ -187,7 +235,9 @@ def probe(path: str | os.PathLike, *, transfer: str | None = None) -> StreamInfo
     ``transfer`` does not say one)."""
     path = os.fspath(path)
     with _open(path) as c:
-        return _info(path, c, transfer)
+        info = _info(path, c, transfer)
+    info.rotation = _rotation(path)
+    return info
 
 
 @dataclass
@@ -259,6 +309,7 @@ class FrameReader:
         tb = vs.time_base
         streams = [vs] + ([s for s in self._c.streams if s.index != vs.index] if self.on_packet else [])
         k = 0
+        last_t = None
         try:
             for packet in self._c.demux(*streams):
                 if packet.stream.index != vs.index:
@@ -266,6 +317,9 @@ class FrameReader:
                     continue
                 for frame in packet.decode():
                     self.decoded = k + 1
+                    if frame.pts is not None and tb is not None:
+                        t_k = float(frame.pts * tb)
+                        last_t = t_k if last_t is None else max(last_t, t_k)
                     if k % self.every == 0:
                         pts = frame.pts
                         t = float(pts * tb) if pts is not None and tb is not None else None
@@ -275,12 +329,20 @@ class FrameReader:
         except (av.FFmpegError, EOFError) as e:
             self.stopped = {"frame": k, "time": self._time_of(k), "error": f"{type(e).__name__}: {e}"[:500]}
             return
-        # a file cut short may end without an error: fewer frames than its header states
-        expected = self.info.frames or (round(self.info.duration * float(self.info.rate))
-                                        if self.info.duration and self.info.rate else None)
+        # a file cut short may end without an error: fewer frames than its header states,
+        # or (no count stated) its frames end well before the time the stream states it ends
+        expected = self.info.frames
         if expected and k < expected - 1:
             self.stopped = {"frame": k, "time": self._time_of(k),
                             "error": f"the file ends after {k} frames; its header states {expected}: cut short?"}
+        elif not expected and self.info.end and self.info.rate:
+            step = 1.0 / float(self.info.rate)
+            reached = (last_t + step) if last_t is not None else k * step
+            # two frames of slack: the stated end is rounded, and a variable rate's last frame may last longer
+            if reached < self.info.end - 2.5 * step:
+                self.stopped = {"frame": k, "time": self._time_of(k),
+                                "error": f"the file ends after {k} frames, at {reached:.3f} s; the stream states "
+                                         f"it ends at {self.info.end:.3f} s: cut short?"}
 
     def _time_of(self, k: int) -> float | None:
         return round(k / float(self.info.rate), 3) if k > 0 and self.info.rate else None
@@ -311,6 +373,9 @@ class RestoredFrame:
     decision: str
     #: its colour change from the previous frame (0-1, METHOD §10)
     change: float
+    #: why the frame was not restored (decision "unrestored": ``image`` is the frame as it came in,
+    #: ``restoration`` None), else None
+    error: str | None = None
 
 
 def refresh_for(rate, every: int = 1) -> int:
@@ -324,7 +389,7 @@ def refresh_for(rate, every: int = 1) -> int:
 def restore_frames(video, *, every: int = 1, refresh_every: int | None = None,
                    scene_cut: float = _core.VIDEO_SCENE_CUT, smoothing: float = _core.VIDEO_SMOOTHING,
                    reuse_water_mask: bool = False, transfer: str | None = None, max_side: int | None = None,
-                   **method) -> Iterator[RestoredFrame]:
+                   unrestored: str = "raise", **method) -> Iterator[RestoredFrame]:
     """Restore a video's frames in order as one sequence (METHOD §10).
 
     ``video``: a path, a :class:`FrameReader` (whose ``stopped`` then says
@@ -338,6 +403,12 @@ def restore_frames(video, *, every: int = 1, refresh_every: int | None = None,
     ``smoothing`` of the way (docs/API.md "Videos"). ``every`` restores
     every N-th frame only; ``transfer`` and ``max_side`` as in
     :func:`read_frames`; ``method``: the keywords of :func:`uwhl_rs.restore`.
+
+    A frame the method cannot restore (a black or flat frame: a fade, a
+    flash; nothing to restore) raises ImageReadError naming the frame, or
+    with ``unrestored="input"`` is yielded as it came in (decision
+    "unrestored", ``restoration`` None, ``error`` the reason) and the
+    sequence goes on from the frames before it.
 
     Yields :class:`RestoredFrame`. A video that stops decoding part way ends
     the iteration; pass a :func:`read_frames` reader to read its
@@ -357,12 +428,22 @@ def restore_frames(video, *, every: int = 1, refresh_every: int | None = None,
         frames = (f if isinstance(f, Frame) else Frame(k, None, None, np.asarray(f, dtype=np.float32))
                   for k, f in enumerate(video))
         rate = None
+    if unrestored not in ("raise", "input"):
+        raise ParameterError(f'unrestored must be "raise" or "input"; got {unrestored!r}')
     n = refresh_for(rate, every) if refresh_every is None else int(refresh_every)
     seq = uwhl_rs.Sequence(refresh_every=n, reuse_water_mask=reuse_water_mask, scene_cut=scene_cut,
                            smoothing=smoothing, **method)
     try:
         for f in frames:
-            res = seq.restore(f.image)
+            try:
+                res = seq.restore(f.image)
+            except _core.ImageError as e:
+                # the sequence is left as it was: the next frame compares with the one before this
+                if unrestored == "raise":
+                    at = "" if f.time is None else f" ({f.time:.3f} s)"
+                    raise ImageReadError(f"frame {f.index}{at}: {e}") from None
+                yield RestoredFrame(f.index, f.pts, f.time, f.image, None, "unrestored", 0.0, str(e))
+                continue
             decision, change = seq.last_decision
             yield RestoredFrame(f.index, f.pts, f.time, res.image, res, decision, float(change))
     finally:

@@ -32,46 +32,22 @@ import numpy as np
 import uwhl_rs
 
 from . import _core, files, video
+from .videoencode import CODECS, Writer, check_size, codec_for, extension, resolve_codec
 from .errors import CommandError, ImageTooLargeError, ParameterError
+from .sidecars import display
 
-__all__ = ["VideoResult", "video_suffixes", "restore_video", "still_name", "frame_need", "CODECS"]
-
-#: --video-codec: (FFmpeg encoder, pixel format for 8-bit input, for deeper input, containers it goes in)
-CODECS = {
-    "h264": ("libx264", "yuv420p", "yuv420p10le", (".mp4", ".mov", ".mkv", ".m4v", ".ts", ".mts", ".m2ts")),
-    "hevc": ("libx265", "yuv420p", "yuv420p10le", (".mp4", ".mov", ".mkv", ".m4v", ".ts", ".mts", ".m2ts")),
-    "prores": ("prores", "yuv422p10le", "yuv422p10le", (".mov",)),
-    "ffv1": ("ffv1", "rgb48le", "rgb48le", (".mkv", ".mov", ".avi")),
-    "mjpeg": ("mjpeg", "yuvj420p", "yuvj420p", (".mov", ".avi", ".mkv")),
-}
-
-#: FFmpeg's decoder names of codecs --video-codec input can write again
-_INPUT_CODECS = {"h264": "h264", "hevc": "hevc", "prores": "prores", "ffv1": "ffv1", "mjpeg": "mjpeg"}
+__all__ = ["VideoResult", "video_suffixes", "restore_video", "still_name", "resolve_codec", "frame_need", "CODECS"]
 
 #: frames of the strip
 _STRIP_FRAMES = 8
 #: the longer side of a strip cell
 _STRIP_CELL = 240
 
+#: frames not restored listed in the sidecar (the count is always there)
+_UNRESTORED_LISTED = 100
+
 #: the keywords of restore_video that are not the method's
 _FILE_KEYS = ("format", "bits", "quality", "mask", "water_mask", "max_memory", "max_pixels")
-
-
-def _codec(choice: str, info: video.StreamInfo) -> str:
-    if choice != "input":
-        return choice
-    got = _INPUT_CODECS.get(info.codec)
-    if got is None:
-        raise ParameterError(f"--video-codec input: the input's codec {info.codec} cannot be written; give "
-                             f"--video-codec h264, hevc, prores, ffv1 or mjpeg")
-    return got
-
-
-def _extension(in_path: str, codec: str) -> str:
-    """The restored video's extension: the input's when its container takes the codec, else the codec's first."""
-    ext = os.path.splitext(in_path)[1].lower()
-    allowed = CODECS[codec][3]
-    return ext if ext in allowed else allowed[0]
 
 
 def video_suffixes(in_path: str, *, every: int | None, codec: str = "h264") -> list[str]:
@@ -85,7 +61,7 @@ def video_suffixes(in_path: str, *, every: int | None, codec: str = "h264") -> l
         # the input's own container when any codec goes in it (checked against its codec once it is opened)
         ext = os.path.splitext(in_path)[1].lower()
         return [ext if any(ext in c[3] for c in CODECS.values()) else ".mp4", "_strip.jpg"]
-    return [_extension(in_path, codec), "_strip.jpg"]
+    return [extension(in_path, codec), "_strip.jpg"]
 
 
 def still_name(name: str, t: float | None, index: int) -> str:
@@ -129,15 +105,21 @@ def _plan(info: video.StreamInfo, s: int, out_bpp: float) -> int:
 class _Strip:
     """Thumbnails of frames spread over the video: input above, restored below."""
 
-    def __init__(self, expected: int | None):
+    def __init__(self, expected: int | None, rotation: int = 0):
         self.every = max(1, (expected or 240) // _STRIP_FRAMES)
         self.cells: list[tuple[np.ndarray, np.ndarray, str]] = []
+        #: quarter turns counter-clockwise (np.rot90) that show the frames as a player does
+        self.turns = (rotation // 90) % 4
 
     def offer(self, k: int, frame_in: np.ndarray, rf) -> None:
-        if k % self.every or len(self.cells) >= 4 * _STRIP_FRAMES:
+        if k % self.every or len(self.cells) >= 4 * _STRIP_FRAMES or rf.restoration is None:
             return
         s = max(1, -(-max(frame_in.shape[:2]) // _STRIP_CELL))
-        small = (lambda a: _core._downscale(np.ascontiguousarray(a, dtype=np.float32), s)) if s > 1 else (lambda a: a)
+
+        def small(a):
+            a = _core._downscale(np.ascontiguousarray(a, dtype=np.float32), s) if s > 1 else a
+            return np.ascontiguousarray(np.rot90(a, self.turns)) if self.turns else a
+
         t = f"frame {rf.index}" if rf.time is None else f"{rf.time:.1f} s"
         self.cells.append((small(frame_in), small(rf.image), f"{t}, {rf.restoration.water_type}"))
 
@@ -164,98 +146,6 @@ class _Strip:
         return buf.getvalue()
 
 
-class _Writer:
-    """The restored video, encoded into a temporary as frames come."""
-
-    def __init__(self, tmp: str, ext: str, codec: str, info: video.StreamInfo, size: tuple[int, int],
-                 crf: int, src):
-        import av
-
-        encoder, pix8, pix_deep, _ = CODECS[codec]
-        self.av = av
-        self.pix = pix_deep if info.bits > 8 else pix8
-        self.bits = 16
-        self.transfer = info.transfer
-        fmt = {".mkv": "matroska", ".ts": "mpegts", ".mts": "mpegts", ".m2ts": "mpegts", ".m4v": "mp4"}.get(ext)
-        try:
-            self.out = av.open(tmp, "w", format=fmt or ext.lstrip("."))
-        except (av.FFmpegError, ValueError) as e:
-            raise CommandError(f"cannot write a {ext} video: {e}", "write_failed") from None
-        try:
-            vs = src.streams.video[0]
-            rate = info.rate or 30
-            st = self.out.add_stream(encoder, rate=rate)
-            st.width, st.height = size[1], size[0]
-            st.pix_fmt = self.pix
-            st.time_base = vs.time_base
-            st.codec_context.time_base = vs.time_base
-            if codec in ("h264", "hevc"):
-                st.options = {"crf": str(crf), "preset": "medium"}
-            cc = st.codec_context
-            # the tags of what is written: the input's primaries, the curve
-            # the frames were encoded with, BT.709's matrix, limited range
-            # (full for motion JPEG)
-            from av.video.reformatter import ColorPrimaries, ColorRange, Colorspace, ColorTrc
-
-            trc = {"bt709": ColorTrc.BT709, "srgb": ColorTrc.IEC61966_2_1, "gamma22": ColorTrc.GAMMA22,
-                   "gamma28": ColorTrc.GAMMA28, "linear": ColorTrc.LINEAR}[info.transfer]
-            prim = src.streams.video[0].codec_context.color_primaries
-            cc.color_primaries = int(prim) if int(prim or 2) != 2 else int(ColorPrimaries.BT709)
-            cc.color_trc = int(trc)
-            self.rgb = self.pix.startswith("rgb")
-            cc.colorspace = int(Colorspace.RGB if self.rgb and hasattr(Colorspace, "RGB") else Colorspace.ITU709)
-            self.range = ColorRange.JPEG if self.pix.startswith("yuvj") or self.rgb else ColorRange.MPEG
-            cc.color_range = int(self.range)
-            self.video = st
-            self.audio = {}
-            for other in src.streams:
-                if other.index == vs.index or other.type not in ("audio", "subtitle"):
-                    continue
-                try:
-                    self.audio[other.index] = self.out.add_stream_from_template(other)
-                except (av.FFmpegError, ValueError):
-                    continue  # a stream the container cannot hold (named in the sidecar's notes)
-            for k, v in src.metadata.items():
-                if k not in ("encoder", "major_brand", "minor_version", "compatible_brands"):
-                    self.out.metadata[k] = v
-            self.out.metadata["comment"] = f"restored by uwhl_rs {uwhl_rs.__version__} (haze-lines, sequence mode)"
-        except BaseException:
-            self.out.close()
-            raise
-        self.frames = 0
-        self.last_pts = None
-
-    def copy(self, packet) -> None:
-        """A packet of another stream, remuxed unchanged."""
-        st = self.audio.get(packet.stream.index)
-        if st is None or packet.dts is None:
-            return
-        packet.stream = st
-        self.out.mux(packet)
-
-    def write(self, image: np.ndarray, pts: int | None) -> None:
-        codes = _core.frame_from_linear(np.ascontiguousarray(image, dtype=np.float32), self.transfer, 16)
-        f = self.av.VideoFrame.from_ndarray(codes, format="rgb48le")
-        if not self.rgb:
-            f = f.reformat(format=self.pix, dst_colorspace="ITU709", dst_color_range=self.range)
-        if pts is None or (self.last_pts is not None and pts <= self.last_pts):
-            pts = None
-        f.pts = pts
-        if pts is not None:
-            self.last_pts = pts
-        for p in self.video.encode(f):
-            self.out.mux(p)
-        self.frames += 1
-
-    def close(self, flush: bool = True) -> None:
-        try:
-            if flush:
-                for p in self.video.encode():
-                    self.out.mux(p)
-        finally:
-            self.out.close()
-
-
 def _progress_text(label: str, k: int, total: int | None, t0: float) -> str:
     dt = max(time.perf_counter() - t0, 1e-9)
     fps = k / dt
@@ -275,7 +165,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
                   max_side: int | None = None, reuse_estimates: int | None = None, reuse_water_mask: bool = False,
                   scene_cut: float | None = None, smoothing: float | None = None, overwrite: bool = True,
                   progress: Callable[[str], None] | None = None, _claim=None, _label: str | None = None,
-                  **options) -> VideoResult:
+                  _stop=None, **options) -> VideoResult:
     """Restore the video at ``in_path`` into ``out_dir`` (module docs).
 
     ``options``: the photo options of :func:`uwhl_rs.files.restore_file`
@@ -285,10 +175,15 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     ``scene_cut`` and ``smoothing`` those of :func:`uwhl_rs.video.restore_frames`.
     ``progress`` is called with a line of text now and then. ``_claim``
     (the command's): the claimed output names (:func:`video_suffixes`).
+    ``_stop`` (the command's): a ``threading.Event`` that, once set (an
+    interrupt), stops the video at its next frame: nothing of it is kept.
+    A frame that holds nothing to restore (black, flat) is written as it
+    came in and counted (the sidecar's ``video.unrestored``).
     """
     t_start = time.perf_counter()
     in_path, out_dir = os.fspath(in_path), os.fspath(out_dir)
-    label = _label or in_path
+    # the name as sidecars and lines hold it (undecodable bytes of a file name as U+FFFD)
+    label = display(_label or in_path)
     fmt, bits, jpeg_quality = options.pop("format", "jpg"), options.pop("bits", None), options.pop("quality", 95)
     for k in ("mask", "water_mask", "distance", "altitude", "fov", "water_from", "contact", "half_size",
               "preprocess", "port"):
@@ -299,9 +194,12 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     settings = _core.FileSettings(format=fmt, bits=bits, quality=jpeg_quality, max_side=max_side, **options)
     budget = settings.max_memory
     info = video.probe(in_path, transfer=transfer)
-    codec = _codec(video_codec, info)
+    codec = codec_for(video_codec, info)
     if max_pixels is not None and info.width * info.height > int(max_pixels):
         raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over max_pixels {max_pixels}")
+    s = _factor(info, max_side)
+    if not every:
+        check_size(codec, (-(-info.height // s), -(-info.width // s)), label, max_side)
     need = frame_need(info, max_side)
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
@@ -318,7 +216,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
             every=every, video_quality=video_quality, transfer=transfer, max_side=max_side,
             reuse_estimates=reuse_estimates, reuse_water_mask=reuse_water_mask, scene_cut=scene_cut,
             smoothing=smoothing, overwrite=overwrite, progress=progress, label=label, t_start=t_start, fmt=fmt,
-            method=options, still_dir=os.path.dirname(str(claim.paths[-1]))))
+            method=options, still_dir=os.path.dirname(str(claim.paths[-1])), stop=_stop))
     finally:
         claim.release()
 
@@ -339,22 +237,42 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
             tmp = str(claim.temp(0))
             temps.append(tmp)
             size = (-(-info.height // _factor(info, o["max_side"])), -(-info.width // _factor(info, o["max_side"])))
-            writer = _Writer(tmp, os.path.splitext(paths[0])[1], codec, info, size, int(o["video_quality"]), reader._c)
-            dropped = [x for x in info.others if x["index"] not in writer.audio]
+            writer = Writer(tmp, os.path.splitext(paths[0])[1], codec, info, size, int(o["video_quality"]), reader._c)
+            dropped = [x for x in info.others if x["index"] not in writer.audio and x["type"] != "video"]
             if dropped:
                 notes.append("streams not copied (the container or codec does not take them): "
                              + ", ".join(f"#{x['index']} {x['type']} {x['codec']}" for x in dropped))
+            videos = [x for x in info.others if x["type"] == "video"]
+            if videos:
+                notes.append("only the first video stream is restored; not copied: "
+                             + ", ".join(f"#{x['index']} video {x['codec']}" for x in videos))
             reader.on_packet = writer.copy
-        strip = _Strip((info.frames or 0) // (every or 1) or None)
+        strip = _Strip((info.frames or 0) // (every or 1) or None, info.rotation)
         events, stills, counts = [], [], {"restored": 0, "reused": 0, "flags": {}}
+        unrestored: list[dict] = []
+        n_unrestored = 0
         refresh = o["reuse_estimates"] or video.refresh_for(info.rate, every or 1)
         last_note = time.perf_counter()
         restored = video.restore_frames(
             reader, refresh_every=refresh, reuse_water_mask=o["reuse_water_mask"],
             scene_cut=_core.VIDEO_SCENE_CUT if o["scene_cut"] is None else o["scene_cut"],
-            smoothing=_core.VIDEO_SMOOTHING if o["smoothing"] is None else o["smoothing"], **o["method"])
+            smoothing=_core.VIDEO_SMOOTHING if o["smoothing"] is None else o["smoothing"], unrestored="input",
+            **o["method"])
         t_loop = time.perf_counter()
         for rf in restored:
+            if o["stop"] is not None and o["stop"].is_set():
+                raise KeyboardInterrupt  # the claim's release removes the temporaries: nothing of the video stays
+            if rf.restoration is None:
+                # nothing to restore (a black or flat frame): written as it came in, so no frame goes missing
+                n_unrestored += 1
+                if len(unrestored) < _UNRESTORED_LISTED:
+                    unrestored.append({"frame": rf.index, "time": rf.time, "error": rf.error})
+                if writer is not None:
+                    writer.write(rf.image, rf.pts)
+                else:
+                    stills.append({"frame": rf.index, "time": rf.time, "image": None, "sidecar": None,
+                                   "skipped": f"not restored: {rf.error}"})
+                continue
             res = rf.restoration
             counts["restored"] += 1
             for f in res.flags:
@@ -374,18 +292,27 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
                 last_note = time.perf_counter()
                 total = info.frames // (every or 1) if info.frames else None
                 o["progress"](_progress_text(label, counts["restored"], total, t_loop))
+        writer_notes = []
         if writer is not None:
             writer.close()
+            writer_notes = list(writer.notes)
+            if writer.retimed:
+                writer_notes.append(f"{writer.retimed} frames' timestamps were missing or did not increase (repeated "
+                                    "or out of order): each was written one frame after the frame before it")
             writer = None
         t_done = time.perf_counter()
         if counts["restored"] == 0:
-            why = reader.stopped["error"] if reader.stopped else "the stream has no frame"
+            why = unrestored[0]["error"] + f" (every one of its {n_unrestored} frames)" if unrestored else \
+                reader.stopped["error"] if reader.stopped else "the stream has no frame"
             raise CommandError(f"no frame could be restored: {why}", "unreadable_input")
+        if writer_notes:
+            notes.extend(writer_notes)
         strip_bytes = strip.encode()
         tmp = str(claim.temp(len(paths) - 2))
         with open(tmp, "wb") as f:
             f.write(strip_bytes)
         temps.append(tmp)
+        counts["unrestored"], counts["unrestored_list"] = n_unrestored, unrestored
         side = _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, counts, reader, notes,
                         t_loop - o["t_start"], t_done - t_loop)
         tmp = str(claim.temp(len(paths) - 1))
@@ -414,12 +341,12 @@ def _write_still(video_name: str, rf, info: video.StreamInfo, settings, o) -> di
     res = rf.restoration
     label = f"{o['label']}#{rf.index}"
     d = o["still_dir"]
-    # a name another input's outputs hold (a photo called like a still) is never written over: NAME_2, ...
-    status, side, _why, claim = files.claim_outputs(d, name, label, o["fmt"], False, overwrite=o["overwrite"],
-                                                    rename=True)
+    # a name another input holds (a photo called as the still would be) is not this still's: the next is taken
+    status, side, why, claim = files.claim_outputs(d, name, label, o["fmt"], False, overwrite=o["overwrite"],
+                                                   rename=True)
     entry = {"frame": rf.index, "time": rf.time, "image": None, "sidecar": os.path.basename(str(side))}
     if status != "claimed":
-        entry["skipped"] = "sidecar exists"
+        entry["skipped"] = "sidecar exists" if status == "done" else (why or status)
         return entry
     try:
         h, w = res.transmission.shape
@@ -492,7 +419,8 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
             "stream": info.to_dict(),
             "output": output,
             "frames": {"decoded": int(reader.decoded), "restored": counts["restored"], "reused": counts["reused"],
-                       "every": int(every or 1)},
+                       "unrestored": counts["unrestored"], "every": int(every or 1)},
+            "unrestored": counts["unrestored_list"],
             "stopped": reader.stopped,
             "schedule": {"refresh_every": int(o["reuse_estimates"] or video.refresh_for(info.rate, every or 1)),
                          "scene_cut": _core.VIDEO_SCENE_CUT if o["scene_cut"] is None else float(o["scene_cut"]),

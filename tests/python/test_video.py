@@ -85,7 +85,7 @@ def test_restored_frames_equal_the_sequence_on_the_same_frames_and_the_cut_is_es
     assert events == [(0, "first"), (CUT, "cut")], events
     cut = side["video"]["estimates"][1]
     assert cut["water_type"] in ("5C", "7C", "9C") and cut["change"] > 0.3
-    assert side["video"]["frames"] == {"decoded": 28, "restored": 28, "reused": 26, "every": 1}
+    assert side["video"]["frames"] == {"decoded": 28, "restored": 28, "reused": 26, "unrestored": 0, "every": 1}
 
 
 def test_a_restored_h264_video_keeps_audio_rate_timestamps_and_tags(clips, tmp_path):
