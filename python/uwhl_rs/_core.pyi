@@ -109,6 +109,8 @@ class Claim:
         """The output paths in the order of the suffixes, the sidecar last."""
     def temp(self, index: int) -> Path:
         """A new empty temporary file (created exclusively) for output `index`."""
+    def omit(self, index: int) -> None:
+        """Output index is not written this time: the commit removes an earlier run's file there."""
     def commit(self, temps: list[_PathArg]) -> None:
         """Puts the written temporaries (one per path) in place, sidecar last."""
     def release(self) -> None:

@@ -52,11 +52,11 @@ _FILE_KEYS = ("format", "bits", "quality", "mask", "water_mask", "max_memory", "
 
 def video_suffixes(in_path: str, *, every: int | None, codec: str = "h264") -> list[str]:
     """What follows ``NAME`` in the names of a video's outputs, in writing
-    order, without the sidecar's ``.json``: the restored video (not with
-    ``every``) and the strip. With ``codec`` "input" the video keeps the
-    input's extension (checked against its codec once it is opened)."""
-    if every:
-        return ["_strip.jpg"]
+    order, without the sidecar's ``.json``: the restored video and the
+    strip. With ``every`` the video's name is claimed too, and not written:
+    the commit removes a video an earlier run left there (``--overwrite``).
+    With ``codec`` "input" the video keeps the input's extension (checked
+    against its codec once it is opened)."""
     if codec == "input":
         # the input's own container when any codec goes in it (checked against its codec once it is opened)
         ext = os.path.splitext(in_path)[1].lower()
@@ -229,7 +229,10 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
     writer = None
     notes: list[str] = []
     try:
-        if not every:
+        if every:
+            # the stills stand for the video: a restored video of an earlier run goes
+            claim.omit(0)
+        else:
             ext = os.path.splitext(paths[0])[1].lower()
             if ext not in CODECS[codec][3]:
                 raise ParameterError(f"--video-codec {codec} cannot be written into a {ext} file (it goes into "

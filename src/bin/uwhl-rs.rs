@@ -99,12 +99,15 @@ fn main() -> ExitCode {
         },
         Ok(Command::Run(opts)) => {
             init_threads(opts.params.threads);
-            if opts.stream && closed_stdout::closed() {
-                // each frame's outcome is only its line on stdout: restoring frames nobody hears of is refused
-                let e = uwhl::Failure::new(
-                    uwhl::Kind::Write,
-                    "stdout is closed: stream mode writes each frame's JSON line there; nothing was restored",
-                );
+            if (opts.stream || opts.raw_frames.is_some()) && closed_stdout::closed() {
+                // each frame's outcome is only its line (or the frame itself) on stdout: restoring frames nobody
+                // hears of is refused
+                let what = if opts.stream {
+                    "stream mode writes each frame's JSON line there"
+                } else {
+                    "--raw-frames writes the frames (-o -) or each frame's JSON line (-o DIR) there"
+                };
+                let e = uwhl::Failure::new(uwhl::Kind::Write, format!("stdout is closed: {what}; nothing was restored"));
                 report(&mut stderr, opts.json_errors, None, &e);
                 e.kind.exit_code()
             } else if opts.raw_frames.is_some() {

@@ -187,9 +187,32 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
         let res = match seq.restore(&frame) {
             Ok(r) => r,
             Err(e) => {
-                // one bad frame (its values, its memory) never stops the stream
+                // one frame that cannot be restored (black or flat: no haze-line
+                // to read) never stops the stream, and the frames out stay in
+                // step with the frames in: it goes out as it came in (stdout),
+                // or its line is the error (a folder)
                 let e = Failure::from(e);
-                report(err, opts.json_errors, None, &Failure::new(e.kind, format!("frame {k}: {}", e.message)));
+                let written = match &mut sink {
+                    Sink::Stdout(o) => {
+                        if !opts.quiet {
+                            let _ = writeln!(err, "uwhl-rs: frame {k}: {}; written as it came in", e.message);
+                        }
+                        o.write_all(&bytes_in).and_then(|()| o.flush()).map_err(|why| {
+                            Failure::new(Kind::Write, format!("cannot write frame {k} to stdout ({why}): stopped"))
+                        })
+                    }
+                    Sink::Folder(_, lines) => {
+                        let e = Failure::new(e.kind, format!("frame {k}: {}", e.message));
+                        report(err, opts.json_errors, None, &e);
+                        writeln!(lines, "{}", e.to_json(Some(&format!("stdin#{k}")))).and_then(|()| lines.flush()).map_err(
+                            |why| Failure::new(Kind::Write, format!("cannot write the line of frame {k} to stdout ({why}): stopped")),
+                        )
+                    }
+                };
+                if let Err(e) = written {
+                    report(err, opts.json_errors, None, &e);
+                    break e.kind.exit_code();
+                }
                 k += 1;
                 continue;
             }
@@ -224,10 +247,18 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
             }
             Sink::Folder(dir, lines) => {
                 let t = Timing { read: t_read, restore: t_restore, contact_sheet: None, start: t_frame };
-                write_frame(opts, dir, k, (w, h), transfer, bytes_per_sample, &res, decision, t).and_then(|side| {
-                    writeln!(lines, "{side}").and_then(|()| lines.flush()).map_err(|e| {
-                        Failure::new(Kind::Write, format!("cannot write the line of frame {k} to stdout ({e}): stopped"))
-                    })
+                // a frame whose files cannot be written (a folder planted at
+                // its name) is that frame's error line, as in --stream; the run
+                // stops only when the lines themselves cannot be written
+                let line = match write_frame(opts, dir, k, (w, h), transfer, bytes_per_sample, &res, decision, t) {
+                    Ok(side) => side,
+                    Err(e) => {
+                        report(err, opts.json_errors, None, &e);
+                        e.to_json(Some(&format!("stdin#{k}"))).to_string()
+                    }
+                };
+                writeln!(lines, "{line}").and_then(|()| lines.flush()).map_err(|e| {
+                    Failure::new(Kind::Write, format!("cannot write the line of frame {k} to stdout ({e}): stopped"))
                 })
             }
         };

@@ -409,8 +409,14 @@ pub enum Value {
 
 /// Parses `WxH` (each side in 4..=65535); None for anything else.
 pub fn parse_size(s: &str) -> Option<(usize, usize)> {
-    let (w, h) = s.trim().to_ascii_lowercase().split_once('x').map(|(w, h)| (w.trim().to_string(), h.trim().to_string()))?;
-    let side = |v: &str| v.parse::<usize>().ok().filter(|n| (4..=65535).contains(n));
+    let (w, h) = s.trim().to_ascii_lowercase().split_once('x').map(|(w, h)| (w.to_string(), h.to_string()))?;
+    // digits only: Rust's integer parser would take a sign ("+64x+48")
+    let side = |v: &str| {
+        (!v.is_empty() && v.bytes().all(|b| b.is_ascii_digit()))
+            .then(|| v.parse::<usize>().ok())
+            .flatten()
+            .filter(|n| (4..=65535).contains(n))
+    };
     Some((side(&w)?, side(&h)?))
 }
 

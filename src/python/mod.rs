@@ -492,6 +492,15 @@ impl PyClaim {
         self.with(|c| Ok(c.temp(index)?.0))
     }
 
+    /// Marks output `index` as not written this time: the commit removes
+    /// the file an earlier run left at its path (`crate::files::commit::Claim::omit`).
+    fn omit(&self, index: usize) -> PyResult<()> {
+        self.with(|c| {
+            c.omit(index);
+            Ok(())
+        })
+    }
+
     /// Puts the written temporaries (one per path) in place, sidecar last.
     fn commit(&self, py: Python<'_>, temps: Vec<std::path::PathBuf>) -> PyResult<()> {
         let claim = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take();

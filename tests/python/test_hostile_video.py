@@ -4,11 +4,7 @@ file is made here (PyAV and byte surgery, a few frames of 64x48), and
 each case says what must happen independently of the code: the exit code
 of docs/CLI.md, a message naming the file, frame or reason, no Python
 traceback, nothing in the output folder that looks complete but is not,
-no markup of a sidecar in the page.
-
-The cases whose fix is in the Rust binary (``uwhl-rs --raw-frames``) are
-marked ``xfail(strict=True)`` with the fix they need: they start to pass
-(and then fail as XPASS) once the binary is rebuilt with it."""
+no markup of a sidecar in the page."""
 
 from __future__ import annotations
 
@@ -529,8 +525,6 @@ def _raw(binary, *args, data=b"", **kw):
     return subprocess.run([binary, "restore", *map(str, args)], input=data, capture_output=True, timeout=120, **kw)
 
 
-@pytest.mark.xfail(strict=True, reason="Rust: src/bin/uwhl-rs.rs refuses a closed stdout only for --stream; "
-                                       "the same check is needed for --raw-frames (report, fix R1)")
 def test_raw_frames_refuse_a_stdout_closed_from_the_start(binary):
     frame = bytes(_noise(1, 16, 16)[0].tobytes())
     r = subprocess.run(f"exec {binary} restore --raw-frames 16x16 -o - >&-", shell=True, input=frame * 3,
@@ -538,8 +532,6 @@ def test_raw_frames_refuse_a_stdout_closed_from_the_start(binary):
     assert r.returncode == 5 and b"stdout is closed" in r.stderr, r.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="Rust: src/cli/frames.rs skips a frame it cannot restore, so a black frame "
-                                       "vanishes from the frames out (report, fix R2)")
 def test_raw_frames_out_keep_every_frame_black_ones_too(binary):
     frames = _noise(4, 16, 16)
     frames[1] = np.zeros_like(frames[1])
@@ -583,3 +575,21 @@ def test_raw_frames_a_slow_pipe_is_waited_for_not_spun_on(binary):
     assert cpu < 0.2, cpu  # about 0.4 s of wall time went by in the loop
     out, err = p.communicate(timeout=60)
     assert p.returncode == 0 and len(out) == len(frame), err
+
+
+def test_raw_frame_sizes_are_digits_only(binary):
+    for bad in ("+64x+48", " 64 x 48 ", "64x-48"):
+        r = _raw(binary, "--raw-frames", bad, "-o", "-")
+        assert r.returncode == 2 and b"WIDTHxHEIGHT" in r.stderr, (bad, r.stderr)
+
+
+def test_raw_frames_a_frame_whose_files_cannot_be_written_is_its_line(binary, tmp_path):
+    out = tmp_path / "frames"
+    out.mkdir()
+    (out / "frame_000001.jpg").mkdir()  # a folder where frame 1's photo goes
+    data = b"".join(f.tobytes() for f in _noise(3, 16, 16))
+    r = _raw(binary, "--raw-frames", "16x16", "-o", out, "-q", data=data)
+    lines = [json.loads(x) for x in r.stdout.decode().splitlines()]
+    assert r.returncode == 0 and len(lines) == 3, r.stderr
+    assert lines[1]["error"] == "write_failed" and lines[1]["input"] == "stdin#1"
+    assert lines[0]["outputs"]["image"] == "frame_000000.jpg" and lines[2]["outputs"]["image"] == "frame_000002.jpg"

@@ -307,3 +307,16 @@ def test_videos_to_and_from_object_storage(moto_s3, clips, tmp_path):
     # a rerun skips it: its sidecar is on the store
     r = _cmd("s3://vids/in/cut.mkv", "-o", "s3://vids/stills/", "--storage-option", so, "--every", "14")
     assert r.returncode == 0 and "skipped" in r.stdout, r.stdout + r.stderr
+
+
+def test_stills_over_an_earlier_video_take_its_place(clips, tmp_path):
+    """--overwrite --every after a restored video: the folder holds what the
+    new sidecar lists, not an earlier video beside it."""
+    d, _ = clips
+    assert _cmd(d / "cut.mkv", "-o", tmp_path, "-q").returncode == 0
+    assert (tmp_path / "cut.mkv").exists()
+    r = _cmd(d / "cut.mkv", "-o", tmp_path, "--every", "14", "--overwrite", "-q")
+    assert r.returncode == 0, r.stderr
+    assert not (tmp_path / "cut.mkv").exists()
+    side = json.loads((tmp_path / "cut.json").read_text())
+    assert side["outputs"]["video"] is None and len(side["video"]["stills"]) == 2
