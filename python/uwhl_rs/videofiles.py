@@ -204,6 +204,10 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
                                  f"max_memory {budget} (use max_side or raise max_memory)")
+    if not _core.can_allocate(need):
+        # within the budget, but more than the system gives now (as a photo's plan is checked)
+        raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, more "
+                                 "than the system gives now (free memory, a container limit or ulimit -v); use max_side")
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     suffixes = video_suffixes(in_path, every=every, codec=codec)
     claim = _claim
