@@ -409,12 +409,7 @@ def test_sigint_stops_a_video_at_the_next_frame_and_leaves_nothing(tmp_path):
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert _wait_for_temporary(out, p)
     p.send_signal(signal.SIGINT)
-    try:
-        _, err = p.communicate(timeout=60)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        p.communicate()
-        pytest.fail("SIGINT did not stop the video (it kept restoring)")
+    err = _ended(p, "SIGINT did not stop the video (it kept restoring)")
     assert p.returncode == 130, err
     assert "interrupted" in err and "Traceback" not in err
     # nothing that looks complete, and the temporaries and claim are gone
@@ -445,12 +440,7 @@ def test_sigint_that_the_kernel_gives_a_worker_thread_still_stops_the_video(tmp_
     others = [int(t) for t in os.listdir(f"/proc/{p.pid}/task") if int(t) != p.pid]
     assert others
     _tgkill(p.pid, others[-1], signal.SIGINT)
-    try:
-        _, err = p.communicate(timeout=60)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        p.communicate()
-        pytest.fail("a SIGINT taken by a worker thread did not stop the video")
+    err = _ended(p, "a SIGINT taken by a worker thread did not stop the video")
     assert p.returncode == 130, err
     assert [n for n in _listing(out) if n != "summary.csv"] == [], _listing(out)
 
@@ -519,6 +509,16 @@ def test_a_video_sidecars_strip_outside_the_folder_is_refused(tmp_path):
 
 
 # ------------------------------------------------------------------ uwhl-rs --raw-frames
+
+
+def _ended(p, why: str) -> str:
+    """The stderr of ``p`` once it has ended within a minute; the test fails with ``why`` if it has not."""
+    try:
+        return p.communicate(timeout=60)[1]
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.communicate()
+        pytest.fail(why)
 
 
 def _raw(binary, *args, data=b"", **kw):
