@@ -146,6 +146,18 @@ class _Strip:
         return buf.getvalue()
 
 
+def _expected_frames(info: video.StreamInfo, every: int | None) -> int | None:
+    """The frames to restore, for the progress line: the header's count when
+    its duration and rate agree with it (a header may state 2^32 frames),
+    else duration x rate; None when neither is known."""
+    by_time = int(info.duration * float(info.rate)) + 1 if info.duration and info.rate else None
+    n = info.frames
+    if n and by_time and n > 2 * by_time:
+        n = by_time
+    n = n or by_time
+    return None if not n else max(1, n // (every or 1))
+
+
 def _progress_text(label: str, k: int, total: int | None, t0: float) -> str:
     dt = max(time.perf_counter() - t0, 1e-9)
     fps = k / dt
@@ -297,8 +309,7 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
                 stills.append(_write_still(claim.name, rf, info, settings, o))
             if o["progress"] is not None and time.perf_counter() - last_note > 5:
                 last_note = time.perf_counter()
-                total = info.frames // (every or 1) if info.frames else None
-                o["progress"](_progress_text(label, counts["restored"], total, t_loop))
+                o["progress"](_progress_text(label, counts["restored"], _expected_frames(info, every), t_loop))
         writer_notes = []
         if writer is not None:
             writer.close()
