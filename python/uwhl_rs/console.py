@@ -12,6 +12,7 @@ import sys
 import threading
 
 from .errors import EXIT, CommandError, describe, kind_of
+from .sidecars import printable
 from .tasks import DONE_NOTE
 
 __all__ = ["Console"]
@@ -38,8 +39,10 @@ class Console:
         return self._err or sys.stderr
 
     def _write(self, stream, text: str) -> None:
+        # a line quoting a file name cannot move the cursor or recolour the
+        # terminal: control characters as \xNN, as uwhl-rs writes them
         with self._lock:
-            stream.write(text + "\n")
+            stream.write(printable(text) + "\n")
             stream.flush()
 
     def line(self, text: str = "") -> None:

@@ -13,17 +13,34 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, sync_channel, Receiver, SyncSender};
 use std::time::Instant;
 
+/// `text` with its control characters (C0, DEL and C1) written as `\xNN`:
+/// a line quoting a file name cannot move the cursor or recolour the
+/// terminal it is printed on. The Python command's lines go through the
+/// same rule (`uwhl_rs.sidecars.printable`).
+pub fn printable(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        if c < '\u{20}' || ('\u{7f}'..='\u{9f}').contains(&c) {
+            out.push_str(&format!("\\x{:02x}", c as u32));
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
 /// Reports an error on `err`: one JSON object per line with `--json-errors`,
-/// else `uwhl-rs: INPUT: message`.
+/// else `uwhl-rs: INPUT: message` (control characters escaped, [`printable`]).
 pub fn report(err: &mut dyn Write, opts_json: bool, input: Option<&Path>, e: &Failure) {
     let input_s = input.map(|p| p.to_string_lossy().into_owned());
     let _ = if opts_json {
         writeln!(err, "{}", e.to_json(input_s.as_deref()))
     } else {
-        match input_s {
-            Some(i) => writeln!(err, "uwhl-rs: {i}: {e}"),
-            None => writeln!(err, "uwhl-rs: {e}"),
-        }
+        let line = match input_s {
+            Some(i) => format!("uwhl-rs: {i}: {e}"),
+            None => format!("uwhl-rs: {e}"),
+        };
+        writeln!(err, "{}", printable(&line))
     };
     let _ = err.flush();
 }
@@ -213,13 +230,13 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                         .map(|f| job.dir.join(f))
                         .unwrap_or_default();
                     let secs = side.pointer("/seconds/total").and_then(Value::as_f64).unwrap_or(0.0);
-                    let _ = writeln!(
-                        out,
+                    let line = format!(
                         "[{k}/{total}] {} -> {} (water type {}, {secs:.2} s)",
                         job.input.display(),
                         img.display(),
                         side.get("water_type").and_then(Value::as_str).unwrap_or("?")
                     );
+                    let _ = writeln!(out, "{}", printable(&line));
                 }
             }
             Ok(Outcome::Skipped(s, why)) => {
@@ -232,7 +249,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                 summary.skipped(&job.input, &s, &note);
                 if !opts.quiet {
                     let why = if why == Skip::Done { format!("{} exists", s.display()) } else { why.reason() };
-                    let _ = writeln!(out, "[{k}/{total}] {}: skipped ({why})", job.input.display());
+                    let _ = writeln!(out, "{}", printable(&format!("[{k}/{total}] {}: skipped ({why})", job.input.display())));
                 }
             }
             Err(e) => {
@@ -254,7 +271,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
             // a rerun over a finished survey on a read-only mount: nothing
             // was to be written, the earlier summary.csv still holds
             if !opts.quiet {
-                let _ = writeln!(err, "uwhl-rs: note: {why} (read-only output folder: the earlier summary.csv stays)");
+                let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {why} (read-only output folder: the earlier summary.csv stays)")));
             }
         } else {
             let e = Failure::new(Kind::Write, why);
@@ -435,6 +452,12 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn control_characters_in_lines_are_escaped() {
+        assert_eq!(printable("a\u{1b}[31mb\nc\u{7f}\u{85}é"), "a\\x1b[31mb\\x0ac\\x7f\\x85é");
+        assert_eq!(printable("plain/name.jpg"), "plain/name.jpg");
+    }
 
     #[test]
     fn stream_lines_are_bounded() {

@@ -635,3 +635,20 @@ def test_non_utf8_names_are_named_alike_by_both(binary, files, tmp_path):
         names[face] = sorted(f for f in os.listdir(os.fsencode(out)) if f != b"summary.csv")
     assert names["python"] == names["rust"] and len(names["rust"]) == 10, names
     _same_summaries(_summary_rows(tmp_path / "python"), _summary_rows(tmp_path / "rust"))
+
+
+def test_a_name_with_control_characters_is_printed_escaped_by_both(binary, files, tmp_path):
+    """A file name that holds an escape sequence and a newline cannot recolour
+    the terminal or forge a line: both commands write its control characters
+    as \\xNN, in the progress line and in the error line."""
+    d = tmp_path / "in"
+    d.mkdir()
+    name = "red\x1b[31m\nfake.png"
+    (d / name).write_bytes((files / "f0.png").read_bytes())
+    (d / "bad\x07.jpg").write_bytes(b"not a jpeg at all")
+    for face in ("python", "rust"):
+        r = _run(face, binary, [str(d), "-o", str(tmp_path / face)], tmp_path)
+        text = r.stdout + r.stderr
+        assert r.returncode == 3, text
+        assert "\x1b" not in text and "\x07" not in text, face
+        assert "red\\x1b[31m\\x0afake.png -> " in text and "bad\\x07.jpg: " in text, (face, text)
