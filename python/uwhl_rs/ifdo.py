@@ -238,6 +238,10 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         sub = rel.rsplit("/", 1)[0] + "/" if "/" in rel else ""
         key = sub + name if name else None
         shown = display(rel)
+        if doc.get("kind") == "video":
+            # a video's restoration is no photo with its own UUID; its stills (--every) are
+            notes.append(f"{shown}: a video: the iFDO lists photos (its stills with --every are listed)")
+            continue
         if not key or not md.get("image_uuid") or not md.get("photo_sha256"):
             notes.append(f"{shown}: no image UUID embedded in the photo (metadata not written, or an older sidecar); "
                          "left out of the iFDO")

@@ -619,21 +619,33 @@ pub fn carry_from(input_path: &std::path::Path, encoded: Vec<u8>, side: &serde_j
     width: u32, height: u32, tiff_cap: u64) -> (Vec<u8>, serde_json::Value) {
     match read_from(input_path, tiff_cap) {
         Ok((c, input_sha256)) => carry_read(c, input_sha256, encoded, side, sidecar_name, width, height),
-        Err(e) => not_carried(encoded, &format!("metadata: cannot read the input again ({e}); none carried")),
+        Err(e) => {
+            let photo_sha256 = sha256_hex(&encoded);
+            (
+                encoded,
+                serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
+                    "input_icc_profile": false, "taken_at": null, "gps": null, "image_uuid": null,
+                    "photo_sha256": photo_sha256, "input_sha256": null, "input_image_uuid": null,
+                    "notes": [format!("metadata: cannot read the input again ({e}); none carried")]}),
+            )
+        }
     }
 }
 
-/// The photo as encoded, with the record of metadata carried from no input
-/// (a frame of a video or of a pipe has no file of its own), `note` saying why.
-pub fn not_carried(encoded: Vec<u8>, note: &str) -> (Vec<u8>, serde_json::Value) {
-    let photo_sha256 = sha256_hex(&encoded);
-    (
-        encoded,
-        serde_json::json!({"written": false, "exif_tags_carried": 0, "input_xmp": false,
-            "input_icc_profile": false, "taken_at": null, "gps": null, "image_uuid": null,
-            "photo_sha256": photo_sha256, "input_sha256": null, "input_image_uuid": null,
-            "notes": [note]}),
-    )
+/// A frame's photo (a still of a video, a frame of a pipe: no file of its
+/// own to carry metadata from) with the restoration's record embedded and
+/// an image UUID derived from the frame's name (`label`, e.g. `dive.mp4#120`)
+/// and the record, as a photo's is from its input's SHA-256, so that the
+/// frame is an image of the iFDO; `note` says why nothing else is carried.
+/// `input_sha256` is null: the frame has none.
+pub fn carry_frame(encoded: Vec<u8>, side: &serde_json::Value, sidecar_name: &str, width: u32, height: u32,
+    label: &str, note: &str) -> (Vec<u8>, serde_json::Value) {
+    let carried = Carried { notes: vec![note.to_string()], ..Carried::default() };
+    let (bytes, mut summary) = carry_read(carried, sha256_hex(label.as_bytes()), encoded, side, sidecar_name, width, height);
+    if let Some(o) = summary.as_object_mut() {
+        o.insert("input_sha256".into(), serde_json::Value::Null);
+    }
+    (bytes, summary)
 }
 
 /// The metadata of the file at `path` and its SHA-256, reading what

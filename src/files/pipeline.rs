@@ -630,7 +630,15 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
             hp as u32,
             tiff_cap,
         ),
-        None => crate::files::metadata::not_carried(image_bytes?, "metadata: a frame of a video or a pipe; no file to carry metadata from"),
+        None => crate::files::metadata::carry_frame(
+            image_bytes?,
+            &make(Seconds::default()),
+            &sidecar_name,
+            wp as u32,
+            hp as u32,
+            out.label,
+            "metadata: a frame of a video or a pipe; no file to carry metadata from (the record and an image UUID are written)",
+        ),
     };
     let mut files = vec![(image_path.clone(), image_bytes), (t_path.clone(), t_bytes?), (tc_path.clone(), tc_bytes?)];
     if let (Some(p), Some(bytes)) = (&conf_path, conf_bytes?) {

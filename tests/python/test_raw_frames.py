@@ -103,7 +103,9 @@ def test_frames_to_a_folder_get_their_outputs_and_a_line_each(binary, frames, tm
     for k in range(3):
         side = json.loads((tmp_path / f"frame_{k:06d}.json").read_text())
         assert side["outputs"]["image"] == f"frame_{k:06d}.png" and (tmp_path / f"frame_{k:06d}_t.png").exists()
-        assert side["metadata"]["written"] is False
+        # no file to carry from, but the record and an image UUID of its own
+        assert side["metadata"]["written"] is True and side["metadata"]["input_sha256"] is None
+        assert len(side["metadata"]["image_uuid"]) == 32
 
 
 @pytest.mark.parametrize("args,why", [

@@ -184,6 +184,9 @@ def test_stills_by_time_with_sidecars_and_a_rerun_keeps_them(clips, tmp_path):
     assert names == ["cut_00h00m00s000.png", "cut_00h00m00s500.png", "cut_00h00m01s000.png"]
     still = json.loads((tmp_path / "cut_00h00m00s500.json").read_text())
     assert still["input"].endswith("cut.mkv#12") and still["outputs"]["image"] == "cut_00h00m00s500.png"
+    # an image of the iFDO: the record and a UUID of its own are in the still
+    uuids = {json.loads((tmp_path / f"{n[:-4]}.json").read_text())["metadata"]["image_uuid"] for n in names}
+    assert len(uuids) == 3 and None not in uuids
     side = json.loads((tmp_path / "cut.json").read_text())
     assert [s["frame"] for s in side["video"]["stills"]] == [0, 12, 24] and side["outputs"]["video"] is None
     # as if killed before the video's own outputs were committed: a rerun keeps the stills it finds
