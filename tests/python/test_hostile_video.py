@@ -401,13 +401,20 @@ def _wait_for_temporary(out, p, what=".tmp"):
     return False
 
 
-def test_sigint_stops_a_video_at_the_next_frame_and_leaves_nothing(tmp_path):
+def _restoring_a_long_video(tmp_path):
+    """(the output folder, the process) of ``uwhl restore`` on a long video,
+    once the video's temporary exists (its frames are being restored)."""
     src = tmp_path / "long.mkv"
     _long(src)
     out = tmp_path / "out"
     p = subprocess.Popen([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "-q"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert _wait_for_temporary(out, p)
+    return out, p
+
+
+def test_sigint_stops_a_video_at_the_next_frame_and_leaves_nothing(tmp_path):
+    out, p = _restoring_a_long_video(tmp_path)
     p.send_signal(signal.SIGINT)
     err = _ended(p, "SIGINT did not stop the video (it kept restoring)")
     assert p.returncode == 130, err
@@ -430,12 +437,7 @@ def test_sigint_that_the_kernel_gives_a_worker_thread_still_stops_the_video(tmp_
     """The kernel delivers a process's SIGINT to any thread that does not
     block it (a decoder's, the core's); the main thread must notice it
     though it waits for the video's write."""
-    src = tmp_path / "long.mkv"
-    _long(src)
-    out = tmp_path / "out"
-    p = subprocess.Popen([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "-q"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert _wait_for_temporary(out, p)
+    out, p = _restoring_a_long_video(tmp_path)
     time.sleep(0.3)  # the main thread is then waiting on the write
     others = [int(t) for t in os.listdir(f"/proc/{p.pid}/task") if int(t) != p.pid]
     assert others
