@@ -19,7 +19,7 @@ from ._core import ParameterError
 from .errors import ImageTooLargeError
 from .images import ImageMeta, colorize_transmission, display_linear, read_image, to_srgb
 
-__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need"]
+__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor"]
 
 #: Every option's default, from the core's one table (docs/CLI.md).
 _D = {o["key"]: o["default"] for o in _core.OPTIONS}
@@ -92,7 +92,9 @@ def _shrink_mask(m: np.ndarray | None, s: int, rule: str) -> np.ndarray | None:
     return frac >= 1.0 if rule == "all" else frac >= 0.5
 
 
-def _max_side_factor(h: int, w: int, n: int | None) -> int:
+def max_side_factor(h: int, w: int, n: int | None) -> int:
+    """The block size that brings the longer of ``h``, ``w`` to at most ``n``
+    (``--max-side``; 1 without), as the core's downscale takes it."""
     return 1 if not n else max(1, -(-max(h, w) // max(1, int(n))))
 
 
@@ -104,7 +106,7 @@ def input_need(h: int, w: int, bpp: int, oriented: bool, *, half_size: bool = Fa
     writers add. The process's own base is not included."""
     if half_size:
         h, w = (h + 1) // 2, (w + 1) // 2
-    s = _max_side_factor(h, w, max_side)
+    s = max_side_factor(h, w, max_side)
     # Pillow's or LibRaw's buffer and its numpy copy are both alive: never "already RGB"
     # ... and, writing, the display copy of the image and Pillow's copy of its codes (20 B/px)
     plan = _core.input_plan(h, w, bpp, False, oriented, s, preprocess == "reference", masks, 20)
@@ -241,7 +243,7 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     full_hw = image.shape[:2]
     m = read_mask(mask, full_hw, "mask", max_pixels=max_pixels, max_memory=budget)
     wm = read_mask(water_mask, full_hw, "water_mask", max_pixels=max_pixels, max_memory=budget)
-    s = _max_side_factor(*full_hw, max_side)
+    s = max_side_factor(*full_hw, max_side)
     if s > 1:
         image = _core._downscale(image, s)
         m = _shrink_mask(m, s, "all")
@@ -335,7 +337,7 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
 
     kw = dict(restore_kwargs or {})
     h, w = image.shape[:2]
-    s = _max_side_factor(h, w, cell)
+    s = max_side_factor(h, w, cell)
     thumb = _core._downscale(np.ascontiguousarray(image, dtype=np.float32), s) if s > 1 else image
     vl = _shrink_mask(res.veiling_mask, s, "half") if s > 1 else res.veiling_mask
     m = _shrink_mask(mask, s, "all") if s > 1 else mask

@@ -32,6 +32,7 @@ import numpy as np
 import uwhl_rs
 
 from . import _core
+from .files import max_side_factor
 from .errors import ImageReadError, ParameterError
 
 __all__ = ["VIDEO_EXTENSIONS", "StreamInfo", "Frame", "RestoredFrame", "is_video", "probe", "read_frames",
@@ -296,11 +297,8 @@ class FrameReader:
             rng = ColorRange.JPEG if str(frame.format.name).startswith("yuvj") else ColorRange.MPEG
         rgb = frame.to_ndarray(format="rgb48le", src_colorspace=self.info.matrix, src_color_range=rng)
         img = _core.frame_to_linear(np.ascontiguousarray(rgb), self.info.transfer)
-        if self.max_side:
-            s = -(-max(img.shape[:2]) // int(self.max_side))
-            if s > 1:
-                img = _core._downscale(img, s)
-        return img
+        s = max_side_factor(*img.shape[:2], self.max_side)
+        return _core._downscale(img, s) if s > 1 else img
 
     def __iter__(self) -> Iterator[Frame]:
         av = _av()

@@ -89,7 +89,7 @@ class VideoResult:
 
 def frame_need(info: video.StreamInfo, max_side: int | None = None) -> int:
     """Bytes restoring a video of this stream needs at its peak (a frame's plan)."""
-    return _plan(info, _factor(info, max_side), 6.0 if info.bits > 8 else 3.0)
+    return _plan(info, files.max_side_factor(info.height, info.width, max_side), 6.0 if info.bits > 8 else 3.0)
 
 
 def _plan(info: video.StreamInfo, s: int, out_bpp: float) -> int:
@@ -114,7 +114,7 @@ class _Strip:
     def offer(self, k: int, frame_in: np.ndarray, rf) -> None:
         if k % self.every or len(self.cells) >= 4 * _STRIP_FRAMES or rf.restoration is None:
             return
-        s = max(1, -(-max(frame_in.shape[:2]) // _STRIP_CELL))
+        s = files.max_side_factor(*frame_in.shape[:2], _STRIP_CELL)
 
         def small(a):
             a = _core._downscale(np.ascontiguousarray(a, dtype=np.float32), s) if s > 1 else a
@@ -209,9 +209,8 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     codec = codec_for(video_codec, info)
     if max_pixels is not None and info.width * info.height > int(max_pixels):
         raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over max_pixels {max_pixels}")
-    s = _factor(info, max_side)
     if not every:
-        check_size(codec, (-(-info.height // s), -(-info.width // s)), label, max_side)
+        check_size(codec, _processed(info, max_side), label, max_side)
     need = frame_need(info, max_side)
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
@@ -255,8 +254,8 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
                                      f"{', '.join(CODECS[codec][3])}); give --video-codec h264")
             tmp = str(claim.temp(0))
             temps.append(tmp)
-            size = (-(-info.height // _factor(info, o["max_side"])), -(-info.width // _factor(info, o["max_side"])))
-            writer = Writer(tmp, os.path.splitext(paths[0])[1], codec, info, size, int(o["video_quality"]), reader._c)
+            writer = Writer(tmp, os.path.splitext(paths[0])[1], codec, info, _processed(info, o["max_side"]),
+                            int(o["video_quality"]), reader._c)
             dropped = [x for x in info.others if x["index"] not in writer.audio and x["type"] != "video"]
             if dropped:
                 notes.append("streams not copied (the container or codec does not take them): "
@@ -348,8 +347,10 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
     return VideoResult(out, side, reader.stopped)
 
 
-def _factor(info: video.StreamInfo, max_side) -> int:
-    return 1 if not max_side else max(1, -(-max(info.height, info.width) // int(max_side)))
+def _processed(info: video.StreamInfo, max_side) -> tuple[int, int]:
+    """The restored frames' (height, width) after ``max_side``."""
+    s = files.max_side_factor(info.height, info.width, max_side)
+    return -(-info.height // s), -(-info.width // s)
 
 
 def _write_still(video_name: str, rf, info: video.StreamInfo, settings, o) -> dict:

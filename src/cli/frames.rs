@@ -16,7 +16,7 @@ use super::args::Options;
 use super::run::report;
 use super::{Failure, Kind};
 use crate::files::commit::{claim, Request, Resolution};
-use crate::files::pipeline::{write_outputs, Outputs, Timing};
+use crate::files::pipeline::{fit_mask, sequence_of, write_outputs, Outputs, Timing};
 use crate::files::settings::Preprocess;
 use crate::files::sidecar::{Estimates, Source};
 use crate::files::transfer::{Codec, Transfer};
@@ -70,12 +70,7 @@ pub fn frame_plan(w: usize, h: usize, bytes_per_sample: u64, masks: bool, to_fol
 /// The sequence of a raw-frame run: `--reuse-estimates N` (default 30),
 /// `--scene-cut`, `--smoothing` (defaults: a video's).
 pub fn frame_sequence(opts: &Options) -> Sequence {
-    let mut s = Sequence::new(opts.method_params());
-    s.refresh_every = opts.reuse_estimates.unwrap_or(DEFAULT_REFRESH);
-    s.reuse_water_mask = opts.reuse_water_mask;
-    s.cut_threshold = opts.scene_cut.unwrap_or(VIDEO_SCENE_CUT);
-    s.smoothing = opts.smoothing.unwrap_or(VIDEO_SMOOTHING);
-    s
+    sequence_of(opts, opts.reuse_estimates.unwrap_or(DEFAULT_REFRESH), VIDEO_SCENE_CUT, VIDEO_SMOOTHING)
 }
 
 /// Where the restored frames go.
@@ -104,15 +99,16 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
             return e.kind.exit_code();
         }
     };
-    for (m, flag) in [(&masks.mask, "--mask"), (&masks.water, "--water-mask")] {
-        if let Some(m) = m {
-            if (m.width, m.height) != (w, h) {
-                let e = Failure::usage(format!("{flag} is {}x{} pixels but the frames are {w}x{h}", m.width, m.height));
-                report(err, opts.json_errors, None, &e);
-                return e.kind.exit_code();
-            }
+    // checked against the frames' size once (the photo path's check)
+    let fitted = fit_mask(masks.mask.as_ref(), "--mask", h, w, 1, 1.0)
+        .and_then(|m| Ok((m, fit_mask(masks.water.as_ref(), "--water-mask", h, w, 1, 0.5)?)));
+    let (mask, water) = match fitted {
+        Ok(m) => m,
+        Err(e) => {
+            report(err, opts.json_errors, None, &e);
+            return e.kind.exit_code();
         }
-    }
+    };
     let need = frame_plan(w, h, bytes_per_sample as u64, masks.mask.is_some() || masks.water.is_some(), !to_stdout)
         .saturating_add(crate::kernels::memory::process_base());
     if need > opts.params.max_memory || !crate::kernels::memory::can_allocate(need) {
@@ -180,8 +176,8 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
         };
         let frame = Input {
             image,
-            mask: masks.mask.as_ref().map(|m| m.data.as_slice()),
-            water_mask: masks.water.as_ref().map(|m| m.data.as_slice()),
+            mask: mask.as_deref(),
+            water_mask: water.as_deref(),
         };
         let t1 = Instant::now();
         let res = match seq.restore(&frame) {

@@ -93,7 +93,7 @@ pub enum Outcome {
 
 /// A mask checked against the input size and downscaled by `factor`: a
 /// block is true when at least `need` of its pixels are (1.0 = all).
-fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, need: f32) -> Result<Option<Vec<bool>>, Failure> {
+pub(crate) fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, need: f32) -> Result<Option<Vec<bool>>, Failure> {
     let Some(m) = m else { return Ok(None) };
     if (m.height, m.width) != (h, w) {
         return Err(Failure::usage(format!(
@@ -695,13 +695,18 @@ fn write_temp(claimed: &mut Claim, index: usize, path: &Path, bytes: &[u8]) -> R
 /// smoothed only with `--smoothing` (photos of a dive are not a video's
 /// frames: the defaults of videos are not theirs).
 pub fn sequence(opts: &Settings) -> Option<Sequence> {
-    opts.reuse_estimates.map(|n| {
-        let mut s = Sequence::new(opts.method_params());
-        s.refresh_every = n;
-        s.reuse_water_mask = opts.reuse_water_mask;
-        s.cut_threshold = opts.scene_cut.unwrap_or(0.0);
-        s.smoothing = opts.smoothing.unwrap_or(1.0);
-        s
-    })
+    opts.reuse_estimates.map(|n| sequence_of(opts, n, 0.0, 1.0))
+}
+
+/// A sequence with the options' method, `refresh` frames between scheduled
+/// estimates, and `--scene-cut` and `--smoothing` when given, else `cut`
+/// and `smoothing` (the defaults of what the frames are: photos or a video's).
+pub fn sequence_of(opts: &Settings, refresh: usize, cut: f32, smoothing: f32) -> Sequence {
+    let mut s = Sequence::new(opts.method_params());
+    s.refresh_every = refresh;
+    s.reuse_water_mask = opts.reuse_water_mask;
+    s.cut_threshold = opts.scene_cut.unwrap_or(cut);
+    s.smoothing = opts.smoothing.unwrap_or(smoothing);
+    s
 }
 

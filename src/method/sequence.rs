@@ -290,11 +290,7 @@ impl Sequence {
                 };
                 if let Some(a) = smoothed.filter(|a: &[f32; 3]| *a != res.veiling_light) {
                     // the new type with the smoothed A
-                    let params = Params {
-                        water_types: vec![res.water_type.clone()],
-                        veiling_light: Some(a),
-                        ..self.params.clone()
-                    };
+                    let params = with_estimates(&self.params, &res.water_type, a);
                     let again = restore_with(input, &params, &mut self.pool)?;
                     res = Restoration { scores: res.scores, excluded: res.excluded, ..again };
                 }
@@ -320,11 +316,7 @@ impl Sequence {
         let Some(state) = self.state.as_mut() else {
             return Err(crate::error::Error::Internal("a reused frame without estimates".into()));
         };
-        let params = Params {
-            water_types: vec![state.water_type.clone()],
-            veiling_light: Some(state.veiling_light),
-            ..self.params.clone()
-        };
+        let params = with_estimates(&self.params, &state.water_type, state.veiling_light);
         let kept = (self.reuse_water_mask && state.shape == shape).then_some(state.water_mask.as_slice());
         let frame = Input { water_mask: input.water_mask.or(kept), ..*input };
         let mut res = restore_with(&frame, &params, &mut self.pool)?;
@@ -337,4 +329,9 @@ impl Sequence {
         res.flags.push(Flag::EstimatesReused);
         Ok(res)
     }
+}
+
+/// `params` for a frame restored with one water type and a given A.
+fn with_estimates(params: &Params, water_type: &WaterType, a: [f32; 3]) -> Params {
+    Params { water_types: vec![water_type.clone()], veiling_light: Some(a), ..params.clone() }
 }
