@@ -162,6 +162,11 @@ def test_end_to_end_on_a_rendered_scene(tmp_path):
                         "--water-type", ",".join(types), "--mask-charts"], capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0, r.stderr
+    # the summary table is plain lines: a blank one, then its header (no escaped newline)
+    lines = r.stdout.splitlines()
+    assert "\\x0a" not in r.stdout
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("method"))
+    assert lines[head - 1] == "" and lines[head].split()[:2] == ["method", "psi-bar"]
     doc = json.load(open(out / "results.json"))
     assert doc["parameters"]["method"] == "revised" and doc["parameters"]["mask_charts"] is True
     assert doc["parameters"]["profiles"]["paper"]["white_balance"] == "stretch"

@@ -70,7 +70,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
         raise CommandError(describe(e), "write_failed", a.out) from e
     truth = any(v.get("images_with_truth") for m, v in doc["summary"].items() if m != "water_type")
     # with a truth: the median over images of the per-image median angle, raw and after the best gains
-    console.line(f"\n{'method':<12} {'psi-bar':>8} {'rho t_B':>8}" + (f" {'truth':>8} {'gains':>8}" if truth else ""))
+    console.line()
+    console.line(f"{'method':<12} {'psi-bar':>8} {'rho t_B':>8}" + (f" {'truth':>8} {'gains':>8}" if truth else ""))
     for m, v in doc["summary"].items():
         if m == "water_type":
             continue
