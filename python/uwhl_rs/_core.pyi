@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
@@ -155,6 +155,9 @@ def read_distance_for(
     template: str, input: _PathArg, max_pixels: int, max_memory: int,
 ) -> tuple[str, Optional[_F32], Optional[str]]:
     """An input's distance map for a --distance template: (path, H x W metres or None, why not or None)."""
+def read_distance_file(path: _PathArg, max_pixels: int, max_memory: int) -> _F32:
+    """A distance map file as H x W metres (NaN = unknown), read by the binary's reader (npy, 16-bit PNG,
+    TIFF, OpenEXR); ImageError names what is wrong, MemoryError a map over the limits."""
 def floor_for(
     settings: FileSettings, input: _PathArg, height: int, width: int, processed_height: int, processed_width: int,
 ) -> tuple[str, Optional[_F32], Optional[str], Optional[str]]:

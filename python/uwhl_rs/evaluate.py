@@ -88,25 +88,16 @@ def type_steps(a: str, b: str) -> int | None:
 
 def read_distance(path: str, height: int, width: int) -> np.ndarray:
     """A distance map in metres, resized to height x width with nearest
-    neighbour; NaN where it has no value (0, NaN, negative). Float TIFF,
-    16-bit PNG in millimetres, ``.npy``, or a ``.mat`` holding one 2-D array."""
+    neighbour; NaN where it has no value (0, NaN, negative, beyond 1000 m).
+    Read by the commands' own reader (``.npy``, float or 16-bit TIFF, 16-bit
+    PNG in millimetres, OpenEXR: docs/OUTPUTS.md "Distance"), or a ``.mat``
+    holding one 2-D array (scipy)."""
+    from . import _core
+    from .images import DEFAULT_MAX_PIXELS
+
     ext = os.path.splitext(path)[1].lower()
     try:
-        if ext in (".tif", ".tiff"):
-            import tifffile
-
-            d = tifffile.imread(path).astype(np.float64)
-        elif ext == ".png":
-            from PIL import Image
-
-            with Image.open(path) as im:
-                a = np.asarray(im)
-            if a.dtype != np.uint16 and im.mode not in ("I;16", "I;16B", "I"):
-                raise ManifestError(f"{path}: a PNG distance map is 16-bit, in millimetres (this one is {im.mode})")
-            d = a.astype(np.float64) / 1000.0
-        elif ext == ".npy":
-            d = gt.load_npy(path, "distance map")
-        elif ext == ".mat":
+        if ext == ".mat":
             try:
                 from scipy.io import loadmat
             except ImportError:
@@ -119,9 +110,12 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
                                     f"(found {len(arrays)})")
             d = arrays[0].astype(np.float64)
         else:
-            raise ManifestError(f"{path}: distance maps are .tif, .png (16-bit mm), .npy or .mat, not {ext or 'none'}")
+            d = np.asarray(_core.read_distance_file(path, int(DEFAULT_MAX_PIXELS), int(_core.default_max_memory())),
+                           dtype=np.float64)
     except ManifestError:
         raise
+    except (_core.ImageError, MemoryError) as e:
+        raise ManifestError(f"{path}: {e}") from None
     except Exception as e:
         raise ManifestError(f"{path}: cannot read the distance map ({type(e).__name__}: {e})") from None
     if d.ndim == 3 and d.shape[2] == 1:

@@ -1,6 +1,6 @@
 //! Distance maps read from files (`--distance`, docs/OUTPUTS.md
-//! "Distance"): NumPy `.npy` arrays and TIFF floats in metres, 16-bit PNG
-//! and 16-bit TIFF in millimetres. Unknown distance (NaN, infinite, zero,
+//! "Distance"): NumPy `.npy` arrays, TIFF floats and OpenEXR channels in
+//! metres, 16-bit PNG and 16-bit TIFF in millimetres. Unknown distance (NaN, infinite, zero,
 //! negative, or beyond [`MAX_DISTANCE`]) is NaN in the map; the method
 //! treats it as a hole (METHOD §13).
 
@@ -66,10 +66,11 @@ pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<Di
         [0x93, b'N', b'U', b'M', b'P', b'Y', ..] => read_npy(&mut r, check)?,
         [0x89, b'P', b'N', b'G', ..] => read_png(r, check)?,
         [b'I', b'I', 42, 0, ..] | [b'M', b'M', 0, 42, ..] => read_tiff(r, check, max_memory)?,
+        [0x76, 0x2f, 0x31, 0x01, ..] => read_exr(r, check)?,
         _ => {
             return Err(Failure::new(
                 Kind::Input,
-                "not a distance map: expected a .npy array (metres), a 16-bit PNG (millimetres) or a TIFF (float metres or 16-bit millimetres)",
+                "not a distance map: expected a .npy array (metres), a 16-bit PNG (millimetres), a TIFF (float metres or 16-bit millimetres) or an OpenEXR file (metres)",
             ))
         }
     };
@@ -259,6 +260,68 @@ fn read_tiff<R: Read + Seek>(r: R, check: impl Fn(u64, u64, u64) -> Result<(), F
     Ok((vals, h as usize, w as usize))
 }
 
+/// The channel of an OpenEXR part that holds the distance: `Z` (or a
+/// layered `<layer>.Z`, as renderers name their depth pass), else `depth`
+/// (or `<layer>.depth`), else the part's only channel.
+fn exr_depth_channel(names: &[String]) -> Option<usize> {
+    let last = |n: &str| n.rsplit('.').next().unwrap_or(n).to_ascii_lowercase();
+    names
+        .iter()
+        .position(|n| last(n) == "z")
+        .or_else(|| names.iter().position(|n| last(n) == "depth"))
+        .or_else(|| (names.len() == 1).then_some(0))
+}
+
+/// An OpenEXR distance map in metres: the depth channel
+/// ([`exr_depth_channel`]) of the first part that has one, flat (not deep),
+/// every channel sampled at full resolution. The header is read and the size
+/// checked (all channels of all parts are decoded) before the pixels.
+fn read_exr<R: std::io::BufRead + Seek>(mut r: R, check: impl Fn(u64, u64, u64) -> Result<(), Failure>) -> Result<(Vec<f32>, usize, usize), Failure> {
+    use exr::image::read::image::ReadLayers as _;
+    use exr::image::read::layers::ReadChannels as _;
+    use exr::prelude::{read, FlatSamples};
+    let bad = |m: String| Failure::new(Kind::Input, format!("an OpenEXR distance map {m}"));
+    let meta = exr::meta::MetaData::read_from_buffered(&mut r, false).map_err(|e| bad(format!("cannot be read: {e}")))?;
+    let names = |h: &exr::meta::header::Header| -> Vec<String> { h.channels.list.iter().map(|c| c.name.to_string()).collect() };
+    let Some((part, header)) = meta.headers.iter().enumerate().find(|(_, h)| exr_depth_channel(&names(h)).is_some()) else {
+        let first = meta.headers.first().map(|h| names(h).join(", ")).unwrap_or_default();
+        return Err(bad(format!("has no depth channel (channels: {first}): name it Z or write one channel")));
+    };
+    if header.deep {
+        return Err(bad("holds deep data: a distance map is one flat channel".into()));
+    }
+    if header.channels.list.iter().any(|c| c.sampling.x() != 1 || c.sampling.y() != 1) {
+        return Err(bad("has subsampled channels: a distance map is sampled at every pixel".into()));
+    }
+    let (w, h) = (header.layer_size.width(), header.layer_size.height());
+    // every channel of every part is decoded, at most 4 bytes a sample
+    let samples: u64 = meta.headers.iter().map(|hd| (hd.channels.list.len() as u64).saturating_mul(hd.layer_size.area() as u64)).sum();
+    let per_pixel = samples.saturating_mul(4) / (w as u64).saturating_mul(h as u64).max(1);
+    check(h as u64, w as u64, per_pixel.max(4))?;
+    r.seek(SeekFrom::Start(0)).map_err(io)?;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(r)
+        .map_err(|e| bad(format!("cannot be decoded: {e}")))?;
+    let layer = image.layer_data.get(part).ok_or_else(|| bad("has fewer parts than its header lists".into()))?;
+    let list = &layer.channel_data.list;
+    let chosen: Vec<String> = list.iter().map(|c| c.name.to_string()).collect();
+    let ch = exr_depth_channel(&chosen).and_then(|i| list.get(i)).ok_or_else(|| bad("lost its depth channel while decoding".into()))?;
+    let vals: Vec<f32> = match &ch.sample_data {
+        FlatSamples::F16(_) | FlatSamples::F32(_) => ch.sample_data.values_as_f32().collect(),
+        FlatSamples::U32(_) => return Err(bad(format!("has an integer channel {}: metres are read from float channels", ch.name))),
+    };
+    if vals.len() != w.saturating_mul(h) {
+        return Err(bad("holds fewer values than its size says".into()));
+    }
+    Ok((vals, h, w))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -360,5 +423,70 @@ mod tests {
         assert_eq!(p, PathBuf::from("depth/dive 01_d.tif"));
         assert_eq!(expand("maps/{name}.npy", Path::new("a.b.png")), PathBuf::from("maps/a.b.png.npy"));
         assert_eq!(expand("one.npy", Path::new("a.png")), PathBuf::from("one.npy"));
+    }
+
+    /// An OpenEXR file of one part with the given channels, written by the
+    /// exr crate (the reader under test uses the same crate's decoder; the
+    /// values are the ones put in, not read back from our own output).
+    fn exr_file(name: &str, w: usize, h: usize, channels: Vec<(&str, exr::prelude::FlatSamples)>) -> PathBuf {
+        use exr::prelude::*;
+        let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels.into_iter().map(|(n, v)| AnyChannel::new(n, v)).collect();
+        let layer = Layer::new((w, h), LayerAttributes::named("depth"), Encoding::FAST_LOSSLESS, AnyChannels::sort(list));
+        let d = std::env::temp_dir().join(format!("uwhl-depth-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join(name);
+        Image::from_layer(layer).write().to_file(&p).unwrap();
+        p
+    }
+
+    #[test]
+    fn exr_depth_channel_in_metres_with_unknowns() {
+        use exr::prelude::{f16, FlatSamples};
+        // 3 x 2, row-major: a NaN, a zero and a value beyond 1000 m are unknown
+        let z = vec![1.5f32, 2.0, f32::NAN, 0.0, 2000.0, 7.25];
+        let m = read_distance(&exr_file("z.exr", 3, 2, vec![("Z", FlatSamples::F32(z))]), 1 << 20, 1 << 30).unwrap();
+        assert_eq!((m.height, m.width, m.out_of_range), (2, 3, 1));
+        assert_eq!((m.data[0], m.data[1], m.data[5]), (1.5, 2.0, 7.25));
+        assert!(m.data[2].is_nan() && m.data[3].is_nan() && m.data[4].is_nan());
+        // a half-float single channel of any name
+        let y: Vec<f16> = [3.0f32, 0.5].iter().map(|&v| f16::from_f32(v)).collect();
+        let m = read_distance(&exr_file("y.exr", 2, 1, vec![("Y", FlatSamples::F16(y))]), 1 << 20, 1 << 30).unwrap();
+        assert_eq!(m.data, vec![3.0, 0.5]);
+    }
+
+    #[test]
+    fn exr_depth_pass_is_found_beside_colour_channels() {
+        use exr::prelude::FlatSamples;
+        let n = 4;
+        let col = || FlatSamples::F32(vec![0.5; n]);
+        let chans = vec![("R", col()), ("G", col()), ("B", col()), ("A", col()), ("ViewLayer.Depth.Z", FlatSamples::F32(vec![1.0, 2.0, 3.0, 4.0]))];
+        let m = read_distance(&exr_file("pass.exr", 2, 2, chans), 1 << 20, 1 << 30).unwrap();
+        assert_eq!(m.data, vec![1.0, 2.0, 3.0, 4.0]);
+        let chans = vec![("R", col()), ("G", col()), ("depth", FlatSamples::F32(vec![9.0; n]))];
+        assert_eq!(read_distance(&exr_file("named.exr", 2, 2, chans), 1 << 20, 1 << 30).unwrap().data, vec![9.0; n]);
+    }
+
+    #[test]
+    fn hostile_exr_files_get_clear_errors() {
+        use exr::prelude::FlatSamples;
+        let col = || FlatSamples::F32(vec![0.5; 6]);
+        // colour without a depth channel: the channels are named
+        let p = exr_file("rgb.exr", 3, 2, vec![("R", col()), ("G", col()), ("B", col())]);
+        let e = read_distance(&p, 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("no depth channel") && e.message.contains("B, G, R"), "{}", e.message);
+        // integers are not metres
+        let p = exr_file("u32.exr", 3, 2, vec![("Z", FlatSamples::U32(vec![1; 6]))]);
+        let e = read_distance(&p, 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("integer channel Z"), "{}", e.message);
+        // over the pixel budget: refused from the header
+        let p = exr_file("big.exr", 3, 2, vec![("Z", col())]);
+        let e = read_distance(&p, 5, 1 << 30).unwrap_err();
+        assert!(e.message.contains("over --max-pixels 5"), "{}", e.message);
+        // cut short, or its magic number followed by noise
+        let whole = std::fs::read(&p).unwrap();
+        for (name, bytes) in [("cut.exr", whole[..whole.len() * 2 / 3].to_vec()), ("noise.exr", [&whole[..4], &[0xAB; 64][..]].concat())] {
+            let e = read_distance(&tmp(name, &bytes), 1 << 20, 1 << 30).unwrap_err();
+            assert!(e.message.starts_with("an OpenEXR distance map cannot be"), "{name}: {}", e.message);
+        }
     }
 }

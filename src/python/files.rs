@@ -215,6 +215,16 @@ fn read_distance_for<'py>(
     }
 }
 
+/// A distance map file as H x W metres (NaN = unknown), read by the
+/// binary's reader (`crate::files::depth`): `uwhl evaluate` reads a
+/// manifest's maps with it, so both read the same formats the same way.
+#[pyfunction]
+#[pyo3(signature = (path, max_pixels, max_memory))]
+fn read_distance_file<'py>(py: Python<'py>, path: PathBuf, max_pixels: u64, max_memory: u64) -> PyResult<Bound<'py, PyAny>> {
+    let m = py.detach(|| crate::files::depth::read_distance(&path, max_pixels, max_memory)).map_err(failure_to_py)?;
+    Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
+}
+
 /// An input's distance from `--altitude` (METHOD §13.7, the binary's
 /// `crate::files::nav`): the camera over a flat seabed seen in a photo of
 /// `height` x `width` upright pixels, made at the processed size:
@@ -408,6 +418,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(decode_file, m)?)?;
     m.add_function(wrap_pyfunction!(decode_mask_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_for, m)?)?;
+    m.add_function(wrap_pyfunction!(read_distance_file, m)?)?;
     m.add_function(wrap_pyfunction!(floor_for, m)?)?;
     m.add_function(wrap_pyfunction!(write_input_outputs, m)?)?;
     Ok(())

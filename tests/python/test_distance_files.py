@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from exrfile import exr_bytes
 from uwhl_rs import synth
 
 tifffile = pytest.importorskip("tifffile")
@@ -34,6 +35,7 @@ def dive(tmp_path_factory):
     mm = np.where(np.isfinite(z), np.round(z * 1000), 0).astype(np.uint16)
     Image.fromarray(mm).save(d / "depth" / "p2.png")
     tifffile.imwrite(d / "depth" / "p1.tif", z)
+    (d / "depth" / "p1.exr").write_bytes(exr_bytes({"Z": z}))
     return d, z
 
 
@@ -65,8 +67,8 @@ def test_each_photo_gets_its_own_map_by_name(impl, binary, dive, tmp_path):
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
-@pytest.mark.parametrize("template", ["{stem}.png", "p1.tif"])
-def test_millimetre_png_and_float_tiff_give_the_same_coverage(impl, binary, dive, tmp_path, template):
+@pytest.mark.parametrize("template", ["{stem}.png", "p1.tif", "{stem}.exr"])
+def test_millimetre_png_float_tiff_and_openexr_give_the_same_coverage(impl, binary, dive, tmp_path, template):
     d, z = dive
     src = d / ("p2.tif" if template.endswith(".png") else "p1.tif")
     out = tmp_path / impl

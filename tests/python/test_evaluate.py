@@ -59,8 +59,16 @@ def test_distance_maps_in_every_format(tmp_path):
     with pytest.raises(ev.ManifestError, match="16-bit"):
         ev.read_distance(str(tmp_path / "d8.png"), 2, 2)
     (tmp_path / "bad.npy").write_bytes(b"not numpy")
-    with pytest.raises(ev.ManifestError, match="cannot read the distance map"):
+    with pytest.raises(ev.ManifestError, match="not a distance map"):
         ev.read_distance(str(tmp_path / "bad.npy"), 2, 2)
+    # OpenEXR (a file written from the format's specification): the Z channel
+    # in metres; NaN and beyond 1000 m are unknown
+    from exrfile import exr_bytes
+
+    z = np.array([[1.5, np.nan], [2.5, 2000.0]], np.float32)
+    (tmp_path / "d.exr").write_bytes(exr_bytes({"Z": z, "R": np.zeros((2, 2))}))
+    d = ev.read_distance(str(tmp_path / "d.exr"), 2, 2)
+    assert d[0, 0] == 1.5 and d[1, 0] == 2.5 and math.isnan(d[0, 1]) and math.isnan(d[1, 1])
 
 
 def _scene(tmp_path, name="scene.png", h=120, w=160, water_type="3C", seed=1):
@@ -140,7 +148,7 @@ def test_every_bad_manifest_entry_is_named_and_the_rest_evaluated(tmp_path):
     r = subprocess.run([sys.executable, "-m", "uwhl_rs", "evaluate", str(tmp_path / "m2.json"), "-o", str(out),
                         "--water-type", "3C,II,7C"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 3, r.stderr
-    assert "images[0]" in r.stderr and "cannot read the distance map" in r.stderr
+    assert "images[0]" in r.stderr and "junk.npy: not a distance map" in r.stderr
     doc = json.load(open(out / "results.json"))
     assert len(doc["images"]) == 1 and doc["images"][0]["image"].startswith("images[1]")
     for m in ([], {"images": 3}):

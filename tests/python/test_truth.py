@@ -107,9 +107,11 @@ def test_truth_files_of_every_form(tmp_path, monkeypatch):
 def test_a_file_that_is_no_npy_is_called_so(tmp_path):
     """numpy's own message for it suggests unpickling the file; the reader says what it is."""
     (tmp_path / "junk.npy").write_bytes(b"these are not the bytes of a .npy file")
-    for read in (lambda p: truth.read_truth(p, 2, 2), lambda p: ev.read_distance(p, 2, 2),
-                 lambda p: truth.read_truth_mask(p, 2, 2)):
-        with pytest.raises(ManifestError, match="not a .npy file") as e:
+    # the distance map goes through the commands' reader, which names the formats it reads
+    for read, says in ((lambda p: truth.read_truth(p, 2, 2), "not a .npy file"),
+                       (lambda p: ev.read_distance(p, 2, 2), "not a distance map: expected a .npy array"),
+                       (lambda p: truth.read_truth_mask(p, 2, 2), "not a .npy file")):
+        with pytest.raises(ManifestError, match=says) as e:
             read(str(tmp_path / "junk.npy"))
         assert "pickle" not in str(e.value)
 
