@@ -93,7 +93,7 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
     PNG in millimetres, OpenEXR: docs/OUTPUTS.md "Distance"), or a ``.mat``
     holding one 2-D array (scipy)."""
     from . import _core
-    from .images import DEFAULT_MAX_PIXELS
+    from .images import read_distance as read_distance_file
 
     ext = os.path.splitext(path)[1].lower()
     try:
@@ -110,8 +110,7 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
                                     f"(found {len(arrays)})")
             d = arrays[0].astype(np.float64)
         else:
-            d = np.asarray(_core.read_distance_file(path, int(DEFAULT_MAX_PIXELS), int(_core.default_max_memory())),
-                           dtype=np.float64)
+            d = read_distance_file(path).astype(np.float64)
     except ManifestError:
         raise
     except (_core.ImageError, MemoryError) as e:

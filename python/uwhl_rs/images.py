@@ -28,6 +28,7 @@ __all__ = [
     "PREPROCESS_MODES",
     "DEFAULT_MAX_PIXELS",
     "read_image",
+    "read_distance",
     "to_srgb",
     "srgb_to_linear",
     "linear_to_srgb",
@@ -178,6 +179,27 @@ def read_image(
         raise ImageTooLargeError(f"{path}: not enough memory to decode") from None
     except Exception as e:  # decoders raise many types; name the file and the reason
         raise ImageReadError(f"{path}: cannot decode {kind or 'raw'} ({type(e).__name__}: {e})") from None
+
+
+def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
+    """Read a distance map as the float32 (H, W) metres ``restore(distance=)``
+    takes, with the commands' own reader (docs/OUTPUTS.md "Distance"):
+    ``.npy`` (metres; uint16 millimetres), TIFF (float metres; 16-bit
+    millimetres), 16-bit PNG (millimetres) and OpenEXR (the ``Z`` or
+    ``depth`` channel, or the only one; metres), told apart by their first
+    bytes. Unknown distances (NaN, infinite, 0, negative, beyond 1000 m)
+    are NaN.
+
+    Raises
+    ------
+    ImageError
+        The file is missing, not a regular file, or not a distance map
+        (the message says why).
+    MemoryError
+        Its header gives more than ``max_pixels`` pixels, or more memory
+        than the core's default limit.
+    """
+    return np.asarray(_core.read_distance_file(os.fspath(path), int(max_pixels), int(_core.default_max_memory())))
 
 
 def _check_pixels(path: str, h: int, w: int, max_pixels: int, on_header=None, bpp: int = 3,

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+import uwhl_rs
 from exrfile import exr_bytes
 from uwhl_rs import synth
 
@@ -49,6 +50,23 @@ def _run(cmd, *args):
 
 def _side(out, name):
     return json.loads((out / f"{name}.json").read_text())
+
+
+def test_read_distance_gives_the_map_the_commands_read(dive, tmp_path):
+    """uwhl_rs.read_distance: the same metres from every format, NaN where unknown."""
+    d, z = dive
+    known = np.isfinite(z)
+    for name in ("p1.npy", "p1.tif", "p1.exr"):
+        got = uwhl_rs.read_distance(d / "depth" / name)
+        assert got.dtype == np.float32 and got.shape == z.shape
+        assert np.array_equal(np.isnan(got), ~known) and np.array_equal(got[known], z[known]), name
+    mm = uwhl_rs.read_distance(d / "depth" / "p2.png")  # whole millimetres
+    assert np.array_equal(np.isnan(mm), ~known) and np.max(np.abs(mm[known] - z[known])) <= 0.0005 + 1e-6
+    (tmp_path / "notes.exr").write_text("a text file named like a map")
+    with pytest.raises(uwhl_rs.ImageError, match="not a distance map"):
+        uwhl_rs.read_distance(tmp_path / "notes.exr")
+    with pytest.raises(MemoryError, match="over --max-pixels 100"):
+        uwhl_rs.read_distance(d / "depth" / "p1.exr", max_pixels=100)
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
