@@ -37,6 +37,7 @@ from .errors import (
 __all__ = [
     "restore",
     "floor_distance",
+    "depth_to_range",
     "Sequence",
     "Restoration",
     "WATER_TYPES",
@@ -487,3 +488,32 @@ class Sequence:
 
 
 _signature_from_table(restore, ["image", "water_mask", "mask", "distance", "water"])
+
+
+def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
+    """Depth along the camera's optical axis, as photogrammetry (Metashape,
+    COLMAP) and most renderers export it, turned into the range along each
+    pixel's ray that ``restore(image, distance=...)`` needs (METHOD §13.7):
+    each value divided by the cosine of its ray's angle to the axis in
+    water.
+
+    Parameters
+    ----------
+    depth : float array (height, width)
+        Metres along the axis, covering the photo's field of view; NaN
+        where unknown (it stays NaN).
+    fov : float
+        The lens's horizontal field of view in air across the photo's
+        width, degrees, in (0, 170].
+    port : "flat" or "dome"
+        The housing's window: behind a flat one the rays bend toward the
+        axis in water (Snell's law), behind a dome they do not.
+
+    Returns
+    -------
+    float32 ndarray of the depth's shape: metres along each ray.
+    """
+    z = np.asarray(depth)
+    if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
+        raise ParameterError(f"depth must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
+    return _core.depth_to_range(np.ascontiguousarray(z, dtype=np.float32), float(fov), port)

@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
@@ -79,9 +79,11 @@ def check_combination(
     preprocess: str,
 ) -> None:
     """The checks of several options at once; ValueError with the usage message."""
-def check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool) -> None:
-    """The checks of the distance options together (one source, no sequence, --fov with --altitude);
-    ValueError with the usage message."""
+def check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool = False) -> None:
+    """The checks of the distance options together (one source, no sequence, --distance-kind depth with
+    --distance, --fov with --altitude or depth along the axis); ValueError with the usage message."""
+def depth_to_range(depth: _F32, fov: float, port: str) -> _F32:
+    """Depth along the camera's axis as the range along each pixel's ray (METHOD §13.7)."""
 def floor_distance(height: int, width: int, altitude: float, fov: float, pitch: float, roll: float,
                    port: str) -> _F32:
     """Range in metres along each pixel's ray to a flat seabed (METHOD §13.7); NaN where none."""
@@ -143,6 +145,9 @@ class FileSettings:
     @property
     def altitude(self) -> Optional[str]:
         """With altitude: what the sidecar's distance.source says of it; else None."""
+    @property
+    def depth_along_axis(self) -> bool:
+        """Whether the distance maps hold depth along the camera's axis (distance_kind="depth")."""
 
 def decode_file(
     path: _PathArg, linearize: bool, max_pixels: int, max_memory: int,
@@ -158,6 +163,11 @@ def read_distance_for(
 def read_distance_file(path: _PathArg, max_pixels: int, max_memory: int) -> _F32:
     """A distance map file as H x W metres (NaN = unknown), read by the binary's reader (npy, 16-bit PNG,
     TIFF, OpenEXR); ImageError names what is wrong, MemoryError a map over the limits."""
+def depth_to_range_for(
+    settings: FileSettings, input: _PathArg, depth: _F32, height: int, width: int,
+) -> tuple[Optional[_F32], Optional[str], Optional[str]]:
+    """Depth along the camera's axis turned into ranges with the photo's lens (--fov or EXIF) and --port:
+    (ranges or None, the sidecar's distance.depth as JSON or None, why not or None)."""
 def floor_for(
     settings: FileSettings, input: _PathArg, height: int, width: int, processed_height: int, processed_width: int,
 ) -> tuple[str, Optional[_F32], Optional[str], Optional[str]]:
@@ -168,6 +178,7 @@ def write_input_outputs(
     label: str, contact_sheet: Optional[bytes], reused: Optional[bool], read: float, restore: float,
     sheet_seconds: Optional[float], elapsed: float, distance_source: Optional[str] = None,
     distance_missing: Optional[str] = None, distance_floor: Optional[str] = None,
+    distance_depth: Optional[str] = None,
 ) -> str:
     """Writes one input's outputs through its claim (encodes, metadata, sidecar, commit): the sidecar as JSON."""
 

@@ -156,6 +156,7 @@ def restore_staged(
     water_mask=None,
     distance=None,
     altitude=None,
+    distance_kind: str = _D["distance_kind"],
     fov=None,
     port: str = _D["port"],
     water_from=None,
@@ -196,6 +197,7 @@ def restore_staged(
                                   mask=_mask_label(mask), water_mask=_mask_label(water_mask),
                                   distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
                                   altitude=None if altitude is None else os.fspath(altitude), fov=fov, port=port,
+                                  distance_kind=distance_kind,
                                   water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
     if settings.dive_water_type is not None:
         # METHOD §13, a dive learns once: the water of its calibrated photos
@@ -250,9 +252,12 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
         wm = _shrink_mask(wm, s, "half")
     # METHOD §13: a template names the input's map (the binary's reader); one
     # that cannot be read leaves the photo restored without it, flagged
-    z, z_source, z_missing, z_floor = None, None, None, None
+    z, z_source, z_missing, z_floor, z_depth = None, None, None, None, None
     if isinstance(distance, (str, os.PathLike)):
         z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), int(budget))
+        if z is not None and settings.depth_along_axis:
+            # METHOD §13.7: depth along the camera's axis, turned into ranges with the lens
+            z, z_depth, z_missing = _core.depth_to_range_for(settings, in_path, z, *full_hw)
     elif distance is not None:
         z, z_source = distance, "array"
     elif settings.altitude is not None:
@@ -285,7 +290,8 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
             text = _core.write_input_outputs(claim, res, display_linear(res.image, meta), source, settings, in_path,
                                              label, sheet, reused, t_read - t_start, t_restore - t_read, t_sheet,
                                              time.perf_counter() - t_start, distance_source=z_source,
-                                             distance_missing=z_missing, distance_floor=z_floor)
+                                             distance_missing=z_missing, distance_floor=z_floor,
+                                             distance_depth=z_depth)
         finally:
             # committed: nothing left to release; failed: the temporaries go
             claim.release()

@@ -198,9 +198,9 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     label = display(_label or in_path)
     fmt, bits, jpeg_quality = options.pop("format", "jpg"), options.pop("bits", None), options.pop("quality", 95)
     for k in ("mask", "water_mask", "distance", "altitude", "fov", "water_from", "contact", "half_size",
-              "preprocess", "port"):
+              "preprocess", "port", "distance_kind"):
         v = options.pop(k, None)
-        if v not in (None, False, "none", "flat"):
+        if v not in (None, False, "none", "flat", "range"):
             raise ParameterError(f"{k} is for photos: a video is restored as a sequence of frames")
     max_pixels = options.pop("max_pixels", None)
     settings = _core.FileSettings(format=fmt, bits=bits, quality=jpeg_quality, max_side=max_side, **options)

@@ -290,6 +290,7 @@ where
         o.distance.is_some(),
         o.altitude.is_some(),
         o.fov.is_some(),
+        o.depth_along_axis,
         o.reuse_estimates.is_some(),
         crate::files::options::Names::Flags,
     )

@@ -88,21 +88,71 @@ pub struct Camera {
     lens_from: String,
 }
 
-impl Camera {
-    /// The seabed seen by this camera in a photo of `h` x `w` pixels
-    /// (upright, before `--max-side`: the angle is the same after it),
-    /// checked ([`Floor::check`]: a lens of the EXIF may give any angle).
-    pub fn floor(&self, h: usize, w: usize, port: Port) -> Result<Floor, String> {
+impl Lens {
+    /// The horizontal field of view in air across the width of a photo of
+    /// `h` x `w` pixels (upright, before `--max-side`: the angle is the
+    /// same after it), degrees.
+    fn across(self, h: usize, w: usize) -> f64 {
         let (hf, wf) = (h as f64, w as f64);
         let across = |t: f64| 2.0 * (t * wf / (hf * hf + wf * wf).sqrt()).atan().to_degrees();
-        let fov = match self.lens {
+        match self {
             Lens::Horizontal(deg) => deg,
             Lens::HalfDiagonalTan(t) => across(t),
             Lens::FocalPlane { focal, mm_per_px, pixels } => {
                 let (px, py) = pixels.unwrap_or((wf, hf));
                 across((px * px + py * py).sqrt() * mm_per_px / 2.0 / focal)
             }
-        };
+        }
+    }
+}
+
+/// A photo's lens (from `--fov` or its EXIF) and where it came from: what
+/// turns a depth map along the optical axis into ranges
+/// (`--distance-kind depth`, METHOD §13.7).
+#[derive(Debug, Clone)]
+pub struct LensOf {
+    lens: Lens,
+    from: String,
+}
+
+impl LensOf {
+    /// The lens of photo `input`: `fov` (degrees in air across the width)
+    /// when given, else its EXIF; why not, when neither gives one.
+    pub fn of(fov: Option<f64>, input: &Path) -> Result<LensOf, String> {
+        if let Some(f) = fov {
+            return Ok(LensOf { lens: Lens::Horizontal(f), from: "--fov".into() });
+        }
+        let bytes = std::fs::read(input).map_err(|e| format!("cannot read the photo's metadata: {e}"))?;
+        let carried = crate::files::metadata::read(bytes);
+        let (lens, from) = carried.exif.as_ref().and_then(exif_lens).ok_or(NO_LENS.to_string())?;
+        Ok(LensOf { lens, from })
+    }
+
+    /// `map` (depth along the axis of a photo of `h` x `w` upright pixels)
+    /// turned into ranges in place, at its own size (it has the photo's
+    /// aspect ratio); the sidecar's `distance.depth`, or why not when the
+    /// lens gives an angle out of range.
+    pub fn to_range(&self, map: &mut crate::files::depth::DistanceMap, (h, w): (usize, usize), port: Port) -> Result<Value, String> {
+        let fov = self.lens.across(h, w);
+        if !(fov.is_finite() && fov > 0.0 && fov <= crate::method::floor::MAX_FOV) {
+            return Err(format!("field of view {fov} degrees is not in (0, {}] (from {})", crate::method::floor::MAX_FOV, self.from));
+        }
+        crate::method::floor::depth_to_range(&mut map.data, map.height, map.width, fov, port);
+        let in_water = Floor { altitude: 1.0, fov, pitch: 0.0, roll: 0.0, port }.fov_in_water();
+        Ok(json!({"along": "axis", "fov": fov, "fov_from": self.from, "fov_in_water": in_water, "port": port.name()}))
+    }
+}
+
+/// Why a photo has no lens: neither `--fov` nor the EXIF fields that give one.
+const NO_LENS: &str =
+    "no field of view: the photo's EXIF has neither FocalLengthIn35mmFormat nor FocalLength with FocalPlaneXResolution (give --fov)";
+
+impl Camera {
+    /// The seabed seen by this camera in a photo of `h` x `w` pixels
+    /// (upright, before `--max-side`: the angle is the same after it),
+    /// checked ([`Floor::check`]: a lens of the EXIF may give any angle).
+    pub fn floor(&self, h: usize, w: usize, port: Port) -> Result<Floor, String> {
+        let fov = self.lens.across(h, w);
         let floor = Floor { altitude: self.pose.altitude, fov, pitch: self.pose.pitch, roll: self.pose.roll, port };
         floor.check().map_err(|e| format!("{e} (field of view from {})", self.lens_from))?;
         Ok(floor)
@@ -509,10 +559,7 @@ pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Re
     };
     let (lens, lens_from) = match fov {
         Some(f) => (Lens::Horizontal(f), "--fov".to_string()),
-        None => exif.and_then(exif_lens).ok_or(
-            "no field of view: the photo's EXIF has neither FocalLengthIn35mmFormat nor FocalLength with FocalPlaneXResolution (give --fov)"
-                .to_string(),
-        )?,
+        None => exif.and_then(exif_lens).ok_or(NO_LENS.to_string())?,
     };
     let max = f64::from(crate::method::distance::MAX_DISTANCE);
     if !(pose.altitude.is_finite() && pose.altitude > 0.0 && pose.altitude <= max) {

@@ -258,13 +258,18 @@ every photo, a navigation CSV (columns altitude and file or time, optional pitch
 interpolated between records at most 10 s apart), or xmp (the photo's iFDO field image-meters-above-ground); \
 not with a distance map",
         group: Group::Input, faces: Faces::Both, method: false },
+    Spec { key: "distance_kind", flag: "--distance-kind", short: None, metavar: "KIND", kind: Kind::Choice(&["range", "depth"]),
+        default: Default::Name("range"), help: "what --distance's maps measure: range, along each pixel's ray; depth, \
+along the camera's axis, as photogrammetry exports it (Metashape, COLMAP), turned into range with the lens of --fov or \
+the EXIF and --port (METHOD §13.7)",
+        group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "fov", flag: "--fov", short: None, metavar: "DEG", kind: Kind::Float { gt: 0.0, le: 170.0 },
-        default: Default::None, help: "with --altitude: the lens's horizontal field of view in air across the photo's \
-width, degrees (default: from the EXIF focal length)",
+        default: Default::None, help: "with --altitude or --distance-kind depth: the lens's horizontal field of view \
+in air across the photo's width, degrees (default: from the EXIF focal length)",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "port", flag: "--port", short: None, metavar: "PORT", kind: Kind::Choice(&["flat", "dome"]),
-        default: Default::Name("flat"), help: "with --altitude: the housing's window; flat: refraction narrows the \
-field of view in water; dome: it does not",
+        default: Default::Name("flat"), help: "with --altitude or --distance-kind depth: the housing's window; flat: \
+refraction narrows the field of view in water; dome: it does not",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "water_from", flag: "--water-from", short: None, metavar: "DIR", kind: Kind::Path,
         default: Default::None, help: "restore with the water fitted on the photos of DIR that had a distance \
@@ -655,9 +660,13 @@ pub fn check_combination(
 /// The checks of the distance options together (METHOD §13), made by both
 /// commands before any input is read: one source of distance, none with
 /// a sequence (it reuses one water for its frames; a distance fits each
-/// photo's own), and the lens options only with `--altitude`.
-pub fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, names: Names) -> Result<(), String> {
+/// photo's own), depth along the axis only of a distance map, and the lens
+/// only with `--altitude` or depth along the axis.
+pub fn check_distance(distance: bool, altitude: bool, fov: bool, depth: bool, reuse_estimates: bool, names: Names) -> Result<(), String> {
     let n = |key: &str| names.of(key);
+    if depth && !distance {
+        return Err(format!("{} depth describes the maps of {}: give both", n("distance_kind"), n("distance")));
+    }
     if distance && altitude {
         return Err(format!("{} and {} are two sources of distance: give one", n("distance"), n("altitude")));
     }
@@ -665,8 +674,8 @@ pub fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates
         let by = if distance { n("distance") } else { n("altitude") };
         return Err(format!("{by} fits each photo's water: it does not go with {}", n("reuse_estimates")));
     }
-    if fov && !altitude {
-        return Err(format!("{} is the lens of {}: give both", n("fov"), n("altitude")));
+    if fov && !altitude && !depth {
+        return Err(format!("{} is the lens of {} or of {} depth: give one", n("fov"), n("altitude"), n("distance_kind")));
     }
     Ok(())
 }

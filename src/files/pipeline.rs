@@ -167,6 +167,9 @@ pub struct Restored {
     /// with `--altitude`: the sidecar's `distance.floor`, or why the photo
     /// has no distance
     pub floor: Option<Result<Value, String>>,
+    /// with `--distance-kind depth`: the sidecar's `distance.depth` (the
+    /// lens the map was turned into ranges with), or why it was not used
+    pub depth: Option<Result<Value, String>>,
 }
 
 /// A distance an input is restored with (METHOD §13).
@@ -179,6 +182,9 @@ pub enum Given<'a> {
     /// a camera over a flat seabed (`--altitude`, METHOD §13.7): the map is
     /// made at the processed size
     Floor(&'a crate::files::nav::Camera, crate::method::floor::Port),
+    /// a map of depth along the camera's axis (`--distance-kind depth`),
+    /// turned into ranges with the lens once the photo's size is known
+    Axis(&'a crate::files::depth::DistanceMap, &'a crate::files::nav::LensOf, crate::method::floor::Port),
 }
 
 #[cfg(any(test, feature = "internals"))]
@@ -249,10 +255,25 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     };
     let t1 = Instant::now();
     let mut floor = None;
+    let mut depth = None;
     let made;
     let distance = match given {
         Given::None => None,
         Given::Map(d) => Some(d),
+        Given::Axis(d, lens, port) => {
+            let mut m = d.clone();
+            match lens.to_range(&mut m, (h, w), port) {
+                Ok(record) => {
+                    depth = Some(Ok(record));
+                    made = m;
+                    Some(&made)
+                }
+                Err(why) => {
+                    depth = Some(Err(why));
+                    None
+                }
+            }
+        }
         Given::Floor(camera, port) => match crate::files::nav::floor_map(camera, port, (h, w), (hp, wp)) {
             Ok((map, record)) => {
                 floor = Some(Ok(record));
@@ -294,6 +315,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         t_restore,
         distance: None,
         floor,
+        depth,
     })
 }
 
@@ -433,12 +455,23 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
         Some((_, Err(why))) => (None, Some(why.clone())),
         None => (None, None),
     };
+    // METHOD §13.7: depth along the axis needs the lens; without one the
+    // photo is restored without distance, flagged
+    let lens = match (map, opts.depth_along_axis) {
+        (Some(_), true) => Some(crate::files::nav::LensOf::of(opts.fov, &job.input)),
+        _ => None,
+    };
+    if let Some(Err(why)) = &lens {
+        missing = Some(why.clone());
+    }
     // METHOD §13.7: the camera over a flat seabed; without its pose or lens
     // the photo is restored without distance, flagged
     let camera = opts.altitude.as_ref().map(|src| crate::files::nav::camera_for(src, opts.fov, &job.input));
-    let target = match (&camera, map) {
-        (Some(Ok(c)), _) => Given::Floor(c, opts.port),
-        (_, Some(m)) => Given::Map(m),
+    let target = match (&camera, map, &lens) {
+        (Some(Ok(c)), _, _) => Given::Floor(c, opts.port),
+        (_, Some(m), Some(Ok(l))) => Given::Axis(m, l, opts.port),
+        (_, Some(_), Some(Err(_))) => Given::None,
+        (_, Some(m), None) => Given::Map(m),
         _ => Given::None,
     };
     let mut restored = decode_and_restore_gated(BufReader::new(file), opts, masks, seq, room, target)?;
@@ -457,12 +490,19 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
             restored.res.flags.push(Flag::DistanceMissing);
         }
     }
+    let depth = restored.depth.take();
+    if let Some(Err(why)) = &depth {
+        missing = Some(why.clone());
+    }
     if let Some((path, _)) = &given {
         let record = restored.res.distance.as_ref().map(|d| crate::files::sidecar::distance_record(d, None));
         restored.distance = crate::files::sidecar::distance_entry(record, &path.to_string_lossy(), missing.as_deref());
         if let (Some(m), Some(Value::Object(o))) = (map, restored.distance.as_mut()) {
             if m.out_of_range > 0 {
                 o.insert("out_of_range".into(), Value::from(m.out_of_range));
+            }
+            if let Some(Ok(record)) = depth {
+                o.insert("depth".into(), record);
             }
         }
         if missing.is_some() {

@@ -109,6 +109,9 @@ pub struct Settings {
     /// `--altitude SOURCE`: distance from the altitude over a flat seabed
     /// (METHOD §13.7; `crate::files::nav`)
     pub altitude: Option<crate::files::nav::AltitudeSource>,
+    /// `--distance-kind depth`: the maps of `--distance` hold depth along
+    /// the camera's axis, turned into ranges (METHOD §13.7)
+    pub depth_along_axis: bool,
     /// `--fov DEG`: the lens's horizontal field of view in air
     pub fov: Option<f64>,
     /// `--port`: the housing's window
@@ -158,6 +161,7 @@ impl Default for Settings {
             distance: None,
             altitude: None,
             fov: None,
+            depth_along_axis: false,
             port: crate::method::floor::Port::Flat,
             water_from: None,
             max_side: None,
@@ -235,6 +239,7 @@ impl Settings {
             "water_mask" => self.water_mask = Some(text(v)?.into()),
             "distance" => self.distance = Some(text(v)?),
             "altitude" => self.altitude = Some(crate::files::nav::altitude_source(&text(v)?)?),
+            "distance_kind" => self.depth_along_axis = text(v)? == "depth",
             "fov" => {
                 self.fov = Some(match v {
                     Val::Float(f) => f,

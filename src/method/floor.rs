@@ -93,22 +93,14 @@ impl Floor {
     /// (at or above the horizon) or meets it beyond `MAX_DISTANCE`.
     /// METHOD §13.7. Call [`Floor::check`] first: unchecked values give NaN.
     pub fn distances(&self, h: usize, w: usize) -> Vec<f32> {
-        let f = (w as f64 / 2.0) / (self.fov.to_radians() / 2.0).tan();
         let (sp, cp) = self.pitch.to_radians().sin_cos();
         let (sr, cr) = self.roll.to_radians().sin_cos();
         let max = f64::from(crate::method::distance::MAX_DISTANCE);
         let mut out = Vec::with_capacity(h.saturating_mul(w));
+        let rays = Rays::new(self.fov, self.port, h, w);
         for r in 0..h {
-            let v = r as f64 + 0.5 - h as f64 / 2.0;
             for c in 0..w {
-                let u = c as f64 + 0.5 - w as f64 / 2.0;
-                let n = (u * u + v * v + f * f).sqrt();
-                let (mut dx, mut dy, mut dz) = (u / n, v / n, f / n);
-                if self.port == Port::Flat {
-                    dx /= WATER_INDEX;
-                    dy /= WATER_INDEX;
-                    dz = (1.0 - dx * dx - dy * dy).max(0.0).sqrt();
-                }
+                let (dx, dy, dz) = rays.at(r, c);
                 // camera to body: image top forward, image right starboard, axis down
                 let (bx, by, bz) = (-dy, dx, dz);
                 // roll about X, then pitch about Y: only the down component is needed
@@ -122,9 +114,77 @@ impl Floor {
     }
 }
 
+/// The rays in water of the pixels of an `h` x `w` photo from a pinhole
+/// camera whose horizontal field of view in air across the width is `fov`
+/// degrees, behind `port` (METHOD §13.7): unit vectors in the camera's
+/// frame (x right, y down, z along the optical axis).
+struct Rays {
+    f: f64,
+    port: Port,
+    h: usize,
+    w: usize,
+}
+
+impl Rays {
+    fn new(fov: f64, port: Port, h: usize, w: usize) -> Self {
+        Self { f: (w as f64 / 2.0) / (fov.to_radians() / 2.0).tan(), port, h, w }
+    }
+
+    /// The ray of the pixel in row `r`, column `c` (through its centre).
+    fn at(&self, r: usize, c: usize) -> (f64, f64, f64) {
+        let v = r as f64 + 0.5 - self.h as f64 / 2.0;
+        let u = c as f64 + 0.5 - self.w as f64 / 2.0;
+        let n = (u * u + v * v + self.f * self.f).sqrt();
+        let (mut dx, mut dy, mut dz) = (u / n, v / n, self.f / n);
+        if self.port == Port::Flat {
+            // Snell's law at a window perpendicular to the axis
+            dx /= WATER_INDEX;
+            dy /= WATER_INDEX;
+            dz = (1.0 - dx * dx - dy * dy).max(0.0).sqrt();
+        }
+        (dx, dy, dz)
+    }
+}
+
+/// A depth map (distance along the camera's optical axis, as photogrammetry
+/// exports it: Metashape, COLMAP) of an `h` x `w` photo turned in place into
+/// the range along each pixel's ray, which the model needs (METHOD §13.7,
+/// "Depth along the axis"): each value divided by the cosine of its ray's
+/// angle to the axis in water. `fov` is the horizontal field of view in air
+/// across the width, degrees, in (0, [`MAX_FOV`]]; NaN stays NaN.
+pub fn depth_to_range(depth: &mut [f32], h: usize, w: usize, fov: f64, port: Port) {
+    let rays = Rays::new(fov, port, h, w);
+    for (i, d) in depth.iter_mut().enumerate().take(h.saturating_mul(w)) {
+        let (_, _, dz) = rays.at(i / w.max(1), i % w.max(1));
+        *d = (f64::from(*d) / dz) as f32;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn depth_along_the_axis_becomes_the_range_along_each_ray() {
+        // 1 x 3 photo, 90 degrees across: the outer pixels' centres are at
+        // u = +-1 of f = 1.5 (tan 45 = 1.5 / 1.5), so their rays make
+        // atan(1 / 1.5) with the axis behind a dome; the middle one is on it
+        let (h, w) = (1, 3);
+        let mut d = vec![2.0f32, 2.0, f32::NAN];
+        depth_to_range(&mut d, h, w, 90.0, Port::Dome);
+        let cos = (1.0f64 / 1.5).atan().cos();
+        assert!((f64::from(d[0]) - 2.0 / cos).abs() < 1e-6, "{}", d[0]);
+        assert_eq!(d[1], 2.0);
+        assert!(d[2].is_nan());
+        // behind a flat port the ray in water is bent toward the axis:
+        // sin(in water) = sin(in air) / 1.333
+        let mut d = vec![2.0f32, 2.0, 2.0];
+        depth_to_range(&mut d, h, w, 90.0, Port::Flat);
+        let air = (1.0f64 / 1.5).atan();
+        let water = (air.sin() / WATER_INDEX).asin();
+        assert!((f64::from(d[2]) - 2.0 / water.cos()).abs() < 1e-6, "{}", d[2]);
+        assert!(d[0] == d[2] && d[1] == 2.0 && d[0] < (2.0 / cos) as f32);
+    }
 
     fn floor(altitude: f64, fov: f64, pitch: f64, roll: f64, port: Port) -> Floor {
         Floor { altitude, fov, pitch, roll, port }

@@ -90,6 +90,7 @@ impl PyFileSettings {
             s.distance.is_some(),
             s.altitude.is_some(),
             s.fov.is_some(),
+            s.depth_along_axis,
             false,
             crate::files::options::Names::Keywords,
         )
@@ -101,6 +102,13 @@ impl PyFileSettings {
     #[getter]
     fn altitude(&self) -> Option<String> {
         self.0.altitude.as_ref().map(crate::files::nav::AltitudeSource::label)
+    }
+
+    /// Whether the distance maps hold depth along the camera's axis
+    /// (`distance_kind="depth"`), turned into ranges by `depth_to_range_for`.
+    #[getter]
+    fn depth_along_axis(&self) -> bool {
+        self.0.depth_along_axis
     }
 
     /// The memory budget in bytes.
@@ -225,6 +233,37 @@ fn read_distance_file<'py>(py: Python<'py>, path: PathBuf, max_pixels: u64, max_
     Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
 }
 
+/// With `distance_kind="depth"`: an input's map of depth along the camera's
+/// axis turned into ranges (METHOD §13.7, the binary's `LensOf`), with the
+/// lens of `fov` or the photo's EXIF and `port`, for a photo of `height` x
+/// `width` upright pixels: `(ranges or None, the sidecar's distance.depth as
+/// JSON or None, why not or None)`. Without a lens the photo is restored
+/// without distance and flagged `distance_missing`.
+#[pyfunction]
+#[pyo3(signature = (settings, input, depth, height, width))]
+fn depth_to_range_for<'py>(
+    py: Python<'py>,
+    settings: &PyFileSettings,
+    input: PathBuf,
+    depth: numpy::PyReadonlyArray2<'py, f32>,
+    height: usize,
+    width: usize,
+) -> PyResult<(Option<Bound<'py, PyAny>>, Option<String>, Option<String>)> {
+    let opts = &settings.0;
+    let [mh, mw] = [depth.shape()[0], depth.shape()[1]];
+    let data = depth.as_array().iter().copied().collect::<Vec<f32>>();
+    let mut map = crate::files::depth::DistanceMap { data, height: mh, width: mw, out_of_range: 0 };
+    let (fov, port) = (opts.fov, opts.port);
+    let made = py.detach(|| {
+        let lens = crate::files::nav::LensOf::of(fov, &input)?;
+        lens.to_range(&mut map, (height, width), port)
+    });
+    Ok(match made {
+        Ok(record) => (Some(PyArray1::from_vec(py, map.data).reshape([mh, mw])?.into_any()), Some(record.to_string()), None),
+        Err(why) => (None, None, Some(why)),
+    })
+}
+
 /// An input's distance from `--altitude` (METHOD §13.7, the binary's
 /// `crate::files::nav`): the camera over a flat seabed seen in a photo of
 /// `height` x `width` upright pixels, made at the processed size:
@@ -302,7 +341,7 @@ fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
 /// in all so far.
 /// The claim is used up; on failure its temporaries are removed.
 #[pyfunction]
-#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None, distance_floor=None))]
+#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None, distance_floor=None, distance_depth=None))]
 #[allow(clippy::too_many_arguments)]
 fn write_input_outputs(
     py: Python<'_>,
@@ -322,6 +361,7 @@ fn write_input_outputs(
     distance_source: Option<String>,
     distance_missing: Option<String>,
     distance_floor: Option<String>,
+    distance_depth: Option<String>,
 ) -> PyResult<String> {
     let source = source_of(source)?;
     let record = res.distance_json.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
@@ -329,9 +369,11 @@ fn write_input_outputs(
         Some(src) => crate::files::sidecar::distance_entry(record, src, distance_missing.as_deref()),
         None => record,
     };
-    let floor = distance_floor.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
-    if let (Some(f), Some(serde_json::Value::Object(o))) = (floor, distance.as_mut()) {
-        o.insert("floor".into(), f);
+    for (key, text) in [("floor", &distance_floor), ("depth", &distance_depth)] {
+        let value = text.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
+        if let (Some(v), Some(serde_json::Value::Object(o))) = (value, distance.as_mut()) {
+            o.insert(key.into(), v);
+        }
     }
     let (h, w) = res.shape;
     if (source.processed_height, source.processed_width) != (h, w) || image.shape() != [h, w, 3] {
@@ -419,6 +461,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(decode_mask_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_for, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_file, m)?)?;
+    m.add_function(wrap_pyfunction!(depth_to_range_for, m)?)?;
     m.add_function(wrap_pyfunction!(floor_for, m)?)?;
     m.add_function(wrap_pyfunction!(write_input_outputs, m)?)?;
     Ok(())

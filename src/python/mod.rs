@@ -421,12 +421,31 @@ fn floor_distance<'py>(
     Ok(numpy::PyArray1::from_vec(py, z).reshape([height, width])?.into_any())
 }
 
+/// Depth along the camera's axis turned into the range along each pixel's
+/// ray (METHOD §13.7, `crate::method::floor::depth_to_range`): float32 of
+/// the depth's shape; ParameterError for a field of view out of range or an
+/// unknown port.
+#[pyfunction]
+#[pyo3(signature = (depth, fov, port))]
+fn depth_to_range<'py>(py: Python<'py>, depth: numpy::PyReadonlyArray2<'py, f32>, fov: f64, port: &str) -> PyResult<Bound<'py, PyAny>> {
+    use crate::method::floor::{Port, MAX_FOV};
+    let port = Port::parse(port).ok_or_else(|| ParameterError::new_err(format!("port {port:?} is not flat or dome")))?;
+    if !(fov.is_finite() && fov > 0.0 && fov <= MAX_FOV) {
+        return Err(ParameterError::new_err(format!("field of view {fov} degrees is not in (0, {MAX_FOV}]")));
+    }
+    let [h, w] = [depth.shape()[0], depth.shape()[1]];
+    let mut z: Vec<f32> = depth.as_array().iter().copied().collect();
+    py.detach(|| crate::method::floor::depth_to_range(&mut z, h, w, fov, port));
+    Ok(numpy::PyArray1::from_vec(py, z).reshape([h, w])?.into_any())
+}
+
 /// The checks of the distance options (`crate::files::options::check_distance`);
 /// ValueError with the usage message.
 #[pyfunction]
-fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool) -> PyResult<()> {
+#[pyo3(signature = (distance, altitude, fov, reuse_estimates, depth=false))]
+fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool) -> PyResult<()> {
     use crate::files::options::Names;
-    crate::files::options::check_distance(distance, altitude, fov, reuse_estimates, Names::Flags).map_err(PyValueError::new_err)
+    crate::files::options::check_distance(distance, altitude, fov, depth, reuse_estimates, Names::Flags).map_err(PyValueError::new_err)
 }
 
 /// The jobs of a batch (`crate::files::jobs::collect_jobs`, output files `NAME` +
@@ -889,6 +908,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(check_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(depth_to_range, m)?)?;
     m.add_function(wrap_pyfunction!(floor_distance, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;

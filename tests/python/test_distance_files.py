@@ -171,3 +171,86 @@ def test_water_from_a_folder_without_fits_is_a_usage_error(impl, binary, dive, t
         r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", tmp_path / impl, *args)
         assert r.returncode == 2 and "--water-from" in r.stderr, (args, r.stderr)
     assert not (tmp_path / impl / "p1.json").exists()
+
+
+def _axis_cosine(h, w, fov, port):
+    """cos of each pixel's ray to the optical axis in water, for a pinhole
+    camera of horizontal field of view ``fov`` in air (Snell's law at a
+    flat window, n = 1.333; unbent behind a dome), computed here from the
+    geometry, not by the package."""
+    f = (w / 2) / np.tan(np.radians(fov) / 2)
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    u, v = u + 0.5 - w / 2, v + 0.5 - h / 2
+    sin_air = np.hypot(u, v) / np.sqrt(u * u + v * v + f * f)
+    sin_water = sin_air / 1.333 if port == "flat" else sin_air
+    return np.sqrt(1 - sin_water ** 2)
+
+
+def test_depth_to_range_divides_by_the_cosine_of_each_ray():
+    depth = np.full((H, W), 2.0, np.float32)
+    depth[0, 0] = np.nan
+    for port in ("flat", "dome"):
+        got = uwhl_rs.depth_to_range(depth, 70.0, port=port)
+        want = 2.0 / _axis_cosine(H, W, 70.0, port)
+        assert np.isnan(got[0, 0]) and np.allclose(got[1:], want[1:], rtol=1e-6)
+    # the corner of a 90-degree lens behind a dome: more than 1.2 times the depth
+    assert uwhl_rs.depth_to_range(depth, 90.0, port="dome")[-1, -1] > 2.4
+    with pytest.raises(uwhl_rs.ParameterError, match="field of view"):
+        uwhl_rs.depth_to_range(depth, 180.0)
+
+
+@pytest.fixture(scope="module")
+def receding(tmp_path_factory):
+    """A seabed receding from 1 m (bottom row) to 8 m (top row) seen
+    through type 3C water, with its range map and the same seabed's depth
+    along the axis of a 70-degree lens behind a flat port."""
+    d = tmp_path_factory.mktemp("receding")
+    sc = synth.scene(H, W, kind="looking_down", seed=5)
+    rows = np.linspace(8.0, 1.0, H)[:, None]
+    z = np.repeat(rows, W, 1).astype(np.float32)
+    img = synth.render(sc.clean, z, "3C", beta_b=0.3, noise=0.002, seed=1)
+    tifffile.imwrite(d / "sea.tif", np.ascontiguousarray(img, np.float32), photometric="rgb")
+    np.save(d / "range.npy", z)
+    np.save(d / "depth.npy", (z * _axis_cosine(H, W, 70.0, "flat")).astype(np.float32))
+    return d
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_depth_along_the_axis_is_restored_as_its_range(impl, binary, receding, tmp_path):
+    """The same seabed given as ranges, and as depth along the axis with
+    --distance-kind depth: the same fitted water; the lens is recorded; a
+    photo without a lens is restored without distance, flagged."""
+    d = receding
+    cmd = _cmds(binary)[impl]
+    out_r, out_d, out_x = tmp_path / "range", tmp_path / "depth", tmp_path / "nolens"
+    r = _run(cmd, d / "sea.tif", "-o", out_r, "--distance", d / "range.npy")
+    assert r.returncode == 0, r.stderr
+    r = _run(cmd, d / "sea.tif", "-o", out_d, "--distance", d / "depth.npy", "--distance-kind", "depth", "--fov", "70")
+    assert r.returncode == 0, r.stderr
+    ranged, converted = _side(out_r, "sea")["distance"], _side(out_d, "sea")["distance"]
+    assert ranged["used"] is True and converted["used"] is True, (ranged, converted)
+    assert converted["depth"]["fov"] == 70.0 and converted["depth"]["port"] == "flat"
+    in_water = 2 * np.degrees(np.arcsin(np.sin(np.radians(35.0)) / 1.333))
+    assert converted["depth"]["fov_from"] == "--fov" and converted["depth"]["fov_in_water"] == pytest.approx(in_water)
+    assert converted["water"]["beta"] == pytest.approx(ranged["water"]["beta"], rel=1e-3)
+    # read as ranges, the same depth map fits another water
+    r = _run(cmd, d / "sea.tif", "-o", tmp_path / "asis", "--distance", d / "depth.npy")
+    assert r.returncode == 0, r.stderr
+    asis = _side(tmp_path / "asis", "sea")["distance"]
+    assert asis["water"]["beta"] != pytest.approx(ranged["water"]["beta"], rel=1e-3)
+    # a float TIFF has no EXIF lens: without --fov the map is not used
+    r = _run(cmd, d / "sea.tif", "-o", out_x, "--distance", d / "depth.npy", "--distance-kind", "depth")
+    assert r.returncode == 0, r.stderr
+    side = _side(out_x, "sea")
+    assert "distance_missing" in side["flags"] and "no field of view" in side["distance"]["rejected"]
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_depth_kind_and_the_lens_go_with_their_distance(impl, binary, dive, tmp_path):
+    d, _ = dive
+    for args, needle in ((["--distance-kind", "depth"], "--distance-kind"),
+                         (["--distance", "x.npy", "--fov", "70"], "--fov"),
+                         (["--distance", "x.npy", "--distance-kind", "deep"], "--distance-kind")):
+        r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", tmp_path / impl, *args)
+        assert r.returncode == 2 and needle in r.stderr, (args, r.stderr)
+    assert not (tmp_path / impl / "p1.json").exists()

@@ -206,6 +206,7 @@ def file_kwargs(a: argparse.Namespace, water_types) -> dict:
     kw = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
               max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
               distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port, water_from=a.water_from,
+              distance_kind=a.distance_kind,
               contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
     # videos (uwhl_rs.videofiles): set only when given, so that photos see none of them
     for key in ("every", "video_codec", "video_quality", "transfer", "scene_cut", "smoothing"):
