@@ -218,6 +218,9 @@ pub fn parameters(o: &Settings) -> Value {
     }
     if let Some(d) = &o.distance {
         p.insert("distance".into(), json!(d));
+        if o.depth_along_axis {
+            p.insert("distance_kind".into(), json!("depth"));
+        }
     }
     if let Some(d) = &o.water_from {
         p.insert("water_from".into(), d.record());

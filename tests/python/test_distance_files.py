@@ -233,6 +233,8 @@ def test_depth_along_the_axis_is_restored_as_its_range(impl, binary, receding, t
     in_water = 2 * np.degrees(np.arcsin(np.sin(np.radians(35.0)) / 1.333))
     assert converted["depth"]["fov_from"] == "--fov" and converted["depth"]["fov_in_water"] == pytest.approx(in_water)
     assert converted["water"]["beta"] == pytest.approx(ranged["water"]["beta"], rel=1e-3)
+    params = _side(out_d, "sea")["parameters"]
+    assert params["distance_kind"] == "depth" and "distance_kind" not in _side(out_r, "sea")["parameters"]
     # read as ranges, the same depth map fits another water
     r = _run(cmd, d / "sea.tif", "-o", tmp_path / "asis", "--distance", d / "depth.npy")
     assert r.returncode == 0, r.stderr
