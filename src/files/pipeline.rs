@@ -254,37 +254,26 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         water_mask: water.as_deref(),
     };
     let t1 = Instant::now();
-    let mut floor = None;
-    let mut depth = None;
-    let made;
-    let distance = match given {
-        Given::None => None,
-        Given::Map(d) => Some(d),
+    // a map made from the photo's size: a seabed's (`--altitude`) or a
+    // depth map's turned into ranges; its sidecar record, or why not
+    let derived = match given {
         Given::Axis(d, lens, port) => {
             let mut m = d.clone();
-            match lens.to_range(&mut m, (h, w), port) {
-                Ok(record) => {
-                    depth = Some(Ok(record));
-                    made = m;
-                    Some(&made)
-                }
-                Err(why) => {
-                    depth = Some(Err(why));
-                    None
-                }
-            }
+            Some(lens.to_range(&mut m, (h, w), port).map(|record| (m, record)))
         }
-        Given::Floor(camera, port) => match crate::files::nav::floor_map(camera, port, (h, w), (hp, wp)) {
-            Ok((map, record)) => {
-                floor = Some(Ok(record));
-                made = map;
-                Some(&made)
-            }
-            Err(why) => {
-                floor = Some(Err(why));
-                None
-            }
-        },
+        Given::Floor(camera, port) => Some(crate::files::nav::floor_map(camera, port, (h, w), (hp, wp))),
+        Given::None | Given::Map(_) => None,
+    };
+    let record = derived.as_ref().map(|r| r.as_ref().map(|(_, rec)| rec.clone()).map_err(Clone::clone));
+    let (floor, depth) = match given {
+        Given::Floor(..) => (record, None),
+        Given::Axis(..) => (None, record),
+        Given::None | Given::Map(_) => (None, None),
+    };
+    let distance = match (given, &derived) {
+        (Given::Map(d), _) => Some(d),
+        (_, Some(Ok((m, _)))) => Some(m),
+        _ => None,
     };
     let res = match (seq, distance) {
         (Some(seq), _) => seq.restore(&input)?,
