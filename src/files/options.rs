@@ -260,15 +260,15 @@ not with a distance map",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "distance_kind", flag: "--distance-kind", short: None, metavar: "KIND", kind: Kind::Choice(&["range", "depth"]),
         default: Default::Name("range"), help: "what --distance's maps measure: range, along each pixel's ray; depth, \
-along the camera's axis, as photogrammetry exports it (Metashape, COLMAP), turned into range with the lens of --fov or \
-the EXIF and --port (METHOD §13.7)",
+along the camera's axis, as photogrammetry exports it (Metashape, COLMAP), turned into range with the lens (--fov, or \
+the EXIF) and the window (--port); METHOD §13.7",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "fov", flag: "--fov", short: None, metavar: "DEG", kind: Kind::Float { gt: 0.0, le: 170.0 },
-        default: Default::None, help: "with --altitude or --distance-kind depth: the lens's horizontal field of view \
-in air across the photo's width, degrees (default: from the EXIF focal length)",
+        default: Default::None, help: "with --altitude, or with --distance-kind's depth: the lens's horizontal field \
+of view in air across the photo's width, degrees (default: from the EXIF focal length)",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "port", flag: "--port", short: None, metavar: "PORT", kind: Kind::Choice(&["flat", "dome"]),
-        default: Default::Name("flat"), help: "with --altitude or --distance-kind depth: the housing's window; flat: \
+        default: Default::Name("flat"), help: "with --altitude, or with --distance-kind's depth: the housing's window; flat: \
 refraction narrows the field of view in water; dome: it does not",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "water_from", flag: "--water-from", short: None, metavar: "DIR", kind: Kind::Path,
