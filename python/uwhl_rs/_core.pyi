@@ -162,7 +162,7 @@ def read_distance_for(
     """An input's distance map for a --distance template: (path, H x W metres or None, why not or None)."""
 def read_distance_file(path: _PathArg, max_pixels: int, max_memory: int) -> _F32:
     """A distance map file as H x W metres (NaN = unknown), read by the binary's reader (npy, 16-bit PNG,
-    TIFF, OpenEXR); ImageError names what is wrong, MemoryError a map over the limits."""
+    TIFF, OpenEXR, COLMAP); ImageError names what is wrong, MemoryError a map over the limits."""
 def depth_to_range_for(
     settings: FileSettings, input: _PathArg, depth: _F32, height: int, width: int,
 ) -> tuple[Optional[_F32], Optional[str], Optional[str]]:

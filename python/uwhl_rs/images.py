@@ -185,9 +185,10 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
     """Read a distance map as the float32 (H, W) metres ``restore(distance=)``
     takes, with the commands' own reader (docs/OUTPUTS.md "Distance"):
     ``.npy`` (metres; uint16 millimetres), TIFF (float metres; 16-bit
-    millimetres), 16-bit PNG (millimetres) and OpenEXR (the ``Z`` or
-    ``depth`` channel, or the only one; metres), told apart by their first
-    bytes. Unknown distances (NaN, infinite, 0, negative, beyond 1000 m)
+    millimetres), 16-bit PNG (millimetres), OpenEXR (the ``Z`` or
+    ``depth`` channel, or the only one; metres) and COLMAP's dense depth
+    maps (depth along the axis: see :func:`uwhl_rs.depth_to_range`), told
+    apart by their first bytes. Unknown distances (NaN, infinite, 0, negative, beyond 1000 m)
     are NaN.
 
     Raises

@@ -1,6 +1,7 @@
 //! Distance maps read from files (`--distance`, docs/OUTPUTS.md
-//! "Distance"): NumPy `.npy` arrays, TIFF floats and OpenEXR channels in
-//! metres, 16-bit PNG and 16-bit TIFF in millimetres. Unknown distance (NaN, infinite, zero,
+//! "Distance"): NumPy `.npy` arrays, TIFF floats, OpenEXR channels and
+//! COLMAP's dense depth maps in metres (COLMAP's: in its reconstruction's
+//! units), 16-bit PNG and 16-bit TIFF in millimetres. Unknown distance (NaN, infinite, zero,
 //! negative, or beyond [`MAX_DISTANCE`]) is NaN in the map; the method
 //! treats it as a hole (METHOD §13).
 
@@ -67,10 +68,11 @@ pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<Di
         [0x89, b'P', b'N', b'G', ..] => read_png(r, check)?,
         [b'I', b'I', 42, 0, ..] | [b'M', b'M', 0, 42, ..] => read_tiff(r, check, max_memory)?,
         [0x76, 0x2f, 0x31, 0x01, ..] => read_exr(r, check)?,
+        [b'0'..=b'9', ..] if magic[..got].contains(&b'&') => read_colmap(r, check)?,
         _ => {
             return Err(Failure::new(
                 Kind::Input,
-                "not a distance map: expected a .npy array (metres), a 16-bit PNG (millimetres), a TIFF (float metres or 16-bit millimetres) or an OpenEXR file (metres)",
+                "not a distance map: expected a .npy array (metres), a 16-bit PNG (millimetres), a TIFF (float metres or 16-bit millimetres), an OpenEXR file (metres) or a COLMAP depth map",
             ))
         }
     };
@@ -258,6 +260,47 @@ fn read_tiff<R: Read + Seek>(r: R, check: impl Fn(u64, u64, u64) -> Result<(), F
         return Err(bad("holds fewer values than its size says".into()));
     }
     Ok((vals, h as usize, w as usize))
+}
+
+/// A COLMAP dense depth map (`*.geometric.bin`, `*.photometric.bin`): the
+/// ASCII header `WIDTH&HEIGHT&CHANNELS&`, then WIDTH x HEIGHT x CHANNELS
+/// little-endian float32 with the column index fastest (COLMAP's
+/// `Mat<float>` in Fortran order over (width, height, channels), so one
+/// channel is row-major); one channel, 0 = unknown. The values are in the
+/// reconstruction's units: metres when it was scaled, else some other unit,
+/// which scales the fitted attenuation but not the transmission (beta z).
+fn read_colmap<R: Read>(mut r: R, check: impl Fn(u64, u64, u64) -> Result<(), Failure>) -> Result<(Vec<f32>, usize, usize), Failure> {
+    let bad = |m: String| Failure::new(Kind::Input, format!("a COLMAP depth map {m}"));
+    let mut fields = [0u64; 3];
+    for f in fields.iter_mut() {
+        let mut digits = 0;
+        loop {
+            let mut b = [0u8; 1];
+            if read_up_to(&mut r, &mut b)? == 0 {
+                return Err(bad("ends inside its header".into()));
+            }
+            match b[0] {
+                b'0'..=b'9' if digits < 10 => {
+                    *f = *f * 10 + u64::from(b[0] - b'0');
+                    digits += 1;
+                }
+                b'&' if digits > 0 => break,
+                _ => return Err(bad("has a header that is not WIDTH&HEIGHT&CHANNELS&".into())),
+            }
+        }
+    }
+    let [w, h, c] = fields;
+    if c != 1 {
+        return Err(bad(format!("has {c} channels: a depth map has one (a normal map has three)")));
+    }
+    check(h, w, 4)?;
+    let (h, w) = (h as usize, w as usize);
+    let mut bytes = vec![0u8; h.saturating_mul(w).saturating_mul(4)];
+    if read_up_to(&mut r, &mut bytes)? < bytes.len() {
+        return Err(bad("ends before its values do".into()));
+    }
+    let vals = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    Ok((vals, h, w))
 }
 
 /// The channel of an OpenEXR part that holds the distance: `Z` (or a
@@ -487,6 +530,37 @@ mod tests {
         for (name, bytes) in [("cut.exr", whole[..whole.len() * 2 / 3].to_vec()), ("noise.exr", [&whole[..4], &[0xAB; 64][..]].concat())] {
             let e = read_distance(&tmp(name, &bytes), 1 << 20, 1 << 30).unwrap_err();
             assert!(e.message.starts_with("an OpenEXR distance map cannot be"), "{name}: {}", e.message);
+        }
+    }
+
+    /// COLMAP's layout: the header, then float32 with the column index fastest.
+    fn colmap(w: usize, h: usize, c: usize, vals: &[f32]) -> Vec<u8> {
+        let mut out = format!("{w}&{h}&{c}&").into_bytes();
+        for v in vals {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out
+    }
+
+    #[test]
+    fn colmap_depth_maps_are_read_row_major_with_zero_unknown() {
+        // 3 wide, 2 high: (x, y) = (0, 0), (1, 0), (2, 0), (0, 1), ...
+        let m = read_distance(&tmp("d.geometric.bin", &colmap(3, 2, 1, &[1.0, 2.0, 0.0, 4.0, 5.0, 6.5])), 1 << 20, 1 << 30).unwrap();
+        assert_eq!((m.height, m.width), (2, 3));
+        assert_eq!((m.data[1], m.data[3], m.data[5]), (2.0, 4.0, 6.5));
+        assert!(m.data[2].is_nan());
+        for (name, bytes, want) in [
+            ("normals.bin", colmap(2, 2, 3, &[0.0; 12]), "3 channels"),
+            ("cut.bin", colmap(4, 4, 1, &[1.0; 15]), "ends before its values"),
+            ("head.bin", b"12&34".to_vec(), "ends inside its header"),
+            ("junk.bin", b"12&x4&1&".to_vec(), "not WIDTH&HEIGHT&CHANNELS&"),
+            ("long.bin", b"123456789012&1&1&".to_vec(), "not a distance map"),
+            ("wide.bin", b"12345678901&1&1&".to_vec(), "not a distance map"),
+            ("eleven.bin", b"1234&12345678901&1&".to_vec(), "not WIDTH&HEIGHT&CHANNELS&"),
+            ("big.bin", b"100000&100000&1&".to_vec(), "over --max-pixels"),
+        ] {
+            let e = read_distance(&tmp(name, &bytes), 1 << 20, 1 << 30).unwrap_err();
+            assert!(e.message.contains(want), "{name}: {}", e.message);
         }
     }
 }

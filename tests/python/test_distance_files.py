@@ -256,3 +256,22 @@ def test_depth_kind_and_the_lens_go_with_their_distance(impl, binary, dive, tmp_
         r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", tmp_path / impl, *args)
         assert r.returncode == 2 and needle in r.stderr, (args, r.stderr)
     assert not (tmp_path / impl / "p1.json").exists()
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_a_colmap_depth_map_is_read_and_turned_into_ranges(impl, binary, receding, tmp_path):
+    """COLMAP's dense depth map (written here in its layout: the header
+    WIDTH&HEIGHT&1&, then float32 with the column index fastest) of the
+    receding seabed, as depth along the axis: the same water as its ranges."""
+    d = receding
+    depth = np.load(d / "depth.npy")
+    (tmp_path / "sea.tif.geometric.bin").write_bytes(f"{W}&{H}&1&".encode() + np.nan_to_num(depth, nan=0.0).astype("<f4").tobytes())
+    cmd = _cmds(binary)[impl]
+    r = _run(cmd, d / "sea.tif", "-o", tmp_path / "colmap", "--distance", tmp_path / "{name}.geometric.bin",
+             "--distance-kind", "depth", "--fov", "70")
+    assert r.returncode == 0, r.stderr
+    r = _run(cmd, d / "sea.tif", "-o", tmp_path / "range", "--distance", d / "range.npy")
+    assert r.returncode == 0, r.stderr
+    got, want = _side(tmp_path / "colmap", "sea")["distance"], _side(tmp_path / "range", "sea")["distance"]
+    assert got["used"] is True and got["water"]["beta"] == pytest.approx(want["water"]["beta"], rel=1e-3)
+    assert np.array_equal(uwhl_rs.read_distance(tmp_path / "sea.tif.geometric.bin"), depth, equal_nan=True)
