@@ -183,6 +183,11 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
                 raise ManifestError(f"{entry.label}: chart {ch.name!r} box {list(b)} is outside the {w}x{h} image "
                                     "(x1 <= width, y1 <= height; pixels as displayed, after EXIF orientation)")
     distance = read_distance(entry.distance, h, w) if entry.distance else None
+    if distance is not None and entry.distance_depth is not None:
+        import uwhl_rs
+
+        # depth along the axis, at the photo's grid: each pixel's own ray (METHOD §13.7)
+        distance = uwhl_rs.depth_to_range(distance, entry.distance_depth[0], port=entry.distance_depth[1])
     water = None
     if entry.water_mask:
         from .files import read_mask

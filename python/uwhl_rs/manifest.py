@@ -15,7 +15,8 @@ from .errors import ManifestError
 #: Profiles ``--method`` can name (METHOD §12), the default first.
 METHODS = tuple(next(o["choices"] for o in _core.OPTIONS if o["key"] == "method"))
 
-_ENTRY_KEYS = {"path", "distance", "water_type", "water_mask", "charts", "restore", "truth", "truth_mask"}
+_ENTRY_KEYS = {"path", "distance", "distance_depth", "water_type", "water_mask", "charts", "restore", "truth",
+               "truth_mask"}
 _CHART_KEYS = {"name", "gray_patches", "region"}
 #: The Jerlov types in table order (METHOD §1).
 TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
@@ -49,6 +50,9 @@ class Entry:
     #: the true radiance (linear) and the pixels to score against it (uwhl_rs.truth)
     truth: str | None = None
     truth_mask: str | None = None
+    #: the distance map holds depth along the camera's axis: (the lens's horizontal
+    #: field of view in air, degrees; the port), turned into ranges (METHOD §13.7)
+    distance_depth: tuple[float, str] | None = None
 
 
 def _box(v, what: str) -> tuple[int, int, int, int]:
@@ -101,6 +105,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
         return value
 
     distance = file_key("distance", "distance")
+    depth = _distance_depth(raw.get("distance_depth"), label, distance is not None)
     water_mask = file_key("water_mask", "water-mask")
     truth = file_key("truth", "truth")
     truth_mask = file_key("truth_mask", "truth-mask")
@@ -141,7 +146,26 @@ def _entry(k: int, raw, folder: str) -> Entry:
     if "method" in restore and restore["method"] not in METHODS:
         raise ManifestError(f"{label}: restore.method {_short(restore['method'])} is not one of {list(METHODS)}")
     _check_restore(restore, label)
-    return Entry(label, path, distance, wt, charts, restore, water_mask, raw["path"], truth, truth_mask)
+    return Entry(label, path, distance, wt, charts, restore, water_mask, raw["path"], truth, truth_mask, depth)
+
+
+def _distance_depth(v, label: str, has_distance: bool) -> tuple[float, str] | None:
+    """An entry's ``distance_depth``: ``{"fov": DEG, "port": "flat" | "dome"}``
+    when its map holds depth along the camera's axis (photogrammetry's)."""
+    if v is None:
+        return None
+    what = f"{label}: distance_depth"
+    if not has_distance:
+        raise ManifestError(f"{what} describes the entry's 'distance' map, which is missing")
+    if not isinstance(v, dict) or set(v) - {"fov", "port"}:
+        raise ManifestError(f"{what} is {{\"fov\": degrees, \"port\": \"flat\" or \"dome\"}}, not {_short(v)}")
+    fov, port = v.get("fov"), v.get("port", "flat")
+    if isinstance(fov, bool) or not isinstance(fov, (int, float)) or not (0 < fov <= 170):
+        raise ManifestError(f"{what}: fov (the lens's horizontal field of view in air, degrees) is a number in "
+                            f"(0, 170], not {_short(fov)}")
+    if port not in ("flat", "dome"):
+        raise ManifestError(f"{what}: port is \"flat\" or \"dome\", not {_short(port)}")
+    return float(fov), port
 
 
 def _short(v, limit: int = 80) -> str:

@@ -232,3 +232,22 @@ def test_results_csv_joins_to_the_manifest_by_path(tmp_path):
         assert all(row["true_water_type"] == entry["water_type"] and row["chart"] == "chart 1" for row in joined)
     # the twice-listed image: two entries under one path, told apart by label
     assert {row["label"] for row in by_path["a.png"]} == {"images[0] (a.png)", "images[3] (a.png)"}
+
+
+def test_a_depth_map_along_the_axis_is_evaluated_as_its_ranges(tmp_path):
+    """An entry whose map holds depth along the axis, with its lens
+    (distance_depth), restores with distance exactly as the entry with the
+    ranges: the same fitted water."""
+    e = _scene(tmp_path, "a.png", water_type="3C", seed=1)
+    z = np.load(tmp_path / "a.png.npy").astype(np.float32)
+    z[z <= 0] = np.nan
+    ones = np.ones_like(z)
+    cos = ones / uwhl_rs.depth_to_range(ones, 80.0, port="dome")
+    np.save(tmp_path / "depth.npy", np.nan_to_num(z * cos, nan=0.0).astype(np.float32))
+    depth = dict(e, distance="depth.npy", distance_depth={"fov": 80, "port": "dome"})
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e, depth]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert problems == [] and entries[1].distance_depth == (80.0, "dome")
+    got = [ev.evaluate_entry(x)["distance_use"] for x in entries]
+    assert got[0]["used"] and got[1]["used"]
+    assert got[1]["water"]["beta"] == pytest.approx(got[0]["water"]["beta"], rel=1e-4)

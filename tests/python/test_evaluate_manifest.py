@@ -86,6 +86,27 @@ def test_a_malformed_entry_is_named_and_not_a_traceback(tmp_path, field, value, 
     assert problems[0].startswith("images[0] (scene.png): ") and needle in problems[0], problems
 
 
+@pytest.mark.parametrize("depth, with_map, needle", [
+    ({"fov": 70}, False, "'distance' map, which is missing"),
+    ({"fov": "wide"}, True, "fov (the lens's"),
+    ({"fov": 0}, True, "(0, 170]"),
+    ({"fov": True}, True, "(0, 170]"),
+    ({"fov": 70, "port": "round"}, True, "port is"),
+    ({"fov": 70, "lens": 1}, True, "distance_depth is"),
+    ([70], True, "distance_depth is"),
+], ids=["no-map", "fov-str", "fov-0", "fov-bool", "port", "extra-key", "list"])
+def test_a_malformed_distance_depth_is_named(tmp_path, depth, with_map, needle):
+    e = _scene(tmp_path)
+    if with_map:
+        np.save(tmp_path / "d.npy", np.full((8, 8), 2.0, np.float32))
+        e["distance"] = "d.npy"
+    e["distance_depth"] = depth
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert entries == [] and len(problems) == 1, problems
+    assert problems[0].startswith("images[0] (scene.png): distance_depth") and needle in problems[0], problems
+
+
 def test_an_unknown_restore_water_type_is_a_bad_entry_exit_3(tmp_path):
     """docs/EVALUATE.md: an unknown water type in an entry is a bad entry,
     exit 3 (not 2, a bad command-line argument)."""
