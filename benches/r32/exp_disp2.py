@@ -1,47 +1,27 @@
-import numpy as np, common as C, fit as F, displab as D, pickle, sys
-from collections import defaultdict
-default=pickle.load(open("cache/default_tune.pkl","rb"))
-def proj(e,beta):
-    le=np.log(np.maximum(e,1e-12)); le-=le.mean(); b=beta-beta.mean()
-    d=-np.dot(le,b)/np.dot(b,b); bn=b/np.linalg.norm(b)
-    o=np.linalg.norm(le+d*b)  # residual after the best d (unclamped)
-    return d,o
-def ests(j,sel,tmin,beta):
-    out={}
-    for tau in (0.0,0.1,0.25):
-        s=sel&(tmin>=tau)
-        if s.sum()<2000: s=sel
-        px=j[s][::3]
-        out[f"gw{tau}"]=D.minkowski(px,1); out[f"sog2_{tau}"]=D.minkowski(px,2); out[f"sog4_{tau}"]=D.minkowski(px,4)
-        out[f"wp{tau}"]=np.percentile(px,99,axis=0)
-        ed=D.edges(j,2.0)[s][::3]
-        out[f"ge1_{tau}"]=D.minkowski(ed,1); out[f"ge2_{tau}"]=D.minkowski(ed,2)
-    return out
-res=defaultdict(lambda: defaultdict(list)); dd=defaultdict(lambda: defaultdict(list))
-for r in C.renders("tune"):
-    z=C.variants(r)["distance"]; bt=C.beta_true(r); cond=f"{r.stats}/{r.light}"
-    ts=F.tile_stats(r.image,z); b,a,_=F.fit_tiles(r.image,z,ts=ts); sus=F.suspect(ts,b,z)[0]
-    cands={}
-    if not sus:
-        j=C.recover(r.image,z,b,a); sel=r.objects; tmin=np.exp(-b.max()*C.fill_nearest(z))
-        E=ests(j,sel,tmin,b)
-        cands["core"]=C.light_path_core(j,sel,b)
-        P={k:proj(e,b) for k,e in E.items()}
-        for k,(d,o) in P.items(): cands["d_"+k]=np.clip(d,0,15)
-        for tau in (0.0,0.1,0.25):
-            ks=[f"gw{tau}",f"sog4_{tau}",f"ge1_{tau}",f"wp{tau}"]
-            best=min(ks,key=lambda k:P[k][1]); cands[f"consist{tau}"]=np.clip(P[best][0],0,15)
-            cands[f"median4_{tau}"]=np.clip(np.median([P[k][0] for k in ks]),0,15)
-            ks2=[f"gw{tau}",f"ge1_{tau}"]; best=min(ks2,key=lambda k:P[k][1]); cands[f"consist_gwge{tau}"]=np.clip(P[best][0],0,15)
-            # weighted by 1/o^2
-            wts=np.array([1/max(P[k][1],1e-3)**2 for k in ks]); cands[f"wcons{tau}"]=np.clip(np.dot(wts,[P[k][0] for k in ks])/wts.sum(),0,15)
-        cands["true"]=5.0 if r.light=="tinted" else 0.0
-        for k,d in cands.items():
-            res[k][cond].append(C.score(C.expose(j,np.exp(b*d),sel),r)); dd[k][cond].append(d)
-    else:
-        for k in list(res.keys()) or ["core"]:
-            res[k][cond].append(default[r.name])
-    print(r.name,file=sys.stderr)
-conds=["gray/white","gray/tinted","own/white","own/tinted"]
-for k in res:
-    print(f"{k:22s}"," | ".join(f"{np.median(res[k][c]):5.1f} (d {np.median(dd[k][c]):4.1f})" for c in conds), f" max {max(np.median(res[k][c]) for c in conds):.1f}")
+"""Light-path estimators on the fitted water: each estimate projected on the
+water's family, the most consistent one, the median of four, weights 1/residual^2."""
+import numpy as np
+
+import displab as D
+
+
+def candidates(P):
+    cands = {}
+    for k, (d, o) in P.items():
+        cands["d_" + k] = np.clip(d, 0, 15)
+    for tau in (0.0, 0.1, 0.25):
+        ks = [f"gw{tau}", f"sog4_{tau}", f"ge1_{tau}", f"wp{tau}"]
+        best = min(ks, key=lambda k: P[k][1])
+        cands[f"consist{tau}"] = np.clip(P[best][0], 0, 15)
+        cands[f"median4_{tau}"] = np.clip(np.median([P[k][0] for k in ks]), 0, 15)
+        ks2 = [f"gw{tau}", f"ge1_{tau}"]
+        best = min(ks2, key=lambda k: P[k][1])
+        cands[f"consist_gwge{tau}"] = np.clip(P[best][0], 0, 15)
+        # weighted by 1/o^2
+        wts = np.array([1 / max(P[k][1], 1e-3) ** 2 for k in ks])
+        cands[f"wcons{tau}"] = np.clip(np.dot(wts, [P[k][0] for k in ks]) / wts.sum(), 0, 15)
+    return cands
+
+
+if __name__ == "__main__":
+    D.run(candidates)

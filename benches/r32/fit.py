@@ -30,6 +30,25 @@ def known(z):
     return np.isfinite(z) & (z > 0) & (z <= 1000)
 
 
+def usable(img, z, mask=None):
+    """The pixels the fit may use: a known distance, a finite image, inside the mask."""
+    ok = known(z) & np.all(np.isfinite(img), axis=2)
+    return ok if mask is None else ok & mask
+
+
+def tiles(ok, tile=TILE, stride=None):
+    """(y0, x0, usable pixels of the tile, their count) for the full tiles of `ok`
+    with at least half their pixels usable, in raster order."""
+    h, w = ok.shape
+    stride = stride or tile
+    for y0 in range(0, h - tile + 1, stride):
+        for x0 in range(0, w - tile + 1, stride):
+            k = ok[y0:y0 + tile, x0:x0 + tile]
+            n = k.sum()
+            if n >= tile * tile // 2:
+                yield y0, x0, k, n
+
+
 def tile_stats(img, z, mask=None, tile=TILE, plane=True, stride=None, eiv=False, win=0, eiv_min=0.25):
     """Per tile: means m (n,3), slopes s (n,3), weight w (n,), z-bar, var z, residual var (n,3), centre (y,x).
 
@@ -38,67 +57,59 @@ def tile_stats(img, z, mask=None, tile=TILE, plane=True, stride=None, eiv=False,
     var(z) is below eiv_min of the raw one are dropped. win: fit the plane over the tile grown
     by win pixels on each side (more pixels against noise in z)."""
     h, w = z.shape
-    ok = known(z) & np.all(np.isfinite(img), axis=2)
-    if mask is not None:
-        ok &= mask
-    stride = stride or tile
+    ok = usable(img, z, mask)
     dy, dx = np.mgrid[0:tile, 0:tile].astype(np.float64) - (tile - 1) / 2
     out = {k: [] for k in ("m", "s", "w", "zm", "vz", "vr", "yx", "n")}
-    for y0 in range(0, h - tile + 1, stride):
-        for x0 in range(0, w - tile + 1, stride):
-            k = ok[y0:y0 + tile, x0:x0 + tile]
-            n = k.sum()
-            if n < tile * tile // 2:
+    for y0, x0, k, n in tiles(ok, tile, stride):
+        zz = z[y0:y0 + tile, x0:x0 + tile][k].astype(np.float64)
+        ii = img[y0:y0 + tile, x0:x0 + tile][k].astype(np.float64)
+        noise_v = 0.0
+        if plane:
+            X = np.stack([np.ones(n), dy[k], dx[k]], 1)
+            if win:
+                ya, yb, xa, xb = max(0, y0 - win), min(h, y0 + tile + win), max(0, x0 - win), min(w, x0 + tile + win)
+                kw = ok[ya:yb, xa:xb]
+                gy, gx = np.mgrid[ya:yb, xa:xb].astype(np.float64)
+                gy -= y0 + (tile - 1) / 2
+                gx -= x0 + (tile - 1) / 2
+                Xw = np.stack([np.ones(kw.sum()), gy[kw], gx[kw]], 1)
+                zw = z[ya:yb, xa:xb][kw].astype(np.float64)
+                coef, *_ = np.linalg.lstsq(Xw, zw, rcond=None)
+                res = zw - Xw @ coef
+                s2 = (res ** 2).sum() / max(len(zw) - 3, 1)
+                cov = s2 * np.linalg.inv(Xw.T @ Xw)
+            else:
+                coef, *_ = np.linalg.lstsq(X, zz, rcond=None)
+                res = zz - X @ coef
+                s2 = (res ** 2).sum() / max(n - 3, 1)
+                cov = s2 * np.linalg.inv(X.T @ X)
+            zz = X @ coef
+            # noise variance of the planed z about its mean: the slope coefficients' noise
+            Xc = X[:, 1:] - X[:, 1:].mean(0)
+            noise_v = np.trace(Xc.T @ Xc @ cov[1:, 1:]) / n
+        zm = zz.mean()
+        vz = ((zz - zm) ** 2).mean()
+        if vz <= 1e-12:
+            continue
+        if eiv:
+            vc = vz - noise_v
+            if vc < eiv_min * vz:
                 continue
-            zz = z[y0:y0 + tile, x0:x0 + tile][k].astype(np.float64)
-            ii = img[y0:y0 + tile, x0:x0 + tile][k].astype(np.float64)
-            noise_v = 0.0
-            if plane:
-                X = np.stack([np.ones(n), dy[k], dx[k]], 1)
-                if win:
-                    ya, yb, xa, xb = max(0, y0 - win), min(h, y0 + tile + win), max(0, x0 - win), min(w, x0 + tile + win)
-                    kw = ok[ya:yb, xa:xb]
-                    gy, gx = np.mgrid[ya:yb, xa:xb].astype(np.float64)
-                    gy -= y0 + (tile - 1) / 2
-                    gx -= x0 + (tile - 1) / 2
-                    Xw = np.stack([np.ones(kw.sum()), gy[kw], gx[kw]], 1)
-                    zw = z[ya:yb, xa:xb][kw].astype(np.float64)
-                    coef, *_ = np.linalg.lstsq(Xw, zw, rcond=None)
-                    res = zw - Xw @ coef
-                    s2 = (res ** 2).sum() / max(len(zw) - 3, 1)
-                    cov = s2 * np.linalg.inv(Xw.T @ Xw)
-                else:
-                    coef, *_ = np.linalg.lstsq(X, zz, rcond=None)
-                    res = zz - X @ coef
-                    s2 = (res ** 2).sum() / max(n - 3, 1)
-                    cov = s2 * np.linalg.inv(X.T @ X)
-                zz = X @ coef
-                # noise variance of the planed z about its mean: the slope coefficients' noise
-                Xc = X[:, 1:] - X[:, 1:].mean(0)
-                noise_v = np.trace(Xc.T @ Xc @ cov[1:, 1:]) / n
-            zm = zz.mean()
-            vz = ((zz - zm) ** 2).mean()
-            if vz <= 1e-12:
-                continue
-            if eiv:
-                vc = vz - noise_v
-                if vc < eiv_min * vz:
-                    continue
-                vz_raw, vz = vz, vc
-            im = ii.mean(0)
-            cov = ((zz - zm)[:, None] * (ii - im)).mean(0)
-            s = cov / vz
-            r = ii - im - s * (zz - zm)[:, None]
-            vr = (r ** 2).mean(0)
-            wc = n * vz / np.maximum(vr, 1e-8)
-            out["m"].append(im)
-            out["s"].append(s)
-            out["w"].append(np.sqrt(np.median(wc)))
-            out["zm"].append(zm)
-            out["vz"].append(vz)
-            out["vr"].append(vr)
-            out["yx"].append((y0 + tile / 2, x0 + tile / 2))
-            out["n"].append(n)
+            vz_raw, vz = vz, vc
+        im = ii.mean(0)
+        cov = ((zz - zm)[:, None] * (ii - im)).mean(0)
+        s = cov / vz
+        r = ii - im - s * (zz - zm)[:, None]
+        vr = (r ** 2).mean(0)
+        wc = n * vz / np.maximum(vr, 1e-8)
+        out["m"].append(im)
+        out["s"].append(s)
+        out["w"].append(np.sqrt(np.median(wc)))
+        out["zm"].append(zm)
+        out["vz"].append(vz)
+        out["vr"].append(vr)
+        out["yx"].append((y0 + tile / 2, x0 + tile / 2))
+        out["n"].append(n)
     return {k: np.array(v) for k, v in out.items()}
 
 
@@ -157,30 +168,21 @@ def nearest_type(beta):
 
 def tile_pixels(img, z, mask=None, tile=TILE, plane=True):
     """Raw tiles: Z (n,P) planed z, I (n,P,3), K (n,P) known; plus the core's stats (same tiles)."""
-    h, w = z.shape
-    ok = known(z) & np.all(np.isfinite(img), axis=2)
-    if mask is not None:
-        ok &= mask
     dy, dx = np.mgrid[0:tile, 0:tile].astype(np.float64) - (tile - 1) / 2
     Zs, Is, Ks, yx = [], [], [], []
-    for y0 in range(0, h - tile + 1, tile):
-        for x0 in range(0, w - tile + 1, tile):
-            k = ok[y0:y0 + tile, x0:x0 + tile]
-            n = k.sum()
-            if n < tile * tile // 2:
-                continue
-            zz = np.where(k, z[y0:y0 + tile, x0:x0 + tile], 0).astype(np.float64)
-            if plane:
-                X = np.stack([np.ones(n), dy[k], dx[k]], 1)
-                coef, *_ = np.linalg.lstsq(X, zz[k], rcond=None)
-                zz = coef[0] + coef[1] * dy + coef[2] * dx
-            zk = zz[k]
-            if ((zk - zk.mean()) ** 2).mean() <= 1e-12:
-                continue
-            Zs.append(zz.ravel())
-            Is.append(img[y0:y0 + tile, x0:x0 + tile].reshape(-1, 3).astype(np.float64))
-            Ks.append(k.ravel())
-            yx.append((y0, x0))
+    for y0, x0, k, n in tiles(usable(img, z, mask), tile):
+        zz = np.where(k, z[y0:y0 + tile, x0:x0 + tile], 0).astype(np.float64)
+        if plane:
+            X = np.stack([np.ones(n), dy[k], dx[k]], 1)
+            coef, *_ = np.linalg.lstsq(X, zz[k], rcond=None)
+            zz = coef[0] + coef[1] * dy + coef[2] * dx
+        zk = zz[k]
+        if ((zk - zk.mean()) ** 2).mean() <= 1e-12:
+            continue
+        Zs.append(zz.ravel())
+        Is.append(img[y0:y0 + tile, x0:x0 + tile].reshape(-1, 3).astype(np.float64))
+        Ks.append(k.ravel())
+        yx.append((y0, x0))
     return np.array(Zs), np.array(Is), np.array(Ks), np.array(yx)
 
 
