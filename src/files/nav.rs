@@ -134,11 +134,9 @@ impl LensOf {
     /// lens gives an angle out of range.
     pub fn to_range(&self, map: &mut crate::files::depth::DistanceMap, (h, w): (usize, usize), port: Port) -> Result<Value, String> {
         let fov = self.lens.across(h, w);
-        if !(fov.is_finite() && fov > 0.0 && fov <= crate::method::floor::MAX_FOV) {
-            return Err(format!("field of view {fov} degrees is not in (0, {}] (from {})", crate::method::floor::MAX_FOV, self.from));
-        }
-        crate::method::floor::depth_to_range(&mut map.data, map.height, map.width, fov, port);
-        let in_water = Floor { altitude: 1.0, fov, pitch: 0.0, roll: 0.0, port }.fov_in_water();
+        crate::method::floor::depth_to_range(&mut map.data, map.height, map.width, fov, port)
+            .map_err(|e| format!("{e} (from {})", self.from))?;
+        let in_water = crate::method::floor::fov_in_water(fov, port);
         Ok(json!({"along": "axis", "fov": fov, "fov_from": self.from, "fov_in_water": in_water, "port": port.name()}))
     }
 }

@@ -67,9 +67,7 @@ impl Floor {
         if !(self.altitude.is_finite() && self.altitude > 0.0 && self.altitude <= max) {
             return Err(format!("altitude {} m is not in (0, {max}]", self.altitude));
         }
-        if !(self.fov.is_finite() && self.fov > 0.0 && self.fov <= MAX_FOV) {
-            return Err(format!("field of view {} degrees is not in (0, {MAX_FOV}]", self.fov));
-        }
+        check_fov(self.fov)?;
         for (name, v) in [("pitch", self.pitch), ("roll", self.roll)] {
             if !(v.is_finite() && v.abs() <= MAX_TILT) {
                 return Err(format!("{name} {v} degrees is not within +-{MAX_TILT}"));
@@ -82,10 +80,7 @@ impl Floor {
     /// degrees: the air angle behind a dome, narrowed by Snell's law at the
     /// edge of the photo behind a flat port.
     pub fn fov_in_water(&self) -> f64 {
-        match self.port {
-            Port::Dome => self.fov,
-            Port::Flat => 2.0 * ((self.fov.to_radians() / 2.0).sin() / WATER_INDEX).asin().to_degrees(),
-        }
+        fov_in_water(self.fov, self.port)
     }
 
     /// The range in metres along the ray of each pixel of an `h` x `w`
@@ -111,6 +106,26 @@ impl Floor {
             }
         }
         out
+    }
+}
+
+/// Checks a lens's horizontal field of view in air, degrees: finite, in
+/// (0, [`MAX_FOV`]] (an option, the EXIF or a manifest may give any value).
+pub fn check_fov(fov: f64) -> Result<(), String> {
+    if fov.is_finite() && fov > 0.0 && fov <= MAX_FOV {
+        Ok(())
+    } else {
+        Err(format!("field of view {fov} degrees is not in (0, {MAX_FOV}]"))
+    }
+}
+
+/// The horizontal field of view in water, degrees, of a lens of `fov`
+/// degrees in air behind `port`: the air angle behind a dome, narrowed by
+/// Snell's law at the edge of the photo behind a flat window.
+pub fn fov_in_water(fov: f64, port: Port) -> f64 {
+    match port {
+        Port::Dome => fov,
+        Port::Flat => 2.0 * ((fov.to_radians() / 2.0).sin() / WATER_INDEX).asin().to_degrees(),
     }
 }
 
@@ -151,13 +166,16 @@ impl Rays {
 /// the range along each pixel's ray, which the model needs (METHOD §13.7,
 /// "Depth along the axis"): each value divided by the cosine of its ray's
 /// angle to the axis in water. `fov` is the horizontal field of view in air
-/// across the width, degrees, in (0, [`MAX_FOV`]]; NaN stays NaN.
-pub fn depth_to_range(depth: &mut [f32], h: usize, w: usize, fov: f64, port: Port) {
+/// across the width, degrees ([`check_fov`]: the map is left as it is when
+/// out of range); NaN stays NaN.
+pub fn depth_to_range(depth: &mut [f32], h: usize, w: usize, fov: f64, port: Port) -> Result<(), String> {
+    check_fov(fov)?;
     let rays = Rays::new(fov, port, h, w);
     for (i, d) in depth.iter_mut().enumerate().take(h.saturating_mul(w)) {
         let (_, _, dz) = rays.at(i / w.max(1), i % w.max(1));
         *d = (f64::from(*d) / dz) as f32;
     }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -171,7 +189,7 @@ mod tests {
         // atan(1 / 1.5) with the axis behind a dome; the middle one is on it
         let (h, w) = (1, 3);
         let mut d = vec![2.0f32, 2.0, f32::NAN];
-        depth_to_range(&mut d, h, w, 90.0, Port::Dome);
+        depth_to_range(&mut d, h, w, 90.0, Port::Dome).unwrap();
         let cos = (1.0f64 / 1.5).atan().cos();
         assert!((f64::from(d[0]) - 2.0 / cos).abs() < 1e-6, "{}", d[0]);
         assert_eq!(d[1], 2.0);
@@ -179,11 +197,17 @@ mod tests {
         // behind a flat port the ray in water is bent toward the axis:
         // sin(in water) = sin(in air) / 1.333
         let mut d = vec![2.0f32, 2.0, 2.0];
-        depth_to_range(&mut d, h, w, 90.0, Port::Flat);
+        depth_to_range(&mut d, h, w, 90.0, Port::Flat).unwrap();
         let air = (1.0f64 / 1.5).atan();
         let water = (air.sin() / WATER_INDEX).asin();
         assert!((f64::from(d[2]) - 2.0 / water.cos()).abs() < 1e-6, "{}", d[2]);
         assert!(d[0] == d[2] && d[1] == 2.0 && d[0] < (2.0 / cos) as f32);
+        // a field of view out of range leaves the map as it was
+        for fov in [0.0, 171.0, f64::NAN] {
+            let e = depth_to_range(&mut d, h, w, fov, Port::Flat).unwrap_err();
+            assert!(e.contains("is not in (0, 170]"), "{e}");
+        }
+        assert_eq!(d[1], 2.0);
     }
 
     fn floor(altitude: f64, fov: f64, pitch: f64, roll: f64, port: Port) -> Floor {

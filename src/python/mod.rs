@@ -428,14 +428,11 @@ fn floor_distance<'py>(
 #[pyfunction]
 #[pyo3(signature = (depth, fov, port))]
 fn depth_to_range<'py>(py: Python<'py>, depth: numpy::PyReadonlyArray2<'py, f32>, fov: f64, port: &str) -> PyResult<Bound<'py, PyAny>> {
-    use crate::method::floor::{Port, MAX_FOV};
+    use crate::method::floor::Port;
     let port = Port::parse(port).ok_or_else(|| ParameterError::new_err(format!("port {port:?} is not flat or dome")))?;
-    if !(fov.is_finite() && fov > 0.0 && fov <= MAX_FOV) {
-        return Err(ParameterError::new_err(format!("field of view {fov} degrees is not in (0, {MAX_FOV}]")));
-    }
     let [h, w] = [depth.shape()[0], depth.shape()[1]];
     let mut z: Vec<f32> = depth.as_array().iter().copied().collect();
-    py.detach(|| crate::method::floor::depth_to_range(&mut z, h, w, fov, port));
+    py.detach(|| crate::method::floor::depth_to_range(&mut z, h, w, fov, port)).map_err(ParameterError::new_err)?;
     Ok(numpy::PyArray1::from_vec(py, z).reshape([h, w])?.into_any())
 }
 
