@@ -4,6 +4,7 @@
     python3 benches/truth.py --split held --write DIR      # the renders as files, then:
     uwhl evaluate DIR/truth.json -o OUT                      # the same scores through the command
     python3 benches/truth.py --split held --compare OUT/results.json   # how far the two agree
+    python3 benches/truth.py --rows OUT.json                  # the tables again from an earlier --json
 
 Needs scikit-image for its bundled photographs (``pip install scikit-image``;
 nothing is downloaded). Each scene is a natural photograph used as the true
@@ -386,6 +387,30 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def paired_table(rows: list[dict], methods=("default", "distance"), against=("input", "gray_world")) -> str:
+    """Markdown: per condition, each method's median minus each baseline's, over
+    the same renders, with a 95% paired-bootstrap interval and how many renders
+    the method wins / loses (uwhl_rs.truth.paired_medians). An interval that
+    holds 0 means the comparison could go either way on other renders."""
+    conds = list(dict.fromkeys(r["condition"] for r in rows))
+    by = {(r["row"], r["scene"]): r["median"] for r in rows}
+    lines = ["| method - baseline | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
+    for m in methods:
+        for b in against:
+            cells = []
+            for c in conds:
+                scenes = [r["scene"] for r in rows if r["row"] == m and r["condition"] == c]
+                if not scenes:
+                    cells.append("-")
+                    continue
+                p = truth.paired_medians([by[(m, s)] for s in scenes], [by.get((b, s)) for s in scenes])
+                cells.append(f"{p['difference']:+.1f}° [{p['low']:+.1f}, {p['high']:+.1f}] "
+                             f"{p['better']}/{p['worse']}")
+            if any(x != "-" for x in cells):
+                lines.append(f"| {m} - {b} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def write_split(split: str, side: int, folder: str, conditions=None) -> int:
     """Write every render of a split as files and two manifests (module docstring); returns the count."""
     import os
@@ -455,6 +480,8 @@ def main(argv=None) -> int:
     p.add_argument("--size", type=int, default=360, help="longer side of the renders (default 360)")
     p.add_argument("--only", default=None, help="comma list of method rows to run (baselines always run)")
     p.add_argument("--json", default=None, help="write every per-scene row to this file")
+    p.add_argument("--rows", default=None, metavar="JSON",
+                   help="tabulate the per-scene rows an earlier --json wrote instead of rendering again")
     p.add_argument("--write", default=None, metavar="DIR",
                    help="write the split's renders, truths and manifests to DIR instead of scoring them")
     p.add_argument("--compare", default=None, metavar="RESULTS",
@@ -469,14 +496,21 @@ def main(argv=None) -> int:
         only = {"default", "paper"}
     if only is not None:
         only |= {"input", "gray_world", "stretch", "floor_truth"}
-    rows = run(a.split, a.size, only)
-    print(f"split {a.split}, {a.size} px; cells: median angle (after best gains), type exact/within one/of n, rho")
-    print(table(rows))
-    if a.compare:
-        print(compare(a.compare, rows))
+    if a.rows:
+        with open(a.rows) as f:
+            rows = json.load(f)
+    else:
+        rows = run(a.split, a.size, only)
     if a.json:
         with open(a.json, "w") as f:
             json.dump(rows, f, indent=1)
+    print(f"split {a.split}, {a.size} px; cells: median angle (after best gains), type exact/within one/of n, rho")
+    print(table(rows))
+    print()
+    print("paired: difference of medians [95% bootstrap interval] renders better/worse")
+    print(paired_table(rows))
+    if a.compare:
+        print(compare(a.compare, rows))
     return 0
 
 

@@ -35,7 +35,7 @@ from . import truth as gt
 from .errors import ManifestError
 # the manifest's format and reader, re-exported: uwhl_rs.evaluate is where the command and tests find them
 from .manifest import METHODS, TYPE_ORDER, Chart, Entry, load_manifest
-from .evaluate_report import TRUTH_KEYS, write_report
+from .evaluate_report import SUMMARY_EXTRAS, TRUTH_KEYS, write_report
 
 __all__ = ["METHODS", "Chart", "Entry", "ManifestError", "load_manifest", "evaluate_entry", "summarize",
            "write_results", "write_report"]
@@ -310,6 +310,30 @@ def _mean(xs) -> float:
     return float(np.mean(xs)) if xs else float("nan")
 
 
+#: What each profile is compared with, image by image, in ``summary.paired``.
+PAIRED_BASELINES = ("input", "grayworld", "stretch")
+
+
+def _paired(results: list[dict]) -> dict:
+    """Each profile's median angle to the truth minus each baseline's, over the
+    images where both were scored, with a 95% paired-bootstrap interval
+    (uwhl_rs.truth.paired_medians): whether a difference would hold on other
+    images of the same kind."""
+    profiles = list(dict.fromkeys(m for r in results for m in r.get("profiles", {})))
+    out = {}
+    for m in profiles:
+        for b in PAIRED_BASELINES:
+            pairs = [(r["truth_angles"][m].get("median_deg"), r["truth_angles"][b].get("median_deg"))
+                     for r in results if m in r.get("truth_angles", {}) and b in r.get("truth_angles", {})]
+            if not pairs:
+                continue
+            p = gt.paired_medians([x for x, _ in pairs], [y for _, y in pairs])
+            out.setdefault(m, {})[b] = {"difference_deg": _finite(p["difference"]), "low_deg": _finite(p["low"]),
+                                        "high_deg": _finite(p["high"]), "better": p["better"],
+                                        "worse": p["worse"], "images": p["images"]}
+    return out
+
+
 def summarize(results: list[dict]) -> dict:
     """Per method and baseline: the mean psi-bar over all charts, the mean
     rho over the images with a distance map, the median over the images
@@ -337,11 +361,17 @@ def summarize(results: list[dict]) -> dict:
         # the median over images of each image's statistic, as benches/truth.py tabulates it
         for k in TRUTH_KEYS:
             out[m][f"truth_{k}"] = _finite(_median([a.get(k) for a in v["truth"]]))
+        if v["truth"]:
+            out[m]["truth_median_deg_ci95"] = [_finite(x) for x in gt.median_interval(
+                [a.get("median_deg") for a in v["truth"]])]
     by_method: dict[str, list] = {}
     for r in results:
         for m, p in r.get("profiles", {}).items():
             if p["truth"]:
                 by_method.setdefault(m, []).append(p["truth"])
+    paired = _paired(results)
+    if paired:
+        out["paired"] = paired
     if by_method:
         out["water_type"] = {m: {"images": len(t), "exact": sum(x["exact"] for x in t) / len(t),
                                  "within_one": sum(x["within_one"] for x in t) / len(t)}

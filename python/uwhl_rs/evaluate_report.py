@@ -18,6 +18,8 @@ __all__ = ["write_report"]
 
 #: The statistics of an image's angles to its truth, as ``uwhl_rs.evaluate`` records them.
 TRUTH_KEYS = ("median_deg", "p90_deg", "gain_median_deg", "gain_p90_deg")
+#: Keys of ``summary`` that are not a method or baseline.
+SUMMARY_EXTRAS = ("water_type", "paired")
 
 
 def _fmt(x) -> str:
@@ -159,13 +161,13 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
     if doc["problems"]:
         parts.append("<h2>Problems</h2><ul>" + "".join(f"<li>{_esc(p)}</li>" for p in doc["problems"]) + "</ul>")
     summ = doc["summary"]
-    with_truth = any(v.get("images_with_truth") for m, v in summ.items() if m != "water_type")
+    with_truth = any(v.get("images_with_truth") for m, v in summ.items() if m not in SUMMARY_EXTRAS)
     truth_heads = ("<th>angle to truth, median (deg)</th><th>p90</th><th>after best gains, median</th>"
                    "<th>p90</th><th>images with truth</th>") if with_truth else ""
     parts.append('<h2>Summary</h2><table id="summary"><tr><th>method</th><th>mean psi-bar (deg)</th><th>charts</th>'
                  f'<th>mean rho (t_B)</th><th>mean rho (t_R)</th><th>images with distance</th>{truth_heads}</tr>')
     for m, v in summ.items():
-        if m == "water_type":
+        if m in SUMMARY_EXTRAS:
             continue
         cells = ("".join(f"<td>{_fmt(v.get(f'truth_{k}'))}</td>" for k in TRUTH_KEYS)
                  + f"<td>{v.get('images_with_truth', 0)}</td>") if with_truth else ""
@@ -177,6 +179,19 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
         parts.append("<p>Angles to the truth: per image, the median and 90th percentile of the per-pixel angle "
                      "between the output and the true radiance over the scored pixels, raw and after the best "
                      "global per-channel gains; here the median over the images.</p>")
+    paired = summ.get("paired", {})
+    if paired:
+        parts.append('<h2>Each profile against the baselines</h2><table id="paired"><tr><th>profile</th>'
+                     '<th>baseline</th><th>difference of median angles (deg)</th><th>95% interval</th>'
+                     '<th>images better</th><th>worse</th><th>of</th></tr>')
+        for m, against in paired.items():
+            for b, p in against.items():
+                parts.append(f"<tr><td>{_esc(m)}</td><td>{_esc(b)}</td><td>{_fmt(p['difference_deg'])}</td>"
+                             f"<td>{_fmt(p['low_deg'])} to {_fmt(p['high_deg'])}</td><td>{p['better']}</td>"
+                             f"<td>{p['worse']}</td><td>{p['images']}</td></tr>")
+        parts.append("</table><p>The profile's median angle to the truth minus the baseline's, over the images "
+                     "both were scored on; the interval is a paired bootstrap over those images (an interval "
+                     "that holds 0: the difference could go either way on other images of the same kind).</p>")
     for m, wt in summ.get("water_type", {}).items():
         parts.append(f'<p class="water-type">Water type ({_esc(m)}): {wt["exact"]:.0%} exact, '
                      f'{wt["within_one"]:.0%} within one step ({wt["images"]} images with a true type).</p>')

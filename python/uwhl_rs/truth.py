@@ -23,7 +23,7 @@ from .errors import ManifestError
 from .images import DEFAULT_MAX_PIXELS
 
 __all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "pixel_angles", "angle_stats", "best_gains", "score",
-           "resize_nearest", "load_npy", "read_truth", "read_truth_mask"]
+           "median_interval", "paired_medians", "resize_nearest", "load_npy", "read_truth", "read_truth_mask"]
 
 #: Truth pixels darker than this (sum of R, G, B, linear) carry no colour
 #: worth scoring: their angle is dominated by quantisation and noise.
@@ -106,6 +106,79 @@ def score(out: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None, g
         st = angle_stats(pixel_angles(np.asarray(out, dtype=np.float64) * g, truth, ok))
         res["gain_median"], res["gain_p90"] = st["median"], st["p90"]
     return res
+
+
+# ------------------------------------------------------------ over images
+
+#: Bootstrap resamples behind :func:`median_interval` and :func:`paired_medians`.
+RESAMPLES = 4000
+
+
+def _finite_values(values) -> np.ndarray:
+    v = np.asarray([np.nan if x is None else x for x in values], dtype=np.float64).reshape(-1)
+    return v[np.isfinite(v)]
+
+
+def _bootstrap_medians(columns: list[np.ndarray], resamples: int, seed: int) -> list[np.ndarray]:
+    """The medians of each column over the same resamples of the rows (chunked: memory stays small)."""
+    n = columns[0].size
+    rng = np.random.default_rng(seed)
+    out = [np.empty(resamples) for _ in columns]
+    step = max(1, min(resamples, 2_000_000 // max(n, 1)))
+    for lo in range(0, resamples, step):
+        idx = rng.integers(0, n, size=(min(step, resamples - lo), n))
+        for col, dst in zip(columns, out):
+            dst[lo:lo + idx.shape[0]] = np.median(col[idx], axis=1)
+    return out
+
+
+def median_interval(values, level: float = 0.95, resamples: int = RESAMPLES, seed: int = 0) -> tuple[float, float]:
+    """A percentile-bootstrap interval of the median of ``values`` (None and NaN left out).
+
+    How far the median over a set of images could move had other images of
+    the same kind been drawn: a difference between two methods smaller than
+    this is not a finding. Deterministic for a given ``seed``. NaN, NaN when
+    nothing is left; the value itself when one is.
+    """
+    if not 0 < level < 1:
+        raise ValueError("level must be in (0, 1)")
+    v = _finite_values(values)
+    if v.size == 0:
+        return float("nan"), float("nan")
+    if v.size == 1:
+        return float(v[0]), float(v[0])
+    (meds,) = _bootstrap_medians([v], resamples, seed)
+    lo, hi = np.quantile(meds, [(1 - level) / 2, (1 + level) / 2])
+    return float(lo), float(hi)
+
+
+def paired_medians(a, b, level: float = 0.95, resamples: int = RESAMPLES, seed: int = 0) -> dict:
+    """``median(a) - median(b)`` over the images both score, with a paired bootstrap interval.
+
+    ``a`` and ``b`` are per-image values of two methods on the same images
+    (index i is one image in both); pairs with a missing value are left out.
+    The images are resampled together, so the interval reflects that both
+    methods saw the same scenes. Returns ``difference`` (negative: ``a`` has
+    the smaller median), ``low`` and ``high`` (the interval), ``better`` and
+    ``worse`` (images where ``a`` is below / above ``b``) and ``images``.
+    """
+    if not 0 < level < 1:
+        raise ValueError("level must be in (0, 1)")
+    x = np.asarray([np.nan if v is None else v for v in a], dtype=np.float64).reshape(-1)
+    y = np.asarray([np.nan if v is None else v for v in b], dtype=np.float64).reshape(-1)
+    if x.size != y.size:
+        raise ValueError(f"paired values of different lengths: {x.size} and {y.size}")
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    out = {"images": int(x.size), "better": int((x < y).sum()), "worse": int((x > y).sum())}
+    if x.size == 0:
+        return {**out, "difference": float("nan"), "low": float("nan"), "high": float("nan")}
+    out["difference"] = float(np.median(x) - np.median(y))
+    if x.size == 1:
+        return {**out, "low": out["difference"], "high": out["difference"]}
+    mx, my = _bootstrap_medians([x, y], resamples, seed)
+    lo, hi = np.quantile(mx - my, [(1 - level) / 2, (1 + level) / 2])
+    return {**out, "low": float(lo), "high": float(hi)}
 
 
 # ------------------------------------------------------------------ files

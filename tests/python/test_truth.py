@@ -67,6 +67,60 @@ def test_dark_truth_pixels_are_not_scored():
     assert math.isnan(truth.score(dark * 3, dark, gains=False)["median"])
 
 
+def test_median_interval_matches_the_medians_known_spread():
+    # the median of n draws of N(0, 1) has standard error sqrt(pi / 2) / sqrt(n)
+    # (1.2533 / 20 at n = 400): a 95% interval about 2 x 1.96 x that wide,
+    # holding the true median 0 about 95 times in 100
+    widths, held = [], 0
+    for seed in range(30):
+        v = np.random.default_rng(seed).normal(size=400)
+        lo, hi = truth.median_interval(v, resamples=2000, seed=seed)
+        widths.append(hi - lo)
+        held += lo <= 0.0 <= hi
+    expected = 2 * 1.96 * math.sqrt(math.pi / 2) / 20
+    assert abs(np.mean(widths) / expected - 1) < 0.15
+    assert held >= 25
+
+
+def test_median_interval_edges():
+    assert truth.median_interval([3.0, 3.0, 3.0]) == (3.0, 3.0)
+    assert truth.median_interval([None, float("nan"), 2.0]) == (2.0, 2.0)
+    assert all(math.isnan(x) for x in truth.median_interval([]))
+    v = np.random.default_rng(5).normal(size=50)
+    assert truth.median_interval(v, seed=7) == truth.median_interval(v, seed=7)
+    with pytest.raises(ValueError):
+        truth.median_interval(v, level=1.0)
+
+
+def test_paired_medians_of_a_known_shift():
+    rng = np.random.default_rng(3)
+    b = rng.uniform(5, 25, size=60)
+    # a is b moved down by exactly 2 on every image: the difference is -2 whatever the resample
+    p = truth.paired_medians(b - 2.0, b)
+    assert p["difference"] == pytest.approx(-2.0)
+    assert p["low"] == pytest.approx(-2.0) and p["high"] == pytest.approx(-2.0)
+    assert (p["better"], p["worse"], p["images"]) == (60, 0, 60)
+    # one missing value on either side drops that pair only
+    a2 = list(b - 2.0)
+    a2[0] = None
+    b2 = list(b)
+    b2[1] = float("nan")
+    q = truth.paired_medians(a2, b2)
+    assert q["images"] == 58 and q["better"] == 58
+
+
+def test_paired_medians_of_unrelated_noise_straddle_zero():
+    # two methods whose per-image values are the same distribution: the
+    # difference of medians is noise, and its interval holds 0
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(10, 3, size=40), rng.normal(10, 3, size=40)
+    p = truth.paired_medians(a, b)
+    assert p["low"] < 0 < p["high"]
+    assert p["better"] + p["worse"] == 40
+    with pytest.raises(ValueError, match="different lengths"):
+        truth.paired_medians([1.0, 2.0], [1.0])
+
+
 def test_truth_files_of_every_form(tmp_path, monkeypatch):
     import tifffile
     from PIL import Image
@@ -183,12 +237,31 @@ def test_evaluate_scores_a_render_against_its_truth(tmp_path):
     assert summ["input"]["images_with_truth"] == 2
     assert summ["input"]["truth_median_deg"] == pytest.approx(
         np.median([scene["truth_angles"]["input"]["median_deg"], fl["truth_angles"]["input"]["median_deg"]]))
+    # each profile against each baseline, image by image, from the per-image angles
+    for m in ("revised", "paper"):
+        for b in ("input", "grayworld", "stretch"):
+            mine = [e["truth_angles"][m]["median_deg"] for e in (scene, fl)]
+            base = [e["truth_angles"][b]["median_deg"] for e in (scene, fl)]
+            p = summ["paired"][m][b]
+            assert p["difference_deg"] == pytest.approx(np.median(mine) - np.median(base), abs=1e-9)
+            assert p["images"] == 2
+            assert (p["better"], p["worse"]) == (sum(x < y for x, y in zip(mine, base)),
+                                                 sum(x > y for x, y in zip(mine, base)))
+            # a resample of two images is one of them twice or both: its difference lies between these
+            pairs = [mine[0] - base[0], mine[1] - base[1], p["difference_deg"]]
+            assert min(pairs) - 1e-9 <= p["low_deg"] <= p["high_deg"] <= max(pairs) + 1e-9
+        lo, hi = summ[m]["truth_median_deg_ci95"]
+        per = [e["truth_angles"][m]["median_deg"] for e in (scene, fl)]
+        assert min(per) - 1e-9 <= lo <= hi <= max(per) + 1e-9
+    assert "type:3C" not in summ["paired"]  # a forced type is not a profile
+    assert f"revised - grayworld: {summ['paired']['revised']['grayworld']['difference_deg']:+.2f} deg" in r.stdout
     rows = list(csv.DictReader(open(out / "results.csv", newline="", encoding="utf-8")))
     row = next(x for x in rows if x["label"] == scene["image"] and x["method"] == "input")
     assert float(row["truth_median_deg"]) == pytest.approx(got["median_deg"], abs=1e-4)
     assert float(row["truth_gain_p90_deg"]) == pytest.approx(got["gain_p90_deg"], abs=1e-4)
     page = open(out / "report.html").read()
     assert "angle to truth" in page and "class='truth'" in page and f"{scene['truth_pixels']} pixels scored" in page
+    assert '<table id="paired">' in page
     assert "angle to truth" in r.stdout
 
 

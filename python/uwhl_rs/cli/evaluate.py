@@ -21,6 +21,10 @@ def _fmt(x) -> str:
     return "" if x is None else f"{x:.4f}"
 
 
+def _signed(x) -> str:
+    return "?" if x is None else f"{x:+.2f}"
+
+
 def run(a: argparse.Namespace, console: Console) -> int:
     """``uwhl evaluate``: the exit status (docs/CLI.md's codes)."""
     types = water_types(a.water_types)
@@ -68,15 +72,22 @@ def run(a: argparse.Namespace, console: Console) -> int:
         ev.write_report(a.out, doc, results, entries, a.method, ev.METHODS)
     except OSError as e:
         raise CommandError(describe(e), "write_failed", a.out) from e
-    truth = any(v.get("images_with_truth") for m, v in doc["summary"].items() if m != "water_type")
+    truth = any(v.get("images_with_truth") for m, v in doc["summary"].items() if m not in ev.SUMMARY_EXTRAS)
     # with a truth: the median over images of the per-image median angle, raw and after the best gains
     console.line()
     console.line(f"{'method':<12} {'psi-bar':>8} {'rho t_B':>8}" + (f" {'truth':>8} {'gains':>8}" if truth else ""))
     for m, v in doc["summary"].items():
-        if m == "water_type":
+        if m in ev.SUMMARY_EXTRAS:
             continue
+        ci = v.get("truth_median_deg_ci95")
         console.line(f"{m:<12} {_fmt(v['psi_deg']):>8} {_fmt(v['rho_B']):>8}"
-                     + (f" {_fmt(v['truth_median_deg']):>8} {_fmt(v['truth_gain_median_deg']):>8}" if truth else ""))
+                     + (f" {_fmt(v['truth_median_deg']):>8} {_fmt(v['truth_gain_median_deg']):>8}" if truth else "")
+                     + (f"  95% {_fmt(ci[0])}-{_fmt(ci[1])}" if truth and ci else ""))
+    for m, against in doc["summary"].get("paired", {}).items():
+        for b, p in against.items():
+            console.line(f"{m} - {b}: {_signed(p['difference_deg'])} deg "
+                         f"(95% {_signed(p['low_deg'])} to {_signed(p['high_deg'])}), "
+                         f"better on {p['better']}, worse on {p['worse']} of {p['images']} images")
     if "water_type" in doc["summary"]:
         for m, wt in doc["summary"]["water_type"].items():
             console.line(f"water type ({m}): {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step")
