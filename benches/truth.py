@@ -27,7 +27,10 @@ Blue attenuation follows the type (``BETA_B``, approximately Jerlov's Kd at
 The camera exposes each render so that its 99th percentile is 0.85; two
 noise levels alternate.
 
-Split: ``tune`` = chelsea, coffee, rocket; ``held`` = astronaut, motorcycle.
+Split: ``tune`` = chelsea, coffee, rocket; ``held`` = astronaut, motorcycle;
+``fresh`` = blackmagic, kodak, hopper (``FRESH``: raw files of ../shared/data
+and matplotlib's sample portrait, added on 2026-12-04 after every constant
+was chosen).
 Nothing is tuned on ``held``; report on it.
 
 ``--write DIR`` writes each render of the split as files a user's
@@ -77,7 +80,15 @@ BETA_B = {"I": 0.02, "IA": 0.025, "IB": 0.032, "II": 0.052, "III": 0.10,
           "1C": 0.16, "3C": 0.23, "5C": 0.33, "7C": 0.47, "9C": 0.71}
 LIGHT_PATH = 5.0
 NOISE = (0.003, 0.015)
-SPLITS = {"tune": ("chelsea", "coffee", "rocket"), "held": ("astronaut", "motorcycle")}
+SPLITS = {"tune": ("chelsea", "coffee", "rocket"), "held": ("astronaut", "motorcycle"),
+          "fresh": ("blackmagic", "kodak", "hopper")}
+#: The ``fresh`` split's photographs, added after every constant was chosen and never tuned on:
+#: two raw files of land scenes in ../shared/data (a landscape of grass, sea, cars and a cloudy
+#: sky; white tower blocks under a gray sky), decoded linear by the package's raw reader and taken
+#: to linear sRGB by the camera's matrix where the file has one, and matplotlib's sample portrait
+#: of Grace Hopper (a red and blue flag, a dark uniform; sRGB JPEG). The shared Nikon NEF is left
+#: out: it has no as-shot white balance, so LibRaw balances it to a gray mean.
+FRESH = {"blackmagic": "raw/Blackmagic.dng", "kodak": "raw/RAW_KODAK_DC50.KDC"}
 GEOMETRIES = ("floor", "floor_water", "wall")
 CONDITIONS = [("gray", "white"), ("gray", "tinted"), ("own", "white"), ("own", "tinted")]
 
@@ -140,7 +151,45 @@ def content(name: str, side: int) -> tuple[np.ndarray, np.ndarray | None]:
         z = 1.5 * np.percentile(disp, 99) / disp
         z = np.minimum(z, 25.0)
         return _srgb_to_linear(_resize(left, side)), _resize(z, side, nearest=True).astype(np.float64)
+    if name in FRESH:
+        return _raw_content(FRESH[name], side), None
+    if name == "hopper":
+        try:
+            from matplotlib import cbook
+        except ImportError:
+            raise SystemExit("the fresh split's portrait is matplotlib's sample data: pip install matplotlib") from None
+        with cbook.get_sample_data("grace_hopper.jpg") as f:
+            from PIL import Image
+
+            return _srgb_to_linear(_resize(np.asarray(Image.open(f).convert("RGB")), side)), None
     return _srgb_to_linear(_resize(getattr(data, name)(), side)), None
+
+
+def shared_data() -> str:
+    """../shared/data beside the repository (UWHL_SHARED_DATA overrides)."""
+    import os
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    return os.environ.get("UWHL_SHARED_DATA", os.path.join(here, "..", "..", "shared", "data"))
+
+
+def _raw_content(rel: str, side: int) -> np.ndarray:
+    """A raw photograph as linear radiance: decoded (camera colours to linear sRGB by the file's
+    matrix, as uwhl_rs.to_srgb does), shrunk by block means to ``side``,
+    its 99.5th percentile scaled to 1 and clipped (the brightest specks saturate)."""
+    import os
+
+    path = os.path.join(shared_data(), rel)
+    if not os.path.isfile(path):
+        raise SystemExit(f"the fresh split needs {path} (../shared/data beside the repository)")
+    x, meta = uwhl_rs.read_image(path)
+    x = np.asarray(x, dtype=np.float64)
+    if meta.camera_matrix is not None:
+        x = np.clip(x @ np.asarray(meta.camera_matrix, dtype=np.float64).T, 0, None)
+    f = max(1, -(-max(x.shape[:2]) // side))
+    h, w = (x.shape[0] // f) * f, (x.shape[1] // f) * f
+    x = x[:h, :w].reshape(h // f, f, w // f, f, 3).mean(axis=(1, 3))
+    return np.clip(x / max(float(np.percentile(x, 99.5)), 1e-6), 0, 1)
 
 
 def geometry(kind: str, h: int, w: int) -> np.ndarray:
@@ -208,7 +257,7 @@ def scenes(split: str = "tune", side: int = 360, conditions=None):
     and the noise level alternates, so each condition holds one render per
     content and type.
     """
-    names = SPLITS["tune"] + SPLITS["held"] if split == "all" else SPLITS[split]
+    names = SPLITS["tune"] + SPLITS["held"] + SPLITS["fresh"] if split == "all" else SPLITS[split]
     for ci, (stats, light) in enumerate(conditions or CONDITIONS):
         for ni, cname in enumerate(names):
             for ti, wt in enumerate(TYPES):
@@ -476,7 +525,7 @@ def compare(results_path: str, rows: list[dict]) -> str:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--split", default="tune", choices=["tune", "held", "all"])
+    p.add_argument("--split", default="tune", choices=["tune", "held", "fresh", "all"])
     p.add_argument("--size", type=int, default=360, help="longer side of the renders (default 360)")
     p.add_argument("--only", default=None, help="comma list of method rows to run (baselines always run)")
     p.add_argument("--json", default=None, help="write every per-scene row to this file")
