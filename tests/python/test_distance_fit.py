@@ -57,6 +57,31 @@ def test_another_scenes_map_is_rejected_and_the_photo_restored_without_it():
     assert np.array_equal(res.image, plain.image)
 
 
+def test_a_map_that_orders_near_and_far_against_the_haze_is_rejected():
+    # type III over 1-20 m: the fit alone accepts disparity given as distance
+    # (20 / z, near and far swapped but smooth), the photo's haze does not
+    img, _, z, _, _ = _render("III", 0.10, seed=4)
+    right = uwhl_rs.restore(img, distance=z)
+    assert right.distance["used"] and right.distance["haze_order"] > 0.5, right.distance
+    disparity = np.ascontiguousarray((20.0 / z).astype(np.float32))
+    res = uwhl_rs.restore(img, distance=disparity)
+    assert "distance_rejected" in res.flags and res.distance["used"] is False
+    assert res.distance["haze_order"] < -0.5
+    assert "orders near and far against the photo's own haze" in res.distance["rejected"]
+    assert res.distance["water"] is not None  # the fit that was refused is kept for the record
+    assert np.array_equal(res.image, uwhl_rs.restore(img).image)
+
+
+def test_the_haze_check_keeps_the_true_map_in_clear_water():
+    # in type I the haze-lines barely see the water (their order of near and
+    # far is poor, rank correlation about -0.2 here): the check's threshold
+    # leaves the true map in use
+    img, _, z, _, _ = _render("I", 0.02, seed=4)
+    res = uwhl_rs.restore(img, distance=z)
+    assert res.distance["used"], res.distance
+    assert res.distance["haze_order"] > -0.5
+
+
 def test_holes_and_a_smaller_map_of_the_same_aspect_are_used():
     img, j, z, beta, _ = _render("3C", 0.23, seed=6)
     holed = z.copy()

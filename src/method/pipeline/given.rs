@@ -29,6 +29,15 @@ pub const MIN_T: f32 = 0.05;
 /// may remove (METHOD §13.4); the shortest is 0 (white light).
 pub const PATH_MAX: f64 = 15.0;
 
+/// The longer side at which the haze-lines are run to check the map's
+/// order of near and far against the photo's own haze (METHOD §13.1).
+pub const ORDER_SIDE: usize = 160;
+
+/// A map whose rank correlation with the haze-line optical depth
+/// -ln t_B is below this orders near and far the other way round from the
+/// photo's haze: not used (METHOD §13.1).
+pub const MIN_HAZE_ORDER: f64 = -0.5;
+
 /// What became of a given distance map (the sidecar's `distance`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DistanceUse {
@@ -44,6 +53,9 @@ pub struct DistanceUse {
     /// the light path (metres of the same water) whose tint the display
     /// removed (METHOD §13.4)
     pub light_path: Option<f32>,
+    /// the rank correlation of the map with the haze-lines' -ln t_B at
+    /// [`ORDER_SIDE`] (METHOD §13.1); None when not checked
+    pub haze_order: Option<f32>,
 }
 
 /// Resizes a distance map to `h` x `w` by nearest neighbour (an average
@@ -117,20 +129,20 @@ pub fn fill_nearest(z: &[f32], h: usize, w: usize) -> Option<Vec<f32>> {
 pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize, params: &Params) -> Result<Restoration> {
     let t0 = std::time::Instant::now();
     let img = &input.image;
-    let rejected = |why: String, coverage: f32, fit: Option<WaterFit>| -> Result<Restoration> {
+    let rejected = |why: String, coverage: f32, fit: Option<WaterFit>, haze_order: Option<f32>| -> Result<Restoration> {
         let mut res = super::restore(input, params)?;
         res.flags.push(Flag::DistanceRejected);
-        res.distance = Some(DistanceUse { coverage, fit, nearest: None, rejected: Some(why), light_path: None });
+        res.distance = Some(DistanceUse { coverage, fit, nearest: None, rejected: Some(why), light_path: None, haze_order });
         Ok(res)
     };
     let z = match resize_distance(distance, zh, zw, img.height, img.width) {
         Ok(z) => z,
-        Err(Error::Distance(why)) => return rejected(why, 0.0, None),
+        Err(Error::Distance(why)) => return rejected(why, 0.0, None, None),
         Err(e) => return Err(e),
     };
     let coverage = z.iter().filter(|&&v| known(v)).count() as f32 / img.len().max(1) as f32;
     if coverage < MIN_COVERAGE {
-        return rejected(format!("only {:.1}% of the pixels have a known distance", 100.0 * coverage), coverage, None);
+        return rejected(format!("only {:.1}% of the pixels have a known distance", 100.0 * coverage), coverage, None, None);
     }
     let fit = match fit_water(img.data, img.height, img.width, &z, input.mask) {
         Ok(f) if f.suspect() => {
@@ -138,13 +150,24 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
                 "the photo does not follow its distance map (residual {:.3}): another photo's map, other units, or too little water between near and far",
                 f.residual
             );
-            return rejected(why, coverage, Some(f));
+            return rejected(why, coverage, Some(f), None);
         }
         Ok(f) => f,
-        Err(why) => return rejected(why, coverage, None),
+        Err(why) => return rejected(why, coverage, None, None),
     };
+    // §13.1: a map flipped or rotated against the photo, or disparity given
+    // as distance, orders near and far against the photo's own haze
+    let haze_order = haze_order(input, &z);
+    if let Some(rho) = haze_order.filter(|&r| r < MIN_HAZE_ORDER) {
+        let why = format!(
+            "the map orders near and far against the photo's own haze (rank correlation {rho:.2} with the haze-lines' \
+             optical depth): a map flipped or rotated against the photo, disparity given as distance, or another photo's map"
+        );
+        return rejected(why, coverage, Some(fit), Some(rho as f32));
+    }
+    let haze_order = haze_order.map(|r| r as f32);
     let Some(filled) = fill_nearest(&z, img.height, img.width) else {
-        return rejected("no pixel has a known distance".into(), coverage, None);
+        return rejected("no pixel has a known distance".into(), coverage, None, haze_order);
     };
     let [br, bg, bb] = fit.beta;
     let (name, how_far) = nearest_type(fit.beta);
@@ -221,11 +244,124 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
             fit: Some(fit),
             rejected: None,
             light_path: Some(d as f32),
+            haze_order,
         }),
         guided_radius: 0,
         guided_subsample: 1,
         timings,
     })
+}
+
+/// METHOD §13.1: Spearman's rank correlation between the distance `z`
+/// (the image's size) and the optical depth -ln t_B of the default profile
+/// run on the photo shrunk by block means to at most [`ORDER_SIDE`] pixels
+/// on its longer side (a block's z: the mean of its known distances when at
+/// least half are known). The haze-lines' t_B is often wrong in scale but
+/// rarely in the order of near and far (rho 0.4-0.99 against the true map on
+/// the renders of benches/truth.py). None when the small photo cannot be
+/// restored or fewer than 64 blocks have a distance.
+pub fn haze_order(input: &Input, z: &[f32]) -> Option<f64> {
+    let img = &input.image;
+    let (h, w) = (img.height, img.width);
+    let f = h.max(w).div_ceil(ORDER_SIDE).max(1);
+    let (hs, ws) = (h.div_ceil(f), w.div_ceil(f));
+    let n = hs * ws;
+    let mut px = vec![0f64; 3 * n];
+    let mut cnt = vec![0usize; n];
+    let mut zsum = vec![0f64; n];
+    let mut zcnt = vec![0usize; n];
+    let mut inside = vec![0usize; n];
+    let mut water = vec![0usize; n];
+    for y in 0..h {
+        for x in 0..w {
+            let (i, b) = (y * w + x, (y / f) * ws + x / f);
+            let (Some(p), Some(c)) = (img.data.get(3 * i..3 * i + 3), cnt.get_mut(b)) else { continue };
+            *c += 1;
+            if let Some(o) = px.get_mut(3 * b..3 * b + 3) {
+                o.iter_mut().zip(p).for_each(|(o, &v)| *o += f64::from(v));
+            }
+            if let (Some(&zv), Some(s), Some(k)) = (z.get(i), zsum.get_mut(b), zcnt.get_mut(b)) {
+                if known(zv) {
+                    *s += f64::from(zv);
+                    *k += 1;
+                }
+            }
+            if input.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false)) {
+                if let Some(v) = inside.get_mut(b) {
+                    *v += 1;
+                }
+            }
+            if input.water_mask.is_some_and(|m| m.get(i).copied().unwrap_or(false)) {
+                if let Some(v) = water.get_mut(b) {
+                    *v += 1;
+                }
+            }
+        }
+    }
+    let small: Vec<f32> = px
+        .chunks_exact(3)
+        .zip(&cnt)
+        .flat_map(|(p, &c)| p.iter().map(move |&v| (v / c.max(1) as f64) as f32))
+        .collect();
+    let half = |v: &[usize]| -> Vec<bool> { v.iter().zip(&cnt).map(|(&a, &c)| 2 * a >= c.max(1)).collect() };
+    let mask = input.mask.map(|_| half(&inside));
+    let wmask = input.water_mask.map(|_| half(&water));
+    let image = crate::method::image::ImageRef::new(&small, hs, ws).ok()?;
+    let res = super::restore(&Input { image, mask: mask.as_deref(), water_mask: wmask.as_deref() }, &Params::default()).ok()?;
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for (blk, (&c, (&s, &k))) in cnt.iter().zip(zsum.iter().zip(&zcnt)).enumerate() {
+        let inm = mask.as_ref().is_none_or(|m| m.get(blk).copied().unwrap_or(false));
+        if k > 0 && 2 * k >= c && inm {
+            if let Some(&t) = res.transmission.get(blk) {
+                a.push(-f64::from(t.max(1e-6)).ln());
+                b.push(s / k as f64);
+            }
+        }
+    }
+    if a.len() < 64 {
+        return None;
+    }
+    Some(spearman(&a, &b))
+}
+
+/// Ranks of `v` from 1, ties given their mean rank.
+fn ranks(v: &[f64]) -> Vec<f64> {
+    let mut order: Vec<(f64, usize)> = v.iter().copied().zip(0..).collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut r = vec![0f64; v.len()];
+    let mut start = 0usize;
+    for run in order.chunk_by(|a, b| a.0 == b.0) {
+        // ranks start + 1 ..= start + len share their mean
+        let mean = start as f64 + (run.len() as f64 + 1.0) / 2.0;
+        for &(_, i) in run {
+            if let Some(o) = r.get_mut(i) {
+                *o = mean;
+            }
+        }
+        start += run.len();
+    }
+    r
+}
+
+/// Spearman's rank correlation of two equally long samples (Pearson's on
+/// their ranks, ties averaged); 0 when either is constant.
+pub fn spearman(a: &[f64], b: &[f64]) -> f64 {
+    let (ra, rb) = (ranks(a), ranks(b));
+    let n = ra.len().min(rb.len()) as f64;
+    if n < 2.0 {
+        return 0.0;
+    }
+    let (ma, mb) = (ra.iter().sum::<f64>() / n, rb.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in ra.iter().zip(&rb) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    if saa <= 0.0 || sbb <= 0.0 {
+        return 0.0;
+    }
+    sab / (saa * sbb).sqrt()
 }
 
 /// METHOD §13.4: where the confidence is low (the noise, magnified by
@@ -416,6 +552,21 @@ fn expose(radiance: &[f32], gains: &[f32; 3], inside: &dyn Fn(usize) -> bool) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn spearman_of_hand_computed_cases() {
+        let up = [1.0, 2.0, 3.0, 4.0];
+        assert!((spearman(&up, &[10.0, 20.0, 30.0, 45.0]) - 1.0).abs() < 1e-12);
+        assert!((spearman(&up, &[9.0, 7.0, 2.0, 1.0]) + 1.0).abs() < 1e-12);
+        // ties share their mean rank: ranks (1, 2.5, 2.5, 4) against (1, 2, 3, 4),
+        // deviations (-1.5, 0, 0, 1.5) and (-1.5, -0.5, 0.5, 1.5): 4.5 / sqrt(4.5 x 5)
+        let r = spearman(&[1.0, 2.0, 2.0, 3.0], &up);
+        assert!((r - 4.5 / (4.5f64 * 5.0).sqrt()).abs() < 1e-12, "{r}");
+        // a monotone but non-linear map keeps rank correlation 1
+        assert!((spearman(&up, &up.map(|v: f64| v.exp())) - 1.0).abs() < 1e-12);
+        assert_eq!(spearman(&up, &[2.0; 4]), 0.0);
+        assert_eq!(spearman(&[1.0], &[1.0]), 0.0);
+    }
 
     #[test]
     fn nearest_neighbour_resize_keeps_values_and_refuses_another_aspect() {
