@@ -108,7 +108,35 @@ def test_a_missing_or_unreadable_map_restores_the_photo_without_it_and_flags_it(
         side = _side(out, name)
         assert "distance_missing" in side["flags"], side["flags"]
         assert side["distance"]["used"] is False and why in side["distance"]["rejected"], side["distance"]
+        assert side["distance"]["haze_order"] is None
         assert (out / f"{name}.jpg").exists()
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_disparity_given_as_distance_is_rejected_by_the_photos_haze(impl, binary, tmp_path):
+    """A map that orders near and far against the photo's own haze (METHOD
+    §13.1): recorded as distance.haze_order, the photo restored without it."""
+    from test_distance_fit import _render
+
+    img, _, z, _, _ = _render("III", 0.10, seed=4)
+    tifffile.imwrite(tmp_path / "seabed.tif", np.ascontiguousarray(img, np.float32), photometric="rgb")
+    (tmp_path / "right").mkdir()
+    (tmp_path / "disparity").mkdir()
+    np.save(tmp_path / "right" / "seabed.npy", z)
+    np.save(tmp_path / "disparity" / "seabed.npy", (20.0 / z).astype(np.float32))
+    for kind, used in (("right", True), ("disparity", False)):
+        out = tmp_path / f"{impl}_{kind}"
+        r = _run(_cmds(binary)[impl], tmp_path / "seabed.tif", "-o", out, "--distance",
+                 tmp_path / kind / "{stem}.npy")
+        assert r.returncode == 0, r.stderr
+        side = _side(out, "seabed")
+        rec = side["distance"]
+        assert rec["used"] is used, rec
+        if used:
+            assert rec["haze_order"] > 0.5 and "distance_rejected" not in side["flags"]
+        else:
+            assert rec["haze_order"] < -0.5 and "distance_rejected" in side["flags"]
+            assert "orders near and far against the photo's own haze" in rec["rejected"]
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
