@@ -168,6 +168,9 @@ def _open_small(f, ext: str, side: int):
             else:
                 im = Image.fromarray(raw.postprocess(half_size=True, use_camera_wb=True))
         im = ImageOps.exif_transpose(im)
+    elif ext in (".tif", ".tiff") and not _pillow_opens(f):
+        # a float RGB TIFF (the renders of benches/truth.py, a linear export): Pillow cannot open it at all
+        im = _from_array(f, ext)
     else:
         im = Image.open(f)
         if im.format == "JPEG":
@@ -180,6 +183,19 @@ def _open_small(f, ext: str, side: int):
                 im = im.convert("RGB")
     im.thumbnail((side, side))
     return im.convert("RGB")
+
+
+def _pillow_opens(f) -> bool:
+    """Whether Pillow can open the file ``f`` (rewound either way)."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(f):
+            return True
+    except UnidentifiedImageError:
+        return False
+    finally:
+        f.seek(0)
 
 
 def _from_array(f, ext: str):
@@ -343,6 +359,7 @@ h1{font-size:20px;margin:0 0 4px} h2{font-size:16px;margin:22px 0 8px}
 .cell.flagged{border:2px solid #d95f02}
 .pair{display:flex;gap:3px;cursor:pointer} .pair img{width:50%;height:auto;min-height:60px;background:#ccc}
 .cap{font-size:12px;margin-top:4px;word-break:break-all} .flags{color:#d95f02;font-weight:600}
+.why{color:#555}
 .sw{display:inline-block;width:10px;height:10px;border:1px solid #999;vertical-align:middle;margin-right:2px}
 .failed td{padding:2px 8px;border-bottom:1px solid #ddd;color:#a00}
 .pager button{margin:0 2px} #view{position:fixed;inset:0;background:rgba(0,0,0,.85);display:none;
@@ -359,7 +376,8 @@ function cell(p){
     `<img loading="lazy" alt="input" src="${esc(p.ti||'')}"><img loading="lazy" alt="restored" src="${esc(p.to||'')}"></div>`+
     `<div class="cap">${Number(p.k)+1}. ${esc(p.name)}<br>type <b>${esc(p.wt)}</b>, A `+
     `<span class="sw" style="background:rgb(${sw.join(',')})"></span>(${esc(A)})`+
-    (p.flags.length ? `<br><span class="flags">${p.flags.map(esc).join(', ')}</span>` : '')+`</div></div>`;
+    (p.flags.length ? `<br><span class="flags">${p.flags.map(esc).join(', ')}</span>` : '')+
+    (p.why ? `<br><span class="why">distance not used: ${esc(p.why)}</span>` : '')+`</div></div>`;
 }
 // every value of a sidecar is text to the page: escaped for HTML text and quoted attributes
 function esc(s){return String(s).replace(/[&<>"']/g,c=>({'&':'&amp;','<':'&lt;','>':'&gt;','"':'&quot;',"'":'&#39;'}[c]));}
@@ -379,7 +397,8 @@ function pager(id, items){
 function show(k){
   const p = D.photos[k], v = document.getElementById('view');
   v.innerHTML = `<p><a href="#" onclick="hide();return false">close</a> &middot; ${esc(p.name)}: `+
-    `type ${esc(p.wt)}, flags ${p.flags.map(esc).join(', ')||'none'} &middot; `+
+    `type ${esc(p.wt)}, flags ${p.flags.map(esc).join(', ')||'none'}`+
+    (p.why ? ` (distance not used: ${esc(p.why)})` : '')+` &middot; `+
     `<a href="${esc(p.full||'')}">full size</a> &middot; <a href="${esc(p.t||'')}">t map</a> &middot; `+
     `<a href="${esc(p.side)}">sidecar</a></p>`+
     `<img alt="restored" src="${esc(p.full||'')}"><img alt="transmission" src="${esc(p.t||'')}">`;
@@ -389,6 +408,21 @@ function hide(){ document.getElementById('view').style.display = 'none'; }
 pager('flagged-grid', D.photos.filter(p=>p.flags.length).map(p=>p.k));
 pager('all-grid', D.photos.map(p=>p.k));
 """
+
+
+#: The longest reason a page shows for a distance map not used (a sidecar's text, bounded).
+WHY_MAX = 300
+
+
+def _distance_why(doc) -> str | None:
+    """Why the photo's distance map was not used (the sidecar's
+    ``distance.rejected``), as text of at most WHY_MAX characters; None when
+    it was used, there was none, or the record is not what OUTPUTS.md says."""
+    d = doc.get("distance") if isinstance(doc, dict) else None
+    why = d.get("rejected") if isinstance(d, dict) else None
+    if not isinstance(why, str) or not why:
+        return None
+    return why if len(why) <= WHY_MAX else why[:WHY_MAX - 1] + "\u2026"
 
 
 def _rel_url(rel: str | None) -> str | None:
@@ -455,7 +489,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         counts[wt] = counts.get(wt, 0) + 1
         data.append({
             "k": k, "name": p.sidecar[:-5], "wt": wt,
-            "A": p.doc.get("veiling_light"), "flags": p.flags,
+            "A": p.doc.get("veiling_light"), "flags": p.flags, "why": _distance_why(p.doc),
             "ti": _rel_url(ti) if _shown(notes[2 * k]) else None,
             "to": _rel_url(to) if _shown(notes[2 * k + 1]) else None,
             "full": _rel_url(p.output("image")),

@@ -152,3 +152,32 @@ def test_the_sequence_follows_exif_time_when_every_photo_has_it(tmp_path):
     report.write_report(str(out))
     page = (out / "report" / "index.html").read_text()
     assert "Over the sequence (EXIF time)" in page and "2026-11-30T10:15:00.437" in page
+
+
+def test_a_float_tiff_input_gets_its_thumbnail(tmp_path):
+    """Pillow cannot open a float RGB TIFF at all: the input's thumbnail comes
+    through the package's reader, its colours those of the linear data."""
+    import numpy as np
+    import tifffile
+    from PIL import Image
+
+    src = tmp_path / "in"
+    src.mkdir()
+    img = np.zeros((60, 80, 3), np.float32)
+    img[:, :40] = (0.6, 0.1, 0.05)  # red left half, blue right half (linear)
+    img[:, 40:] = (0.05, 0.1, 0.6)
+    tifffile.imwrite(src / "scan.tif", img, photometric="rgb")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "-q"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    done = report.write_report(str(out))
+    assert not [p for p in done["problems"] if "no thumbnail" in p], done["problems"]
+    thumbs = [f for f in os.listdir(out / "report" / "thumbs") if f.endswith(".jpeg")]
+    assert len(thumbs) == 2
+    page = (out / "report" / "index.html").read_text()
+    data = json.loads(page[page.index('type="application/json">') + 24:page.index("</script>")])
+    ti = out / "report" / data["photos"][0]["ti"]
+    th = np.asarray(Image.open(ti).convert("RGB"), float)
+    left, right = th[:, : th.shape[1] // 3].mean((0, 1)), th[:, -th.shape[1] // 3:].mean((0, 1))
+    assert left[0] > left[2] + 50 and right[2] > right[0] + 50, (left, right)

@@ -131,6 +131,9 @@ def test_markup_in_sidecars_names_and_custom_types_stays_text(tmp_path):
     flags = ["</script><script>document.title='pwned'</script>", "<b onmouseover=alert(2)>x</b>",
              "a\u2028b\u2029c & <!-- -->", "\"' onfocus=alert(3) x='"]
     doc["flags"] = flags
+    # the reason a distance map was not used is shown: markup in it stays text, and a long one is cut
+    why = "</script><img src=x onerror=alert(4)> " + "w" * 400
+    doc["distance"] = {"used": False, "rejected": why}
     side.write_text(json.dumps(doc))
     r = uwhl("report", out)
     assert r.returncode == 0, r.stdout + r.stderr
@@ -151,6 +154,8 @@ def test_markup_in_sidecars_names_and_custom_types_stays_text(tmp_path):
     # the JSON reads back as the sidecars' own strings
     assert set(by_name) == {"<!--<script>", "plain"}
     assert by_name["plain"]["wt"] == MARKUP and by_name["plain"]["flags"] == flags
+    assert by_name["plain"]["why"] == why[:299] + "\u2026"
+    assert by_name["<!--<script>"]["why"] is None
     assert by_name["<!--<script>"]["wt"] == MARKUP
     # the histogram names the custom type as text
     assert "&lt;img src=x onerror=alert(1)&gt;" in page
