@@ -193,7 +193,11 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         neighbour). The water (attenuation per channel, A) is then fitted
         from it and the transmission taken from it where known (METHOD §13);
         ``water`` of the result holds the fit. A map that does not fit the
-        photo is not used: the result is flagged ``distance_rejected``.
+        photo, or that orders near and far against the photo's own haze
+        (``distance["haze_order"]`` below -0.5: flipped or rotated against
+        the photo, disparity given as distance; METHOD §13.1), is not used:
+        the result is flagged ``distance_rejected`` and
+        ``distance["rejected"]`` says why.
     water : dict, optional
         A water fitted on another photo of the same water (the ``water`` of
         a restoration given ``distance``, or a sidecar's ``distance.water``):
