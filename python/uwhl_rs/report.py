@@ -39,6 +39,9 @@ __all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE
 
 #: the longer side of a thumbnail, in pixels
 THUMB_SIDE = 256
+#: A file decoded whole for its thumbnail (16-bit or float TIFF) may have at most this many pixels:
+#: its float copy is 12 bytes a pixel, and thumbnails are made several at a time.
+THUMB_MAX_PIXELS = 64_000_000
 #: thumbnails per page of the grid
 PAGE_SIZE = 120
 
@@ -209,7 +212,16 @@ def _from_array(f, ext: str):
         with open(local, "xb") as out:
             for block in iter(lambda: f.read(1 << 20), b""):
                 out.write(block)
-        img, meta = read_image(local)
+        try:
+            img, meta = read_image(local, max_pixels=THUMB_MAX_PIXELS)
+        except Exception as e:
+            # the message names the private copy, gone when this returns: the caller names the input
+            msg = str(e).replace(local + ": ", "").replace(local, "the file")
+            try:
+                err = type(e)(msg)
+            except Exception:
+                err = RuntimeError(msg)
+            raise err from None
     s = max(1, -(-max(img.shape[:2]) // (THUMB_SIDE * 2)))
     small = img[::s, ::s]
     return Image.fromarray((np.clip(to_srgb(small, meta), 0, 1) * 255 + 0.5).astype(np.uint8))

@@ -181,3 +181,24 @@ def test_a_float_tiff_input_gets_its_thumbnail(tmp_path):
     th = np.asarray(Image.open(ti).convert("RGB"), float)
     left, right = th[:, : th.shape[1] // 3].mean((0, 1)), th[:, -th.shape[1] // 3:].mean((0, 1))
     assert left[0] > left[2] + 50 and right[2] > right[0] + 50, (left, right)
+
+
+def test_a_float_tiff_too_large_for_a_thumbnail_is_named_without_a_temporary(tmp_path, monkeypatch):
+    """A float TIFF over the thumbnail's pixel limit: a note naming the input
+    and the limit, not the private copy the reader was given."""
+    import numpy as np
+    import tifffile
+
+    src = tmp_path / "in"
+    src.mkdir()
+    img = np.random.default_rng(1).uniform(0.1, 0.6, (40, 60, 3)).astype(np.float32)
+    tifffile.imwrite(src / "wide.tif", img, photometric="rgb")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(src), "-o", str(out), "-q"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    monkeypatch.setattr(report, "THUMB_MAX_PIXELS", 1000)  # 40 x 60 = 2400 pixels: over it
+    done = report.write_report(str(out))
+    notes = [p for p in done["problems"] if "wide.tif" in p]
+    assert len(notes) == 1 and "no thumbnail" in notes[0] and "1000" in notes[0], done["problems"]
+    assert "uwhl-thumb-" not in notes[0] and "source.tif" not in notes[0], notes[0]

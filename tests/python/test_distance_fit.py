@@ -82,6 +82,37 @@ def test_the_haze_check_keeps_the_true_map_in_clear_water():
     assert res.distance["haze_order"] > -0.5
 
 
+def test_the_photo_and_parameters_are_refused_with_a_distance_as_without():
+    # the map would be used (and its haze check done on a copy): the photo's
+    # own faults and bad parameters are still refused, as without a distance
+    img, _, z, _, _ = _render("III", 0.10, seed=4)
+    bad = img.copy()
+    bad[0, 0, 0] = np.nan
+    for kw in ({}, {"distance": z}):
+        with pytest.raises(uwhl_rs.ImageError, match="non-finite"):
+            uwhl_rs.restore(bad, **kw)
+        with pytest.raises(uwhl_rs.ParameterError, match="t_scale"):
+            uwhl_rs.restore(img, t_scale=5.0, **kw)
+        with pytest.raises(uwhl_rs.ParameterError, match="guided_eps"):
+            uwhl_rs.restore(img, guided_eps=-1.0, **kw)
+        with pytest.raises(ValueError, match="water_mask"):
+            uwhl_rs.restore(img, water_mask=np.ones(z.shape, bool), **kw)
+    # A is fitted with the attenuation: a given one does not go with a map
+    with pytest.raises(uwhl_rs.ParameterError, match="fitted from the distance map"):
+        uwhl_rs.restore(img, distance=z, veiling_light=(0.1, 0.3, 0.4))
+
+
+def test_a_wrong_water_mask_does_not_turn_the_haze_check_against_the_true_map():
+    # the bottom rows (the nearest floor) given as water: the check runs the
+    # method without that mask and leaves those rows out
+    img, _, z, _, _ = _render("III", 0.10, seed=4)
+    wm = np.zeros(z.shape, bool)
+    wm[-54:] = True
+    res = uwhl_rs.restore(img, distance=z, water_mask=wm)
+    assert res.distance["haze_order"] > 0.5, res.distance
+    assert res.distance["used"], res.distance
+
+
 def test_holes_and_a_smaller_map_of_the_same_aspect_are_used():
     img, j, z, beta, _ = _render("3C", 0.23, seed=6)
     holed = z.copy()

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::method::distance::{fit_water, known, nearest_type, WaterFit};
 use crate::method::fallback::trust;
-use crate::method::params::{Flag, Input, Params, Restoration, Stage};
+use crate::method::params::{check_params, Flag, Input, Params, Restoration, Stage};
 use crate::method::profile::Fallback;
 use crate::method::veiling::estimate;
 use crate::method::water::WaterType;
@@ -129,6 +129,25 @@ pub fn fill_nearest(z: &[f32], h: usize, w: usize) -> Option<Vec<f32>> {
 pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize, params: &Params) -> Result<Restoration> {
     let t0 = std::time::Instant::now();
     let img = &input.image;
+    // §2: the photo and the parameters are refused as they are without a
+    // distance (the map may be rejected and the method run on them)
+    check_params(input, params)?;
+    img.validate_values()?;
+    if params.veiling_light.is_some() {
+        return Err(Error::Param {
+            name: "veiling_light",
+            msg: "A is fitted from the distance map with the attenuation: give one or the other".into(),
+        });
+    }
+    if let Some(wm) = input.water_mask {
+        let usable = |i: usize| input.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false));
+        if !(0..img.len()).any(|i| usable(i) && !wm.get(i).copied().unwrap_or(true)) {
+            return Err(Error::Mask {
+                name: "water_mask",
+                msg: "covers every pixel used for estimation: no object pixels are left to choose the water type".into(),
+            });
+        }
+    }
     let rejected = |why: String, coverage: f32, fit: Option<WaterFit>, haze_order: Option<f32>| -> Result<Restoration> {
         let mut res = super::restore(input, params)?;
         res.flags.push(Flag::DistanceRejected);
@@ -256,7 +275,9 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
 /// (the image's size) and the optical depth -ln t_B of the default profile
 /// run on the photo shrunk by block means to at most [`ORDER_SIDE`] pixels
 /// on its longer side (a block's z: the mean of its known distances when at
-/// least half are known). The haze-lines' t_B is often wrong in scale but
+/// least half are known; blocks mostly in a given water region, or in the
+/// water region the method finds on the copy, are left out: their t is not
+/// a distance's). The haze-lines' t_B is often wrong in scale but
 /// rarely in the order of near and far (rho 0.4-0.99 against the true map on
 /// the renders of benches/truth.py). None when the small photo cannot be
 /// restored or fewer than 64 blocks have a distance.
@@ -305,13 +326,15 @@ pub fn haze_order(input: &Input, z: &[f32]) -> Option<f64> {
         .collect();
     let half = |v: &[usize]| -> Vec<bool> { v.iter().zip(&cnt).map(|(&a, &c)| 2 * a >= c.max(1)).collect() };
     let mask = input.mask.map(|_| half(&inside));
-    let wmask = input.water_mask.map(|_| half(&water));
     let image = crate::method::image::ImageRef::new(&small, hs, ws).ok()?;
-    let res = super::restore(&Input { image, mask: mask.as_deref(), water_mask: wmask.as_deref() }, &Params::default()).ok()?;
+    // the method finds the water itself: a water mask given for the photo
+    // only leaves its blocks out below (a wrong one would set A, and every t)
+    let res = super::restore(&Input { image, mask: mask.as_deref(), water_mask: None }, &Params::default()).ok()?;
     let (mut a, mut b) = (Vec::new(), Vec::new());
     for (blk, (&c, (&s, &k))) in cnt.iter().zip(zsum.iter().zip(&zcnt)).enumerate() {
         let inm = mask.as_ref().is_none_or(|m| m.get(blk).copied().unwrap_or(false));
-        if k > 0 && 2 * k >= c && inm {
+        let wet = 2 * water.get(blk).copied().unwrap_or(0) >= c || res.veiling_mask.get(blk).copied().unwrap_or(false);
+        if k > 0 && 2 * k >= c && inm && !wet {
             if let Some(&t) = res.transmission.get(blk) {
                 a.push(-f64::from(t.max(1e-6)).ln());
                 b.push(s / k as f64);
