@@ -21,6 +21,7 @@ import posixpath
 import re
 import tempfile
 import time
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
@@ -489,8 +490,12 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         frame = str((p.doc.get("source") or {}).get("format") or "").startswith(("video frame", "raw "))
         jobs += [None if frame else (p, "in", ti, made, False), (p, "out", to, made, missing) if img else None]
         cells.append((p, ti, to))
-    with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
-        notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2])), jobs))
+    # Pillow warns on stderr about what it skips in a damaged file (corrupt EXIF, a short read); a
+    # thumbnail it cannot make is a note on the page already. The filter is set once around the pool.
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=UserWarning, module=r"PIL(\.|$)")
+        with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
+            notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2])), jobs))
     problems += [n for n in notes if n not in (None, "written", "kept")]
     problems = [printable(x) for x in problems]  # they quote names and sidecars' values, and go to a terminal
     written = notes.count("written")
