@@ -230,8 +230,12 @@ def test_a_worker_killed_mid_batch_loses_nothing(tmp_path):
     try:
         out = str(tmp_path / "dask")
         df = _batch_with_a_kill(c, src, out, threads)
-        # every input ends done (the killed worker's task ran again elsewhere)
-        assert list(df.status) == ["done"] * 10, df[["input", "status", "error"]]
+        # every input ends done: the killed worker's task ran again elsewhere, or,
+        # when the kill landed after its outputs were committed (a task can end
+        # within the killer's 0.15 s on a quick machine), the retry found them
+        # whole and skipped it; either way the outputs are checked below
+        st = list(df.status)
+        assert set(st) <= {"done", "skipped"} and st.count("skipped") <= 1, df[["input", "status", "error"]]
         # ... with complete outputs that decode and equal the local run's
         assert_same_outputs(local, out)
         for p in tree(out).values():
