@@ -140,13 +140,8 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
         });
     }
     if let Some(wm) = input.water_mask {
-        let usable = |i: usize| input.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false));
-        if !(0..img.len()).any(|i| usable(i) && !wm.get(i).copied().unwrap_or(true)) {
-            return Err(Error::Mask {
-                name: "water_mask",
-                msg: "covers every pixel used for estimation: no object pixels are left to choose the water type".into(),
-            });
-        }
+        let inside = |i: usize| input.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false));
+        super::objects_left(input, wm.iter().enumerate().filter(|&(i, &w)| w && inside(i)).count())?;
     }
     let rejected = |why: String, coverage: f32, fit: Option<WaterFit>, haze_order: Option<f32>| -> Result<Restoration> {
         let mut res = super::restore(input, params)?;

@@ -84,7 +84,7 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     clock.lap(Stage::Validation);
     // §3: veiling light A and water region VL
     let veil = estimate(img, input.mask, input.water_mask, params.veiling_light);
-    objects_left(input, &veil)?;
+    objects_left(input, veil.vl_count)?;
     clock.lap(Stage::VeilingLight);
     // §9, fast selection: every type scored on a sampled copy first
     let types: Vec<&WaterType> = params.water_types.iter().collect();
@@ -159,11 +159,12 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     })
 }
 
-/// A water region that covers every pixel used for estimation leaves no
-/// object pixels to choose the water type with (METHOD §9).
-fn objects_left(input: &Input, veil: &Veiling) -> Result<()> {
+/// A water region of `water` pixels that covers every pixel used for
+/// estimation leaves no object pixels to choose the water type with
+/// (METHOD §9).
+fn objects_left(input: &Input, water: usize) -> Result<()> {
     let usable = input.mask.map_or(input.image.len(), |m| m.iter().filter(|&&b| b).count());
-    if veil.vl_count >= usable {
+    if water >= usable {
         return Err(Error::Mask {
             name: "water_mask",
             msg: "covers every pixel used for estimation: no object pixels are left to choose the water type".into(),
