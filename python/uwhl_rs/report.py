@@ -157,7 +157,7 @@ def _open_small(f, ext: str, side: int):
     """An 8-bit RGB Pillow image of the open file ``f`` (its name's
     extension ``ext``) at most ``side`` pixels a side, decoded as cheaply
     as the format allows (JPEG: DCT scaling; raw: the embedded preview)."""
-    from PIL import Image, ImageOps
+    from PIL import Image, ImageOps, UnidentifiedImageError
 
     if ext in RAW_EXTENSIONS:
         import rawpy
@@ -172,11 +172,16 @@ def _open_small(f, ext: str, side: int):
             else:
                 im = Image.fromarray(raw.postprocess(half_size=True, use_camera_wb=True))
         im = ImageOps.exif_transpose(im)
-    elif ext in (".tif", ".tiff") and not _pillow_opens(f):
-        # a float RGB TIFF (the renders of benches/truth.py, a linear export): Pillow cannot open it at all
-        im = _from_array(f, ext)
     else:
-        im = Image.open(f)
+        try:
+            im = Image.open(f)
+        except UnidentifiedImageError:
+            if ext not in (".tif", ".tiff"):
+                raise
+            # a float RGB TIFF (the renders of benches/truth.py, a linear export): Pillow cannot open it at all
+            im = _from_array(f, ext)
+            im.thumbnail((side, side))
+            return im
         if im.format == "JPEG":
             im.draft("RGB", (side, side))
         im = ImageOps.exif_transpose(im)
@@ -187,19 +192,6 @@ def _open_small(f, ext: str, side: int):
                 im = im.convert("RGB")
     im.thumbnail((side, side))
     return im.convert("RGB")
-
-
-def _pillow_opens(f) -> bool:
-    """Whether Pillow can open the file ``f`` (rewound either way)."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(f):
-            return True
-    except UnidentifiedImageError:
-        return False
-    finally:
-        f.seek(0)
 
 
 def _from_array(f, ext: str):
