@@ -114,9 +114,14 @@ def score(out: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None, g
 RESAMPLES = 4000
 
 
-def _finite_values(values) -> np.ndarray:
-    v = np.asarray([np.nan if x is None else x for x in values], dtype=np.float64).reshape(-1)
-    return v[np.isfinite(v)]
+def _floats(values) -> np.ndarray:
+    """``values`` as a flat float64 array, None as NaN."""
+    return np.asarray([np.nan if x is None else x for x in values], dtype=np.float64).reshape(-1)
+
+
+def _check_level(level: float) -> None:
+    if not 0 < level < 1:
+        raise ValueError("level must be in (0, 1)")
 
 
 def _bootstrap_medians(columns: list[np.ndarray], resamples: int, seed: int) -> list[np.ndarray]:
@@ -140,9 +145,9 @@ def median_interval(values, level: float = 0.95, resamples: int = RESAMPLES, see
     this is not a finding. Deterministic for a given ``seed``. NaN, NaN when
     nothing is left; the value itself when one is.
     """
-    if not 0 < level < 1:
-        raise ValueError("level must be in (0, 1)")
-    v = _finite_values(values)
+    _check_level(level)
+    v = _floats(values)
+    v = v[np.isfinite(v)]
     if v.size == 0:
         return float("nan"), float("nan")
     if v.size == 1:
@@ -162,10 +167,8 @@ def paired_medians(a, b, level: float = 0.95, resamples: int = RESAMPLES, seed: 
     the smaller median), ``low`` and ``high`` (the interval), ``better`` and
     ``worse`` (images where ``a`` is below / above ``b``) and ``images``.
     """
-    if not 0 < level < 1:
-        raise ValueError("level must be in (0, 1)")
-    x = np.asarray([np.nan if v is None else v for v in a], dtype=np.float64).reshape(-1)
-    y = np.asarray([np.nan if v is None else v for v in b], dtype=np.float64).reshape(-1)
+    _check_level(level)
+    x, y = _floats(a), _floats(b)
     if x.size != y.size:
         raise ValueError(f"paired values of different lengths: {x.size} and {y.size}")
     ok = np.isfinite(x) & np.isfinite(y)
