@@ -353,6 +353,10 @@ def method_rows(r: Render, only=None) -> tuple[dict, dict]:
         if res.water is not None:
             beta = np.array(res.water["beta"])
             f["beta_err"] = float(np.max(np.abs(beta / beta_true - 1)))
+            # METHOD §13.2 step 6: does the fit's range hold the true water?
+            rng = np.array(res.water["beta_range"])
+            f["in_range"] = bool(np.all((rng[:, 0] <= beta_true) & (beta_true <= rng[:, 1])))
+            f["plausible"] = r.water_type in res.water["plausible_types"]
         facts[key] = f
     if want("floor_tA_gw") or want("floor_affine"):
         a = tuple(float(x) for x in np.clip(r.a, 1e-4, 1))
@@ -395,7 +399,7 @@ def run(split: str, side: int, only=None, candidates=None, conditions=None, verb
                 row["steps"] = type_steps(f["type"], r.water_type)
             if "rho" in f:
                 row["rho"] = f["rho"]
-            for k in ("beta_err", "used"):
+            for k in ("beta_err", "used", "in_range", "plausible"):
                 if k in f:
                     row[k] = f[k]
             rows.append(row)
@@ -428,6 +432,12 @@ def table(rows: list[dict]) -> str:
             errs = [r["beta_err"] for r in sel if r.get("beta_err") is not None]
             if errs:
                 cell += f" beta±10% {sum(e <= 0.1 for e in errs)}/{len(sel)}"
+            held = [r["in_range"] for r in sel if r.get("in_range") is not None]
+            if held:
+                cell += f" in range {sum(held)}/{len(held)}"
+            plaus = [r["plausible"] for r in sel if r.get("plausible") is not None]
+            if plaus:
+                cell += f" type plausible {sum(plaus)}/{len(plaus)}"
             used = [r["used"] for r in sel if r.get("used") is not None]
             if used:
                 cell += f" used {sum(used)}/{len(sel)}"

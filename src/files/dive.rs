@@ -1,7 +1,8 @@
 //! `--water-from DIR`: a dive restored with the water fitted on its
 //! photos that had a distance (METHOD §13, "A dive learns once"). The
 //! sidecars in DIR whose `distance` was used give their fitted attenuation;
-//! the median of their ratios beta_B/beta_R and beta_B/beta_G is the water
+//! the median of their ratios beta_B/beta_R and beta_B/beta_G, each photo
+//! weighted by how far it pins its water down (METHOD §13.6), is the water
 //! type of every photo of the run (the veiling light stays each photo's
 //! own: it follows the exposure and the light at that depth).
 
@@ -29,6 +30,9 @@ pub struct DiveWater {
     pub spread: [[f64; 2]; 2],
     /// how many photos' fits were used
     pub photos: usize,
+    /// whether the medians were weighted by each fit's range (every fit
+    /// recorded one); else plain medians
+    pub weighted: bool,
 }
 
 impl DiveWater {
@@ -41,6 +45,7 @@ impl DiveWater {
             "beta_ratios": [self.water_type.beta_br, self.water_type.beta_bg],
             "ratio_range": self.spread,
             "nearest_type": self.water_type.name,
+            "weighted": self.weighted,
         })
     }
 }
@@ -52,6 +57,37 @@ fn median(v: &mut [f64]) -> f64 {
         0 => f64::NAN,
         _ if n % 2 == 1 => v.get(n / 2).copied().unwrap_or(f64::NAN),
         _ => (v.get(n / 2 - 1).copied().unwrap_or(f64::NAN) + v.get(n / 2).copied().unwrap_or(f64::NAN)) / 2.0,
+    }
+}
+
+/// The weighted median of `v`: the first value, in ascending order, at
+/// which the cumulative weight reaches half the total (the rule of METHOD
+/// §13.2's tile medians); NaN when empty.
+fn weighted_median(v: &[(f64, f64)]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let half = 0.5 * s.iter().map(|p| p.1).sum::<f64>();
+    let mut acc = 0.0;
+    for (x, w) in &s {
+        acc += w;
+        if acc >= half {
+            return *x;
+        }
+    }
+    s.last().map_or(f64::NAN, |p| p.0)
+}
+
+/// A fit's weight in the dive (METHOD §13.6): 1 / ln of the span of its
+/// blue attenuation range (`distance.water.beta_range`, hi / lo, at least
+/// 1.01), so that a photo whose content hides its water counts little;
+/// None when the sidecar records no usable range.
+fn range_weight(side: &Value) -> Option<f64> {
+    let r = side.pointer("/distance/water/beta_range/2")?.as_array()?;
+    match (r.first().and_then(Value::as_f64), r.get(1).and_then(Value::as_f64)) {
+        (Some(lo), Some(hi)) if lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi && hi < 100.0 => {
+            Some(1.0 / (hi / lo).max(1.01).ln())
+        }
+        _ => None,
     }
 }
 
@@ -92,13 +128,16 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     let entries = std::fs::read_dir(dir)
         .map_err(|e| Failure::usage(format!("--water-from {}: cannot read the folder: {e}", dir.display())))?;
     let mut betas = Vec::new();
+    let mut weights = Vec::new();
     for e in entries.flatten().take(MAX_SIDECARS) {
         let p = e.path();
         if p.extension().and_then(|x| x.to_str()) != Some("json") {
             continue;
         }
-        if let Some(b) = crate::files::commit::read_sidecar(&p).as_ref().and_then(fitted_beta) {
+        let Some(side) = crate::files::commit::read_sidecar(&p) else { continue };
+        if let Some(b) = fitted_beta(&side) {
             betas.push(b);
+            weights.push(range_weight(&side));
         }
     }
     if betas.is_empty() {
@@ -110,16 +149,26 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
             ),
         ));
     }
-    let mut br: Vec<f64> = betas.iter().map(|b| b[2] / b[0]).collect();
-    let mut bg: Vec<f64> = betas.iter().map(|b| b[2] / b[1]).collect();
+    let br: Vec<f64> = betas.iter().map(|b| b[2] / b[0]).collect();
+    let bg: Vec<f64> = betas.iter().map(|b| b[2] / b[1]).collect();
     let range = |v: &[f64]| [v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max)];
     let spread = [range(&br), range(&bg)];
-    let beta: [f64; 3] = std::array::from_fn(|c| median(&mut betas.iter().map(|b| b[c]).collect::<Vec<_>>()));
-    let (rbr, rbg) = (median(&mut br), median(&mut bg));
+    // weighted only when every fit has its range: a folder of sidecars
+    // written before the range existed keeps its plain medians
+    let weighted = weights.iter().all(Option::is_some);
+    let med = |v: &[f64]| {
+        if weighted {
+            weighted_median(&v.iter().zip(&weights).map(|(&x, w)| (x, w.unwrap_or(1.0))).collect::<Vec<_>>())
+        } else {
+            median(&mut v.to_vec())
+        }
+    };
+    let beta: [f64; 3] = std::array::from_fn(|c| med(&betas.iter().map(|b| b[c]).collect::<Vec<_>>()));
+    let (rbr, rbg) = (med(&br), med(&bg));
     let (name, _) = nearest_type([beta[0] as f32, beta[1] as f32, beta[2] as f32]);
     let water_type = WaterType::new(&name, rbr, rbg)
         .map_err(|e| Failure::usage(format!("--water-from {}: the fitted water is not usable: {e}", dir.display())))?;
-    Ok(DiveWater { folder: dir.to_path_buf(), water_type, beta, spread, photos: betas.len() })
+    Ok(DiveWater { folder: dir.to_path_buf(), water_type, beta, spread, photos: betas.len(), weighted })
 }
 
 #[cfg(test)]
@@ -150,5 +199,34 @@ mod tests {
         std::fs::create_dir_all(&empty).unwrap();
         assert!(read_water_from(&empty).unwrap_err().message.contains("no sidecar"));
         assert!(read_water_from(&d.join("nope")).unwrap_err().message.contains("cannot read"));
+        assert!(!w.weighted);
+    }
+
+    #[test]
+    fn fits_that_pin_their_water_down_count_more() {
+        let d = std::env::temp_dir().join(format!("uwhl-dive-w-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let side = |b: [f64; 3], blue: [f64; 2]| {
+            json!({"distance": {"used": true, "water": {"beta": b, "beta_range": [[0.1, 1.0], [0.1, 1.0], blue]}}}).to_string()
+        };
+        // one narrow fit (blue 0.05 within x1.2: weight 1 / ln 1.2 = 5.48) against two
+        // wide ones (x20: weight 0.334 each): the narrow one is the weighted median
+        std::fs::write(d.join("a.json"), side([0.5, 0.1, 0.05], [0.045, 0.054])).unwrap();
+        std::fs::write(d.join("b.json"), side([0.4, 0.1, 0.08], [0.01, 0.2])).unwrap();
+        std::fs::write(d.join("c.json"), side([0.3, 0.1, 0.09], [0.01, 0.2])).unwrap();
+        let w = read_water_from(&d).unwrap();
+        assert!(w.weighted);
+        assert_eq!(w.photos, 3);
+        assert!((w.water_type.beta_br - 0.1).abs() < 1e-12, "{}", w.water_type.beta_br);
+        assert!((w.beta[2] - 0.05).abs() < 1e-12 && (w.beta[0] - 0.5).abs() < 1e-12);
+        // without the narrow one's range, every fit counts the same: plain medians
+        std::fs::write(d.join("a.json"), json!({"distance": {"used": true, "water": {"beta": [0.5, 0.1, 0.05], "beta_range": "x"}}}).to_string()).unwrap();
+        let w = read_water_from(&d).unwrap();
+        assert!(!w.weighted);
+        assert!((w.water_type.beta_br - 0.2).abs() < 1e-12, "{}", w.water_type.beta_br);
+        // by hand: values 1, 2, 3 weighted 1, 1, 3 reach half of 5 at 3; equal weights at 2
+        assert_eq!(weighted_median(&[(2.0, 1.0), (3.0, 3.0), (1.0, 1.0)]), 3.0);
+        assert_eq!(weighted_median(&[(2.0, 1.0), (3.0, 1.0), (1.0, 1.0)]), 2.0);
     }
 }

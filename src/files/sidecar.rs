@@ -130,7 +130,9 @@ pub fn distance_entry(record: Option<Value>, source: &str, missing: Option<&str>
 /// came from (`source`: a path, or "array"), the share of pixels with a
 /// known distance, whether it was used and why not, the fitted water
 /// (attenuation per channel in 1/m, the veiling light, the nearest Jerlov
-/// type and how far from it, the fit's residual and pixels) and the
+/// type and how far from it, the fit's residual and pixels, and how far the
+/// photo pins the water down: the range of each attenuation and the types
+/// among the plausible waters, METHOD §13.2 step 6) and the
 /// light path whose tint the display removed (metres of the same water).
 pub fn distance_record(d: &crate::DistanceUse, source: Option<&str>) -> Value {
     let water = d.fit.as_ref().map(|f| {
@@ -142,6 +144,8 @@ pub fn distance_record(d: &crate::DistanceUse, source: Option<&str>) -> Value {
             "residual": f64::from(f.residual),
             "optical_depth": f64::from(f.optical_depth),
             "pixels": f.pixels,
+            "beta_range": f.beta_range.map(|r| r.map(f64::from)),
+            "plausible_types": f.plausible_types,
         })
     });
     json!({

@@ -71,6 +71,13 @@ pub const MIN_DEPTH_RATIO: f64 = 2.5;
 /// §13.2, errors in variables).
 pub const EIV_MIN_SHARE: f64 = 0.25;
 
+/// The plausible waters of a fit (METHOD §13.2 step 6): the points of the
+/// search whose total cost is within this share of the minimum. Chosen on
+/// the tune renders so that the true type is among the plausible ones in
+/// about 95% of the fits used (tune 96 of 101, held 78 of 78, fresh 94 of
+/// 99); the true beta_B lies in the range in 84, 78 and 78 of them.
+pub const RANGE_REL: f64 = 0.01;
+
 /// The water fitted from a photo and its distance (METHOD §13).
 #[derive(Debug, Clone, PartialEq)]
 pub struct WaterFit {
@@ -91,6 +98,14 @@ pub struct WaterFit {
     /// distances): below [`MIN_OPTICAL_DEPTH`] the distance explains no
     /// attenuation (a map of another photo, or too little water to measure)
     pub optical_depth: f32,
+    /// per channel, the smallest and largest attenuation (1/m) among the
+    /// plausible waters of the search ([`RANGE_REL`], METHOD §13.2 step 6):
+    /// how far the photo pins its water down. A content whose brightness
+    /// or colour changes along the distance leaves a wide range
+    pub beta_range: [[f32; 2]; 3],
+    /// the Jerlov types nearest to some plausible water, in the table's
+    /// order (the nearest type of the fit is always among them)
+    pub plausible_types: Vec<&'static str>,
 }
 
 impl WaterFit {
@@ -450,7 +465,9 @@ pub fn fit_water(image: &[f32], h: usize, w: usize, distance: &[f32], mask: Opti
     let [(cr, _), (cg, _), (cb, _)] = costs.as_slice() else {
         return Err("internal: three channels expected".into());
     };
-    // the joint search along the Jerlov curve (first minimum in the order u, then beta_B)
+    // the joint search along the Jerlov curve (first minimum in the order u,
+    // then beta_B); every total is kept for the plausible region (step 6)
+    let mut totals = Vec::with_capacity(U_STEPS * BETA_STEPS);
     let mut best = (f64::INFINITY, 0.0f64, 0usize);
     for iu in 0..U_STEPS {
         let u = U_MIN + U_STEP * iu as f64;
@@ -458,6 +475,7 @@ pub fn fit_water(image: &[f32], h: usize, w: usize, distance: &[f32], mask: Opti
         for (kb, &c_b) in cb.iter().enumerate() {
             let lb = grid_ln(kb);
             let tot = interp(cr, grid_pos(lb - lbr)) + interp(cg, grid_pos(lb - lbg)) + c_b;
+            totals.push(tot);
             if tot < best.0 {
                 best = (tot, u, kb);
             }
@@ -485,6 +503,7 @@ pub fn fit_water(image: &[f32], h: usize, w: usize, distance: &[f32], mask: Opti
     }
     let residual = if null_cost > 0.0 { fit_cost / null_cost } else { f64::INFINITY };
     let bmax = beta.iter().fold(0.0f64, |m, &b| m.max(b));
+    let (beta_range, plausible_types) = plausible(&totals, best.0);
     Ok(WaterFit {
         beta: beta.map(|v| v as f32),
         veiling_light: a.map(|v| v as f32),
@@ -492,7 +511,52 @@ pub fn fit_water(image: &[f32], h: usize, w: usize, distance: &[f32], mask: Opti
         coverage: with_z as f32 / n as f32,
         pixels,
         optical_depth: (bmax * (z95 - z05)) as f32,
+        beta_range,
+        plausible_types,
     })
+}
+
+/// The plausible waters of the search (METHOD §13.2 step 6): over the
+/// points (u, beta_B) whose total is at most (1 + [`RANGE_REL`]) times the
+/// minimum `best`, each channel's smallest and largest attenuation, and the
+/// types nearest to their places on the curve (in the table's order).
+/// `totals` holds the search's totals, u outer and beta_B inner.
+fn plausible(totals: &[f64], best: f64) -> ([[f32; 2]; 3], Vec<&'static str>) {
+    let limit = best + RANGE_REL * best.abs();
+    let mut range = [[f64::INFINITY, 0.0f64]; 3];
+    let mut near = [false; JERLOV.len()];
+    for (iu, row) in totals.chunks(BETA_STEPS).enumerate() {
+        let (lbr, lbg) = curve(U_MIN + U_STEP * iu as f64);
+        let mut any = false;
+        for (kb, _) in row.iter().enumerate().filter(|(_, &t)| t <= limit) {
+            let bb = grid_ln(kb).exp();
+            for (r, b) in range.iter_mut().zip([bb / lbr.exp(), bb / lbg.exp(), bb]) {
+                r[0] = r[0].min(b);
+                r[1] = r[1].max(b);
+            }
+            any = true;
+        }
+        if any {
+            if let Some(k) = near.get_mut(nearest_index(lbr, lbg).0) {
+                *k = true;
+            }
+        }
+    }
+    let types = JERLOV.iter().zip(near).filter(|(_, n)| *n).map(|(t, _)| t.0).collect();
+    (range.map(|[lo, hi]| [lo as f32, hi as f32]), types)
+}
+
+/// Index in the table of the type nearest to (ln beta_BR, ln beta_BG), and
+/// the Euclidean distance to it; ties go to the earlier type.
+fn nearest_index(x: f64, y: f64) -> (usize, f64) {
+    let mut best = (0, f64::INFINITY);
+    for (k, &(_, br, bg)) in JERLOV.iter().enumerate() {
+        let d = ((x - br.ln()).powi(2) + (y - bg.ln()).powi(2)).sqrt();
+        if d < best.1 {
+            best = (k, d);
+        }
+    }
+    best
 }
 
 /// The Jerlov type nearest to a fitted water (METHOD §13), and how near: the
@@ -501,15 +565,8 @@ pub fn fit_water(image: &[f32], h: usize, w: usize, distance: &[f32], mask: Opti
 /// neighbours are 0.15 to 0.5 apart). Ties go to the earlier type.
 pub fn nearest_type(beta: [f32; 3]) -> (&'static str, f32) {
     let b = beta.map(|v| (v as f64).max(1e-12));
-    let (x, y) = ((b[2] / b[0]).ln(), (b[2] / b[1]).ln());
-    let mut best = ("I", f64::INFINITY);
-    for &(name, br, bg) in JERLOV.iter() {
-        let d = ((x - br.ln()).powi(2) + (y - bg.ln()).powi(2)).sqrt();
-        if d < best.1 {
-            best = (name, d);
-        }
-    }
-    (best.0, best.1 as f32)
+    let (k, d) = nearest_index((b[2] / b[0]).ln(), (b[2] / b[1]).ln());
+    (JERLOV.get(k).map_or("I", |t| t.0), d as f32)
 }
 
 #[cfg(test)]
@@ -577,6 +634,24 @@ mod tests {
         assert_eq!(nearest_type(fit.beta).0, "3C");
         assert!(!fit.suspect(), "residual {}", fit.residual);
         assert_eq!((fit.coverage, fit.pixels), (1.0, 60000));
+    }
+
+    #[test]
+    fn the_plausible_waters_hold_the_truth_and_widen_with_the_noise() {
+        let mut widths = Vec::new();
+        for noise in [0.01f32, 0.04, 0.08] {
+            let (img, z) = render(200, 300, BETA_3C, A, noise, 1.0, 20.0);
+            let fit = fit_water(&img, 200, 300, &z, None).unwrap();
+            for c in 0..3 {
+                let [lo, hi] = fit.beta_range[c];
+                assert!(lo <= fit.beta[c] && fit.beta[c] <= hi, "noise {noise} channel {c}: {:?} {:?}", fit.beta, fit.beta_range);
+                assert!(lo <= BETA_3C[c] && BETA_3C[c] <= hi, "noise {noise} channel {c}: truth outside {:?}", fit.beta_range);
+            }
+            assert!(fit.plausible_types.contains(&"3C"), "noise {noise}: {:?}", fit.plausible_types);
+            assert!(fit.plausible_types.contains(&nearest_type(fit.beta).0));
+            widths.push(fit.beta_range[2][1] / fit.beta_range[2][0]);
+        }
+        assert!(widths[0] < widths[1] && widths[1] < widths[2], "{widths:?}");
     }
 
     #[test]

@@ -188,6 +188,28 @@ def test_water_from_takes_the_median_of_the_calibrated_photos(impl, binary, dive
     rec = side["parameters"]["water_from"]
     assert rec["photos"] == 3 and rec["folder"] == str(cal)
     assert rec["ratio_range"][0] == pytest.approx([0.06 / 0.66, 0.125], rel=1e-9)
+    assert rec["weighted"] is False  # no fit records its range: plain medians
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_water_from_weights_each_fit_by_how_far_it_pins_its_water(impl, binary, dive, tmp_path):
+    """METHOD §13.6: a fit whose blue range spans x1.1 (weight 1 / ln 1.1 =
+    10.5) outweighs two that span x10 (0.43 each): its ratios are the dive's,
+    where the plain median would be another fit's."""
+    d, _ = dive
+    cal = tmp_path / "calibrated"
+    cal.mkdir()
+    fits = [((0.50, 0.12, 0.06), (0.01, 0.1)), ((0.40, 0.10, 0.05), (0.01, 0.1)), ((0.66, 0.13, 0.06), (0.057, 0.0627))]
+    for k, (b, blue) in enumerate(fits):
+        water = {"beta": b, "beta_range": [[0.1, 1.0], [0.05, 0.5], list(blue)]}
+        (cal / f"c{k}.json").write_text(json.dumps({"distance": {"used": True, "water": water}}))
+    out = tmp_path / impl
+    r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", out, "--water-from", cal)
+    assert r.returncode == 0, r.stderr
+    side = _side(out, "p1")
+    assert side["beta_ratios"] == pytest.approx([0.06 / 0.66, 0.06 / 0.13], rel=1e-9)
+    assert float(np.median([b[2] / b[0] for b, _ in fits])) == pytest.approx(0.12)  # what the plain median gives
+    assert side["parameters"]["water_from"]["weighted"] is True
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])

@@ -49,6 +49,28 @@ def test_the_fit_finds_the_water_and_the_colours_beat_the_guess(wt, beta_b):
     assert res.confidence is not None and res.confidence.shape == z.shape
 
 
+@pytest.mark.parametrize("wt,beta_b", [("3C", 0.23), ("7C", 0.47)])
+def test_the_plausible_waters_hold_the_true_one_and_the_fit(wt, beta_b):
+    """METHOD §13.2 step 6: the range of each attenuation holds the fit
+    and, on a render of known water, the truth; the true type and the fit's
+    nearest type are among the plausible ones; more noise, a wider range."""
+    spans = []
+    for noise in (0.003, 0.03):
+        img, j, z, beta, a = _render(wt, beta_b, seed=4)
+        img = np.clip(img + np.random.default_rng(7).normal(0, noise, img.shape), 0, 1).astype(np.float32)
+        res = uwhl_rs.restore(img, distance=z)
+        rng = np.array(res.water["beta_range"])
+        fitted = np.array(res.water["beta"])
+        assert rng.shape == (3, 2) and np.all(rng[:, 0] <= fitted) and np.all(fitted <= rng[:, 1]), res.water
+        assert np.all(rng[:, 0] <= beta) and np.all(beta <= rng[:, 1]), (beta, rng)
+        types = res.water["plausible_types"]
+        assert wt in types and res.water["nearest_type"] in types, res.water
+        assert types == [t for t in TYPES if t in types]  # the table's order
+        assert res.distance["water"]["beta_range"] == res.water["beta_range"]
+        spans.append(rng[2, 1] / rng[2, 0])
+    assert spans[0] < spans[1], spans
+
+
 def test_another_scenes_map_is_rejected_and_the_photo_restored_without_it():
     img, _, z, _, _ = _render("3C", 0.23, seed=4)
     res = uwhl_rs.restore(img, distance=np.ascontiguousarray(z[::-1]))  # near and far swapped
