@@ -382,8 +382,11 @@ function cell(p){
     `<div class="cap">${Number(p.k)+1}. ${esc(p.name)}<br>type <b>${esc(p.wt)}</b>, A `+
     `<span class="sw" style="background:rgb(${sw.join(',')})"></span>(${esc(A)})`+
     (p.flags.length ? `<br><span class="flags">${p.flags.map(esc).join(', ')}</span>` : '')+
-    (p.why ? `<br><span class="why">distance not used: ${esc(p.why)}</span>` : '')+`</div></div>`;
+    (p.why ? `<br><span class="why">distance not used: ${esc(p.why)}</span>` : '')+
+    (p.plausible ? `<br>water from the distance; plausible types ${plausible(p)}` : '')+`</div></div>`;
 }
+// every type of the table plausible: the photo's content hides its water (METHOD §13.2 step 6)
+function plausible(p){return p.plausible.length >= D.types ? 'any (the content hides the water)' : p.plausible.map(esc).join(', ');}
 // every value of a sidecar is text to the page: escaped for HTML text and quoted attributes
 function esc(s){return String(s).replace(/[&<>"']/g,c=>({'&':'&amp;','<':'&lt;','>':'&gt;','"':'&quot;',"'":'&#39;'}[c]));}
 function pager(id, items){
@@ -403,7 +406,8 @@ function show(k){
   const p = D.photos[k], v = document.getElementById('view');
   v.innerHTML = `<p><a href="#" onclick="hide();return false">close</a> &middot; ${esc(p.name)}: `+
     `type ${esc(p.wt)}, flags ${p.flags.map(esc).join(', ')||'none'}`+
-    (p.why ? ` (distance not used: ${esc(p.why)})` : '')+` &middot; `+
+    (p.why ? ` (distance not used: ${esc(p.why)})` : '')+
+    (p.plausible ? ` (water from the distance; plausible types ${plausible(p)})` : '')+` &middot; `+
     `<a href="${esc(p.full||'')}">full size</a> &middot; <a href="${esc(p.t||'')}">t map</a> &middot; `+
     `<a href="${esc(p.side)}">sidecar</a></p>`+
     `<img alt="restored" src="${esc(p.full||'')}"><img alt="transmission" src="${esc(p.t||'')}">`;
@@ -417,6 +421,21 @@ pager('all-grid', D.photos.map(p=>p.k));
 
 #: The longest reason a page shows for a distance map not used (a sidecar's text, bounded).
 WHY_MAX = 300
+
+
+def _plausible_types(doc) -> list[str] | None:
+    """The types a photo's distance fit found plausible (the sidecar's
+    ``distance.water.plausible_types``, METHOD §13.2 step 6), when its
+    distance was used: the table's names only, in the table's order; None
+    otherwise or when the record is not what OUTPUTS.md says."""
+    d = doc.get("distance") if isinstance(doc, dict) else None
+    if not isinstance(d, dict) or d.get("used") is not True or not isinstance(d.get("water"), dict):
+        return None
+    got = d["water"].get("plausible_types")
+    if not isinstance(got, list):
+        return None
+    names = {t for t in got if isinstance(t, str)}
+    return [t for t in uwhl_rs.WATER_TYPES if t in names] or None
 
 
 def _distance_why(doc) -> str | None:
@@ -499,6 +518,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         data.append({
             "k": k, "name": p.sidecar[:-5], "wt": wt,
             "A": p.doc.get("veiling_light"), "flags": p.flags, "why": _distance_why(p.doc),
+            "plausible": _plausible_types(p.doc),
             "ti": _rel_url(ti) if _shown(notes[2 * k]) else None,
             "to": _rel_url(to) if _shown(notes[2 * k + 1]) else None,
             "full": _rel_url(p.output("image")),
@@ -534,7 +554,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
 <section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
 {''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
 <div id="view" onclick="if(event.target===this)hide()"></div>
-<script id="data" type="application/json">{script_json({"page": int(page_size), "photos": data})}</script>
+<script id="data" type="application/json">{script_json({"page": int(page_size), "types": len(uwhl_rs.WATER_TYPES), "photos": data})}</script>
 <script>{_JS}</script></body></html>
 """
     # lone surrogates (undecodable names) cannot be UTF-8: shown as U+FFFD

@@ -203,6 +203,29 @@ def http_server():
     srv.server_close()
 
 
+def test_a_fits_plausible_types_are_shown_as_the_tables_names_only(tmp_path):
+    """METHOD §13.2 step 6: the page lists the types a used distance fit
+    found plausible; a sidecar's other strings, markup and numbers there are
+    dropped, and a photo whose distance was not used lists none."""
+    _make_inputs(tmp_path / "in", [("a.png", 4), ("b.png", 5)])
+    out = tmp_path / "out"
+    r = uwhl("restore", tmp_path / "in", "-o", out, "-q", timeout=600)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((out / "a.json").read_text())
+    doc["distance"] = {"used": True, "water": {"plausible_types": ["3C", MARKUP, "II", 5, "3C", None]}}
+    (out / "a.json").write_text(json.dumps(doc))
+    doc = json.loads((out / "b.json").read_text())
+    doc["distance"] = {"used": False, "rejected": "no", "water": {"plausible_types": ["II"]}}
+    (out / "b.json").write_text(json.dumps(doc))
+    r = uwhl("report", out)
+    assert r.returncode == 0, r.stdout + r.stderr
+    page = (out / "report" / "index.html").read_text(encoding="utf-8")
+    data = json.loads(_elements(page).scripts[0])
+    by_name = {p["name"]: p for p in data["photos"]}
+    assert by_name["a"]["plausible"] == ["II", "3C"]
+    assert by_name["b"]["plausible"] is None
+
+
 def test_a_url_in_a_sidecar_is_never_fetched(batch, tmp_path, http_server):
     out = _copy(batch, tmp_path)
     port = http_server.server_address[1]
