@@ -45,6 +45,8 @@ MAX_TEXT = 4096
 _MARKS = ("input", "outputs", "water_type", "uwhl_version")
 
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+# line and paragraph separators and the bidirectional marks, embeddings, overrides and isolates
+_ORDER = re.compile("[\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069]")
 _HEX32 = re.compile(r"[0-9a-fA-F]{32}")
 _HEX64 = re.compile(r"[0-9a-fA-F]{64}")
 # JSON strings (with their escapes), removed before the brackets are counted
@@ -83,9 +85,14 @@ def display(text: str) -> str:
 
 def printable(text: str) -> str:
     """``text`` (:func:`display`) with control characters written as
-    ``\\xNN`` escapes: a note quoting a file name or a sidecar's value
-    cannot move the cursor or recolour the terminal it is printed on."""
-    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", display(text))
+    ``\\xNN`` escapes, and line and paragraph separators and bidirectional
+    formatting characters (U+061C, U+200E, U+200F, U+2028-U+202E,
+    U+2066-U+2069) as ``\\uNNNN``: a note quoting a file name or a
+    sidecar's value can neither move the cursor or recolour the terminal it
+    is printed on, nor break a line or reorder how the rest of it reads
+    (the binary's ``printable`` follows the same rule)."""
+    text = _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", display(text))
+    return _ORDER.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
 
 
 def plain_name(name: object) -> bool:

@@ -13,20 +13,31 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, sync_channel, Receiver, SyncSender};
 use std::time::Instant;
 
-/// `text` with its control characters (C0, DEL and C1) written as `\xNN`:
-/// a line quoting a file name cannot move the cursor or recolour the
-/// terminal it is printed on. The Python command's lines go through the
-/// same rule (`uwhl_rs.sidecars.printable`).
+/// `text` with its control characters (C0, DEL and C1) written as `\xNN`,
+/// and the line and paragraph separators and bidirectional formatting
+/// characters (U+061C, U+200E, U+200F, U+2028-U+202E, U+2066-U+2069) as
+/// `\uNNNN`: a line quoting a file name can neither move the cursor or
+/// recolour the terminal it is printed on, nor break a line or reorder how
+/// the rest of it reads. The Python command's lines go through the same
+/// rule (`uwhl_rs.sidecars.printable`).
 pub fn printable(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
         if c < '\u{20}' || ('\u{7f}'..='\u{9f}').contains(&c) {
             out.push_str(&format!("\\x{:02x}", c as u32));
+        } else if invisible_order(c) {
+            out.push_str(&format!("\\u{:04x}", c as u32));
         } else {
             out.push(c);
         }
     }
     out
+}
+
+/// Line and paragraph separators and the bidirectional marks, embeddings,
+/// overrides and isolates ([`printable`]).
+fn invisible_order(c: char) -> bool {
+    matches!(c, '\u{061c}' | '\u{200e}' | '\u{200f}' | '\u{2028}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
 }
 
 /// Reports an error on `err`: one JSON object per line with `--json-errors`,
@@ -457,6 +468,8 @@ mod tests {
     fn control_characters_in_lines_are_escaped() {
         assert_eq!(printable("a\u{1b}[31mb\nc\u{7f}\u{85}é"), "a\\x1b[31mb\\x0ac\\x7f\\x85é");
         assert_eq!(printable("plain/name.jpg"), "plain/name.jpg");
+        // a right-to-left override and a line separator: escaped, other text kept
+        assert_eq!(printable("x\u{202e}gnp.exe\u{2028}y \u{05d0}.png"), "x\\u202egnp.exe\\u2028y \u{05d0}.png");
     }
 
     #[test]

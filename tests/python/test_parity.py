@@ -640,11 +640,14 @@ def test_non_utf8_names_are_named_alike_by_both(binary, files, tmp_path):
 def test_a_name_with_control_characters_is_printed_escaped_by_both(binary, files, tmp_path):
     """A file name that holds an escape sequence and a newline cannot recolour
     the terminal or forge a line: both commands write its control characters
-    as \\xNN, in the progress line and in the error line."""
+    as \\xNN, in the progress line and in the error line; a line separator
+    and a right-to-left override (which makes the rest of a name read
+    backwards, hiding its real extension) as \\uNNNN."""
     d = tmp_path / "in"
     d.mkdir()
     name = "red\x1b[31m\nfake.png"
     (d / name).write_bytes((files / "f0.png").read_bytes())
+    (d / "x\u202egnp.exe\u2028y.png").write_bytes((files / "f0.png").read_bytes())
     (d / "bad\x07.jpg").write_bytes(b"not a jpeg at all")
     for face in ("python", "rust"):
         r = _run(face, binary, [str(d), "-o", str(tmp_path / face)], tmp_path)
@@ -652,3 +655,5 @@ def test_a_name_with_control_characters_is_printed_escaped_by_both(binary, files
         assert r.returncode == 3, text
         assert "\x1b" not in text and "\x07" not in text, face
         assert "red\\x1b[31m\\x0afake.png -> " in text and "bad\\x07.jpg: " in text, (face, text)
+        assert "\u202e" not in text and "\u2028" not in text, face
+        assert "x\\u202egnp.exe\\u2028y.png -> " in text, (face, text)
