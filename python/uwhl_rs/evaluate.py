@@ -264,6 +264,20 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
                  "within_one": n is not None and n <= 1}
         profiles[m] = {"water_type": r.water_type, "veiling_light": [float(v) for v in r.veiling_light],
                        "steps": steps[m], "truth": t}
+    if distance is not None:
+        # the fit's water named and judged like a profile's choice (METHOD §13), and whether the
+        # true type was among the types the fit found plausible (§13.2 step 6)
+        r = restorations[f"{method}+distance"]
+        t = None
+        water = r.water if r.distance and r.distance.get("used") else None
+        if entry.water_type and water is not None:
+            n = type_steps(r.water_type, entry.water_type)
+            t = {"true": entry.water_type, "chosen": r.water_type, "exact": r.water_type == entry.water_type,
+                 "within_one": n is not None and n <= 1,
+                 "plausible": entry.water_type in (water.get("plausible_types") or [])}
+        profiles[f"{method}+distance"] = {"water_type": r.water_type,
+                                          "veiling_light": [float(v) for v in r.veiling_light],
+                                          "steps": steps[method], "truth": t}
     truth = profiles[method]["truth"]
     for name in types:
         types[name]["psi_deg"] = _finite(_mean([r["psi_deg"] for r in rows if r["method"] == f"type:{name}"]))
@@ -376,6 +390,9 @@ def summarize(results: list[dict]) -> dict:
         out["water_type"] = {m: {"images": len(t), "exact": sum(x["exact"] for x in t) / len(t),
                                  "within_one": sum(x["within_one"] for x in t) / len(t)}
                              for m, t in by_method.items()}
+        for m, t in by_method.items():
+            if all("plausible" in x for x in t):
+                out["water_type"][m]["plausible"] = sum(x["plausible"] for x in t) / len(t)
     return out
 
 

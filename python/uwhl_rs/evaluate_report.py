@@ -194,7 +194,9 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
                      "that holds 0: the difference could go either way on other images of the same kind).</p>")
     for m, wt in summ.get("water_type", {}).items():
         parts.append(f'<p class="water-type">Water type ({_esc(m)}): {wt["exact"]:.0%} exact, '
-                     f'{wt["within_one"]:.0%} within one step ({wt["images"]} images with a true type).</p>')
+                     f'{wt["within_one"]:.0%} within one step'
+                     + (f', the true one plausible in {wt["plausible"]:.0%}' if "plausible" in wt else "")
+                     + f' ({wt["images"]} images with a true type).</p>')
     for r in results:
         e = by_label[r["image"]]
         imgs = r["_images"]

@@ -188,8 +188,22 @@ def test_end_to_end_on_a_rendered_scene(tmp_path):
             assert img["profiles"][m]["truth"]["true"] == img["water_type_truth"]["true"] in types
             assert img["profiles"][m]["steps"]["method"] == m
     summ = doc["summary"]
-    assert set(summ["water_type"]) == {"revised", "paper"}
+    # the distance fit's type is judged where its map was used, with whether the true type was plausible
+    used = [img for img in doc["images"] if img["distance_use"]["used"]]
+    assert used, "the rendered scenes' maps are used"
+    assert set(summ["water_type"]) == {"revised", "paper", "revised+distance"}
     assert all(0 <= v["exact"] <= v["within_one"] <= 1 for v in summ["water_type"].values())
+    assert "plausible" not in summ["water_type"]["revised"]
+    for img in used:
+        t = img["profiles"]["revised+distance"]["truth"]
+        water = img["distance_use"]["water"]
+        assert t["chosen"] == water["nearest_type"] and t["true"] == img["water_type_truth"]["true"]
+        assert t["plausible"] == (t["true"] in water["plausible_types"])
+    wt = summ["water_type"]["revised+distance"]
+    assert wt["images"] == len(used)
+    assert wt["plausible"] == pytest.approx(np.mean([img["profiles"]["revised+distance"]["truth"]["plausible"]
+                                                     for img in used]))
+    assert "the true one plausible in" in r.stdout
     assert summ["paper"]["charts"] == summ["revised"]["charts"] == 2
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert {"image", "chart", "method", "psi_deg", "rho_B"} <= set(rows[0])

@@ -90,7 +90,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
                          f"better on {p['better']}, worse on {p['worse']} of {p['images']} images")
     if "water_type" in doc["summary"]:
         for m, wt in doc["summary"]["water_type"].items():
-            console.line(f"water type ({m}): {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step")
+            console.line(f"water type ({m}): {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step"
+                         + (f", the true one plausible in {wt['plausible']:.0%}" if "plausible" in wt else ""))
     console.line(f"{len(results)} of {len(entries)} images evaluated in {time.perf_counter() - t0:.1f} s; "
                  f"{os.path.join(a.out, 'report.html')}")
     return code
