@@ -502,7 +502,7 @@ def write_split(split: str, side: int, folder: str, conditions=None) -> int:
 
 #: ``uwhl evaluate``'s names for the rows this bench also computes.
 EVALUATE_ROWS = {"input": "input", "grayworld": "gray_world", "stretch": "stretch", "revised": "default",
-                 "paper": "paper"}
+                 "paper": "paper", "revised+distance": "distance"}
 
 
 def compare(results_path: str, rows: list[dict]) -> str:
