@@ -5,9 +5,7 @@ of a downward camera over a flat seabed, from a number, a navigation log
 the log does not cover is restored without distance and flagged; a
 malformed log is refused before any photo, naming its line and column."""
 
-import json
 import math
-import subprocess
 import sys
 
 import numpy as np
@@ -15,6 +13,7 @@ import pytest
 from PIL import Image
 
 import uwhl_rs
+from bothcmds import cmds as _cmds, run_restore as _run, sidecar as _side
 from uwhl_rs import synth
 
 tifffile = pytest.importorskip("tifffile")
@@ -23,17 +22,6 @@ H, W = 96, 128
 BETA_B = 0.3
 WTYPE = "3C"
 
-
-def _cmds(binary):
-    return {"python": [sys.executable, "-m", "uwhl_rs"], "rust": [binary]}
-
-
-def _run(cmd, *args):
-    return subprocess.run([*cmd, "restore", *map(str, args), "-q"], capture_output=True, text=True, timeout=300)
-
-
-def _side(out, name):
-    return json.loads((out / f"{name}.json").read_text())
 
 
 # -- the geometry, against closed forms ------------------------------------------------------------------------

@@ -4,14 +4,13 @@ recorded in the sidecar; a photo whose map is missing, unreadable or of
 another photo's shape is restored without it and flagged, never failed."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from PIL import Image
 
 import uwhl_rs
+from bothcmds import cmds as _cmds, run_restore as _run, sidecar as _side
 from exrfile import exr_bytes
 from uwhl_rs import synth
 
@@ -39,17 +38,6 @@ def dive(tmp_path_factory):
     (d / "depth" / "p1.exr").write_bytes(exr_bytes({"Z": z}))
     return d, z
 
-
-def _cmds(binary):
-    return {"python": [sys.executable, "-m", "uwhl_rs"], "rust": [binary]}
-
-
-def _run(cmd, *args):
-    return subprocess.run([*cmd, "restore", *map(str, args), "-q"], capture_output=True, text=True, timeout=300)
-
-
-def _side(out, name):
-    return json.loads((out / f"{name}.json").read_text())
 
 
 def test_read_distance_gives_the_map_the_commands_read(dive, tmp_path):
