@@ -4,14 +4,12 @@ summary.csv, low where the truth says the transmission is least to be
 trusted, absent with ``--fallback none`` and removed by such a rerun."""
 
 import csv
-import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from PIL import Image
 
+from bothcmds import cmds, run_restore, sidecar
 from uwhl_rs import synth
 
 tifffile = pytest.importorskip("tifffile")
@@ -30,21 +28,16 @@ def seabed(tmp_path_factory):
 
 
 def _run(cmd, src, out, *args):
-    p = subprocess.run([*cmd, "restore", str(src), "-o", str(out), "-q", *args], capture_output=True, text=True,
-                       timeout=300)
+    p = run_restore(cmd, src, "-o", out, *args)
     assert p.returncode == 0, p.stderr
-    return json.loads((out / "sea.json").read_text())
-
-
-def _commands(binary):
-    return {"python": [sys.executable, "-m", "uwhl_rs"], "rust": [binary]}
+    return sidecar(out, "sea")
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
 def test_the_confidence_file_is_written_named_and_low_where_t_is_least_trusted(impl, binary, seabed, tmp_path):
     src, sc = seabed
     out = tmp_path / impl
-    side = _run(_commands(binary)[impl], src, out)
+    side = _run(cmds(binary)[impl], src, out)
     assert side["outputs"]["confidence"] == "sea_confidence.png"
     with Image.open(out / "sea_confidence.png") as im:
         assert im.mode in ("I;16", "I") and im.size == (160, 120)
@@ -63,7 +56,7 @@ def test_the_confidence_file_is_written_named_and_low_where_t_is_least_trusted(i
 
 def test_both_commands_write_the_same_confidence_file(binary, seabed, tmp_path):
     src, _ = seabed
-    for impl, cmd in _commands(binary).items():
+    for impl, cmd in cmds(binary).items():
         _run(cmd, src, tmp_path / impl)
     a = np.asarray(Image.open(tmp_path / "python" / "sea_confidence.png"))
     b = np.asarray(Image.open(tmp_path / "rust" / "sea_confidence.png"))
@@ -74,7 +67,7 @@ def test_both_commands_write_the_same_confidence_file(binary, seabed, tmp_path):
 def test_without_the_trust_step_there_is_no_confidence_file_and_a_rerun_removes_an_old_one(impl, binary, seabed,
                                                                                            tmp_path):
     src, _ = seabed
-    cmd = _commands(binary)[impl]
+    cmd = cmds(binary)[impl]
     out = tmp_path / impl
     _run(cmd, src, out)
     assert (out / "sea_confidence.png").exists()
