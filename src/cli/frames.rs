@@ -200,7 +200,9 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                     Sink::Folder(_, lines) => {
                         let e = Failure::new(e.kind, format!("frame {k}: {}", e.message));
                         report(err, opts.json_errors, None, &e);
-                        writeln!(lines, "{}", e.to_json(Some(&format!("stdin#{k}")))).and_then(|()| lines.flush()).map_err(
+                        writeln!(lines, "{}", crate::cli::run::json_line(&e.to_json(Some(&format!("stdin#{k}"))).to_string()))
+                            .and_then(|()| lines.flush())
+                            .map_err(
                             |why| Failure::new(Kind::Write, format!("cannot write the line of frame {k} to stdout ({why}): stopped")),
                         )
                     }
@@ -253,7 +255,7 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                         e.to_json(Some(&format!("stdin#{k}"))).to_string()
                     }
                 };
-                writeln!(lines, "{line}").and_then(|()| lines.flush()).map_err(|e| {
+                writeln!(lines, "{}", crate::cli::run::json_line(&line)).and_then(|()| lines.flush()).map_err(|e| {
                     Failure::new(Kind::Write, format!("cannot write the line of frame {k} to stdout ({e}): stopped"))
                 })
             }

@@ -34,6 +34,26 @@ pub fn printable(text: &str) -> String {
     out
 }
 
+/// A JSON text (one line of `--json-errors`, `--stream` or `--raw-frames`)
+/// with DEL, the C1 controls and the characters [`printable`] escapes as
+/// `\\uNNNN` escapes: serde_json writes them raw, and a raw U+0085, U+2028
+/// or U+2029 is a line break to many readers (Python's `str.splitlines`),
+/// a raw U+202E reorders the line on a terminal. They can stand only inside
+/// the text's strings, where the escape means the same character, so the
+/// JSON reads back unchanged (the Python command's lines escape every
+/// non-ASCII character).
+pub fn json_line(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        if ('\u{7f}'..='\u{9f}').contains(&c) || invisible_order(c) {
+            out.push_str(&format!("\\u{:04x}", c as u32));
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
 /// Line and paragraph separators and the bidirectional marks, embeddings,
 /// overrides and isolates ([`printable`]).
 fn invisible_order(c: char) -> bool {
@@ -45,7 +65,7 @@ fn invisible_order(c: char) -> bool {
 pub fn report(err: &mut dyn Write, opts_json: bool, input: Option<&Path>, e: &Failure) {
     let input_s = input.map(|p| p.to_string_lossy().into_owned());
     let _ = if opts_json {
-        writeln!(err, "{}", e.to_json(input_s.as_deref()))
+        writeln!(err, "{}", json_line(&e.to_json(input_s.as_deref()).to_string()))
     } else {
         let line = match input_s {
             Some(i) => format!("uwhl-rs: {i}: {e}"),
@@ -439,7 +459,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
             }
         };
         if lost.is_none() {
-            if let Err(e) = writeln!(out, "{json}").and_then(|()| out.flush()) {
+            if let Err(e) = writeln!(out, "{}", json_line(&json.to_string())).and_then(|()| out.flush()) {
                 gone.store(true, std::sync::atomic::Ordering::Relaxed);
                 lost = Some(e.to_string());
             }
@@ -470,6 +490,11 @@ mod tests {
         assert_eq!(printable("plain/name.jpg"), "plain/name.jpg");
         // a right-to-left override and a line separator: escaped, other text kept
         assert_eq!(printable("x\u{202e}gnp.exe\u{2028}y \u{05d0}.png"), "x\\u202egnp.exe\\u2028y \u{05d0}.png");
+        // JSON lines: the same characters and C1 as JSON escapes, read back unchanged
+        let v = serde_json::json!({"input": "a\u{202e}b\u{2028}c\u{85}d\u{7f}\u{05d0}\n"});
+        let line = json_line(&v.to_string());
+        assert_eq!(line, format!("{}{}{}", r#"{"input":"a\u202eb\u2028c\u0085d\u007f"#, '\u{05d0}', r#"\n"}"#));
+        assert_eq!(serde_json::from_str::<serde_json::Value>(&line).unwrap(), v);
     }
 
     #[test]

@@ -79,29 +79,31 @@ fn weighted_median(v: &[(f64, f64)]) -> f64 {
 
 /// A fit's weight in the dive (METHOD §13.6): 1 / ln of the span of its
 /// blue attenuation range (`distance.water.beta_range`, hi / lo, at least
-/// 1.01), so that a photo whose content hides its water counts little;
-/// None when the sidecar records no usable range.
-fn range_weight(side: &Value) -> Option<f64> {
-    let r = side.pointer("/distance/water/beta_range/2")?.as_array()?;
-    match (r.first().and_then(Value::as_f64), r.get(1).and_then(Value::as_f64)) {
-        (Some(lo), Some(hi)) if lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi && hi < 100.0 => {
-            Some(1.0 / (hi / lo).max(1.01).ln())
-        }
-        _ => None,
-    }
+/// 1.01), so that a photo whose content hides its water counts little.
+/// None when the sidecar records no usable range: not three [lo, hi]
+/// pairs, a blue pair that is not 0 < lo <= hi < 100 with a finite span,
+/// or one that does not hold the sidecar's own blue attenuation `blue`
+/// (the fit always lies in its range; a range that does not is none the
+/// program wrote).
+fn range_weight(side: &Value, blue: f64) -> Option<f64> {
+    let pairs = side.pointer("/distance/water/beta_range")?.as_array()?;
+    let [_, _, b] = pairs.as_slice() else { return None };
+    let [lo, hi] = b.as_array()?.as_slice() else { return None };
+    let (lo, hi) = (lo.as_f64()?, hi.as_f64()?);
+    let span = hi / lo;
+    let usable = lo > 0.0 && lo <= hi && hi < 100.0 && span.is_finite() && lo <= blue && blue <= hi;
+    usable.then(|| 1.0 / span.max(1.01).ln())
 }
 
-/// The fitted attenuation a sidecar records, when its distance was used.
+/// The fitted attenuation a sidecar records, when its distance was used:
+/// exactly three numbers, each in (0, 100).
 fn fitted_beta(side: &Value) -> Option<[f64; 3]> {
     if side.pointer("/distance/used") != Some(&Value::Bool(true)) {
         return None;
     }
-    let b = side.pointer("/distance/water/beta")?.as_array()?;
-    let v: Vec<f64> = b.iter().filter_map(Value::as_f64).collect();
-    match v.as_slice() {
-        [r, g, bb] if v.iter().all(|x| x.is_finite() && *x > 0.0 && *x < 100.0) => Some([*r, *g, *bb]),
-        _ => None,
-    }
+    let [r, g, b] = side.pointer("/distance/water/beta")?.as_array()?.as_slice() else { return None };
+    let v = [r.as_f64()?, g.as_f64()?, b.as_f64()?];
+    v.iter().all(|x| x.is_finite() && *x > 0.0 && *x < 100.0).then_some(v)
 }
 
 /// [`read_water_from`] once per folder and process: every photo of a run
@@ -127,17 +129,31 @@ pub fn water_from(dir: &Path) -> Result<DiveWater, Failure> {
 pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     let entries = std::fs::read_dir(dir)
         .map_err(|e| Failure::usage(format!("--water-from {}: cannot read the folder: {e}", dir.display())))?;
-    let mut betas = Vec::new();
-    let mut weights = Vec::new();
-    for e in entries.flatten().take(MAX_SIDECARS) {
+    // the sidecars: regular files named *.json (a link is not followed: a
+    // link to a sidecar of the folder would count its fit twice), in name
+    // order, at most MAX_SIDECARS of them (more is an error, not a silent cut)
+    let mut paths = Vec::new();
+    for e in entries.flatten() {
         let p = e.path();
-        if p.extension().and_then(|x| x.to_str()) != Some("json") {
+        if p.extension().and_then(|x| x.to_str()) != Some("json") || !e.file_type().is_ok_and(|t| t.is_file()) {
             continue;
         }
-        let Some(side) = crate::files::commit::read_sidecar(&p) else { continue };
+        if paths.len() == MAX_SIDECARS {
+            return Err(Failure::usage(format!(
+                "--water-from {}: more than {MAX_SIDECARS} sidecars; give a folder of one dive's calibrated photos",
+                dir.display()
+            )));
+        }
+        paths.push(p);
+    }
+    paths.sort();
+    let mut betas = Vec::new();
+    let mut weights = Vec::new();
+    for p in &paths {
+        let Some(side) = crate::files::commit::read_sidecar(p) else { continue };
         if let Some(b) = fitted_beta(&side) {
             betas.push(b);
-            weights.push(range_weight(&side));
+            weights.push(range_weight(&side, b[2]));
         }
     }
     if betas.is_empty() {
@@ -225,6 +241,22 @@ mod tests {
         let w = read_water_from(&d).unwrap();
         assert!(!w.weighted);
         assert!((w.water_type.beta_br - 0.2).abs() < 1e-12, "{}", w.water_type.beta_br);
+        // a range that does not hold its own fit, or whose span overflows, is none
+        for blue in [json!([0.06, 0.07]), json!([1e-320, 1.0])] {
+            std::fs::write(
+                d.join("a.json"),
+                json!({"distance": {"used": true, "water": {"beta": [0.5, 0.1, 0.05], "beta_range": [[0.1, 1.0], [0.1, 1.0], blue]}}})
+                    .to_string(),
+            )
+            .unwrap();
+            assert!(!read_water_from(&d).unwrap().weighted);
+        }
+        // a link to a sidecar of the folder is not followed: the fit counts once
+        #[cfg(unix)]
+        {
+            std::os::unix::fs::symlink(d.join("b.json"), d.join("link.json")).unwrap();
+            assert_eq!(read_water_from(&d).unwrap().photos, 3);
+        }
         // by hand: values 1, 2, 3 weighted 1, 1, 3 reach half of 5 at 3; equal weights at 2
         assert_eq!(weighted_median(&[(2.0, 1.0), (3.0, 3.0), (1.0, 1.0)]), 3.0);
         assert_eq!(weighted_median(&[(2.0, 1.0), (3.0, 1.0), (1.0, 1.0)]), 2.0);

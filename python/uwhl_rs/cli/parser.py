@@ -7,11 +7,13 @@ parsed flags become (the keywords of ``restore`` and ``restore_file``).
 from __future__ import annotations
 
 import argparse
+import sys
 
 import uwhl_rs
 
 from .. import _core
 from ..errors import CommandError
+from ..sidecars import printable
 
 __all__ = ["build_parser", "water_types", "method_kwargs", "file_kwargs"]
 
@@ -115,9 +117,20 @@ def _folder_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser whose usage errors go through ``printable``: they
+    quote the words they do not know (a file named like an option, expanded
+    by a shell glob), which must not drive the terminal or reorder the line,
+    as in the binary's. Subcommands' parsers are of the same class."""
+
+    def error(self, message):
+        self.print_usage(sys.stderr)
+        self.exit(2, f"{self.prog}: error: {printable(message)}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``uwhl`` (all subcommands)."""
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="uwhl",
         description="Underwater single-image color restoration with haze-lines "
         "(Berman, Levy, Avidan & Treibitz, TPAMI 2020): corrected colors, a transmission "
