@@ -333,3 +333,19 @@ pub fn sidecar(
     }
     side
 }
+
+#[cfg(test)]
+mod tests {
+    /// The Python command's distance record goes through a JSON parse on its
+    /// way to the sidecar: the parse must give back the number the writer
+    /// wrote (serde_json's `float_roundtrip`), checked against the compiler's
+    /// own parse of 17-digit numbers that a faster parse gets wrong in the
+    /// last bit (a fit's value from the hostile pass among them).
+    #[test]
+    fn a_float_written_to_json_is_read_back_exactly() {
+        for x in [0.462_046_712_636_947_63_f64, 0.1 + 0.2, 2.225_073_858_507_201_4e-308, 0.987_654_321_098_765_4] {
+            let text = serde_json::to_string(&x).unwrap();
+            assert_eq!(serde_json::from_str::<f64>(&text).unwrap().to_bits(), x.to_bits(), "{text}");
+        }
+    }
+}
