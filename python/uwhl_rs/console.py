@@ -12,7 +12,7 @@ import sys
 import threading
 
 from .errors import EXIT, CommandError, describe, kind_of
-from .sidecars import printable
+from .sidecars import display, printable
 from .tasks import DONE_NOTE
 
 __all__ = ["Console"]
@@ -60,7 +60,10 @@ class Console:
         """One error on stderr; returns its exit code."""
         code = EXIT[kind]
         if self.json_errors:
-            text = json.dumps({"error": kind, "input": input, "message": message, "exit_code": code})
+            # undecodable bytes of a name as U+FFFD, as the binary's lines: a lone surrogate's
+            # escape is no character a JSON reader can give back
+            text = json.dumps({"error": kind, "input": None if input is None else display(input),
+                               "message": display(message), "exit_code": code})
         else:
             text = f"{self.program}: {input}: {message}" if input is not None else f"{self.program}: {message}"
         self._write(self.err, text)

@@ -270,7 +270,12 @@ def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
     except ImportError:  # pragma: no cover - rawpy is a dependency
         raise ImageReadError(f"{path}: reading raw files needs rawpy (pip install rawpy)") from None
     try:
-        raw = rawpy.imread(path)
+        try:
+            raw = rawpy.imread(path)
+        except UnicodeEncodeError:
+            # a name of undecodable bytes, which rawpy cannot pass on as a path: the opened file instead
+            with open(path, "rb") as f:
+                raw = rawpy.imread(f)
     except Exception as e:
         ext = os.path.splitext(path)[1].lower()
         what = "a raw file LibRaw can read" if ext in RAW_EXTENSIONS else "a JPEG, PNG, TIFF or raw file"

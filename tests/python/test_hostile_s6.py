@@ -3,7 +3,9 @@ and the escaping of line separators and bidirectional controls in the
 JSON error lines and usage errors (both commands)."""
 
 import json
+import os
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -142,3 +144,41 @@ def test_the_python_commands_usage_errors_escape_what_they_quote(binary, photo, 
         err = r.stderr.decode("utf-8", "surrogateescape")
         assert r.returncode == 2, (face, err)
         assert not _raw(err), (face, _raw(err), err[-300:])
+
+
+def test_names_of_undecodable_bytes_are_named_the_same_by_both_commands(binary, tmp_path):
+    """A path option whose value is not UTF-8 (a name's bytes) is a usage
+    error that shows the bytes, and a file of such a name that is no image
+    is named with U+FFFD for each byte in the JSON error line, in both."""
+    bad = tmp_path / "in"
+    bad.mkdir()
+    (bad / os.fsdecode(b"junk\xff.jpg")).write_bytes(b"not a jpeg at all")
+    lines = {}
+    for face, cmd in _cmds(binary).items():
+        r = subprocess.run([*cmd, "restore", str(bad), "-o", str(tmp_path / face),
+                            "--distance", os.fsdecode(os.fsencode(str(tmp_path)) + b"/d\xff.npy")],
+                           capture_output=True, timeout=60)
+        err = r.stderr.decode("utf-8", "replace")
+        assert r.returncode == 2 and "d\\xFF.npy\" is not valid UTF-8" in err, (face, err)
+        r = subprocess.run([*cmd, "restore", str(bad), "-o", str(tmp_path / face), "--json-errors", "-q"],
+                           capture_output=True, timeout=60)
+        assert r.returncode == 3, (face, r.stderr)
+        lines[face] = json.loads(r.stderr.decode("utf-8"))
+    assert lines["python"]["input"] == lines["rust"]["input"] == str(bad / "junk\ufffd.jpg")
+
+
+def test_a_raw_file_of_undecodable_name_is_read(tmp_path):
+    """rawpy takes a path only as text: a raw file whose name is not UTF-8
+    is read from the opened file instead (it was refused as "not a raw file
+    LibRaw can read")."""
+    from datapaths import RAW_DIR
+
+    src = RAW_DIR / "Blackmagic.dng"
+    if not src.exists():
+        pytest.skip("../shared/data is not beside the repository")
+    name = os.fsdecode(b"dive\xff.dng")
+    (tmp_path / name).write_bytes(src.read_bytes())
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(tmp_path / name), "-o", str(tmp_path / "out"),
+                        "--max-side", "200", "-q"], capture_output=True, timeout=300)
+    assert r.returncode == 0, r.stderr.decode("utf-8", "replace")
+    assert (tmp_path / "out" / "dive\ufffd.json").exists()  # output names: U+FFFD a byte (OUTPUTS.md "Names")

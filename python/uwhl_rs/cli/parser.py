@@ -41,10 +41,23 @@ examples:
 """
 
 
+def _utf8(text: str) -> bool:
+    """Whether ``text`` is UTF-8 (no lone surrogate: a file name's bytes that are not)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 def _option_type(key: str):
     """An argparse type: the core's parser of option ``key`` (the one uwhl-rs uses)."""
 
     def parse(text: str):
+        if not _utf8(text):
+            # a name of undecodable bytes (surrogates here): named with its bytes, as the binary does
+            shown = "".join(f"\\x{ord(c) - 0xDC00:02X}" if 0xDC80 <= ord(c) <= 0xDCFF else c for c in text)
+            raise argparse.ArgumentTypeError(f'"{printable(shown)}" is not valid UTF-8')
         try:
             return _core.parse_option(key, text)
         except ValueError as e:
