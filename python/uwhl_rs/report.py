@@ -4,7 +4,8 @@ Reads the sidecars under OUTDIR (a local folder or an object-storage URL,
 ``uwhl_rs.storage``), writes small thumbnails once
 (``OUTDIR/report/thumbs/``) and ``OUTDIR/report/index.html``: the photos
 that need a look first (their flags), a histogram of the water types, the
-water type, A and the choice's score over the sequence, and a grid of
+water type, A and the choice's score over the sequence (and the blue
+attenuation fitted from a distance, where there is one), and a grid of
 before/after thumbnails, paginated in the page, that open the full-size
 photo and its transmission map. The page needs nothing but the files
 beside it: no network, no script library.
@@ -316,11 +317,31 @@ def series_axis(photos: list[Photo]) -> Axis:
     return Axis(photos, [float(k) for k in range(len(photos))], "frame 1", f"frame {len(photos)}", False)
 
 
+def _fitted_blue(doc) -> tuple[float, float, float] | None:
+    """The blue attenuation a photo's distance fit gave and its plausible
+    range (the sidecar's ``distance.water.beta[2]`` and ``beta_range[2]``,
+    METHOD §13.2 step 6), when the distance was used and the numbers are
+    what a fit writes (0 < lo <= beta <= hi < 100); else None."""
+    d = doc.get("distance") if isinstance(doc, dict) else None
+    w = d.get("water") if isinstance(d, dict) and d.get("used") is True else None
+    try:
+        b = float(w["beta"][2])
+        lo, hi = (float(v) for v in w["beta_range"][2])
+    except (TypeError, KeyError, IndexError, ValueError):
+        return None
+    ok = all(np.isfinite(v) for v in (b, lo, hi)) and 0 < lo <= b <= hi < 100
+    return (b, lo, hi) if ok else None
+
+
 def _series_svg(axis: Axis, types: list[str]) -> str:
     """Water type (steps), A (R, G, B) and the chosen type's score over the
-    sequence's ``axis``: three stacked panels sharing the x axis."""
+    sequence's ``axis``: three stacked panels sharing the x axis, and a
+    fourth when photos had their water fitted from a distance: the fitted
+    blue attenuation, each with a bar over its plausible range (log scale)."""
     photos, tx, first, last, _ = axis
     W, H, left = 900, 140, 48
+    blue = [_fitted_blue(p.doc) for p in photos]
+    panels = 4 if any(blue) else 3
     span = max(tx) - min(tx) if tx and max(tx) > min(tx) else 1.0
     xs = [left + (W - left - 10) * ((t - tx[0]) / span) for t in tx]
 
@@ -329,7 +350,7 @@ def _series_svg(axis: Axis, types: list[str]) -> str:
                        for x, v in zip(xs, vals) if v is not None and np.isfinite(v))
         return f'<polyline fill="none" stroke="{color}" stroke-width="{width}" points="{pts}"/>'
 
-    out = [f'<svg class="series" width="{W}" height="{3 * H + 40}" role="img" aria-label="over the sequence">']
+    out = [f'<svg class="series" width="{W}" height="{panels * H + 40}" role="img" aria-label="over the sequence">']
     idx = {t: k for k, t in enumerate(types)}
     wt = [idx.get(p.doc.get("water_type"), None) for p in photos]
     out.append(f'<text x="{left}" y="12" class="lab">water type</text>')
@@ -347,8 +368,23 @@ def _series_svg(axis: Axis, types: list[str]) -> str:
     out.append(f'<text x="{left}" y="{2 * H + 12}" class="lab">score of the chosen type (lower is better)</text>')
     if sv:
         out.append(poly(sc, min(sv), max(sv), 2 * H, "#9467bd"))
-    out.append(f'<text x="{left}" y="{3 * H + 30}" class="tick">{html.escape(first)}</text>'
-               f'<text x="{W - 10}" y="{3 * H + 30}" text-anchor="end" class="tick">{html.escape(last)}</text>')
+    if panels == 4:
+        lo = min(v[1] for v in blue if v)
+        hi = max(v[2] for v in blue if v)
+        llo, lhi = np.log10(lo), np.log10(hi) if hi > lo else np.log10(lo) + 1
+        out.append(f'<text x="{left}" y="{3 * H + 12}" class="lab">blue attenuation fitted from the distance, '
+                   f'1/m ({lo:.3g} to {hi:.3g}, log scale; bars: its plausible range)</text>')
+
+        def y(v):
+            return 3 * H + H - 8 - (H - 30) * ((np.log10(v) - llo) / (lhi - llo))
+
+        for x, v in zip(xs, blue):
+            if v:
+                out.append(f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{y(v[1]):.1f}" y2="{y(v[2]):.1f}" '
+                           'stroke="#9ecae1" stroke-width="3"/>')
+        out.append(poly([np.log10(v[0]) if v else None for v in blue], llo, lhi, 3 * H, "#08519c"))
+    out.append(f'<text x="{left}" y="{panels * H + 30}" class="tick">{html.escape(first)}</text>'
+               f'<text x="{W - 10}" y="{panels * H + 30}" text-anchor="end" class="tick">{html.escape(last)}</text>')
     out.append("</svg>")
     return "".join(out)
 

@@ -644,3 +644,44 @@ def test_a_linked_report_folder_is_not_written_through(batch, tmp_path):
     assert "Traceback" not in r.stderr, r.stderr
     assert r.returncode != 0 and "report" in r.stderr, r.stdout + r.stderr
     assert os.listdir(elsewhere) == []
+
+
+def test_the_fitted_blue_attenuation_is_drawn_from_what_a_fit_writes_only(tmp_path):
+    """The sequence's fourth panel (METHOD §13.2 step 6): the blue
+    attenuation of each photo whose distance was used, with a bar over its
+    plausible range; a record that is not what a fit writes (a beta outside
+    its own range, lo > hi, strings, a huge or negative value, the distance
+    not used) draws nothing, and without any fit there is no panel."""
+    from uwhl_rs import report
+
+    good = {"used": True, "water": {"beta": [0.3, 0.1, 0.05], "beta_range": [[0.2, 0.4], [0.05, 0.2], [0.03, 0.08]]}}
+    assert report._fitted_blue({"distance": good}) == (0.05, 0.03, 0.08)
+    bad = [
+        {"used": False, "water": good["water"]},
+        {"used": "true", "water": good["water"]},
+        {"used": True, "water": {"beta": [0.3, 0.1, 0.5], "beta_range": good["water"]["beta_range"]}},
+        {"used": True, "water": {"beta": [0.3, 0.1, 0.05], "beta_range": [[0, 1], [0, 1], [0.08, 0.03]]}},
+        {"used": True, "water": {"beta": [0.3, 0.1, "x"], "beta_range": good["water"]["beta_range"]}},
+        {"used": True, "water": {"beta": [0.3, 0.1, 0.05], "beta_range": [[0, 1], [0, 1], [-1, 1e300]]}},
+        {"used": True, "water": {"beta": [0.3, 0.1, 0.05], "beta_range": {"2": [0.03, 0.08]}}},
+        {"used": True, "water": MARKUP},
+        None,
+    ]
+    for d in bad:
+        assert report._fitted_blue({"distance": d}) is None, d
+    _make_inputs(tmp_path / "in", [(f"p{k}.png", k + 3) for k in range(4)])
+    out = tmp_path / "out"
+    r = uwhl("restore", tmp_path / "in", "-o", out, "-q", timeout=600)
+    assert r.returncode == 0, r.stderr
+    page = lambda: (out / "report" / "index.html").read_text(encoding="utf-8")  # noqa: E731
+    assert uwhl("report", out).returncode == 0 and "blue attenuation fitted" not in page()
+    for k, d in enumerate([good, bad[2], good, bad[5]]):
+        doc = json.loads((out / f"p{k}.json").read_text())
+        doc["distance"] = d
+        (out / f"p{k}.json").write_text(json.dumps(doc))
+    r = uwhl("report", out)
+    assert r.returncode == 0, r.stdout + r.stderr
+    series = page()[page().index('class="series"'):]
+    series = series[:series.index("</svg>")]
+    assert "blue attenuation fitted from the distance" in series
+    assert series.count("<line ") == 2  # one range bar for each of the two records a fit writes
