@@ -652,10 +652,10 @@ def test_the_fitted_blue_attenuation_is_drawn_from_what_a_fit_writes_only(tmp_pa
     plausible range; a record that is not what a fit writes (a beta outside
     its own range, lo > hi, strings, a huge or negative value, the distance
     not used) draws nothing, and without any fit there is no panel."""
-    from uwhl_rs import report
+    from uwhl_rs import report_series
 
     good = {"used": True, "water": {"beta": [0.3, 0.1, 0.05], "beta_range": [[0.2, 0.4], [0.05, 0.2], [0.03, 0.08]]}}
-    assert report._fitted_blue({"distance": good}) == (0.05, 0.03, 0.08)
+    assert report_series.fitted_blue({"distance": good}) == (0.05, 0.03, 0.08)
     bad = [
         {"used": False, "water": good["water"]},
         {"used": "true", "water": good["water"]},
@@ -668,7 +668,7 @@ def test_the_fitted_blue_attenuation_is_drawn_from_what_a_fit_writes_only(tmp_pa
         None,
     ]
     for d in bad:
-        assert report._fitted_blue({"distance": d}) is None, d
+        assert report_series.fitted_blue({"distance": d}) is None, d
     _make_inputs(tmp_path / "in", [(f"p{k}.png", k + 3) for k in range(4)])
     out = tmp_path / "out"
     r = uwhl("restore", tmp_path / "in", "-o", out, "-q", timeout=600)
