@@ -262,7 +262,14 @@ def test_a_task_that_keeps_killing_workers_is_reported_failed(tmp_path):
         out = str(tmp_path / "dask")
         df = _batch_with_a_kill(c, src, out, threads)
         failed = df[df.status == "failed"]
-        assert len(failed) >= 1 and set(df.status) <= {"done", "failed"}
+        # an input the killed worker had finished is "skipped" when Dask runs it again for the result
+        # that died with the worker: the rerun finds its outputs committed (whether a task ends before
+        # the killer's 0.15 s depends on the machine); its outputs are whole
+        assert len(failed) >= 1 and set(df.status) <= {"done", "failed", "skipped"}, df[["input", "status"]]
+        for _, row in df[df.status == "skipped"].iterrows():
+            name = os.path.splitext(os.path.basename(row.input))[0]
+            assert read_image(os.path.join(out, name + ".jpg"))[0].size > 0
+            assert os.path.exists(os.path.join(out, name + ".json"))
         for _, row in failed.iterrows():
             assert row.error_kind == "internal" and "died" in row.error and row.exit_code == 6
             name = os.path.splitext(os.path.basename(row.input))[0]
