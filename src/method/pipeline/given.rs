@@ -280,47 +280,12 @@ pub fn haze_order(input: &Input, z: &[f32]) -> Option<f64> {
     let img = &input.image;
     let (h, w) = (img.height, img.width);
     let f = h.max(w).div_ceil(ORDER_SIDE).max(1);
-    let (hs, ws) = (h.div_ceil(f), w.div_ceil(f));
-    let n = hs * ws;
-    let mut px = vec![0f64; 3 * n];
-    let mut cnt = vec![0usize; n];
-    let mut zsum = vec![0f64; n];
-    let mut zcnt = vec![0usize; n];
-    let mut inside = vec![0usize; n];
-    let mut water = vec![0usize; n];
-    for y in 0..h {
-        for x in 0..w {
-            let (i, b) = (y * w + x, (y / f) * ws + x / f);
-            let (Some(p), Some(c)) = (img.data.get(3 * i..3 * i + 3), cnt.get_mut(b)) else { continue };
-            *c += 1;
-            if let Some(o) = px.get_mut(3 * b..3 * b + 3) {
-                o.iter_mut().zip(p).for_each(|(o, &v)| *o += f64::from(v));
-            }
-            if let (Some(&zv), Some(s), Some(k)) = (z.get(i), zsum.get_mut(b), zcnt.get_mut(b)) {
-                if known(zv) {
-                    *s += f64::from(zv);
-                    *k += 1;
-                }
-            }
-            if input.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false)) {
-                if let Some(v) = inside.get_mut(b) {
-                    *v += 1;
-                }
-            }
-            if input.water_mask.is_some_and(|m| m.get(i).copied().unwrap_or(false)) {
-                if let Some(v) = water.get_mut(b) {
-                    *v += 1;
-                }
-            }
-        }
-    }
-    let small: Vec<f32> = px
-        .chunks_exact(3)
-        .zip(&cnt)
-        .flat_map(|(p, &c)| p.iter().map(move |&v| (v / c.max(1) as f64) as f32))
-        .collect();
+    let (small, cnt, hs, ws) = block_means(img.data, h, w, f);
+    let (zsum, zcnt) = block_sums(h, w, f, |i| z.get(i).copied().filter(|&v| known(v)).map(f64::from));
+    let holds = |m: &[bool]| block_sums(h, w, f, |i| m.get(i).copied().unwrap_or(false).then_some(0.0)).1;
     let half = |v: &[usize]| -> Vec<bool> { v.iter().zip(&cnt).map(|(&a, &c)| 2 * a >= c.max(1)).collect() };
-    let mask = input.mask.map(|_| half(&inside));
+    let mask = input.mask.map(|m| half(&holds(m)));
+    let water = input.water_mask.map(holds);
     let image = crate::method::image::ImageRef::new(&small, hs, ws).ok()?;
     // the method finds the water itself: a water mask given for the photo
     // only leaves its blocks out below (a wrong one would set A, and every t)
@@ -328,7 +293,8 @@ pub fn haze_order(input: &Input, z: &[f32]) -> Option<f64> {
     let (mut a, mut b) = (Vec::new(), Vec::new());
     for (blk, (&c, (&s, &k))) in cnt.iter().zip(zsum.iter().zip(&zcnt)).enumerate() {
         let inm = mask.as_ref().is_none_or(|m| m.get(blk).copied().unwrap_or(false));
-        let wet = 2 * water.get(blk).copied().unwrap_or(0) >= c || res.veiling_mask.get(blk).copied().unwrap_or(false);
+        let wet = water.as_ref().is_some_and(|v| 2 * v.get(blk).copied().unwrap_or(0) >= c)
+            || res.veiling_mask.get(blk).copied().unwrap_or(false);
         if k > 0 && 2 * k >= c && inm && !wet {
             if let Some(&t) = res.transmission.get(blk) {
                 a.push(-f64::from(t.max(1e-6)).ln());
@@ -340,6 +306,46 @@ pub fn haze_order(input: &Input, z: &[f32]) -> Option<f64> {
         return None;
     }
     Some(spearman(&a, &b))
+}
+
+/// Block means (factor `f`) of the RGB image `rgb` of `h` x `w` pixels,
+/// over every pixel of each block (f64 sums in raster order), and each
+/// block's pixel count. Returns (means, counts, height, width).
+fn block_means(rgb: &[f32], h: usize, w: usize, f: usize) -> (Vec<f32>, Vec<usize>, usize, usize) {
+    let (hs, ws) = (h.div_ceil(f), w.div_ceil(f));
+    let mut acc = vec![0f64; hs * ws * 3];
+    let mut all = vec![0usize; hs * ws];
+    for (i, px) in rgb.chunks_exact(3).enumerate().take(h * w) {
+        let k = (i / w / f) * ws + (i % w) / f;
+        if let (Some(a), Some(n)) = (acc.get_mut(3 * k..3 * k + 3), all.get_mut(k)) {
+            for (d, &v) in a.iter_mut().zip(px.iter()) {
+                *d += f64::from(v);
+            }
+            *n += 1;
+        }
+    }
+    let means = acc
+        .chunks_exact(3)
+        .zip(all.iter())
+        .flat_map(|(a, &n)| a.iter().map(move |&v| if n > 0 { (v / n as f64) as f32 } else { 0.0 }))
+        .collect();
+    (means, all, hs, ws)
+}
+
+/// Per block (factor `f`) of an `h` x `w` image: the sum of `value(i)`
+/// over its pixels where it is `Some`, and how many those are.
+fn block_sums(h: usize, w: usize, f: usize, value: impl Fn(usize) -> Option<f64>) -> (Vec<f64>, Vec<usize>) {
+    let ws = w.div_ceil(f);
+    let n = h.div_ceil(f) * ws;
+    let (mut sums, mut counts) = (vec![0f64; n], vec![0usize; n]);
+    for i in 0..h * w {
+        let k = (i / w / f) * ws + (i % w) / f;
+        if let (Some(v), Some(s), Some(c)) = (value(i), sums.get_mut(k), counts.get_mut(k)) {
+            *s += v;
+            *c += 1;
+        }
+    }
+    (sums, counts)
 }
 
 /// Ranks of `v` from 1, ties given their mean rank.
@@ -454,27 +460,8 @@ pub fn light_path(radiance: &[f32], h: usize, w: usize, objects: &dyn Fn(usize) 
     }
     // block means (the fit's working size) and which blocks are objects
     let f = h.max(w).div_ceil(crate::method::distance::FIT_SIDE).max(1);
-    let (hs, ws) = (h.div_ceil(f), w.div_ceil(f));
-    let mut acc = vec![0f64; hs * ws * 3];
-    let mut all = vec![0usize; hs * ws];
-    let mut obj = vec![0usize; hs * ws];
-    for (i, px) in radiance.chunks_exact(3).enumerate().take(h * w) {
-        let k = (i / w / f) * ws + (i % w) / f;
-        if let (Some(a), Some(n), Some(o)) = (acc.get_mut(3 * k..3 * k + 3), all.get_mut(k), obj.get_mut(k)) {
-            for (d, &v) in a.iter_mut().zip(px.iter()) {
-                *d += f64::from(v);
-            }
-            *n += 1;
-            if objects(i) {
-                *o += 1;
-            }
-        }
-    }
-    let small: Vec<f32> = acc
-        .chunks_exact(3)
-        .zip(all.iter())
-        .flat_map(|(a, &n)| a.iter().map(move |&v| if n > 0 { (v / n as f64) as f32 } else { 0.0 }))
-        .collect();
+    let (small, all, hs, ws) = block_means(radiance, h, w, f);
+    let obj = block_sums(h, w, f, |i| objects(i).then_some(0.0)).1;
     let k = vec![1.0 / (2 * EDGE_BOX + 1) as f64; 2 * EDGE_BOX + 1];
     let smooth = crate::kernels::filters::convolve_separable(&small, hs, ws, 3, &k);
     let at = |y: usize, x: usize, c: usize| f64::from(smooth.get((y * ws + x) * 3 + c).copied().unwrap_or(0.0));
