@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use serde_json::{json, Value};
 
 use crate::error::{Failure, Kind};
-use crate::method::distance::nearest_type;
+use crate::method::distance::{nearest_type, weighted_median};
 use crate::method::water::WaterType;
 
 /// Most sidecars read from one folder.
@@ -58,23 +58,6 @@ fn median(v: &mut [f64]) -> f64 {
         _ if n % 2 == 1 => v.get(n / 2).copied().unwrap_or(f64::NAN),
         _ => (v.get(n / 2 - 1).copied().unwrap_or(f64::NAN) + v.get(n / 2).copied().unwrap_or(f64::NAN)) / 2.0,
     }
-}
-
-/// The weighted median of `v`: the first value, in ascending order, at
-/// which the cumulative weight reaches half the total (the rule of METHOD
-/// §13.2's tile medians); NaN when empty.
-fn weighted_median(v: &[(f64, f64)]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-    let half = 0.5 * s.iter().map(|p| p.1).sum::<f64>();
-    let mut acc = 0.0;
-    for (x, w) in &s {
-        acc += w;
-        if acc >= half {
-            return *x;
-        }
-    }
-    s.last().map_or(f64::NAN, |p| p.0)
 }
 
 /// A fit's weight in the dive (METHOD §13.6): 1 / ln of the span of its
@@ -171,20 +154,17 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     let spread = [range(&br), range(&bg)];
     // weighted only when every fit has its range: a folder of sidecars
     // written before the range existed keeps its plain medians
-    let weighted = weights.iter().all(Option::is_some);
-    let med = |v: &[f64]| {
-        if weighted {
-            weighted_median(&v.iter().zip(&weights).map(|(&x, w)| (x, w.unwrap_or(1.0))).collect::<Vec<_>>())
-        } else {
-            median(&mut v.to_vec())
-        }
+    let weights: Option<Vec<f64>> = weights.into_iter().collect();
+    let med = |v: &[f64]| match &weights {
+        Some(w) => weighted_median(v, w, &mut Vec::new()),
+        None => median(&mut v.to_vec()),
     };
     let beta: [f64; 3] = std::array::from_fn(|c| med(&betas.iter().map(|b| b[c]).collect::<Vec<_>>()));
     let (rbr, rbg) = (med(&br), med(&bg));
     let (name, _) = nearest_type([beta[0] as f32, beta[1] as f32, beta[2] as f32]);
     let water_type = WaterType::new(&name, rbr, rbg)
         .map_err(|e| Failure::usage(format!("--water-from {}: the fitted water is not usable: {e}", dir.display())))?;
-    Ok(DiveWater { folder: dir.to_path_buf(), water_type, beta, spread, photos: betas.len(), weighted })
+    Ok(DiveWater { folder: dir.to_path_buf(), water_type, beta, spread, photos: betas.len(), weighted: weights.is_some() })
 }
 
 #[cfg(test)]
@@ -258,7 +238,7 @@ mod tests {
             assert_eq!(read_water_from(&d).unwrap().photos, 3);
         }
         // by hand: values 1, 2, 3 weighted 1, 1, 3 reach half of 5 at 3; equal weights at 2
-        assert_eq!(weighted_median(&[(2.0, 1.0), (3.0, 3.0), (1.0, 1.0)]), 3.0);
-        assert_eq!(weighted_median(&[(2.0, 1.0), (3.0, 1.0), (1.0, 1.0)]), 2.0);
+        assert_eq!(weighted_median(&[2.0, 3.0, 1.0], &[1.0, 3.0, 1.0], &mut Vec::new()), 3.0);
+        assert_eq!(weighted_median(&[2.0, 3.0, 1.0], &[1.0, 1.0, 1.0], &mut Vec::new()), 2.0);
     }
 }

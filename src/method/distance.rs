@@ -169,8 +169,8 @@ fn curve(u: f64) -> (f64, f64) {
 /// the same length (the grid of `lad_costs` moves the values little from one
 /// step to the next, so the adaptive sort starts from a nearly sorted order).
 /// The comparison is a total order, so the result does not depend on the
-/// order it starts from.
-fn weighted_median(y: &[f64], w: &[f64], order: &mut Vec<usize>) -> f64 {
+/// order it starts from. 0 when `y` is empty.
+pub fn weighted_median(y: &[f64], w: &[f64], order: &mut Vec<usize>) -> f64 {
     if order.len() != y.len() {
         order.clear();
         order.extend(0..y.len());
