@@ -32,7 +32,7 @@ import uwhl_rs
 from . import report_video
 from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import REPORT_DIR, Photo, collect_sidecars, failed_inputs
-from .report_series import series_axis, series_svg
+from .report_series import series_axis, series_svg, used_water
 from .sidecars import display, printable
 from .storage import Folder, is_url, on_storage, open_regular, read_bytes
 
@@ -353,10 +353,8 @@ def _plausible_types(doc) -> list[str] | None:
     ``distance.water.plausible_types``, METHOD §13.2 step 6), when its
     distance was used: the table's names only, in the table's order; None
     otherwise or when the record is not what OUTPUTS.md says."""
-    d = doc.get("distance") if isinstance(doc, dict) else None
-    if not isinstance(d, dict) or d.get("used") is not True or not isinstance(d.get("water"), dict):
-        return None
-    got = d["water"].get("plausible_types")
+    w = used_water(doc)
+    got = w.get("plausible_types") if w is not None else None
     if not isinstance(got, list):
         return None
     names = {t for t in got if isinstance(t, str)}

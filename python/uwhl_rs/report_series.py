@@ -12,7 +12,7 @@ import numpy as np
 
 from .outdir import Photo
 
-__all__ = ["Axis", "fitted_blue", "series_axis", "series_svg"]
+__all__ = ["Axis", "fitted_blue", "series_axis", "series_svg", "used_water"]
 
 
 def _taken(p: Photo):
@@ -54,13 +54,21 @@ def series_axis(photos: list[Photo]) -> Axis:
     return Axis(photos, [float(k) for k in range(len(photos))], "frame 1", f"frame {len(photos)}", False)
 
 
+def used_water(doc) -> dict | None:
+    """The water a photo's distance fit gave (the sidecar's
+    ``distance.water``) when its distance was used; None otherwise or when
+    the record is not what OUTPUTS.md says."""
+    d = doc.get("distance") if isinstance(doc, dict) else None
+    w = d.get("water") if isinstance(d, dict) and d.get("used") is True else None
+    return w if isinstance(w, dict) else None
+
+
 def fitted_blue(doc) -> tuple[float, float, float] | None:
     """The blue attenuation a photo's distance fit gave and its plausible
     range (the sidecar's ``distance.water.beta[2]`` and ``beta_range[2]``,
     METHOD §13.2 step 6), when the distance was used and the numbers are
     what a fit writes (0 < lo <= beta <= hi < 100); else None."""
-    d = doc.get("distance") if isinstance(doc, dict) else None
-    w = d.get("water") if isinstance(d, dict) and d.get("used") is True else None
+    w = used_water(doc)
     try:
         b = float(w["beta"][2])
         lo, hi = (float(v) for v in w["beta_range"][2])
