@@ -432,9 +432,9 @@ def table(rows: list[dict]) -> str:
             errs = [r["beta_err"] for r in sel if r.get("beta_err") is not None]
             if errs:
                 cell += f" beta±10% {sum(e <= 0.1 for e in errs)}/{len(sel)}"
-            held = [r["in_range"] for r in sel if r.get("in_range") is not None]
-            if held:
-                cell += f" in range {sum(held)}/{len(held)}"
+            inside = [r["in_range"] for r in sel if r.get("in_range") is not None]
+            if inside:
+                cell += f" in range {sum(inside)}/{len(inside)}"
             plaus = [r["plausible"] for r in sel if r.get("plausible") is not None]
             if plaus:
                 cell += f" type plausible {sum(plaus)}/{len(plaus)}"
