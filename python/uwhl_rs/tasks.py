@@ -220,6 +220,11 @@ def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | Non
         opts["max_memory"] = budget
     method = {k: opts[k] for k in files.METHOD_KEYS if k in opts}
     sequence = None
+    if reuse is not None and opts.get("water_from") is not None:
+        # METHOD §13.6: a sequence restores with the dive's water too (restore_file gives it to single photos)
+        dive = _core.FileSettings(water_from=os.fspath(opts["water_from"])).dive_water_type
+        if dive is not None:
+            method["water_types"] = [dive]
     if reuse is not None:
         # photos: a cut or drift re-estimates only when asked for (--scene-cut), A smoothed only with --smoothing
         sequence = uwhl_rs.Sequence(refresh_every=reuse, reuse_water_mask=reuse_water_mask,

@@ -180,6 +180,25 @@ def test_water_from_takes_the_median_of_the_calibrated_photos(impl, binary, dive
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
+def test_water_from_holds_for_a_sequence_too(impl, binary, dive, tmp_path):
+    """With --reuse-estimates the photos are one sequence: each is still
+    restored with the dive's water (one score, its ratios), as the sidecar
+    says, not with a type of its own choice."""
+    d, _ = dive
+    cal = tmp_path / "calibrated"
+    cal.mkdir()
+    (cal / "c.json").write_text(json.dumps({"distance": {"used": True, "water": {"beta": [0.9, 0.5, 0.1]}}}))
+    out = tmp_path / impl
+    r = _run(_cmds(binary)[impl], d / "p1.tif", d / "p2.tif", "-o", out, "--water-from", cal, "--reuse-estimates", "2")
+    assert r.returncode == 0, r.stderr
+    for p in ("p1", "p2"):
+        side = _side(out, p)
+        assert side["beta_ratios"] == pytest.approx([0.1 / 0.9, 0.1 / 0.5], rel=1e-9)
+        assert list(side["scores"]) == [side["water_type"]] == [_nearest(0.1 / 0.9, 0.2)]
+        assert side["parameters"]["water_from"]["beta_ratios"] == pytest.approx(side["beta_ratios"], rel=1e-9)
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
 def test_water_from_weights_each_fit_by_how_far_it_pins_its_water(impl, binary, dive, tmp_path):
     """METHOD §13.6: a fit whose blue range spans x1.1 (weight 1 / ln 1.1 =
     10.5) outweighs two that span x10 (0.43 each): its ratios are the dive's,
