@@ -20,6 +20,7 @@ import json
 import os
 import posixpath
 import re
+import stat
 import tempfile
 import time
 import warnings
@@ -333,9 +334,11 @@ function show(k){
     `type ${esc(p.wt)}, flags ${p.flags.map(esc).join(', ')||'none'}`+
     (p.why ? ` (distance not used: ${esc(p.why)})` : '')+
     (p.plausible ? ` (water from the distance; plausible types ${plausible(p)})` : '')+` &middot; `+
-    `<a href="${esc(p.full||'')}">full size</a> &middot; <a href="${esc(p.t||'')}">t map</a> &middot; `+
+    (p.full ? `<a href="${esc(p.full)}">full size</a> &middot; ` : '')+
+    (p.t ? `<a href="${esc(p.t)}">t map</a> &middot; ` : '')+
     `<a href="${esc(p.side)}">sidecar</a></p>`+
-    `<img alt="restored" src="${esc(p.full||'')}"><img alt="transmission" src="${esc(p.t||'')}">`;
+    (p.full ? `<img alt="restored" src="${esc(p.full)}">` : '')+
+    (p.t ? `<img alt="transmission" src="${esc(p.t)}">` : '');
   v.style.display = 'block';
 }
 function hide(){ document.getElementById('view').style.display = 'none'; }
@@ -370,6 +373,21 @@ def _distance_why(doc) -> str | None:
     if not isinstance(why, str) or not why:
         return None
     return why if len(why) <= WHY_MAX else why[:WHY_MAX - 1] + "\u2026"
+
+
+def _linkable(folder, rel: str, listed: dict) -> bool:
+    """Whether the page may link ``rel``: a file of the folder's listing
+    and, locally, a regular file not reached through a symbolic link (a
+    pipe would block the browser that opens it; a link would show a file
+    from elsewhere as this folder's output)."""
+    if rel not in listed:
+        return False
+    if folder.is_url:
+        return True
+    try:
+        return stat.S_ISREG(os.lstat(folder.path(rel)).st_mode)
+    except OSError:
+        return False
 
 
 def _rel_url(rel: str | None) -> str | None:
@@ -431,6 +449,17 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
             notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2])), jobs))
     problems += [n for n in notes if n not in (None, "written", "kept")]
+    refused: list[str] = []
+
+    def link(rel: str | None) -> str | None:
+        """The page's link to an output, when it is one the page may open."""
+        if not rel:
+            return None
+        if _linkable(folder, rel, written_at):
+            return _rel_url(rel)
+        if rel in written_at:
+            refused.append(f"{display(folder.path(rel))}: not a regular file (a link, a pipe or a device); not linked")
+        return None
     problems = [printable(x) for x in problems]  # they quote names and sidecars' values, and go to a terminal
     written = notes.count("written")
     data = []
@@ -444,8 +473,8 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
             "plausible": _plausible_types(p.doc),
             "ti": _rel_url(ti) if _shown(notes[2 * k]) else None,
             "to": _rel_url(to) if _shown(notes[2 * k + 1]) else None,
-            "full": _rel_url(p.output("image")),
-            "t": _rel_url(p.output("transmission_color")),
+            "full": link(p.output("image")),
+            "t": link(p.output("transmission_color")),
             "side": _rel_url(p.sidecar),
         })
     for p in videos:
@@ -460,6 +489,8 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
                   f"<td>{html.escape(r.get('error', ''))}</td></tr>" for r in failed)
         + "</table></section>")
     types = [t for t in uwhl_rs.WATER_TYPES] + sorted(t for t in counts if t not in uwhl_rs.WATER_TYPES)
+    videos_part = report_video.videos_html(videos, types, link)
+    problems += [printable(x) for x in refused]
     axis = series_axis(photos)
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {html.escape(folder.name)}</title><style>{_CSS}</style></head><body>
@@ -473,7 +504,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
 <div id="flagged-grid"></div></section>
 <h2>Water types</h2>{_histogram_svg(counts)}
 <h2>Over the sequence ({'EXIF time' if axis.by_time else 'frame index, in name order'})</h2>{series_svg(axis, types) if photos else ''}
-{report_video.videos_html(videos, types, _rel_url)}
+{videos_part}
 <section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
 {''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
 <div id="view" onclick="if(event.target===this)hide()"></div>

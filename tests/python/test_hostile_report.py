@@ -260,6 +260,10 @@ def test_sidecars_cannot_make_the_report_fetch_open_fifos_or_show_other_files(ba
             doc["outputs"] = dict(doc["outputs"], image="fifo.jpg" if name == "g004" else "f000.jpg")
         (out / f"{name}.json").write_text(json.dumps(doc))
     os.mkfifo(out / "fifo.jpg")  # an output that is a FIFO
+    os.symlink(secret, out / "link.jpg")  # an output that is a link to a file outside
+    doc = dict(base, outputs=dict(base["outputs"], image="link.jpg", transmission_color="fifo.jpg"))
+    (out / "g005.json").write_text(json.dumps(doc))
+    planted["g005"] = base["input"]
     os.mkfifo(out / "zz.json")  # a sidecar that is a FIFO
     os.remove(out / "summary.csv")
     os.mkfifo(out / "summary.csv")
@@ -270,7 +274,15 @@ def test_sidecars_cannot_make_the_report_fetch_open_fifos_or_show_other_files(ba
     data = _page_data((out / "report" / "index.html").read_text())
     ti = {p["name"]: p["ti"] for p in data["photos"]}
     assert set(ti) == set(planted), ti
-    assert all(v is None for v in ti.values()), ti  # none of these is the batch's input
+    assert all(v is None for k, v in ti.items() if k != "g005"), ti  # none of these is the batch's input
+    # the page links no output the report would not open itself: a click on a FIFO would block the
+    # browser, a link would show a file from outside as the batch's
+    links = {p["name"]: (p["full"], p["t"]) for p in data["photos"]}
+    assert links["g004"][0] is None and links["g005"] == (None, None), links
+    assert links["f001"][0] == "../f000.jpg" or links["f001"][0].endswith("f001.jpg"), links
+    attrs = [v for _, a in _elements((out / "report" / "index.html").read_text()).elements for v in a.values()]
+    assert not any(v and ("fifo.jpg" in v or "link.jpg" in v) for v in attrs), attrs
+    assert "link.jpg: not a regular file" in r.stdout and "fifo.jpg: not a regular file" in r.stdout, r.stdout
     assert any("zz.json" in line for line in r.stdout.splitlines())
     # the iFDO over the same folder: no hang on the FIFO sidecar, summary or earlier file
     r = uwhl("ifdo", out, "--header", _header(tmp_path))
