@@ -32,10 +32,74 @@ pub struct DistanceMap {
 /// The path of an input's distance map from a `--distance` template:
 /// `{stem}` is the input's file name without its extension, `{name}` the
 /// whole file name; a template without either names one map for every input.
-pub fn expand(template: &str, input: &Path) -> PathBuf {
-    let name = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let stem = input.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    PathBuf::from(template.replace("{stem}", &stem).replace("{name}", &name))
+/// One pass over the template: text put in is not read again for
+/// placeholders, and a name's bytes are kept as they are (a name that is
+/// not UTF-8 finds its map). Why not, when a folder of the path would be
+/// `.`, `..` or empty because of the input's name (`...jpg` has the stem
+/// `..`): the name would move the map out of the template's folder.
+pub fn expand(template: &str, input: &Path) -> Result<PathBuf, String> {
+    let name = input.file_name().unwrap_or_default();
+    let stem = input.file_stem().unwrap_or_default();
+    let mut out: Vec<u8> = Vec::with_capacity(template.len() + 2 * name.len());
+    for (k, part) in template.split('/').enumerate() {
+        if k > 0 {
+            out.push(b'/');
+        }
+        let start = out.len();
+        let mut rest = part;
+        let mut filled = false;
+        while let Some(at) = rest.find('{') {
+            let (head, tail) = rest.split_at(at);
+            out.extend_from_slice(head.as_bytes());
+            let value = if tail.starts_with("{stem}") {
+                Some(stem)
+            } else if tail.starts_with("{name}") {
+                Some(name)
+            } else {
+                None
+            };
+            match value {
+                Some(v) => {
+                    out.extend_from_slice(os_bytes(v).as_ref());
+                    filled = true;
+                }
+                None => out.push(b'{'),
+            }
+            // both placeholders are six bytes; a lone brace is one
+            rest = tail.get(if value.is_some() { 6 } else { 1 }..).unwrap_or_default();
+        }
+        out.extend_from_slice(rest.as_bytes());
+        let segment = out.get(start..).unwrap_or_default();
+        if filled && matches!(segment, b"" | b"." | b"..") {
+            return Err(format!(
+                "--distance {template}: the input's name makes a folder of the map's path {:?}, which would leave the template's folder",
+                String::from_utf8_lossy(segment)
+            ));
+        }
+    }
+    Ok(path_from_bytes(out))
+}
+
+#[cfg(unix)]
+fn os_bytes(s: &std::ffi::OsStr) -> std::borrow::Cow<'_, [u8]> {
+    use std::os::unix::ffi::OsStrExt;
+    std::borrow::Cow::Borrowed(s.as_bytes())
+}
+
+#[cfg(not(unix))]
+fn os_bytes(s: &std::ffi::OsStr) -> std::borrow::Cow<'_, [u8]> {
+    std::borrow::Cow::Owned(s.to_string_lossy().into_owned().into_bytes())
+}
+
+#[cfg(unix)]
+fn path_from_bytes(b: Vec<u8>) -> PathBuf {
+    use std::os::unix::ffi::OsStringExt;
+    PathBuf::from(std::ffi::OsString::from_vec(b))
+}
+
+#[cfg(not(unix))]
+fn path_from_bytes(b: Vec<u8>) -> PathBuf {
+    PathBuf::from(String::from_utf8_lossy(&b).into_owned())
 }
 
 /// Reads a distance map (regular files only; the size is checked from the
@@ -462,10 +526,35 @@ mod tests {
 
     #[test]
     fn the_template_names_each_inputs_map() {
-        let p = expand("depth/{stem}_d.tif", Path::new("/x/dive 01.JPG"));
+        let p = expand("depth/{stem}_d.tif", Path::new("/x/dive 01.JPG")).unwrap();
         assert_eq!(p, PathBuf::from("depth/dive 01_d.tif"));
-        assert_eq!(expand("maps/{name}.npy", Path::new("a.b.png")), PathBuf::from("maps/a.b.png.npy"));
-        assert_eq!(expand("one.npy", Path::new("a.png")), PathBuf::from("one.npy"));
+        assert_eq!(expand("maps/{name}.npy", Path::new("a.b.png")).unwrap(), PathBuf::from("maps/a.b.png.npy"));
+        assert_eq!(expand("one.npy", Path::new("a.png")).unwrap(), PathBuf::from("one.npy"));
+        assert_eq!(expand("{x}/{stem}.{npy", Path::new("a.png")).unwrap(), PathBuf::from("{x}/a.{npy"));
+    }
+
+    #[test]
+    fn a_name_cannot_steer_the_template() {
+        // text put in is not expanded again
+        assert_eq!(expand("d/{stem}.npy", Path::new("in/{name}.jpg")).unwrap(), PathBuf::from("d/{name}.npy"));
+        // a stem of ".." or "." (or "." twice) would leave the folder
+        for (t, input) in [("maps/{stem}/depth.npy", "...jpg"), ("maps/{stem}/d.npy", "..jpg"), ("m/{stem}{stem}/d", "..jpg")] {
+            let e = expand(t, Path::new(input)).unwrap_err();
+            assert!(e.contains("leave the template's folder"), "{e}");
+        }
+        // ".." inside a longer name is a name, not a folder
+        assert_eq!(expand("m/{stem}_d.npy", Path::new("...jpg")).unwrap(), PathBuf::from("m/.._d.npy"));
+        // the user's own ".." is theirs
+        assert_eq!(expand("../m/{stem}.npy", Path::new("a.jpg")).unwrap(), PathBuf::from("../m/a.npy"));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_name_that_is_not_utf8_finds_its_map() {
+        use std::os::unix::ffi::OsStrExt;
+        let input = Path::new(std::ffi::OsStr::from_bytes(b"in/q\xff.jpg"));
+        let p = expand("d/{stem}.npy", input).unwrap();
+        assert_eq!(p.as_os_str().as_bytes(), b"d/q\xff.npy");
     }
 
     /// An OpenEXR file of one part with the given channels, written by the

@@ -434,10 +434,14 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
     // METHOD §13: the input's distance map; one that cannot be read leaves
     // the photo to be restored without it, flagged
     let given = opts.distance.as_deref().map(|t| {
-        let path = crate::files::depth::expand(t, &job.input);
-        let map = crate::files::depth::read_distance(&path, opts.max_pixels, opts.params.max_memory)
-            .map_err(|f| format!("{}: {}", path.display(), f.message));
-        (path, map)
+        match crate::files::depth::expand(t, &job.input) {
+            Ok(path) => {
+                let map = crate::files::depth::read_distance(&path, opts.max_pixels, opts.params.max_memory)
+                    .map_err(|f| format!("{}: {}", path.display(), f.message));
+                (path, map)
+            }
+            Err(why) => (PathBuf::from(t), Err(why)),
+        }
     });
     let (map, mut missing) = match &given {
         Some((_, Ok(m))) => (Some(m), None),

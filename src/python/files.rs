@@ -130,6 +130,13 @@ impl PyFileSettings {
     fn dive_water_type(&self) -> Option<(String, f64, f64)> {
         self.0.water_from.as_ref().map(|d| (d.water_type.name.clone(), d.water_type.beta_br, d.water_type.beta_bg))
     }
+
+    /// With `water_from`: the console's notes on the folder's sidecars that
+    /// gave no fit (`crate::files::dive::DiveWater::notes`); else empty.
+    #[getter]
+    fn dive_water_notes(&self) -> Vec<String> {
+        self.0.water_from.as_ref().map(|d| d.notes()).unwrap_or_default()
+    }
 }
 
 /// Decodes a PNG, JPEG or TIFF file with the binary's decoder: returns
@@ -212,7 +219,10 @@ fn read_distance_for<'py>(
     max_pixels: u64,
     max_memory: u64,
 ) -> PyResult<(String, Option<Bound<'py, PyAny>>, Option<String>)> {
-    let path = crate::files::depth::expand(template, &input);
+    let path = match crate::files::depth::expand(template, &input) {
+        Ok(p) => p,
+        Err(why) => return Ok((template.to_string(), None, Some(why))),
+    };
     let shown = path.to_string_lossy().into_owned();
     match py.detach(|| crate::files::depth::read_distance(&path, max_pixels, max_memory)) {
         Ok(m) => Ok((shown, Some(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any()), None)),
