@@ -28,7 +28,7 @@ __all__ = [
     "options_help", "check_combination", "check_distance", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
-    "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
+    "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "FIT_BETA_GRID", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
 ]
 
 __version__: str
@@ -48,6 +48,8 @@ IMAGE_EXTENSIONS: list[str]
 RAW_EXTENSIONS: list[str]
 #: extensions read as videos by the Python command (refused by uwhl-rs)
 VIDEO_EXTENSIONS: list[str]
+#: the blue attenuations (1/m) a distance fit searches, smallest and largest (METHOD §13.2)
+FIT_BETA_GRID: tuple[float, float]
 #: the scene-cut threshold and A smoothing of videos and raw frames (METHOD §10)
 VIDEO_SCENE_CUT: float
 VIDEO_SMOOTHING: float
@@ -142,6 +144,9 @@ class FileSettings:
     @property
     def dive_water_type(self) -> Optional[tuple[str, float, float]]:
         """With water_from: the dive's water type (name, beta_BR, beta_BG); else None."""
+    @property
+    def dive_water_notes(self) -> list[str]:
+        """With water_from: the notes on the folder's sidecars that gave no fit; else []."""
     @property
     def altitude(self) -> Optional[str]:
         """With altitude: what the sidecar's distance.source says of it; else None."""

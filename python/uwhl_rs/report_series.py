@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import _core
 from .outdir import Photo
 
 __all__ = ["Axis", "fitted_blue", "series_axis", "series_svg", "used_water"]
@@ -67,14 +68,16 @@ def fitted_blue(doc) -> tuple[float, float, float] | None:
     """The blue attenuation a photo's distance fit gave and its plausible
     range (the sidecar's ``distance.water.beta[2]`` and ``beta_range[2]``,
     METHOD §13.2 step 6), when the distance was used and the numbers are
-    what a fit writes (0 < lo <= beta <= hi < 100); else None."""
+    what a fit writes (lo <= beta <= hi on the fit's attenuation grid,
+    ``_core.FIT_BETA_GRID``); else None."""
     w = used_water(doc)
     try:
         b = float(w["beta"][2])
         lo, hi = (float(v) for v in w["beta_range"][2])
     except (TypeError, KeyError, IndexError, ValueError):
         return None
-    ok = all(np.isfinite(v) for v in (b, lo, hi)) and 0 < lo <= b <= hi < 100
+    g0, g1 = _core.FIT_BETA_GRID
+    ok = all(np.isfinite(v) for v in (b, lo, hi)) and g0 * (1 - 1e-9) <= lo <= b <= hi <= g1 * (1 + 1e-9)
     return (b, lo, hi) if ok else None
 
 

@@ -88,10 +88,17 @@ pub fn init_threads(threads: Option<usize>) {
 }
 
 fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
-    load_masks(opts).map_err(|e| {
+    let masks = load_masks(opts).map_err(|e| {
         report(err, opts.json_errors, None, &e);
         e.kind.exit_code()
-    })
+    })?;
+    // the sidecars --water-from could not use, once, before any input
+    if let (Some(d), false) = (&opts.settings.water_from, opts.quiet) {
+        for n in d.notes() {
+            let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {n}")));
+        }
+    }
+    Ok(masks)
 }
 
 /// The reading side's view of the writing side in [`overlapped`]: how many

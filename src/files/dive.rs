@@ -33,9 +33,28 @@ pub struct DiveWater {
     /// whether the medians were weighted by each fit's range (every fit
     /// recorded one); else plain medians
     pub weighted: bool,
+    /// the `*.json` files of the folder that gave no fit because they could
+    /// not be read as a sidecar or record a fit none could write (a photo
+    /// without a used distance is not among them): how many, and the first
+    /// [`MAX_NOTES`] of them with why
+    pub skipped: (usize, Vec<String>),
 }
 
+/// Most skipped sidecars named one by one on the console.
+const MAX_NOTES: usize = 10;
+
 impl DiveWater {
+    /// The console's notes on the sidecars that gave no fit: one line each
+    /// for the first [`MAX_NOTES`], then how many more.
+    pub fn notes(&self) -> Vec<String> {
+        let (n, named) = &self.skipped;
+        let mut out: Vec<String> = named.iter().map(|x| format!("--water-from: {x}; not used")).collect();
+        if *n > named.len() {
+            out.push(format!("--water-from: {} more sidecars of {} not used", n - named.len(), self.folder.display()));
+        }
+        out
+    }
+
     /// The sidecar's `parameters.water_from`.
     pub fn record(&self) -> Value {
         json!({
@@ -46,6 +65,7 @@ impl DiveWater {
             "ratio_range": self.spread,
             "nearest_type": self.water_type.name,
             "weighted": self.weighted,
+            "skipped": self.skipped.0,
         })
     }
 }
@@ -64,7 +84,7 @@ fn median(v: &mut [f64]) -> f64 {
 /// blue attenuation range (`distance.water.beta_range`, hi / lo, at least
 /// 1.01), so that a photo whose content hides its water counts little.
 /// None when the sidecar records no usable range: not three [lo, hi]
-/// pairs, a blue pair that is not 0 < lo <= hi < 100 with a finite span,
+/// pairs, a blue pair that is not lo <= hi on the fit's attenuation grid,
 /// or one that does not hold the sidecar's own blue attenuation `blue`
 /// (the fit always lies in its range; a range that does not is none the
 /// program wrote).
@@ -74,19 +94,21 @@ fn range_weight(side: &Value, blue: f64) -> Option<f64> {
     let [lo, hi] = b.as_array()?.as_slice() else { return None };
     let (lo, hi) = (lo.as_f64()?, hi.as_f64()?);
     let span = hi / lo;
-    let usable = lo > 0.0 && lo <= hi && hi < 100.0 && span.is_finite() && lo <= blue && blue <= hi;
+    let grid = crate::method::distance::BETA_MIN * (1.0 - 1e-9)..=crate::method::distance::BETA_MAX * (1.0 + 1e-9);
+    let usable = grid.contains(&lo) && grid.contains(&hi) && lo <= hi && span.is_finite() && lo <= blue && blue <= hi;
     usable.then(|| 1.0 / span.max(1.01).ln())
 }
 
 /// The fitted attenuation a sidecar records, when its distance was used:
-/// exactly three numbers, each in (0, 100).
+/// exactly three numbers that a fit could have written
+/// ([`crate::method::distance::writable`]).
 fn fitted_beta(side: &Value) -> Option<[f64; 3]> {
     if side.pointer("/distance/used") != Some(&Value::Bool(true)) {
         return None;
     }
     let [r, g, b] = side.pointer("/distance/water/beta")?.as_array()?.as_slice() else { return None };
     let v = [r.as_f64()?, g.as_f64()?, b.as_f64()?];
-    v.iter().all(|x| x.is_finite() && *x > 0.0 && *x < 100.0).then_some(v)
+    crate::method::distance::writable(v).then_some(v)
 }
 
 /// [`read_water_from`] once per folder and process: every photo of a run
@@ -132,19 +154,32 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     paths.sort();
     let mut betas = Vec::new();
     let mut weights = Vec::new();
+    let mut skipped = (0, Vec::new());
+    let mut skip = |p: &Path, why: &str| {
+        skipped.0 += 1;
+        if skipped.1.len() < MAX_NOTES {
+            skipped.1.push(format!("{}: {why}", p.display()));
+        }
+    };
     for p in &paths {
-        let Some(side) = crate::files::commit::read_sidecar(p) else { continue };
+        let Some(side) = crate::files::commit::read_sidecar(p) else {
+            skip(p, "not a sidecar (not a regular file, over 16 MiB or not JSON)");
+            continue;
+        };
         if let Some(b) = fitted_beta(&side) {
             betas.push(b);
             weights.push(range_weight(&side, b[2]));
+        } else if side.pointer("/distance/used") == Some(&Value::Bool(true)) {
+            skip(p, "its distance.water.beta is not three attenuations a fit gives (METHOD §13.2)");
         }
     }
     if betas.is_empty() {
         return Err(Failure::new(
             Kind::Usage,
             format!(
-                "--water-from {}: no sidecar there records a water fitted from a distance (restore the calibrated photos with --distance first)",
-                dir.display()
+                "--water-from {}: no sidecar there records a water fitted from a distance (restore the calibrated photos with --distance first){}",
+                dir.display(),
+                if skipped.0 > 0 { format!("; {} of its *.json files could not be used", skipped.0) } else { String::new() }
             ),
         ));
     }
@@ -164,7 +199,7 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     let (name, _) = nearest_type([beta[0] as f32, beta[1] as f32, beta[2] as f32]);
     let water_type = WaterType::new(&name, rbr, rbg)
         .map_err(|e| Failure::usage(format!("--water-from {}: the fitted water is not usable: {e}", dir.display())))?;
-    Ok(DiveWater { folder: dir.to_path_buf(), water_type, beta, spread, photos: betas.len(), weighted: weights.is_some() })
+    Ok(DiveWater { folder: dir.to_path_buf(), water_type, beta, spread, photos: betas.len(), weighted: weights.is_some(), skipped })
 }
 
 #[cfg(test)]
@@ -196,6 +231,38 @@ mod tests {
         assert!(read_water_from(&empty).unwrap_err().message.contains("no sidecar"));
         assert!(read_water_from(&d.join("nope")).unwrap_err().message.contains("cannot read"));
         assert!(!w.weighted);
+        // e (not JSON) and f (numbers no fit writes) are named; d (not used) is a photo without distance
+        assert_eq!(w.skipped.0, 2);
+        let notes = w.notes().join("\n");
+        assert!(notes.contains("e.json: not a sidecar") && notes.contains("f.json: its distance.water.beta"), "{notes}");
+        assert!(!notes.contains("d.json"), "{notes}");
+    }
+
+    #[test]
+    fn only_numbers_a_fit_could_write_are_read() {
+        use crate::method::distance::writable;
+        // the Jerlov types at beta_B 0.05: on the curve
+        for &(_, br, bg) in &crate::method::water::JERLOV {
+            assert!(writable([0.05 / br, 0.05 / bg, 0.05]));
+        }
+        // a ratio of 1e-302, a blue below the grid or above it, ratios past the curve's ends by far
+        for b in [[99.0, 99.0, 1e-300], [1e-300, 1e-300, 1e-300], [0.5, 0.1, 6.0], [0.05, 0.1, 0.05 * 4.5], [50.0, 0.1, 0.05], [0.5, 0.1, f64::NAN]] {
+            assert!(!writable(b), "{b:?}");
+        }
+        let d = std::env::temp_dir().join(format!("uwhl-dive-b-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::write(d.join("x.json"), json!({"distance": {"used": true, "water": {"beta": [99, 99, 1e-300]}}}).to_string()).unwrap();
+        let e = read_water_from(&d).unwrap_err().message;
+        assert!(e.contains("no sidecar there records") && e.contains("1 of its *.json files could not be used"), "{e}");
+        // many bad ones: ten named, then a count
+        for k in 0..14 {
+            std::fs::write(d.join(format!("y{k:02}.json")), "[").unwrap();
+        }
+        std::fs::write(d.join("z.json"), json!({"distance": {"used": true, "water": {"beta": [0.5, 0.1, 0.05]}}}).to_string()).unwrap();
+        let w = read_water_from(&d).unwrap();
+        assert_eq!((w.photos, w.skipped.0, w.skipped.1.len()), (1, 15, 10));
+        assert!(w.notes().last().unwrap().contains("5 more sidecars"), "{:?}", w.notes());
     }
 
     #[test]

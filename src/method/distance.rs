@@ -49,6 +49,23 @@ pub const U_MIN: f64 = -1.0;
 pub const U_STEP: f64 = 0.05;
 /// Number of positions along the Jerlov curve.
 pub const U_STEPS: usize = 221;
+
+/// Whether a fit of this module could have written `beta` (1/m, R, G, B):
+/// blue on the attenuation grid, and the ratios beta_B/beta_R and
+/// beta_B/beta_G on the searched stretch of the Jerlov curve (0.086-2.96
+/// and 0.38-1.81), within a margin of a factor 1.5. The readers of fits
+/// that others could have written (`--water-from`, the report) take only
+/// such numbers: a ratio of 1e-300 is none a photo gave.
+pub fn writable(beta: [f64; 3]) -> bool {
+    let [r, g, b] = beta;
+    let (lo_r, lo_g) = curve(U_MIN);
+    let (hi_r, hi_g) = curve(U_MIN + U_STEP * (U_STEPS - 1) as f64);
+    let within = |x: f64, lo: f64, hi: f64| (lo.exp() / 1.5..=hi.exp() * 1.5).contains(&x);
+    [r, g, b].iter().all(|x| x.is_finite() && *x > 0.0)
+        && (BETA_MIN * (1.0 - 1e-9)..=BETA_MAX * (1.0 + 1e-9)).contains(&b)
+        && within(b / r, lo_r, hi_r)
+        && within(b / g, lo_g, hi_g)
+}
 /// A fit whose residual (see [`WaterFit::residual`]) is above this explains
 /// nothing of the tile slopes. On the truth renders (tune) the right maps
 /// gave a median of 0.95 and maps of another render 1.00 (min 0.92): the

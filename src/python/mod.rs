@@ -898,6 +898,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("STAGES", crate::Stage::ALL.iter().map(|s| s.name()).collect::<Vec<_>>())?;
     m.add("EXIT_CODES", crate::files::options::EXIT_CODES.to_vec())?;
     m.add("EXIT_CODES_HELP", crate::files::options::exit_code_text())?;
+    // the attenuation grid a distance fit searches (METHOD §13.2): its readers take no blue outside it
+    m.add("FIT_BETA_GRID", (crate::method::distance::BETA_MIN, crate::method::distance::BETA_MAX))?;
     m.add("VIDEO_SCENE_CUT", crate::VIDEO_SCENE_CUT)?;
     m.add("VIDEO_SMOOTHING", crate::VIDEO_SMOOTHING)?;
     m.add("VIDEO_EXTENSIONS", crate::files::jobs::VIDEO_EXTENSIONS.to_vec())?;

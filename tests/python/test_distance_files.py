@@ -187,14 +187,14 @@ def test_water_from_holds_for_a_sequence_too(impl, binary, dive, tmp_path):
     d, _ = dive
     cal = tmp_path / "calibrated"
     cal.mkdir()
-    (cal / "c.json").write_text(json.dumps({"distance": {"used": True, "water": {"beta": [0.9, 0.5, 0.1]}}}))
+    (cal / "c.json").write_text(json.dumps({"distance": {"used": True, "water": {"beta": [0.9, 0.2, 0.1]}}}))
     out = tmp_path / impl
     r = _run(_cmds(binary)[impl], d / "p1.tif", d / "p2.tif", "-o", out, "--water-from", cal, "--reuse-estimates", "2")
     assert r.returncode == 0, r.stderr
     for p in ("p1", "p2"):
         side = _side(out, p)
-        assert side["beta_ratios"] == pytest.approx([0.1 / 0.9, 0.1 / 0.5], rel=1e-9)
-        assert list(side["scores"]) == [side["water_type"]] == [_nearest(0.1 / 0.9, 0.2)]
+        assert side["beta_ratios"] == pytest.approx([0.1 / 0.9, 0.1 / 0.2], rel=1e-9)
+        assert list(side["scores"]) == [side["water_type"]] == [_nearest(0.1 / 0.9, 0.5)]
         assert side["parameters"]["water_from"]["beta_ratios"] == pytest.approx(side["beta_ratios"], rel=1e-9)
 
 

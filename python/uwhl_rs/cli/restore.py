@@ -77,6 +77,10 @@ def run(a: argparse.Namespace, console: Console) -> int:
     options = file_kwargs(a, water_types(a.water_types))
     _check(a, options)
     header = load_header(a.ifdo) if a.ifdo is not None else None
+    if a.water_from is not None:
+        # the sidecars of the dive's folder that gave no fit, once, before any input (as uwhl-rs)
+        for n in _core.FileSettings(water_from=a.water_from).dive_water_notes:
+            console.note(f"note: {n}")
     so: dict = {}
     if a.dask is not None or any(is_url(p) for p in [*a.inputs, a.out]):
         if a.jobs != 1:
