@@ -133,6 +133,17 @@ pub const EXIT_CODES: &[(u8, &str, &str)] = &[
     (130, "interrupted", "interrupted (SIGINT); run the same command again to resume"),
 ];
 
+/// A number as a message shows it: as Rust writes it when that is short,
+/// else in scientific notation (1e300 is not 301 digits on a console).
+pub fn shown_number(v: f64) -> String {
+    let plain = v.to_string();
+    if plain.len() <= 24 {
+        plain
+    } else {
+        format!("{v:.6e}")
+    }
+}
+
 /// The exit code of the failure kind `name` of [`EXIT_CODES`] (that of
 /// `internal` for a name the table lacks).
 pub fn exit_code(name: &str) -> u8 {

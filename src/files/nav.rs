@@ -182,12 +182,16 @@ impl AltitudeSource {
     }
 }
 
+/// A cell or argument as a message quotes it: in double quotes, cut after
+/// `SHOWN` characters. Control and bidirectional characters stay as they
+/// are here: the consoles of both commands escape them as `\xNN` and
+/// `\uNNNN` (`printable`), and a sidecar's JSON escapes them.
 fn shown(s: &str) -> String {
-    let t: String = s.chars().take(SHOWN).flat_map(char::escape_default).collect();
+    let t: String = s.chars().take(SHOWN).collect();
     if s.chars().count() > SHOWN {
-        format!("{t}...")
+        format!("\"{t}...\"")
     } else {
-        t
+        format!("\"{t}\"")
     }
 }
 
@@ -274,11 +278,29 @@ fn fields(line: &str, delim: char) -> Result<Vec<String>, String> {
     Ok(out)
 }
 
+/// The header names of each column role.
+const ALTITUDE_NAMES: &[&str] = &["altitude", "alt", "altitude_m", "image-meters-above-ground", "meters_above_ground"];
+const FILE_NAMES: &[&str] = &["file", "filename", "file_name", "image", "image-filename", "name", "photo"];
+const TIME_NAMES: &[&str] = &["time", "timestamp", "datetime", "date_time", "image-datetime", "utc"];
+const PITCH_NAMES: &[&str] = &["pitch", "pitch_deg"];
+const ROLL_NAMES: &[&str] = &["roll", "roll_deg"];
+
+/// Largest |seconds since 1970| a log's time may be (about the year 5138):
+/// a larger number is no time of a dive.
+const MAX_SECONDS: f64 = 1e11;
+
 /// The column of each role, from the header's names (case, spaces,
 /// dashes and underscores ignored).
 fn column(header: &[String], names: &[&str]) -> Option<usize> {
+    column_after(header, names, usize::MAX)
+}
+
+/// The first column after `first` (all of them when `usize::MAX`) named
+/// one of `names`.
+fn column_after(header: &[String], names: &[&str], first: usize) -> Option<usize> {
     let norm = |s: &str| s.chars().filter(|c| c.is_alphanumeric()).flat_map(char::to_lowercase).collect::<String>();
-    header.iter().position(|h| names.iter().any(|n| norm(h) == norm(n)))
+    let from = if first == usize::MAX { 0 } else { first + 1 };
+    header.iter().enumerate().skip(from).find(|(_, h)| names.iter().any(|n| norm(h) == norm(n))).map(|(i, _)| i)
 }
 
 /// Parses a navigation log: a header naming its columns, then one row per
@@ -296,15 +318,27 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
         .ok_or("no header line (the first line names the columns)")?;
     let delim = [',', ';', '\t'].into_iter().max_by_key(|d| head.matches(*d).count()).unwrap_or(',');
     let header = fields(head, delim).map_err(|e| format!("line {head_no}: {e}"))?;
-    let alt = column(&header, &["altitude", "alt", "altitude_m", "image-meters-above-ground", "meters_above_ground"])
+    let alt = column(&header, ALTITUDE_NAMES)
         .ok_or_else(|| format!("line {head_no}: no altitude column (expected a column named altitude)"))?;
-    let name = column(&header, &["file", "filename", "file_name", "image", "image-filename", "name", "photo"]);
-    let time = column(&header, &["time", "timestamp", "datetime", "date_time", "image-datetime", "utc"]);
+    let name = column(&header, FILE_NAMES);
+    let time = column(&header, TIME_NAMES);
     if name.is_none() && time.is_none() {
         return Err(format!("line {head_no}: no file-name or time column (expected a column named file or time)"));
     }
-    let pitch = column(&header, &["pitch", "pitch_deg"]);
-    let roll = column(&header, &["roll", "roll_deg"]);
+    let pitch = column(&header, PITCH_NAMES);
+    let roll = column(&header, ROLL_NAMES);
+    for (role, col, names) in [("altitude", Some(alt), ALTITUDE_NAMES), ("file-name", name, FILE_NAMES), ("time", time, TIME_NAMES),
+                               ("pitch", pitch, PITCH_NAMES), ("roll", roll, ROLL_NAMES)] {
+        if let Some(first) = col {
+            if let Some(second) = column_after(&header, names, first) {
+                return Err(format!(
+                    "line {head_no}: two {role} columns, {} (column {}) and {} (column {}): keep one",
+                    shown(header.get(first).map_or("", String::as_str)), first + 1,
+                    shown(header.get(second).map_or("", String::as_str)), second + 1
+                ));
+            }
+        }
+    }
     let mut log = NavLog { named: name.is_some(), ..NavLog::default() };
     let max = f64::from(crate::method::distance::MAX_DISTANCE);
     for (no, line) in lines {
@@ -319,9 +353,9 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
         };
         let number = |col: usize, what: &str, lo: f64, hi: f64| -> Result<f64, String> {
             let s = cell(col, what)?;
-            let v: f64 = s.parse().map_err(|_| format!("line {no}, column {} ({what}): {:?} is not a number", col + 1, shown(s)))?;
+            let v: f64 = s.parse().map_err(|_| format!("line {no}, column {} ({what}): {} is not a number", col + 1, shown(s)))?;
             if !(v.is_finite() && v > lo && v <= hi) {
-                return Err(format!("line {no}, column {} ({what}): {v} is not in ({lo}, {hi}]", col + 1));
+                return Err(format!("line {no}, column {} ({what}): {} is not in ({lo}, {hi}]", col + 1, crate::error::shown_number(v)));
             }
             Ok(v)
         };
@@ -336,7 +370,7 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
             let file = n.rsplit(['/', '\\']).next().unwrap_or(n).to_string();
             let stem = Path::new(&file).file_stem().map(|s| s.to_string_lossy().into_owned());
             if let Some((first, _)) = log.by_name.get(&file) {
-                return Err(format!("line {no}: {:?} is also on line {first}", shown(&file)));
+                return Err(format!("line {no}: {} is also on line {first}", shown(&file)));
             }
             if let Some(stem) = stem.filter(|s| *s != file) {
                 log.by_name.entry(stem).or_insert((no, pose));
@@ -346,7 +380,7 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
         if let Some(c) = time {
             let s = cell(c, "time")?;
             let t = parse_time(s).ok_or_else(|| {
-                format!("line {no}, column {} (time): {:?} is not an ISO 8601 time nor seconds since 1970", c + 1, shown(s))
+                format!("line {no}, column {} (time): {} is not an ISO 8601 time nor seconds since 1970 (within {MAX_SECONDS:e})", c + 1, shown(s))
             })?;
             log.by_time.push((t, no, pose));
         }
@@ -354,7 +388,16 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
     if log.by_name.is_empty() && log.by_time.is_empty() {
         return Err("no records after the header".into());
     }
-    log.by_time.sort_by(|a, b| a.0.total_cmp(&b.0));
+    log.by_time.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    // two records of one time that disagree: which one the photo of that
+    // time had is unknown (the same record twice is harmless)
+    for w in log.by_time.windows(2) {
+        if let [(t0, l0, p0), (t1, l1, p1)] = w {
+            if t0 == t1 && p0 != p1 {
+                return Err(format!("line {l1}: the time of line {l0} again, with another altitude, pitch or roll"));
+            }
+        }
+    }
     Ok(log)
 }
 
@@ -375,7 +418,7 @@ fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
 pub fn parse_time(s: &str) -> Option<f64> {
     let s = s.trim();
     if let Ok(v) = s.parse::<f64>() {
-        return v.is_finite().then_some(v);
+        return (v.is_finite() && v.abs() <= MAX_SECONDS).then_some(v);
     }
     let b = s.as_bytes();
     let num = |a: usize, n: usize| -> Option<i64> {
@@ -409,7 +452,12 @@ pub fn parse_time(s: &str) -> Option<f64> {
     match rest.as_bytes() {
         [] | [b'Z'] => {}
         [sign @ (b'+' | b'-'), h1, h2, b':', m1, m2] if [h1, h2, m1, m2].iter().all(|c| c.is_ascii_digit()) => {
-            let off = (i64::from(h1 - b'0') * 10 + i64::from(h2 - b'0')) * 3600 + (i64::from(m1 - b'0') * 10 + i64::from(m2 - b'0')) * 60;
+            let (oh, om) = (i64::from(h1 - b'0') * 10 + i64::from(h2 - b'0'), i64::from(m1 - b'0') * 10 + i64::from(m2 - b'0'));
+            // ISO 8601: an offset within +-23:59
+            if oh > 23 || om > 59 {
+                return None;
+            }
+            let off = oh * 3600 + om * 60;
             t -= if *sign == b'+' { off } else { -off } as f64;
         }
         _ => return None,
@@ -561,7 +609,7 @@ pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Re
     };
     let max = f64::from(crate::method::distance::MAX_DISTANCE);
     if !(pose.altitude.is_finite() && pose.altitude > 0.0 && pose.altitude <= max) {
-        return Err(format!("altitude {} m is not in (0, {max}]", pose.altitude));
+        return Err(format!("altitude {} m is not in (0, {max}]", crate::error::shown_number(pose.altitude)));
     }
     Ok(Camera { pose, pose_from, lens, lens_from })
 }
@@ -593,7 +641,9 @@ mod tests {
         assert_eq!(parse_time("2026-11-30T10:15:42.5Z"), Some(day + 36_942.5));
         assert_eq!(parse_time("2026-11-30T10:15:42+10:00"), Some(day + 36_942.0 - 36_000.0));
         assert_eq!(parse_time("1764497742.25"), Some(1_764_497_742.25));
-        for bad in ["2026-13-01T00:00:00", "2026-02-30T00:00:00", "2026-11-30", "noon", "2026-11-30T10:15:42+1", "", "2026-11-30T10:15:42.", "NaN"] {
+        assert_eq!(parse_time("2026-11-30T10:15:42-23:59"), Some(day + 36_942.0 + 86_340.0));
+        for bad in ["2026-13-01T00:00:00", "2026-02-30T00:00:00", "2026-11-30", "noon", "2026-11-30T10:15:42+1", "", "2026-11-30T10:15:42.", "NaN",
+                    "2026-11-30T10:15:40+99:00", "2026-11-30T10:15:40+10:60", "1e300", "-1e12"] {
             assert_eq!(parse_time(bad), None, "{bad}");
         }
     }
@@ -607,7 +657,7 @@ mod tests {
         // the stem: the same photo converted to another format
         assert_eq!(log.pose(Path::new("b.tif"), None).unwrap().0.altitude, 4.0);
         let e = log.pose(Path::new("c.jpg"), None).unwrap_err();
-        assert!(e.contains("no row for c.jpg"), "{e}");
+        assert!(e.contains("no row for \"c.jpg\""), "{e}");
     }
 
     #[test]
@@ -646,6 +696,12 @@ mod tests {
             ("file,altitude\n\"a.jpg,2\n", "line 2: a quote is not closed"),
             ("file,altitude\na.jpg,2\na.jpg,3\n", "line 3: \"a.jpg\" is also on line 2"),
             ("file,altitude\n", "no records"),
+            ("time,altitude\n1e300,2\n", "line 2, column 1 (time): \"1e300\" is not an ISO 8601 time"),
+            ("time,altitude\n100,2\n100,2\n100,9\n", "line 4: the time of line 3 again, with another altitude"),
+            ("file,altitude,alt\na.jpg,2,3\n", "line 1: two altitude columns, \"altitude\" (column 2) and \"alt\" (column 3)"),
+            ("time,file,utc,altitude\n1,a,2,3\n", "two time columns"),
+            ("file,altitude\na.jpg,1e300\n", "1.000000e300 is not in"),
+            ("file,altitude\na.jpg,\u{1b}[31m2\n", "\"\u{1b}[31m2\" is not a number"),
         ] {
             let e = parse_log(text).unwrap_err();
             assert!(e.contains(want), "{text:?}: {e}");

@@ -40,7 +40,8 @@ impl WaterType {
         for (label, v) in [("beta_BR", beta_br), ("beta_BG", beta_bg)] {
             if !v.is_finite() || v <= 0.0 || v > MAX_RATIO {
                 return Err(Error::WaterType(format!(
-                    "{label} of water type {name:?} is {v}; it must be a finite number in (0, {MAX_RATIO}]"
+                    "{label} of water type {name:?} is {}; it must be a finite number in (0, {MAX_RATIO}]",
+                    crate::error::shown_number(v)
                 )));
             }
         }

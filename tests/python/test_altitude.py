@@ -199,7 +199,7 @@ def test_a_log_by_name_gives_each_photo_its_pose_and_one_it_lacks_is_flagged(imp
     assert tilted["floor"]["pose_from"] == {"log": str(log), "line": 4, "matched": "name"}
     assert _side(out, "oblique")["distance"]["used"] is True
     other = _side(out, "other")
-    assert other["distance"]["used"] is False and "no row for other.tif" in other["distance"]["rejected"]
+    assert other["distance"]["used"] is False and 'no row for "other.tif"' in other["distance"]["rejected"]
     assert "distance_missing" in other["flags"]
 
 
