@@ -10,6 +10,7 @@ Rows are the dicts of ``uwhl_rs.tasks`` (its ``COLUMNS``).
 from __future__ import annotations
 
 import csv
+import io
 import os
 import posixpath
 from dataclasses import dataclass
@@ -36,6 +37,9 @@ OWN_JSON = ("ifdo.json",)
 
 #: the largest summary.csv read back (about a million rows)
 SUMMARY_MAX_BYTES = 512 << 20
+#: failed rows of summary.csv shown on the report's page, and characters of each cell
+FAILED_SHOWN = 200
+CELL_SHOWN = 300
 
 #: flags that say something the operator should look at (``estimates_reused`` is the plan of a sequence)
 ROUTINE_FLAGS = ("estimates_reused",)
@@ -130,19 +134,31 @@ class Photo:
         return [f for f in self.doc.get("flags") or [] if f not in ROUTINE_FLAGS]
 
 
-def failed_inputs(out_dir, storage_options: dict | None = None) -> list[dict]:
-    """The failed rows of ``OUTDIR/summary.csv`` (inputs without a sidecar
-    to show), every value text, or none when there is no summary (or it
-    cannot be read: a FIFO, a link, not UTF-8, not CSV)."""
+def failed_inputs(out_dir, storage_options: dict | None = None, keep: int = FAILED_SHOWN) -> tuple[list[dict], int]:
+    """The first ``keep`` failed rows of ``OUTDIR/summary.csv`` (inputs
+    without a sidecar to show), every value text cut to ``CELL_SHOWN``
+    characters, and how many rows failed in all; none when there is no
+    summary (or it cannot be read: a FIFO, a link, not UTF-8, not CSV).
+    The rows are read one by one: a summary of a million failures is not
+    held in memory, nor put whole on a page."""
     folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
+    rows, total = [], 0
     try:
         text = folder.read(FILE_NAME, SUMMARY_MAX_BYTES).decode("utf-8")
-        rows = [r for r in csv.DictReader(text.splitlines()) if r.get("status") == "failed"]
+        for r in csv.DictReader(io.StringIO(text, newline="")):
+            if r.get("status") == "failed":
+                total += 1
+                if len(rows) < keep:
+                    rows.append(r)
+        del text
     except (OSError, ValueError, csv.Error):
-        return []
+        return [], 0
+
+    def cell(v) -> str:
+        t = display(summary_cell(v)) if isinstance(v, str) else ""
+        return t if len(t) <= CELL_SHOWN else t[:CELL_SHOWN - 1] + "\u2026"
     # a short row has None for its missing cells, a long one a list under None
-    return [{k: display(summary_cell(v)) if isinstance(v, str) else "" for k, v in r.items() if isinstance(k, str)}
-            for r in rows]
+    return [{k: cell(v) for k, v in r.items() if isinstance(k, str)} for r in rows], total
 
 
 def collect_sidecars(out_dir, storage_options: dict | None = None, *,

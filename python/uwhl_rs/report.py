@@ -482,12 +482,13 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     counts = {t: n for t, n in counts.items() if n}
     flagged = sum(1 for d in data if d["flags"])
     flagged_videos = [p for p in videos if report_video.needs_a_look(p)]
-    failed = failed_inputs(folder)
+    failed, n_failed = failed_inputs(folder)
+    more = n_failed - len(failed)
     failed_html = "" if not failed else (
-        f'<section id="failed"><h2>Failed: {len(failed)} (from summary.csv)</h2><table class="failed">'
+        f'<section id="failed"><h2>Failed: {n_failed} (from summary.csv)</h2><table class="failed">'
         + "".join(f"<tr><td>{html.escape(r.get('input', ''))}</td><td>{html.escape(r.get('error_kind', ''))}</td>"
                   f"<td>{html.escape(r.get('error', ''))}</td></tr>" for r in failed)
-        + "</table></section>")
+        + "</table>" + (f'<p class="meta">and {more} more: see summary.csv</p>' if more else "") + "</section>")
     types = [t for t in uwhl_rs.WATER_TYPES] + sorted(t for t in counts if t not in uwhl_rs.WATER_TYPES)
     videos_part = report_video.videos_html(videos, types, link)
     problems += [printable(x) for x in refused]
@@ -495,7 +496,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {html.escape(folder.name)}</title><style>{_CSS}</style></head><body>
 <h1>{html.escape(folder.display)}</h1>
-<p class="meta" id="summary">{len(photos)} photos{f" and {len(videos)} videos" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {len(failed)} failed; water types:
+<p class="meta" id="summary">{len(photos)} photos{f" and {len(videos)} videos" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {n_failed} failed; water types:
 {', '.join(f'{html.escape(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
 {html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
 {failed_html}
@@ -514,8 +515,21 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     # lone surrogates (undecodable names) cannot be UTF-8: shown as U+FFFD
     path = folder.write(REPORT_DIR + "/index.html", display(page).encode("utf-8"))
     return {"path": path, "photos": len(photos), "videos": len(videos), "flagged": flagged + len(flagged_videos),
-            "failed": len(failed), "thumbnails_written": written,
+            "failed": n_failed, "thumbnails_written": written,
             "problems": problems, "seconds": time.perf_counter() - t0}
+
+
+def _shown_text(value):
+    """``value`` with each string (keys too) as the page shows it: the
+    bytes of a name that are not UTF-8 (lone surrogates here) as U+FFFD,
+    which JSON would otherwise carry to the page as ``\\udcXX``."""
+    if isinstance(value, str):
+        return display(value)
+    if isinstance(value, dict):
+        return {(display(k) if isinstance(k, str) else k): _shown_text(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_shown_text(v) for v in value]
+    return value
 
 
 def script_json(value) -> str:
@@ -523,5 +537,5 @@ def script_json(value) -> str:
     ``<``, ``>`` or ``&`` (so no ``</script>`` or ``<!--`` can end or
     swallow the element) and no U+2028/U+2029, each written as its
     ``\\u`` escape, which JSON.parse reads back as the same text."""
-    text = json.dumps(value, ensure_ascii=True, allow_nan=False)
+    text = json.dumps(_shown_text(value), ensure_ascii=True, allow_nan=False)
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")

@@ -97,9 +97,12 @@ def printable(text: str) -> str:
 
 def plain_name(name: object) -> bool:
     """Whether ``name`` is a bare file name (an output beside its sidecar):
-    no folder part, not ``.`` or ``..``, no NUL or control character."""
+    no folder part, not ``.`` or ``..``, no NUL. Other control characters
+    are allowed: ``restore`` writes the outputs of a photo whose name holds
+    them, and every reader shows names escaped (the page as text, the
+    console through :func:`printable`)."""
     return (isinstance(name, str) and 0 < len(name) <= 255 and name not in (".", "..")
-            and not any(c in name for c in "/\\") and all(ord(c) >= 32 for c in name))
+            and not any(c in name for c in "/\\\0"))
 
 
 def is_uuid_hex(v: object) -> bool:

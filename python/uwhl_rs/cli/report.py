@@ -18,7 +18,8 @@ def write(out_dir: str, console: Console, storage_options: dict | None = None) -
     """Writes the report of ``out_dir`` (a folder or a storage URL) and says
     what it holds; raises a CommandError naming the folder when it cannot."""
     if not is_url(out_dir) and not os.path.isdir(out_dir):
-        raise CommandError("no such folder", "unreadable_input", out_dir)
+        # a FIFO or a file at that name is there, and not a folder
+        raise CommandError("not a folder" if os.path.lexists(out_dir) else "no such folder", "unreadable_input", out_dir)
     try:
         done = write_report(out_dir, storage_options=storage_options)
     except BatchError as e:

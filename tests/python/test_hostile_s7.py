@@ -1,0 +1,176 @@
+"""What the distance templates, ``--water-from``, the navigation log and the
+report read from names and files someone else chose (both commands where
+both read it): a file name cannot move a map out of its template's folder
+or be expanded twice, a name that is not UTF-8 finds its map, fits no photo
+gives are refused and every sidecar not used is named, a log's bad times
+and doubled columns are refused, and the report shows every photo
+``restore`` wrote, with no lone surrogate on its page and no unbounded
+table of failures."""
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from bothcmds import cmds as _cmds
+from bothcmds import run_restore, sidecar
+
+tifffile = pytest.importorskip("tifffile")
+
+BOTH = ["python", "rust"]
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory):
+    """Photos named as a hostile folder may name them, and one map that
+    sits outside the maps' folder."""
+    d = tmp_path_factory.mktemp("names")
+    img = np.random.default_rng(5).random((40, 60, 3)).astype(np.float32) * 0.6 + 0.2
+    ind = d / "in"
+    ind.mkdir()
+    for name in (b"...tif", b"{name}.tif", b"q\xff.tif", b"a\nb.tif", b"plain.tif"):
+        tifffile.imwrite(os.fsdecode(os.path.join(os.fsencode(ind), name)), img, photometric="rgb")
+    z = np.full((40, 60), 3.0, np.float32)
+    (d / "maps" / "x").mkdir(parents=True)
+    np.save(d / "maps" / "depth.npy", z)  # what maps/{stem}/../depth.npy would reach
+    np.save(d / "maps" / "x" / "{name}.npy", z)  # what a second expansion would miss
+    np.save(os.fsdecode(os.path.join(os.fsencode(d / "maps" / "x"), b"q\xff.npy")), z)
+    np.save(d / "maps" / "x" / "plain.npy", z)
+    return d
+
+
+@pytest.mark.parametrize("impl", BOTH)
+def test_a_name_cannot_move_or_rename_its_distance_map(impl, binary, photos, tmp_path):
+    out = tmp_path / impl
+    # the stem of "...tif" is "..": maps/../depth.npy is outside maps/
+    r = run_restore(_cmds(binary)[impl], photos / "in" / "...tif", "-o", out, "--distance", photos / "maps" / "{stem}" / "depth.npy")
+    assert r.returncode == 0, r.stderr
+    side = sidecar(out, "..")
+    assert "distance_missing" in side["flags"], side["flags"]
+    assert "would leave the template's folder" in side["distance"]["rejected"], side["distance"]
+    # "{name}.tif" has the stem "{name}": its map is maps/x/{name}.npy, not expanded again
+    r = run_restore(_cmds(binary)[impl], photos / "in" / "{name}.tif", "-o", out, "--distance", photos / "maps" / "x" / "{stem}.npy")
+    assert r.returncode == 0, r.stderr
+    side = sidecar(out, "{name}")
+    assert side["distance"]["source"].endswith("maps/x/{name}.npy") and "distance_missing" not in side["flags"], side["distance"]
+
+
+@pytest.mark.parametrize("impl", BOTH)
+def test_a_name_that_is_not_utf8_finds_its_map(impl, binary, photos, tmp_path):
+    out = tmp_path / impl
+    src = os.path.join(os.fsencode(photos / "in"), b"q\xff.tif")
+    tpl = str(photos / "maps" / "x" / "{stem}.npy")
+    cmd = [*_cmds(binary)[impl], "restore", src, "-o", str(out), "--distance", tpl, "-q"]
+    r = subprocess.run(cmd, capture_output=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    side = sidecar(out, "q\ufffd")  # outputs are named with the undecodable byte as U+FFFD
+    assert "distance_missing" not in side["flags"], side.get("distance")
+    assert side["distance"]["coverage"] == pytest.approx(1.0)
+
+
+def _cal(tmp_path, docs):
+    cal = tmp_path / "cal"
+    cal.mkdir()
+    for name, doc in docs.items():
+        (cal / name).write_text(doc if isinstance(doc, str) else json.dumps(doc))
+    return cal
+
+
+def _fit(beta):
+    return {"distance": {"used": True, "water": {"beta": beta}}}
+
+
+@pytest.mark.parametrize("impl", BOTH)
+def test_water_from_refuses_fits_no_photo_gives_and_names_what_it_skipped(impl, binary, photos, tmp_path):
+    cal = _cal(tmp_path, {
+        "good.json": _fit([0.5, 0.1, 0.05]),
+        "tiny_ratio.json": _fit([99, 99, 1e-300]),  # beta_B/beta_R 1e-302: labelled Jerlov I before
+        "tiny_all.json": _fit([1e-300, 1e-300, 1e-300]),
+        "broken.json": "{",
+        "nodistance.json": {"distance": {"used": False}},
+    })
+    out = tmp_path / impl
+    cmd = [*_cmds(binary)[impl], "restore", str(photos / "in" / "plain.tif"), "-o", str(out), "--water-from", str(cal)]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    side = sidecar(out, "plain")
+    assert side["beta_ratios"] == pytest.approx([0.1, 0.5], rel=1e-9)
+    rec = side["parameters"]["water_from"]
+    assert (rec["photos"], rec["skipped"]) == (1, 3), rec
+    for name in ("tiny_ratio.json", "tiny_all.json", "broken.json"):
+        assert any(name in line and "not used" in line for line in r.stderr.splitlines()), r.stderr
+    assert "nodistance.json" not in r.stderr
+    # only hostile fits: a usage error that says some files could not be used
+    os.remove(cal / "good.json")
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "3 of its *.json files could not be used" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("impl", BOTH)
+@pytest.mark.parametrize("log, want", [
+    ("time,altitude\n1e300,2\n", 'line 2, column 1 (time): "1e300" is not an ISO 8601 time'),
+    ("time,altitude\n2026-11-30T10:15:40+99:00,2\n", "line 2, column 1 (time)"),
+    ("time,altitude\n100,2\n100,9\n", "line 3: the time of line 2 again"),
+    ("file,altitude,alt\nplain.tif,2,3\n", 'two altitude columns, "altitude" (column 2) and "alt" (column 3)'),
+    ("file,altitude\nplain.tif,1e300\n", "1.000000e300 is not in"),
+])
+def test_a_navigation_log_with_bad_times_or_doubled_columns_is_refused(impl, binary, photos, tmp_path, log, want):
+    nav = tmp_path / "nav.csv"
+    nav.write_text(log)
+    r = run_restore(_cmds(binary)[impl], photos / "in" / "plain.tif", "-o", tmp_path / "o", "--altitude", nav, "--fov", "80")
+    assert r.returncode == 2 and want in r.stderr, r.stderr
+    assert len(r.stderr) < 600, r.stderr  # no 300-digit number
+
+
+def test_the_report_shows_every_photo_restore_wrote_and_no_lone_surrogate(binary, photos, tmp_path):
+    out = tmp_path / "out"
+    for name in (b"a\nb.tif", b"q\xff.tif", b"plain.tif"):
+        src = os.path.join(os.fsencode(photos / "in"), name)
+        r = subprocess.run([binary, "restore", src, "-o", str(out), "-q"], capture_output=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "not a usable sidecar" not in r.stdout, r.stdout
+    page = (out / "report" / "index.html").read_text(encoding="utf-8")
+    start = page.index('<script id="data" type="application/json">') + len('<script id="data" type="application/json">')
+    data = json.loads(page[start:page.index("</script>", start)])
+    names = sorted(p["name"] for p in data["photos"])
+    assert names == sorted(["a\nb", "q\ufffd", "plain"]), names
+    assert not any(0xD800 <= ord(c) <= 0xDFFF for p in data["photos"] for c in json.dumps(p, ensure_ascii=False))
+    assert "\\udc" not in page.lower()
+
+
+def test_the_reports_table_of_failures_is_bounded(binary, photos, tmp_path):
+    """250,000 failed rows with 300-character errors: the page shows 200 of
+    them, each cut, and says how many more summary.csv holds."""
+    out = tmp_path / "out"
+    r = subprocess.run([binary, "restore", str(photos / "in" / "plain.tif"), "-o", str(out), "-q"], capture_output=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    with open(out / "summary.csv", newline="") as f:
+        head = next(csv.reader(f))
+    with open(out / "summary.csv", "a", newline="") as f:
+        w = csv.writer(f)
+        for k in range(250_000):
+            row = {"input": f"x{k}.jpg", "status": "failed", "error_kind": "unreadable_input", "error": "e" * 1000, "exit_code": "3"}
+            w.writerow([row.get(c, "") for c in head])
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(out)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    page = (out / "report" / "index.html").read_text()
+    assert "Failed: 250000" in page and "and 249800 more: see summary.csv" in page
+    assert page.count("<tr>") <= 200 + 50
+    assert len(page) < 2_000_000, len(page)
+    assert "e" * 400 not in page
+
+
+def test_report_of_a_file_says_it_is_not_a_folder(tmp_path):
+    f = tmp_path / "f.json"
+    f.write_text("{}")
+    os.mkfifo(tmp_path / "pipe")
+    for p, want in ((f, "not a folder"), (tmp_path / "pipe", "not a folder"), (tmp_path / "nope", "no such folder")):
+        r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(p)], capture_output=True, text=True, timeout=60)
+        assert r.returncode != 0 and want in r.stderr, (p, r.stderr)
+    shutil.rmtree(tmp_path / "out", ignore_errors=True)
