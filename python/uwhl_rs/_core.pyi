@@ -162,9 +162,10 @@ def decode_file(
 def decode_mask_file(path: _PathArg, what: str, max_pixels: int, max_memory: int) -> _Bool:
     """A mask file as H x W bools (nonzero = True), read by the binary's mask reader."""
 def read_distance_for(
-    template: str, input: _PathArg, max_pixels: int, max_memory: int,
+    template: str, input: _PathArg, max_pixels: int, max_memory: int, photo: Optional[tuple[int, int]] = None,
 ) -> tuple[str, Optional[_F32], Optional[str]]:
-    """An input's distance map for a --distance template: (path, H x W metres or None, why not or None)."""
+    """An input's distance map for a --distance template: (path, H x W metres or None, why not or None);
+    with photo (height, width), a map of more than 16 times its pixels is refused from its header."""
 def read_distance_file(path: _PathArg, max_pixels: int, max_memory: int) -> _F32:
     """A distance map file as H x W metres (NaN = unknown), read by the binary's reader (npy, 16-bit PNG,
     TIFF, OpenEXR, COLMAP); ImageError names what is wrong, MemoryError a map over the limits."""

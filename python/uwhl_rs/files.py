@@ -254,7 +254,8 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     # that cannot be read leaves the photo restored without it, flagged
     z, z_source, z_missing, z_floor, z_depth = None, None, None, None, None
     if isinstance(distance, (str, os.PathLike)):
-        z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), int(budget))
+        z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), int(budget),
+                                                         tuple(int(x) for x in full_hw))
         if z is not None and settings.depth_along_axis:
             # METHOD §13.7: depth along the camera's axis, turned into ranges with the lens
             z, z_depth, z_missing = _core.depth_to_range_for(settings, in_path, z, *full_hw)

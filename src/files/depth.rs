@@ -102,10 +102,29 @@ fn path_from_bytes(b: Vec<u8>) -> PathBuf {
     PathBuf::from(String::from_utf8_lossy(&b).into_owned())
 }
 
+/// Most pixels of a photo's map, as a multiple of the photo's pixels (four
+/// times its side: depth maps are exported at the photo's size or
+/// smaller), and at least [`MAP_MIN_CAP`]: a small compressed file of
+/// 17000 x 17000 pixels for a photo of 256 x 256 would take gigabytes.
+pub const MAP_PER_PHOTO_PIXEL: u64 = 16;
+/// The cap of [`MAP_PER_PHOTO_PIXEL`] is never below this (4 Mpx).
+pub const MAP_MIN_CAP: u64 = 1 << 22;
+
 /// Reads a distance map (regular files only; the size is checked from the
 /// header against `max_pixels` and `max_memory` before anything large is
 /// allocated).
 pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<DistanceMap, Failure> {
+    read_distance_capped(path, max_pixels, max_memory, None)
+}
+
+/// [`read_distance`] of the map of a photo of `photo` = (height, width)
+/// pixels: a map of more than [`MAP_PER_PHOTO_PIXEL`] times its pixels is
+/// refused from its header.
+pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: (u64, u64)) -> Result<DistanceMap, Failure> {
+    read_distance_capped(path, max_pixels, max_memory, Some(photo))
+}
+
+fn read_distance_capped(path: &Path, max_pixels: u64, max_memory: u64, photo: Option<(u64, u64)>) -> Result<DistanceMap, Failure> {
     crate::files::jobs::regular_file(path).map_err(|m| Failure::new(Kind::Input, m))?;
     let f = File::open(path).map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))?;
     let mut r = BufReader::new(f);
@@ -119,6 +138,15 @@ pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<Di
         }
         if n > max_pixels {
             return Err(Failure::new(Kind::Budget, format!("the distance map is {w}x{h} pixels, over --max-pixels {max_pixels}")));
+        }
+        if let Some((ph, pw)) = photo {
+            let cap = ph.saturating_mul(pw).saturating_mul(MAP_PER_PHOTO_PIXEL).max(MAP_MIN_CAP);
+            if n > cap {
+                return Err(Failure::new(
+                    Kind::Input,
+                    format!("the distance map is {w}x{h} pixels, more than {MAP_PER_PHOTO_PIXEL} times the photo's {pw}x{ph}: not read"),
+                ));
+            }
         }
         // the decoded samples and the metres
         let need = n.saturating_mul(bytes_per.saturating_add(4));
@@ -531,6 +559,24 @@ mod tests {
         assert_eq!(expand("maps/{name}.npy", Path::new("a.b.png")).unwrap(), PathBuf::from("maps/a.b.png.npy"));
         assert_eq!(expand("one.npy", Path::new("a.png")).unwrap(), PathBuf::from("one.npy"));
         assert_eq!(expand("{x}/{stem}.{npy", Path::new("a.png")).unwrap(), PathBuf::from("{x}/a.{npy"));
+    }
+
+    #[test]
+    fn a_map_far_larger_than_its_photo_is_refused_from_its_header() {
+        // a 16-bit PNG of 4096 x 2048 (8 Mpx, 16 MB of samples) for a photo of 100 x 200
+        let mut buf = Vec::new();
+        {
+            let mut e = png::Encoder::new(&mut buf, 4096, 2048);
+            e.set_depth(png::BitDepth::Sixteen);
+            e.set_color(png::ColorType::Grayscale);
+            let mut w = e.write_header().unwrap();
+            w.write_image_data(&vec![0u8; 4096 * 2048 * 2]).unwrap();
+        }
+        let p = tmp("big.png", &buf);
+        let e = read_distance_of(&p, 1 << 30, 1 << 34, (100, 200)).unwrap_err();
+        assert!(e.message.contains("more than 16 times the photo's 200x100"), "{}", e.message);
+        // the same map for a photo of 1024 x 512 (16 x 0.5 Mpx = 8 Mpx) is read
+        assert_eq!(read_distance_of(&p, 1 << 30, 1 << 34, (512, 1024)).unwrap().width, 4096);
     }
 
     #[test]

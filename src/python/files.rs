@@ -209,22 +209,28 @@ fn decode_mask_file<'py>(
 /// An input's distance map for `--distance TEMPLATE` (the binary's reader,
 /// `crate::files::depth`): `(path, map or None, why not or None)`. A map
 /// that cannot be read is not an error: the photo is restored without it
-/// and flagged `distance_missing`.
+/// and flagged `distance_missing`. With `photo` (its height and width), a
+/// map far larger than the photo is refused from its header.
 #[pyfunction]
-#[pyo3(signature = (template, input, max_pixels, max_memory))]
+#[pyo3(signature = (template, input, max_pixels, max_memory, photo=None))]
 fn read_distance_for<'py>(
     py: Python<'py>,
     template: &str,
     input: PathBuf,
     max_pixels: u64,
     max_memory: u64,
+    photo: Option<(u64, u64)>,
 ) -> PyResult<(String, Option<Bound<'py, PyAny>>, Option<String>)> {
     let path = match crate::files::depth::expand(template, &input) {
         Ok(p) => p,
         Err(why) => return Ok((template.to_string(), None, Some(why))),
     };
     let shown = path.to_string_lossy().into_owned();
-    match py.detach(|| crate::files::depth::read_distance(&path, max_pixels, max_memory)) {
+    let read = || match photo {
+        Some(hw) => crate::files::depth::read_distance_of(&path, max_pixels, max_memory, hw),
+        None => crate::files::depth::read_distance(&path, max_pixels, max_memory),
+    };
+    match py.detach(read) {
         Ok(m) => Ok((shown, Some(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any()), None)),
         Err(f) => {
             let why = format!("{shown}: {}", f.message);

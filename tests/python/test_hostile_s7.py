@@ -174,3 +174,21 @@ def test_report_of_a_file_says_it_is_not_a_folder(tmp_path):
         r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(p)], capture_output=True, text=True, timeout=60)
         assert r.returncode != 0 and want in r.stderr, (p, r.stderr)
     shutil.rmtree(tmp_path / "out", ignore_errors=True)
+
+
+@pytest.mark.parametrize("impl", BOTH)
+def test_a_map_far_larger_than_its_photo_is_not_read(impl, binary, photos, tmp_path):
+    """A 4096 x 4096 16-bit PNG of zeros (a few kB compressed, 32 MB of
+    samples) for a photo of 60 x 40: refused from its header (more than 16
+    times the photo's pixels, and over the 4 Mpx floor of that cap)."""
+    from PIL import Image
+
+    big = tmp_path / "big.png"
+    Image.fromarray(np.zeros((4096, 4096), np.uint16)).save(big)
+    assert big.stat().st_size < 1_000_000
+    out = tmp_path / impl
+    r = run_restore(_cmds(binary)[impl], photos / "in" / "plain.tif", "-o", out, "--distance", big)
+    assert r.returncode == 0, r.stderr
+    side = sidecar(out, "plain")
+    assert "distance_missing" in side["flags"]
+    assert "4096x4096 pixels, more than 16 times the photo's 60x40" in side["distance"]["rejected"], side["distance"]
