@@ -200,7 +200,7 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                     Sink::Folder(_, lines) => {
                         let e = Failure::new(e.kind, format!("frame {k}: {}", e.message));
                         report(err, opts.json_errors, None, &e);
-                        writeln!(lines, "{}", crate::cli::run::json_line(&e.to_json(Some(&format!("stdin#{k}"))).to_string()))
+                        writeln!(lines, "{}", crate::cli::run::json_line(&crate::cli::run::spaced(&e.to_json(Some(&format!("stdin#{k}"))))))
                             .and_then(|()| lines.flush())
                             .map_err(
                             |why| Failure::new(Kind::Write, format!("cannot write the line of frame {k} to stdout ({why}): stopped")),

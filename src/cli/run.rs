@@ -54,6 +54,21 @@ pub fn json_line(text: &str) -> String {
     out
 }
 
+/// `v` as one line of JSON in the form docs/CLI.md shows and the Python
+/// command writes (`", "` between items, `": "` after keys), for the error
+/// objects of `--json-errors`.
+pub fn spaced(v: &Value) -> String {
+    match v {
+        Value::Array(items) => format!("[{}]", items.iter().map(spaced).collect::<Vec<_>>().join(", ")),
+        Value::Object(map) => {
+            let items: Vec<String> = map.iter().map(|(k, x)| format!("{}: {}", Value::from(k.as_str()), spaced(x))).collect();
+            format!("{{{}}}", items.join(", "))
+        }
+        // strings, numbers, booleans and null as serde_json writes them (its escapes)
+        _ => v.to_string(),
+    }
+}
+
 /// Line and paragraph separators and the bidirectional marks, embeddings,
 /// overrides and isolates ([`printable`]).
 fn invisible_order(c: char) -> bool {
@@ -65,7 +80,7 @@ fn invisible_order(c: char) -> bool {
 pub fn report(err: &mut dyn Write, opts_json: bool, input: Option<&Path>, e: &Failure) {
     let input_s = input.map(|p| p.to_string_lossy().into_owned());
     let _ = if opts_json {
-        writeln!(err, "{}", json_line(&e.to_json(input_s.as_deref()).to_string()))
+        writeln!(err, "{}", json_line(&spaced(&e.to_json(input_s.as_deref()))))
     } else {
         let line = match input_s {
             Some(i) => format!("uwhl-rs: {i}: {e}"),
@@ -497,6 +512,10 @@ mod tests {
         assert_eq!(printable("plain/name.jpg"), "plain/name.jpg");
         // a right-to-left override and a line separator: escaped, other text kept
         assert_eq!(printable("x\u{202e}gnp.exe\u{2028}y \u{05d0}.png"), "x\\u202egnp.exe\\u2028y \u{05d0}.png");
+        // error objects in the documented form
+        let v = serde_json::json!({"error": "x", "input": null, "list": [1, "a\"b"], "in": {"k": 2.5}});
+        assert_eq!(spaced(&v), r#"{"error": "x", "input": null, "list": [1, "a\"b"], "in": {"k": 2.5}}"#);
+        assert_eq!(serde_json::from_str::<serde_json::Value>(&spaced(&v)).unwrap(), v);
         // JSON lines: the same characters and C1 as JSON escapes, read back unchanged
         let v = serde_json::json!({"input": "a\u{202e}b\u{2028}c\u{85}d\u{7f}\u{05d0}\n"});
         let line = json_line(&v.to_string());

@@ -192,3 +192,17 @@ def test_a_map_far_larger_than_its_photo_is_not_read(impl, binary, photos, tmp_p
     side = sidecar(out, "plain")
     assert "distance_missing" in side["flags"]
     assert "4096x4096 pixels, more than 16 times the photo's 60x40" in side["distance"]["rejected"], side["distance"]
+
+
+def test_both_commands_write_the_same_json_error_line_and_a_short_usage_error(binary, tmp_path):
+    lines = {}
+    for impl, cmd in _cmds(binary).items():
+        r = subprocess.run([*cmd, "restore", str(tmp_path / "nope.jpg"), "-o", str(tmp_path / impl), "--json-errors", "-q"],
+                           capture_output=True, text=True, timeout=120)
+        lines[impl] = [x for x in r.stderr.splitlines() if x.startswith("{")]
+        # a usage error is its line and where to look, not the usage of thirty options
+        u = subprocess.run([*cmd, "restore", "x.jpg", "-o", str(tmp_path / "u"), "--fov", "nan"], capture_output=True,
+                           text=True, timeout=120)
+        assert u.returncode == 2 and len(u.stderr.splitlines()) == 2 and "--help" in u.stderr, u.stderr
+    assert lines["python"] == lines["rust"], lines
+    assert lines["python"][0].startswith('{"error": "unreadable_input", "input": '), lines

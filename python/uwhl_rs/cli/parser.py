@@ -137,8 +137,8 @@ class _Parser(argparse.ArgumentParser):
     as in the binary's. Subcommands' parsers are of the same class."""
 
     def error(self, message):
-        self.print_usage(sys.stderr)
-        self.exit(2, f"{self.prog}: error: {printable(message)}\n")
+        # one line and where to look, as the binary's: the usage of a command of thirty options would bury it
+        self.exit(2, f"{self.prog}: error: {printable(message)}\nTry '{self.prog} --help'.\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
