@@ -528,26 +528,23 @@ mod tests {
         assert!(e.message.contains("Fortran"), "{}", e.message);
     }
 
+    /// A one-channel PNG of `w` x `h` samples of `depth` bits, written by the png crate.
+    fn gray_png(w: u32, h: u32, depth: png::BitDepth, data: &[u8]) -> Vec<u8> {
+        let mut buf = Vec::new();
+        let mut e = png::Encoder::new(&mut buf, w, h);
+        e.set_color(png::ColorType::Grayscale);
+        e.set_depth(depth);
+        e.write_header().unwrap().write_image_data(data).unwrap();
+        buf
+    }
+
     #[test]
     fn sixteen_bit_png_is_millimetres_and_eight_bit_is_refused() {
-        let mut buf = Vec::new();
-        {
-            let mut e = png::Encoder::new(&mut buf, 2, 1);
-            e.set_color(png::ColorType::Grayscale);
-            e.set_depth(png::BitDepth::Sixteen);
-            let mut w = e.write_header().unwrap();
-            w.write_image_data(&[0x0b, 0xb8, 0, 0]).unwrap();
-        }
+        let buf = gray_png(2, 1, png::BitDepth::Sixteen, &[0x0b, 0xb8, 0, 0]);
         let m = read_distance(&tmp("d.png", &buf), 1 << 20, 1 << 30).unwrap();
         assert_eq!(m.data[0], 3.0);
         assert!(m.data[1].is_nan());
-        let mut buf = Vec::new();
-        {
-            let mut e = png::Encoder::new(&mut buf, 1, 1);
-            e.set_color(png::ColorType::Grayscale);
-            let mut w = e.write_header().unwrap();
-            w.write_image_data(&[7]).unwrap();
-        }
+        let buf = gray_png(1, 1, png::BitDepth::Eight, &[7]);
         let e = read_distance(&tmp("d8.png", &buf), 1 << 20, 1 << 30).unwrap_err();
         assert!(e.message.contains("16-bit"), "{}", e.message);
     }
@@ -564,15 +561,7 @@ mod tests {
     #[test]
     fn a_map_far_larger_than_its_photo_is_refused_from_its_header() {
         // a 16-bit PNG of 4096 x 2048 (8 Mpx, 16 MB of samples) for a photo of 100 x 200
-        let mut buf = Vec::new();
-        {
-            let mut e = png::Encoder::new(&mut buf, 4096, 2048);
-            e.set_depth(png::BitDepth::Sixteen);
-            e.set_color(png::ColorType::Grayscale);
-            let mut w = e.write_header().unwrap();
-            w.write_image_data(&vec![0u8; 4096 * 2048 * 2]).unwrap();
-        }
-        let p = tmp("big.png", &buf);
+        let p = tmp("big.png", &gray_png(4096, 2048, png::BitDepth::Sixteen, &vec![0u8; 4096 * 2048 * 2]));
         let e = read_distance_of(&p, 1 << 30, 1 << 34, (100, 200)).unwrap_err();
         assert!(e.message.contains("more than 16 times the photo's 200x100"), "{}", e.message);
         // the same map for a photo of 1024 x 512 (16 x 0.5 Mpx = 8 Mpx) is read
