@@ -21,14 +21,23 @@ use std::time::Instant;
 /// the rest of it reads. The Python command's lines go through the same
 /// rule (`uwhl_rs.sidecars.printable`).
 pub fn printable(text: &str) -> String {
+    escaped(text, |c| {
+        if c < '\u{20}' || ('\u{7f}'..='\u{9f}').contains(&c) {
+            Some(format!("\\x{:02x}", c as u32))
+        } else {
+            invisible_order(c).then(|| format!("\\u{:04x}", c as u32))
+        }
+    })
+}
+
+/// `text` with each character for which `escape` gives a replacement
+/// replaced by it.
+fn escaped(text: &str, escape: impl Fn(char) -> Option<String>) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
-        if c < '\u{20}' || ('\u{7f}'..='\u{9f}').contains(&c) {
-            out.push_str(&format!("\\x{:02x}", c as u32));
-        } else if invisible_order(c) {
-            out.push_str(&format!("\\u{:04x}", c as u32));
-        } else {
-            out.push(c);
+        match escape(c) {
+            Some(e) => out.push_str(&e),
+            None => out.push(c),
         }
     }
     out
@@ -43,15 +52,7 @@ pub fn printable(text: &str) -> String {
 /// JSON reads back unchanged (the Python command's lines escape every
 /// non-ASCII character).
 pub fn json_line(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        if ('\u{7f}'..='\u{9f}').contains(&c) || invisible_order(c) {
-            out.push_str(&format!("\\u{:04x}", c as u32));
-        } else {
-            out.push(c);
-        }
-    }
-    out
+    escaped(text, |c| (('\u{7f}'..='\u{9f}').contains(&c) || invisible_order(c)).then(|| format!("\\u{:04x}", c as u32)))
 }
 
 /// `v` as one line of JSON in the form docs/CLI.md shows and the Python
