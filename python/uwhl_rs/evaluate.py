@@ -36,6 +36,7 @@ from .errors import ManifestError
 # the manifest's format and reader, re-exported: uwhl_rs.evaluate is where the command and tests find them
 from .manifest import METHODS, TYPE_ORDER, Chart, Entry, load_manifest
 from .evaluate_report import SUMMARY_EXTRAS, TRUTH_KEYS, write_report
+from .sidecars import display
 
 __all__ = ["METHODS", "Chart", "Entry", "ManifestError", "load_manifest", "evaluate_entry", "summarize",
            "write_results", "write_report"]
@@ -93,7 +94,6 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
     PNG in millimetres, OpenEXR: docs/OUTPUTS.md "Distance"), or a ``.mat``
     holding one 2-D array (scipy)."""
     from . import _core
-    from .images import read_distance as read_distance_file
 
     ext = os.path.splitext(path)[1].lower()
     try:
@@ -102,15 +102,25 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
                 from scipy.io import loadmat
             except ImportError:
                 raise ManifestError(f"{path}: reading .mat distance maps needs scipy (pip install scipy)") from None
-            m = loadmat(path)
-            arrays = [v for k, v in m.items() if not k.startswith("__") and isinstance(v, np.ndarray)
-                      and v.ndim == 2 and v.dtype.kind in "iuf" and min(v.shape) > 1]
-            if len(arrays) != 1:
+            from scipy.io import whosmat
+
+            # the shapes from the file's headers: an array is decompressed only once its size is known
+            numeric = ("double", "single", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64")
+            found = [(k, tuple(int(x) for x in shape)) for k, shape, cls in whosmat(path)
+                     if cls in numeric and len(shape) == 2 and min(shape) > 1]
+            if len(found) != 1:
                 raise ManifestError(f"{path}: a .mat distance file holds exactly one 2-D numeric array "
-                                    f"(found {len(arrays)})")
-            d = arrays[0].astype(np.float64)
+                                    f"(found {len(found)})")
+            name, (h, w) = found[0]
+            cap = max(_core.MAP_PER_PHOTO_PIXEL * height * width, _core.MAP_MIN_CAP)
+            if h * w > min(cap, gt.MAX_TRUTH_PIXELS):
+                raise ManifestError(f"{path}: the distance map is {w}x{h} pixels, more than "
+                                    f"{_core.MAP_PER_PHOTO_PIXEL} times the photo's {width}x{height}: not read")
+            d = np.asarray(loadmat(path, variable_names=[name])[name], dtype=np.float64)
         else:
-            d = read_distance_file(path).astype(np.float64)
+            # the commands' reader, with their limits and the cap against the photo's size
+            d = np.asarray(_core.read_distance_file(path, int(gt.MAX_TRUTH_PIXELS), int(_core.default_max_memory()),
+                                                    (int(height), int(width))), dtype=np.float64)
     except ManifestError:
         raise
     except (_core.ImageError, MemoryError) as e:
@@ -203,6 +213,9 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
         for ch in entry.charts:
             for x0, y0, x1, y1 in ch.region:
                 mask[y0:y1, x0:x1] = False
+        if not mask.any():
+            raise ManifestError(f"{entry.label}: with --mask-charts the charts' regions cover the whole photo: "
+                                "no pixel is left to estimate from")
     kwargs = {**restore_kwargs, **entry.restore, "method": method}
     if water is not None:
         kwargs["water_mask"] = water
@@ -307,7 +320,8 @@ def read_truth(entry: Entry, height: int, width: int, water=None) -> tuple[np.nd
         scored &= ~water
     scored &= img.sum(axis=2) > gt.MIN_TRUTH_SUM
     if not scored.any():
-        raise ManifestError(f"{entry.truth}: no pixel of the truth can be scored (finite, not negative, "
+        raise ManifestError(f"{entry.truth}: no pixel of the truth can be scored (finite, not negative, at most "
+                            f"{gt.MAX_TRUTH_VALUE:g}, "
                             f"R + G + B above {gt.MIN_TRUTH_SUM} in linear units where 1 is white"
                             + (", inside truth_mask" if entry.truth_mask else
                                ", outside the water region" if water is not None else "") + ")")
@@ -417,7 +431,8 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
 
     def put_csv(tmp):
         with open(tmp, "w", newline="", encoding="utf-8") as f:
-            wr = csv.writer(f)
+            # undecodable bytes of a name (lone surrogates) as U+FFFD, as results.json and the console show them
+            wr = _DisplayedRows(csv.writer(f))
             # image: the entry's path as written in the manifest (to join on); label: images[K] (path)
             wr.writerow(["image", "label", "chart", "method", "psi_deg", "rho_B", "rho_R", "water_type",
                          "true_water_type", *(f"truth_{k}" for k in TRUTH_KEYS)])
@@ -449,6 +464,16 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
 
     atomic_write_bytes(os.path.join(out_dir, "results.csv"), put_csv)
     return doc
+
+
+class _DisplayedRows:
+    """A CSV writer whose text cells are written as :func:`display` shows them."""
+
+    def __init__(self, writer):
+        self._w = writer
+
+    def writerow(self, row) -> None:
+        self._w.writerow([display(x) if isinstance(x, str) else x for x in row])
 
 
 def _fmt(x) -> str:

@@ -11,6 +11,7 @@ import numpy as np
 
 from . import _core
 from .manifest import Chart, Entry
+from .sidecars import printable
 from .truth import pixel_angles
 
 __all__ = ["write_report"]
@@ -77,9 +78,12 @@ def _truth_table(r: dict, methods: list[str]) -> str:
 
 
 def _esc(x) -> str:
+    """``x`` as the page's text: as the console shows it (undecodable bytes
+    as U+FFFD, control and bidirectional characters as visible escapes, so
+    a name cannot reorder the line it is in), then HTML-escaped."""
     import html
 
-    return html.escape(str(x))
+    return html.escape(printable(str(x)))
 
 
 def _bars(rows: list[dict], methods: list[str]) -> str:

@@ -4,6 +4,7 @@ that a bad entry is one line naming it before anything runs."""
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import stat
@@ -23,6 +24,10 @@ TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
 _METHOD_KEYS = {o["key"] for o in _core.OPTIONS if o["method"]}
 #: A manifest lists images and boxes; anything larger is not one (and is not read into memory).
 MAX_MANIFEST_BYTES = 16 << 20
+#: Most charts of an entry, and boxes of a chart's gray patches or region: each box is averaged or masked
+#: on every profile and baseline, so a few kilobytes of boxes could hold a run for days.
+MAX_CHARTS = 64
+MAX_BOXES = 64
 
 
 @dataclass
@@ -71,8 +76,14 @@ def _regular(path: str, label: str, what: str) -> None:
     each called what they are."""
     try:
         st = os.stat(path)
-    except OSError:
-        raise ManifestError(f"{label}: no such {what} file {path}") from None
+    except UnicodeEncodeError:
+        # a lone surrogate other than an undecodable byte's escape (\udc80-\udcff) names no file
+        raise ManifestError(f"{label}: the {what} path is not a file name (it holds a lone surrogate)") from None
+    except ValueError:
+        raise ManifestError(f"{label}: the {what} path is not a file name (it holds a NUL)") from None
+    except OSError as e:
+        why = "no such" if e.errno in (errno.ENOENT, errno.ENOTDIR) else f"cannot reach ({e.strerror or e}) the"
+        raise ManifestError(f"{label}: {why} {what} file {path}") from None
     if not stat.S_ISREG(st.st_mode):
         kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else \
             "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file"
@@ -118,6 +129,8 @@ def _entry(k: int, raw, folder: str) -> Entry:
     raw_charts = raw.get("charts")
     if raw_charts is not None and not isinstance(raw_charts, list):
         raise ManifestError(f"{label}: 'charts' is a list of chart objects, not {_short(raw_charts)}")
+    if len(raw_charts or []) > MAX_CHARTS:
+        raise ManifestError(f"{label}: {len(raw_charts)} charts, over the limit of {MAX_CHARTS}")
     for c, ch in enumerate(raw_charts or []):
         what = f"{label} charts[{c}]"
         if not isinstance(ch, dict):
@@ -131,6 +144,9 @@ def _entry(k: int, raw, folder: str) -> Entry:
         region = ch.get("region") or []
         if not isinstance(region, list):
             raise ManifestError(f"{what}: 'region' is a list of boxes")
+        for key, boxes in (("gray_patches", patches), ("region", region)):
+            if len(boxes) > MAX_BOXES:
+                raise ManifestError(f"{what}: {len(boxes)} boxes in '{key}', over the limit of {MAX_BOXES}")
         name = ch.get("name", f"chart {c + 1}")
         charts.append(Chart(str(name), [_box(b, f"{what} gray_patches[{i}]") for i, b in enumerate(patches)],
                             [_box(b, f"{what} region[{i}]") for i, b in enumerate(region)]))

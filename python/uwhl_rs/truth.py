@@ -22,7 +22,7 @@ from . import _core
 from .errors import ManifestError
 from .images import DEFAULT_MAX_PIXELS
 
-__all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "pixel_angles", "angle_stats", "best_gains", "score",
+__all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "MAX_TRUTH_VALUE", "pixel_angles", "angle_stats", "best_gains", "score",
            "median_interval", "paired_medians", "resize_nearest", "load_npy", "read_truth", "read_truth_mask"]
 
 #: Truth pixels darker than this (sum of R, G, B, linear) carry no colour
@@ -30,6 +30,8 @@ __all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "pixel_angles", "angle_stats", "
 MIN_TRUTH_SUM = 0.02
 #: A truth or truth mask is resized to its photo; a file claiming more pixels than a photo may have is not read.
 MAX_TRUTH_PIXELS = DEFAULT_MAX_PIXELS
+#: the largest value of a truth's pixel that is scored (linear radiance; white is 1)
+MAX_TRUTH_VALUE = 1e6
 
 
 def pixel_angles(out: np.ndarray, truth: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
@@ -206,9 +208,31 @@ def _regular(path: str, what: str) -> None:
 
 
 def _check_size(path: str, shape, what: str) -> None:
-    if len(shape) >= 2 and int(np.prod(shape[:2], dtype=np.int64)) > MAX_TRUTH_PIXELS:
-        raise ManifestError(f"{path}: the {what} is {shape[1]}x{shape[0]} pixels, over the limit of "
-                            f"{MAX_TRUTH_PIXELS}")
+    """Refuses, from a header's shape, what no truth or mask is or what is
+    too large to read: not H x W, H x W x C or C x H x W with at most four
+    channels (a 1-D array, the frames of an animation), over
+    ``MAX_TRUTH_PIXELS`` pixels, or more float64 values than the memory
+    budget holds. Sizes in Python integers: a header's product cannot wrap."""
+    shape = tuple(int(x) for x in shape)
+    if len(shape) == 2:
+        channels = 1
+    elif len(shape) == 3 and shape[2] <= 4:
+        channels = shape[2]
+    elif len(shape) == 3 and shape[0] <= 4:
+        channels = shape[0]  # a planar TIFF page: C x H x W
+    else:
+        raise ManifestError(f"{path}: the {what} has shape {shape}, not one H x W image (with at most 4 "
+                            "channels); not read")
+    values = 1
+    for x in shape:
+        values *= x
+    pixels = values // max(channels, 1)
+    if pixels > MAX_TRUTH_PIXELS:
+        raise ManifestError(f"{path}: the {what} is {pixels} pixels, over the limit of {MAX_TRUTH_PIXELS}; not read")
+    # read as float64, with a copy or two while it is checked and resized
+    need = values * 8 * 3
+    if need > _core.default_max_memory():
+        raise ManifestError(f"{path}: the {what} needs about {need} bytes, over the memory budget; not read")
 
 
 def load_npy(path: str, what: str) -> np.ndarray:
@@ -275,7 +299,8 @@ def read_truth(path: str, height: int, width: int) -> tuple[np.ndarray, np.ndarr
     ``truth`` is H x W x 3 linear RGB (float TIFF or ``.npy`` as stored,
     16-bit PNG or TIFF as code / 65535; gray is replicated, alpha dropped),
     resized by nearest neighbour; ``usable`` is False where a value is
-    non-finite or negative (those pixels hold 0 and are not scored).
+    non-finite, negative or over ``MAX_TRUTH_VALUE`` (those pixels hold 0
+    and are not scored).
     Raises :class:`ManifestError` naming the file for anything else.
     """
     a = _load_array(path, "truth")
@@ -287,7 +312,9 @@ def read_truth(path: str, height: int, width: int) -> tuple[np.ndarray, np.ndarr
         a = a[:, :, :3]
     if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] == 0 or a.shape[1] == 0:
         raise ManifestError(f"{path}: a truth is an H x W x 3 RGB image, not shape {a.shape}")
-    usable = np.isfinite(a).all(axis=2) & (a >= 0).all(axis=2)
+    # a linear radiance is at most a few times white: beyond MAX_TRUTH_VALUE a value is no radiance (and its
+    # square, in the angle's norms, would overflow)
+    usable = np.isfinite(a).all(axis=2) & (a >= 0).all(axis=2) & (a <= MAX_TRUTH_VALUE).all(axis=2)
     a = np.where(usable[:, :, None], a, 0.0)
     return resize_nearest(a, height, width), resize_nearest(usable, height, width)
 

@@ -242,10 +242,22 @@ fn read_distance_for<'py>(
 /// A distance map file as H x W metres (NaN = unknown), read by the
 /// binary's reader (`crate::files::depth`): `uwhl evaluate` reads a
 /// manifest's maps with it, so both read the same formats the same way.
+/// With `photo` (its height and width), a map far larger than the photo is
+/// refused from its header.
 #[pyfunction]
-#[pyo3(signature = (path, max_pixels, max_memory))]
-fn read_distance_file<'py>(py: Python<'py>, path: PathBuf, max_pixels: u64, max_memory: u64) -> PyResult<Bound<'py, PyAny>> {
-    let m = py.detach(|| crate::files::depth::read_distance(&path, max_pixels, max_memory)).map_err(failure_to_py)?;
+#[pyo3(signature = (path, max_pixels, max_memory, photo=None))]
+fn read_distance_file<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    max_pixels: u64,
+    max_memory: u64,
+    photo: Option<(u64, u64)>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let read = || match photo {
+        Some(hw) => crate::files::depth::read_distance_of(&path, max_pixels, max_memory, hw),
+        None => crate::files::depth::read_distance(&path, max_pixels, max_memory),
+    };
+    let m = py.detach(read).map_err(failure_to_py)?;
     Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
 }
 

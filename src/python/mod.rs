@@ -900,6 +900,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("EXIT_CODES_HELP", crate::files::options::exit_code_text())?;
     // the attenuation grid a distance fit searches (METHOD §13.2): its readers take no blue outside it
     m.add("FIT_BETA_GRID", (crate::method::distance::BETA_MIN, crate::method::distance::BETA_MAX))?;
+    // a distance map of more than this many times its photo's pixels (never below the floor) is not read
+    m.add("MAP_PER_PHOTO_PIXEL", crate::files::depth::MAP_PER_PHOTO_PIXEL)?;
+    m.add("MAP_MIN_CAP", crate::files::depth::MAP_MIN_CAP)?;
     m.add("VIDEO_SCENE_CUT", crate::VIDEO_SCENE_CUT)?;
     m.add("VIDEO_SMOOTHING", crate::VIDEO_SMOOTHING)?;
     m.add("VIDEO_EXTENSIONS", crate::files::jobs::VIDEO_EXTENSIONS.to_vec())?;

@@ -139,7 +139,8 @@ def test_the_report_shows_every_photo_restore_wrote_and_no_lone_surrogate(binary
     start = page.index('<script id="data" type="application/json">') + len('<script id="data" type="application/json">')
     data = json.loads(page[start:page.index("</script>", start)])
     names = sorted(p["name"] for p in data["photos"])
-    assert names == sorted(["a\nb", "q\ufffd", "plain"]), names
+    # as the console shows them: the newline as \x0a, the undecodable byte as U+FFFD
+    assert names == sorted(["a\\x0ab", "q\ufffd", "plain"]), names
     assert not any(0xD800 <= ord(c) <= 0xDFFF for p in data["photos"] for c in json.dumps(p, ensure_ascii=False))
     assert "\\udc" not in page.lower()
 
@@ -206,3 +207,128 @@ def test_both_commands_write_the_same_json_error_line_and_a_short_usage_error(bi
         assert u.returncode == 2 and len(u.stderr.splitlines()) == 2 and "--help" in u.stderr, u.stderr
     assert lines["python"] == lines["rust"], lines
     assert lines["python"][0].startswith('{"error": "unreadable_input", "input": '), lines
+
+
+# ------------------------------------------------------------------ uwhl evaluate and demo
+
+
+def _evaluate(manifest, out, *extra):
+    return subprocess.run([sys.executable, "-m", "uwhl_rs", "evaluate", str(manifest), "-o", str(out), *extra],
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture
+def ev(tmp_path):
+    """A folder with one small photo and a writer of manifests over it."""
+    from PIL import Image
+
+    rng = np.random.default_rng(2)
+    Image.fromarray((rng.random((48, 64, 3)) * 200 + 20).astype(np.uint8)).save(tmp_path / "img.png")
+
+    def manifest(*entries):
+        p = tmp_path / "m.json"
+        p.write_text(json.dumps({"images": list(entries)}))
+        return p
+    return tmp_path, manifest
+
+
+def _sparse_npy(path, shape):
+    """A .npy whose header claims ``shape`` (uint8) over a sparse file: nothing large on disk."""
+    from numpy.lib import format as npf
+
+    with open(path, "wb") as f:
+        npf.write_array_header_1_0(f, {"descr": "|u1", "fortran_order": False, "shape": shape})
+        f.truncate(f.tell() + int(np.prod(shape)))
+
+
+def test_evaluate_refuses_shapes_that_are_no_image_from_their_header(ev):
+    """A 1-D or (4, 4, 2^27) header (2 GiB each, sparse) and a 4-D animation
+    as a mask: refused by name before anything is read, the good entry
+    still evaluated; each refusal takes no memory worth the name."""
+    d, manifest = ev
+    _sparse_npy(d / "t1d.npy", (1 << 31,))
+    _sparse_npy(d / "tchan.npy", (4, 4, 1 << 27))
+    np.save(d / "t.npy", np.full((48, 64, 3), 0.3))
+    np.save(d / "anim.npy", np.ones((5, 48, 64, 3), np.uint8))
+    m = manifest({"path": "img.png", "truth": "t1d.npy"}, {"path": "img.png", "truth": "tchan.npy"},
+                 {"path": "img.png", "truth": "t.npy", "truth_mask": "anim.npy"}, {"path": "img.png", "truth": "t.npy"})
+    r = _evaluate(m, d / "out")
+    assert r.returncode == 3, r.stdout + r.stderr
+    assert "t1d.npy: the truth has shape (2147483648,), not one H x W image" in r.stderr, r.stderr
+    assert "tchan.npy: the truth is 536870912 pixels, over the limit" in r.stderr, r.stderr
+    assert "anim.npy: the truth mask has shape (5, 48, 64, 3)" in r.stderr, r.stderr
+    doc = json.loads((d / "out" / "results.json").read_text())
+    assert len(doc["images"]) == 1 and doc["images"][0]["truth_pixels"] > 0
+
+
+def test_evaluate_refuses_a_truth_of_values_beyond_radiance(ev):
+    d, manifest = ev
+    np.save(d / "huge.npy", np.full((10, 10, 3), 1e308))
+    r = _evaluate(manifest({"path": "img.png", "truth": "huge.npy"}), d / "out")
+    assert r.returncode == 3 and "no pixel of the truth can be scored" in r.stderr, r.stderr
+    assert "RuntimeWarning" not in r.stderr
+
+
+def test_evaluate_a_mat_distance_far_larger_than_its_photo_is_not_decompressed(ev):
+    scipy_io = pytest.importorskip("scipy.io")
+    d, manifest = ev
+    a = np.zeros((3000, 3000), np.uint8)
+    a[0, 0] = 1
+    scipy_io.savemat(d / "big.mat", {"z": a}, do_compression=True)
+    np.save(d / "bigz.npy", np.ones((3000, 3000), np.float32))
+    r = _evaluate(manifest({"path": "img.png", "distance": "big.mat"}, {"path": "img.png", "distance": "bigz.npy"}),
+                  d / "out")
+    assert r.returncode == 3, r.stdout + r.stderr
+    assert r.stderr.count("more than 16 times the photo's 64x48") == 2, r.stderr
+
+
+def test_evaluate_names_a_path_that_is_no_file_name_and_shows_undecodable_ones(ev):
+    d, manifest = ev
+    import shutil as _sh
+    _sh.copy(d / "img.png", os.fsdecode(os.path.join(os.fsencode(d), b"q\xff.png")))
+    m = manifest({"path": "a\ud800.png"}, {"path": "q\udcff.png", "charts": [{"name": "c\udcfe", "gray_patches": [[1, 1, 9, 9]]}]})
+    r = _evaluate(m, d / "out")
+    assert r.returncode == 3 and "not a file name (it holds a lone surrogate)" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and "UnicodeEncodeError" not in r.stderr
+    text = (d / "out" / "results.csv").read_text(encoding="utf-8")
+    assert "q\ufffd.png" in text and "c\ufffd" in text
+
+
+def test_evaluate_caps_the_boxes_of_a_chart(ev):
+    d, manifest = ev
+    r = _evaluate(manifest({"path": "img.png", "charts": [{"gray_patches": [[0, 0, 8, 8]] * 65}]}), d / "out")
+    assert r.returncode == 3 and "65 boxes in 'gray_patches', over the limit of 64" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("impl", BOTH)
+def test_demo_into_what_cannot_be_a_folder_is_a_write_failure_said_first(impl, binary, tmp_path):
+    (tmp_path / "f").write_text("x")
+    r = subprocess.run([*_cmds(binary)[impl], "demo", "-o", str(tmp_path / "f")], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 5 and "cannot create" in r.stderr and "File exists" in r.stderr, r.stderr
+    assert "restore took" not in r.stdout  # nothing was rendered or restored before
+    r = subprocess.run([*_cmds(binary)[impl], "demo", "-o", str(tmp_path / "a\nb\x1b[31m")], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0 and "a\\x0ab\\x1b[31m" in r.stdout and "\x1b" not in r.stdout, r.stdout
+
+
+def test_evaluate_chart_regions_over_the_whole_photo_are_a_bad_entry(ev):
+    d, manifest = ev
+    m = manifest({"path": "img.png", "charts": [{"gray_patches": [[0, 0, 8, 8]], "region": [[0, 0, 64, 48]]}]})
+    r = _evaluate(m, d / "out", "--mask-charts")
+    assert r.returncode == 3 and "regions cover the whole photo" in r.stderr, r.stderr
+
+
+def test_ifdo_says_a_bad_header_or_handle_base_once_and_first(tmp_path):
+    (tmp_path / "out").mkdir()
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("a: &x [1, 2]\nb: *x\n")
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "ifdo", str(tmp_path / "out"), "--header", str(bomb)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "anchors and aliases" in r.stderr and r.stderr.count("bomb.yaml") == 1, r.stderr
+    ok = tmp_path / "h.yaml"
+    ok.write_text("image-set-name: x\n")
+    for base in ("http://x/ y", "http://x/\ny", "no-scheme"):
+        r = subprocess.run([sys.executable, "-m", "uwhl_rs", "ifdo", str(tmp_path / "out"), "--header", str(ok),
+                            "--handle-base", base], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2 and "--handle-base" in r.stderr and "must be a URI" in r.stderr, (base, r.stderr)
