@@ -193,7 +193,9 @@ def _stream_span(container, vs) -> tuple[float | None, float | None]:
     """(duration, end) of the video stream in seconds, each None when the
     file does not say: its own duration (the header's, or Matroska's
     DURATION tag, which is where the stream ends); the container's only
-    when the video is its one stream (else it may be the sound's, longer)."""
+    when the video is its one stream (else it may be the sound's, longer),
+    Matroska's counted from time 0 (a recording whose clock starts at 10 h
+    lasts its duration minus 10 h)."""
     av = _av()
     tb = vs.time_base
     start = float(vs.start_time * tb) if vs.start_time is not None and tb else 0.0
@@ -211,6 +213,9 @@ def _stream_span(container, vs) -> tuple[float | None, float | None]:
             pass
     if container.duration is not None and len(container.streams) == 1:
         d = container.duration / av.time_base
+        if "matroska" in (container.format.name or ""):
+            # a Matroska segment's duration runs from time 0, wherever its timestamps start: it is the end
+            return max(d - start, 0.0), d
         return d, start + d
     return None, None
 

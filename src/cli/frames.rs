@@ -138,11 +138,16 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     let mut bytes_out = vec![0u8; if to_stdout { frame_bytes } else { 0 }];
     let t0 = Instant::now();
     let mut k = 0usize;
+    // a run of frames that cannot be restored (a camera's black start, a
+    // lens cap): its first frame said on stderr, the rest in one line when
+    // the run ends (/dev/zero would otherwise be thousands of lines a second)
+    let mut run = Unrestored::default();
     let code = loop {
         match read_frame(input, &mut bytes_in) {
             Ok(Got::Frame) => {}
             Ok(Got::End) => break 0,
             Ok(Got::Partial(got)) => {
+                run.end(err, opts.quiet);
                 let e = Failure::new(
                     Kind::Input,
                     format!("stdin ended inside frame {k} ({got} of its {frame_bytes} bytes): that frame is dropped"),
@@ -188,9 +193,10 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                 // step with the frames in: it goes out as it came in (stdout),
                 // or its line is the error (a folder)
                 let e = Failure::from(e);
+                let first = run.add(k);
                 let written = match &mut sink {
                     Sink::Stdout(o) => {
-                        if !opts.quiet {
+                        if !opts.quiet && first {
                             let _ = writeln!(err, "uwhl-rs: frame {k}: {}; written as it came in", e.message);
                         }
                         o.write_all(&bytes_in).and_then(|()| o.flush()).map_err(|why| {
@@ -199,7 +205,9 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                     }
                     Sink::Folder(_, lines) => {
                         let e = Failure::new(e.kind, format!("frame {k}: {}", e.message));
-                        report(err, opts.json_errors, None, &e);
+                        if first {
+                            report(err, opts.json_errors, None, &e);
+                        }
                         writeln!(lines, "{}", crate::cli::run::json_line(&crate::cli::run::spaced(&e.to_json(Some(&format!("stdin#{k}"))))))
                             .and_then(|()| lines.flush())
                             .map_err(
@@ -216,6 +224,7 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
             }
         };
         let t_restore = t1.elapsed().as_secs_f64();
+        run.end(err, opts.quiet);
         let (decision, change) = seq.last_decision();
         if decision != Decision::Reused && !opts.quiet {
             let a = res.veiling_light;
@@ -267,11 +276,40 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
         }
         k += 1;
     };
+    run.end(err, opts.quiet);
     if !opts.quiet {
         let s = t0.elapsed().as_secs_f64();
         let _ = writeln!(err, "uwhl-rs: {k} frames in {s:.1} s ({:.2} frames a second)", k as f64 / s.max(1e-9));
     }
     code
+}
+
+/// A run of consecutive frames that could not be restored: its first
+/// frame and how many.
+#[derive(Default)]
+struct Unrestored {
+    first: usize,
+    count: usize,
+}
+
+impl Unrestored {
+    /// Counts frame `k`; whether it begins a run (its own line is said).
+    fn add(&mut self, k: usize) -> bool {
+        if self.count == 0 {
+            self.first = k;
+        }
+        self.count += 1;
+        self.count == 1
+    }
+
+    /// Ends the run: one line for the frames after its first, when any.
+    fn end(&mut self, err: &mut dyn Write, quiet: bool) {
+        if self.count > 1 && !quiet {
+            let (a, b) = (self.first + 1, self.first + self.count - 1);
+            let _ = writeln!(err, "uwhl-rs: frames {a}-{b}: the same ({} frames, not restored as frame {} was not)", b - a + 1, self.first);
+        }
+        self.count = 0;
+    }
 }
 
 /// Frame `k`'s outputs in `dir` (`frame_000042.jpg`, its maps and sidecar,

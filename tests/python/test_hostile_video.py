@@ -138,6 +138,22 @@ def test_a_complete_variable_rate_file_is_not_called_cut_short(tmp_path):
     assert side["video"]["stopped"] is None and "video_truncated" not in side["flags"]
 
 
+def test_a_complete_matroska_whose_clock_starts_late_is_not_called_cut_short(tmp_path):
+    """Timestamps from 10 h on (a recorder's clock) and no per-stream
+    DURATION tag (GStreamer writes none): Matroska's segment duration runs
+    from time 0, so it is where the file ends, not a length to add to 10 h."""
+    src = tmp_path / "late.mkv"
+    _write(src, pts=[864_000 + k for k in range(6)])
+    data = src.read_bytes()
+    assert b"DURATION" in data
+    src.write_bytes(data.replace(b"DURATION", b"DURATIOX"))  # the tag's name unknown: as if none was written
+    r = _restore(src, "-o", tmp_path / "out")
+    _clean(r)
+    assert r.returncode == 0, r.stderr
+    side = json.loads((tmp_path / "out" / "late.json").read_text())
+    assert side["video"]["stopped"] is None and "video_truncated" not in side["flags"], side["video"]
+
+
 def test_audio_longer_than_the_video_is_not_a_file_cut_short(tmp_path):
     # a quarter second of video and a second of sound: the container's duration is the sound's
     src = tmp_path / "talk.mkv"
@@ -542,6 +558,24 @@ def test_raw_frames_out_keep_every_frame_black_ones_too(binary):
     assert r.returncode == 0, r.stderr
     got = np.frombuffer(r.stdout, np.uint8).reshape(-1, 16, 16, 3)
     assert len(got) == 4 and got[1].max() == 0
+
+
+def test_raw_frames_a_run_of_black_frames_is_two_lines_not_one_a_frame(binary):
+    """A camera's black start (50 frames) and a lens cap later (20): each
+    run is its first frame's line and one line for the rest, every frame
+    still goes out in step (to stdout and, into a folder, one JSON line
+    each)."""
+    frames = _noise(75, 16, 16)
+    for k in [*range(0, 50), *range(52, 72)]:
+        frames[k] = np.zeros_like(frames[k])
+    data = b"".join(f.tobytes() for f in frames)
+    r = _raw(binary, "--raw-frames", "16x16", "-o", "-", data=data)
+    assert r.returncode == 0, r.stderr
+    assert len(np.frombuffer(r.stdout, np.uint8)) == 75 * 16 * 16 * 3
+    err = r.stderr.decode()
+    assert err.count("nothing to restore") == 2, err
+    assert "frames 1-49: the same (49 frames" in err and "frames 53-71: the same (19 frames" in err, err
+    assert len(err.splitlines()) < 12, err
 
 
 def test_raw_frames_planted_names_are_replaced_not_followed(binary, tmp_path):
