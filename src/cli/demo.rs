@@ -17,13 +17,14 @@ fn put(path: &std::path::Path, bytes: &[u8]) -> Result<(), Failure> {
 /// Runs the demo; returns the exit code.
 pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, Failure> {
     let (h, w) = d.size;
+    // the folder first: one that cannot be made is said before any work
+    std::fs::create_dir_all(&d.out)
+        .map_err(|e| Failure::new(Kind::Write, format!("cannot create {}: {e}", d.out.display())))?;
     let scene = crate::cli::scene::render(h, w, &d.water_type, d.seed);
     let input = Input { image: ImageRef::new(&scene.img, h, w)?, mask: None, water_mask: None };
     let t0 = Instant::now();
     let res = restore(&input, &Params::default())?;
     let secs = t0.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&d.out)
-        .map_err(|e| Failure::new(Kind::Write, format!("cannot create {}: {e}", d.out.display())))?;
     // the output files' own encoders: 8-bit sRGB PNGs and the colour map
     let png = Encoding { format: Format::Png, bits: 8, srgb: true, quality: 95 };
     for (name, linear) in [("input.png", &scene.img), ("restored.png", &res.image), ("clean_truth.png", &scene.clean)] {
@@ -61,7 +62,8 @@ pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, Failure> {
         ),
     ];
     for l in lines {
-        let _ = writeln!(out, "{l}");
+        // the folder's name as every other line quotes a name (`-o` may hold control characters)
+        let _ = writeln!(out, "{}", crate::cli::run::printable(&l));
     }
     Ok(0)
 }

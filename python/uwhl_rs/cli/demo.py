@@ -14,6 +14,7 @@ import uwhl_rs
 from .. import synth
 from ..images import colorize_transmission, write_image
 from ..console import Console
+from ..errors import CommandError
 
 __all__ = ["run"]
 
@@ -23,15 +24,22 @@ def run(a: argparse.Namespace, console: Console) -> int:
     parsed: (height, width))."""
     out_dir, water_type, size, seed = a.out, a.water_type, a.size, a.seed
     h, w = size
+    # the folder first: one that cannot be made is said before any work (exit 5, as uwhl-rs)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as e:
+        raise CommandError(f"cannot create it: {e.strerror or e}", "write_failed", out_dir) from None
     image, truth = synth.demo_input(h, w, water_type=water_type, seed=seed)
     t0 = time.perf_counter()
     res = uwhl_rs.restore(image)
     dt = time.perf_counter() - t0
-    os.makedirs(out_dir, exist_ok=True)
-    write_image(os.path.join(out_dir, "input.png"), image, encoding="linear")
-    write_image(os.path.join(out_dir, "restored.png"), res.image, encoding="linear")
-    write_image(os.path.join(out_dir, "transmission.png"), colorize_transmission(res.transmission))
-    write_image(os.path.join(out_dir, "clean_truth.png"), truth["clean"], encoding="linear")
+    for name, img, enc in (("input.png", image, "linear"), ("restored.png", res.image, "linear"),
+                           ("transmission.png", colorize_transmission(res.transmission), None),
+                           ("clean_truth.png", truth["clean"], "linear")):
+        try:
+            write_image(os.path.join(out_dir, name), img, **({"encoding": enc} if enc else {}))
+        except OSError as e:
+            raise CommandError(e.strerror or f"cannot write {name}: {e}", "write_failed", out_dir) from None
     z = truth["distance"]
     ok = np.isfinite(z)
     rho = float(np.corrcoef(z[ok], -np.log(res.transmission[ok]))[0, 1])
