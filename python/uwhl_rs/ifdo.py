@@ -93,6 +93,8 @@ def load_yaml(text: str, label: str):
             elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
         return yaml.load(text, Loader=loader)
+    except IfdoError:  # a ValueError too: said once, as it is
+        raise
     except ValueError as e:  # an integer of thousands of digits, a date out of range
         raise IfdoError(f"{label}: a value cannot be read ({str(e).splitlines()[0][:200]})") from None
     except yaml.YAMLError as e:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import re
 
-__all__ = ["field_problems", "plain_data", "UUID_PATTERN"]
+__all__ = ["field_problems", "plain_data", "uri_problem", "UUID_PATTERN"]
 
 #: the schema's ``uuid`` (version 4, with or without hyphens)
 UUID_PATTERN = re.compile(r"[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-4[0-9a-fA-F]{3}-[89abAB][0-9a-fA-F]{3}-[0-9a-fA-F]{12}"
@@ -68,7 +68,8 @@ def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _uri_problem(v) -> str | None:
+def uri_problem(v) -> str | None:
+    """Why ``v`` is no URI (text of ``scheme:...`` without spaces), or None."""
     if not isinstance(v, str):
         return "must be a URI (text)"
     return None if _URI.fullmatch(v) else "must be a URI (scheme:..., no spaces)"
@@ -81,8 +82,8 @@ def field_problems(fields: dict) -> list[str]:
     for k, v in fields.items():
         if k in _TEXT and not isinstance(v, str):
             out.append(f"{k} must be text, not {v!r:.60}")
-        if k in _URI_FIELDS and isinstance(v, str) and _uri_problem(v):
-            out.append(f"{k} {_uri_problem(v)}: {v!r:.80}")
+        if k in _URI_FIELDS and isinstance(v, str) and uri_problem(v):
+            out.append(f"{k} {uri_problem(v)}: {v!r:.80}")
         if k in _NUMBER:
             lo, hi = _NUMBER[k]
             if not _is_number(v) or not math.isfinite(v):
@@ -98,15 +99,15 @@ def field_problems(fields: dict) -> list[str]:
         if k in _OBJECT:
             if not isinstance(v, dict):
                 out.append(f"{k} must be a mapping")
-            elif "uri" in v and _uri_problem(v["uri"]):
-                out.append(f"{k}.uri {_uri_problem(v['uri'])}")
+            elif "uri" in v and uri_problem(v["uri"]):
+                out.append(f"{k}.uri {uri_problem(v['uri'])}")
         if k in _ARRAY:
             if not isinstance(v, list):
                 out.append(f"{k} must be a list")
             elif k in ("image-creators", "image-set-related-material"):
                 for n, c in enumerate(v):
-                    if isinstance(c, dict) and "uri" in c and _uri_problem(c["uri"]):
-                        out.append(f"{k}[{n}].uri {_uri_problem(c['uri'])}")
+                    if isinstance(c, dict) and "uri" in c and uri_problem(c["uri"]):
+                        out.append(f"{k}[{n}].uri {uri_problem(c['uri'])}")
             elif k == "image-average-color" and not all(isinstance(c, int) and 0 <= c <= 256 for c in v):
                 out.append(f"{k} must be whole numbers from 0 to 256")
     return out

@@ -8,6 +8,7 @@ import os
 
 from ..errors import BatchError, CommandError, IfdoError, describe
 from ..ifdo import load_header, write_ifdo
+from ..ifdocheck import uri_problem
 from ..storage import is_url, parse_storage_options
 from ..console import Console
 
@@ -46,6 +47,9 @@ def write(out_dir: str, header: dict, console: Console, *, handle_base: str | No
 def run(a: argparse.Namespace, console: Console) -> int:
     """``uwhl ifdo``: the exit status."""
     so = parse_storage_options(a.storage_option)
+    if a.handle_base is not None and uri_problem(a.handle_base + "x"):
+        # every item's image-handle is this base and a path: a bad base is the command's, said once
+        raise CommandError(f"--handle-base {a.handle_base}: {uri_problem(a.handle_base + 'x')}", "bad_arguments")
     header = load_header(a.header)
     return write(a.out, header, console, handle_base=a.handle_base, file_format=a.format or file_format(a.header),
                  storage_options=so or None)
