@@ -520,13 +520,15 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
 
 
 def _shown_text(value):
-    """``value`` with each string (keys too) as the page shows it: the
-    bytes of a name that are not UTF-8 (lone surrogates here) as U+FFFD,
-    which JSON would otherwise carry to the page as ``\\udcXX``."""
+    """``value`` with each string (keys too) as the page shows it, as the
+    console does (:func:`printable`): the bytes of a name that are not
+    UTF-8 (lone surrogates here, which JSON would carry to the page as
+    ``\\udcXX``) as U+FFFD, control and bidirectional characters as
+    visible escapes, so that a name cannot reorder the text around it."""
     if isinstance(value, str):
-        return display(value)
+        return printable(value)
     if isinstance(value, dict):
-        return {(display(k) if isinstance(k, str) else k): _shown_text(v) for k, v in value.items()}
+        return {(printable(k) if isinstance(k, str) else k): _shown_text(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_shown_text(v) for v in value]
     return value
