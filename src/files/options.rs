@@ -328,7 +328,7 @@ fast: types scored on a ~1024 px copy, uncertain ones re-scored at full size; de
         default: Default::Int(1), help: "guided-filter subsampling: 1 the exact filter; S >= 2 He and Sun's fast \
 guided filter on S x S blocks (for video and sequences: t_B within ~4e-4 on average); auto (= 0) max(1, radius / 32)",
         group: Group::Method, faces: Faces::Both, method: true },
-    Spec { key: "sphere_points", flag: "--sphere-points", short: None, metavar: "N", kind: Kind::Int { min: 1, max: u32::MAX as u64 },
+    Spec { key: "sphere_points", flag: "--sphere-points", short: None, metavar: "N", kind: Kind::Int { min: 1, max: crate::method::sphere::MAX_POINTS as u64 },
         default: Default::Int(DEFAULT_SPHERE_POINTS as u64), help: "haze-line clusters",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "reuse_estimates", flag: "--reuse-estimates", short: None, metavar: "N", kind: Kind::Int { min: 1, max: u64::MAX },

@@ -445,12 +445,17 @@ pub fn memory_estimate(h: usize, w: usize, holes: bool) -> u64 {
     n.saturating_mul(per_px)
 }
 
-/// Checks `params` against `input` before any work: the water types, eps,
-/// A, radius and subsampling factor in range, the masks of the right size,
-/// and the memory estimate within `max_memory`.
-pub(crate) fn check_params(input: &Input, params: &Params) -> Result<()> {
-    let img = &input.image;
+/// The checks of `params` that need no image: the water types, eps,
+/// t_scale, A and the number of sphere points in range (a sequence and a
+/// manifest's entry are checked with them before any frame or image).
+pub fn check_values(params: &Params) -> Result<()> {
     validate_types(&params.water_types)?;
+    if !(1..=crate::method::sphere::MAX_POINTS).contains(&params.sphere_points) {
+        return Err(Error::Param {
+            name: "sphere_points",
+            msg: format!("{} is not in 1..={}", params.sphere_points, crate::method::sphere::MAX_POINTS),
+        });
+    }
     if !(params.guided_eps.is_finite() && params.guided_eps > 0.0) {
         return Err(Error::Param {
             name: "guided_eps",
@@ -471,6 +476,15 @@ pub(crate) fn check_params(input: &Input, params: &Params) -> Result<()> {
             });
         }
     }
+    Ok(())
+}
+
+/// Checks `params` against `input` before any work: the values of
+/// [`check_values`], radius and subsampling factor in range, the masks of
+/// the right size, and the memory estimate within `max_memory`.
+pub(crate) fn check_params(input: &Input, params: &Params) -> Result<()> {
+    let img = &input.image;
+    check_values(params)?;
     if let Some(r) = params.guided_radius {
         if r > img.height.max(img.width) {
             return Err(Error::Param {

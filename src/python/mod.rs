@@ -768,6 +768,8 @@ impl PySequence {
     #[pyo3(signature = (params, *, refresh_every=0, reuse_water_mask=false, scene_cut=0.0, smoothing=1.0))]
     fn new(params: &PyParams, refresh_every: usize, reuse_water_mask: bool, scene_cut: f32, smoothing: f32) -> PyResult<Self> {
         let params = params.0.clone();
+        // what needs no frame is checked now: a bad value is said before the first frame
+        crate::method::params::check_values(&params).map_err(to_py_err)?;
         let mut seq = Sequence::new(params);
         seq.refresh_every = refresh_every;
         seq.reuse_water_mask = reuse_water_mask;

@@ -332,3 +332,15 @@ def test_ifdo_says_a_bad_header_or_handle_base_once_and_first(tmp_path):
         r = subprocess.run([sys.executable, "-m", "uwhl_rs", "ifdo", str(tmp_path / "out"), "--header", str(ok),
                             "--handle-base", base], capture_output=True, text=True, timeout=120)
         assert r.returncode == 2 and "--handle-base" in r.stderr and "must be a URI" in r.stderr, (base, r.stderr)
+
+
+@pytest.mark.parametrize("restore, want", [({"t_scale": float("nan")}, "t_scale"),
+                                           ({"sphere_points": 4294967295}, "sphere_points"),
+                                           ({"veiling_light": [0.5, 0.5, 0]}, "veiling_light")])
+def test_evaluate_checks_an_entrys_restore_values_before_anything_runs(ev, restore, want):
+    d, manifest = ev
+    (d / "m.json").write_text(json.dumps({"images": [{"path": "img.png"}, {"path": "img.png", "restore": restore}]}))
+    r = _evaluate(d / "m.json", d / "out")
+    assert r.returncode == 3 and f"images[1] (img.png): restore: bad parameter {want}" in r.stderr, r.stderr
+    # said with the manifest, before the first entry ran
+    assert r.stdout.count("[1/1]") == 1 and "images[1]" not in r.stdout, r.stdout
