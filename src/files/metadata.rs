@@ -114,6 +114,25 @@ pub fn read(bytes: Vec<u8>) -> Carried {
 
 const NOT_A_CONTAINER: &str = "metadata: not a JPEG, PNG or TIFF container; none carried";
 
+/// [`read`] of the file at `path` (a regular file), reading of a JPEG or
+/// PNG only the blocks before its image data (`files::exif::scan` stops
+/// there): a photo's lens or time is found without reading the photo
+/// again. A TIFF is its own EXIF block and is read whole.
+pub fn read_path(path: &std::path::Path) -> Result<Carried, String> {
+    use std::io::Read;
+    crate::files::jobs::regular_file(path)?;
+    let mut f = std::fs::File::open(path).map_err(|e| format!("cannot read the photo's metadata: {e}"))?;
+    let mut head = [0u8; 8];
+    let n = f.read(&mut head).map_err(|e| format!("cannot read the photo's metadata: {e}"))?;
+    match Container::sniff(head.get(..n).unwrap_or_default()) {
+        Some(kind @ (Container::Jpeg | Container::Png)) => {
+            let found = crate::files::exif::scan(&mut std::io::BufReader::new(f), crate::files::exif::MAX_BLOCK);
+            Ok(read_found(kind, found, &[]))
+        }
+        _ => std::fs::read(path).map(read).map_err(|e| format!("cannot read the photo's metadata: {e}")),
+    }
+}
+
 /// [`read`] from the blocks `found` in a file of container `kind`; `bytes`
 /// is the whole file for a TIFF (its own EXIF block), unused otherwise.
 fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -> Carried {

@@ -122,8 +122,7 @@ impl LensOf {
         if let Some(f) = fov {
             return Ok(LensOf { lens: Lens::Horizontal(f), from: "--fov".into() });
         }
-        let bytes = std::fs::read(input).map_err(|e| format!("cannot read the photo's metadata: {e}"))?;
-        let carried = crate::files::metadata::read(bytes);
+        let carried = crate::files::metadata::read_path(input)?;
         let (lens, from) = carried.exif.as_ref().and_then(exif_lens).ok_or(NO_LENS.to_string())?;
         Ok(LensOf { lens, from })
     }
@@ -583,8 +582,7 @@ pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Re
     let needs_file = fov.is_none() || matches!(source, AltitudeSource::Xmp)
         || matches!(source, AltitudeSource::Log(l) if !l.named);
     let carried = if needs_file {
-        let bytes = std::fs::read(input).map_err(|e| format!("cannot read the photo's metadata: {e}"))?;
-        Some(crate::files::metadata::read(bytes))
+        Some(crate::files::metadata::read_path(input)?)
     } else {
         None
     };
