@@ -733,7 +733,16 @@ impl crate::method::params::Params {
         };
         let size = |n: u64| usize::try_from(n).unwrap_or(usize::MAX);
         match (key, v) {
-            ("veiling_light", V::Rgb(a)) => self.veiling_light = Some(a.map(|x| x as f32)),
+            ("veiling_light", V::Rgb(a)) => {
+                // checked as given: 1e308 would be inf once single precision, and be quoted so
+                if a.iter().any(|x| !(x.is_finite() && *x > 0.0 && *x <= 1.0)) {
+                    return Err(crate::error::Error::Param {
+                        name: "veiling_light",
+                        msg: format!("{a:?}: every component must be a finite number in (0, 1]"),
+                    });
+                }
+                self.veiling_light = Some(a.map(|x| x as f32));
+            }
             ("guided_radius", V::Int(n)) => self.guided_radius = Some(size(*n)),
             ("guided_eps", V::Float(x)) => self.guided_eps = *x,
             ("guided_eps", V::Int(n)) => self.guided_eps = *n as f64,

@@ -344,3 +344,10 @@ def test_evaluate_checks_an_entrys_restore_values_before_anything_runs(ev, resto
     assert r.returncode == 3 and f"images[1] (img.png): restore: bad parameter {want}" in r.stderr, r.stderr
     # said with the manifest, before the first entry ran
     assert r.stdout.count("[1/1]") == 1 and "images[1]" not in r.stdout, r.stdout
+
+
+def test_a_veiling_light_beyond_single_precision_is_quoted_as_given():
+    import uwhl_rs
+
+    with pytest.raises(uwhl_rs.ParameterError, match=r"veiling_light: \[1e308, 0.5, 0.5\]"):
+        uwhl_rs.Sequence(veiling_light=(1e308, 0.5, 0.5))
