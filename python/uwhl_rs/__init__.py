@@ -113,6 +113,29 @@ def __dir__():
     return sorted(set(globals()) | set(_LAZY))
 
 
+def _check_room(image, params, distance=None) -> None:
+    """Refuses, from the shapes alone and before any copy, an image whose
+    restoration is over ``max_memory``, and a distance
+    map of more than MAP_PER_PHOTO_PIXEL times its pixels (a broadcast
+    view of gigabytes costs nothing until it is copied)."""
+    shape = np.shape(image)
+    if len(shape) != 3 or shape[2] != 3:
+        return  # _as_image says what is wrong
+    h, w = int(shape[0]), int(shape[1])
+    needed, limit = params.budget(h, w)
+    if needed > limit:
+        # the core's check and words (src/error.rs), made before the copy
+        raise MemoryError(f"image of {h}x{w} pixels needs about {needed} bytes of working memory, over the limit of "
+                          f"{limit} bytes (raise max_memory or downscale the image)")
+    if distance is not None:
+        zs = np.shape(distance)
+        if len(zs) >= 2:
+            cap = max(_core.MAP_PER_PHOTO_PIXEL * h * w, _core.MAP_MIN_CAP)
+            if int(zs[0]) * int(zs[1]) > cap:
+                raise ParameterError(f"the distance map is {int(zs[0])}x{int(zs[1])} (height x width), more than "
+                                     f"{_core.MAP_PER_PHOTO_PIXEL} times the image's {h}x{w} pixels")
+
+
 def _as_image(image) -> np.ndarray:
     a = np.asarray(image)
     if a.dtype not in (np.float32, np.float64):
@@ -286,10 +309,6 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
     MemoryError
         when the estimated working memory exceeds ``max_memory``.
     """
-    img = _as_image(image)
-    hw = img.shape[:2]
-    wm = _as_mask(water_mask, "water_mask", hw)
-    m = _as_mask(mask, "mask", hw)
     if water is not None:
         if method.get("water_types") is not None:
             raise ParameterError("water and water_types both name the water: give one")
@@ -302,6 +321,12 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         if not all(np.isfinite(v) and v > 0 for v in (br, bg, bb)):
             raise ParameterError(f"water's beta must be three positive numbers, not {water['beta']!r}")
         method["water_types"] = [(name, bb / br, bb / bg)]
+    params = _method_params(**method)
+    _check_room(image, params, distance)
+    img = _as_image(image)
+    hw = img.shape[:2]
+    wm = _as_mask(water_mask, "water_mask", hw)
+    m = _as_mask(mask, "mask", hw)
     z = None
     if distance is not None:
         z = np.asarray(distance)
@@ -310,7 +335,7 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
             raise ParameterError(f"distance must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
         z = np.ascontiguousarray(z, dtype=np.float32)
-    return _core.restore_f32(img, _method_params(**method), water_mask=wm, mask=m, distance=z)
+    return _core.restore_f32(img, params, water_mask=wm, mask=m, distance=z)
 
 
 def floor_distance(shape, altitude: float, fov: float, *, pitch: float = 0.0, roll: float = 0.0,
@@ -440,12 +465,14 @@ class Sequence:
             if not ok or not ((0 < v) if lo_open else (0 <= v)) or v > 1:
                 raise ParameterError(f"{name} must be a number in {'(0, 1]' if lo_open else '[0, 1]'}; got {v!r}")
         params = _method_params(**kwargs)
+        self._params = params
         self._core = _core.Sequence(params, refresh_every=refresh_every, reuse_water_mask=bool(reuse_water_mask),
                                     scene_cut=float(scene_cut), smoothing=float(smoothing))
 
     def restore(self, image, *, mask=None, water_mask=None) -> Restoration:
         """Restore the next frame; ``image``, ``mask`` and ``water_mask`` as
         in :func:`restore` (a given ``water_mask`` is used on that frame)."""
+        _check_room(image, self._params)
         img = _as_image(image)
         hw = img.shape[:2]
         return self._core.restore(
@@ -520,4 +547,9 @@ def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
     z = np.asarray(depth)
     if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
         raise ParameterError(f"depth must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
+    # as floor_distance: no larger than the largest input (a broadcast view is checked before it is copied)
+    from .images import DEFAULT_MAX_PIXELS
+
+    if z.size == 0 or z.size > DEFAULT_MAX_PIXELS:
+        raise ParameterError(f"depth of shape {z.shape} is empty or over the largest input ({DEFAULT_MAX_PIXELS} pixels)")
     return _core.depth_to_range(np.ascontiguousarray(z, dtype=np.float32), float(fov), port)

@@ -315,6 +315,8 @@ class Params:
     def __new__(cls, **kwargs: object) -> "Params": ...
     def steps(self) -> list[tuple[str, str]]:
         """The profile and the steps used, as (keyword, name) pairs (METHOD §12)."""
+    def budget(self, h: int, w: int) -> tuple[int, int]:
+        """(needed, max_memory): the working memory of an h x w restoration and its limit."""
 
 def restore_f32(
     image: _F32,

@@ -445,6 +445,19 @@ pub fn memory_estimate(h: usize, w: usize, holes: bool) -> u64 {
     n.saturating_mul(per_px)
 }
 
+/// The working memory a restoration of an `h` x `w` image with `params`
+/// needs ([`memory_estimate`], and the sampled copy of fast selection
+/// where there is one): what `max_memory` is checked against.
+pub fn needed_memory(h: usize, w: usize, holes: bool, params: &Params) -> u64 {
+    let mut needed = memory_estimate(h, w, holes);
+    let s = fast_factor(h, w);
+    // a copy exists only for several types on an image larger than it
+    if params.selection_used() == Selection::Fast && s > 1 && params.water_types.len() >= 2 {
+        needed += memory_estimate(h.div_ceil(s), w.div_ceil(s), holes);
+    }
+    needed
+}
+
 /// The checks of `params` that need no image: the water types, eps,
 /// t_scale, A and the number of sphere points in range (a sequence and a
 /// manifest's entry are checked with them before any frame or image).
@@ -508,12 +521,7 @@ pub(crate) fn check_params(input: &Input, params: &Params) -> Result<()> {
     check_mask("mask", input.mask, img.len(), 1)?;
     check_mask("water_mask", input.water_mask, img.len(), 0)?;
     let holes = input.mask.is_some_and(|m| m.iter().any(|&b| !b));
-    let mut needed = memory_estimate(img.height, img.width, holes);
-    let s = fast_factor(img.height, img.width);
-    // a copy exists only for several types on an image larger than it
-    if params.selection_used() == Selection::Fast && s > 1 && params.water_types.len() >= 2 {
-        needed += memory_estimate(img.height.div_ceil(s), img.width.div_ceil(s), holes);
-    }
+    let needed = needed_memory(img.height, img.width, holes, params);
     if needed > params.max_memory {
         return Err(Error::Memory {
             height: img.height,

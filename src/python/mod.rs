@@ -316,6 +316,14 @@ impl PyParams {
     fn steps(&self) -> Vec<(&'static str, &'static str)> {
         self.0.steps().to_vec()
     }
+
+    /// `(needed, max_memory)`: the working memory a restoration of an `h`
+    /// x `w` image needs with these parameters, and the limit it is
+    /// checked against, so that the Python layer can refuse an image from
+    /// its shape before copying it.
+    fn budget(&self, h: usize, w: usize) -> (u64, u64) {
+        (crate::method::params::needed_memory(h, w, false, &self.0), self.0.max_memory)
+    }
 }
 
 /// The option table (`crate::files::options::OPTIONS`) as a list of dicts: what
