@@ -12,13 +12,20 @@ imported on first use only.
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import os
+import re
+import sys
+import tempfile
+import threading
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from . import _core
 from .errors import ImageReadError, ImageTooLargeError
+from .sidecars import display
 
 __all__ = [
     "ImageMeta",
@@ -160,6 +167,9 @@ def read_image(
         raise ImageReadError(f"{path}: no such file")
     if os.path.isdir(path):
         raise ImageReadError(f"{path}: is a folder, not an image")
+    if not os.path.isfile(path):
+        # a FIFO would block the read, a device never end: not opened (as the commands' reader)
+        raise ImageReadError(f"{path}: is not a regular file (a FIFO, socket or device): not opened")
     try:
         size = os.path.getsize(path)
         # raw formats are often TIFF containers (DNG, NEF): the extension decides
@@ -171,14 +181,26 @@ def read_image(
         raise ImageReadError(f"{path}: empty file")
     try:
         if kind is None:
-            return _read_raw(path, preprocess, half_size, max_pixels, _on_header)
+            failed = None
+            with _decoder_messages() as said:
+                try:
+                    img, meta = _read_raw(path, preprocess, half_size, max_pixels, _on_header)
+                except Exception as e:  # judged below, with what the decoder said
+                    failed = e
+            if failed is not None:
+                if not isinstance(failed, (ImageTooLargeError, MemoryError)) and _ends_early(said):
+                    raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {_ends_early(said)}") from None
+                raise failed
+            return img, _judged_raw(path, meta, said)
         return _read_encoded(path, kind, preprocess, max_pixels, _on_header)
     except ImageReadError:
         raise
     except MemoryError:
         raise ImageTooLargeError(f"{path}: not enough memory to decode") from None
     except Exception as e:  # decoders raise many types; name the file and the reason
-        raise ImageReadError(f"{path}: cannot decode {kind or 'raw'} ({type(e).__name__}: {e})") from None
+        # LibRaw's errors carry bytes (b'Input/output error'): their text
+        why = e.args[0].decode("utf-8", "replace") if e.args and isinstance(e.args[0], bytes) else str(e)
+        raise ImageReadError(f"{path}: cannot decode {kind or 'raw'} ({type(e).__name__}: {why})") from None
 
 
 def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
@@ -263,6 +285,77 @@ def _camera_matrix(raw) -> tuple[np.ndarray | None, list[str]]:
     return None, ["no_camera_matrix"]
 
 
+#: what LibRaw and libjpeg write when a raw file's data ends early: the
+#: decoder then fills the rest with what it had, and the photo looks whole
+_TRUNCATED = ("premature end of jpeg file", "unexpected end of file", "end of file", "truncated")
+#: a decoder's line on stderr: "NAME: message" from LibRaw, or libjpeg's own
+_DECODER_LINE = re.compile(r"(premature end|unexpected end|end of file|corrupt|bogus|invalid|data error|"
+                           r"not enough|warning|truncated)", re.IGNORECASE)
+_RAW_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _decoder_messages():
+    """While a raw file decodes, what LibRaw and libjpeg print on the
+    process's stderr (fd 2) is collected instead of shown: it would break
+    ``--json-errors`` and says what the photo's result must say (a file
+    cut short). Raw decodes take turns (fd 2 is the process's); a line of
+    another thread written meanwhile is passed on to stderr afterwards.
+    Yields a list that holds the decoder's lines once the block ends."""
+    said: list[str] = []
+    with _RAW_LOCK:
+        try:
+            sys.stderr.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+        try:
+            saved = os.dup(2)
+        except OSError:  # no stderr at all: nothing to collect or pass on
+            yield said
+            return
+        with tempfile.TemporaryFile() as tmp:
+            os.dup2(tmp.fileno(), 2)
+            try:
+                yield said
+            finally:
+                try:
+                    sys.stderr.flush()
+                except (AttributeError, OSError, ValueError):
+                    pass
+                os.dup2(saved, 2)
+                os.close(saved)
+                tmp.seek(0)
+                text = tmp.read(1 << 20).decode("utf-8", "replace")
+                others = []
+                for line in text.splitlines():
+                    (said if _DECODER_LINE.search(line) else others).append(line)
+                if others:
+                    try:
+                        os.write(2, ("\n".join(others) + "\n").encode("utf-8", "replace"))
+                    except OSError:
+                        pass
+
+
+def _ends_early(said: list[str]) -> str | None:
+    """The decoder's first line saying a raw file's data ended early, shown."""
+    for x in said:
+        if any(k in x.lower() for k in _TRUNCATED):
+            return display(x.strip())[:200]
+    return None
+
+
+def _judged_raw(path: str, meta: "ImageMeta", said: list[str]) -> "ImageMeta":
+    """The decoder's lines about a raw file: one that says its data ended
+    early makes it unreadable (its pixels past that point are not the
+    photo's); any other becomes a note of the sidecar's ``source.notes``."""
+    if _ends_early(said):
+        raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {_ends_early(said)}")
+    shown = [display(x.strip())[:200] for x in said if x.strip()]
+    if not shown:
+        return meta
+    return dataclasses.replace(meta, notes=tuple(meta.notes) + tuple(f"raw decoder: {x}" for x in shown[:5]))
+
+
 def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
               on_header=None) -> tuple[np.ndarray, ImageMeta]:
     try:
@@ -279,7 +372,8 @@ def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
     except Exception as e:
         ext = os.path.splitext(path)[1].lower()
         what = "a raw file LibRaw can read" if ext in RAW_EXTENSIONS else "a JPEG, PNG, TIFF or raw file"
-        raise ImageReadError(f"{path}: not {what} ({type(e).__name__}: {e})") from None
+        why = e.args[0].decode("utf-8", "replace") if e.args and isinstance(e.args[0], bytes) else str(e)
+        raise ImageReadError(f"{path}: not {what} ({type(e).__name__}: {why})") from None
     with raw:
         s = raw.sizes
         # the mosaic (2 bytes a pixel) and LibRaw's 16-bit RGB output
