@@ -40,10 +40,16 @@ class Console:
 
     def _write(self, stream, text: str) -> None:
         # a line quoting a file name cannot move the cursor or recolour the
-        # terminal: control characters as \xNN, as uwhl-rs writes them
+        # terminal: control characters as \xNN, as uwhl-rs writes them.
+        # A stream that is closed or full (>&-, /dev/full) loses its lines,
+        # as the binary's do: the outputs and the exit code stay what the
+        # inputs made them (stdout is not the command's result in batch mode)
         with self._lock:
-            stream.write(printable(text) + "\n")
-            stream.flush()
+            try:
+                stream.write(printable(text) + "\n")
+                stream.flush()
+            except (AttributeError, OSError, ValueError):
+                pass
 
     def line(self, text: str = "") -> None:
         """A line of the command's output (stdout), unless quiet."""
