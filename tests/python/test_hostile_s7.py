@@ -351,3 +351,77 @@ def test_a_veiling_light_beyond_single_precision_is_quoted_as_given():
 
     with pytest.raises(uwhl_rs.ParameterError, match=r"veiling_light: \[1e308, 0.5, 0.5\]"):
         uwhl_rs.Sequence(veiling_light=(1e308, 0.5, 0.5))
+
+
+# ------------------------------------------------------------------ the Python API and the console
+
+
+def test_the_api_refuses_from_shapes_before_copying():
+    """Broadcast views of hundreds of gigabytes cost nothing until copied:
+    the image's working memory and the distance map's size against the
+    image are checked from their shapes, with the library's messages."""
+    import uwhl_rs
+    from uwhl_rs import synth
+
+    img, _ = synth.demo_input(60, 80)
+    with pytest.raises(MemoryError, match="over the limit of"):
+        uwhl_rs.restore(np.broadcast_to(img[:1, :1], (200_000, 200_000, 3)))
+    with pytest.raises(MemoryError, match="over the limit of"):
+        uwhl_rs.Sequence(max_memory=10**8).restore(np.broadcast_to(img[:1, :1], (200_000, 200_000, 3)))
+    with pytest.raises(uwhl_rs.ParameterError, match="more than 16 times the image's 60x80 pixels"):
+        uwhl_rs.restore(img, distance=np.broadcast_to(np.float32(3), (100_000, 100_000)))
+    with pytest.raises(uwhl_rs.ParameterError, match="over the largest input"):
+        uwhl_rs.depth_to_range(np.broadcast_to(np.float32(1), (100_000, 100_000)), 60)
+    # a map of the image's own size is taken as before
+    z = np.where(np.isfinite(_["distance"]), _["distance"], np.nan).astype(np.float32)
+    assert uwhl_rs.restore(img, distance=z).transmission.shape == (60, 80)
+
+
+def test_read_image_and_restore_file_do_not_open_a_fifo(tmp_path):
+    os.mkfifo(tmp_path / "f.jpg")
+    code = ("import uwhl_rs, sys\n"
+            "for f in (lambda: uwhl_rs.read_image(sys.argv[1]), lambda: uwhl_rs.restore_file(sys.argv[1], sys.argv[2]),\n"
+            "          lambda: uwhl_rs.read_image('/dev/zero')):\n"
+            "    try:\n        f()\n    except uwhl_rs.ImageReadError as e:\n        print(e)\n")
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "f.jpg"), str(tmp_path / "o")], capture_output=True,
+                       text=True, timeout=60)  # a guard against the hang this test is about
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count("is not a regular file (a FIFO, socket or device): not opened") == 3, r.stdout
+
+
+@pytest.mark.parametrize("impl", BOTH)
+def test_a_closed_or_full_stdout_or_stderr_changes_no_exit_code(impl, binary, photos, tmp_path):
+    cmd = " ".join(f"'{c}'" for c in _cmds(binary)[impl])
+    good, missing = photos / "in" / "plain.tif", tmp_path / "missing.tif"
+    for redirect, src, want in ((">&-", good, 0), ("> /dev/full", good, 0), ("2>&-", missing, 3),
+                                ("2> /dev/full", missing, 3)):
+        out = tmp_path / f"o{abs(hash(redirect))}"
+        r = subprocess.run(f"exec {cmd} restore '{src}' -o '{out}' {redirect}", shell=True, capture_output=True,
+                           text=True, timeout=300)
+        assert r.returncode == want, (redirect, r.returncode, r.stdout, r.stderr)
+        assert "Traceback" not in r.stderr and "AttributeError" not in r.stderr
+
+
+RAW = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "raw")
+
+
+@pytest.mark.skipif(not os.path.isfile(os.path.join(RAW, "canon_eos_6d.dng")), reason="../shared/data is not beside the repo")
+def test_a_raw_file_cut_short_is_unreadable_and_its_decoder_says_nothing_on_stderr(tmp_path):
+    """canon_eos_6d.dng cut at 97% of its bytes: LibRaw fills the missing
+    rows and used to return a photo with garbage at its bottom, exit 0,
+    and libjpeg's "Premature end of JPEG file" among the JSON error lines.
+    The whole file still restores, with no decoder note."""
+    data = open(os.path.join(RAW, "canon_eos_6d.dng"), "rb").read()
+    cut = tmp_path / "cut.dng"
+    cut.write_bytes(data[:len(data) * 97 // 100])
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(cut), "-o", str(tmp_path / "o"), "-q",
+                        "--json-errors", "--max-side", "400"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 3, r.stderr
+    lines = r.stderr.splitlines()
+    assert all(x.startswith("{") for x in lines), lines  # nothing but JSON objects
+    assert "the raw data ends early" in json.loads(lines[0])["message"]
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", os.path.join(RAW, "canon_eos_6d.dng"), "-o",
+                        str(tmp_path / "w"), "-q", "--max-side", "400"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    side = json.loads((tmp_path / "w" / "canon_eos_6d.json").read_text())
+    assert not any(n.startswith("raw decoder") for n in side["source"]["notes"])
