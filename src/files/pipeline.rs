@@ -402,7 +402,12 @@ pub fn output_suffixes(opts: &Settings) -> Vec<String> {
 /// device is never opened: opening a FIFO blocks).
 pub fn open_input(path: &Path) -> Result<File, Failure> {
     crate::files::jobs::regular_file(path).map_err(|m| Failure::new(Kind::Input, m))?;
-    File::open(path).map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))
+    let f = File::open(path).map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))?;
+    // the Python command's words for a file of no bytes, not a format's
+    if f.metadata().is_ok_and(|m| m.len() == 0) {
+        return Err(Failure::new(Kind::Input, "empty file"));
+    }
+    Ok(f)
 }
 
 /// The first half of [`process`]: the output names claimed (or the input

@@ -425,3 +425,14 @@ def test_a_raw_file_cut_short_is_unreadable_and_its_decoder_says_nothing_on_stde
     assert r.returncode == 0 and r.stderr == "", r.stderr
     side = json.loads((tmp_path / "w" / "canon_eos_6d.json").read_text())
     assert not any(n.startswith("raw decoder") for n in side["source"]["notes"])
+
+
+def test_both_commands_call_a_file_of_no_bytes_empty(binary, tmp_path):
+    (tmp_path / "e.jpg").write_bytes(b"")
+    lines = {}
+    for impl, cmd in _cmds(binary).items():
+        r = subprocess.run([*cmd, "restore", str(tmp_path / "e.jpg"), "-o", str(tmp_path / impl), "--json-errors", "-q"],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 3, r.stderr
+        lines[impl] = [x for x in r.stderr.splitlines() if x.startswith("{")]
+    assert lines["python"] == lines["rust"] and '"message": "empty file"' in lines["rust"][0], lines
