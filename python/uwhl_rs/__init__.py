@@ -225,8 +225,10 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         A water fitted on another photo of the same water (the ``water`` of
         a restoration given ``distance``, or a sidecar's ``distance.water``):
         its attenuation ratios become the one candidate type, named after
-        its nearest Jerlov type; A is this photo's own. Not with
-        ``water_types``.
+        its nearest Jerlov type (``nearest_type``, text; "fitted" without
+        one); A is this photo's own. Its ``beta`` must be three positive
+        numbers (not text or booleans). Not with ``water_types``, which is
+        a list (a dict or a string would be read as names only).
     guided_radius : int, optional
         Guided-filter radius; default ``round(min(H, W) / 4)`` (METHOD §6).
     guided_eps : float
@@ -313,8 +315,12 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         if method.get("water_types") is not None:
             raise ParameterError("water and water_types both name the water: give one")
         try:
+            if any(isinstance(v, (bool, str, bytes)) for v in water["beta"]):
+                raise TypeError("not numbers")
             br, bg, bb = (float(v) for v in water["beta"])
-            name = str(water.get("nearest_type") or "fitted")
+            name = water.get("nearest_type") or "fitted"
+            if not isinstance(name, str):
+                raise TypeError("the name is not text")
         except (TypeError, KeyError, ValueError):
             raise ParameterError("water must be a dict with 'beta': three attenuations in 1/m "
                                  "(the water of a restoration given distance)") from None
@@ -332,7 +338,7 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         z = np.asarray(distance)
         if z.ndim == 3 and z.shape[2] == 1:
             z = z[:, :, 0]
-        if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
+        if z.ndim != 2 or not np.issubdtype(z.dtype, np.number) or np.iscomplexobj(z):
             raise ParameterError(f"distance must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
         z = np.ascontiguousarray(z, dtype=np.float32)
     return _core.restore_f32(img, params, water_mask=wm, mask=m, distance=z)
@@ -374,6 +380,10 @@ def _method_params(**kw) -> _core.Params:
     """The method's keyword arguments of :func:`restore` and :class:`Sequence`
     as the core's parameters: the core checks each (a ParameterError naming
     a bad one, a TypeError for an unknown keyword)."""
+    wt = kw.get("water_types")
+    if isinstance(wt, (dict, str, bytes)):
+        # a dict or a string iterates as names only: its values, or its letters, would be taken quietly
+        raise ParameterError(f"water_types is a list of names or (name, beta_BR, beta_BG), not a {type(wt).__name__}")
     return _core.Params(**kw)
 
 

@@ -436,3 +436,20 @@ def test_both_commands_call_a_file_of_no_bytes_empty(binary, tmp_path):
         assert r.returncode == 3, r.stderr
         lines[impl] = [x for x in r.stderr.splitlines() if x.startswith("{")]
     assert lines["python"] == lines["rust"] and '"message": "empty file"' in lines["rust"][0], lines
+
+
+@pytest.mark.parametrize("kw, want", [
+    ({"water_types": {"3C": (1, 1)}}, "not a dict"),
+    ({"water_types": "3C"}, "not a str"),
+    ({"water": {"beta": [True, True, True]}}, "water must be a dict"),
+    ({"water": {"beta": ["0.1", "0.2", "0.3"]}}, "water must be a dict"),
+    ({"water": {"beta": [0.3, 0.2, 0.1], "nearest_type": ["x"]}}, "water must be a dict"),
+    ({"distance": np.ones((60, 80), complex)}, "not complex128"),
+])
+def test_the_api_refuses_arguments_it_would_take_quietly_in_part(kw, want):
+    import uwhl_rs
+    from uwhl_rs import synth
+
+    img, _ = synth.demo_input(60, 80)
+    with pytest.raises(uwhl_rs.ParameterError, match=want):
+        uwhl_rs.restore(img, **kw)
