@@ -371,8 +371,9 @@ def floor_distance(shape, altitude: float, fov: float, *, pitch: float = 0.0, ro
     ray, NaN where the ray does not meet the seabed.
     """
     hw = tuple(np.shape(shape)[:2]) if isinstance(shape, np.ndarray) else tuple(shape)[:2]
-    if len(hw) != 2:
-        raise ParameterError(f"shape must be (height, width), not {shape!r}")
+    ints = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in hw)
+    if len(hw) != 2 or not ints or min(hw) < 1:
+        raise ParameterError(f"shape must be (height, width), two positive integers, not {shape!r}")
     return _core.floor_distance(int(hw[0]), int(hw[1]), float(altitude), float(fov), float(pitch), float(roll), port)
 
 

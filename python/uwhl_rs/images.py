@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import _core
-from .errors import ImageReadError, ImageTooLargeError
+from .errors import ImageReadError, ImageTooLargeError, ParameterError
 from .sidecars import display
 
 __all__ = [
@@ -222,6 +222,8 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
         Its header gives more than ``max_pixels`` pixels, or more memory
         than the core's default limit.
     """
+    if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)) or max_pixels < 1:
+        raise ParameterError(f"max_pixels must be a positive integer, not {max_pixels!r}")
     return np.asarray(_core.read_distance_file(os.fspath(path), int(max_pixels), int(_core.default_max_memory())))
 
 

@@ -453,3 +453,12 @@ def test_the_api_refuses_arguments_it_would_take_quietly_in_part(kw, want):
     img, _ = synth.demo_input(60, 80)
     with pytest.raises(uwhl_rs.ParameterError, match=want):
         uwhl_rs.restore(img, **kw)
+
+
+def test_negative_or_fractional_sizes_are_parameter_errors_not_overflow():
+    import uwhl_rs
+
+    for f in (lambda: uwhl_rs.floor_distance((-4, 64), 3, 60), lambda: uwhl_rs.floor_distance((2.5, 4), 3, 60),
+              lambda: uwhl_rs.read_distance("x.npy", max_pixels=-5)):
+        with pytest.raises(uwhl_rs.ParameterError, match="positive integer"):
+            f()
