@@ -130,8 +130,7 @@ def _check_room(image, params, distance=None) -> None:
     if distance is not None:
         zs = np.shape(distance)
         if len(zs) >= 2:
-            cap = max(_core.MAP_PER_PHOTO_PIXEL * h * w, _core.MAP_MIN_CAP)
-            if int(zs[0]) * int(zs[1]) > cap:
+            if int(zs[0]) * int(zs[1]) > _core.map_cap(h, w):
                 raise ParameterError(f"the distance map is {int(zs[0])}x{int(zs[1])} (height x width), more than "
                                      f"{_core.MAP_PER_PHOTO_PIXEL} times the image's {h}x{w} pixels")
 

@@ -28,7 +28,7 @@ __all__ = [
     "options_help", "check_combination", "check_distance", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
-    "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "FIT_BETA_GRID", "MAP_PER_PHOTO_PIXEL", "MAP_MIN_CAP", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
+    "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "FIT_BETA_GRID", "MAP_PER_PHOTO_PIXEL", "map_cap", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
 ]
 
 __version__: str
@@ -50,9 +50,8 @@ RAW_EXTENSIONS: list[str]
 VIDEO_EXTENSIONS: list[str]
 #: the blue attenuations (1/m) a distance fit searches, smallest and largest (METHOD §13.2)
 FIT_BETA_GRID: tuple[float, float]
-#: a distance map of more than MAP_PER_PHOTO_PIXEL times its photo's pixels (never below MAP_MIN_CAP) is not read
+#: a distance map of more than MAP_PER_PHOTO_PIXEL times its photo's pixels (map_cap) is not read
 MAP_PER_PHOTO_PIXEL: int
-MAP_MIN_CAP: int
 #: the scene-cut threshold and A smoothing of videos and raw frames (METHOD §10)
 VIDEO_SCENE_CUT: float
 VIDEO_SMOOTHING: float
@@ -169,6 +168,8 @@ def read_distance_for(
 ) -> tuple[str, Optional[_F32], Optional[str]]:
     """An input's distance map for a --distance template: (path, H x W metres or None, why not or None);
     with photo (height, width), a map of more than 16 times its pixels is refused from its header."""
+def map_cap(height: int, width: int) -> int:
+    """The most pixels a distance map of a photo of height x width pixels may have (4 Mpx at least)."""
 def read_distance_file(path: _PathArg, max_pixels: int, max_memory: int,
                        photo: Optional[tuple[int, int]] = None) -> _F32:
     """A distance map file as H x W metres (NaN = unknown), read by the binary's reader (npy, 16-bit PNG,

@@ -112,8 +112,7 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
                 raise ManifestError(f"{path}: a .mat distance file holds exactly one 2-D numeric array "
                                     f"(found {len(found)})")
             name, (h, w) = found[0]
-            cap = max(_core.MAP_PER_PHOTO_PIXEL * height * width, _core.MAP_MIN_CAP)
-            if h * w > min(cap, gt.MAX_TRUTH_PIXELS):
+            if h * w > min(_core.map_cap(height, width), gt.MAX_TRUTH_PIXELS):
                 raise ManifestError(f"{path}: the distance map is {w}x{h} pixels, more than "
                                     f"{_core.MAP_PER_PHOTO_PIXEL} times the photo's {width}x{height}: not read")
             d = np.asarray(loadmat(path, variable_names=[name])[name], dtype=np.float64)

@@ -110,21 +110,23 @@ pub const MAP_PER_PHOTO_PIXEL: u64 = 16;
 /// The cap of [`MAP_PER_PHOTO_PIXEL`] is never below this (4 Mpx).
 pub const MAP_MIN_CAP: u64 = 1 << 22;
 
+/// The most pixels a distance map of a photo of `h` x `w` pixels may have
+/// ([`MAP_PER_PHOTO_PIXEL`] times the photo's, at least [`MAP_MIN_CAP`]).
+pub fn map_cap(h: u64, w: u64) -> u64 {
+    h.saturating_mul(w).saturating_mul(MAP_PER_PHOTO_PIXEL).max(MAP_MIN_CAP)
+}
+
 /// Reads a distance map (regular files only; the size is checked from the
 /// header against `max_pixels` and `max_memory` before anything large is
 /// allocated).
 pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<DistanceMap, Failure> {
-    read_distance_capped(path, max_pixels, max_memory, None)
+    read_distance_of(path, max_pixels, max_memory, None)
 }
 
 /// [`read_distance`] of the map of a photo of `photo` = (height, width)
-/// pixels: a map of more than [`MAP_PER_PHOTO_PIXEL`] times its pixels is
-/// refused from its header.
-pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: (u64, u64)) -> Result<DistanceMap, Failure> {
-    read_distance_capped(path, max_pixels, max_memory, Some(photo))
-}
-
-fn read_distance_capped(path: &Path, max_pixels: u64, max_memory: u64, photo: Option<(u64, u64)>) -> Result<DistanceMap, Failure> {
+/// pixels, when known: a map of more than [`map_cap`] pixels is refused
+/// from its header.
+pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: Option<(u64, u64)>) -> Result<DistanceMap, Failure> {
     crate::files::jobs::regular_file(path).map_err(|m| Failure::new(Kind::Input, m))?;
     let f = File::open(path).map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))?;
     let mut r = BufReader::new(f);
@@ -140,8 +142,7 @@ fn read_distance_capped(path: &Path, max_pixels: u64, max_memory: u64, photo: Op
             return Err(Failure::new(Kind::Budget, format!("the distance map is {w}x{h} pixels, over --max-pixels {max_pixels}")));
         }
         if let Some((ph, pw)) = photo {
-            let cap = ph.saturating_mul(pw).saturating_mul(MAP_PER_PHOTO_PIXEL).max(MAP_MIN_CAP);
-            if n > cap {
+            if n > map_cap(ph, pw) {
                 return Err(Failure::new(
                     Kind::Input,
                     format!("the distance map is {w}x{h} pixels, more than {MAP_PER_PHOTO_PIXEL} times the photo's {pw}x{ph}: not read"),
@@ -562,10 +563,10 @@ mod tests {
     fn a_map_far_larger_than_its_photo_is_refused_from_its_header() {
         // a 16-bit PNG of 4096 x 2048 (8 Mpx, 16 MB of samples) for a photo of 100 x 200
         let p = tmp("big.png", &gray_png(4096, 2048, png::BitDepth::Sixteen, &vec![0u8; 4096 * 2048 * 2]));
-        let e = read_distance_of(&p, 1 << 30, 1 << 34, (100, 200)).unwrap_err();
+        let e = read_distance_of(&p, 1 << 30, 1 << 34, Some((100, 200))).unwrap_err();
         assert!(e.message.contains("more than 16 times the photo's 200x100"), "{}", e.message);
         // the same map for a photo of 1024 x 512 (16 x 0.5 Mpx = 8 Mpx) is read
-        assert_eq!(read_distance_of(&p, 1 << 30, 1 << 34, (512, 1024)).unwrap().width, 4096);
+        assert_eq!(read_distance_of(&p, 1 << 30, 1 << 34, Some((512, 1024))).unwrap().width, 4096);
     }
 
     #[test]

@@ -205,7 +205,6 @@ pub fn decode_and_restore<R: BufRead + Seek>(
     decode_and_restore_gated(reader, opts, masks, seq, None, Given::None)
 }
 
-/// [`decode_and_restore`], with the memory check waiting at `gate` when given.
 /// (height, width) of a photo from its header (PNG, JPEG, TIFF), None when
 /// it cannot be read that way (the decoder then says why).
 fn photo_size(input: &Path) -> Option<(u64, u64)> {
@@ -213,6 +212,7 @@ fn photo_size(input: &Path) -> Option<(u64, u64)> {
     Some((u64::from(h), u64::from(w)))
 }
 
+/// [`decode_and_restore`], with the memory check waiting at `gate` when given.
 fn decode_and_restore_gated<R: BufRead + Seek>(
     reader: R,
     opts: &Settings,
@@ -449,11 +449,8 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
         match crate::files::depth::expand(t, &job.input) {
             Ok(path) => {
                 // the photo's size from its header, so that a map far larger than the photo is not read
-                let map = match photo_size(&job.input) {
-                    Some(hw) => crate::files::depth::read_distance_of(&path, opts.max_pixels, opts.params.max_memory, hw),
-                    None => crate::files::depth::read_distance(&path, opts.max_pixels, opts.params.max_memory),
-                }
-                .map_err(|f| format!("{}: {}", path.display(), f.message));
+                let map = crate::files::depth::read_distance_of(&path, opts.max_pixels, opts.params.max_memory, photo_size(&job.input))
+                    .map_err(|f| format!("{}: {}", path.display(), f.message));
                 (path, map)
             }
             Err(why) => (PathBuf::from(t), Err(why)),

@@ -226,11 +226,7 @@ fn read_distance_for<'py>(
         Err(why) => return Ok((template.to_string(), None, Some(why))),
     };
     let shown = path.to_string_lossy().into_owned();
-    let read = || match photo {
-        Some(hw) => crate::files::depth::read_distance_of(&path, max_pixels, max_memory, hw),
-        None => crate::files::depth::read_distance(&path, max_pixels, max_memory),
-    };
-    match py.detach(read) {
+    match py.detach(|| crate::files::depth::read_distance_of(&path, max_pixels, max_memory, photo)) {
         Ok(m) => Ok((shown, Some(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any()), None)),
         Err(f) => {
             let why = format!("{shown}: {}", f.message);
@@ -253,11 +249,7 @@ fn read_distance_file<'py>(
     max_memory: u64,
     photo: Option<(u64, u64)>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let read = || match photo {
-        Some(hw) => crate::files::depth::read_distance_of(&path, max_pixels, max_memory, hw),
-        None => crate::files::depth::read_distance(&path, max_pixels, max_memory),
-    };
-    let m = py.detach(read).map_err(failure_to_py)?;
+    let m = py.detach(|| crate::files::depth::read_distance_of(&path, max_pixels, max_memory, photo)).map_err(failure_to_py)?;
     Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
 }
 

@@ -326,6 +326,13 @@ impl PyParams {
     }
 }
 
+/// The most pixels a distance map of a photo of `height` x `width` pixels
+/// may have (`crate::files::depth::map_cap`): larger ones are not read.
+#[pyfunction]
+fn map_cap(height: u64, width: u64) -> u64 {
+    crate::files::depth::map_cap(height, width)
+}
+
 /// The option table (`crate::files::options::OPTIONS`) as a list of dicts: what
 /// the Python layer builds its command line and keyword defaults from.
 fn options_table(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
@@ -910,9 +917,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("EXIT_CODES_HELP", crate::files::options::exit_code_text())?;
     // the attenuation grid a distance fit searches (METHOD §13.2): its readers take no blue outside it
     m.add("FIT_BETA_GRID", (crate::method::distance::BETA_MIN, crate::method::distance::BETA_MAX))?;
-    // a distance map of more than this many times its photo's pixels (never below the floor) is not read
+    // a distance map of more than this many times its photo's pixels (map_cap) is not read
     m.add("MAP_PER_PHOTO_PIXEL", crate::files::depth::MAP_PER_PHOTO_PIXEL)?;
-    m.add("MAP_MIN_CAP", crate::files::depth::MAP_MIN_CAP)?;
+    m.add_function(wrap_pyfunction!(map_cap, m)?)?;
     m.add("VIDEO_SCENE_CUT", crate::VIDEO_SCENE_CUT)?;
     m.add("VIDEO_SMOOTHING", crate::VIDEO_SMOOTHING)?;
     m.add("VIDEO_EXTENSIONS", crate::files::jobs::VIDEO_EXTENSIONS.to_vec())?;
