@@ -291,14 +291,12 @@ const MAX_SECONDS: f64 = 1e11;
 /// The column of each role, from the header's names (case, spaces,
 /// dashes and underscores ignored).
 fn column(header: &[String], names: &[&str]) -> Option<usize> {
-    column_after(header, names, usize::MAX)
+    column_from(header, names, 0)
 }
 
-/// The first column after `first` (all of them when `usize::MAX`) named
-/// one of `names`.
-fn column_after(header: &[String], names: &[&str], first: usize) -> Option<usize> {
+/// The first column from index `from` on named one of `names`.
+fn column_from(header: &[String], names: &[&str], from: usize) -> Option<usize> {
     let norm = |s: &str| s.chars().filter(|c| c.is_alphanumeric()).flat_map(char::to_lowercase).collect::<String>();
-    let from = if first == usize::MAX { 0 } else { first + 1 };
     header.iter().enumerate().skip(from).find(|(_, h)| names.iter().any(|n| norm(h) == norm(n))).map(|(i, _)| i)
 }
 
@@ -329,7 +327,7 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
     for (role, col, names) in [("altitude", Some(alt), ALTITUDE_NAMES), ("file-name", name, FILE_NAMES), ("time", time, TIME_NAMES),
                                ("pitch", pitch, PITCH_NAMES), ("roll", roll, ROLL_NAMES)] {
         if let Some(first) = col {
-            if let Some(second) = column_after(&header, names, first) {
+            if let Some(second) = column_from(&header, names, first + 1) {
                 return Err(format!(
                     "line {head_no}: two {role} columns, {} (column {}) and {} (column {}): keep one",
                     shown(header.get(first).map_or("", String::as_str)), first + 1,
