@@ -104,17 +104,19 @@ pub fn init_threads(threads: Option<usize>) {
 }
 
 fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
-    let masks = load_masks(opts).map_err(|e| {
+    load_masks(opts).map_err(|e| {
         report(err, opts.json_errors, None, &e);
         e.kind.exit_code()
-    })?;
-    // the sidecars --water-from could not use, once, before any input
+    })
+}
+
+/// The sidecars `--water-from` could not use, said once before any input.
+fn dive_notes(opts: &Options, err: &mut dyn Write) {
     if let (Some(d), false) = (&opts.settings.water_from, opts.quiet) {
         for n in d.notes() {
             let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {n}")));
         }
     }
-    Ok(masks)
 }
 
 /// The reading side's view of the writing side in [`overlapped`]: how many
@@ -234,6 +236,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         Ok(m) => m,
         Err(code) => return code,
     };
+    dive_notes(opts, err);
     let (jobs, errors) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
     let errors: Vec<(PathBuf, Failure)> = errors.into_iter().map(|(p, m)| (p, Failure::new(Kind::Input, m))).collect();
     let mut code = 0u8;
@@ -403,6 +406,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         Ok(m) => m,
         Err(code) => return code,
     };
+    dive_notes(opts, err);
     let mut seq = sequence(opts);
     crate::files::jobs::remove_stale_temps(&opts.outdir);
     // stdout gone (closed pipe, full disk): the frames' lines cannot be
