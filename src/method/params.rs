@@ -463,12 +463,7 @@ pub fn needed_memory(h: usize, w: usize, holes: bool, params: &Params) -> u64 {
 /// manifest's entry are checked with them before any frame or image).
 pub fn check_values(params: &Params) -> Result<()> {
     validate_types(&params.water_types)?;
-    if !(1..=crate::method::sphere::MAX_POINTS).contains(&params.sphere_points) {
-        return Err(Error::Param {
-            name: "sphere_points",
-            msg: format!("{} is not in 1..={}", params.sphere_points, crate::method::sphere::MAX_POINTS),
-        });
-    }
+    crate::method::sphere::check_points(params.sphere_points)?;
     if !(params.guided_eps.is_finite() && params.guided_eps > 0.0) {
         return Err(Error::Param {
             name: "guided_eps",

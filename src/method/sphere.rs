@@ -328,15 +328,22 @@ impl DirectionGrid {
     }
 }
 
+/// Whether `n` points on the sphere can be made: 1 <= n <= [`MAX_POINTS`]
+/// (the `sphere_points` parameter).
+pub fn check_points(n: usize) -> Result<()> {
+    if n == 0 || n > MAX_POINTS {
+        return Err(Error::Param {
+            name: "sphere_points",
+            msg: format!("{n} is not in 1..={MAX_POINTS}"),
+        });
+    }
+    Ok(())
+}
+
 impl SphereIndex {
     /// Builds the index over `n` Fibonacci points (1 <= n <= [`MAX_POINTS`]).
     pub fn new(n: usize) -> Result<Self> {
-        if n == 0 || n > MAX_POINTS {
-            return Err(Error::Param {
-                name: "sphere_points",
-                msg: format!("{n} is not in 1..={MAX_POINTS}"),
-            });
-        }
+        check_points(n)?;
         let points: Vec<[f32; 3]> = fibonacci_points(n)
             .into_iter()
             .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
