@@ -188,8 +188,9 @@ def read_image(
                 except Exception as e:  # judged below, with what the decoder said
                     failed = e
             if failed is not None:
-                if not isinstance(failed, (ImageTooLargeError, MemoryError)) and _ends_early(said):
-                    raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {_ends_early(said)}") from None
+                early = _ends_early(said)
+                if early and not isinstance(failed, (ImageTooLargeError, MemoryError)):
+                    raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {early}") from None
                 raise failed
             return img, _judged_raw(path, meta, said)
         return _read_encoded(path, kind, preprocess, max_pixels, _on_header)
@@ -198,9 +199,7 @@ def read_image(
     except MemoryError:
         raise ImageTooLargeError(f"{path}: not enough memory to decode") from None
     except Exception as e:  # decoders raise many types; name the file and the reason
-        # LibRaw's errors carry bytes (b'Input/output error'): their text
-        why = e.args[0].decode("utf-8", "replace") if e.args and isinstance(e.args[0], bytes) else str(e)
-        raise ImageReadError(f"{path}: cannot decode {kind or 'raw'} ({type(e).__name__}: {why})") from None
+        raise ImageReadError(f"{path}: cannot decode {kind or 'raw'} ({type(e).__name__}: {_reason(e)})") from None
 
 
 def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
@@ -287,9 +286,14 @@ def _camera_matrix(raw) -> tuple[np.ndarray | None, list[str]]:
     return None, ["no_camera_matrix"]
 
 
+def _reason(e: Exception) -> str:
+    """An exception's message as text: LibRaw's carry bytes (b'Input/output error')."""
+    return e.args[0].decode("utf-8", "replace") if e.args and isinstance(e.args[0], bytes) else str(e)
+
+
 #: what LibRaw and libjpeg write when a raw file's data ends early: the
 #: decoder then fills the rest with what it had, and the photo looks whole
-_TRUNCATED = ("premature end of jpeg file", "unexpected end of file", "end of file", "truncated")
+_TRUNCATED = ("premature end of jpeg file", "end of file", "truncated")
 #: a decoder's line on stderr: "NAME: message" from LibRaw, or libjpeg's own
 _DECODER_LINE = re.compile(r"(premature end|unexpected end|end of file|corrupt|bogus|invalid|data error|"
                            r"not enough|warning|truncated)", re.IGNORECASE)
@@ -350,8 +354,9 @@ def _judged_raw(path: str, meta: "ImageMeta", said: list[str]) -> "ImageMeta":
     """The decoder's lines about a raw file: one that says its data ended
     early makes it unreadable (its pixels past that point are not the
     photo's); any other becomes a note of the sidecar's ``source.notes``."""
-    if _ends_early(said):
-        raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {_ends_early(said)}")
+    early = _ends_early(said)
+    if early:
+        raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {early}")
     shown = [display(x.strip())[:200] for x in said if x.strip()]
     if not shown:
         return meta
@@ -374,8 +379,7 @@ def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
     except Exception as e:
         ext = os.path.splitext(path)[1].lower()
         what = "a raw file LibRaw can read" if ext in RAW_EXTENSIONS else "a JPEG, PNG, TIFF or raw file"
-        why = e.args[0].decode("utf-8", "replace") if e.args and isinstance(e.args[0], bytes) else str(e)
-        raise ImageReadError(f"{path}: not {what} ({type(e).__name__}: {why})") from None
+        raise ImageReadError(f"{path}: not {what} ({type(e).__name__}: {_reason(e)})") from None
     with raw:
         s = raw.sizes
         # the mosaic (2 bytes a pixel) and LibRaw's 16-bit RGB output

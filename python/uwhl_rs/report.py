@@ -486,8 +486,8 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     more = n_failed - len(failed)
     failed_html = "" if not failed else (
         f'<section id="failed"><h2>Failed: {n_failed} (from summary.csv)</h2><table class="failed">'
-        + "".join(f"<tr><td>{html.escape(r.get('input', ''))}</td><td>{html.escape(r.get('error_kind', ''))}</td>"
-                  f"<td>{html.escape(r.get('error', ''))}</td></tr>" for r in failed)
+        + "".join(f"<tr><td>{_text(r.get('input', ''))}</td><td>{_text(r.get('error_kind', ''))}</td>"
+                  f"<td>{_text(r.get('error', ''))}</td></tr>" for r in failed)
         + "</table>" + (f'<p class="meta">and {more} more: see summary.csv</p>' if more else "") + "</section>")
     types = [t for t in uwhl_rs.WATER_TYPES] + sorted(t for t in counts if t not in uwhl_rs.WATER_TYPES)
     videos_part = report_video.videos_html(videos, types, link)
@@ -517,6 +517,11 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     return {"path": path, "photos": len(photos), "videos": len(videos), "flagged": flagged + len(flagged_videos),
             "failed": n_failed, "thumbnails_written": written,
             "problems": problems, "seconds": time.perf_counter() - t0}
+
+
+def _text(s: str) -> str:
+    """A value as the page's HTML text, as the console shows it (:func:`printable`)."""
+    return html.escape(printable(s))
 
 
 def _shown_text(value):

@@ -34,10 +34,10 @@ def run(a: argparse.Namespace, console: Console) -> int:
     res = uwhl_rs.restore(image)
     dt = time.perf_counter() - t0
     for name, img, enc in (("input.png", image, "linear"), ("restored.png", res.image, "linear"),
-                           ("transmission.png", colorize_transmission(res.transmission), None),
+                           ("transmission.png", colorize_transmission(res.transmission), "srgb"),
                            ("clean_truth.png", truth["clean"], "linear")):
         try:
-            write_image(os.path.join(out_dir, name), img, **({"encoding": enc} if enc else {}))
+            write_image(os.path.join(out_dir, name), img, encoding=enc)
         except OSError as e:
             raise CommandError(e.strerror or f"cannot write {name}: {e}", "write_failed", out_dir) from None
     z = truth["distance"]

@@ -47,9 +47,10 @@ def write(out_dir: str, header: dict, console: Console, *, handle_base: str | No
 def run(a: argparse.Namespace, console: Console) -> int:
     """``uwhl ifdo``: the exit status."""
     so = parse_storage_options(a.storage_option)
-    if a.handle_base is not None and uri_problem(a.handle_base + "x"):
-        # every item's image-handle is this base and a path: a bad base is the command's, said once
-        raise CommandError(f"--handle-base {a.handle_base}: {uri_problem(a.handle_base + 'x')}", "bad_arguments")
+    # every item's image-handle is this base and a path: a bad base is the command's, said once
+    bad = None if a.handle_base is None else uri_problem(a.handle_base + "x")
+    if bad:
+        raise CommandError(f"--handle-base {a.handle_base}: {bad}", "bad_arguments")
     header = load_header(a.header)
     return write(a.out, header, console, handle_base=a.handle_base, file_format=a.format or file_format(a.header),
                  storage_options=so or None)
