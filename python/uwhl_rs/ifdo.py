@@ -30,7 +30,7 @@ from typing import Any
 from urllib.parse import quote
 
 from .errors import IfdoError
-from .ifdocheck import field_problems, plain_data
+from .ifdocheck import DEFAULT_TIME_FORMAT, field_problems, plain_data
 from .outdir import collect_sidecars
 from .sidecars import display, printable
 from .storage import Folder, on_storage, read_regular
@@ -56,9 +56,6 @@ FROM_PHOTOS = ("image-datetime", "image-latitude", "image-longitude", "image-alt
 
 #: what the header file must give: the rest of the required fields
 FROM_USER = tuple(k for k in REQUIRED_HEADER if k not in DERIVED + FROM_PHOTOS)
-
-#: iFDO's default time format (``image-datetime-format``), to the millisecond
-_TIME_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
 
 
 #: the largest header file read (a header is a few kB)
@@ -170,7 +167,7 @@ def utc_time(taken_at: str) -> tuple[_dt.datetime, bool]:
 
 
 def _ifdo_time(t: _dt.datetime) -> str:
-    return t.strftime(_TIME_FORMAT)[:-3]
+    return t.strftime(DEFAULT_TIME_FORMAT)[:-3]  # to the millisecond
 
 
 def _rfc3339(t: _dt.datetime) -> str:
@@ -278,12 +275,18 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         else:
             no_time.append(key)
         gps = md.get("gps") or {}
+        place = {}
         if gps.get("latitude") is not None and gps.get("longitude") is not None:
-            item["image-latitude"] = float(gps["latitude"])
-            item["image-longitude"] = float(gps["longitude"])
+            place = {"image-latitude": gps["latitude"], "image-longitude": gps["longitude"]}
             if gps.get("altitude") is not None:
-                item["image-altitude-meters"] = float(gps["altitude"])
-            positions.append((item["image-latitude"], item["image-longitude"], gps.get("altitude")))
+                place["image-altitude-meters"] = gps["altitude"]
+            wrong = field_problems(place)
+            if wrong:  # a sidecar's GPS is the photo's EXIF, as hostile as the rest
+                notes.append(f"{shown}: GPS {'; '.join(wrong)}; no position")
+                place = {}
+        if place:
+            item.update({k: float(v) for k, v in place.items()})
+            positions.append((item["image-latitude"], item["image-longitude"], item.get("image-altitude-meters")))
         else:
             no_position.append(key)
         items[key] = item

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import re
 
-__all__ = ["field_problems", "plain_data", "uri_problem", "UUID_PATTERN"]
+__all__ = ["field_problems", "plain_data", "uri_problem", "UUID_PATTERN", "DEFAULT_TIME_FORMAT"]
 
 #: the schema's ``uuid`` (version 4, with or without hyphens)
 UUID_PATTERN = re.compile(r"[0-9a-fA-F]{8}-[0-9a-fA-F]{4}-4[0-9a-fA-F]{3}-[89abAB][0-9a-fA-F]{3}-[0-9a-fA-F]{12}"
@@ -28,7 +28,9 @@ _TEXT = ("image-set-name", "image-set-handle", "image-set-ifdo-version", "image-
 
 #: number fields and their bounds (None: unbounded)
 _NUMBER = {
-    "image-latitude": (-90, 90), "image-longitude": (-180, 180), "image-altitude-meters": (None, None),
+    "image-latitude": (-90, 90), "image-longitude": (-180, 180),
+    # beyond the deepest trench or the edge of space: not a place on Earth (the schema bounds none)
+    "image-altitude-meters": (-12000, 100000),
     "image-coordinate-uncertainty-meters": (0, None), "image-entropy": (0, 1),
     "image-area-square-meters": (None, None), "image-meters-above-ground": (None, None),
     "image-camera-yaw-degrees": (None, None), "image-camera-pitch-degrees": (None, None),
@@ -64,6 +66,26 @@ _ENUM = {
 _URI_FIELDS = ("image-set-handle", "image-handle")
 
 
+#: iFDO's default ``image-datetime-format``
+DEFAULT_TIME_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
+
+
+def _is_time(v: str, fmt) -> bool:
+    """``v`` is a real time in ``fmt`` (the header's image-datetime-format,
+    when it gives one as text), or in iFDO's default format, to the second
+    or finer. 9999-99-99 is not, though the schema takes any text."""
+    import datetime as dt
+
+    forms = [fmt] if isinstance(fmt, str) else [DEFAULT_TIME_FORMAT, "%Y-%m-%d %H:%M:%S"]
+    for f in forms:
+        try:
+            dt.datetime.strptime(v, f)
+            return True
+        except ValueError:
+            continue
+    return False
+
+
 def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
@@ -82,6 +104,13 @@ def field_problems(fields: dict) -> list[str]:
     for k, v in fields.items():
         if k in _TEXT and not isinstance(v, str):
             out.append(f"{k} must be text, not {v!r:.60}")
+        if k == "image-datetime" and isinstance(v, str) and not _is_time(v, fields.get("image-datetime-format")):
+            fmt = fields.get("image-datetime-format")
+            out.append(f"{k} must be a time in the form {fmt if isinstance(fmt, str) else DEFAULT_TIME_FORMAT!r}"
+                       f" (image-datetime-format), not {v!r:.60}")
+        if k in ("image-set-header", "image-set-items"):
+            out.append(f"{k} is a part of the iFDO file, not a field: the header gives the fields of "
+                       "image-set-header itself")
         if k in _URI_FIELDS and isinstance(v, str) and uri_problem(v):
             out.append(f"{k} {uri_problem(v)}: {v!r:.80}")
         if k in _NUMBER:
