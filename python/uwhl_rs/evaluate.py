@@ -31,6 +31,7 @@ import os
 
 import numpy as np
 
+from . import _core
 from . import truth as gt
 from .errors import ManifestError
 # the manifest's format and reader, re-exported: uwhl_rs.evaluate is where the command and tests find them
@@ -93,8 +94,6 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
     Read by the commands' own reader (``.npy``, float or 16-bit TIFF, 16-bit
     PNG in millimetres, OpenEXR: docs/OUTPUTS.md "Distance"), or a ``.mat``
     holding one 2-D array (scipy)."""
-    from . import _core
-
     ext = os.path.splitext(path)[1].lower()
     try:
         if ext == ".mat":
@@ -466,13 +465,19 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
 
 
 class _DisplayedRows:
-    """A CSV writer whose text cells are written as :func:`display` shows them."""
+    """A CSV writer whose text cells are written as :func:`display` shows
+    them, those of ``TEXT_COLUMNS`` (names from the manifest) with a
+    spreadsheet formula neutralised as summary.csv does (docs/EVALUATE.md);
+    the numbers, written as text too, are left as they are."""
+
+    TEXT_COLUMNS = frozenset({0, 1, 2, 3, 7, 8})
 
     def __init__(self, writer):
         self._w = writer
 
     def writerow(self, row) -> None:
-        self._w.writerow([display(x) if isinstance(x, str) else x for x in row])
+        self._w.writerow([(_core.csv_text(display(x)) if k in self.TEXT_COLUMNS else display(x))
+                          if isinstance(x, str) else x for k, x in enumerate(row)])
 
 
 def _fmt(x) -> str:

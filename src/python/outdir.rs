@@ -83,7 +83,10 @@ impl PySummary {
     #[new]
     fn new(out_dir: std::path::PathBuf) -> Self {
         let s = Summary::create(&out_dir);
-        Self { path: s.path(), inner: Mutex::new(s) }
+        Self {
+            path: s.path(),
+            inner: Mutex::new(s),
+        }
     }
 
     /// The file's path.
@@ -95,13 +98,20 @@ impl PySummary {
     /// Why the file cannot be written, or None.
     #[getter]
     fn error(&self) -> Option<String> {
-        self.inner.lock().unwrap_or_else(PoisonError::into_inner).error.clone()
+        self.inner
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .error
+            .clone()
     }
 
     /// Whether it cannot be written because the folder is read-only.
     #[getter]
     fn read_only(&self) -> bool {
-        self.inner.lock().unwrap_or_else(PoisonError::into_inner).read_only
+        self.inner
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .read_only
     }
 
     /// Appends one row (a dict of columns; `scores` a dict, spread over the
@@ -109,13 +119,21 @@ impl PySummary {
     fn add(&self, py: Python<'_>, row: &Bound<'_, PyDict>) -> PyResult<()> {
         let row = map(row, 0)?;
         let inner = &self.inner;
-        py.detach(|| inner.lock().unwrap_or_else(PoisonError::into_inner).add(row));
+        py.detach(|| {
+            inner
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .add(row)
+        });
         Ok(())
     }
 
     /// Closes the file (and lets the folder's lock go).
     fn close(&self) {
-        self.inner.lock().unwrap_or_else(PoisonError::into_inner).close();
+        self.inner
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .close();
     }
 }
 
@@ -124,6 +142,14 @@ impl PySummary {
 #[pyfunction]
 fn summary_cell(cell: &str) -> String {
     summary::restore_cell(cell).to_string()
+}
+
+/// A text cell as summary.csv writes it (`crate::files::summary::neutralise`:
+/// a spreadsheet formula gets a quote in front), for the other CSV files the
+/// package writes (`results.csv` of `uwhl evaluate`).
+#[pyfunction]
+fn csv_text(cell: &str) -> String {
+    summary::neutralise(cell)
 }
 
 /// The columns of summary.csv, in order.
@@ -136,6 +162,7 @@ fn summary_columns() -> Vec<String> {
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySummary>()?;
     m.add_function(wrap_pyfunction!(summary_cell, m)?)?;
+    m.add_function(wrap_pyfunction!(csv_text, m)?)?;
     m.add_function(wrap_pyfunction!(summary_columns, m)?)?;
     Ok(())
 }

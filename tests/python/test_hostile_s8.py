@@ -1,6 +1,6 @@
-"""Hostile inputs found in the passes of 2026-12-05: what stream mode says
+"""Hostile inputs left from the passes of 2026-12-05: what stream mode says
 about lines that cannot be names, CSV cells a spreadsheet would run, and
-values that are not numbers in the images written."""
+iFDO values the schema lets through that no survey has."""
 
 import json
 import subprocess
@@ -25,3 +25,82 @@ def test_a_stream_line_that_cannot_be_a_name_is_identified(binary, tmp_path):
     assert long["input"] == "a" * 256 + "..." and "line 3 " in long["message"]
     assert "65536" in long["message"]
     assert missing["input"] == "missing.jpg"
+
+
+def test_results_csv_shows_formula_names_and_gives_them_back(tmp_path):
+    """``uwhl evaluate`` wrote the manifest's names verbatim into
+    results.csv: a photo called ``=HYPERLINK(...).png`` or a chart called
+    ``-1+1`` was a formula to a spreadsheet. Its text cells now follow
+    summary.csv's rule (a quote in front); the numbers do not."""
+    import csv
+    import sys
+
+    import uwhl_rs
+    from uwhl_rs import synth
+    from uwhl_rs.outdir import summary_cell
+
+    name = '=HYPERLINK("x";"y").png'
+    img, truth = synth.demo_input(60, 80, water_type="3C", seed=1)
+    uwhl_rs.images.write_image(tmp_path / name, img, bits=8, encoding="linear")
+    box = [[10, 30, 20, 40], [24, 30, 34, 40], [38, 30, 48, 40]]
+    entry = {"path": name, "water_type": "3C", "charts": [{"name": "-1+1", "gray_patches": box}]}
+    (tmp_path / "m.json").write_text(json.dumps({"images": [entry]}))
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "evaluate", str(tmp_path / "m.json"), "-o", str(out),
+                        "--water-type", "3C"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rows = list(csv.DictReader(open(out / "results.csv", newline="", encoding="utf-8")))
+    assert rows
+    for row in rows:
+        assert row["image"] == "'" + name and summary_cell(row["image"]) == name
+        assert row["label"] == f"images[0] ({name})"  # begins with a letter: no quote
+    charted = [row for row in rows if row["chart"]]
+    assert charted and all(row["chart"] == "'-1+1" for row in charted)
+    # numbers stay numbers, a negative one too
+    assert all(float(row["psi_deg"]) >= 0 for row in charted)
+    assert not any(row[k].startswith("'") for row in rows for k in ("psi_deg", "rho_B", "rho_R"))
+
+
+def test_an_ifdo_takes_no_impossible_time_place_or_structure(binary, tmp_path):
+    """Values the iFDO schema lets through but no survey has: a header
+    time 9999-99-99, a header that carries image-set-items of its own, and
+    a sidecar's GPS altitude of 1e308 m. The first two refuse the header
+    (exit 2, naming the field); the last leaves that photo without a
+    position, with a note, and the photos' mean is not taken."""
+    import yaml
+    from PIL import Image
+    from test_ifdo import HEADER, POSITION, header_file, restore, uwhl, validator
+    from test_metadata import _gps_exif, _scene
+
+    src = tmp_path / "in"
+    src.mkdir()
+    for k in (1, 2):
+        Image.fromarray(_scene(seed=k)).save(src / f"p{k}.jpg", quality=92, exif=_gps_exif())
+    out = tmp_path / "out"
+    assert restore("rust", binary, [src], out).returncode == 0
+    for bad, field in (({"image-datetime": "9999-99-99"}, "image-datetime must be a time"),
+                       ({"image-datetime": "2026-12-05 10:00:00", "image-datetime-format": "%d.%m.%Y"},
+                        "image-datetime must be a time in the form '%d.%m.%Y'"),
+                       ({"image-set-items": {"../../evil.jpg": {"image-uuid": "x"}}}, "image-set-items is a part"),
+                       ({"image-altitude-meters": -1e308}, "image-altitude-meters must be between")):
+        r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, **bad}))
+        assert r.returncode == 2 and field in r.stderr, (bad, r.stderr)
+        assert not (out / "ifdo.yaml").exists()
+    # a real time in either of the default's forms is taken
+    for t in ("2026-12-05 10:00:00", "2026-12-05 10:00:00.250"):
+        r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-datetime": t}))
+        assert r.returncode == 0, r.stderr
+    side = out / "p2.json"
+    doc = json.loads(side.read_text())
+    doc["metadata"]["gps"]["altitude"] = 1e308
+    side.write_text(json.dumps(doc))
+    r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, **POSITION}))
+    assert r.returncode == 0, r.stderr
+    assert "p2.json: GPS image-altitude-meters must be between" in r.stdout + r.stderr
+    ifdo = yaml.safe_load((out / "ifdo.yaml").read_text())
+    validator().validate(ifdo)
+    items = ifdo["image-set-items"]
+    assert "image-altitude-meters" not in items["p2.jpg"] and "image-latitude" not in items["p2.jpg"]
+    assert items["p1.jpg"]["image-altitude-meters"] == -18.5
+    # the header's default place, not a mean over photos of which one has none
+    assert ifdo["image-set-header"]["image-altitude-meters"] == POSITION["image-altitude-meters"]
