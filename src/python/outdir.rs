@@ -83,10 +83,7 @@ impl PySummary {
     #[new]
     fn new(out_dir: std::path::PathBuf) -> Self {
         let s = Summary::create(&out_dir);
-        Self {
-            path: s.path(),
-            inner: Mutex::new(s),
-        }
+        Self { path: s.path(), inner: Mutex::new(s) }
     }
 
     /// The file's path.
@@ -98,20 +95,13 @@ impl PySummary {
     /// Why the file cannot be written, or None.
     #[getter]
     fn error(&self) -> Option<String> {
-        self.inner
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .error
-            .clone()
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).error.clone()
     }
 
     /// Whether it cannot be written because the folder is read-only.
     #[getter]
     fn read_only(&self) -> bool {
-        self.inner
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .read_only
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).read_only
     }
 
     /// Appends one row (a dict of columns; `scores` a dict, spread over the
@@ -119,21 +109,13 @@ impl PySummary {
     fn add(&self, py: Python<'_>, row: &Bound<'_, PyDict>) -> PyResult<()> {
         let row = map(row, 0)?;
         let inner = &self.inner;
-        py.detach(|| {
-            inner
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .add(row)
-        });
+        py.detach(|| inner.lock().unwrap_or_else(PoisonError::into_inner).add(row));
         Ok(())
     }
 
     /// Closes the file (and lets the folder's lock go).
     fn close(&self) {
-        self.inner
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .close();
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).close();
     }
 }
 
