@@ -166,8 +166,12 @@ def utc_time(taken_at: str) -> tuple[_dt.datetime, bool]:
     return t.astimezone(_dt.timezone.utc).replace(tzinfo=None), True
 
 
-def _ifdo_time(t: _dt.datetime) -> str:
-    return t.strftime(DEFAULT_TIME_FORMAT)[:-3]  # to the millisecond
+def _ifdo_time(t: _dt.datetime, fmt=None) -> str:
+    """``t`` in the header's ``image-datetime-format`` (every time of an
+    iFDO is in it), or in iFDO's default to the millisecond."""
+    if isinstance(fmt, str) and fmt != DEFAULT_TIME_FORMAT:
+        return t.strftime(fmt)
+    return t.strftime(DEFAULT_TIME_FORMAT)[:-3]
 
 
 def _rfc3339(t: _dt.datetime) -> str:
@@ -269,7 +273,7 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
                 t, known = None, True
                 notes.append(f"{shown}: EXIF time {md['taken_at']!r} not understood; no image-datetime")
             if t is not None:
-                item["image-datetime"] = _ifdo_time(t)
+                item["image-datetime"] = _ifdo_time(t, header.get("image-datetime-format"))
                 times.append(t)
                 no_offset += not known
         else:
@@ -335,7 +339,7 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         "image-set-local-path": ".",
     }
     if times:
-        derived["image-datetime"] = _ifdo_time(min(times))
+        derived["image-datetime"] = _ifdo_time(min(times), header.get("image-datetime-format"))
     if positions and not no_position:
         derived["image-latitude"] = sum(p[0] for p in positions) / len(positions)
         derived["image-longitude"] = sum(p[1] for p in positions) / len(positions)

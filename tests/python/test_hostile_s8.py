@@ -90,6 +90,12 @@ def test_an_ifdo_takes_no_impossible_time_place_or_structure(binary, tmp_path):
     for t in ("2026-12-05 10:00:00", "2026-12-05 10:00:00.250"):
         r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-datetime": t}))
         assert r.returncode == 0, r.stderr
+    # a header with a format of its own: the photos' times are written in it, as iFDO asks
+    r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-datetime-format": "%d.%m.%Y %H:%M"}))
+    assert r.returncode == 0, r.stderr
+    ifdo = yaml.safe_load((out / "ifdo.yaml").read_text())
+    assert ifdo["image-set-header"]["image-datetime"] == "30.11.2026 10:15"
+    assert ifdo["image-set-items"]["p1.jpg"]["image-datetime"] == "30.11.2026 10:15"
     side = out / "p2.json"
     doc = json.loads(side.read_text())
     doc["metadata"]["gps"]["altitude"] = 1e308
