@@ -295,6 +295,9 @@ class Restoration:
     def veil_excess(self) -> Optional[float]:
         """Share of object pixels whose estimated veil exceeds the light (METHOD §12.5); None without a fallback."""
     @property
+    def fallback_share(self) -> Optional[float]:
+        """Share of the shown colour that is the input's own balance, 0 to 1 (METHOD §12.5); None when nothing is blended."""
+    @property
     def distance(self) -> Optional[dict[str, Any]]:
         """With a distance: what became of it (docs/OUTPUTS.md "Distance", METHOD §13)."""
     @property

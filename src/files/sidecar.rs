@@ -84,6 +84,8 @@ pub struct Estimates<'a> {
     pub guided_subsample: usize,
     /// the share of object pixels whose estimated veil exceeds the light (METHOD §12.5)
     pub veil_excess: Option<f64>,
+    /// the share of the shown colour that is the input's balance (METHOD §12.5)
+    pub fallback_share: Option<f64>,
     /// what became of a given distance map (METHOD §13; [`distance_record`])
     pub distance: Option<Value>,
 }
@@ -102,6 +104,7 @@ impl<'a> Estimates<'a> {
             guided_radius: res.guided_radius,
             guided_subsample: res.guided_subsample,
             veil_excess: res.veil_excess,
+            fallback_share: res.fallback_share,
             distance: res.distance.as_ref().map(|d| distance_record(d, None)),
         }
     }
@@ -322,6 +325,7 @@ pub fn sidecar(
         "vl_fraction": est.vl_pixels as f64 / est.pixels.max(1) as f64,
         "flags": est.flags,
         "veil_excess": est.veil_excess,
+        "fallback_share": est.fallback_share,
         "guided_radius": est.guided_radius,
         "guided_subsample": est.guided_subsample,
         "beta_ratios": [est.water_type.beta_br, est.water_type.beta_bg],

@@ -43,6 +43,10 @@ pub struct Trust {
     pub confidence: Vec<f32>,
     /// share of object pixels whose estimated veil exceeds the observed light
     pub veil_excess: f64,
+    /// with the blend: the mean over every pixel of its weight w (step 4),
+    /// the share of the shown colour that is the input's balance rather than
+    /// the restoration's; None without the blend
+    pub fallback_share: Option<f64>,
 }
 
 impl Trust {
@@ -185,11 +189,13 @@ pub fn trust(
     let g = gains_from(total.radiance.color(SOG_P));
     let k = gains_from(total.input.color(SOG_P));
     let mut confidence = vec![0f32; t_b.len()];
-    confidence
+    // per row, the sum of the blend weights, added in row order below
+    let weights: Vec<f64> = confidence
         .par_chunks_mut(w)
         .zip(image.par_chunks_mut(3 * w))
         .enumerate()
-        .for_each_init(scratch, |tc, (y, (conf_row, img_row))| {
+        .map_init(scratch, |tc, (y, (conf_row, img_row))| {
+            let mut row_weight = 0.0;
             row_t(&rec, &t_b[y * w..(y + 1) * w], tc);
             for (x, ((cf, d), &t)) in conf_row.iter_mut().zip(img_row.chunks_exact_mut(3)).zip(tc.iter()).enumerate() {
                 let i = y * w + x;
@@ -201,6 +207,7 @@ pub fn trust(
                 *cf = (local * (1.0 - w_photo)) as f32;
                 if blend {
                     let wgt = 1.0 - (1.0 - w_photo) * (1.0 - LOCAL_WEIGHT * (1.0 - local));
+                    row_weight += wgt;
                     let p = &img.data[3 * i..3 * i + 3];
                     let base = [0, 1, 2].map(|c| (f64::from(p[c]) * k[c]).max(0.0));
                     let sum_d: f64 = d.iter().map(|&v| f64::from(v)).sum();
@@ -211,8 +218,11 @@ pub fn trust(
                     }
                 }
             }
-        });
-    Trust { confidence, veil_excess }
+            row_weight
+        })
+        .collect();
+    let fallback_share = blend.then(|| weights.iter().sum::<f64>() / t_b.len().max(1) as f64);
+    Trust { confidence, veil_excess, fallback_share }
 }
 
 #[cfg(test)]
@@ -261,6 +271,8 @@ mod tests {
         assert!(!tr.unreliable());
         assert!(tr.confidence.iter().all(|&c| c == 1.0));
         assert_eq!(out, shown);
+        // w = 0 at every pixel: none of the colour is the input's balance
+        assert_eq!(tr.fallback_share, Some(0.0));
     }
 
     #[test]
@@ -280,6 +292,8 @@ mod tests {
         assert_eq!(tr.veil_excess, 1.0);
         assert!(tr.unreliable());
         assert!(tr.confidence.iter().all(|&c| c == 0.0));
+        // w_p = 1: w = 1 at every pixel, all of the colour is the balance's
+        assert_eq!(tr.fallback_share, Some(1.0));
         for p in out.chunks(3) {
             assert!(p[0].abs() < 1e-6 && (p[1] - 0.45).abs() < 1e-6 && (p[2] - 0.45).abs() < 1e-6, "{p:?}");
         }
@@ -288,6 +302,7 @@ mod tests {
         let tr2 = trust(&img, &|_| true, [0.5, 0.4, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut kept, false);
         assert_eq!(kept, vec![0.2f32, 0.3, 0.4].repeat(h * w));
         assert_eq!(tr2.veil_excess, 1.0);
+        assert_eq!(tr2.fallback_share, None);
     }
 
     #[test]

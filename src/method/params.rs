@@ -389,6 +389,11 @@ pub struct Restoration {
     /// the share of object pixels where the estimated veil exceeds the
     /// observed light (METHOD §12.5); None when the fallback is `none`
     pub veil_excess: Option<f64>,
+    /// the share of the shown colour taken from the input's own balance
+    /// rather than the restoration (the mean blend weight of METHOD §12.5
+    /// step 4: 0 none, 1 all); None when nothing is blended (the fallback
+    /// `none`, or a known distance, §13.4)
+    pub fallback_share: Option<f64>,
     /// with a known distance ([`crate::restore_at_distance`]): what became
     /// of it and the water fitted from it (METHOD §13); None without
     pub distance: Option<crate::method::pipeline::given::DistanceUse>,

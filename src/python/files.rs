@@ -436,6 +436,7 @@ fn write_input_outputs(
         guided_radius: res.guided_radius,
         guided_subsample: res.guided_subsample,
         veil_excess: res.veil_excess,
+        fallback_share: res.fallback_share,
         distance,
     };
     let sheet = contact_sheet.as_ref().map(|b| b.as_bytes().to_vec());

@@ -86,6 +86,10 @@ pub struct PyRestoration {
     pub(crate) confidence: Option<Py<PyAny>>,
     #[pyo3(get)]
     pub(crate) veil_excess: Option<f64>,
+    /// the share of the shown colour that is the input's own balance rather
+    /// than the restoration (METHOD §12.5); None when nothing is blended
+    #[pyo3(get)]
+    pub(crate) fallback_share: Option<f64>,
     /// the sidecar's `distance` record as JSON text (METHOD §13), None
     /// without a distance
     pub(crate) distance_json: Option<String>,
@@ -749,6 +753,7 @@ fn to_py(py: Python<'_>, res: Restoration) -> PyResult<PyRestoration> {
             None => None,
         },
         veil_excess: res.veil_excess,
+        fallback_share: res.fallback_share,
         distance_json: res
             .distance
             .as_ref()

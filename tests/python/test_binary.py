@@ -30,7 +30,7 @@ except ImportError:
     HAVE_PY_CLI = False
 
 ESTIMATES = ["water_type", "scores", "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags", "veil_excess",
-             "guided_radius", "guided_subsample", "beta_ratios"]
+             "fallback_share", "guided_radius", "guided_subsample", "beta_ratios"]
 
 
 def _env() -> dict:

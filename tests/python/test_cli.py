@@ -19,7 +19,7 @@ from uwhl_rs import images, synth
 
 SIDECAR_KEYS = {
     "input", "outputs", "uwhl_version", "implementation", "source", "water_type", "scores",
-    "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags", "veil_excess", "guided_radius",
+    "excluded", "veiling_light", "vl_pixels", "vl_fraction", "flags", "veil_excess", "fallback_share", "guided_radius",
     "guided_subsample", "beta_ratios", "parameters", "seconds",
 }
 

@@ -36,8 +36,9 @@ def test_a_veil_brighter_than_the_light_is_flagged_and_the_fallback_is_nearer_th
     got = truth.score(fb.image, sc.clean, obj, gains=False)["median"]
     without = truth.score(plain.image, sc.clean, obj, gains=False)["median"]
     assert got < 0.6 * without, (got, without)
-    # the photo's weight is 1: no pixel is trusted
+    # the photo's weight is 1: no pixel is trusted, all of the colour is the balance's
     assert float(fb.confidence.max()) == 0.0
+    assert fb.fallback_share == 1.0 and plain.fallback_share is None
 
 
 @pytest.mark.parametrize("wt", ["3C", "7C"])
@@ -64,11 +65,26 @@ def test_confidence_falls_with_noise_and_distance(seabed):
     assert float(quiet.confidence[near & obj].mean()) > float(quiet.confidence[far & obj].mean())
 
 
+@pytest.mark.parametrize("wt, noise", [("3C", 0.002), ("3C", 0.03), ("7C", 0.01), ("I", 0.01)])
+def test_the_share_of_colour_from_the_balance_follows_from_the_confidence(seabed, wt, noise):
+    """METHOD §12.5: the map is c (1 - w_p) and each pixel's blend weight
+    w = 1 - (1 - w_p)(1 - 0.3 (1 - c)), so its mean is
+    w_p + 0.3 (1 - w_p) - 0.3 mean(map), with w_p from veil_excess: the
+    reported share against what the map and the veil excess imply."""
+    sc, _ = seabed
+    res = uwhl_rs.restore(_render(sc, wt, noise), water_types=[wt])
+    w_p = min(max((res.veil_excess - 0.02) / 0.18, 0.0), 1.0)
+    want = w_p + 0.3 * (1 - w_p) - 0.3 * float(res.confidence.astype(np.float64).mean())
+    assert 0.0 <= res.fallback_share <= 1.0
+    assert res.fallback_share == pytest.approx(want, abs=2e-6), (res.veil_excess, res.fallback_share, want)
+
+
 def test_the_paper_profile_has_no_trust_step_and_none_leaves_the_display(seabed):
     sc, _ = seabed
     img = _render(sc, "3C", 0.005)
     paper = uwhl_rs.restore(img, method="paper")
     assert paper.confidence is None and paper.veil_excess is None and "unreliable" not in paper.flags
+    assert paper.fallback_share is None
     assert uwhl_rs.method_steps(method="paper")["fallback"] == "none"
     # the revised profile with fallback="none" is the revised display unblended:
     # with a trusted photo (w_p = 0) the blend moves each pixel by at most

@@ -252,6 +252,7 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
         flags,
         confidence: tr.as_ref().map(|t| t.confidence.clone()),
         veil_excess: tr.as_ref().map(|t| t.veil_excess),
+        fallback_share: None,
         distance: Some(DistanceUse {
             coverage,
             nearest: Some((name.to_string(), how_far)),

@@ -151,6 +151,7 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
         veiling_mask: vl,
         flags,
         veil_excess: out.trust.as_ref().map(|t| t.veil_excess),
+        fallback_share: out.trust.as_ref().and_then(|t| t.fallback_share),
         distance: None,
         confidence: out.trust.map(|t| t.confidence),
         guided_radius: radius,
