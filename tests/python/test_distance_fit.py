@@ -47,6 +47,8 @@ def test_the_fit_finds_the_water_and_the_colours_beat_the_guess(wt, beta_b):
     assert with_d < without and with_d < raw, (with_d, without, raw)
     assert 0 <= res.image.min() and res.image.max() <= 1 and 0 <= res.radiance.min() and res.radiance.max() <= 1
     assert res.confidence is not None and res.confidence.shape == z.shape
+    # with the distance known nothing is blended toward the input's balance (§13.4)
+    assert res.fallback_share is None and res.veil_excess is not None
 
 
 @pytest.mark.parametrize("wt,beta_b", [("3C", 0.23), ("7C", 0.47)])
