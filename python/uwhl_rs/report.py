@@ -309,7 +309,14 @@ function cell(p){
     `<span class="sw" style="background:rgb(${sw.join(',')})"></span>(${esc(A)})`+
     (p.flags.length ? `<br><span class="flags">${p.flags.map(esc).join(', ')}</span>` : '')+
     (p.why ? `<br><span class="why">distance not used: ${esc(p.why)}</span>` : '')+
-    (p.plausible ? `<br>water from the distance; plausible types ${plausible(p)}` : '')+`</div></div>`;
+    (p.plausible ? `<br>water from the distance; plausible types ${plausible(p)}` : '')+
+    (balanced(p) ? `<br>colours: ${balanced(p)}` : '')+`</div></div>`;
+}
+// how much of the shown colour is the input's own balance (fallback_share, METHOD §12.5)
+function balanced(p){
+  const s = p.balance;
+  if (typeof s !== 'number' || !(s >= 0.05 && s <= 1)) return '';
+  return s >= 0.995 ? "the input's balance (the restoration gives the brightness)" : `${Math.round(100*s)}% the input's balance`;
 }
 // every type of the table plausible: the photo's content hides its water (METHOD §13.2 step 6)
 function plausible(p){return p.plausible.length >= D.types ? 'any (the content hides the water)' : p.plausible.map(esc).join(', ');}
@@ -333,7 +340,8 @@ function show(k){
   v.innerHTML = `<p><a href="#" onclick="hide();return false">close</a> &middot; ${esc(p.name)}: `+
     `type ${esc(p.wt)}, flags ${p.flags.map(esc).join(', ')||'none'}`+
     (p.why ? ` (distance not used: ${esc(p.why)})` : '')+
-    (p.plausible ? ` (water from the distance; plausible types ${plausible(p)})` : '')+` &middot; `+
+    (p.plausible ? ` (water from the distance; plausible types ${plausible(p)})` : '')+
+    (balanced(p) ? ` (colours: ${balanced(p)})` : '')+` &middot; `+
     (p.full ? `<a href="${esc(p.full)}">full size</a> &middot; ` : '')+
     (p.t ? `<a href="${esc(p.t)}">t map</a> &middot; ` : '')+
     `<a href="${esc(p.side)}">sidecar</a></p>`+
@@ -471,6 +479,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
             "k": k, "name": p.sidecar[:-5], "wt": wt,
             "A": p.doc.get("veiling_light"), "flags": p.flags, "why": _distance_why(p.doc),
             "plausible": _plausible_types(p.doc),
+            "balance": p.doc.get("fallback_share"),
             "ti": _rel_url(ti) if _shown(notes[2 * k]) else None,
             "to": _rel_url(to) if _shown(notes[2 * k + 1]) else None,
             "full": link(p.output("image")),

@@ -268,6 +268,8 @@ FIELDS = {
     "reused_estimates": _flag,
     "vl_pixels": _count,
     "vl_fraction": _number,
+    "veil_excess": _optional(_in_range(0, 1)),
+    "fallback_share": _optional(_in_range(0, 1)),
     "guided_radius": _count,
     "guided_subsample": _count,
     "parameters": _object({}),

@@ -4,6 +4,7 @@ iFDO values the schema lets through that no survey has."""
 
 import json
 import subprocess
+import sys
 
 import pytest
 
@@ -33,7 +34,6 @@ def test_results_csv_shows_formula_names_and_gives_them_back(tmp_path):
     ``-1+1`` was a formula to a spreadsheet. Its text cells now follow
     summary.csv's rule (a quote in front); the numbers do not."""
     import csv
-    import sys
 
     import uwhl_rs
     from uwhl_rs import synth
@@ -110,3 +110,33 @@ def test_an_ifdo_takes_no_impossible_time_place_or_structure(binary, tmp_path):
     assert items["p1.jpg"]["image-altitude-meters"] == -18.5
     # the header's default place, not a mean over photos of which one has none
     assert ifdo["image-set-header"]["image-altitude-meters"] == POSITION["image-altitude-meters"]
+
+
+def test_the_report_says_where_each_photos_colours_come_from(tmp_path):
+    """Each cell says how much of its colour is the input's own balance
+    (the sidecar's fallback_share): the whole of it, a share, or nothing
+    under 5%. A value that is not a share in [0, 1] makes the sidecar
+    malformed: that photo is named, not drawn with a made-up number."""
+    from test_batch_report import _restore
+    from test_report_browser import _chromium, _run
+
+    browser = _chromium()
+    r, out = _restore(tmp_path, n=4)
+    assert r.returncode == 0, r.stderr
+    for name, share in (("f000", 1.0), ("f001", 0.42), ("sub/f002", 0.01), ("sub/f003", "x")):
+        side = out / f"{name}.json"
+        doc = json.loads(side.read_text())
+        doc["fallback_share"] = share
+        side.write_text(json.dumps(doc))
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(out)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "f003.json" in r.stdout + r.stderr and "fallback_share" in r.stdout + r.stderr
+    dom = _run(browser, "--dump-dom", (out / "report" / "index.html").resolve().as_uri())
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    grid = dom.stdout[dom.stdout.index('id="all-grid"'):dom.stdout.index("<script")]
+    cells = {c.split("</div></div>", 1)[0].split(". ", 1)[1].split("<br>", 1)[0]: c for c in grid.split('<div class="cell')[1:]}
+    assert set(cells) == {"f000", "f001", "sub/f002"}, list(cells)
+    assert "colours: the input's balance (the restoration gives the brightness)" in cells["f000"]
+    assert "colours: 42% the input's balance" in cells["f001"]
+    assert "colours:" not in cells["sub/f002"]
