@@ -9,7 +9,7 @@ import uwhl_rs
 from uwhl_rs import synth
 J=synth.JERLOV
 for n in sys.argv[1:]:
-    img=uwhl_rs.read_image(f'/work/shared/data/images/{n}')
+    img=uwhl_rs.read_image(__import__('os').path.join(__import__('os').path.dirname(__file__), '..', '..', '..', 'shared', 'data', 'images', n))
     img=np.asarray(img[0], np.float32)
     r=uwhl_rs.restore(img)
     wt=r.water_type; br,bg=J[wt] if wt in J else (1,1)
