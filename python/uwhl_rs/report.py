@@ -32,7 +32,7 @@ import uwhl_rs
 
 from . import report_video
 from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
-from .outdir import REPORT_DIR, Photo, collect_sidecars, failed_inputs
+from .outdir import FILE_NAME, REPORT_DIR, Photo, collect_sidecars, failed_inputs
 from .report_series import series_axis, series_svg, used_water
 from .sidecars import display, printable
 from .storage import Folder, is_url, on_storage, open_regular, read_bytes
@@ -415,6 +415,10 @@ def _shown(note: str | None) -> bool:
     return note is not None and (note in ("written", "kept") or note.endswith("its earlier thumbnail is shown"))
 
 
+class NotAnOutputFolder(ValueError):
+    """The folder holds nothing ``uwhl restore`` writes: no page is made."""
+
+
 def write_report(out_dir, *, storage_options: dict | None = None, workers: int | None = None,
                  side: int = THUMB_SIDE, page_size: int = PAGE_SIZE) -> dict:
     """Writes ``out_dir/report/index.html`` and its thumbnails from the
@@ -424,7 +428,8 @@ def write_report(out_dir, *, storage_options: dict | None = None, workers: int |
     ``seconds``, ``path``). Thumbnails newer than their source are kept, so
     a rerun after more inputs only makes the new ones; the page is written
     last, in one step. Storage that cannot be reached raises
-    ``BatchError``; a missing local folder, FileNotFoundError."""
+    ``BatchError``; a missing local folder, FileNotFoundError; a folder
+    without a sidecar or summary.csv, :class:`NotAnOutputFolder`."""
     out_dir = os.fspath(out_dir)
     return on_storage(out_dir, lambda: _write_report(Folder(out_dir, storage_options), workers, side, page_size),
                       keep=(FileNotFoundError,))
@@ -437,6 +442,10 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     listed = folder.files()
     written_at = dict(listed)
     photos, problems = collect_sidecars(folder, listed=listed)
+    if not photos and not problems and FILE_NAME not in written_at:
+        # an input folder given by mistake: no page is written into it
+        raise NotAnOutputFolder(f"holds no sidecar and no {FILE_NAME} of 'uwhl restore': not an output folder; "
+                                "nothing written")
     videos = [p for p in photos if report_video.is_video(p)]
     photos = [p for p in photos if not report_video.is_video(p)]
     thumbs_at = dict(folder.files(under=REPORT_DIR + "/thumbs"))
@@ -490,6 +499,8 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
         counts[p.doc["water_type"]] = counts.get(p.doc["water_type"], 0) + 1
     counts = {t: n for t, n in counts.items() if n}
     flagged = sum(1 for d in data if d["flags"])
+    # photos whose colour is the input's balance throughout (METHOD §12.5), as the cells say
+    balanced = sum(1 for d in data if isinstance(d["balance"], (int, float)) and 0.995 <= d["balance"] <= 1)
     flagged_videos = [p for p in videos if report_video.needs_a_look(p)]
     failed, n_failed = failed_inputs(folder)
     more = n_failed - len(failed)
@@ -505,7 +516,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {html.escape(folder.name)}</title><style>{_CSS}</style></head><body>
 <h1>{html.escape(folder.display)}</h1>
-<p class="meta" id="summary">{len(photos)} photos{f" and {len(videos)} videos" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {n_failed} failed; water types:
+<p class="meta" id="summary">{len(photos)} photos{f" and {len(videos)} videos" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {n_failed} failed{f", {balanced} with the input's balance for colours" if balanced else ""}; water types:
 {', '.join(f'{html.escape(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
 {html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
 {failed_html}

@@ -140,3 +140,25 @@ def test_the_report_says_where_each_photos_colours_come_from(tmp_path):
     assert "colours: the input's balance (the restoration gives the brightness)" in cells["f000"]
     assert "colours: 42% the input's balance" in cells["f001"]
     assert "colours:" not in cells["sub/f002"]
+    # the page's summary counts the photos whose colour is all the balance's
+    assert "3 photos restored, 0 flagged, 0 failed, 1 with the input's balance for colours" in dom.stdout
+
+
+def test_report_of_a_folder_that_restore_did_not_write_writes_nothing(tmp_path):
+    """``uwhl report`` on the photos' own folder (a slip for the output
+    folder) wrote report/index.html of "0 photos" into it. A folder with
+    no sidecar and no summary.csv is now refused, and left as it was."""
+    from uwhl_rs import synth
+    from uwhl_rs.images import write_image
+
+    src = tmp_path / "photos"
+    src.mkdir()
+    img, _ = synth.demo_input(60, 80, seed=1)
+    write_image(src / "a.png", img, encoding="linear")
+    (src / "notes.json").write_text('{"not": "a sidecar"}')
+    before = sorted(p.name for p in src.iterdir())
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(src)], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 3, (r.returncode, r.stderr)
+    assert "not an output folder" in r.stderr and "Traceback" not in r.stderr
+    assert sorted(p.name for p in src.iterdir()) == before

@@ -7,7 +7,7 @@ import argparse
 import os
 
 from ..errors import BatchError, CommandError, describe
-from ..report import write_report
+from ..report import NotAnOutputFolder, write_report
 from ..storage import is_url, parse_storage_options
 from ..console import Console
 
@@ -24,6 +24,8 @@ def write(out_dir: str, console: Console, storage_options: dict | None = None) -
         done = write_report(out_dir, storage_options=storage_options)
     except BatchError as e:
         raise CommandError(f"cannot write the report: {e}", e.kind, out_dir) from e
+    except NotAnOutputFolder as e:
+        raise CommandError(str(e), "unreadable_input", out_dir) from None
     except FileNotFoundError:
         raise CommandError("no such folder", "unreadable_input", out_dir) from None
     except OSError as e:
