@@ -162,3 +162,19 @@ def test_report_of_a_folder_that_restore_did_not_write_writes_nothing(tmp_path):
     assert r.returncode == 3, (r.returncode, r.stderr)
     assert "not an output folder" in r.stderr and "Traceback" not in r.stderr
     assert sorted(p.name for p in src.iterdir()) == before
+
+
+@pytest.mark.parametrize("slip", ["--output-dir", "--watertype", "--water"])
+def test_both_commands_name_an_unknown_option_first(binary, tmp_path, slip):
+    """A misspelt option is what a user needs to hear about: the Python
+    command said "-o is required" for ``--output-dir`` and read ``--water``
+    as an abbreviation, where the binary names the option. Both now say
+    ``invalid option '...'`` and exit 2, and take no abbreviation."""
+    from bothcmds import cmds
+
+    for face, cmd in cmds(binary).items():
+        r = subprocess.run([*cmd, "restore", str(tmp_path / "x.jpg"), slip, "3C"], capture_output=True, text=True,
+                           timeout=60)
+        assert r.returncode == 2, (face, r.stderr)
+        assert f"invalid option '{slip}'" in r.stderr and "--help" in r.stderr, (face, r.stderr)
+        assert len(r.stderr.strip().splitlines()) == 2, (face, r.stderr)

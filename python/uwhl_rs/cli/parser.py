@@ -140,6 +140,21 @@ class _Parser(argparse.ArgumentParser):
         # one line and where to look, as the binary's: the usage of a command of thirty options would bury it
         self.exit(2, f"{self.prog}: error: {printable(message)}\nTry '{self.prog} --help'.\n")
 
+    def parse_known_args(self, args=None, namespace=None):
+        # A command's parser names an option it does not know first, as the
+        # binary does, and takes no abbreviation of one (the binary takes
+        # none): argparse would first say that -o is missing when the slip
+        # is in "--output-dir", or read "--water" as one of three options.
+        if args is not None and not any(isinstance(a, argparse._SubParsersAction) for a in self._actions):
+            for a in args:
+                if a == "--":
+                    break
+                if isinstance(a, str) and a.startswith("--") and len(a) > 2:
+                    name = a.split("=", 1)[0]
+                    if name not in self._option_string_actions:
+                        self.error(f"invalid option '{name}'")
+        return super().parse_known_args(args, namespace)
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``uwhl`` (all subcommands)."""
