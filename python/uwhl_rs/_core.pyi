@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "FIT_BETA_GRID", "MAP_PER_PHOTO_PIXEL", "map_cap", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
@@ -103,6 +103,8 @@ def name_jobs(found: list[tuple[str, str]], suffixes: list[str]) -> list[str]:
 
 def remove_stale_temps(dir: _PathArg) -> int:
     """Removes the temporaries dead processes left in `dir`; returns how many."""
+def outdir_problem(dir: _PathArg) -> Optional[str]:
+    """Why the output folder cannot take outputs (a file is at its name), or None."""
 
 @final
 class Claim:

@@ -92,6 +92,11 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     let bytes_per_sample: usize = if opts.pix_fmt_bits == 16 { 2 } else { 1 };
     let frame_bytes = w * h * 3 * bytes_per_sample;
     let to_stdout = opts.outdir.as_os_str() == "-";
+    if !to_stdout {
+        if let Err(code) = super::run::outdir_usable(opts, err) {
+            return code;
+        }
+    }
     let masks = match crate::files::pipeline::load_masks(opts) {
         Ok(m) => m,
         Err(e) => {

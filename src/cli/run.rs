@@ -103,6 +103,19 @@ pub fn init_threads(threads: Option<usize>) {
     }
 }
 
+/// The output folder checked before any input is read (a file at its
+/// name would fail every input, and summary.csv, one by one).
+pub(crate) fn outdir_usable(opts: &Options, err: &mut dyn Write) -> Result<(), u8> {
+    match crate::files::jobs::outdir_problem(&opts.outdir) {
+        None => Ok(()),
+        Some(why) => {
+            let e = Failure::new(Kind::Write, why);
+            report(err, opts.json_errors, Some(&opts.outdir), &e);
+            Err(e.kind.exit_code())
+        }
+    }
+}
+
 fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
     load_masks(opts).map_err(|e| {
         report(err, opts.json_errors, None, &e);
@@ -235,6 +248,9 @@ fn exit_interrupted() -> u8 {
 pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
     // measured before any input is read: the part of --max-memory the process holds anyway
     crate::kernels::memory::process_base();
+    if let Err(code) = outdir_usable(opts, err) {
+        return code;
+    }
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,
@@ -407,6 +423,9 @@ enum StreamItem {
 /// the code of a bad `--mask`).
 pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dyn Write, err: &mut dyn Write) -> u8 {
     crate::kernels::memory::process_base();
+    if let Err(code) = outdir_usable(opts, err) {
+        return code;
+    }
     let masks = match load_run_masks(opts, err) {
         Ok(m) => m,
         Err(code) => return code,

@@ -84,6 +84,19 @@ pub fn remove_stale_temps(dir: &Path) -> usize {
     removed
 }
 
+/// Why the output folder `dir` cannot take outputs before anything is
+/// read: something that is not a folder (a file, a FIFO) is at its name.
+/// A missing folder is fine (it is made when the first output is claimed).
+pub fn outdir_problem(dir: &Path) -> Option<String> {
+    match fs::metadata(dir) {
+        Ok(m) if !m.is_dir() => Some(OUTDIR_NOT_A_FOLDER.to_string()),
+        _ => None,
+    }
+}
+
+/// What both commands say of an output folder that is a file.
+pub const OUTDIR_NOT_A_FOLDER: &str = "not a folder (a file is there): the outputs need a folder";
+
 /// One input and where its outputs go.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Job {

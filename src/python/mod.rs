@@ -629,6 +629,13 @@ fn can_allocate(bytes: u64) -> bool {
     crate::kernels::memory::can_allocate(bytes)
 }
 
+/// Why the output folder cannot take outputs (something that is not a
+/// folder is at its name; `crate::files::jobs::outdir_problem`), or None.
+#[pyfunction]
+fn outdir_problem(dir: std::path::PathBuf) -> Option<String> {
+    crate::files::jobs::outdir_problem(&dir)
+}
+
 /// Removes the temporaries that dead processes left in `dir`
 /// (`crate::files::jobs::remove_stale_temps`); returns how many.
 #[pyfunction]
@@ -937,6 +944,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
+    m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;
     m.add_function(wrap_pyfunction!(process_base, m)?)?;

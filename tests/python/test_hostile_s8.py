@@ -178,3 +178,28 @@ def test_both_commands_name_an_unknown_option_first(binary, tmp_path, slip):
         assert r.returncode == 2, (face, r.stderr)
         assert f"invalid option '{slip}'" in r.stderr and "--help" in r.stderr, (face, r.stderr)
         assert len(r.stderr.strip().splitlines()) == 2, (face, r.stderr)
+
+
+def test_an_output_folder_that_is_a_file_is_refused_before_any_input(binary, tmp_path):
+    """``-o`` naming a file failed each input ("cannot claim output names
+    ...: File exists") and then summary.csv. Both commands now say once
+    that a folder is needed, exit 5 and read nothing."""
+    from bothcmds import cmds
+    from uwhl_rs import synth
+    from uwhl_rs.images import write_image
+
+    img, _ = synth.demo_input(40, 60, seed=2)
+    write_image(tmp_path / "a.png", img, encoding="linear")
+    target = tmp_path / "notdir"
+    target.write_text("keep me")
+    for face, cmd in cmds(binary).items():
+        r = subprocess.run([*cmd, "restore", str(tmp_path / "a.png"), "-o", str(target)], capture_output=True,
+                           text=True, timeout=120)
+        assert r.returncode == 5, (face, r.stderr)
+        assert r.stderr.strip().splitlines() == [
+            f"{'uwhl' if face == 'python' else 'uwhl-rs'}: {target}: not a folder (a file is there): the outputs "
+            "need a folder"], (face, r.stderr)
+        assert target.read_text() == "keep me"
+    r = subprocess.run([binary, "restore", "--stream", "-o", str(target)], input=f"{tmp_path / 'a.png'}\n",
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 5 and "not a folder" in r.stderr and r.stdout == ""

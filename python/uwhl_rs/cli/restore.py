@@ -91,6 +91,11 @@ def run(a: argparse.Namespace, console: Console) -> int:
         raise _bad("--storage-option is for URL inputs or outputs (s3://, gs://, ...) and --dask")
     elif a.reuse_estimates is not None and a.jobs != 1:
         raise _bad("--reuse-estimates restores the inputs in order; it needs --jobs 1")
+    if not is_url(a.out):
+        # a file at the output's name would fail every input, and summary.csv, one by one (as uwhl-rs)
+        why = _core.outdir_problem(a.out)
+        if why:
+            raise CommandError(why, "write_failed", a.out)
     t0 = time.perf_counter()
     result = batch.run_batch(a.inputs, a.out, dask=a.dask, storage_options=so, overwrite=a.overwrite,
                              reuse_estimates=a.reuse_estimates, reuse_water_mask=a.reuse_water_mask,
