@@ -167,10 +167,11 @@ def utc_time(taken_at: str) -> tuple[_dt.datetime, bool]:
 
 
 def _ifdo_time(t: _dt.datetime, fmt=None) -> str:
-    """``t`` in the header's ``image-datetime-format`` (every time of an
-    iFDO is in it), or in iFDO's default to the millisecond."""
+    """``t`` (UTC) in the header's ``image-datetime-format`` (every time of
+    an iFDO is in it; ``%z`` gives +0000), or in iFDO's default to the
+    millisecond."""
     if isinstance(fmt, str) and fmt != DEFAULT_TIME_FORMAT:
-        return t.strftime(fmt)
+        return t.replace(tzinfo=_dt.timezone.utc).strftime(fmt)
     return t.strftime(DEFAULT_TIME_FORMAT)[:-3]
 
 

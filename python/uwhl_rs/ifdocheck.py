@@ -70,6 +70,10 @@ _URI_FIELDS = ("image-set-handle", "image-handle")
 DEFAULT_TIME_FORMAT = "%Y-%m-%d %H:%M:%S.%f"
 
 
+#: the longest ``image-datetime-format`` taken (it is written into every item's time)
+MAX_TIME_FORMAT = 200
+
+
 def _is_time(v: str, fmt) -> bool:
     """``v`` is a real time in ``fmt`` (the header's image-datetime-format,
     when it gives one as text), or in iFDO's default format, to the second
@@ -81,9 +85,40 @@ def _is_time(v: str, fmt) -> bool:
         try:
             dt.datetime.strptime(v, f)
             return True
-        except ValueError:
+        except Exception:  # noqa: BLE001 - a format can make strptime raise more than ValueError (re.error)
             continue
     return False
+
+
+def time_format_problem(fmt) -> str | None:
+    """Why ``fmt`` cannot be an ``image-datetime-format`` the photos' times
+    are written in, or None: it must be text of at most
+    :data:`MAX_TIME_FORMAT` characters that gives two different times as
+    two different, non-empty texts, each of which it reads back."""
+    import datetime as dt
+
+    if not isinstance(fmt, str):
+        return "must be text"
+    if len(fmt) > MAX_TIME_FORMAT:
+        return f"is longer than {MAX_TIME_FORMAT} characters"
+    utc = dt.timezone.utc
+    one, two = dt.datetime(2001, 2, 3, 4, 5, 6, 7000, utc), dt.datetime(2026, 11, 30, 22, 33, 44, 500000, utc)
+    try:
+        a, b = one.strftime(fmt), two.strftime(fmt)
+        if not a.strip() or a == b:
+            return "gives no time (the same text for any time)"
+        for text in (a, b):
+            dt.datetime.strptime(text, fmt)
+    except Exception as e:  # noqa: BLE001 - strftime/strptime raise ValueError, re.error, ...
+        return f"cannot be written and read back as a time ({str(e).splitlines()[0][:100] or type(e).__name__})"
+    return None
+
+
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(v)
+    except OverflowError:  # an integer of hundreds of digits is no measurement either
+        return False
 
 
 def _is_number(v) -> bool:
@@ -104,6 +139,8 @@ def field_problems(fields: dict) -> list[str]:
     for k, v in fields.items():
         if k in _TEXT and not isinstance(v, str):
             out.append(f"{k} must be text, not {v!r:.60}")
+        if k == "image-datetime-format" and time_format_problem(v):
+            out.append(f"{k} {time_format_problem(v)}: {v!r:.60}")
         if k == "image-datetime" and isinstance(v, str) and not _is_time(v, fields.get("image-datetime-format")):
             fmt = fields.get("image-datetime-format")
             out.append(f"{k} must be a time in the form {fmt if isinstance(fmt, str) else DEFAULT_TIME_FORMAT!r}"
@@ -115,7 +152,7 @@ def field_problems(fields: dict) -> list[str]:
             out.append(f"{k} {uri_problem(v)}: {v!r:.80}")
         if k in _NUMBER:
             lo, hi = _NUMBER[k]
-            if not _is_number(v) or not math.isfinite(v):
+            if not _is_number(v) or not _finite(v):
                 out.append(f"{k} must be a finite number, not {v!r:.60}")
             elif (lo is not None and v < lo) or (hi is not None and v > hi):
                 out.append(f"{k} must be between {lo} and {hi}, not {v!r}".replace("None", "any"))

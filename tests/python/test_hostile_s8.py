@@ -90,6 +90,21 @@ def test_an_ifdo_takes_no_impossible_time_place_or_structure(binary, tmp_path):
     for t in ("2026-12-05 10:00:00", "2026-12-05 10:00:00.250"):
         r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-datetime": t}))
         assert r.returncode == 0, r.stderr
+    # a format that repeats a directive, gives no time, cannot be read back, or is too long: refused
+    for fmt, why in (("%d.%m.%Y %H:%M:%S (%d)", "cannot be written and read back"), ("", "gives no time"),
+                     ("constant", "gives no time"), ("%-d/%m/%Y", "cannot be written and read back"),
+                     ("%Y" * 150, "is longer than 200")):
+        r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-datetime-format": fmt}))
+        assert r.returncode == 2 and f"image-datetime-format {why}" in r.stderr, (fmt, r.stderr)
+        assert "Traceback" not in r.stderr
+    # a number of 400 digits is no altitude (it crashed float conversion)
+    r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-altitude-meters": 10 ** 400}))
+    assert r.returncode == 2 and "image-altitude-meters must be a finite number" in r.stderr, r.stderr
+    # %z: the times are UTC, and say so
+    r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-datetime-format": "%Y-%m-%dT%H:%M:%S%z"}))
+    assert r.returncode == 0, r.stderr
+    assert yaml.safe_load((out / "ifdo.yaml").read_text())["image-set-items"]["p1.jpg"]["image-datetime"] == \
+        "2026-11-30T10:15:42+0000"
     # a header with a format of its own: the photos' times are written in it, as iFDO asks
     r = uwhl("ifdo", out, "--header", header_file(tmp_path, {**HEADER, "image-datetime-format": "%d.%m.%Y %H:%M"}))
     assert r.returncode == 0, r.stderr
