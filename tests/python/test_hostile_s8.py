@@ -218,3 +218,13 @@ def test_an_output_folder_that_is_a_file_is_refused_before_any_input(binary, tmp
     r = subprocess.run([binary, "restore", "--stream", "-o", str(target)], input=f"{tmp_path / 'a.png'}\n",
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 5 and "not a folder" in r.stderr and r.stdout == ""
+
+
+def test_evaluate_counts_the_entries_it_could_not_evaluate(tmp_path):
+    """With every entry bad the last line said "0 of 0 images evaluated":
+    the manifest's bad entries are images it lists too."""
+    (tmp_path / "m.json").write_text(json.dumps({"images": [{"path": "missing.png"}, {"nopath": 1}]}))
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "evaluate", str(tmp_path / "m.json"), "-o",
+                        str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 3, r.stderr
+    assert "0 of 2 images evaluated" in r.stdout, r.stdout

@@ -39,6 +39,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
         entries, problems = ev.load_manifest(a.manifest)
     except ManifestError as e:
         raise CommandError(about_manifest(str(e)), e.kind, a.manifest) from e
+    # the images the manifest lists, the entries that cannot be evaluated among them
+    listed = len(entries) + sum(1 for p in problems if p.startswith("images["))
     code = 0
     for p in problems:
         code = max(code, console.error("unreadable_input", about_manifest(p), a.manifest))
@@ -92,6 +94,6 @@ def run(a: argparse.Namespace, console: Console) -> int:
         for m, wt in doc["summary"]["water_type"].items():
             console.line(f"water type ({m}): {wt['exact']:.0%} exact, {wt['within_one']:.0%} within one step"
                          + (f", the true one plausible in {wt['plausible']:.0%}" if "plausible" in wt else ""))
-    console.line(f"{len(results)} of {len(entries)} images evaluated in {time.perf_counter() - t0:.1f} s; "
+    console.line(f"{len(results)} of {listed} images evaluated in {time.perf_counter() - t0:.1f} s; "
                  f"{os.path.join(a.out, 'report.html')}")
     return code
