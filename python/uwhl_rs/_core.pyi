@@ -96,8 +96,8 @@ def floor_distance(height: int, width: int, altitude: float, fov: float, pitch: 
 
 def collect_jobs(
     inputs: list[_PathArg], out_dir: _PathArg, suffixes: list[str]
-) -> tuple[list[tuple[Path, Path, str]], list[tuple[Path, str]]]:
-    """The jobs of a batch as (input, output folder, name), and the problems as (input, reason)."""
+) -> tuple[list[tuple[Path, Path, str]], list[tuple[Path, str]], list[str]]:
+    """The jobs of a batch as (input, output folder, name), the problems as (input, reason), and notes (folders not searched)."""
 def name_jobs(found: list[tuple[str, str]], suffixes: list[str]) -> list[str]:
     """The output names of (input, relative folder) pairs listed elsewhere, in discovery order."""
 

@@ -49,6 +49,8 @@ class Plan:
     problems: list[tuple[str, str]] = field(default_factory=list)
     #: the items whose sidecar exists at the destination (skipped unless overwrite)
     done: set = field(default_factory=set)
+    #: what the discovery has to say (earlier runs' output folders not searched)
+    notes: list[str] = field(default_factory=list)
 
 
 def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[list[tuple[str, str]], list]:
@@ -121,8 +123,9 @@ def plan_batch(inputs: list[str], out: str, *, format: str = "jpg", contact: boo
         # named against the real output folder when it is local (the output
         # folder is never searched), else against a folder that cannot exist
         anchor = local_path(out) if out_local else os.path.join(tempfile.gettempdir(), f".uwhl-none-{os.getpid()}")
-        jobs, problems = collect_inputs(local, anchor, format, contact)
+        jobs, problems, notes = collect_inputs(local, anchor, format, contact)
         plan.problems += problems
+        plan.notes += notes
         for j in jobs:
             rel = os.path.relpath(j.out_dir, anchor)
             rel = "" if rel == "." else rel.replace(os.sep, "/")
@@ -199,6 +202,8 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
     else:
         check_output_bucket(output, so)
     plan = plan_batch(inputs, output, format=fmt, contact=contact, storage_options=so)
+    for n in plan.notes if listener is not None else ():
+        listener.note(f"note: {n}")
     total = len(plan.items)
     if not is_url(output):
         # what a killed run left in the output folders goes first

@@ -38,7 +38,7 @@ def supported(path: str) -> bool:
 
 
 def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",
-                   contact: bool = False) -> tuple[list[Job], list[tuple[str, str]]]:
+                   contact: bool = False) -> tuple[list[Job], list[tuple[str, str]], list[str]]:
     """Expand files, folders (recursive) and globs into jobs.
 
     Glob patterns are expanded here; the rest is the core's one discovery
@@ -46,8 +46,10 @@ def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",
     ``out_dir`` are never taken as inputs, the same file named twice is
     processed once, and two inputs that would share an output name get
     ``NAME_ext`` (then ``NAME_ext_2``, ... if still shared), and no output
-    file of one input (``fmt``, ``contact``) is another's. Returns (jobs,
-    problems): problems are (input, reason) for inputs that match nothing.
+    file of one input (``fmt``, ``contact``) is another's; an earlier run's
+    output folder met in a walk is not searched. Returns (jobs, problems,
+    notes): problems are (input, reason) for inputs that match nothing,
+    notes the folders not searched.
     """
     items: list[str] = []
     problems: list[tuple[str, str]] = []
@@ -59,6 +61,6 @@ def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",
             items.extend(hits)
         else:
             items.append(item)
-    found, missing = _core.collect_jobs(items, out_dir, output_suffixes(fmt, contact))
+    found, missing, notes = _core.collect_jobs(items, out_dir, output_suffixes(fmt, contact))
     problems += [(str(p), why) for p, why in missing]
-    return [Job(str(p), str(d), name) for p, d, name in found], problems
+    return [Job(str(p), str(d), name) for p, d, name in found], problems, notes

@@ -256,7 +256,12 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         Err(code) => return code,
     };
     dive_notes(opts, err);
-    let (jobs, errors) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
+    let (jobs, errors, notes) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
+    if !opts.quiet {
+        for n in &notes {
+            let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {n}")));
+        }
+    }
     let errors: Vec<(PathBuf, Failure)> = errors.into_iter().map(|(p, m)| (p, Failure::new(Kind::Input, m))).collect();
     let mut code = 0u8;
     // OUTDIR/summary.csv, a row per input as it is settled

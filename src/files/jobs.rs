@@ -108,7 +108,30 @@ pub struct Job {
     pub name: String,
 }
 
-fn walk(dir: &Path, rel: &Path, skip: &Path, found: &mut Vec<(PathBuf, PathBuf)>) -> Result<(), String> {
+/// Whether `dir` is an output folder of `uwhl restore` or `uwhl-rs restore`:
+/// it holds a regular `summary.csv` whose first line begins with the
+/// summary's first columns. Only its first 4 KiB are read.
+pub fn is_output_folder(dir: &Path) -> bool {
+    use std::io::Read;
+    let p = dir.join(crate::files::summary::FILE_NAME);
+    if !fs::symlink_metadata(&p).is_ok_and(|m| m.is_file()) {
+        return false;
+    }
+    let mut head = Vec::with_capacity(4096);
+    let Ok(f) = fs::File::open(&p) else { return false };
+    if f.take(4096).read_to_end(&mut head).is_err() {
+        return false;
+    }
+    head.starts_with(b"input,status,water_type,A_R,A_G,A_B,")
+}
+
+fn walk(
+    dir: &Path,
+    rel: &Path,
+    skip: &Path,
+    found: &mut Vec<(PathBuf, PathBuf)>,
+    notes: &mut Vec<String>,
+) -> Result<(), String> {
     let rd = fs::read_dir(dir).map_err(|e| format!("cannot list {}: {e}", dir.display()))?;
     let mut entries: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).collect();
     entries.sort();
@@ -127,7 +150,16 @@ fn walk(dir: &Path, rel: &Path, skip: &Path, found: &mut Vec<(PathBuf, PathBuf)>
             if fs::symlink_metadata(&p).is_ok_and(|m| m.file_type().is_symlink()) {
                 continue;
             }
-            walk(&p, &rel.join(&fname), skip, found)?;
+            // an earlier run's outputs (restored photos, t maps) are not photos to restore again
+            if is_output_folder(&p) {
+                notes.push(format!(
+                    "{}: an output folder of an earlier restore (its summary.csv): not searched; name its files to \
+                     restore them",
+                    p.display()
+                ));
+                continue;
+            }
+            walk(&p, &rel.join(&fname), skip, found, notes)?;
         } else if supported(&p) && p.is_file() {
             found.push((p, rel.to_path_buf()));
         }
@@ -144,16 +176,23 @@ fn walk(dir: &Path, rel: &Path, skip: &Path, found: &mut Vec<(PathBuf, PathBuf)>
 /// `NAME_ext_2`, ...; an input one of whose output files (`NAME` + each of
 /// `suffixes`, and `NAME.json`) is another input's output file gets
 /// `NAME_2`, ... (inputs `a.jpg` and `a_t.jpg` written as PNG: `a_t.png` is
-/// a's transmission, so the second is `a_t_2`). Returns the jobs and the
-/// inputs that matched nothing.
-pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path, suffixes: &[String]) -> (Vec<Job>, Vec<(PathBuf, String)>) {
+/// a's transmission, so the second is `a_t_2`). A folder met in a walk
+/// that is an earlier run's output folder ([`is_output_folder`]) is not
+/// searched. Returns the jobs, the inputs that matched nothing, and notes
+/// (the folders not searched).
+pub fn collect_jobs(
+    inputs: &[PathBuf],
+    outdir: &Path,
+    suffixes: &[String],
+) -> (Vec<Job>, Vec<(PathBuf, String)>, Vec<String>) {
     let out_real = fs::canonicalize(outdir).unwrap_or_else(|_| outdir.to_path_buf());
     let mut found: Vec<(PathBuf, PathBuf)> = Vec::new();
     let mut errors = Vec::new();
+    let mut notes = Vec::new();
     for input in inputs {
         if input.is_dir() {
             let before = found.len();
-            match walk(input, Path::new(""), &out_real, &mut found) {
+            match walk(input, Path::new(""), &out_real, &mut found, &mut notes) {
                 Err(e) => errors.push((input.clone(), e)),
                 Ok(()) if found.len() == before => {
                     errors.push((input.clone(), "folder holds no JPEG, PNG, TIFF, raw or video file".into()))
@@ -186,7 +225,7 @@ pub fn collect_jobs(inputs: &[PathBuf], outdir: &Path, suffixes: &[String]) -> (
             name,
         })
         .collect();
-    (jobs, errors)
+    (jobs, errors, notes)
 }
 
 /// The output names of a batch's inputs, given in discovery order as
@@ -265,7 +304,8 @@ mod tests {
         assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
         let inputs = [d.join("in"), d.join("in/a/x.png"), d.join("in/raw.NEF"), d.join("out/old.png"), d.join("none.png")];
         let suffixes = [".png".to_string(), "_t.png".into()];
-        let (jobs, errors) = collect_jobs(&inputs, &out, &suffixes);
+        let (jobs, errors, notes) = collect_jobs(&inputs, &out, &suffixes);
+        assert!(notes.is_empty());
         let got: Vec<(String, String)> = jobs
             .iter()
             .map(|j| (j.dir.strip_prefix(&out).unwrap().display().to_string(), j.name.clone()))
@@ -275,7 +315,7 @@ mod tests {
         assert_eq!(errors.len(), 2, "{errors:?}");
         assert!(errors[0].0.ends_with("none.png") && errors[0].1 == "no such file or folder");
         assert!(errors[1].0.ends_with("out/old.png") && errors[1].1.contains("inside the output folder"));
-        let (jobs, errors) = collect_jobs(std::slice::from_ref(&fifo), &out, &suffixes);
+        let (jobs, errors, _) = collect_jobs(std::slice::from_ref(&fifo), &out, &suffixes);
         assert!(jobs.is_empty() && errors.len() == 1 && errors[0].1.contains("FIFO"), "{errors:?}");
         // outputs of different roles never share a file: a_t.png is a's transmission
         for f in ["in2/a.jpg", "in2/a_t.jpg", "in2/a_t_2.jpg"] {
@@ -283,13 +323,29 @@ mod tests {
             fs::create_dir_all(p.parent().unwrap()).unwrap();
             fs::write(&p, b"").unwrap();
         }
-        let (jobs, _) = collect_jobs(&[d.join("in2")], &out, &suffixes);
+        let (jobs, _, _) = collect_jobs(&[d.join("in2")], &out, &suffixes);
         let names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
         assert_eq!(names, ["a", "a_t_2", "a_t_2_2"]);
-        let (jobs, _) = collect_jobs(&[d.join("in2")], &out, &[".jpg".to_string(), "_t.png".into()]);
+        let (jobs, _, _) = collect_jobs(&[d.join("in2")], &out, &[".jpg".to_string(), "_t.png".into()]);
         let names: Vec<&str> = jobs.iter().map(|j| j.name.as_str()).collect();
         // as JPEG: a_t.jpg's own image is a_t.jpg, no output of a; a_t's _t.png is a_t_t.png
         assert_eq!(names, ["a", "a_t", "a_t_2"]);
+        // an earlier run's output folder inside the input folder: not searched, said in a note;
+        // a summary.csv of another program, or a folder given itself, is searched as before
+        for f in ["in3/p.jpg", "in3/old/p.jpg", "in3/old/p_t.png", "in3/other/q.jpg"] {
+            let p = d.join(f);
+            fs::create_dir_all(p.parent().unwrap()).unwrap();
+            fs::write(&p, b"").unwrap();
+        }
+        fs::write(d.join("in3/old/summary.csv"), format!("{}\n", crate::files::summary::columns().join(","))).unwrap();
+        fs::write(d.join("in3/other/summary.csv"), "name,value\n").unwrap();
+        let (jobs, errors, notes) = collect_jobs(&[d.join("in3")], &out, &suffixes);
+        let inputs: Vec<String> = jobs.iter().map(|j| j.input.strip_prefix(&d).unwrap().display().to_string()).collect();
+        assert_eq!(inputs, ["in3/other/q.jpg", "in3/p.jpg"]);
+        assert!(errors.is_empty() && notes.len() == 1 && notes[0].contains("in3/old: an output folder"), "{notes:?}");
+        let (jobs, _, notes) = collect_jobs(&[d.join("in3/old")], &out, &suffixes);
+        assert_eq!(jobs.len(), 2);
+        assert!(notes.is_empty());
         fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -464,9 +464,10 @@ fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bo
     crate::files::options::check_distance(distance, altitude, fov, depth, reuse_estimates, Names::Flags).map_err(PyValueError::new_err)
 }
 
-/// The jobs of a batch (`crate::files::jobs::collect_jobs`, output files `NAME` +
-/// each suffix): `(jobs, problems)`,
-/// jobs as `(input, output folder, name)`, problems as `(input, reason)`.
+/// The jobs of a batch (`crate::files::jobs::collect_jobs`, output files
+/// `NAME` + each suffix): `(jobs, problems, notes)`, jobs as `(input,
+/// output folder, name)`, problems as `(input, reason)`, notes the folders
+/// a walk did not search (earlier runs' output folders).
 #[pyfunction]
 #[allow(clippy::type_complexity)]
 fn collect_jobs(
@@ -474,9 +475,9 @@ fn collect_jobs(
     inputs: Vec<std::path::PathBuf>,
     out_dir: std::path::PathBuf,
     suffixes: Vec<String>,
-) -> (Vec<(std::path::PathBuf, std::path::PathBuf, String)>, Vec<(std::path::PathBuf, String)>) {
-    let (jobs, problems) = py.detach(|| crate::files::jobs::collect_jobs(&inputs, &out_dir, &suffixes));
-    (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems)
+) -> (Vec<(std::path::PathBuf, std::path::PathBuf, String)>, Vec<(std::path::PathBuf, String)>, Vec<String>) {
+    let (jobs, problems, notes) = py.detach(|| crate::files::jobs::collect_jobs(&inputs, &out_dir, &suffixes));
+    (jobs.into_iter().map(|j| (j.input, j.dir, j.name)).collect(), problems, notes)
 }
 
 /// The output names of inputs listed elsewhere (object storage), given in

@@ -228,3 +228,28 @@ def test_evaluate_counts_the_entries_it_could_not_evaluate(tmp_path):
                         str(tmp_path / "out")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 3, r.stderr
     assert "0 of 2 images evaluated" in r.stdout, r.stdout
+
+
+def test_an_earlier_runs_output_folder_inside_the_input_is_not_restored_again(binary, tmp_path):
+    """Restoring into photos/out_1 and then photos/ into another folder took
+    out_1's restored photo and its maps as photos (and failed on the flat
+    confidence map). Both commands now leave such a folder out, with a note."""
+    from bothcmds import cmds
+    from uwhl_rs import synth
+    from uwhl_rs.images import write_image
+
+    src = tmp_path / "photos"
+    src.mkdir()
+    img, _ = synth.demo_input(40, 60, seed=3)
+    write_image(src / "a.png", img, encoding="linear")
+    r = subprocess.run([binary, "restore", str(src), "-o", str(src / "out_1"), "-q"], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert (src / "out_1" / "a_t.png").exists()
+    for face, cmd in cmds(binary).items():
+        out = tmp_path / f"again_{face}"
+        r = subprocess.run([*cmd, "restore", str(src), "-o", str(out)], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, (face, r.stderr)
+        assert f"note: {src / 'out_1'}: an output folder of an earlier restore" in r.stderr, (face, r.stderr)
+        assert sorted(p.name for p in out.iterdir() if p.suffix == ".json") == ["a.json"], face
+        assert not (out / "out_1").exists(), face
