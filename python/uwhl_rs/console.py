@@ -94,8 +94,11 @@ class Console:
             why = f"{row['sidecar']} exists" if row["error"] == DONE_NOTE else row["error"]
             self.line(f"[{k}/{total}] {row['input']}: skipped ({why})")
         else:
+            share = row.get("fallback_share")
+            # the colours are the input's balance throughout: the type named did not colour it (METHOD §12.5)
+            balance = ", colours from the input's balance" if isinstance(share, float) and share >= 0.995 else ""
             self.line(f"[{k}/{total}] {row['input']} -> {row['image']} "
-                      f"(water type {row['water_type']}, {row['seconds'] or 0.0:.2f} s)")
+                      f"(water type {row['water_type']}{balance}, {row['seconds'] or 0.0:.2f} s)")
             if row.get("error"):
                 # done, but not all of it (a video that stops part way)
                 self.error(row["error_kind"], row["error"], row["input"])

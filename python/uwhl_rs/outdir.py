@@ -56,6 +56,7 @@ def row_fields_from_sidecar(side: dict) -> dict:
     gps = meta.get("gps") or {}
     return {"water_type": side.get("water_type"), "A_R": a[0], "A_G": a[1], "A_B": a[2],
             "scores": dict(side.get("scores") or {}), "flags": ",".join(side.get("flags") or []),
+            "veil_excess": side.get("veil_excess"), "fallback_share": side.get("fallback_share"),
             "taken_at": meta.get("taken_at"), "latitude": gps.get("latitude"), "longitude": gps.get("longitude"),
             "altitude": gps.get("altitude")}
 

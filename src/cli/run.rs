@@ -103,6 +103,15 @@ pub fn init_threads(threads: Option<usize>) {
     }
 }
 
+/// What a progress line says of a photo whose colours are the input's
+/// balance throughout (METHOD §12.5: the type named did not colour it).
+fn balance_said(fallback_share: Option<f64>) -> &'static str {
+    match fallback_share {
+        Some(s) if s >= 0.995 => ", colours from the input's balance",
+        _ => "",
+    }
+}
+
 /// The output folder checked before any input is read (a file at its
 /// name would fail every input, and summary.csv, one by one).
 pub(crate) fn outdir_usable(opts: &Options, err: &mut dyn Write) -> Result<(), u8> {
@@ -312,10 +321,11 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                         .unwrap_or_default();
                     let secs = side.pointer("/seconds/total").and_then(Value::as_f64).unwrap_or(0.0);
                     let line = format!(
-                        "[{k}/{total}] {} -> {} (water type {}, {secs:.2} s)",
+                        "[{k}/{total}] {} -> {} (water type {}{}, {secs:.2} s)",
                         job.input.display(),
                         img.display(),
-                        side.get("water_type").and_then(Value::as_str).unwrap_or("?")
+                        side.get("water_type").and_then(Value::as_str).unwrap_or("?"),
+                        balance_said(side.get("fallback_share").and_then(Value::as_f64))
                     );
                     let _ = writeln!(out, "{}", printable(&line));
                 }

@@ -22,7 +22,7 @@ pub fn columns() -> Vec<String> {
     c.extend(TYPES.iter().map(|t| format!("score_{t}")));
     c.extend(
         [
-            "other_scores", "flags", "seconds", "taken_at", "latitude", "longitude", "altitude", "image",
+            "other_scores", "flags", "veil_excess", "fallback_share", "seconds", "taken_at", "latitude", "longitude", "altitude", "image",
             "transmission", "transmission_color", "confidence", "contact_sheet", "sidecar", "error_kind", "error", "exit_code",
         ]
         .map(String::from),
@@ -315,6 +315,8 @@ fn fields_from_sidecar(side: &Value, dir: &Path) -> serde_json::Map<String, Valu
         .map(|a| a.iter().map(|f| text(Some(f))).collect())
         .unwrap_or_default();
     row.insert("flags".into(), flags.join(",").into());
+    row.insert("veil_excess".into(), get("/veil_excess"));
+    row.insert("fallback_share".into(), get("/fallback_share"));
     row.insert("taken_at".into(), get("/metadata/taken_at"));
     for k in ["latitude", "longitude", "altitude"] {
         row.insert(k.into(), get(&format!("/metadata/gps/{k}")));

@@ -253,3 +253,37 @@ def test_an_earlier_runs_output_folder_inside_the_input_is_not_restored_again(bi
         assert f"note: {src / 'out_1'}: an output folder of an earlier restore" in r.stderr, (face, r.stderr)
         assert sorted(p.name for p in out.iterdir() if p.suffix == ".json") == ["a.json"], face
         assert not (out / "out_1").exists(), face
+
+
+def test_the_line_and_summary_say_when_the_colours_are_the_inputs_balance(binary, tmp_path):
+    """A photo whose veil exceeds its light everywhere (a veiling light four
+    times too red) takes all its colour from the input's balance: the
+    progress line of both commands says so, and summary.csv carries the
+    sidecar's veil_excess and fallback_share; a photo restored as usual
+    says nothing more than its type."""
+    import csv
+
+    from bothcmds import cmds
+    from uwhl_rs import synth
+    from uwhl_rs.images import write_image
+
+    src = tmp_path / "in"
+    src.mkdir()
+    img, _ = synth.demo_input(60, 80, water_type="II", seed=4)
+    write_image(src / "a.png", img, encoding="linear")
+    a = synth.default_veiling_light("II")
+    wrong = ",".join(f"{v:.4f}" for v in (min(1.0, 4 * a[0]), a[1], a[2]))
+    for face, cmd in cmds(binary).items():
+        for tag, extra in (("wrong", ["--veiling-light", wrong]), ("plain", [])):
+            out = tmp_path / f"{face}_{tag}"
+            r = subprocess.run([*cmd, "restore", str(src), "-o", str(out), "--water-type", "II", *extra],
+                               capture_output=True, text=True, timeout=120)
+            assert r.returncode == 0, (face, r.stderr)
+            side = json.loads((out / "a.json").read_text())
+            row = next(csv.DictReader(open(out / "summary.csv", newline="")))
+            assert float(row["fallback_share"]) == pytest.approx(side["fallback_share"], rel=1e-9)
+            assert float(row["veil_excess"]) == pytest.approx(side["veil_excess"], rel=1e-9)
+            said = "(water type II, colours from the input's balance, " in r.stdout
+            assert said == (tag == "wrong"), (face, tag, side["fallback_share"], r.stdout)
+            if tag == "wrong":
+                assert side["fallback_share"] == 1.0
