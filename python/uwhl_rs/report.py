@@ -31,6 +31,7 @@ import numpy as np
 import uwhl_rs
 
 from . import report_video
+from .errors import UwhlError
 from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import FILE_NAME, REPORT_DIR, Photo, collect_sidecars, failed_inputs
 from .report_series import series_axis, series_svg, used_water
@@ -415,8 +416,10 @@ def _shown(note: str | None) -> bool:
     return note is not None and (note in ("written", "kept") or note.endswith("its earlier thumbnail is shown"))
 
 
-class NotAnOutputFolder(ValueError):
+class NotAnOutputFolder(UwhlError, ValueError):
     """The folder holds nothing ``uwhl restore`` writes: no page is made."""
+
+    kind = "unreadable_input"
 
 
 def write_report(out_dir, *, storage_options: dict | None = None, workers: int | None = None,
