@@ -56,6 +56,33 @@ impl Trust {
     }
 }
 
+/// The standard deviation of 8-bit sRGB quantisation at the linear value
+/// `v` (METHOD §12.5 step 3): a code step of 1/255, uniform (1/sqrt 12),
+/// taken through the slope of the sRGB curve there, dI/dV = 1/12.92 in
+/// its linear part, else (2.4 / 1.055) v^(1.4 / 2.4). The coarsest steps a
+/// photo's values come in: a smooth JPEG whose measured noise is 0 still
+/// has them.
+pub fn quantisation_sigma(v: f32) -> f64 {
+    // a table of 8192 intervals over [0, 1], interpolated linearly (within
+    // 2e-5 of the formula from 0.001 up): the trust step asks three times a
+    // pixel, where a power each would cost as much as the rest of the step
+    static TABLE: std::sync::OnceLock<Vec<f64>> = std::sync::OnceLock::new();
+    const N: usize = 8192;
+    let table = TABLE.get_or_init(|| {
+        const STEP: f64 = 1.0 / (255.0 * 3.464_101_615_137_754_5);
+        (0..=N)
+            .map(|k| {
+                let v = k as f64 / N as f64;
+                STEP * if v <= 0.003_130_8 { 1.0 / 12.92 } else { 2.4 / 1.055 * v.powf(1.4 / 2.4) }
+            })
+            .collect()
+    });
+    let x = f64::from(v).clamp(0.0, 1.0) * N as f64;
+    let k = (x as usize).min(N - 1);
+    let f = x - k as f64;
+    table[k] + f * (table[k + 1] - table[k])
+}
+
 /// Per-channel noise standard deviation of `img` (METHOD §12.5): the median
 /// absolute response of the 3x3 kernel [[1,-2,1],[-2,4,-2],[1,-2,1]] (which
 /// cancels planes and has gain 6 on white noise), over the interior pixels
@@ -188,6 +215,7 @@ pub fn trust(
     // the display's gains (METHOD §12.1) and the input's own shades-of-gray balance
     let g = gains_from(total.radiance.color(SOG_P));
     let k = gains_from(total.input.color(SOG_P));
+    let floored = sigma.map(|s| s < quantisation_sigma(1.0));
     let mut confidence = vec![0f32; t_b.len()];
     // per row, the sum of the blend weights, added in row order below
     let weights: Vec<f64> = confidence
@@ -201,14 +229,16 @@ pub fn trust(
                 let i = y * w + x;
                 let (t, j) = pixel(i, t);
                 let shown = (0..3).map(|c| (g[c] * j[c].max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
-                let noise = (0..3).map(|c| (g[c] * sigma[c] / t[c]).powi(2)).sum::<f64>();
+                let p = &img.data[3 * i..3 * i + 3];
+                // the floor is looked up only for a channel whose noise it can exceed
+                let s = |c: usize| if floored[c] { sigma[c].max(quantisation_sigma(p[c])) } else { sigma[c] };
+                let noise = (0..3).map(|c| (g[c] * s(c) / t[c]).powi(2)).sum::<f64>();
                 let theta = (2.0 / 3.0 * noise).sqrt() / shown;
                 let local = 1.0 / (1.0 + (theta / THETA0).powi(2));
                 *cf = (local * (1.0 - w_photo)) as f32;
                 if blend {
                     let wgt = 1.0 - (1.0 - w_photo) * (1.0 - LOCAL_WEIGHT * (1.0 - local));
                     row_weight += wgt;
-                    let p = &img.data[3 * i..3 * i + 3];
                     let base = [0, 1, 2].map(|c| (f64::from(p[c]) * k[c]).max(0.0));
                     let sum_d: f64 = d.iter().map(|&v| f64::from(v)).sum();
                     let scale = sum_d / (base[0] + base[1] + base[2]).max(1e-9);
@@ -256,9 +286,31 @@ mod tests {
     }
 
     #[test]
-    fn a_clear_flat_scene_keeps_its_colours_and_full_confidence() {
-        // t_B = 1 everywhere: t_c = 1, J = I >= 0, no veil excess; a flat
-        // image has sigma = 0, so theta = 0, c = 1, w = 0: nothing moves
+    fn the_quantisation_floor_is_a_code_step_through_the_srgb_slope() {
+        // the slope of the sRGB decoding by central differences at the code
+        // value V of v, times 1/255/sqrt(12)
+        let decode = |x: f64| if x <= 0.04045 { x / 12.92 } else { ((x + 0.055) / 1.055).powf(2.4) };
+        let encode = |v: f64| if v <= 0.003_130_8 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 };
+        for v in [0.001f64, 0.01, 0.05, 0.2, 0.5, 0.9, 1.0] {
+            let (x, h) = (encode(v), 1e-6);
+            let want = (decode(x + h) - decode(x - h)) / (2.0 * h) / 255.0 / 12f64.sqrt();
+            let got = quantisation_sigma(v as f32);
+            assert!((got - want).abs() < 1e-4 * want, "{v}: {got} vs {want}");
+        }
+        // below 0: the floor of 0
+        assert_eq!(quantisation_sigma(-0.5), quantisation_sigma(0.0));
+    }
+
+    #[test]
+    fn a_clear_flat_scene_keeps_its_colours_but_for_its_quantisation() {
+        // t_B = 1 everywhere: t_c = 1, J = I >= 0, no veil excess. A flat
+        // image has sigma = 0; its noise is then the 8-bit floor, by hand:
+        // q = (1/255/sqrt 12) (2.4/1.055) v^(1.4/2.4) = 0.0012759, 0.0017189,
+        // 0.0010072 for v = 0.3, 0.5, 0.2; the gains of J's colour
+        // (1.1111, 0.6667, 1.6667), |g J| = 0.57735, so theta = sqrt(2/3 x
+        // 6.1410e-6) / 0.57735 = 0.0035046, c = 1 / (1 + (theta / 0.15)^2) =
+        // 0.99945 and w = 0.3 (1 - c) = 1.637e-4: D = (0.25, 0.5, 0.75)
+        // moves by w toward B' = (0.5, 0.5, 0.5)
         let (h, w) = (4, 5);
         let px = [0.3f32, 0.5, 0.2];
         let d: Vec<f32> = (0..h * w).flat_map(|_| px).collect();
@@ -269,10 +321,13 @@ mod tests {
         let tr = trust(&img, &|_| true, [0.1, 0.4, 0.6], &water("II", 0.2773, 0.7937), &tb, &d, &mut out, true);
         assert_eq!(tr.veil_excess, 0.0);
         assert!(!tr.unreliable());
-        assert!(tr.confidence.iter().all(|&c| c == 1.0));
-        assert_eq!(out, shown);
-        // w = 0 at every pixel: none of the colour is the input's balance
-        assert_eq!(tr.fallback_share, Some(0.0));
+        assert!(tr.confidence.iter().all(|&c| (c - 0.99945).abs() < 2e-5), "{:?}", tr.confidence[0]);
+        for p in out.chunks(3) {
+            let want = [0.25 + 1.637e-4 * 0.25, 0.5, 0.75 - 1.637e-4 * 0.25];
+            assert!(p.iter().zip(want).all(|(&a, b)| (f64::from(a) - b).abs() < 2e-6), "{p:?}");
+        }
+        let share = tr.fallback_share.unwrap();
+        assert!((share - 1.637e-4).abs() < 1e-6, "{share}");
     }
 
     #[test]
