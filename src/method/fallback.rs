@@ -79,8 +79,10 @@ pub fn quantisation_sigma(v: f32) -> f64 {
     });
     let x = f64::from(v).clamp(0.0, 1.0) * N as f64;
     let k = (x as usize).min(N - 1);
-    let f = x - k as f64;
-    table[k] + f * (table[k + 1] - table[k])
+    match (table.get(k), table.get(k + 1)) {
+        (Some(a), Some(b)) => a + (x - k as f64) * (b - a),
+        _ => 0.0,
+    }
 }
 
 /// Per-channel noise standard deviation of `img` (METHOD §12.5): the median
@@ -231,8 +233,15 @@ pub fn trust(
                 let shown = (0..3).map(|c| (g[c] * j[c].max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
                 let p = &img.data[3 * i..3 * i + 3];
                 // the floor is looked up only for a channel whose noise it can exceed
-                let s = |c: usize| if floored[c] { sigma[c].max(quantisation_sigma(p[c])) } else { sigma[c] };
-                let noise = (0..3).map(|c| (g[c] * s(c) / t[c]).powi(2)).sum::<f64>();
+                let noise: f64 = p
+                    .iter()
+                    .zip(sigma.iter().zip(&floored))
+                    .zip(g.iter().zip(&t))
+                    .map(|((&v, (&s, &low)), (&gc, &tc))| {
+                        let s = if low { s.max(quantisation_sigma(v)) } else { s };
+                        (gc * s / tc).powi(2)
+                    })
+                    .sum();
                 let theta = (2.0 / 3.0 * noise).sqrt() / shown;
                 let local = 1.0 / (1.0 + (theta / THETA0).powi(2));
                 *cf = (local * (1.0 - w_photo)) as f32;
