@@ -49,6 +49,28 @@ def tiles(ok, tile=TILE, stride=None):
                 yield y0, x0, k, n
 
 
+def grown_window(ok, z, y0, x0, tile, win):
+    """The plane design (1, dy, dx from the tile's centre) and the known z
+    over the tile at (y0, x0) grown by ``win`` pixels (clipped)."""
+    h, w = z.shape
+    ya, yb, xa, xb = max(0, y0 - win), min(h, y0 + tile + win), max(0, x0 - win), min(w, x0 + tile + win)
+    kw = ok[ya:yb, xa:xb]
+    gy, gx = np.mgrid[ya:yb, xa:xb].astype(np.float64)
+    gy -= y0 + (tile - 1) / 2
+    gx -= x0 + (tile - 1) / 2
+    return np.stack([np.ones(kw.sum()), gy[kw], gx[kw]], 1), z[ya:yb, xa:xb][kw].astype(np.float64)
+
+
+def tile_slope(ii, zz, zm, vz, n):
+    """One tile's means, least-squares slopes on z (variance ``vz``),
+    residual variances and weight (METHOD §13.2 step 2)."""
+    im = ii.mean(0)
+    s = ((zz - zm)[:, None] * (ii - im)).mean(0) / vz
+    r = ii - im - s * (zz - zm)[:, None]
+    vr = (r ** 2).mean(0)
+    return im, s, vr, np.sqrt(np.median(n * vz / np.maximum(vr, 1e-8)))
+
+
 def tile_stats(img, z, mask=None, tile=TILE, plane=True, stride=None, eiv=False, win=0, eiv_min=0.25):
     """Per tile: means m (n,3), slopes s (n,3), weight w (n,), z-bar, var z, residual var (n,3), centre (y,x).
 
@@ -67,13 +89,7 @@ def tile_stats(img, z, mask=None, tile=TILE, plane=True, stride=None, eiv=False,
         if plane:
             X = np.stack([np.ones(n), dy[k], dx[k]], 1)
             if win:
-                ya, yb, xa, xb = max(0, y0 - win), min(h, y0 + tile + win), max(0, x0 - win), min(w, x0 + tile + win)
-                kw = ok[ya:yb, xa:xb]
-                gy, gx = np.mgrid[ya:yb, xa:xb].astype(np.float64)
-                gy -= y0 + (tile - 1) / 2
-                gx -= x0 + (tile - 1) / 2
-                Xw = np.stack([np.ones(kw.sum()), gy[kw], gx[kw]], 1)
-                zw = z[ya:yb, xa:xb][kw].astype(np.float64)
+                Xw, zw = grown_window(ok, z, y0, x0, tile, win)
                 coef, *_ = np.linalg.lstsq(Xw, zw, rcond=None)
                 res = zw - Xw @ coef
                 s2 = (res ** 2).sum() / max(len(zw) - 3, 1)
@@ -96,15 +112,10 @@ def tile_stats(img, z, mask=None, tile=TILE, plane=True, stride=None, eiv=False,
             if vc < eiv_min * vz:
                 continue
             vz_raw, vz = vz, vc
-        im = ii.mean(0)
-        cov = ((zz - zm)[:, None] * (ii - im)).mean(0)
-        s = cov / vz
-        r = ii - im - s * (zz - zm)[:, None]
-        vr = (r ** 2).mean(0)
-        wc = n * vz / np.maximum(vr, 1e-8)
+        im, s, vr, w = tile_slope(ii, zz, zm, vz, n)
         out["m"].append(im)
         out["s"].append(s)
-        out["w"].append(np.sqrt(np.median(wc)))
+        out["w"].append(w)
         out["zm"].append(zm)
         out["vz"].append(vz)
         out["vr"].append(vr)

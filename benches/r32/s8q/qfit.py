@@ -58,13 +58,7 @@ def tile_stats(img, z, kmin=0, few=0, win=0, qvar=None, eiv_min=0.25, inv_plane=
         inv = inv_plane
         if few and nd < few:
             inv = inv_plane or inv_few  # inv_few: 1/z planes only for the grown (few-level) tiles
-            ya, yb, xa, xb = max(0, y0 - win), min(h, y0 + TILE + win), max(0, x0 - win), min(w, x0 + TILE + win)
-            kw = ok[ya:yb, xa:xb]
-            gy, gx = np.mgrid[ya:yb, xa:xb].astype(np.float64)
-            gy -= y0 + (TILE - 1) / 2
-            gx -= x0 + (TILE - 1) / 2
-            Xw = np.stack([np.ones(kw.sum()), gy[kw], gx[kw]], 1)
-            zw = z[ya:yb, xa:xb][kw].astype(np.float64)
+            Xw, zw = F.grown_window(ok, z, y0, x0, TILE, win)
             tw = 1.0 / zw if inv else zw
             coef, *_ = np.linalg.lstsq(Xw, tw, rcond=None)
             res = tw - Xw @ coef
@@ -95,15 +89,10 @@ def tile_stats(img, z, kmin=0, few=0, win=0, qvar=None, eiv_min=0.25, inv_plane=
             continue
         vz = vc
         ii = img[y0:y0 + TILE, x0:x0 + TILE][k].astype(np.float64)
-        im = ii.mean(0)
-        cv = ((zz - zm)[:, None] * (ii - im)).mean(0)
-        s = cv / vz
-        r = ii - im - s * (zz - zm)[:, None]
-        vr = (r ** 2).mean(0)
-        wc = n * vz / np.maximum(vr, 1e-8)
+        im, s, vr, w = F.tile_slope(ii, zz, zm, vz, n)
         out["m"].append(im)
         out["s"].append(s)
-        out["w"].append(np.sqrt(np.median(wc)))
+        out["w"].append(w)
         out["zm"].append(zm)
         out["vz"].append(vz)
         out["n"].append(n)
