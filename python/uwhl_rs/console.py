@@ -11,6 +11,7 @@ import json
 import sys
 import threading
 
+from . import _core
 from .errors import EXIT, CommandError, describe, kind_of
 from .sidecars import display, printable
 from .tasks import DONE_NOTE
@@ -29,6 +30,10 @@ class Console:
         self.quiet, self.json_errors, self.program = quiet, json_errors, program
         # --jobs N settles inputs from N threads: a line is written whole
         self._lock = threading.Lock()
+        #: the run's options (``files.restore_file``'s keywords), so that a
+        #: skipped input's line can say it was restored with others
+        self.options: dict | None = None
+        self._parameters: str | None = None
 
     @property
     def out(self):
@@ -55,6 +60,18 @@ class Console:
         """A line of the command's output (stdout), unless quiet."""
         if not self.quiet:
             self._write(self.out, text)
+
+    def _recorded(self) -> str:
+        """The run's options as a sidecar records them (JSON), made when an
+        input is first skipped (settings that cannot be made: none)."""
+        if self._parameters is None and self.options is not None:
+            from .files import settings_of
+
+            try:
+                self._parameters = settings_of(**self.options).parameters
+            except (Exception, MemoryError):  # noqa: BLE001 - only a remark is lost; each input says its own error
+                self._parameters = ""
+        return self._parameters or ""
 
     def note(self, text: str, always: bool = False) -> None:
         """A remark on stderr (``uwhl: TEXT``) that is not an error, unless
@@ -91,7 +108,12 @@ class Console:
         if row["status"] == "failed":
             self.error(row["error_kind"], row["error"], row["input"])
         elif row["status"] == "skipped":
-            why = f"{row['sidecar']} exists" if row["error"] == DONE_NOTE else row["error"]
+            if row["error"] == DONE_NOTE:
+                # the options it was restored with, when they are not this run's (as uwhl-rs says)
+                other = _core.skipped_with_other_options(row["sidecar"], p) if (p := self._recorded()) else ""
+                why = f"{row['sidecar']} exists{other}"
+            else:
+                why = row["error"]
             self.line(f"[{k}/{total}] {row['input']}: skipped ({why})")
         else:
             share = row.get("fallback_share")

@@ -191,14 +191,10 @@ def restore_staged(
         raise ParameterError("distance and altitude are two sources of distance: give one")
     in_path = os.fspath(in_path)
     out_dir = os.fspath(out_dir)
-    # every option checked by the core's table (the binary's checks and messages)
-    settings = _core.FileSettings(format=format, bits=bits, quality=quality, preprocess=preprocess,
-                                  half_size=half_size, max_side=max_side, max_pixels=max_pixels,
-                                  mask=_mask_label(mask), water_mask=_mask_label(water_mask),
-                                  distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
-                                  altitude=None if altitude is None else os.fspath(altitude), fov=fov, port=port,
-                                  distance_kind=distance_kind,
-                                  water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
+    settings = settings_of(format=format, bits=bits, quality=quality, preprocess=preprocess, half_size=half_size,
+                           max_side=max_side, max_pixels=max_pixels, mask=mask, water_mask=water_mask,
+                           distance=distance, altitude=altitude, fov=fov, port=port, distance_kind=distance_kind,
+                           water_from=water_from, **restore_kwargs)
     if settings.dive_water_type is not None:
         # METHOD §13, a dive learns once: the water of its calibrated photos
         restore_kwargs = {**restore_kwargs, "water_types": [settings.dive_water_type]}
@@ -313,6 +309,23 @@ restore_file.__signature__ = _signature.replace(
 def _subsample_label(v) -> int:
     """The requested guided_subsample as the sidecar writes it: "auto" -> 0."""
     return 0 if isinstance(v, str) and v == "auto" else int(v)
+
+
+def settings_of(*, format: str = _D["format"], bits: int | None = _D["bits"], quality: int = _D["quality"],
+                preprocess: str = _D["preprocess"], half_size: bool = _D["half_size"],
+                max_side: int | None = _D["max_side"], max_pixels: int = _D["max_pixels"], mask=None,
+                water_mask=None, distance=None, altitude=None, distance_kind: str = _D["distance_kind"], fov=None,
+                port: str = _D["port"], water_from=None, contact: bool = False, **restore_kwargs):
+    """The core's settings of a file's restoration (``_core.FileSettings``:
+    every option checked by the core's table, the binary's checks and
+    messages); its ``parameters`` (JSON text) is what the sidecar records."""
+    return _core.FileSettings(format=format, bits=bits, quality=quality, preprocess=preprocess,
+                              half_size=half_size, max_side=max_side, max_pixels=max_pixels,
+                              mask=_mask_label(mask), water_mask=_mask_label(water_mask),
+                              distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
+                              altitude=None if altitude is None else os.fspath(altitude), fov=fov, port=port,
+                              distance_kind=distance_kind,
+                              water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
 
 
 def _mask_label(mask):

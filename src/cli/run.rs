@@ -339,7 +339,15 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                 };
                 summary.skipped(&job.input, &s, &note);
                 if !opts.quiet {
-                    let why = if why == Skip::Done { format!("{} exists", s.display()) } else { why.reason() };
+                    let why = if why == Skip::Done {
+                        let changed = crate::files::sidecar::changed_options(
+                            &s,
+                            &crate::files::sidecar::parameters(&opts.settings),
+                        );
+                        format!("{} exists{}", s.display(), crate::files::sidecar::changed_said(&changed))
+                    } else {
+                        why.reason()
+                    };
                     let _ = writeln!(out, "{}", printable(&format!("[{k}/{total}] {}: skipped ({why})", job.input.display())));
                 }
             }

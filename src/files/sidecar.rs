@@ -237,6 +237,47 @@ pub fn parameters(o: &Settings) -> Value {
     Value::Object(p)
 }
 
+/// The options of `current` (what [`parameters`] gives for this run) that
+/// differ from those the sidecar at `path` recorded, by name and sorted:
+/// what a skipped input (its sidecar exists) says it was restored with.
+/// The machine's knobs (`threads`, `max_memory`, `max_memory_used`) do not
+/// change a result and are left out; an unreadable sidecar, or one without
+/// `parameters`, gives none.
+pub fn changed_options(path: &Path, current: &Value) -> Vec<String> {
+    const MACHINE: [&str; 3] = ["threads", "max_memory", "max_memory_used"];
+    let Some(side) = crate::files::commit::read_sidecar(path) else { return Vec::new() };
+    let (Some(Value::Object(was)), Value::Object(now)) = (side.get("parameters"), current) else {
+        return Vec::new();
+    };
+    let mut keys: Vec<String> = was
+        .keys()
+        .chain(now.keys())
+        .filter(|k| !MACHINE.contains(&k.as_str()) && was.get(*k) != now.get(*k))
+        .cloned()
+        .collect();
+    keys.sort();
+    keys.dedup();
+    keys
+}
+
+/// What a skipped input's line says after "NAME.json exists": the options
+/// it was restored with that differ from this run's, by their flags, if any.
+pub fn changed_said(changed: &[String]) -> String {
+    if changed.is_empty() {
+        return String::new();
+    }
+    let flags: Vec<&str> = changed
+        .iter()
+        .map(|k| {
+            crate::files::options::OPTIONS
+                .iter()
+                .find(|s| s.key == k.as_str())
+                .map_or(k.as_str(), |s| s.flag)
+        })
+        .collect();
+    format!("; restored with another {}: --overwrite redoes it", flags.join(", "))
+}
+
 /// The sidecar's `source.icc_profile`: the profile's description and
 /// whether the codes were converted through it (null without a profile),
 /// as the Python reader writes it.
@@ -351,5 +392,32 @@ mod tests {
             let text = serde_json::to_string(&x).unwrap();
             assert_eq!(serde_json::from_str::<f64>(&text).unwrap().to_bits(), x.to_bits(), "{text}");
         }
+    }
+
+    #[test]
+    fn a_skipped_input_names_the_options_it_was_restored_with_otherwise() {
+        use super::{changed_options, changed_said};
+        let d = std::env::temp_dir().join(format!("uwhl-changed-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let side = d.join("a.json");
+        std::fs::write(
+            &side,
+            r#"{"input": "a.png", "water_type": "II", "parameters": {"method": "revised", "threads": 2,
+                "water_types": null, "guided_eps": 0.001, "gone": 1}}"#,
+        )
+        .unwrap();
+        let now = serde_json::json!({"method": "revised", "threads": 1, "water_types": ["3C"], "guided_eps": 0.001,
+                                     "max_memory": "auto"});
+        // threads and max_memory do not change a result; a key only one side has does
+        let changed = changed_options(&side, &now);
+        assert_eq!(changed, ["gone", "water_types"]);
+        assert_eq!(changed_said(&changed), "; restored with another gone, --water-type: --overwrite redoes it");
+        assert_eq!(changed_said(&[]), "");
+        // the same options, or a sidecar that cannot be read: nothing to say
+        let same = serde_json::json!({"method": "revised", "threads": 8, "water_types": null, "guided_eps": 0.001,
+                                      "gone": 1});
+        assert!(changed_options(&side, &same).is_empty());
+        assert!(changed_options(&d.join("missing.json"), &now).is_empty());
+        std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -134,6 +134,16 @@ fn csv_text(cell: &str) -> String {
     summary::neutralise(cell)
 }
 
+/// What a skipped input's line says after "NAME.json exists": the options
+/// the sidecar at `sidecar` recorded that differ from `current` (the
+/// JSON of `FileSettings.parameters()`), by their flags, or "" when none do
+/// (`crate::files::sidecar::changed_options`, as the binary says it).
+#[pyfunction]
+fn skipped_with_other_options(sidecar: std::path::PathBuf, current: &str) -> String {
+    let Ok(now) = serde_json::from_str::<serde_json::Value>(current) else { return String::new() };
+    crate::files::sidecar::changed_said(&crate::files::sidecar::changed_options(&sidecar, &now))
+}
+
 /// The columns of summary.csv, in order.
 #[pyfunction]
 fn summary_columns() -> Vec<String> {
@@ -145,6 +155,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySummary>()?;
     m.add_function(wrap_pyfunction!(summary_cell, m)?)?;
     m.add_function(wrap_pyfunction!(csv_text, m)?)?;
+    m.add_function(wrap_pyfunction!(skipped_with_other_options, m)?)?;
     m.add_function(wrap_pyfunction!(summary_columns, m)?)?;
     Ok(())
 }

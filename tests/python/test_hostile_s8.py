@@ -287,3 +287,30 @@ def test_the_line_and_summary_say_when_the_colours_are_the_inputs_balance(binary
             assert said == (tag == "wrong"), (face, tag, side["fallback_share"], r.stdout)
             if tag == "wrong":
                 assert side["fallback_share"] == 1.0
+
+
+def test_a_rerun_with_other_options_says_so_when_it_skips(binary, tmp_path):
+    """A rerun that skips an input (its sidecar exists) said only
+    "skipped (x.json exists)", though it was asked for another water type:
+    the outputs did not follow the options and nothing told. Both commands
+    now name the options that differ; the machine's (--threads) do not
+    count, and an unchanged rerun says nothing more."""
+    from bothcmds import cmds
+    from uwhl_rs import synth
+    from uwhl_rs.images import write_image
+
+    img, _ = synth.demo_input(40, 60, seed=6)
+    write_image(tmp_path / "a.png", img, encoding="linear")
+    for face, cmd in cmds(binary).items():
+        out = tmp_path / f"out_{face}"
+        run = lambda *extra: subprocess.run([*cmd, "restore", str(tmp_path / "a.png"), "-o", str(out), *extra],  # noqa: E731
+                                            capture_output=True, text=True, timeout=120)
+        assert run("-q").returncode == 0
+        side = out / "a.json"
+        for extra, said in ((["--threads", "1"], ""),
+                            (["--water-type", "3C"], "; restored with another --water-type: --overwrite redoes it"),
+                            (["--water-type", "3C", "--guided-radius", "5"],
+                             "; restored with another --guided-radius, --water-type: --overwrite redoes it")):
+            r = run(*extra)
+            assert r.returncode == 0, (face, r.stderr)
+            assert f"[1/1] {tmp_path / 'a.png'}: skipped ({side} exists{said})" in r.stdout, (face, extra, r.stdout)

@@ -11,7 +11,7 @@ import time
 
 import uwhl_rs
 
-from .. import _core, batch, files
+from .. import _core, batch, files, tasks
 from ..errors import CommandError, UwhlError
 from ..ifdo import load_header
 from ..storage import is_url, parse_storage_options
@@ -91,6 +91,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
         raise _bad("--storage-option is for URL inputs or outputs (s3://, gs://, ...) and --dask")
     elif a.reuse_estimates is not None and a.jobs != 1:
         raise _bad("--reuse-estimates restores the inputs in order; it needs --jobs 1")
+    # the options a sidecar records, for the line of an input skipped because an earlier run restored it
+    console.options = {k: v for k, v in options.items() if k not in tasks.VIDEO_KEYS}
     if not is_url(a.out):
         # a file at the output's name would fail every input, and summary.csv, one by one (as uwhl-rs)
         why = _core.outdir_problem(a.out)
