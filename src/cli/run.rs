@@ -536,11 +536,22 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         };
         let json = match result {
             Ok((_, Outcome::Done(side))) => *side,
-            Ok((p, Outcome::Skipped(s, why))) => serde_json::json!({
-                "input": p.to_string_lossy(),
-                "skipped": why.reason(),
-                "sidecar": s.to_string_lossy(),
-            }),
+            Ok((p, Outcome::Skipped(s, why))) => {
+                let mut line = serde_json::json!({
+                    "input": p.to_string_lossy(),
+                    "skipped": why.reason(),
+                    "sidecar": s.to_string_lossy(),
+                });
+                if why == Skip::Done {
+                    // restored earlier with other options: which, by flag (as batch lines say)
+                    let now = crate::files::sidecar::parameters(&opts.settings);
+                    let changed = crate::files::sidecar::changed_options(&s, &now);
+                    if let (false, Some(o)) = (changed.is_empty(), line.as_object_mut()) {
+                        o.insert("other_options".into(), crate::files::sidecar::flags_of(&changed).into());
+                    }
+                }
+                line
+            }
             Err((p, e)) => {
                 report(err, opts.json_errors, p.as_deref(), &e);
                 e.to_json(p.as_deref().map(|p| p.to_string_lossy()).as_deref())

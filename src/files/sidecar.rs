@@ -266,16 +266,20 @@ pub fn changed_said(changed: &[String]) -> String {
     if changed.is_empty() {
         return String::new();
     }
-    let flags: Vec<&str> = changed
-        .iter()
+    format!("; restored with another {}: --overwrite redoes it", flags_of(changed).join(", "))
+}
+
+/// The command-line flags of the sidecar's parameter names `keys` (a name
+/// without a flag as it is).
+pub fn flags_of(keys: &[String]) -> Vec<String> {
+    keys.iter()
         .map(|k| {
             crate::files::options::OPTIONS
                 .iter()
                 .find(|s| s.key == k.as_str())
-                .map_or(k.as_str(), |s| s.flag)
+                .map_or_else(|| k.clone(), |s| s.flag.to_string())
         })
-        .collect();
-    format!("; restored with another {}: --overwrite redoes it", flags.join(", "))
+        .collect()
 }
 
 /// The sidecar's `source.icc_profile`: the profile's description and

@@ -314,3 +314,10 @@ def test_a_rerun_with_other_options_says_so_when_it_skips(binary, tmp_path):
             r = run(*extra)
             assert r.returncode == 0, (face, r.stderr)
             assert f"[1/1] {tmp_path / 'a.png'}: skipped ({side} exists{said})" in r.stdout, (face, extra, r.stdout)
+    # stream mode: the skipped line's other_options, only when some differ
+    out = tmp_path / "out_rust"
+    for extra, other in ((["--threads", "1"], None), (["--water-type", "3C"], ["--water-type"])):
+        r = subprocess.run([binary, "restore", "--stream", "-o", str(out), *extra], input=f"{tmp_path / 'a.png'}\n",
+                           capture_output=True, text=True, timeout=120)
+        line = json.loads(r.stdout)
+        assert line["skipped"] == "sidecar exists" and line.get("other_options") == other, line
