@@ -117,8 +117,7 @@ class Console:
             self.line(f"[{k}/{total}] {row['input']}: skipped ({why})")
         else:
             share = row.get("fallback_share")
-            # the colours are the input's balance throughout: the type named did not colour it (METHOD §12.5)
-            balance = ", colours from the input's balance" if isinstance(share, float) and share >= 0.995 else ""
+            balance = _core.balance_said(share if isinstance(share, float) else None)
             self.line(f"[{k}/{total}] {row['input']} -> {row['image']} "
                       f"(water type {row['water_type']}{balance}, {row['seconds'] or 0.0:.2f} s)")
             if row.get("error"):

@@ -30,7 +30,7 @@ import numpy as np
 
 import uwhl_rs
 
-from . import report_video
+from . import _core, report_video
 from .errors import UwhlError
 from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import FILE_NAME, REPORT_DIR, Photo, collect_sidecars, failed_inputs
@@ -317,7 +317,7 @@ function cell(p){
 function balanced(p){
   const s = p.balance;
   if (typeof s !== 'number' || !(s >= 0.05 && s <= 1)) return '';
-  return s >= 0.995 ? "the input's balance (the restoration gives the brightness)" : `${Math.round(100*s)}% the input's balance`;
+  return s >= D.balanced ? "the input's balance (the restoration gives the brightness)" : `${Math.round(100*s)}% the input's balance`;
 }
 // every type of the table plausible: the photo's content hides its water (METHOD §13.2 step 6)
 function plausible(p){return p.plausible.length >= D.types ? 'any (the content hides the water)' : p.plausible.map(esc).join(', ');}
@@ -503,7 +503,8 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     counts = {t: n for t, n in counts.items() if n}
     flagged = sum(1 for d in data if d["flags"])
     # photos whose colour is the input's balance throughout (METHOD §12.5), as the cells say
-    balanced = sum(1 for d in data if isinstance(d["balance"], (int, float)) and 0.995 <= d["balance"] <= 1)
+    balanced = sum(1 for d in data if isinstance(d["balance"], (int, float))
+                   and _core.BALANCED_SHARE <= d["balance"] <= 1)
     flagged_videos = [p for p in videos if report_video.needs_a_look(p)]
     failed, n_failed = failed_inputs(folder)
     more = n_failed - len(failed)
@@ -532,7 +533,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
 <section id="all"><h2>All photos (input | restored; click for full size and the t map)</h2><div id="all-grid"></div></section>
 {''.join(f'<p class="meta">{html.escape(x)}</p>' for x in problems[:50])}
 <div id="view" onclick="if(event.target===this)hide()"></div>
-<script id="data" type="application/json">{script_json({"page": int(page_size), "types": len(uwhl_rs.WATER_TYPES), "photos": data})}</script>
+<script id="data" type="application/json">{script_json({"page": int(page_size), "types": len(uwhl_rs.WATER_TYPES), "balanced": _core.BALANCED_SHARE, "photos": data})}</script>
 <script>{_JS}</script></body></html>
 """
     # lone surrogates (undecodable names) cannot be UTF-8: shown as U+FFFD

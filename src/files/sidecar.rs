@@ -237,6 +237,16 @@ pub fn parameters(o: &Settings) -> Value {
     Value::Object(p)
 }
 
+/// What an input's progress line says after its water type when its
+/// colours are the input's balance throughout (METHOD §12.5: the type named
+/// did not colour it), in both commands.
+pub fn balance_said(fallback_share: Option<f64>) -> &'static str {
+    match fallback_share {
+        Some(s) if s >= crate::method::fallback::BALANCED => ", colours from the input's balance",
+        _ => "",
+    }
+}
+
 /// The options of `current` (what [`parameters`] gives for this run) that
 /// differ from those the sidecar at `path` recorded, by name and sorted:
 /// what a skipped input (its sidecar exists) says it was restored with.

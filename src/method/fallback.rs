@@ -28,6 +28,9 @@ pub const EXCESS_LO: f64 = 0.02;
 pub const EXCESS_HI: f64 = 0.2;
 /// Veil excess above which the photo is flagged `unreliable`.
 pub const EXCESS_FLAG: f64 = 0.3;
+/// A `fallback_share` from which a photo's colours are the input's balance
+/// throughout (the progress line and the report say so).
+pub const BALANCED: f64 = 0.995;
 /// Noise angle (radians) at which a pixel's local confidence is 1/2.
 pub const THETA0: f64 = 0.15;
 /// Largest share of a pixel's colour that low local confidence alone moves

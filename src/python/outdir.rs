@@ -144,6 +144,13 @@ fn skipped_with_other_options(sidecar: std::path::PathBuf, current: &str) -> Str
     crate::files::sidecar::changed_said(&crate::files::sidecar::changed_options(&sidecar, &now))
 }
 
+/// What an input's progress line says after its water type when its
+/// colours are the input's balance throughout (`crate::files::sidecar::balance_said`).
+#[pyfunction]
+fn balance_said(fallback_share: Option<f64>) -> &'static str {
+    crate::files::sidecar::balance_said(fallback_share)
+}
+
 /// The columns of summary.csv, in order.
 #[pyfunction]
 fn summary_columns() -> Vec<String> {
@@ -156,6 +163,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(summary_cell, m)?)?;
     m.add_function(wrap_pyfunction!(csv_text, m)?)?;
     m.add_function(wrap_pyfunction!(skipped_with_other_options, m)?)?;
+    m.add_function(wrap_pyfunction!(balance_said, m)?)?;
+    m.add("BALANCED_SHARE", crate::method::fallback::BALANCED)?;
     m.add_function(wrap_pyfunction!(summary_columns, m)?)?;
     Ok(())
 }
