@@ -103,15 +103,6 @@ pub fn init_threads(threads: Option<usize>) {
     }
 }
 
-/// What a progress line says of a photo whose colours are the input's
-/// balance throughout (METHOD §12.5: the type named did not colour it).
-fn balance_said(fallback_share: Option<f64>) -> &'static str {
-    match fallback_share {
-        Some(s) if s >= 0.995 => ", colours from the input's balance",
-        _ => "",
-    }
-}
-
 /// The output folder checked before any input is read (a file at its
 /// name would fail every input, and summary.csv, one by one).
 pub(crate) fn outdir_usable(opts: &Options, err: &mut dyn Write) -> Result<(), u8> {
@@ -134,11 +125,28 @@ fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
 
 /// The sidecars `--water-from` could not use, said once before any input.
 fn dive_notes(opts: &Options, err: &mut dyn Write) {
-    if let (Some(d), false) = (&opts.settings.water_from, opts.quiet) {
-        for n in d.notes() {
+    if let Some(d) = &opts.settings.water_from {
+        say_notes(&d.notes(), opts, err);
+    }
+}
+
+/// Remarks that are not errors, one `uwhl-rs: note:` line each on stderr
+/// (none with `-q`).
+fn say_notes(notes: &[String], opts: &Options, err: &mut dyn Write) {
+    if !opts.quiet {
+        for n in notes {
             let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {n}")));
         }
     }
+}
+
+/// The options an input skipped as done was restored with otherwise
+/// (`crate::files::sidecar::changed_options` of its sidecar `side`); this
+/// run's own, as a sidecar records them, are made at the first skip and
+/// kept in `recorded`.
+fn changed_since(side: &Path, opts: &Options, recorded: &mut Option<Value>) -> Vec<String> {
+    let now = recorded.get_or_insert_with(|| crate::files::sidecar::parameters(&opts.settings));
+    crate::files::sidecar::changed_options(side, now)
 }
 
 /// The reading side's view of the writing side in [`overlapped`]: how many
@@ -266,11 +274,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     };
     dive_notes(opts, err);
     let (jobs, errors, notes) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
-    if !opts.quiet {
-        for n in &notes {
-            let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {n}")));
-        }
-    }
+    say_notes(&notes, opts, err);
     let errors: Vec<(PathBuf, Failure)> = errors.into_iter().map(|(p, m)| (p, Failure::new(Kind::Input, m))).collect();
     let mut code = 0u8;
     // OUTDIR/summary.csv, a row per input as it is settled
@@ -303,6 +307,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     let total = jobs.len();
     // done, skipped, failed (the inputs that matched nothing count as failed)
     let mut counts = [0usize, 0, errors.len()];
+    let mut recorded = None;
     let write = |(i, r): (usize, Result<Prepared, Failure>)| {
         let Some(job) = jobs.get(i) else {
             return;
@@ -325,7 +330,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                         job.input.display(),
                         img.display(),
                         side.get("water_type").and_then(Value::as_str).unwrap_or("?"),
-                        balance_said(side.get("fallback_share").and_then(Value::as_f64))
+                        crate::files::sidecar::balance_said(side.get("fallback_share").and_then(Value::as_f64))
                     );
                     let _ = writeln!(out, "{}", printable(&line));
                 }
@@ -340,10 +345,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                 summary.skipped(&job.input, &s, &note);
                 if !opts.quiet {
                     let why = if why == Skip::Done {
-                        let changed = crate::files::sidecar::changed_options(
-                            &s,
-                            &crate::files::sidecar::parameters(&opts.settings),
-                        );
+                        let changed = changed_since(&s, opts, &mut recorded);
                         format!("{} exists{}", s.display(), crate::files::sidecar::changed_said(&changed))
                     } else {
                         why.reason()
@@ -460,6 +462,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
     // reported, so the loop stops instead of restoring frames nobody hears of
     let gone = std::sync::atomic::AtomicBool::new(false);
     let mut lost: Option<String> = None;
+    let mut recorded = None;
     let read = |h: &mut Handoff<StreamItem>| {
         let mut line = Vec::new();
         let mut number: u64 = 0;
@@ -544,8 +547,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
                 });
                 if why == Skip::Done {
                     // restored earlier with other options: which, by flag (as batch lines say)
-                    let now = crate::files::sidecar::parameters(&opts.settings);
-                    let changed = crate::files::sidecar::changed_options(&s, &now);
+                    let changed = changed_since(&s, opts, &mut recorded);
                     if let (false, Some(o)) = (changed.is_empty(), line.as_object_mut()) {
                         o.insert("other_options".into(), crate::files::sidecar::flags_of(&changed).into());
                     }

@@ -89,13 +89,10 @@ pub fn remove_stale_temps(dir: &Path) -> usize {
 /// A missing folder is fine (it is made when the first output is claimed).
 pub fn outdir_problem(dir: &Path) -> Option<String> {
     match fs::metadata(dir) {
-        Ok(m) if !m.is_dir() => Some(OUTDIR_NOT_A_FOLDER.to_string()),
+        Ok(m) if !m.is_dir() => Some("not a folder (a file is there): the outputs need a folder".into()),
         _ => None,
     }
 }
-
-/// What both commands say of an output folder that is a file.
-pub const OUTDIR_NOT_A_FOLDER: &str = "not a folder (a file is there): the outputs need a folder";
 
 /// One input and where its outputs go.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -110,7 +107,8 @@ pub struct Job {
 
 /// Whether `dir` is an output folder of `uwhl restore` or `uwhl-rs restore`:
 /// it holds a regular `summary.csv` whose first line begins with the
-/// summary's first columns. Only its first 4 KiB are read.
+/// summary's first six columns (those every version wrote). Only its first
+/// 4 KiB are read.
 pub fn is_output_folder(dir: &Path) -> bool {
     use std::io::Read;
     let p = dir.join(crate::files::summary::FILE_NAME);
@@ -122,7 +120,9 @@ pub fn is_output_folder(dir: &Path) -> bool {
     if f.take(4096).read_to_end(&mut head).is_err() {
         return false;
     }
-    head.starts_with(b"input,status,water_type,A_R,A_G,A_B,")
+    let columns = crate::files::summary::columns();
+    let first = format!("{},", columns.get(..6).unwrap_or_default().join(","));
+    head.starts_with(first.as_bytes())
 }
 
 fn walk(
