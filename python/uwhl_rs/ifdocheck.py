@@ -136,13 +136,13 @@ def field_problems(fields: dict) -> list[str]:
     """What is wrong with the iFDO fields ``fields`` (a header or one
     item), one line per field, each starting with the field's name."""
     out = []
+    fmt = fields.get("image-datetime-format")
     for k, v in fields.items():
         if k in _TEXT and not isinstance(v, str):
             out.append(f"{k} must be text, not {v!r:.60}")
-        if k == "image-datetime-format" and time_format_problem(v):
-            out.append(f"{k} {time_format_problem(v)}: {v!r:.60}")
-        if k == "image-datetime" and isinstance(v, str) and not _is_time(v, fields.get("image-datetime-format")):
-            fmt = fields.get("image-datetime-format")
+        if k == "image-datetime-format" and (why := time_format_problem(v)):
+            out.append(f"{k} {why}: {v!r:.60}")
+        if k == "image-datetime" and isinstance(v, str) and not _is_time(v, fmt):
             out.append(f"{k} must be a time in the form {fmt if isinstance(fmt, str) else DEFAULT_TIME_FORMAT!r}"
                        f" (image-datetime-format), not {v!r:.60}")
         if k in ("image-set-header", "image-set-items"):
