@@ -26,7 +26,7 @@ __all__ = [
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
     "options_help", "check_combination", "check_distance", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
-    "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "balance_said", "BALANCED_SHARE",
+    "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
     "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "FIT_BETA_GRID", "MAP_PER_PHOTO_PIXEL", "map_cap", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
@@ -224,8 +224,13 @@ def csv_text(cell: str) -> str:
     """A text cell as summary.csv writes it: a spreadsheet formula gets a quote in front."""
 def skipped_with_other_options(sidecar: _PathArg, current: str) -> str:
     """'; restored with another --flag, ...: --overwrite redoes it' when the sidecar's options differ from `current` (FileSettings.parameters), else ''."""
-def balance_said(fallback_share: Optional[float]) -> str:
-    """', colours from the input's balance' when the share is at least BALANCED_SHARE, else ''."""
+def progress_said(fallback_share: Optional[float], flags: list[str]) -> str:
+    """What an input's progress line says after its water type: a distance
+    asked for and not used, colours that are the input's balance throughout."""
+
+def water_with_distance_note(water: Optional[str] = None, distance: Optional[str] = None) -> Optional[str]:
+    """The note printed once before the inputs when a water (its flag) is
+    given with a source of distance (its flag); None otherwise."""
 def summary_columns() -> list[str]:
     """The columns of summary.csv, in order."""
 

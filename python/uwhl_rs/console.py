@@ -117,9 +117,10 @@ class Console:
             self.line(f"[{k}/{total}] {row['input']}: skipped ({why})")
         else:
             share = row.get("fallback_share")
-            balance = _core.balance_said(share if isinstance(share, float) else None)
+            flags = [f for f in (row.get("flags") or "").split(",") if f]
+            said = _core.progress_said(share if isinstance(share, float) else None, flags)
             self.line(f"[{k}/{total}] {row['input']} -> {row['image']} "
-                      f"(water type {row['water_type']}{balance}, {row['seconds'] or 0.0:.2f} s)")
+                      f"(water type {row['water_type']}{said}, {row['seconds'] or 0.0:.2f} s)")
             if row.get("error"):
                 # done, but not all of it (a video that stops part way)
                 self.error(row["error_kind"], row["error"], row["input"])

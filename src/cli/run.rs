@@ -128,6 +128,25 @@ fn dive_notes(opts: &Options, err: &mut dyn Write) {
     if let Some(d) = &opts.settings.water_from {
         say_notes(&d.notes(), opts, err);
     }
+    let s = &opts.settings;
+    let water = if s.water_from.is_some() {
+        Some("--water-from")
+    } else {
+        s.water_types.as_ref().map(|_| "--water-type")
+    };
+    let distance = if s.distance.is_some() {
+        Some("--distance")
+    } else {
+        s.altitude.as_ref().map(|_| "--altitude")
+    };
+    if let Some(n) = crate::files::sidecar::water_with_distance_note(water, distance) {
+        say_notes(&[n], opts, err);
+    }
+}
+
+/// A sidecar's flags, as names.
+fn flags_of(side: &Value) -> Vec<&str> {
+    side.get("flags").and_then(Value::as_array).map(|a| a.iter().filter_map(Value::as_str).collect()).unwrap_or_default()
 }
 
 /// Remarks that are not errors, one `uwhl-rs: note:` line each on stderr
@@ -330,7 +349,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                         job.input.display(),
                         img.display(),
                         side.get("water_type").and_then(Value::as_str).unwrap_or("?"),
-                        crate::files::sidecar::balance_said(side.get("fallback_share").and_then(Value::as_f64))
+                        crate::files::sidecar::progress_said(side.get("fallback_share").and_then(Value::as_f64), &flags_of(&side))
                     );
                     let _ = writeln!(out, "{}", printable(&line));
                 }
@@ -463,6 +482,9 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
     let gone = std::sync::atomic::AtomicBool::new(false);
     let mut lost: Option<String> = None;
     let mut recorded = None;
+    // as in a batch, a file under the output folder (an earlier frame's
+    // output, fed back by a watch on the folder) is not an input
+    let out_real = std::fs::canonicalize(&opts.outdir).unwrap_or_else(|_| opts.outdir.clone());
     let read = |h: &mut Handoff<StreamItem>| {
         let mut line = Vec::new();
         let mut number: u64 = 0;
@@ -512,7 +534,11 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
                         input: path.clone(),
                         dir: opts.outdir.clone(),
                     };
-                    let r = prepare(&job, opts, &masks, seq.as_mut(), Some(&mut |need| h.gate.make_room(need, opts.params.max_memory)));
+                    let r = if std::fs::canonicalize(&path).is_ok_and(|real| real.starts_with(&out_real)) {
+                        Err(Failure::new(Kind::Input, crate::files::jobs::inside_outdir(&opts.outdir)))
+                    } else {
+                        prepare(&job, opts, &masks, seq.as_mut(), Some(&mut |need| h.gate.make_room(need, opts.params.max_memory)))
+                    };
                     StreamItem::Frame(job, r)
                 }
             };

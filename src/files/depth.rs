@@ -149,8 +149,8 @@ pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: Op
                 ));
             }
         }
-        // the decoded samples and the metres
-        let need = n.saturating_mul(bytes_per.saturating_add(4));
+        // the decoded samples and the metres, beside what the process holds anyway
+        let need = n.saturating_mul(bytes_per.saturating_add(4)).saturating_add(crate::kernels::memory::process_base());
         if need > max_memory {
             return Err(Failure::new(Kind::Budget, format!("the distance map of {w}x{h} pixels needs about {need} bytes, over --max-memory {max_memory}")));
         }

@@ -210,7 +210,7 @@ pub fn collect_jobs(
     found.retain(|(p, _)| {
         let real = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
         if real.starts_with(&out_real) {
-            errors.push((p.clone(), format!("is inside the output folder {}: not taken as an input", outdir.display())));
+            errors.push((p.clone(), inside_outdir(outdir)));
             return false;
         }
         seen.insert(real)
@@ -226,6 +226,12 @@ pub fn collect_jobs(
         })
         .collect();
     (jobs, errors, notes)
+}
+
+/// Why a file under the output folder is not taken as an input (a batch's
+/// walk and stream mode say the same).
+pub fn inside_outdir(outdir: &Path) -> String {
+    format!("is inside the output folder {}: not taken as an input", outdir.display())
 }
 
 /// The output names of a batch's inputs, given in discovery order as

@@ -112,20 +112,32 @@ pub(crate) fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor:
 /// header. With a [`Room`] hook (the reading side of the binary's
 /// overlapped loop), an input that does not fit beside the previous one's
 /// outputs, still being written, first waits until they are.
-fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, room: Room<'_>) -> Result<(), Failure> {
+fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, room: Room<'_>, given: &Given<'_>) -> Result<(), Failure> {
+    let factor = opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n));
     let plan = Plan {
         height: h.height,
         width: h.width,
         decoded_bpp: h.bpp,
         decoded_is_rgb: h.is_rgb,
         oriented: h.oriented,
-        factor: opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n)),
+        factor,
         reference: opts.preprocess == Preprocess::Reference,
         masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
         write_extra: 0,
     };
-    // the budget bounds the process's peak: what it holds anyway counts
-    let need = plan.bytes().saturating_add(crate::kernels::memory::process_base());
+    // the budget bounds the process's peak: what it holds anyway counts,
+    // and so does the distance (METHOD §13): the map as read (twice for
+    // depth along the axis, turned into ranges on a copy) and the map at
+    // the processed size that the restoration reads
+    let map = |d: &crate::files::depth::DistanceMap| (d.data.len() as u64).saturating_mul(4);
+    let at_size = ((h.height / factor.max(1)) as u64).saturating_mul((h.width / factor.max(1)) as u64).saturating_mul(4);
+    let distance = match given {
+        Given::None => 0,
+        Given::Map(d) => map(d).saturating_add(at_size),
+        Given::Axis(d, ..) => map(d).saturating_mul(2).saturating_add(at_size),
+        Given::Floor(..) => at_size,
+    };
+    let need = plan.bytes().saturating_add(distance).saturating_add(crate::kernels::memory::process_base());
     if let Some(make_room) = room {
         make_room(need);
     }
@@ -138,7 +150,7 @@ fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, 
             ),
         ));
     }
-    if !crate::kernels::memory::can_allocate(plan.bytes()) {
+    if !crate::kernels::memory::can_allocate(plan.bytes().saturating_add(distance)) {
         return Err(Failure::new(
             Kind::Budget,
             format!(
@@ -228,7 +240,7 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         max_memory: opts.params.max_memory,
     };
     let mut decoded = decode(reader, &limits, !opts.linear && !reference, |h| {
-        check_plan(h, opts, masks, room)
+        check_plan(h, opts, masks, room, &given)
     })?;
     let (h, w) = (decoded.height, decoded.width);
     // float samples are linear: no reference stretch, sRGB curve on output

@@ -247,6 +247,33 @@ pub fn balance_said(fallback_share: Option<f64>) -> &'static str {
     }
 }
 
+/// What an input's progress line says after its water type, in both
+/// commands: that a distance was asked for and not used (no map found for
+/// it, or a map the fit refused: the sidecar's `distance.rejected` says
+/// why), and [`balance_said`]. `flags` are the sidecar's.
+pub fn progress_said(fallback_share: Option<f64>, flags: &[&str]) -> String {
+    let distance = if flags.contains(&"distance_missing") {
+        ", no distance (see distance.rejected)"
+    } else if flags.contains(&"distance_rejected") {
+        ", distance not used (see distance.rejected)"
+    } else {
+        ""
+    };
+    format!("{distance}{}", balance_said(fallback_share))
+}
+
+/// The note both commands print once before the inputs when a water type
+/// (`--water-type`) or a dive's water (`--water-from`) is given with a
+/// source of distance: a photo whose distance is used is restored with the
+/// water fitted to it (METHOD §13), the given water only where it is not.
+pub fn water_with_distance_note(water_given: Option<&str>, distance_given: Option<&str>) -> Option<String> {
+    let (water, distance) = (water_given?, distance_given?);
+    Some(format!(
+        "{water} is used for the photos whose {distance} gives no usable distance; a photo with one is restored with \
+         the water fitted to it (its sidecar's distance.water)"
+    ))
+}
+
 /// The options of `current` (what [`parameters`] gives for this run) that
 /// differ from those the sidecar at `path` recorded, by name and sorted:
 /// what a skipped input (its sidecar exists) says it was restored with.

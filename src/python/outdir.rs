@@ -144,11 +144,23 @@ fn skipped_with_other_options(sidecar: std::path::PathBuf, current: &str) -> Str
     crate::files::sidecar::changed_said(&crate::files::sidecar::changed_options(&sidecar, &now))
 }
 
-/// What an input's progress line says after its water type when its
-/// colours are the input's balance throughout (`crate::files::sidecar::balance_said`).
+/// What an input's progress line says after its water type: a distance
+/// asked for and not used, and colours that are the input's balance
+/// throughout (`crate::files::sidecar::progress_said`). `flags` are the
+/// sidecar's.
 #[pyfunction]
-fn balance_said(fallback_share: Option<f64>) -> &'static str {
-    crate::files::sidecar::balance_said(fallback_share)
+fn progress_said(fallback_share: Option<f64>, flags: Vec<String>) -> String {
+    let flags: Vec<&str> = flags.iter().map(String::as_str).collect();
+    crate::files::sidecar::progress_said(fallback_share, &flags)
+}
+
+/// The note printed once before the inputs when a water (its flag) is
+/// given with a source of distance (its flag)
+/// (`crate::files::sidecar::water_with_distance_note`).
+#[pyfunction]
+#[pyo3(signature = (water=None, distance=None))]
+fn water_with_distance_note(water: Option<&str>, distance: Option<&str>) -> Option<String> {
+    crate::files::sidecar::water_with_distance_note(water, distance)
 }
 
 /// The columns of summary.csv, in order.
@@ -163,7 +175,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(summary_cell, m)?)?;
     m.add_function(wrap_pyfunction!(csv_text, m)?)?;
     m.add_function(wrap_pyfunction!(skipped_with_other_options, m)?)?;
-    m.add_function(wrap_pyfunction!(balance_said, m)?)?;
+    m.add_function(wrap_pyfunction!(progress_said, m)?)?;
+    m.add_function(wrap_pyfunction!(water_with_distance_note, m)?)?;
     m.add("BALANCED_SHARE", crate::method::fallback::BALANCED)?;
     m.add_function(wrap_pyfunction!(summary_columns, m)?)?;
     Ok(())

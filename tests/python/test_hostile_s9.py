@@ -1,0 +1,109 @@
+"""Hostile inputs from the passes of 2026-12-05 (second session): stream
+mode fed its own outputs, the raw-frame pipe's options, videos on a full
+disk, and what each command names when an option is wrong."""
+
+import json
+import subprocess
+
+import numpy as np
+
+
+def _png(path, h=40, w=56, seed=0):
+    from PIL import Image
+
+    rng = np.random.default_rng(seed)
+    base = np.array([40, 110, 150], np.float64)
+    img = base * (0.5 + rng.random((h, w, 1))) + rng.normal(0, 8, (h, w, 3))
+    Image.fromarray(np.clip(img, 0, 255).astype(np.uint8)).save(path)
+
+
+def test_stream_mode_does_not_take_its_own_outputs_as_inputs(binary, tmp_path):
+    """A watch on the output folder piped into ``--stream -o out`` fed the
+    frames' own outputs back in (``a.png`` restored again as ``a_2``, its
+    transmission map as a photo). A file under the output folder is refused
+    as a batch refuses it: an error line naming it, the others restored."""
+    _png(tmp_path / "a.png")
+    out = tmp_path / "out"
+    first = subprocess.run([binary, "restore", "--stream", "-o", str(out)], input=f"{tmp_path / 'a.png'}\n",
+                           capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0 and (out / "a_t.png").is_file(), first.stderr
+    before = sorted(p.name for p in out.iterdir())
+    # the outputs by a relative name, by an absolute one, and through a link into the folder
+    (tmp_path / "link").symlink_to(out)
+    shown = next(p.name for p in out.iterdir() if p.stem == "a")
+    lines = f"{out / 'a_t.png'}\n{tmp_path / 'link' / shown}\n{tmp_path / 'a.png'}\n"
+    r = subprocess.run([binary, "restore", "--stream", "--overwrite", "-o", str(out)], input=lines,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    got = [json.loads(x) for x in r.stdout.splitlines()]
+    assert len(got) == 3, got
+    for g in got[:2]:
+        assert g.get("error") == "unreadable_input" and "inside the output folder" in g["message"], g
+    assert "water_type" in got[2], got[2]
+    assert sorted(p.name for p in out.iterdir()) == before
+
+
+def test_a_distance_map_counts_in_the_memory_budget(binary, tmp_path):
+    """The map was checked against the whole of --max-memory and the photo's
+    plan left it out: with a small photo and a large float64 map, both
+    commands went 4-25 MiB over the limit. Now the map's read counts what
+    the process holds, and the photo's plan counts the map: at the tightest
+    budget that reads the map (the need its refusal names, plus the margin
+    of docs/CLI.md), the peak resident memory measured by the kernel stays
+    under it."""
+    import re
+
+    from test_parity import _cmd, _peak_rss
+
+    _png(tmp_path / "p.png", 48, 64)
+    ramp = np.tile(np.linspace(1.0, 5.0, 1600)[None, :], (1200, 1))  # float64: 12 bytes a pixel to read
+    np.save(tmp_path / "p.npy", ramp)
+    margin = {"rust": 1 << 20, "python": 4 << 20}
+    for face in ("rust", "python"):
+        out = tmp_path / face
+        args = [str(tmp_path / "p.png"), "-o", str(out), "--format", "png", "--overwrite"]
+        code, _, err = _peak_rss(_cmd(face, binary, [*args, "--max-memory", "1M"]))
+        photo = int(re.search(r"need about (\d+) bytes", err).group(1)) + margin[face]
+        # enough for the photo, not for the map: the map is refused by name, the photo restored without it
+        code, _, err = _peak_rss(_cmd(face, binary, [*args, "--distance", str(tmp_path / "p.npy"), "--max-memory", str(photo)]))
+        assert code == 0, (face, err)
+        why = json.loads((out / "p.json").read_text())["distance"]["rejected"]
+        need = int(re.search(r"needs about (\d+) bytes, over --max-memory", why).group(1))
+        budget = need + margin[face]
+        code, peak, err = _peak_rss(_cmd(face, binary, [*args, "--distance", str(tmp_path / "p.npy"), "--max-memory", str(budget)]))
+        assert code == 0, (face, err)
+        side = json.loads((out / "p.json").read_text())
+        assert "max-memory" not in (side["distance"]["rejected"] or ""), (face, side["distance"])
+        assert peak <= budget, (face, peak, budget)
+
+
+def test_the_progress_line_says_when_a_distance_asked_for_is_not_used(binary, tmp_path):
+    """A mistyped --distance template left every photo of a batch restored
+    without a distance, with progress lines like a normal run's: the reason
+    was only in the sidecar. Both commands now say it on the line; and a
+    water given with a distance gets a note once (it is for the photos whose
+    distance is not used)."""
+    from test_parity import _cmd
+
+    _png(tmp_path / "p.png", 48, 64)
+    np.save(tmp_path / "p.npy", np.tile(np.linspace(1.0, 5.0, 64)[None, :], (48, 1)).astype(np.float32))
+    for face in ("rust", "python"):
+        out = tmp_path / face
+        base = [str(tmp_path / "p.png"), "-o", str(out), "--overwrite"]
+        r = subprocess.run(_cmd(face, binary, [*base, "--distance", str(tmp_path / "nope" / "{stem}.npy")]),
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, (face, r.stderr)
+        line = [x for x in r.stdout.splitlines() if x.startswith("[1/1]")][0]
+        assert ", no distance (see distance.rejected)" in line, (face, line)
+        # a map that is read but not used (a ramp across a random photo: the fit refuses it)
+        r = subprocess.run(_cmd(face, binary, [*base, "--distance", str(tmp_path / "{stem}.npy"), "--water-type", "3C"]),
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, (face, r.stderr)
+        side = json.loads((out / "p.json").read_text())
+        line = [x for x in r.stdout.splitlines() if x.startswith("[1/1]")][0]
+        assert ("distance_rejected" in side["flags"]) == (", distance not used" in line), (face, line, side["flags"])
+        notes = [x for x in r.stderr.splitlines() if "note:" in x]
+        assert len(notes) == 1 and "--water-type is used for the photos whose --distance gives no usable distance" in notes[0], (face, r.stderr)
+        # without a distance, no such words
+        r = subprocess.run(_cmd(face, binary, base), capture_output=True, text=True, timeout=120)
+        assert "distance" not in r.stdout + r.stderr, (face, r.stdout, r.stderr)
