@@ -185,6 +185,28 @@ impl Options {
     }
 }
 
+/// What an unknown short option `c` says: the whole word it came from
+/// (`-dash.mp4`, not `-d`), and for a word that looks like a file name how
+/// to give it as one.
+fn unknown_short(args: &[OsString], c: char) -> String {
+    let word = args
+        .iter()
+        .map(|a| a.to_string_lossy())
+        .take_while(|a| a != "--")
+        .find(|a| a.starts_with('-') && !a.starts_with("--") && a.chars().nth(1) == Some(c));
+    match word {
+        Some(w) if w.chars().count() > 2 => {
+            let hint = if w.contains('.') || std::path::Path::new(w.as_ref()).exists() {
+                format!(" (a file whose name starts with '-': write ./{w}, or put it after --)")
+            } else {
+                String::new()
+            };
+            format!("invalid option '{w}'{hint}")
+        }
+        _ => format!("invalid option '-{c}'"),
+    }
+}
+
 /// Parses the command line (without the program name): `restore` and its
 /// options, or the same options without the subcommand.
 pub fn parse<I>(args: I) -> Result<Command, Failure>
@@ -195,7 +217,8 @@ where
     use lexopt::prelude::*;
     let mut o = Options::default();
     let mut outdir: Option<PathBuf> = None;
-    let mut p = lexopt::Parser::from_args(args);
+    let args: Vec<OsString> = args.into_iter().map(Into::into).collect();
+    let mut p = lexopt::Parser::from_args(args.clone());
     let lex = |e: lexopt::Error| Failure::usage(e.to_string());
     let mut first = true;
     while let Some(arg) = p.next().map_err(lex)? {
@@ -231,7 +254,10 @@ where
                     s.flag
                 )))
             }
-            None => return Err(Failure::usage(arg.unexpected().to_string())),
+            None => return Err(Failure::usage(match &arg {
+                Short(c) => unknown_short(&args, *c),
+                _ => arg.unexpected().to_string(),
+            })),
         };
         let value = if spec.kind == OptKind::Flag {
             Val::On
@@ -259,6 +285,13 @@ where
         }
         if o.distance.is_some() || o.altitude.is_some() || o.water_from.is_some() {
             return Err(Failure::usage("--raw-frames restores a sequence: --distance, --altitude and --water-from are for photos"));
+        }
+        // the samples' curve is --transfer's: these photo options would be silently ignored
+        if o.linear {
+            return Err(Failure::usage("--linear is for photos: the curve of --raw-frames samples is --transfer (--transfer linear)"));
+        }
+        if o.preprocess == crate::files::settings::Preprocess::Reference {
+            return Err(Failure::usage("--preprocess is for photos: the curve of --raw-frames samples is --transfer"));
         }
     } else if o.outdir.as_os_str() == "-" {
         return Err(Failure::usage("-o - (stdout) is for --raw-frames; give an output folder"));

@@ -116,14 +116,16 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     };
     let need = frame_plan(w, h, bytes_per_sample as u64, masks.mask.is_some() || masks.water.is_some(), !to_stdout)
         .saturating_add(crate::kernels::memory::process_base());
-    if need > opts.params.max_memory || !crate::kernels::memory::can_allocate(need) {
-        let e = Failure::new(
-            Kind::Budget,
-            format!(
-                "frames of {w}x{h} need about {need} bytes, over --max-memory {} or more than the system gives now",
-                opts.params.max_memory
-            ),
-        );
+    // which limit it is: the one the user set, or the machine's
+    let over = if need > opts.params.max_memory {
+        Some(format!("over --max-memory {}", opts.params.max_memory))
+    } else if !crate::kernels::memory::can_allocate(need) {
+        Some("more than the system gives now (free memory, a container limit or ulimit -v)".to_string())
+    } else {
+        None
+    };
+    if let Some(over) = over {
+        let e = Failure::new(Kind::Budget, format!("frames of {w}x{h} need about {need} bytes, {over}"));
         report(err, opts.json_errors, None, &e);
         return e.kind.exit_code();
     }

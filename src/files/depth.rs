@@ -159,7 +159,8 @@ pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: Op
     let (values, h, w) = match &magic[..got] {
         [0x93, b'N', b'U', b'M', b'P', b'Y', ..] => read_npy(&mut r, check)?,
         [0x89, b'P', b'N', b'G', ..] => read_png(r, check)?,
-        [b'I', b'I', 42, 0, ..] | [b'M', b'M', 0, 42, ..] => read_tiff(r, check, max_memory)?,
+        // classic TIFF (42) and BigTIFF (43), either byte order
+        [b'I', b'I', 42 | 43, 0, ..] | [b'M', b'M', 0, 42 | 43, ..] => read_tiff(r, check, max_memory)?,
         [0x76, 0x2f, 0x31, 0x01, ..] => read_exr(r, check)?,
         [b'0'..=b'9', ..] if magic[..got].contains(&b'&') => read_colmap(r, check)?,
         _ => {
@@ -184,6 +185,17 @@ pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: Op
         })
         .collect();
     Ok(DistanceMap { data, height: h, width: w, out_of_range })
+}
+
+/// A float64 distance as float32: a finite value beyond float32's range
+/// stays finite (the largest float32), so that it is counted out of range
+/// like any other absurd distance instead of becoming inf (unknown).
+fn narrow(x: f64) -> f32 {
+    if x.is_finite() {
+        x.clamp(-f64::from(f32::MAX), f64::from(f32::MAX)) as f32
+    } else {
+        x as f32
+    }
 }
 
 fn io(e: std::io::Error) -> Failure {
@@ -248,6 +260,13 @@ fn read_npy<R: Read>(r: &mut R, check: impl Fn(u64, u64, u64) -> Result<(), Fail
         let end = rest.find([',', '}']).unwrap_or(rest.len());
         rest.get(..end).map(|s| s.trim().to_string())
     };
+    // NumPy's reader takes the last of a repeated key, a first-match reader
+    // the first: a header that says two things is not read either way
+    for key in ["descr", "fortran_order", "shape"] {
+        if text.matches(&format!("'{key}'")).count() > 1 {
+            return Err(bad(&format!("with '{key}' twice in its header")));
+        }
+    }
     let descr = field("descr").ok_or_else(|| bad("without a 'descr' in its header"))?;
     if field("fortran_order").as_deref() != Some("False") {
         return Err(bad("in Fortran order: not read (save it with numpy.ascontiguousarray)"));
@@ -292,7 +311,7 @@ fn read_npy<R: Read>(r: &mut R, check: impl Fn(u64, u64, u64) -> Result<(), Fail
             .chunks_exact(8)
             .map(|c| {
                 let b = [c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]];
-                (if big { f64::from_be_bytes(b) } else { f64::from_le_bytes(b) }) as f32
+                narrow(if big { f64::from_be_bytes(b) } else { f64::from_le_bytes(b) })
             })
             .collect(),
         _ => raw
@@ -314,10 +333,20 @@ fn read_png<R: std::io::BufRead + Seek>(r: R, check: impl Fn(u64, u64, u64) -> R
     let mut reader = dec.read_info().map_err(|e| bad(format!("cannot be read: {e}")))?;
     let info = reader.info();
     let (w, h) = (u64::from(info.width), u64::from(info.height));
-    if info.bit_depth != png::BitDepth::Sixteen || info.color_type != png::ColorType::Grayscale {
+    if info.color_type != png::ColorType::Grayscale {
+        let kind = match info.color_type {
+            png::ColorType::Rgb => "RGB",
+            png::ColorType::Rgba => "RGBA",
+            png::ColorType::GrayscaleAlpha => "grayscale with alpha",
+            png::ColorType::Indexed => "a palette image",
+            png::ColorType::Grayscale => "grayscale",
+        };
+        return Err(bad(format!("is {kind}: a distance map is one channel, 16-bit grayscale in millimetres")));
+    }
+    if info.bit_depth != png::BitDepth::Sixteen {
         return Err(bad(format!(
-            "is {:?} at {} bits: write 16-bit grayscale in millimetres (8 bits cannot hold a distance)",
-            info.color_type, info.bit_depth as u8
+            "is {}-bit grayscale: write 16-bit grayscale in millimetres ({} bits cannot hold a distance)",
+            info.bit_depth as u8, info.bit_depth as u8
         )));
     }
     check(h, w, 2)?;
@@ -339,15 +368,23 @@ fn read_tiff<R: Read + Seek>(r: R, check: impl Fn(u64, u64, u64) -> Result<(), F
     let ct = d.colortype().map_err(|e| bad(format!("cannot be read: {e}")))?;
     let bits = match ct {
         tiff::ColorType::Gray(b) => b,
-        other => return Err(bad(format!("is {other:?}: a distance map has one channel"))),
+        tiff::ColorType::Multiband { num_samples, .. } => {
+            return Err(bad(format!("has {num_samples} channels: a distance map has one")));
+        }
+        tiff::ColorType::RGB(_) | tiff::ColorType::RGBA(_) | tiff::ColorType::YCbCr(_) | tiff::ColorType::CMYK(_) => {
+            return Err(bad("is a colour image: a distance map has one channel".into()));
+        }
+        _ => return Err(bad("is not a one-channel image: a distance map has one channel".into())),
     };
     check(u64::from(h), u64::from(w), u64::from(bits.max(8)) / 8)?;
     let data = d.read_image().map_err(|e| bad(format!("cannot be decoded: {e}")))?;
     let vals: Vec<f32> = match data {
         DecodingResult::F32(v) => v,
-        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
+        DecodingResult::F64(v) => v.into_iter().map(narrow).collect(),
         DecodingResult::U16(v) => v.into_iter().map(|x| f32::from(x) / 1000.0).collect(),
-        _ => return Err(bad(format!("of {bits}-bit samples: float32/float64 metres or 16-bit millimetres are read"))),
+        DecodingResult::I16(_) => return Err(bad("of signed 16-bit samples: float32/float64 metres or unsigned 16-bit millimetres are read".into())),
+        DecodingResult::F16(_) => return Err(bad("of 16-bit float samples: float32/float64 metres or unsigned 16-bit millimetres are read".into())),
+        _ => return Err(bad(format!("of {bits}-bit samples: float32/float64 metres or unsigned 16-bit millimetres are read"))),
     };
     if vals.len() != (h as usize).saturating_mul(w as usize) {
         return Err(bad("holds fewer values than its size says".into()));
@@ -420,7 +457,11 @@ fn read_exr<R: std::io::BufRead + Seek>(mut r: R, check: impl Fn(u64, u64, u64) 
     let meta = exr::meta::MetaData::read_from_buffered(&mut r, false).map_err(|e| bad(format!("cannot be read: {e}")))?;
     let names = |h: &exr::meta::header::Header| -> Vec<String> { h.channels.list.iter().map(|c| c.name.to_string()).collect() };
     let Some((part, header)) = meta.headers.iter().enumerate().find(|(_, h)| exr_depth_channel(&names(h)).is_some()) else {
-        let first = meta.headers.first().map(|h| names(h).join(", ")).unwrap_or_default();
+        let first = meta.headers.first().map(names).unwrap_or_default();
+        let first = match first.len() {
+            n if n > 8 => format!("{}, ... ({n} in all)", first.get(..8).unwrap_or(&[]).join(", ")),
+            _ => first.join(", "),
+        };
         return Err(bad(format!("has no depth channel (channels: {first}): name it Z or write one channel")));
     };
     if header.deep {
@@ -527,6 +568,22 @@ mod tests {
         fortran[at..at + 5].copy_from_slice(b"True ");
         let e = read_distance(&tmp("f.npy", &fortran), 1 << 20, 1 << 30).unwrap_err();
         assert!(e.message.contains("Fortran"), "{}", e.message);
+        // a key twice: NumPy would take the last shape, a first-match reader the first
+        let mut two = npy("<f4", "(1, 1)", &[0; 4]);
+        let at = two.windows(7).position(|w| w == b"'shape'").unwrap();
+        two.splice(at..at, b"'shape': (2, 2), ".iter().copied());
+        let e = read_distance(&tmp("two.npy", &two), 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("'shape' twice"), "{}", e.message);
+    }
+
+    #[test]
+    fn float64_distances_beyond_float32_are_counted_out_of_range() {
+        // 1e39 m is finite in float64 and inf in float32: counted with the
+        // other absurd distances (over 1000 m), not lost as unknown
+        let body: Vec<u8> = [1e39f64, 5.0, f64::INFINITY].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let m = read_distance(&tmp("big.npy", &npy("<f8", "(1, 3)", &body)), 1 << 20, 1 << 30).unwrap();
+        assert_eq!(m.out_of_range, 1);
+        assert!(m.data[0].is_nan() && m.data[1] == 5.0 && m.data[2].is_nan());
     }
 
     /// A one-channel PNG of `w` x `h` samples of `depth` bits, written by the png crate.

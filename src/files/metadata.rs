@@ -232,6 +232,23 @@ pub fn output_exif(c: &Carried, width: u32, height: u32) -> Metadata {
     m
 }
 
+/// The EXIF time tag as written (DateTimeOriginal, else DateTime), trimmed;
+/// None without one. What a photo whose [`taken_at`] is None shows of it.
+pub fn time_tag(m: &Metadata) -> Option<String> {
+    let mut original = None;
+    let mut fallback = None;
+    for ifd in m.get_ifds() {
+        for tag in ifd.get_tags() {
+            match tag {
+                ExifTag::DateTimeOriginal(s) => original = Some(s.clone()),
+                ExifTag::ModifyDate(s) => fallback = Some(s.clone()),
+                _ => {}
+            }
+        }
+    }
+    original.or(fallback).map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty())
+}
+
 /// When the photograph was taken, from its EXIF: DateTimeOriginal (else
 /// DateTime) as ISO 8601, with SubSecTimeOriginal and OffsetTimeOriginal
 /// when present (`2026-11-30T10:15:42.437+10:00`).

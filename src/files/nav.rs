@@ -123,7 +123,7 @@ impl LensOf {
             return Ok(LensOf { lens: Lens::Horizontal(f), from: "--fov".into() });
         }
         let carried = crate::files::metadata::read_path(input)?;
-        let (lens, from) = carried.exif.as_ref().and_then(exif_lens).ok_or(NO_LENS.to_string())?;
+        let (lens, from) = carried.exif.as_ref().ok_or(NO_LENS.to_string()).and_then(exif_lens)?;
         Ok(LensOf { lens, from })
     }
 
@@ -343,6 +343,11 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
             continue;
         }
         let row = fields(line, delim).map_err(|e| format!("line {no}: {e}"))?;
+        // a row longer than the header has a value under no name: a
+        // delimiter inside a value, or columns shifted
+        if row.len() > header.len() {
+            return Err(format!("line {no}: {} fields, the header (line {head_no}) names {}", row.len(), header.len()));
+        }
         let cell = |col: usize, what: &str| -> Result<&str, String> {
             row.get(col).map(String::as_str).filter(|s| !s.is_empty()).ok_or_else(|| {
                 format!("line {no}, column {} ({what}): empty or missing", col + 1)
@@ -358,7 +363,14 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
         };
         let tilt = |col: Option<usize>, what: &str| -> Result<f64, String> {
             let lim = crate::method::floor::MAX_TILT;
-            col.map_or(Ok(0.0), |c| number(c, what, -lim - 1e-9, lim))
+            col.map_or(Ok(0.0), |c| {
+                let v = number(c, what, f64::NEG_INFINITY, f64::INFINITY)?;
+                if v.abs() <= lim {
+                    Ok(v)
+                } else {
+                    Err(format!("line {no}, column {} ({what}): {} is not in [-{lim}, {lim}]", c + 1, crate::error::shown_number(v)))
+                }
+            })
         };
         let pose = Pose { altitude: number(alt, "altitude", 0.0, max)?, pitch: tilt(pitch, "pitch")?, roll: tilt(roll, "roll")? };
         if let Some(c) = name {
@@ -366,8 +378,12 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
             // a path in the log names the file by its last part
             let file = n.rsplit(['/', '\\']).next().unwrap_or(n).to_string();
             let stem = Path::new(&file).file_stem().map(|s| s.to_string_lossy().into_owned());
-            if let Some((first, _)) = log.by_name.get(&file) {
-                return Err(format!("line {no}: {} is also on line {first}", shown(&file)));
+            // the same record logged twice is one record; two that disagree are refused
+            if let Some((first, p)) = log.by_name.get(&file) {
+                if *p == pose {
+                    continue;
+                }
+                return Err(format!("line {no}: {} is also on line {first}, with another altitude or tilt", shown(&file)));
             }
             if let Some(stem) = stem.filter(|s| *s != file) {
                 log.by_name.entry(stem).or_insert((no, pose));
@@ -514,31 +530,43 @@ impl NavLog {
 /// attribute (`...:image-meters-above-ground="2.4"`) or an element
 /// (`<...:image-meters-above-ground>2.4</...>`).
 pub fn xmp_altitude(xmp: &str) -> Option<f64> {
+    xmp_altitude_values(xmp).find_map(|v| v.trim().parse::<f64>().ok())
+}
+
+/// The first value of `image-meters-above-ground` in an XMP packet as
+/// text, number or not: what a photo whose [`xmp_altitude`] is None says
+/// instead of one.
+fn xmp_altitude_text(xmp: &str) -> Option<String> {
+    xmp_altitude_values(xmp).next().map(|v| v.trim().to_string())
+}
+
+/// Every value of the iFDO field `image-meters-above-ground` in an XMP
+/// packet, attribute or element, in order.
+fn xmp_altitude_values(xmp: &str) -> impl Iterator<Item = &str> {
     const KEY: &str = "image-meters-above-ground";
     let mut rest = xmp;
-    while let Some(i) = rest.find(KEY) {
+    std::iter::from_fn(move || loop {
+        let i = rest.find(KEY)?;
         let after = rest.get(i + KEY.len()..)?;
+        rest = after;
         let value = if let Some(v) = after.trim_start().strip_prefix('=') {
             let v = v.trim_start();
-            let q = v.chars().next().filter(|c| *c == '"' || *c == '\'')?;
-            v.get(1..)?.split(q).next()
+            v.chars().next().filter(|c| *c == '"' || *c == '\'').and_then(|q| v.get(1..).and_then(|t| t.split(q).next()))
         } else if let Some(v) = after.strip_prefix('>') {
             v.split('<').next()
         } else {
             None
         };
-        if let Some(h) = value.and_then(|v| v.trim().parse::<f64>().ok()) {
-            return Some(h);
+        if value.is_some() {
+            return value;
         }
-        rest = after;
-    }
-    None
+    })
 }
 
 /// The lens of a photo from its EXIF: FocalLengthIn35mmFormat, else
 /// FocalLength with FocalPlaneXResolution and its unit (the sensor's
 /// pixel diagonal from ExifImageWidth and ExifImageHeight, else the photo's).
-fn exif_lens(m: &little_exif::metadata::Metadata) -> Option<(Lens, String)> {
+fn exif_lens(m: &little_exif::metadata::Metadata) -> Result<(Lens, String), String> {
     use little_exif::exif_tag::ExifTag;
     let (mut f35, mut focal, mut res, mut unit, mut px, mut py) = (None, None, None, None, None, None);
     let ratio = |v: &[little_exif::rational::uR64]| {
@@ -558,18 +586,28 @@ fn exif_lens(m: &little_exif::metadata::Metadata) -> Option<(Lens, String)> {
         }
     }
     if let Some(f) = f35 {
-        return Some((Lens::HalfDiagonalTan(HALF_DIAGONAL_35MM / f), format!("EXIF FocalLengthIn35mmFormat {f} mm")));
+        return Ok((Lens::HalfDiagonalTan(HALF_DIAGONAL_35MM / f), format!("EXIF FocalLengthIn35mmFormat {f} mm")));
     }
+    // the fields are there but say nothing usable: named, so that the user
+    // knows to give --fov rather than to look for missing metadata
+    let no_lens = |why: String| format!("no field of view: {why} (give --fov)");
+    let (Some(focal), Some(res)) = (focal, res) else { return Err(NO_LENS.to_string()) };
     let mm_per_unit = match unit {
         Some(2) => 25.4,
         Some(3) => 10.0,
         Some(4) => 1.0,
         Some(5) => 1e-3,
-        _ => return None,
+        Some(u) => return Err(no_lens(format!("the EXIF FocalPlaneResolutionUnit {u} is no unit (2 inch, 3 cm, 4 mm, 5 um)"))),
+        None => return Err(no_lens("the EXIF has FocalPlaneXResolution without FocalPlaneResolutionUnit".into())),
     };
-    let (focal, res) = (focal.filter(|f| f.is_finite() && *f > 0.0)?, res.filter(|r| r.is_finite() && *r > 0.0)?);
+    if !(focal.is_finite() && focal > 0.0) {
+        return Err(no_lens(format!("the EXIF FocalLength is {}", crate::error::shown_number(focal))));
+    }
+    if !(res.is_finite() && res > 0.0) {
+        return Err(no_lens(format!("the EXIF FocalPlaneXResolution is {}", crate::error::shown_number(res))));
+    }
     let lens = Lens::FocalPlane { focal, mm_per_px: mm_per_unit / res, pixels: px.zip(py) };
-    Some((lens, format!("EXIF FocalLength {focal} mm and FocalPlaneXResolution {res} per {mm_per_unit} mm")))
+    Ok((lens, format!("EXIF FocalLength {focal} mm and FocalPlaneXResolution {res} per {mm_per_unit} mm")))
 }
 
 /// The camera of photo `input`: the pose from `source`, the lens from
@@ -588,20 +626,32 @@ pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Re
     let (pose, pose_from) = match source {
         AltitudeSource::Constant(a) => (Pose { altitude: *a, pitch: 0.0, roll: 0.0 }, json!("--altitude")),
         AltitudeSource::Xmp => {
-            let a = carried.as_ref().and_then(|c| c.xmp.as_deref()).and_then(xmp_altitude).ok_or(
-                "the photo's XMP has no image-meters-above-ground (the iFDO field)".to_string(),
-            )?;
+            let xmp = carried.as_ref().and_then(|c| c.xmp.as_deref());
+            let a = xmp.and_then(xmp_altitude).ok_or_else(|| match xmp.and_then(xmp_altitude_text) {
+                Some(t) => format!("the photo's XMP image-meters-above-ground (the iFDO field) is {}: not a number", shown(&t)),
+                None => "the photo's XMP has no image-meters-above-ground (the iFDO field)".to_string(),
+            })?;
             (Pose { altitude: a, pitch: 0.0, roll: 0.0 }, json!("xmp"))
         }
         AltitudeSource::Log(log) => {
             let iso = exif.and_then(crate::files::metadata::taken_at);
             let taken = iso.as_deref().and_then(|s| parse_time(s).map(|t| (t, s)));
+            if taken.is_none() && !log.named {
+                // a time that is there but cannot be read is named, not called missing
+                let raw = exif.and_then(crate::files::metadata::time_tag);
+                let why = match (iso.as_deref(), raw) {
+                    (Some(t), _) => format!("the photo's time {} cannot be read (EXIF DateTimeOriginal, OffsetTimeOriginal)", shown(t)),
+                    (None, Some(r)) => format!("the photo's EXIF time {} is not a date and time", shown(&r)),
+                    (None, None) => "the photo has no time (EXIF DateTimeOriginal)".to_string(),
+                };
+                return Err(format!("{} is matched by time and {why}", log.path.display()));
+            }
             log.pose(input, taken)?
         }
     };
     let (lens, lens_from) = match fov {
         Some(f) => (Lens::Horizontal(f), "--fov".to_string()),
-        None => exif.and_then(exif_lens).ok_or(NO_LENS.to_string())?,
+        None => exif.ok_or(NO_LENS.to_string()).and_then(exif_lens)?,
     };
     let max = f64::from(crate::method::distance::MAX_DISTANCE);
     if !(pose.altitude.is_finite() && pose.altitude > 0.0 && pose.altitude <= max) {
@@ -698,6 +748,8 @@ mod tests {
             ("time,file,utc,altitude\n1,a,2,3\n", "two time columns"),
             ("file,altitude\na.jpg,1e300\n", "1.000000e300 is not in"),
             ("file,altitude\na.jpg,\u{1b}[31m2\n", "\"\u{1b}[31m2\" is not a number"),
+            ("file,altitude,pitch\na.jpg,2,89.5\n", "line 2, column 3 (pitch): 89.5 is not in [-89, 89]"),
+            ("file,altitude\na.jpg,2,3,4\n", "line 2: 4 fields, the header (line 1) names 2"),
         ] {
             let e = parse_log(text).unwrap_err();
             assert!(e.contains(want), "{text:?}: {e}");
@@ -705,7 +757,17 @@ mod tests {
     }
 
     #[test]
+    fn the_same_record_twice_is_one_record() {
+        let log = parse_log("file,altitude,pitch\na.jpg,2,40\na.jpg,2,40\nb.jpg,3,0\n").unwrap();
+        let (p, from) = log.pose(Path::new("a.jpg"), None).unwrap();
+        assert_eq!((p.altitude, from["line"].clone()), (2.0, json!(2)));
+    }
+
+    #[test]
     fn the_xmp_field_as_attribute_or_element() {
+        // a field that is there but no number is shown as it is, not called missing
+        assert_eq!(xmp_altitude_text(r#"<a ifdo:image-meters-above-ground="two"/>"#).as_deref(), Some("two"));
+        assert_eq!(xmp_altitude(r#"<a ifdo:image-meters-above-ground="two"/>"#), None);
         assert_eq!(xmp_altitude(r#"<rdf:Description ifdo:image-meters-above-ground="2.75"/>"#), Some(2.75));
         assert_eq!(xmp_altitude("<ifdo:image-meters-above-ground> 3 </ifdo:image-meters-above-ground>"), Some(3.0));
         assert_eq!(xmp_altitude("<x:image-meters-above-ground-note>n</x><a image-meters-above-ground='1.5'/>"), Some(1.5));

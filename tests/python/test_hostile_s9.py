@@ -107,3 +107,89 @@ def test_the_progress_line_says_when_a_distance_asked_for_is_not_used(binary, tm
         # without a distance, no such words
         r = subprocess.run(_cmd(face, binary, base), capture_output=True, text=True, timeout=120)
         assert "distance" not in r.stdout + r.stderr, (face, r.stdout, r.stderr)
+
+
+def test_distance_maps_and_logs_say_what_is_wrong_with_them(tmp_path):
+    """Messages that named the wrong problem (a hostile pass): a BigTIFF
+    was "not a distance map", a 16-bit RGB PNG was told that "8 bits cannot
+    hold a distance", a signed 16-bit TIFF was told that 16-bit millimetres
+    are read, a two-channel TIFF got the decoder's debug text, a float64 of
+    1e39 m became unknown instead of out of range, and a .npy whose header
+    says 'shape' twice was read with the first (NumPy takes the last)."""
+    import struct
+
+    import tifffile
+    from PIL import Image
+
+    import uwhl_rs
+
+    z = np.linspace(1.0, 5.0, 48 * 64, dtype=np.float32).reshape(48, 64)
+    tifffile.imwrite(tmp_path / "big.tif", z, bigtiff=True)
+    assert np.array_equal(uwhl_rs.read_distance(tmp_path / "big.tif"), z)
+    tifffile.imwrite(tmp_path / "two.tif", np.stack([z, z], -1), planarconfig="contig")
+    tifffile.imwrite(tmp_path / "i16.tif", (z * 1000).astype(np.int16))
+    Image.fromarray(np.zeros((48, 64, 3), np.uint16).astype(np.uint8)).save(tmp_path / "rgb.png")
+    head = b"{'descr': '<f4', 'shape': (1, 1), 'fortran_order': False, 'shape': (48, 64), }"
+    head += b" " * ((64 - (10 + len(head) + 1) % 64) % 64) + b"\n"
+    (tmp_path / "dup.npy").write_bytes(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(head)) + head + z.tobytes())
+    for name, want in [("two.tif", "has 2 channels: a distance map has one"),
+                       ("i16.tif", "of signed 16-bit samples"),
+                       ("rgb.png", "is RGB: a distance map is one channel"),
+                       ("dup.npy", "with 'shape' twice in its header")]:
+        try:
+            uwhl_rs.read_distance(tmp_path / name)
+        except uwhl_rs.ImageError as e:
+            assert want in str(e) and "Multiband" not in str(e), (name, str(e))
+        else:
+            raise AssertionError(f"{name} was read")
+
+
+def test_a_photo_whose_time_or_altitude_is_there_but_unreadable_is_told_so(binary, tmp_path):
+    """With a navigation log matched by time, a photo whose EXIF time is not
+    a calendar time (30 February) was told it "has no time", and an XMP
+    altitude that is no number that the XMP "has no" altitude: both now
+    show the value, in both commands."""
+    from PIL import Image
+
+    from test_parity import _cmd
+
+    ex = Image.Exif()
+    ex[34665] = {36867: "2026:02:30 10:15:42"}  # DateTimeOriginal: no such day
+    rng = np.random.default_rng(1)
+    Image.fromarray((rng.random((48, 64, 3)) * 200).astype(np.uint8)).save(tmp_path / "p.jpg", exif=ex)
+    (tmp_path / "nav.csv").write_text("time,altitude\n2026-03-01T10:15:40,2.0\n")
+    for face in ("rust", "python"):
+        out = tmp_path / face
+        r = subprocess.run(_cmd(face, binary, [str(tmp_path / "p.jpg"), "-o", str(out), "--altitude", str(tmp_path / "nav.csv"),
+                                               "--fov", "70"]), capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, (face, r.stderr)
+        why = json.loads((out / "p.json").read_text())["distance"]["rejected"]
+        assert 'the photo\'s EXIF time "2026:02:30 10:15:42" is not a date and time' in why, (face, why)
+
+
+def test_raw_frames_refuse_the_photo_options_they_would_ignore(binary):
+    """``--linear`` and ``--preprocess reference`` were accepted with
+    ``--raw-frames`` and changed nothing (the samples' curve is
+    ``--transfer``): now a usage error naming the option to use."""
+    frame = bytes(16 * 12 * 3)
+    for extra, word in ((["--linear"], "--linear is for photos"), (["--preprocess", "reference"], "--preprocess is for photos")):
+        r = subprocess.run([binary, "restore", "--raw-frames", "16x12", "-o", "-", *extra], input=frame,
+                           capture_output=True, timeout=60)
+        assert r.returncode == 2 and word in r.stderr.decode() and r.stdout == b"", (extra, r.stderr)
+
+
+def test_an_unknown_short_option_is_named_whole_with_how_to_give_such_a_file(binary, tmp_path):
+    """``uwhl-rs restore -dash.mp4`` said "invalid option '-d'"; both
+    commands now name the whole word and say how to give a file whose name
+    starts with '-'. A usage error found past the parser (options that do
+    not go together) ends with where to look, in both commands."""
+    from test_parity import _cmd
+
+    for face in ("rust", "python"):
+        r = subprocess.run(_cmd(face, binary, ["-dash.mp4", "-o", str(tmp_path / "o")]), capture_output=True, text=True,
+                           timeout=60)
+        assert r.returncode == 2 and "'-dash.mp4'" in r.stderr and "./-dash.mp4" in r.stderr, (face, r.stderr)
+        r = subprocess.run(_cmd(face, binary, ["x.png", "-o", str(tmp_path / "o"), "--fov", "70"]), capture_output=True,
+                           text=True, timeout=60)
+        lines = r.stderr.splitlines()
+        assert r.returncode == 2 and len(lines) == 2 and lines[1].startswith("Try '") and "--help'." in lines[1], (face, lines)

@@ -15,6 +15,7 @@ from __future__ import annotations
 from . import demo, evaluate, ifdo, report, restore
 from .. import _core
 from ..console import Console
+from ..errors import kind_of
 import sys
 
 from .parser import attach_values, build_parser
@@ -58,4 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _COMMANDS[a.cmd](a, console)
     except (Exception, MemoryError, KeyboardInterrupt) as e:
-        return console.failure(e)
+        code = console.failure(e)
+        if kind_of(e) == "bad_arguments" and not console.json_errors:
+            # where to look, after a usage error found past the parser (options that do not go together), as uwhl-rs says
+            console._write(console.err, f"Try 'uwhl {a.cmd} --help'.")
+        return code
