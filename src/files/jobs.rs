@@ -51,8 +51,23 @@ pub fn regular_file(path: &Path) -> Result<(), String> {
         Ok(m) if m.is_file() => Ok(()),
         Ok(m) if m.is_dir() => Err("is a folder".into()),
         Ok(_) => Err("is not a regular file (a FIFO, socket or device): not opened".into()),
-        Err(_) => Err("no such file or folder".into()),
+        Err(e) => Err(missing_said(&e)),
     }
+}
+
+/// Why a path cannot be looked at, in the words of the commands: "no such
+/// file or folder" when it is not there, else what the system says (a loop
+/// of symbolic links, a name too long, a file used as a folder, no
+/// permission) without its error number.
+pub fn missing_said(e: &std::io::Error) -> String {
+    if e.kind() == std::io::ErrorKind::NotFound {
+        return "no such file or folder".into();
+    }
+    let text = e.to_string();
+    let text = text.split(" (os error").next().unwrap_or(&text).to_string();
+    // the system's words start with a capital: the line reads "x.npy: too many levels ..."
+    let mut c = text.chars();
+    c.next().map_or(text.clone(), |f| f.to_lowercase().chain(c).collect())
 }
 
 /// Whether a process runs (`/proc/PID`); without `/proc` (no way to tell)
