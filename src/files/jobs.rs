@@ -311,6 +311,21 @@ mod tests {
     }
 
     #[test]
+    fn a_path_that_cannot_be_looked_at_says_why() {
+        let d = std::env::temp_dir().join(format!("uwhl-why-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        fs::create_dir_all(&d).unwrap();
+        std::os::unix::fs::symlink(d.join("b"), d.join("a")).unwrap();
+        std::os::unix::fs::symlink(d.join("a"), d.join("b")).unwrap();
+        fs::write(d.join("f"), b"x").unwrap();
+        assert_eq!(regular_file(&d.join("none")).unwrap_err(), "no such file or folder");
+        assert_eq!(regular_file(&d.join("a")).unwrap_err(), "too many levels of symbolic links");
+        assert_eq!(regular_file(&d.join("f").join("x.npy")).unwrap_err(), "not a directory");
+        assert_eq!(regular_file(&d.join("x".repeat(300))).unwrap_err(), "file name too long");
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
     fn names_never_collide_and_the_output_folder_is_never_an_input() {
         let d = std::env::temp_dir().join(format!("uwhl-names-{}", std::process::id()));
         let _ = fs::remove_dir_all(&d);
