@@ -31,6 +31,8 @@ pub struct Options {
     pub pix_fmt_bits: u32,
     /// `--pix-fmt` was given
     pub pix_fmt_given: bool,
+    /// `--port` was given (it has a default: only a given one can be one too many)
+    pub port_given: bool,
 }
 
 impl std::ops::Deref for Options {
@@ -172,6 +174,10 @@ impl Options {
                     Val::Text(t) if t == "rgb48le" => 16,
                     _ => 8,
                 }
+            }
+            "port" => {
+                self.port_given = true;
+                self.settings.set(key, v)?;
             }
             "json_errors" => self.json_errors = true,
             "quiet" => self.quiet = true,
@@ -325,6 +331,7 @@ where
         o.fov.is_some(),
         o.depth_along_axis,
         o.reuse_estimates.is_some(),
+        o.port_given,
         crate::files::options::Names::Flags,
     )
     .map_err(Failure::usage)?;

@@ -662,8 +662,18 @@ pub fn check_combination(
 /// commands before any input is read: one source of distance, none with
 /// a sequence (it reuses one water for its frames; a distance fits each
 /// photo's own), depth along the axis only of a distance map, and the lens
-/// only with `--altitude` or depth along the axis.
-pub fn check_distance(distance: bool, altitude: bool, fov: bool, depth: bool, reuse_estimates: bool, names: Names) -> Result<(), String> {
+/// and the window (`port`: given, not defaulted) only with `--altitude` or
+/// depth along the axis.
+#[allow(clippy::too_many_arguments)]
+pub fn check_distance(
+    distance: bool,
+    altitude: bool,
+    fov: bool,
+    depth: bool,
+    reuse_estimates: bool,
+    port: bool,
+    names: Names,
+) -> Result<(), String> {
     let n = |key: &str| names.of(key);
     if depth && !distance {
         return Err(format!("{} depth describes the maps of {}: give both", n("distance_kind"), n("distance")));
@@ -677,6 +687,9 @@ pub fn check_distance(distance: bool, altitude: bool, fov: bool, depth: bool, re
     }
     if fov && !altitude && !depth {
         return Err(format!("{} is the lens of {} or of {} depth: give one", n("fov"), n("altitude"), n("distance_kind")));
+    }
+    if port && !altitude && !depth {
+        return Err(format!("{} is the window of {} or of {} depth: give one", n("port"), n("altitude"), n("distance_kind")));
     }
     Ok(())
 }

@@ -92,6 +92,7 @@ impl PyFileSettings {
             s.fov.is_some(),
             s.depth_along_axis,
             false,
+            false,
             crate::files::options::Names::Keywords,
         )
         .map_err(ParameterError::new_err)?;

@@ -458,10 +458,11 @@ fn depth_to_range<'py>(py: Python<'py>, depth: numpy::PyReadonlyArray2<'py, f32>
 /// The checks of the distance options (`crate::files::options::check_distance`);
 /// ValueError with the usage message.
 #[pyfunction]
-#[pyo3(signature = (distance, altitude, fov, reuse_estimates, depth=false))]
-fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool) -> PyResult<()> {
+#[pyo3(signature = (distance, altitude, fov, reuse_estimates, depth=false, port=false))]
+fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool, port: bool) -> PyResult<()> {
     use crate::files::options::Names;
-    crate::files::options::check_distance(distance, altitude, fov, depth, reuse_estimates, Names::Flags).map_err(PyValueError::new_err)
+    crate::files::options::check_distance(distance, altitude, fov, depth, reuse_estimates, port, Names::Flags)
+        .map_err(PyValueError::new_err)
 }
 
 /// The jobs of a batch (`crate::files::jobs::collect_jobs`, output files

@@ -193,3 +193,22 @@ def test_an_unknown_short_option_is_named_whole_with_how_to_give_such_a_file(bin
                            text=True, timeout=60)
         lines = r.stderr.splitlines()
         assert r.returncode == 2 and len(lines) == 2 and lines[1].startswith("Try '") and "--help'." in lines[1], (face, lines)
+
+
+def test_a_port_that_nothing_uses_is_refused(binary, tmp_path):
+    """``--port dome`` with a distance map of ranges (or none) changed
+    nothing and was accepted; like ``--fov`` it is the lens side of
+    ``--altitude`` or of ``--distance-kind depth``, and refused without them,
+    in both commands. With ``--altitude`` it is taken."""
+    from test_parity import _cmd
+
+    _png(tmp_path / "p.png", 48, 64)
+    np.save(tmp_path / "p.npy", np.full((48, 64), 3.0, np.float32))
+    for face in ("rust", "python"):
+        r = subprocess.run(_cmd(face, binary, [str(tmp_path / "p.png"), "-o", str(tmp_path / face), "--port", "dome",
+                                               "--distance", str(tmp_path / "p.npy")]), capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and "--port is the window of --altitude" in r.stderr, (face, r.stderr)
+        r = subprocess.run(_cmd(face, binary, [str(tmp_path / "p.png"), "-o", str(tmp_path / face), "--port", "dome",
+                                               "--altitude", "2", "--fov", "60"]), capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, (face, r.stderr)
+        assert json.loads((tmp_path / face / "p.json").read_text())["distance"]["floor"]["port"] == "dome"

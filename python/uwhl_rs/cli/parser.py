@@ -66,6 +66,10 @@ def _option_type(key: str):
     return parse
 
 
+#: options whose table default is applied after parsing, so that the command can tell one given
+GIVEN_ONLY = ("port",)
+
+
 def _add_options(parser: argparse.ArgumentParser, method_only: bool = False) -> None:
     """The options of the core's table that the Python command takes,
     grouped (``method_only``: those of the method, for ``uwhl evaluate``)."""
@@ -83,7 +87,9 @@ def _add_options(parser: argparse.ArgumentParser, method_only: bool = False) -> 
         elif o["kind"] == "key_value":
             kw.update(action="append", metavar=o["metavar"], type=_option_type(o["key"]))
         else:
-            kw.update(type=_option_type(o["key"]), metavar=o["metavar"], default=o["default"])
+            # --port's default is applied later: only a port given can be one that nothing uses (as uwhl-rs)
+            default = None if o["key"] in GIVEN_ONLY else o["default"]
+            kw.update(type=_option_type(o["key"]), metavar=o["metavar"], default=default)
         g.add_argument(*names, **kw)
 
 
@@ -246,7 +252,7 @@ def file_kwargs(a: argparse.Namespace, water_types) -> dict:
     that restores)."""
     kw = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
               max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
-              distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port, water_from=a.water_from,
+              distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port or _DEFAULTS["port"], water_from=a.water_from,
               distance_kind=a.distance_kind,
               contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
     # videos (uwhl_rs.videofiles): set only when given, so that photos see none of them

@@ -49,7 +49,8 @@ def _check(a: argparse.Namespace, options: dict) -> None:
             raise _bad(str(e)) from None
     try:
         _core.check_distance(a.distance is not None, a.altitude is not None, a.fov is not None,
-                             a.reuse_estimates is not None, getattr(a, "distance_kind", "range") == "depth")
+                             a.reuse_estimates is not None, getattr(a, "distance_kind", "range") == "depth",
+                             a.port is not None)
     except ValueError as e:
         raise _bad(str(e)) from None
     if a.altitude is not None:
