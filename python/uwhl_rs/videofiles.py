@@ -32,7 +32,7 @@ import numpy as np
 import uwhl_rs
 
 from . import _core, files, video
-from .videoencode import CODECS, Writer, check_size, codec_for, extension, resolve_codec
+from .videoencode import CODECS, Writer, check_size, codec_for, extension, resolve_codec, write_error
 from .errors import CommandError, ImageTooLargeError, ParameterError
 from .sidecars import display
 
@@ -255,7 +255,7 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
             tmp = str(claim.temp(0))
             temps.append(tmp)
             writer = Writer(tmp, os.path.splitext(paths[0])[1], codec, info, _processed(info, o["max_side"]),
-                            int(o["video_quality"]), reader._c)
+                            int(o["video_quality"]), reader._c, shown=display(paths[0]))
             dropped = [x for x in info.others if x["index"] not in writer.audio and x["type"] != "video"]
             if dropped:
                 notes.append("streams not copied (the container or codec does not take them): "
@@ -326,18 +326,27 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
             notes.extend(writer_notes)
         strip_bytes = strip.encode()
         tmp = str(claim.temp(len(paths) - 2))
-        with open(tmp, "wb") as f:
-            f.write(strip_bytes)
         temps.append(tmp)
+        try:
+            with open(tmp, "wb") as f:
+                f.write(strip_bytes)
+        except OSError as e:
+            raise write_error(display(paths[-2]), e) from None
         counts["unrestored"], counts["unrestored_list"] = n_unrestored, unrestored
         side = _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, counts, reader, notes,
                         t_loop - o["t_start"], t_done - t_loop)
         tmp = str(claim.temp(len(paths) - 1))
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(side, f, indent=2, ensure_ascii=False)
-            f.write("\n")
         temps.append(tmp)
-        claim.commit(temps)
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                json.dump(side, f, indent=2, ensure_ascii=False)
+                f.write("\n")
+        except OSError as e:
+            raise write_error(display(paths[-1]), e) from None
+        try:
+            claim.commit(temps)
+        except OSError as e:
+            raise write_error(display(paths[-1] if every else paths[0]), e) from None
     finally:
         if writer is not None:
             writer.close(flush=False)
@@ -378,6 +387,9 @@ def _write_still(video_name: str, rf, info: video.StreamInfo, settings, o) -> di
                   "path": label}
         text = _core.write_input_outputs(claim, res, np.ascontiguousarray(res.image), source, settings, None, label,
                                          None, rf.decision == "reused", 0.0, 0.0, None, 0.0)
+    except OSError as e:
+        # a full disk is the output's failure (exit 5), not the video's: it is read fine
+        raise write_error(display(os.path.join(d, name)), e) from None
     finally:
         claim.release()
     written = json.loads(text)
