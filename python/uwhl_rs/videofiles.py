@@ -177,7 +177,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
                   max_side: int | None = None, reuse_estimates: int | None = None, reuse_water_mask: bool = False,
                   scene_cut: float | None = None, smoothing: float | None = None, overwrite: bool = True,
                   progress: Callable[[str], None] | None = None, _claim=None, _label: str | None = None,
-                  _stop=None, **options) -> VideoResult:
+                  _stop=None, _flags: bool = False, **options) -> VideoResult:
     """Restore the video at ``in_path`` into ``out_dir`` (module docs).
 
     ``options``: the photo options of :func:`uwhl_rs.files.restore_file`
@@ -189,6 +189,8 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     (the command's): the claimed output names (:func:`video_suffixes`).
     ``_stop`` (the command's): a ``threading.Event`` that, once set (an
     interrupt), stops the video at its next frame: nothing of it is kept.
+    ``_flags`` (the command's): errors name options by their flags
+    (``--mask``, ``--max-memory``) instead of the keywords.
     A frame that holds nothing to restore (black, flat) is written as it
     came in and counted (the sidecar's ``video.unrestored``).
     """
@@ -201,24 +203,27 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
               "preprocess", "port", "distance_kind"):
         v = options.pop(k, None)
         if v not in (None, False, "none", "flat", "range"):
-            raise ParameterError(f"{k} is for photos: a video is restored as a sequence of frames")
+            raise ParameterError(f"{files.spelt(k, _flags)} is for photos: a video is restored as a sequence of "
+                                 "frames")
     max_pixels = options.pop("max_pixels", None)
     settings = _core.FileSettings(format=fmt, bits=bits, quality=jpeg_quality, max_side=max_side, **options)
     budget = settings.max_memory
     info = video.probe(in_path, transfer=transfer)
     codec = codec_for(video_codec, info)
+    side, memory = files.spelt("max_side", _flags), files.spelt("max_memory", _flags)
     if max_pixels is not None and info.width * info.height > int(max_pixels):
-        raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over max_pixels {max_pixels}")
+        raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over "
+                                 f"{files.spelt('max_pixels', _flags)} {max_pixels}")
     if not every:
         check_size(codec, _processed(info, max_side), label, max_side)
     need = frame_need(info, max_side)
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
-                                 f"max_memory {budget} (use max_side or raise max_memory)")
+                                 f"{memory} {budget} (use {side} or raise {memory})")
     if not _core.can_allocate(need):
         # within the budget, but more than the system gives now (as a photo's plan is checked)
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, more "
-                                 "than the system gives now (free memory, a container limit or ulimit -v); use max_side")
+                                 f"than the system gives now (free memory, a container limit or ulimit -v); use {side}")
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     suffixes = video_suffixes(in_path, every=every, codec=codec)
     claim = _claim

@@ -23,6 +23,8 @@ import sys
 import numpy as np
 import pytest
 
+import uwhl_rs
+
 PYTHON_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "python")
 
 
@@ -125,3 +127,104 @@ def test_the_encoder_closing_on_a_full_disk_is_a_failed_write():
     w.out = Full()
     w.close(flush=False)  # no error of its own
     assert Full.closed == 2
+
+
+# ------------------------------------------------------------------ 2. the command's messages name flags
+
+
+def _png(path, h=48, w=64, seed=0):
+    from PIL import Image
+
+    rng = np.random.default_rng(seed)
+    Image.fromarray(rng.integers(0, 256, (h, w, 3), dtype=np.uint8)).save(path)
+
+
+def _said(r: subprocess.CompletedProcess, prog: str) -> str:
+    """The line that reports the input, without the command's name."""
+    lines = [x for x in r.stderr.splitlines() if x.startswith(prog + ": ") and "input(s) failed" not in x]
+    assert len(lines) == 1, r.stderr
+    return lines[0][len(prog) + 2:]
+
+
+def test_the_commands_name_the_memory_and_mask_options_as_flags(binary, tmp_path):
+    """``uwhl restore`` said ``over max_memory N (use max_side or raise
+    max_memory)`` and ``mask is 32x24 pixels but the image is ...``, the
+    API's keywords, where uwhl-rs says ``--max-memory`` and ``--mask``.
+    Both commands now say the same words; the API keeps its keywords."""
+    import uwhl_rs.files
+
+    photo, small = tmp_path / "p.png", tmp_path / "m.png"
+    _png(photo)
+    _png(small, 24, 32)
+    runs = {}
+    for prog, cmd in (("uwhl", [sys.executable, "-m", "uwhl_rs"]), ("uwhl-rs", [binary])):
+        for case, extra in (("memory", ["--max-memory", "1M"]), ("mask", ["--mask", small]),
+                            ("water", ["--water-mask", small])):
+            r = subprocess.run([*cmd, "restore", photo, "-o", tmp_path / f"{prog}-{case}", "-q", *map(str, extra)],
+                               capture_output=True, text=True, env=_env(), timeout=300)
+            runs[prog, case] = (r.returncode, _said(r, prog))
+    for case in ("memory", "mask", "water"):
+        assert runs["uwhl", case][0] == runs["uwhl-rs", case][0], (case, runs)
+    tail = "over --max-memory 1048576 (use --max-side or raise --max-memory)"
+    assert runs["uwhl", "memory"][1].endswith(tail) and runs["uwhl-rs", "memory"][1].endswith(tail), runs
+    assert runs["uwhl", "mask"][1] == runs["uwhl-rs", "mask"][1] == \
+        f"{photo}: --mask is 32x24 pixels but the input is 64x48"
+    assert runs["uwhl", "water"][1] == runs["uwhl-rs", "water"][1] == \
+        f"{photo}: --water-mask is 32x24 pixels but the input is 64x48"
+    # the API's own words name its keywords
+    # (without the interpreter's own memory, which the command counts, the photo needs some 400 KB)
+    with pytest.raises(uwhl_rs.ImageTooLargeError, match=r"over max_memory 10000 \(use max_side or raise max_memory\)"):
+        uwhl_rs.files.restore_file(photo, tmp_path / "api", max_memory=10000)
+    with pytest.raises(uwhl_rs.ParameterError, match="^mask is 32x24 pixels but the image is 64x48$"):
+        uwhl_rs.files.restore_file(photo, tmp_path / "api", mask=small)
+
+
+@pytest.mark.parametrize("flag,value", [("--mask", "m.png"), ("--water-mask", "m.png"), ("--half-size", None),
+                                        ("--preprocess", "reference"), ("--distance", "d.npy"), ("--altitude", "3")])
+def test_a_photo_option_given_for_a_video_is_named_as_its_flag(tmp_path, flag, value):
+    """``uwhl restore clip.mkv --mask m.png`` said ``mask is for photos``:
+    the flag the user typed is ``--mask`` (a usage error, exit 2)."""
+    pytest.importorskip("av")
+    src = tmp_path / "clip.mkv"
+    _video(src, n=2)
+    _png(tmp_path / "m.png")
+    r = uwhl("restore", src, "-o", tmp_path / "o", "-q", flag, *([value] if value else []), cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert _said(r, "uwhl") == f"{src}: {flag} is for photos: a video is restored as a sequence of frames"
+
+
+def test_a_videos_budget_is_named_as_the_flags(tmp_path):
+    """The frames' memory and pixel limits of a video, said with the flags."""
+    pytest.importorskip("av")
+    src = tmp_path / "clip.mkv"
+    _video(src, n=2)
+    r = uwhl("restore", src, "-o", tmp_path / "o", "-q", "--max-memory", "1M")
+    assert r.returncode == 4, r.stderr
+    assert _said(r, "uwhl").endswith("over --max-memory 1048576 (use --max-side or raise --max-memory)"), r.stderr
+    r = uwhl("restore", src, "-o", tmp_path / "o", "-q", "--max-pixels", "100")
+    assert r.returncode == 4, r.stderr
+    assert _said(r, "uwhl") == f"{src}: 64x48 frames are over --max-pixels 100"
+
+
+def test_a_raw_files_pixel_limit_is_said_as_for_a_png(tmp_path):
+    """A raw file (read by LibRaw, in the Python command only) over
+    ``--max-pixels`` said ``WxH pixels is over the limit of N (max_pixels)``;
+    a PNG, read by the core's decoder, says ``WxH = P pixels is over the
+    limit of N pixels (--max-pixels)``. The raw file now says the same."""
+    from datapaths import RAW_DIR
+
+    raw = RAW_DIR / "Blackmagic.dng"
+    if not raw.exists():
+        pytest.skip(f"the shared raw photographs are not at {RAW_DIR}")
+    png = tmp_path / "p.png"
+    _png(png)
+    said = {}
+    for p in (raw, png):
+        r = uwhl("restore", p, "-o", tmp_path / "o", "-q", "--max-pixels", "100")
+        assert r.returncode == 4, r.stderr
+        said[p] = _said(r, "uwhl")
+    assert said[png] == f"{png}: 64x48 = 3072 pixels is over the limit of 100 pixels (--max-pixels)"
+    import re
+
+    assert re.fullmatch(rf"{re.escape(str(raw))}: (\d+)x(\d+) = (\d+) pixels is over the limit of 100 pixels "
+                        r"\(--max-pixels\)", said[raw]), said[raw]
