@@ -228,3 +228,48 @@ def test_a_raw_files_pixel_limit_is_said_as_for_a_png(tmp_path):
 
     assert re.fullmatch(rf"{re.escape(str(raw))}: (\d+)x(\d+) = (\d+) pixels is over the limit of 100 pixels "
                         r"\(--max-pixels\)", said[raw]), said[raw]
+
+
+# ------------------------------------------------------------------ 3. empty and foreign files named as videos
+
+
+def test_an_empty_or_foreign_video_file_is_named_for_what_it_is(tmp_path):
+    """An empty ``.mp4`` was 'not a video FFmpeg can read ([Errno
+    1094995529] ...); an MP4 or MOV cut short loses the index ...', and so
+    was a text file called ``.mp4``. An empty file is said to be empty (a
+    photo's words, exit 3); the cut-short hint is for a file whose boxes
+    are an MP4's without the index (``moov``), which a recording cut short
+    is, whatever its name; FFmpeg's reason comes without its error
+    number."""
+    av = pytest.importorskip("av")
+    (tmp_path / "empty.mp4").write_bytes(b"")
+    (tmp_path / "text.mp4").write_bytes(b"not a video at all\n" * 50)
+    whole = tmp_path / "whole.mp4"
+    with av.open(str(whole), "w") as f:
+        st = f.add_stream("mpeg4", rate=24)
+        st.width, st.height, st.pix_fmt = 64, 48, "yuv420p"
+        rng = np.random.default_rng(3)
+        for k in range(24):
+            fr = av.VideoFrame.from_ndarray(rng.integers(0, 256, (48, 64, 3), dtype=np.uint8), format="rgb24")
+            fr.pts = k
+            for p in st.encode(fr.reformat(format="yuv420p")):
+                f.mux(p)
+        for p in st.encode():
+            f.mux(p)
+    data = whole.read_bytes()
+    assert data[4:8] == b"ftyp" and data.rfind(b"moov") > len(data) // 2  # the index at the end
+    (tmp_path / "cut.mp4").write_bytes(data[: len(data) // 2])
+    # an MP4 cut short, named otherwise: its boxes say what it is
+    (tmp_path / "cut.mkv").write_bytes(data[: len(data) // 2])
+    said = {}
+    for name in ("empty.mp4", "text.mp4", "cut.mp4", "cut.mkv"):
+        r = uwhl("restore", name, "-o", "o", "-q", cwd=tmp_path)
+        assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
+        said[name] = _said(r, "uwhl")
+    assert said["empty.mp4"] == "empty.mp4: empty file"
+    assert said["text.mp4"] == "text.mp4: not a video FFmpeg can read (Invalid data found when processing input)"
+    for name in ("cut.mp4", "cut.mkv"):
+        assert said[name].startswith(f"{name}: not a video FFmpeg can read (Invalid data found when processing "
+                                     "input); it is an MP4 or MOV without its index (moov)"), said
+        assert "cut short" in said[name]
+    assert "Errno" not in " ".join(said.values())
