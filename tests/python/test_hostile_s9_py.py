@@ -273,3 +273,60 @@ def test_an_empty_or_foreign_video_file_is_named_for_what_it_is(tmp_path):
                                      "input); it is an MP4 or MOV without its index (moov)"), said
         assert "cut short" in said[name]
     assert "Errno" not in " ".join(said.values())
+
+
+# ------------------------------------------------------------------ 4. unknown single-dash options
+
+
+def test_an_unknown_short_option_is_named_first_as_the_binary_names_it(binary, tmp_path):
+    """``uwhl restore -x -o x`` said that INPUT was missing, and ``uwhl
+    restore -dash.mp4 a.jpg -o x`` 'uwhl: error: unrecognized arguments'
+    (the top-level prefix). Both commands now name the option first (exit
+    2); uwhl-rs reads ``-dash.mp4`` as the cluster -d -a -s ..., and names
+    ``-d``; uwhl names the same flag, the word it was in, and, for a
+    word that looks like a file name, the two ways to give such a file."""
+    photo = tmp_path / "a.png"
+    _png(photo)
+    (tmp_path / "-dash.mp4").write_bytes(b"")
+    cases = [(["-x", "-o", "x"], "-x", "invalid option '-x'"),
+             (["-dash.mp4", "a.png", "-o", "x"], "-d",
+              "invalid option '-d' (in '-dash.mp4'); a file whose name begins with '-' is given as ./-dash.mp4, "
+              "or after --"),
+             (["a.png", "-o", "x", "-xq"], "-x", "invalid option '-x' (in '-xq')"),
+             (["a.png", "-qx", "-o", "x"], "-x", "invalid option '-x' (in '-qx')"),
+             (["a.png", "-o", "x", "-5"], "-5", "invalid option '-5'"),
+             # a name that is no file but looks like one
+             (["-nothere.jpg", "-o", "x"], "-n",
+              "invalid option '-n' (in '-nothere.jpg'); a file whose name begins with '-' is given as "
+              "./-nothere.jpg, or after --")]
+    for args, flag, said in cases:
+        r = uwhl("restore", *args, cwd=tmp_path)
+        assert r.returncode == 2, (args, r.stderr)
+        assert r.stderr.splitlines()[0] == f"uwhl restore: error: {said}", (args, r.stderr)
+        rb = subprocess.run([binary, "restore", *args], capture_output=True, text=True, cwd=tmp_path, timeout=60)
+        assert rb.returncode == 2 and rb.stderr.splitlines()[0] == f"uwhl-rs: invalid option '{flag}'", (args, rb.stderr)
+    assert not (tmp_path / "x").exists()
+
+
+def test_the_ways_the_hint_gives_a_dash_file_work_and_inputs_go_anywhere(binary, tmp_path):
+    """The hint's two ways are taken by both commands: ``./-dash.png`` and
+    ``-- -dash.png``, the latter after another input too ("a.png -o x --
+    -dash.png": argparse left it unread); an input after the options
+    ("a.png -o x b.png") is read, as uwhl-rs reads it. Each input is
+    restored under its own name."""
+    for name in ("a.png", "b.png", "-dash.png"):
+        _png(tmp_path / name, seed=len(name))
+    runs = [(["./-dash.png", "-o", "OUT"], {"-dash"}),
+            (["a.png", "-o", "OUT", "--", "-dash.png"], {"a", "-dash"}),
+            (["-o", "OUT", "--", "-dash.png", "a.png"], {"a", "-dash"}),
+            (["a.png", "-o", "OUT", "b.png"], {"a", "b"}),
+            (["-qo", "OUT", "a.png"], {"a"})]
+    for prog, cmd in (("uwhl", [sys.executable, "-m", "uwhl_rs"]), ("uwhl-rs", [binary])):
+        for k, (args, names) in enumerate(runs):
+            out = tmp_path / prog / f"o{k}"
+            args = [str(out) if a == "OUT" else a for a in args]
+            r = subprocess.run([*cmd, "restore", "-q", *args], capture_output=True, text=True, env=_env(),
+                               cwd=tmp_path, timeout=300)
+            assert r.returncode == 0, (prog, args, r.stderr)
+            got = {f[:-5] for f in os.listdir(out) if f.endswith(".json")}
+            assert got == names, (prog, args, got)
