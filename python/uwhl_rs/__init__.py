@@ -186,6 +186,18 @@ def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     return np.ascontiguousarray(m)
 
 
+def _metres(a: np.ndarray, name: str) -> None:
+    """Refuses an integer or boolean distance array: its unit cannot be
+    known. Files of 16-bit integers are millimetres (``read_distance``
+    reads them so), an array of integers may be either, and taking
+    millimetres as metres would put every pixel beyond the 1000 m of a
+    known distance, quietly."""
+    if a.dtype == np.bool_ or np.issubdtype(a.dtype, np.integer):
+        raise ParameterError(f"{name} has dtype {a.dtype}; expected float metres (integers are refused: their unit "
+                             f"is not known; millimetres are {name}.astype(np.float32) / 1000, and read_distance "
+                             "reads a 16-bit file as millimetres and gives metres)")
+
+
 def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **method) -> Restoration:
     """Restore the colors of one underwater image (METHOD §2-§10).
 
@@ -210,7 +222,9 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         such regions are filled (METHOD §4.5) and get one transmission each
         (METHOD §6). At least one pixel must be True.
     distance : float ndarray (h, w), optional
-        The distance of each pixel in metres (NaN, 0 or negative = unknown),
+        The distance of each pixel in metres (NaN, 0 or negative = unknown;
+        integer arrays are refused: their unit is not known, convert
+        millimetres with ``z.astype(np.float32) / 1000``),
         of any size with the image's aspect ratio (resized by nearest
         neighbour). The water (attenuation per channel, A) is then fitted
         from it and the transmission taken from it where known (METHOD §13);
@@ -337,6 +351,7 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         z = np.asarray(distance)
         if z.ndim == 3 and z.shape[2] == 1:
             z = z[:, :, 0]
+        _metres(z, "distance")
         if z.ndim != 2 or not np.issubdtype(z.dtype, np.number) or np.iscomplexobj(z):
             raise ParameterError(f"distance must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
         z = np.ascontiguousarray(z, dtype=np.float32)
@@ -542,7 +557,8 @@ def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
     ----------
     depth : float array (height, width)
         Metres along the axis, covering the photo's field of view; NaN
-        where unknown (it stays NaN).
+        where unknown (it stays NaN). Integer arrays are refused (their
+        unit is not known): millimetres are ``depth.astype(np.float32) / 1000``.
     fov : float
         The lens's horizontal field of view in air across the photo's
         width, degrees, in (0, 170].
@@ -555,6 +571,7 @@ def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
     float32 ndarray of the depth's shape: metres along each ray.
     """
     z = np.asarray(depth)
+    _metres(z, "depth")
     if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
         raise ParameterError(f"depth must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
     # as floor_distance: no larger than the largest input (a broadcast view is checked before it is copied)

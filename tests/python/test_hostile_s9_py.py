@@ -330,3 +330,40 @@ def test_the_ways_the_hint_gives_a_dash_file_work_and_inputs_go_anywhere(binary,
             assert r.returncode == 0, (prog, args, r.stderr)
             got = {f[:-5] for f in os.listdir(out) if f.endswith(".json")}
             assert got == names, (prog, args, got)
+
+
+# ------------------------------------------------------------------ 5. integer distance arrays
+
+
+def test_an_integer_distance_array_is_refused_with_the_conversion(tmp_path):
+    """A 16-bit file is read as millimetres (``read_distance``), but an
+    integer array given to ``restore(distance=)`` was taken as metres: 3 m
+    as 3000 uint16 lost every pixel ('only 0.0% of the pixels have a
+    known distance') and ``depth_to_range`` gave ranges in the thousands.
+    Both now refuse integers (and booleans) with a ParameterError that
+    says the conversion; the conversion it says gives what the file
+    reader gives for the same millimetres."""
+    from PIL import Image
+
+    from uwhl_rs import synth
+
+    img, truth = synth.demo_input(60, 80, water_type="3C", seed=1)
+    z = np.where(np.isfinite(truth["distance"]), truth["distance"], np.nan).astype(np.float32)
+    mm = np.where(np.isfinite(z), np.round(z * 1000), 0).astype(np.uint16)
+    for bad in (mm, mm.astype(np.int64), np.isfinite(z)):
+        with pytest.raises(uwhl_rs.ParameterError, match=r"^distance has dtype .*expected float metres.*integers are "
+                                                         r"refused.*distance\.astype\(np\.float32\) / 1000"):
+            uwhl_rs.restore(img, distance=bad)
+        with pytest.raises(uwhl_rs.ParameterError, match=r"^depth has dtype .*depth\.astype\(np\.float32\) / 1000"):
+            uwhl_rs.depth_to_range(bad, 70)
+    # the conversion the message gives is what the reader of a 16-bit file gives
+    Image.fromarray(mm).save(tmp_path / "mm.png")
+    read = uwhl_rs.read_distance(tmp_path / "mm.png")
+    converted = mm.astype(np.float32) / 1000
+    known = mm > 0
+    assert np.array_equal(np.isnan(read), ~known)
+    assert np.allclose(read[known], converted[known], rtol=0, atol=1e-6)
+    # and it is the scene's distance to the millimetre: the fit uses every pixel of the seabed
+    res = uwhl_rs.restore(img, distance=np.where(known, converted, np.nan))
+    assert "distance_rejected" not in res.flags
+    assert res.distance["coverage"] == pytest.approx(known.mean(), abs=1e-6)
