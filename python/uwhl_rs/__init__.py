@@ -32,6 +32,8 @@ from .errors import (
     ManifestError,
     ParameterError,
     UwhlError,
+    compact_numbers,
+    shown,
 )
 
 __all__ = [
@@ -173,6 +175,35 @@ def _int_param(name: str, value, lo: int):
     if not lo <= int(value) <= _MAX_INT:
         raise ParameterError(f"{name} must be an integer in [{lo}, {_MAX_INT}]; got {value!r}")
     return int(value)
+
+
+def _real(name: str, value) -> float:
+    """A number parameter as a float: a ParameterError for anything that
+    is not a real number (text, a bool, None) or too large for a float
+    (an integer of 400 digits); NaN and infinity pass, for the core's
+    range checks to name."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"{name} must be a number, not {shown(value)}")
+    try:
+        return float(value)
+    except OverflowError:
+        raise ParameterError(f"{name} {shown(value)} is out of range (too large for a float)") from None
+
+
+def _port(value) -> str:
+    """``port`` checked to be text (the core names a wrong word)."""
+    if not isinstance(value, str):
+        raise ParameterError(f"port {shown(value)} is not flat or dome")
+    return value
+
+
+def _core_call(f, *args):
+    """``f(*args)`` of the core, whose ParameterError shows a number in
+    full (1e308 as 309 digits): shown compactly here."""
+    try:
+        return f(*args)
+    except ParameterError as e:
+        raise ParameterError(compact_numbers(str(e))) from None
 
 
 def _as_mask(mask, name: str, shape) -> np.ndarray | None:
@@ -334,11 +365,15 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
             name = water.get("nearest_type") or "fitted"
             if not isinstance(name, str):
                 raise TypeError("the name is not text")
+        except OverflowError:
+            # an integer beyond a float: a number, but no attenuation
+            raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}") \
+                from None
         except (TypeError, KeyError, ValueError):
             raise ParameterError("water must be a dict with 'beta': three attenuations in 1/m "
                                  "(the water of a restoration given distance)") from None
         if not all(np.isfinite(v) and v > 0 for v in (br, bg, bb)):
-            raise ParameterError(f"water's beta must be three positive numbers, not {water['beta']!r}")
+            raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}")
         method["water_types"] = [(name, bb / br, bb / bg)]
     params = _method_params(**method)
     _check_room(image, params, distance)
@@ -384,11 +419,21 @@ def floor_distance(shape, altitude: float, fov: float, *, pitch: float = 0.0, ro
     float32 ndarray (height, width): the range in metres along each pixel's
     ray, NaN where the ray does not meet the seabed.
     """
-    hw = tuple(np.shape(shape)[:2]) if isinstance(shape, np.ndarray) else tuple(shape)[:2]
+    try:
+        hw = tuple(np.shape(shape)[:2]) if isinstance(shape, np.ndarray) else tuple(shape)[:2]
+    except TypeError:
+        hw = ()
     ints = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in hw)
     if len(hw) != 2 or not ints or min(hw) < 1:
-        raise ParameterError(f"shape must be (height, width), two positive integers, not {shape!r}")
-    return _core.floor_distance(int(hw[0]), int(hw[1]), float(altitude), float(fov), float(pitch), float(roll), port)
+        raise ParameterError(f"shape must be (height, width), two positive integers, not {shown(shape)}")
+    from .images import DEFAULT_MAX_PIXELS
+
+    h, w = int(hw[0]), int(hw[1])
+    if h * w > DEFAULT_MAX_PIXELS:
+        # checked here too: a side beyond the core's integers would not reach its own check
+        raise ParameterError(f"shape ({shown(h)}, {shown(w)}) is over the largest input ({DEFAULT_MAX_PIXELS} pixels)")
+    return _core_call(_core.floor_distance, h, w, _real("altitude", altitude), _real("fov", fov),
+                      _real("pitch", pitch), _real("roll", roll), _port(port))
 
 
 def _method_params(**kw) -> _core.Params:
@@ -486,9 +531,12 @@ class Sequence:
         if not isinstance(reuse_water_mask, (bool, np.bool_)):
             raise ParameterError(f"reuse_water_mask must be True or False; got {reuse_water_mask!r}")
         for name, v, lo_open in (("scene_cut", scene_cut, False), ("smoothing", smoothing, True)):
-            ok = isinstance(v, (int, float, np.floating)) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+            ok = isinstance(v, (int, float, np.floating)) and not isinstance(v, (bool, np.bool_))
+            # an integer past a float's range is no share either (math.isfinite would overflow on it)
+            ok = ok and abs(v) <= 1e308 and math.isfinite(v)
             if not ok or not ((0 < v) if lo_open else (0 <= v)) or v > 1:
-                raise ParameterError(f"{name} must be a number in {'(0, 1]' if lo_open else '[0, 1]'}; got {v!r}")
+                raise ParameterError(f"{name} must be a number in {'(0, 1]' if lo_open else '[0, 1]'}; "
+                                     f"got {shown(v)}")
         params = _method_params(**kwargs)
         self._params = params
         self._core = _core.Sequence(params, refresh_every=refresh_every, reuse_water_mask=bool(reuse_water_mask),
@@ -579,4 +627,5 @@ def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
 
     if z.size == 0 or z.size > DEFAULT_MAX_PIXELS:
         raise ParameterError(f"depth of shape {z.shape} is empty or over the largest input ({DEFAULT_MAX_PIXELS} pixels)")
-    return _core.depth_to_range(np.ascontiguousarray(z, dtype=np.float32), float(fov), port)
+    fov, port = _real("fov", fov), _port(port)
+    return _core_call(_core.depth_to_range, np.ascontiguousarray(z, dtype=np.float32), fov, port)

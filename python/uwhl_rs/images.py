@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import _core
-from .errors import ImageReadError, ImageTooLargeError, ParameterError
+from .errors import ImageReadError, ImageTooLargeError, ParameterError, shown
 from .sidecars import display
 
 __all__ = [
@@ -165,6 +165,7 @@ def read_image(
     path = os.fspath(path)
     if preprocess not in PREPROCESS_MODES:
         raise ValueError(f"preprocess must be one of {PREPROCESS_MODES}, not {preprocess!r}")
+    _check_max_pixels(max_pixels)
     if not os.path.exists(path):
         raise ImageReadError(f"{path}: no such file")
     if os.path.isdir(path):
@@ -224,9 +225,21 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
         Its header gives more than ``max_pixels`` pixels, or more memory
         than the core's default limit.
     """
-    if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)) or max_pixels < 1:
-        raise ParameterError(f"max_pixels must be a positive integer, not {max_pixels!r}")
+    _check_max_pixels(max_pixels)
     return np.asarray(_core.read_distance_file(os.fspath(path), int(max_pixels), int(_core.default_max_memory())))
+
+
+#: the largest max_pixels (the option table's: the core's 64-bit count)
+_MAX_PIXELS_LIMIT: int = next(o["max"] for o in _core.OPTIONS if o["key"] == "max_pixels")
+
+
+def _check_max_pixels(max_pixels) -> None:
+    """ParameterError unless ``max_pixels`` is an integer in the option
+    table's range (one past 2^64 would not reach the core)."""
+    if isinstance(max_pixels, (bool, np.bool_)) or not isinstance(max_pixels, (int, np.integer)) \
+            or not 1 <= max_pixels <= _MAX_PIXELS_LIMIT:
+        raise ParameterError(f"max_pixels must be a positive integer up to {_MAX_PIXELS_LIMIT}, "
+                             f"not {shown(max_pixels)}")
 
 
 def _check_pixels(path: str, h: int, w: int, max_pixels: int, on_header=None, bpp: int = 3,

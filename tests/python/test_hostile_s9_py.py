@@ -367,3 +367,58 @@ def test_an_integer_distance_array_is_refused_with_the_conversion(tmp_path):
     res = uwhl_rs.restore(img, distance=np.where(known, converted, np.nan))
     assert "distance_rejected" not in res.flags
     assert res.distance["coverage"] == pytest.approx(known.mean(), abs=1e-6)
+
+
+# ------------------------------------------------------------------ 6. numbers too large, values of the wrong type
+
+
+def _api_cases(tmp_path):
+    from uwhl_rs import images, synth
+
+    img, _ = synth.demo_input(48, 64, water_type="3C", seed=1)
+    z = np.full((48, 64), 3.0, np.float32)
+    np.save(tmp_path / "good.npy", z)
+    good = tmp_path / "good.npy"
+    return [
+        ("beta of 400 digits", lambda: uwhl_rs.restore(img, water={"beta": [10**400, 1, 1]}),
+         "water's beta must be three positive numbers, not [1e+400, 1, 1]"),
+        ("beta of 5000 digits", lambda: uwhl_rs.restore(img, water={"beta": [10**5000, 1, 1]}),
+         "water's beta must be three positive numbers, not [1e+5000, 1, 1]"),
+        ("a side of 2^64", lambda: uwhl_rs.floor_distance((2**64, 1), 2, 70),
+         "shape (1.84467e+19, 1) is over the largest input (300000000 pixels)"),
+        ("max_pixels 2^70", lambda: uwhl_rs.read_distance(good, max_pixels=2**70),
+         "max_pixels must be a positive integer up to 18446744073709551615, not 1.18059e+21"),
+        ("read_image's max_pixels 2^70", lambda: images.read_image(good, max_pixels=2**70),
+         "max_pixels must be a positive integer up to 18446744073709551615, not 1.18059e+21"),
+        ("fov of 400 digits", lambda: uwhl_rs.depth_to_range(z, 10**400),
+         "fov 1e+400 is out of range (too large for a float)"),
+        ("altitude of 400 digits", lambda: uwhl_rs.floor_distance((48, 64), 10**400, 70),
+         "altitude 1e+400 is out of range (too large for a float)"),
+        ("port None", lambda: uwhl_rs.floor_distance((48, 64), 2, 70, port=None), "port None is not flat or dome"),
+        ("port 5", lambda: uwhl_rs.depth_to_range(z, 70, port=5), "port 5 is not flat or dome"),
+        ("altitude None", lambda: uwhl_rs.floor_distance((48, 64), None, 70), "altitude must be a number, not None"),
+        ("altitude as text", lambda: uwhl_rs.floor_distance((48, 64), "2", 70), "altitude must be a number, not '2'"),
+        ("pitch 1e308", lambda: uwhl_rs.floor_distance((48, 64), 2, 70, pitch=1e308),
+         "pitch 1e+308 degrees is not within +-89"),
+        ("altitude 1e308", lambda: uwhl_rs.floor_distance((48, 64), 1e308, 70),
+         "altitude 1e+308 m is not in (0, 1000]"),
+        ("fov 1e308", lambda: uwhl_rs.depth_to_range(z, 1e308), "field of view 1e+308 degrees is not in (0, 170]"),
+        ("scene_cut of 400 digits", lambda: uwhl_rs.Sequence(scene_cut=10**400),
+         "scene_cut must be a number in [0, 1]; got 1e+400"),
+    ]
+
+
+def test_numbers_too_large_or_of_the_wrong_type_are_parameter_errors_said_compactly(tmp_path):
+    """``water={'beta': [10**400, 1, 1]}``, a side of 2^64, ``max_pixels``
+    of 2^70 and a field of view or altitude of 400 digits raised a plain
+    OverflowError, ``port=None`` and ``altitude=None`` a TypeError, and a
+    pitch of 1e308 printed its 309 digits. Each is the package's
+    ParameterError, its number shown as ``{:g}`` shows it."""
+    for what, call, said in _api_cases(tmp_path):
+        with pytest.raises(uwhl_rs.ParameterError) as got:
+            call()
+        assert str(got.value) == said, what
+        assert len(str(got.value)) < 120, what
+    # what was right stays right: numpy numbers, an image as the shape
+    z = uwhl_rs.floor_distance(np.zeros((48, 64, 3)), np.float32(2), np.int64(70))
+    assert z.shape == (48, 64) and np.nanmin(z) == pytest.approx(2.0, rel=1e-3)
