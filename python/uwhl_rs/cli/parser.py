@@ -185,7 +185,7 @@ class _Parser(argparse.ArgumentParser):
             for k, c in enumerate(tok[1:], start=1):
                 action = self._option_string_actions.get("-" + c)
                 if action is None:
-                    self.error(self._unknown_short("-" + c, tok))
+                    self.error(self._unknown_short("-" + c, tok if k == 1 else None))
                 if action.nargs != 0:
                     # the rest of the cluster is the value, else the next word
                     if k + 1 == len(tok) and i < len(args):
@@ -200,14 +200,18 @@ class _Parser(argparse.ArgumentParser):
         return options + (["--", *words] if words else [])
 
     @staticmethod
-    def _unknown_short(flag: str, tok: str) -> str:
-        """The usage error of an unknown short option ``flag`` met in ``tok``
-        (uwhl-rs names the flag alone); a word that looks like a file name
-        (a dot, or a file of that name) gets the two ways to give one."""
-        text = f"invalid option '{flag}'" + ("" if tok == flag else f" (in '{tok}')")
-        if "." in tok or os.path.lexists(tok):
-            text += f"; a file whose name begins with '-' is given as ./{tok}, or after --"
-        return text
+    def _unknown_short(flag: str, word: str | None) -> str:
+        """The usage error of an unknown short option ``flag``, in uwhl-rs's
+        words: the whole ``word`` when the flag is its first letter
+        (``-dash.mp4``, not ``-d``; ``None`` when it is not), and for a word
+        that looks like a file name (a dot, or a file of that name) the two
+        ways to give it as one."""
+        if word is None or len(word) <= 2:
+            return f"invalid option '{flag}'"
+        hint = ""
+        if "." in word or os.path.lexists(word):
+            hint = f" (a file whose name starts with '-': write ./{word}, or put it after --)"
+        return f"invalid option '{word}'{hint}"
 
 
 def build_parser() -> argparse.ArgumentParser:
