@@ -229,6 +229,34 @@ def _metres(a: np.ndarray, name: str) -> None:
                              "reads a 16-bit file as millimetres and gives metres)")
 
 
+def _map_2d(value, name: str) -> np.ndarray:
+    """A distance or depth map as :func:`restore` and :func:`depth_to_range`
+    both take it: real float metres, (H, W) or (H, W, 1) (a one-channel
+    image's shape), anything else a ParameterError naming ``name``."""
+    z = np.asarray(value)
+    _metres(z, name)
+    if z.ndim == 3 and z.shape[2] == 1:
+        z = z[:, :, 0]
+    if z.ndim != 2 or not np.issubdtype(z.dtype, np.number) or np.iscomplexobj(z):
+        raise ParameterError(f"{name} must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
+    return z
+
+
+def _nearest_type(water: dict) -> str:
+    """The name of a given water's one candidate type: its ``nearest_type``,
+    which a fit (and uwhl-rs's --water-from, which names the dive's water
+    from its betas) only ever makes one of the Jerlov names, or "fitted"
+    without one. Anything else, text that could drive a terminal or bury a
+    line in the sidecar and the summary included, is refused."""
+    name = water.get("nearest_type")
+    if name is None:
+        return "fitted"
+    if not isinstance(name, str) or name not in WATER_TYPES:
+        raise ParameterError(f"water's nearest_type must be a Jerlov type ({', '.join(WATER_TYPES)}) or None, "
+                             f"not {shown(name)}")
+    return name
+
+
 def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **method) -> Restoration:
     """Restore the colors of one underwater image (METHOD §2-§10).
 
@@ -269,8 +297,8 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         A water fitted on another photo of the same water (the ``water`` of
         a restoration given ``distance``, or a sidecar's ``distance.water``):
         its attenuation ratios become the one candidate type, named after
-        its nearest Jerlov type (``nearest_type``, text; "fitted" without
-        one); A is this photo's own. Its ``beta`` must be three positive
+        its nearest Jerlov type (``nearest_type``: a Jerlov name, as a fit
+        gives it, or None: "fitted"); A is this photo's own. Its ``beta`` must be three positive
         numbers (not text or booleans). Not with ``water_types``, which is
         a list (a dict or a string would be read as names only).
     guided_radius : int, optional
@@ -362,9 +390,6 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
             if any(isinstance(v, (bool, str, bytes)) for v in water["beta"]):
                 raise TypeError("not numbers")
             br, bg, bb = (float(v) for v in water["beta"])
-            name = water.get("nearest_type") or "fitted"
-            if not isinstance(name, str):
-                raise TypeError("the name is not text")
         except OverflowError:
             # an integer beyond a float: a number, but no attenuation
             raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}") \
@@ -374,7 +399,7 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
                                  "(the water of a restoration given distance)") from None
         if not all(np.isfinite(v) and v > 0 for v in (br, bg, bb)):
             raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}")
-        method["water_types"] = [(name, bb / br, bb / bg)]
+        method["water_types"] = [(_nearest_type(water), bb / br, bb / bg)]
     params = _method_params(**method)
     _check_room(image, params, distance)
     img = _as_image(image)
@@ -383,13 +408,7 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
     m = _as_mask(mask, "mask", hw)
     z = None
     if distance is not None:
-        z = np.asarray(distance)
-        if z.ndim == 3 and z.shape[2] == 1:
-            z = z[:, :, 0]
-        _metres(z, "distance")
-        if z.ndim != 2 or not np.issubdtype(z.dtype, np.number) or np.iscomplexobj(z):
-            raise ParameterError(f"distance must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
-        z = np.ascontiguousarray(z, dtype=np.float32)
+        z = np.ascontiguousarray(_map_2d(distance, "distance"), dtype=np.float32)
     return _core.restore_f32(img, params, water_mask=wm, mask=m, distance=z)
 
 
@@ -603,7 +622,7 @@ def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
 
     Parameters
     ----------
-    depth : float array (height, width)
+    depth : float array (height, width), or (height, width, 1)
         Metres along the axis, covering the photo's field of view; NaN
         where unknown (it stays NaN). Integer arrays are refused (their
         unit is not known): millimetres are ``depth.astype(np.float32) / 1000``.
@@ -616,12 +635,9 @@ def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
 
     Returns
     -------
-    float32 ndarray of the depth's shape: metres along each ray.
+    float32 ndarray (height, width): metres along each ray.
     """
-    z = np.asarray(depth)
-    _metres(z, "depth")
-    if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
-        raise ParameterError(f"depth must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
+    z = _map_2d(depth, "depth")
     # as floor_distance: no larger than the largest input (a broadcast view is checked before it is copied)
     from .images import DEFAULT_MAX_PIXELS
 

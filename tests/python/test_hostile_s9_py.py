@@ -420,3 +420,67 @@ def test_numbers_too_large_or_of_the_wrong_type_are_parameter_errors_said_compac
     # what was right stays right: numpy numbers, an image as the shape
     z = uwhl_rs.floor_distance(np.zeros((48, 64, 3)), np.float32(2), np.int64(70))
     assert z.shape == (48, 64) and np.nanmin(z) == pytest.approx(2.0, rel=1e-3)
+
+
+# ------------------------------------------------------------------ 7. restore and depth_to_range alike
+
+
+def test_depth_to_range_takes_and_refuses_what_restore_does():
+    """``restore(distance=)`` takes a map of shape (H, W, 1) and refuses a
+    complex one; ``depth_to_range`` refused the first and took the second
+    (with a ComplexWarning, the imaginary part dropped). Both now take
+    (H, W, 1) as (H, W) and refuse complex maps. On the optical axis the
+    range is the depth itself; a pixel's ray at angle a gives depth /
+    cos(a), so the corner is farther than the centre."""
+    import warnings
+
+    from uwhl_rs import synth
+
+    z = np.full((48, 64), 3.0, np.float32)
+    flat = uwhl_rs.depth_to_range(z, 70)
+    one = uwhl_rs.depth_to_range(z[:, :, None], 70)
+    assert one.shape == (48, 64) and np.array_equal(one, flat)
+    assert flat[24, 32] == pytest.approx(3.0, rel=1e-3) and flat[0, 0] > flat[24, 32] * 1.05
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a ComplexWarning would be an error here
+        with pytest.raises(uwhl_rs.ParameterError, match="^depth must be a 2-D array of metres, not complex128"):
+            uwhl_rs.depth_to_range(z.astype(complex), 70)
+    img, _ = synth.demo_input(48, 64, water_type="3C", seed=1)
+    with pytest.raises(uwhl_rs.ParameterError, match="^distance must be a 2-D array of metres, not complex128"):
+        uwhl_rs.restore(img, distance=z.astype(complex))
+    for bad in (np.zeros((48, 64, 2), np.float32), np.zeros(64, np.float32)):
+        for call, name in ((lambda: uwhl_rs.depth_to_range(bad, 70), "depth"),
+                           (lambda: uwhl_rs.restore(img, distance=bad), "distance")):
+            with pytest.raises(uwhl_rs.ParameterError, match=f"^{name} must be a 2-D array of metres"):
+                call()
+
+
+@pytest.mark.parametrize("name", [12, ["x"], "\x1b[31mEVIL\n", "x" * 10_000, "", "3c"])
+def test_a_given_waters_nearest_type_is_a_jerlov_name(name):
+    """``water={'beta': [...], 'nearest_type': 12}`` was told 'water must
+    be a dict with beta', which it is; a name with escape codes and a line
+    break became ``res.water_type`` unchecked (and the sidecar's, the
+    summary's and a terminal's). A fit, and uwhl-rs's --water-from (which
+    names the dive's water from its betas), only ever name it one of the
+    ten Jerlov types: anything else is refused, the message saying what is
+    wrong with nearest_type and showing it escaped and short."""
+    from uwhl_rs import synth
+
+    img, _ = synth.demo_input(48, 64, water_type="3C", seed=1)
+    with pytest.raises(uwhl_rs.ParameterError) as got:
+        uwhl_rs.restore(img, water={"beta": [0.5, 0.1, 0.1], "nearest_type": name})
+    text = str(got.value)
+    assert text.startswith("water's nearest_type must be a Jerlov type (I, IA, IB, II, III, 1C, 3C, 5C, 7C, 9C) "
+                           "or None, not "), text
+    assert "\x1b" not in text and "\n" not in text and len(text) < 200
+
+
+def test_a_given_waters_jerlov_name_or_none_still_names_the_type():
+    """A Jerlov name names the one candidate type; None or no name: "fitted"."""
+    from uwhl_rs import synth
+
+    img, _ = synth.demo_input(48, 64, water_type="3C", seed=1)
+    beta = [0.2 / 0.6515, 0.2 / 1.1244, 0.2]  # 3C's ratios beta_B / beta_R, beta_B / beta_G
+    assert uwhl_rs.restore(img, water={"beta": beta, "nearest_type": "3C"}).water_type == "3C"
+    assert uwhl_rs.restore(img, water={"beta": beta, "nearest_type": None}).water_type == "fitted"
+    assert uwhl_rs.restore(img, water={"beta": beta}).water_type == "fitted"
