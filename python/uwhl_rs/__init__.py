@@ -22,6 +22,8 @@ import numpy as np
 
 from . import _core
 from ._core import Restoration
+from . import distances
+from .distances import depth_to_range, floor_distance
 from .errors import (
     BatchError,
     CommandError,
@@ -32,6 +34,7 @@ from .errors import (
     ManifestError,
     ParameterError,
     UwhlError,
+    shown,
 )
 
 __all__ = [
@@ -186,6 +189,21 @@ def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     return np.ascontiguousarray(m)
 
 
+def _nearest_type(water: dict) -> str:
+    """The name of a given water's one candidate type: its ``nearest_type``,
+    which a fit (and uwhl-rs's --water-from, which names the dive's water
+    from its betas) only ever makes one of the Jerlov names, or "fitted"
+    without one. Anything else, text that could drive a terminal or bury a
+    line in the sidecar and the summary included, is refused."""
+    name = water.get("nearest_type")
+    if name is None:
+        return "fitted"
+    if not isinstance(name, str) or name not in WATER_TYPES:
+        raise ParameterError(f"water's nearest_type must be a Jerlov type ({', '.join(WATER_TYPES)}) or None, "
+                             f"not {shown(name)}")
+    return name
+
+
 def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **method) -> Restoration:
     """Restore the colors of one underwater image (METHOD §2-§10).
 
@@ -210,7 +228,9 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         such regions are filled (METHOD §4.5) and get one transmission each
         (METHOD §6). At least one pixel must be True.
     distance : float ndarray (h, w), optional
-        The distance of each pixel in metres (NaN, 0 or negative = unknown),
+        The distance of each pixel in metres (NaN, 0 or negative = unknown;
+        integer arrays are refused: their unit is not known, convert
+        millimetres with ``z.astype(np.float32) / 1000``),
         of any size with the image's aspect ratio (resized by nearest
         neighbour). The water (attenuation per channel, A) is then fitted
         from it and the transmission taken from it where known (METHOD §13);
@@ -224,8 +244,8 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         A water fitted on another photo of the same water (the ``water`` of
         a restoration given ``distance``, or a sidecar's ``distance.water``):
         its attenuation ratios become the one candidate type, named after
-        its nearest Jerlov type (``nearest_type``, text; "fitted" without
-        one); A is this photo's own. Its ``beta`` must be three positive
+        its nearest Jerlov type (``nearest_type``: a Jerlov name, as a fit
+        gives it, or None: "fitted"); A is this photo's own. Its ``beta`` must be three positive
         numbers (not text or booleans). Not with ``water_types``, which is
         a list (a dict or a string would be read as names only).
     guided_radius : int, optional
@@ -317,15 +337,16 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
             if any(isinstance(v, (bool, str, bytes)) for v in water["beta"]):
                 raise TypeError("not numbers")
             br, bg, bb = (float(v) for v in water["beta"])
-            name = water.get("nearest_type") or "fitted"
-            if not isinstance(name, str):
-                raise TypeError("the name is not text")
+        except OverflowError:
+            # an integer beyond a float: a number, but no attenuation
+            raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}") \
+                from None
         except (TypeError, KeyError, ValueError):
             raise ParameterError("water must be a dict with 'beta': three attenuations in 1/m "
                                  "(the water of a restoration given distance)") from None
         if not all(np.isfinite(v) and v > 0 for v in (br, bg, bb)):
-            raise ParameterError(f"water's beta must be three positive numbers, not {water['beta']!r}")
-        method["water_types"] = [(name, bb / br, bb / bg)]
+            raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}")
+        method["water_types"] = [(_nearest_type(water), bb / br, bb / bg)]
     params = _method_params(**method)
     _check_room(image, params, distance)
     img = _as_image(image)
@@ -334,46 +355,8 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
     m = _as_mask(mask, "mask", hw)
     z = None
     if distance is not None:
-        z = np.asarray(distance)
-        if z.ndim == 3 and z.shape[2] == 1:
-            z = z[:, :, 0]
-        if z.ndim != 2 or not np.issubdtype(z.dtype, np.number) or np.iscomplexobj(z):
-            raise ParameterError(f"distance must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
-        z = np.ascontiguousarray(z, dtype=np.float32)
+        z = np.ascontiguousarray(distances.distance_map(distance, "distance"), dtype=np.float32)
     return _core.restore_f32(img, params, water_mask=wm, mask=m, distance=z)
-
-
-def floor_distance(shape, altitude: float, fov: float, *, pitch: float = 0.0, roll: float = 0.0,
-                   port: str = "flat") -> np.ndarray:
-    """The distance map of a downward camera over a flat seabed (METHOD
-    §13.7), for ``restore(image, distance=...)``.
-
-    Parameters
-    ----------
-    shape : (height, width), or an image whose first two dimensions are used
-    altitude : float
-        Metres from the camera down to the seabed.
-    fov : float
-        The lens's horizontal field of view in air across the photo's
-        width, degrees.
-    pitch, roll : float
-        Degrees from looking straight down: pitch positive nose up (the
-        camera looks towards the photo's top), roll positive starboard down
-        (towards the photo's left).
-    port : "flat" or "dome"
-        The housing's window: a flat one narrows the angle in water
-        (Snell's law), a dome does not.
-
-    Returns
-    -------
-    float32 ndarray (height, width): the range in metres along each pixel's
-    ray, NaN where the ray does not meet the seabed.
-    """
-    hw = tuple(np.shape(shape)[:2]) if isinstance(shape, np.ndarray) else tuple(shape)[:2]
-    ints = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in hw)
-    if len(hw) != 2 or not ints or min(hw) < 1:
-        raise ParameterError(f"shape must be (height, width), two positive integers, not {shape!r}")
-    return _core.floor_distance(int(hw[0]), int(hw[1]), float(altitude), float(fov), float(pitch), float(roll), port)
 
 
 def _method_params(**kw) -> _core.Params:
@@ -471,9 +454,12 @@ class Sequence:
         if not isinstance(reuse_water_mask, (bool, np.bool_)):
             raise ParameterError(f"reuse_water_mask must be True or False; got {reuse_water_mask!r}")
         for name, v, lo_open in (("scene_cut", scene_cut, False), ("smoothing", smoothing, True)):
-            ok = isinstance(v, (int, float, np.floating)) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+            ok = isinstance(v, (int, float, np.floating)) and not isinstance(v, (bool, np.bool_))
+            # an integer past a float's range is no share either (math.isfinite would overflow on it)
+            ok = ok and abs(v) <= 1e308 and math.isfinite(v)
             if not ok or not ((0 < v) if lo_open else (0 <= v)) or v > 1:
-                raise ParameterError(f"{name} must be a number in {'(0, 1]' if lo_open else '[0, 1]'}; got {v!r}")
+                raise ParameterError(f"{name} must be a number in {'(0, 1]' if lo_open else '[0, 1]'}; "
+                                     f"got {shown(v)}")
         params = _method_params(**kwargs)
         self._params = params
         self._core = _core.Sequence(params, refresh_every=refresh_every, reuse_water_mask=bool(reuse_water_mask),
@@ -529,37 +515,3 @@ class Sequence:
 
 
 _signature_from_table(restore, ["image", "water_mask", "mask", "distance", "water"])
-
-
-def depth_to_range(depth, fov: float, *, port: str = "flat") -> np.ndarray:
-    """Depth along the camera's optical axis, as photogrammetry (Metashape,
-    COLMAP) and most renderers export it, turned into the range along each
-    pixel's ray that ``restore(image, distance=...)`` needs (METHOD §13.7):
-    each value divided by the cosine of its ray's angle to the axis in
-    water.
-
-    Parameters
-    ----------
-    depth : float array (height, width)
-        Metres along the axis, covering the photo's field of view; NaN
-        where unknown (it stays NaN).
-    fov : float
-        The lens's horizontal field of view in air across the photo's
-        width, degrees, in (0, 170].
-    port : "flat" or "dome"
-        The housing's window: behind a flat one the rays bend toward the
-        axis in water (Snell's law), behind a dome they do not.
-
-    Returns
-    -------
-    float32 ndarray of the depth's shape: metres along each ray.
-    """
-    z = np.asarray(depth)
-    if z.ndim != 2 or not np.issubdtype(z.dtype, np.number):
-        raise ParameterError(f"depth must be a 2-D array of metres, not {z.dtype} of shape {z.shape}")
-    # as floor_distance: no larger than the largest input (a broadcast view is checked before it is copied)
-    from .images import DEFAULT_MAX_PIXELS
-
-    if z.size == 0 or z.size > DEFAULT_MAX_PIXELS:
-        raise ParameterError(f"depth of shape {z.shape} is empty or over the largest input ({DEFAULT_MAX_PIXELS} pixels)")
-    return _core.depth_to_range(np.ascontiguousarray(z, dtype=np.float32), float(fov), port)

@@ -11,6 +11,10 @@ their kind from :func:`kind_of`.
 
 from __future__ import annotations
 
+import math
+import numbers
+import re
+
 from ._core import EXIT_CODES, ImageError, ParameterError, UwhlError
 
 __all__ = [
@@ -26,6 +30,8 @@ __all__ = [
     "ManifestError",
     "kind_of",
     "describe",
+    "shown",
+    "compact_numbers",
 ]
 
 #: exit statuses, shared with uwhl-rs (docs/CLI.md): {name: code}
@@ -112,3 +118,50 @@ def describe(e: BaseException, path: str | None = None) -> str:
     if path is not None and text.startswith(f"{path}: "):
         text = text[len(path) + 2:]
     return text
+
+
+#: the longest repr a message shows of a value it refuses
+_SHOWN_CHARS = 80
+
+
+def shown(value) -> str:
+    """``value`` as a message about it shows it: a number compactly
+    (``1e+308``, not its 309 digits; an integer too large for a float too:
+    ``1e+400``), a list or tuple by its first items, anything else by its
+    repr cut to 80 characters."""
+    if isinstance(value, bool) or type(value).__name__ in ("bool", "bool_"):  # numpy 1 and 2 call theirs so
+        return repr(bool(value))
+    if isinstance(value, numbers.Integral):
+        v = int(value)
+        if abs(v) < 10**15:
+            return str(v)
+        try:
+            return f"{float(v):g}"
+        except OverflowError:
+            # beyond a float: its logarithm still is one (Python will not print the digits past 4300)
+            lg = math.log10(abs(v))
+            e = math.floor(lg)
+            return f"{'-' if v < 0 else ''}{10 ** (lg - e):g}e+{e}"
+    if isinstance(value, numbers.Real):
+        return f"{float(value):g}"
+    if isinstance(value, (list, tuple)):
+        items = ", ".join(shown(x) for x in value[:4]) + (", ..." if len(value) > 4 else "")
+        return f"[{items}]" if isinstance(value, list) else f"({items}{',' if len(value) == 1 else ''})"
+    try:
+        text = repr(value)
+    except Exception:  # a repr that fails (an integer of too many digits inside, a hostile object)
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= _SHOWN_CHARS else text[:_SHOWN_CHARS - 3] + "..."
+
+
+def compact_numbers(text: str) -> str:
+    """``text`` with each number of 20 characters or more (the core prints
+    a float in full: 1e308 as 309 digits) written as ``{:g}``."""
+
+    def short(m: re.Match) -> str:
+        try:
+            return f"{float(m.group()):g}"
+        except (ValueError, OverflowError):
+            return m.group()
+
+    return re.sub(r"-?\d[\d.]{19,}", short, text)

@@ -19,13 +19,24 @@ from ._core import ParameterError
 from .errors import ImageTooLargeError
 from .images import ImageMeta, colorize_transmission, display_linear, read_image, to_srgb
 
-__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor"]
+__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor", "spelt"]
 
 #: Every option's default, from the core's one table (docs/CLI.md).
 _D = {o["key"]: o["default"] for o in _core.OPTIONS}
 
 #: The keywords of :func:`uwhl_rs.restore` (and of :class:`uwhl_rs.Sequence`).
 METHOD_KEYS = tuple(o["key"] for o in _core.OPTIONS if o["method"])
+
+#: keyword -> flag, from the core's table (``contact`` is restore_file's name of --contact-sheet)
+_FLAGS = {**{o["key"]: o["flag"] for o in _core.OPTIONS}, "contact": "--contact-sheet"}
+
+
+def spelt(key: str, flags: bool) -> str:
+    """The option ``key`` as a message names it: the command's flag
+    (``--max-memory``) when ``flags`` (the message is the command's, and
+    uwhl-rs says the same), else the keyword (``max_memory``) a caller of
+    the API passed."""
+    return _FLAGS.get(key, "--" + key.replace("_", "-")) if flags else key
 
 
 @dataclass
@@ -66,12 +77,14 @@ def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = Fals
     return p
 
 
-def read_mask(mask, shape, what: str, *, max_pixels: int | None = None, max_memory: int | None = None) -> np.ndarray | None:
+def read_mask(mask, shape, what: str, *, max_pixels: int | None = None, max_memory: int | None = None,
+              of: str = "the image") -> np.ndarray | None:
     """A bool mask from an array or an image file (nonzero = True). A mask
     is an argument: one that cannot be read, or of another size than the
     image, is a ``ParameterError`` (exit 2, as in the binary). Files are
     read by the binary's mask reader (``_core.decode_mask_file``: regular
-    files only, ``max_pixels`` and ``max_memory`` checked from the header)."""
+    files only, ``max_pixels`` and ``max_memory`` checked from the header).
+    ``what`` names the mask in messages and ``of`` what it must match."""
     if mask is None:
         return None
     if isinstance(mask, (str, os.PathLike)):
@@ -80,7 +93,7 @@ def read_mask(mask, shape, what: str, *, max_pixels: int | None = None, max_memo
     else:
         m = np.asarray(mask, dtype=bool)
     if m.shape != tuple(shape):
-        raise ParameterError(f"{what} is {m.shape[1]}x{m.shape[0]} pixels but the image is {shape[1]}x{shape[0]}")
+        raise ParameterError(f"{what} is {m.shape[1]}x{m.shape[0]} pixels but {of} is {shape[1]}x{shape[0]}")
     return m
 
 
@@ -165,6 +178,7 @@ def restore_staged(
     _claim=None,
     _base: int = 0,
     _label: str | None = None,
+    _flags: bool = False,
     **restore_kwargs,
 ) -> Callable[[], FileResult]:
     """:func:`restore_file` in two steps: this call reads and restores the
@@ -185,7 +199,8 @@ def restore_staged(
 
     ``_label`` (batches on object storage): the input's name in the sidecar
     (``input``, ``source.path``) and in errors, when ``in_path`` is a local
-    copy of it."""
+    copy of it. ``_flags`` (the command's): errors name options by their
+    flags (``--max-memory``), as uwhl-rs does, instead of the keywords."""
     t_start = time.perf_counter()
     if altitude is not None and distance is not None:
         raise ParameterError("distance and altitude are two sources of distance: give one")
@@ -211,7 +226,7 @@ def restore_staged(
                                    half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask,
                                    water_mask=water_mask, distance=distance, contact=contact, sequence=sequence,
                                    restore_kwargs=restore_kwargs, t_start=t_start, base=_base,
-                                   label=_label or in_path)
+                                   label=_label or in_path, flags=_flags)
     except BaseException:
         claim.release()
         raise
@@ -219,8 +234,8 @@ def restore_staged(
 
 
 def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, half_size, max_side, max_pixels, mask,
-                      water_mask, distance, contact, sequence, restore_kwargs, t_start, base, label
-                      ) -> Callable[[], FileResult]:
+                      water_mask, distance, contact, sequence, restore_kwargs, t_start, base, label,
+                      flags=False) -> Callable[[], FileResult]:
     """The body of :func:`restore_staged` once the names are claimed."""
     paths = output_paths(out_dir, claim.name, format, contact)
     budget = settings.max_memory
@@ -229,18 +244,21 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     def plan(h: int, w: int, bpp: int, oriented: bool) -> None:
         need = input_need(h, w, bpp, oriented, half_size=half_size, max_side=max_side, preprocess=preprocess,
                           masks=masks, contact=contact) + base
+        side, memory = spelt("max_side", flags), spelt("max_memory", flags)
         if need > budget:
-            raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, over max_memory {budget} "
-                                     "(use max_side or raise max_memory)")
+            raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, over {memory} {budget} "
+                                     f"(use {side} or raise {memory})")
         if not _core.can_allocate(need - base):
             raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, more than the system "
-                                     "gives now (free memory, a container limit or ulimit -v); use max_side")
+                                     f"gives now (free memory, a container limit or ulimit -v); use {side}")
 
     image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels,
-                             _on_header=plan)
+                             _on_header=plan, _flags=flags)
     full_hw = image.shape[:2]
-    m = read_mask(mask, full_hw, "mask", max_pixels=max_pixels, max_memory=budget)
-    wm = read_mask(water_mask, full_hw, "water_mask", max_pixels=max_pixels, max_memory=budget)
+    # the binary's words for its own flags: "--mask is 32x24 pixels but the input is 64x48"
+    of = "the input" if flags else "the image"
+    m = read_mask(mask, full_hw, spelt("mask", flags), max_pixels=max_pixels, max_memory=budget, of=of)
+    wm = read_mask(water_mask, full_hw, spelt("water_mask", flags), max_pixels=max_pixels, max_memory=budget, of=of)
     s = max_side_factor(*full_hw, max_side)
     if s > 1:
         image = _core._downscale(image, s)

@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import _core
-from .errors import ImageReadError, ImageTooLargeError, ParameterError
+from .errors import ImageReadError, ImageTooLargeError, ParameterError, shown
 from .sidecars import display
 
 __all__ = [
@@ -135,6 +135,7 @@ def read_image(
     half_size: bool = False,
     max_pixels: int = DEFAULT_MAX_PIXELS,
     _on_header=None,
+    _flags: bool = False,
 ) -> tuple[np.ndarray, ImageMeta]:
     """Read a photograph as the linear float32 HxWx3 image ``restore`` takes.
 
@@ -158,11 +159,13 @@ def read_image(
 
     ``_on_header(height, width, decoded_bytes_per_pixel, oriented)`` (the
     commands' memory plan) is called from the header, before decoding;
-    what it raises propagates.
+    what it raises propagates. ``_flags`` (the command's): the pixel limit
+    is named ``--max-pixels``, as the command's flag, not ``max_pixels``.
     """
     path = os.fspath(path)
     if preprocess not in PREPROCESS_MODES:
         raise ValueError(f"preprocess must be one of {PREPROCESS_MODES}, not {preprocess!r}")
+    _check_max_pixels(max_pixels)
     if not os.path.exists(path):
         raise ImageReadError(f"{path}: no such file")
     if os.path.isdir(path):
@@ -184,7 +187,8 @@ def read_image(
             failed = None
             with _decoder_messages() as said:
                 try:
-                    img, meta = _read_raw(path, preprocess, half_size, max_pixels, _on_header)
+                    img, meta = _read_raw(path, preprocess, half_size, max_pixels, _on_header,
+                                          "--max-pixels" if _flags else "max_pixels")
                 except Exception as e:  # judged below, with what the decoder said
                     failed = e
             if failed is not None:
@@ -221,17 +225,30 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
         Its header gives more than ``max_pixels`` pixels, or more memory
         than the core's default limit.
     """
-    if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)) or max_pixels < 1:
-        raise ParameterError(f"max_pixels must be a positive integer, not {max_pixels!r}")
+    _check_max_pixels(max_pixels)
     return np.asarray(_core.read_distance_file(os.fspath(path), int(max_pixels), int(_core.default_max_memory())))
 
 
+#: the largest max_pixels (the option table's: the core's 64-bit count)
+_MAX_PIXELS_LIMIT: int = next(o["max"] for o in _core.OPTIONS if o["key"] == "max_pixels")
+
+
+def _check_max_pixels(max_pixels) -> None:
+    """ParameterError unless ``max_pixels`` is an integer in the option
+    table's range (one past 2^64 would not reach the core)."""
+    if isinstance(max_pixels, (bool, np.bool_)) or not isinstance(max_pixels, (int, np.integer)) \
+            or not 1 <= max_pixels <= _MAX_PIXELS_LIMIT:
+        raise ParameterError(f"max_pixels must be a positive integer up to {_MAX_PIXELS_LIMIT}, "
+                             f"not {shown(max_pixels)}")
+
+
 def _check_pixels(path: str, h: int, w: int, max_pixels: int, on_header=None, bpp: int = 3,
-                  oriented: bool = False) -> None:
-    """The header's checks: the pixel limit, a non-empty image, and the
-    caller's ``on_header`` (see :func:`read_image`)."""
+                  oriented: bool = False, limit: str = "max_pixels") -> None:
+    """The header's checks: the pixel limit (named ``limit``), a non-empty
+    image, and the caller's ``on_header`` (see :func:`read_image`)."""
     if h * w > max_pixels:
-        raise ImageTooLargeError(f"{path}: {w}x{h} pixels is over the limit of {max_pixels} (max_pixels)")
+        # the words of the core's decoder (JPEG, PNG, TIFF), so that raw files say the same
+        raise ImageTooLargeError(f"{path}: {w}x{h} = {w * h} pixels is over the limit of {max_pixels} pixels ({limit})")
     if h < 1 or w < 1:
         raise ImageReadError(f"{path}: the image is empty ({w}x{h})")
     if on_header is not None:
@@ -364,7 +381,7 @@ def _judged_raw(path: str, meta: "ImageMeta", said: list[str]) -> "ImageMeta":
 
 
 def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
-              on_header=None) -> tuple[np.ndarray, ImageMeta]:
+              on_header=None, limit: str = "max_pixels") -> tuple[np.ndarray, ImageMeta]:
     try:
         import rawpy
     except ImportError:  # pragma: no cover - rawpy is a dependency
@@ -383,7 +400,7 @@ def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
     with raw:
         s = raw.sizes
         # the mosaic (2 bytes a pixel) and LibRaw's 16-bit RGB output
-        _check_pixels(path, s.height, s.width, max_pixels, on_header, 8, int(s.flip) != 0)
+        _check_pixels(path, s.height, s.width, max_pixels, on_header, 8, int(s.flip) != 0, limit)
         notes: list[str] = []
         # Some files declare a white level below their own data (the shared
         # Nikon NEF: 255 vs 54998): every pixel would clip. Use the data's

@@ -117,20 +117,69 @@ class StreamInfo:
         return d
 
 
+#: the top-level boxes an MP4 or MOV (ISO BMFF, QuickTime) begins with
+_BMFF_FIRST = frozenset({b"ftyp", b"moov", b"mdat", b"free", b"skip", b"wide", b"pnot", b"styp"})
+
+
+def _index_missing(path: str) -> bool:
+    """Whether the file at ``path`` is built as an MP4 or MOV (ISO BMFF
+    boxes from its first byte) whose top level holds no ``moov``, the
+    index: what a recording cut short leaves when its index was to be
+    written at the end. False for anything else, whatever its name says."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            end = f.tell()
+            pos, first, media = 0, True, False
+            # a hostile file of empty boxes ends the walk: at most this many are read
+            for _ in range(100_000):
+                if pos + 8 > end:
+                    break
+                f.seek(pos)
+                head = f.read(16)
+                size, kind = int.from_bytes(head[:4], "big"), head[4:8]
+                if first and kind not in _BMFF_FIRST:
+                    return False
+                first = False
+                if kind == b"moov":
+                    return False
+                # a recording's file type or its media: eight bytes that merely look like a box are not one
+                media = media or kind in (b"ftyp", b"mdat")
+                if size == 1 and len(head) == 16:
+                    size = int.from_bytes(head[8:16], "big")
+                elif size == 0:
+                    break  # the last box runs to the end of the file
+                if size < 8:
+                    return False  # not a box: not BMFF after all
+                pos += size
+            return media
+    except OSError:
+        return False
+
+
 def _open(path: str):
     """The container at ``path`` opened for reading, with an error naming
-    what is wrong (not a file, not a video FFmpeg reads)."""
+    what is wrong (not a file, an empty file, not a video FFmpeg reads)."""
     av = _av()
     if not os.path.isfile(path):
         why = "no such file" if not os.path.exists(path) else "not a regular file (not opened)"
         raise ImageReadError(f"{path}: {why}")
     try:
+        empty = os.path.getsize(path) == 0
+    except OSError as e:
+        raise ImageReadError(f"{path}: cannot open ({e.strerror or e})") from None
+    if empty:
+        # the words of a photo's reader (and uwhl-rs's) for an empty file
+        raise ImageReadError(f"{path}: empty file")
+    try:
         return av.open(path, metadata_errors="replace")
     except av.FFmpegError as e:
-        # an MP4 or MOV written to the end keeps its index there: cut short, it is unreadable as a whole
-        hint = "; an MP4 or MOV cut short loses the index at its end and cannot be read at all" \
-            if os.path.splitext(path)[1].lower() in (".mp4", ".m4v", ".mov", ".3gp") else ""
-        raise ImageReadError(f"{path}: not a video FFmpeg can read ({e}){hint}") from None
+        # an MP4 or MOV written to the end keeps its index there: cut short, it is unreadable as a whole; the
+        # hint is for such a file only (its boxes say so), not for any file called .mp4
+        hint = "; it is an MP4 or MOV without its index (moov), which is written at the end: a recording cut " \
+            "short cannot be read at all" if _index_missing(path) else ""
+        why = getattr(e, "strerror", None) or str(e) or type(e).__name__
+        raise ImageReadError(f"{path}: not a video FFmpeg can read ({why}){hint}") from None
 
 
 def _info(path: str, container, transfer: str | None) -> StreamInfo:

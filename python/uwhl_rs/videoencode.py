@@ -16,7 +16,8 @@ import uwhl_rs
 from . import _core, video
 from .errors import CommandError, ParameterError
 
-__all__ = ["CODECS", "INPUT_CODECS", "Writer", "codec_for", "resolve_codec", "ffmpeg_text", "check_size", "extension"]
+__all__ = ["CODECS", "INPUT_CODECS", "Writer", "codec_for", "resolve_codec", "ffmpeg_text", "check_size", "extension",
+           "write_error"]
 
 #: --video-codec: (FFmpeg encoder, pixel format for 8-bit input, for deeper input, containers it goes in)
 CODECS = {
@@ -65,6 +66,25 @@ def ffmpeg_text(e: BaseException) -> str:
     return why
 
 
+def write_error(shown: str, e: OSError, where: str = "") -> CommandError:
+    """A failed write of the output ``shown`` (a full disk, a file size
+    limit), worded as the photo path words one: ``cannot write OUT: REASON
+    (os error N)``, kind write_failed (exit 5). It names the output the user
+    asked for, not the temporary it was being written to, and the reason
+    without FFmpeg's file name; an error that already says ``cannot write``
+    (the core's, which names the output) keeps its words. ``where``, if
+    given, follows the output's name (``(frame 12)``)."""
+    text = getattr(e, "strerror", None) or str(e) or type(e).__name__
+    if text.startswith("cannot write "):
+        return CommandError(text, "write_failed")
+    why = ffmpeg_text(e)
+    code = getattr(e, "errno", None)
+    # FFmpeg's own codes (AVERROR_INVALIDDATA, ...) are not the system's: only an OSError's is said
+    if isinstance(e, OSError) and isinstance(code, int) and code > 0 and f"(os error {code})" not in why:
+        why += f" (os error {code})"
+    return CommandError(f"cannot write {shown}{where}: {why}", "write_failed")
+
+
 def check_size(codec: str, size: tuple[int, int], label: str, max_side) -> None:
     """ParameterError when ``codec`` cannot hold frames of ``size`` (H, W):
     4:2:0 needs an even width and height, 4:2:2 an even width."""
@@ -85,14 +105,17 @@ def extension(in_path: str, codec: str) -> str:
 
 
 class Writer:
-    """The restored video, encoded into a temporary as frames come."""
+    """The restored video, encoded into a temporary as frames come;
+    ``shown``, the output the temporary becomes, is what a failed write
+    names (the temporary's name means nothing to the user)."""
 
     def __init__(self, tmp: str, ext: str, codec: str, info: video.StreamInfo, size: tuple[int, int],
-                 crf: int, src):
+                 crf: int, src, shown: str | None = None):
         import av
 
         encoder, pix8, pix_deep, _ = CODECS[codec]
         self.av = av
+        self.shown = shown or "the restored video"
         self.pix = pix_deep if info.bits > 8 else pix8
         self.bits = 16
         self.transfer = info.transfer
@@ -180,6 +203,8 @@ class Writer:
                               f"the container refused a packet ({ffmpeg_text(e)})")
 
     def write(self, image: np.ndarray, pts: int | None) -> None:
+        """Encode one restored frame (linear float32 (H, W, 3)) at ``pts``
+        (made increasing); a failed write is write_failed naming the output."""
         codes = _core.frame_from_linear(np.ascontiguousarray(image, dtype=np.float32), self.transfer, 16)
         f = self.av.VideoFrame.from_ndarray(codes, format="rgb48le")
         if not self.rgb:
@@ -194,17 +219,35 @@ class Writer:
         try:
             for p in self.video.encode(f):
                 self.out.mux(p)
-        except self.av.FFmpegError as e:
-            raise CommandError(f"cannot write the restored video at frame {self.frames}: {ffmpeg_text(e)}",
-                               "write_failed") from None
+        except (self.av.FFmpegError, OSError) as e:
+            raise write_error(self.shown, e, f" (frame {self.frames})") from None
         self.frames += 1
 
     def close(self, flush: bool = True) -> None:
+        """Finish the video: the encoder's last frames (``flush``) and the
+        container's trailer, whose write is where a full disk is often
+        first seen (FFmpeg buffers the packets); either failing is
+        write_failed naming the output. ``flush`` False abandons the video
+        after another error: the container's own failure to close is then
+        dropped, so that error is the one reported."""
         try:
             if flush:
                 for p in self.video.encode():
                     self.out.mux(p)
-        except self.av.FFmpegError as e:
-            raise CommandError(f"cannot finish the restored video: {ffmpeg_text(e)}", "write_failed") from None
-        finally:
+        except (self.av.FFmpegError, OSError) as e:
+            self._close_quietly()
+            raise write_error(self.shown, e) from None
+        except BaseException:
+            self._close_quietly()
+            raise
+        try:
             self.out.close()
+        except (self.av.FFmpegError, OSError) as e:
+            if flush:
+                raise write_error(self.shown, e) from None
+
+    def _close_quietly(self) -> None:
+        try:
+            self.out.close()
+        except (self.av.FFmpegError, OSError):
+            pass

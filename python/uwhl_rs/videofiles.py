@@ -32,7 +32,7 @@ import numpy as np
 import uwhl_rs
 
 from . import _core, files, video
-from .videoencode import CODECS, Writer, check_size, codec_for, extension, resolve_codec
+from .videoencode import CODECS, Writer, check_size, codec_for, extension, resolve_codec, write_error
 from .errors import CommandError, ImageTooLargeError, ParameterError
 from .sidecars import display
 
@@ -177,7 +177,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
                   max_side: int | None = None, reuse_estimates: int | None = None, reuse_water_mask: bool = False,
                   scene_cut: float | None = None, smoothing: float | None = None, overwrite: bool = True,
                   progress: Callable[[str], None] | None = None, _claim=None, _label: str | None = None,
-                  _stop=None, **options) -> VideoResult:
+                  _stop=None, _flags: bool = False, **options) -> VideoResult:
     """Restore the video at ``in_path`` into ``out_dir`` (module docs).
 
     ``options``: the photo options of :func:`uwhl_rs.files.restore_file`
@@ -189,6 +189,8 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     (the command's): the claimed output names (:func:`video_suffixes`).
     ``_stop`` (the command's): a ``threading.Event`` that, once set (an
     interrupt), stops the video at its next frame: nothing of it is kept.
+    ``_flags`` (the command's): errors name options by their flags
+    (``--mask``, ``--max-memory``) instead of the keywords.
     A frame that holds nothing to restore (black, flat) is written as it
     came in and counted (the sidecar's ``video.unrestored``).
     """
@@ -201,24 +203,27 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
               "preprocess", "port", "distance_kind"):
         v = options.pop(k, None)
         if v not in (None, False, "none", "flat", "range"):
-            raise ParameterError(f"{k} is for photos: a video is restored as a sequence of frames")
+            raise ParameterError(f"{files.spelt(k, _flags)} is for photos: a video is restored as a sequence of "
+                                 "frames")
     max_pixels = options.pop("max_pixels", None)
     settings = _core.FileSettings(format=fmt, bits=bits, quality=jpeg_quality, max_side=max_side, **options)
     budget = settings.max_memory
     info = video.probe(in_path, transfer=transfer)
     codec = codec_for(video_codec, info)
+    side, memory = files.spelt("max_side", _flags), files.spelt("max_memory", _flags)
     if max_pixels is not None and info.width * info.height > int(max_pixels):
-        raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over max_pixels {max_pixels}")
+        raise ImageTooLargeError(f"{label}: {info.width}x{info.height} frames are over "
+                                 f"{files.spelt('max_pixels', _flags)} {max_pixels}")
     if not every:
         check_size(codec, _processed(info, max_side), label, max_side)
     need = frame_need(info, max_side)
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
-                                 f"max_memory {budget} (use max_side or raise max_memory)")
+                                 f"{memory} {budget} (use {side} or raise {memory})")
     if not _core.can_allocate(need):
         # within the budget, but more than the system gives now (as a photo's plan is checked)
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, more "
-                                 "than the system gives now (free memory, a container limit or ulimit -v); use max_side")
+                                 f"than the system gives now (free memory, a container limit or ulimit -v); use {side}")
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     suffixes = video_suffixes(in_path, every=every, codec=codec)
     claim = _claim
@@ -255,7 +260,7 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
             tmp = str(claim.temp(0))
             temps.append(tmp)
             writer = Writer(tmp, os.path.splitext(paths[0])[1], codec, info, _processed(info, o["max_side"]),
-                            int(o["video_quality"]), reader._c)
+                            int(o["video_quality"]), reader._c, shown=display(paths[0]))
             dropped = [x for x in info.others if x["index"] not in writer.audio and x["type"] != "video"]
             if dropped:
                 notes.append("streams not copied (the container or codec does not take them): "
@@ -326,18 +331,27 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
             notes.extend(writer_notes)
         strip_bytes = strip.encode()
         tmp = str(claim.temp(len(paths) - 2))
-        with open(tmp, "wb") as f:
-            f.write(strip_bytes)
         temps.append(tmp)
+        try:
+            with open(tmp, "wb") as f:
+                f.write(strip_bytes)
+        except OSError as e:
+            raise write_error(display(paths[-2]), e) from None
         counts["unrestored"], counts["unrestored_list"] = n_unrestored, unrestored
         side = _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, counts, reader, notes,
                         t_loop - o["t_start"], t_done - t_loop)
         tmp = str(claim.temp(len(paths) - 1))
-        with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(side, f, indent=2, ensure_ascii=False)
-            f.write("\n")
         temps.append(tmp)
-        claim.commit(temps)
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                json.dump(side, f, indent=2, ensure_ascii=False)
+                f.write("\n")
+        except OSError as e:
+            raise write_error(display(paths[-1]), e) from None
+        try:
+            claim.commit(temps)
+        except OSError as e:
+            raise write_error(display(paths[-1] if every else paths[0]), e) from None
     finally:
         if writer is not None:
             writer.close(flush=False)
@@ -378,6 +392,9 @@ def _write_still(video_name: str, rf, info: video.StreamInfo, settings, o) -> di
                   "path": label}
         text = _core.write_input_outputs(claim, res, np.ascontiguousarray(res.image), source, settings, None, label,
                                          None, rf.decision == "reused", 0.0, 0.0, None, 0.0)
+    except OSError as e:
+        # a full disk is the output's failure (exit 5), not the video's: it is read fine
+        raise write_error(display(os.path.join(d, name)), e) from None
     finally:
         claim.release()
     written = json.loads(text)

@@ -303,7 +303,7 @@ def test_memory_budget_and_missing_inputs_are_reported(scenes, tmp_path):
              "--max-memory", "100K")
     assert r.returncode == 4  # over budget outranks the missing inputs (3)
     assert "nope.jpg: no such file" in r.stderr and "matches no image file" in r.stderr
-    assert "over max_memory 102400" in r.stderr  # refused from the header, before decoding
+    assert "over --max-memory 102400" in r.stderr  # refused from the header, before decoding
 
 
 def test_glob_and_name_collisions(scenes, tmp_path):

@@ -443,7 +443,7 @@ def test_both_commands_call_a_file_of_no_bytes_empty(binary, tmp_path):
     ({"water_types": "3C"}, "not a str"),
     ({"water": {"beta": [True, True, True]}}, "water must be a dict"),
     ({"water": {"beta": ["0.1", "0.2", "0.3"]}}, "water must be a dict"),
-    ({"water": {"beta": [0.3, 0.2, 0.1], "nearest_type": ["x"]}}, "water must be a dict"),
+    ({"water": {"beta": [0.3, 0.2, 0.1], "nearest_type": ["x"]}}, "water's nearest_type must be a Jerlov type"),
     ({"distance": np.ones((60, 80), complex)}, "not complex128"),
 ])
 def test_the_api_refuses_arguments_it_would_take_quietly_in_part(kw, want):

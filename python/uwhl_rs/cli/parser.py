@@ -7,6 +7,7 @@ parsed flags become (the keywords of ``restore`` and ``restore_file``).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 import uwhl_rs
@@ -150,16 +151,73 @@ class _Parser(argparse.ArgumentParser):
         # A command's parser names an option it does not know first, as the
         # binary does, and takes no abbreviation of one (the binary takes
         # none): argparse would first say that -o is missing when the slip
-        # is in "--output-dir", or read "--water" as one of three options.
+        # is in "--output-dir" or "-x", read "--water" as one of three
+        # options, take "-5" for an input, and, for an unknown word after an
+        # input, say "unrecognized arguments" as the top-level "uwhl".
         if args is not None and not any(isinstance(a, argparse._SubParsersAction) for a in self._actions):
-            for a in args:
-                if a == "--":
-                    break
-                if isinstance(a, str) and a.startswith("--") and len(a) > 2:
-                    name = a.split("=", 1)[0]
-                    if name not in self._option_string_actions:
-                        self.error(f"invalid option '{name}'")
+            args = self._options_first(list(args))
         return super().parse_known_args(args, namespace)
+
+    def _options_first(self, args: list) -> list:
+        """``args`` checked for options this parser does not know (a usage
+        error naming the first), then reordered: the options with their
+        values, then ``--`` and the positional words. argparse takes the
+        inputs of ``restore`` in one run, so without it "a.jpg -o out b.jpg"
+        and "a.jpg -o out -- -b.jpg" would leave b unread; uwhl-rs takes
+        inputs anywhere, and everything after ``--`` as inputs."""
+        options: list = []
+        words: list = []
+        i = 0
+        while i < len(args):
+            tok = args[i]
+            i += 1
+            if not isinstance(tok, str) or tok == "-" or not tok.startswith("-"):
+                words.append(tok)
+                continue
+            if tok == "--":
+                words.extend(args[i:])
+                break
+            if tok.startswith("--"):
+                name = tok.split("=", 1)[0]
+                action = self._option_string_actions.get(name)
+                if action is None:
+                    self.error(f"invalid option '{name}'")
+                options.append(tok)
+                if "=" not in tok and action.nargs != 0 and i < len(args):
+                    options.append(args[i])
+                    i += 1
+                continue
+            # single-dash: a cluster of short options (-qo OUT, -j4), read as uwhl-rs reads one
+            for k, c in enumerate(tok[1:], start=1):
+                action = self._option_string_actions.get("-" + c)
+                if action is None:
+                    self.error(self._unknown_short("-" + c, tok if k == 1 else None))
+                if action.nargs != 0:
+                    # the rest of the cluster is the value, else the next word
+                    if k + 1 == len(tok) and i < len(args):
+                        options.append(tok)
+                        options.append(args[i])
+                        i += 1
+                        break
+                    options.append(tok)
+                    break
+            else:
+                options.append(tok)
+        return options + (["--", *words] if words else [])
+
+    @staticmethod
+    def _unknown_short(flag: str, word: str | None) -> str:
+        """The usage error of an unknown short option ``flag``, in uwhl-rs's
+        words: the whole ``word`` when the flag is its first letter
+        (``-dash.mp4``, not ``-d``; ``None`` when it is not), and for a word
+        that looks like a file name (a dot, or a file of that name) the two
+        ways to give it as one."""
+        if word is None or len(word) <= 2:
+            return f"invalid option '{flag}'"
+        hint = ""
+        if "." in word or os.path.lexists(word):
+            hint = f" (a file whose name starts with '-': write ./{word}, or put it after --)"
+        return f"invalid option '{word}'{hint}"
 
 
 def build_parser() -> argparse.ArgumentParser:

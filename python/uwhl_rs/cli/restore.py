@@ -106,9 +106,10 @@ def run(a: argparse.Namespace, console: Console) -> int:
         if why:
             raise CommandError(why, "write_failed", a.out)
     t0 = time.perf_counter()
+    # "_flags": each input's errors name the options as this command's flags (--max-memory), as uwhl-rs does
     result = batch.run_batch(a.inputs, a.out, dask=a.dask, storage_options=so, overwrite=a.overwrite,
                              reuse_estimates=a.reuse_estimates, reuse_water_mask=a.reuse_water_mask,
-                             options=options, jobs=a.jobs, listener=console)
+                             options={**options, "_flags": True}, jobs=a.jobs, listener=console)
     if not result.rows and not result.interrupted:
         console.note("nothing to do", always=True)
         return 0
