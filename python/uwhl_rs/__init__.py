@@ -239,7 +239,9 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         (``distance["haze_order"]`` below -0.5: flipped or rotated against
         the photo, disparity given as distance; METHOD §13.1), is not used:
         the result is flagged ``distance_rejected`` and
-        ``distance["rejected"]`` says why.
+        ``distance["rejected"]`` says why. A water given beside it
+        (``water_types`` or ``water``) is used only then: a distance that is
+        used gives the photo the water fitted to it.
     water : dict, optional
         A water fitted on another photo of the same water (the ``water`` of
         a restoration given ``distance``, or a sidecar's ``distance.water``):
