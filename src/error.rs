@@ -72,7 +72,7 @@ pub enum Error {
         msg: String,
     },
     /// The estimated working memory exceeds the configured limit.
-    #[error("image of {height}x{width} pixels needs about {needed} bytes of working memory, over the limit of {limit} bytes (raise max_memory or downscale the image)")]
+    #[error("image of {width}x{height} pixels needs about {needed} bytes of working memory, over the limit of {limit} bytes (raise max_memory or downscale the image)")]
     Memory {
         /// rows
         height: usize,
@@ -85,7 +85,7 @@ pub enum Error {
     },
     /// The system would not give the working memory now (free memory, a
     /// cgroup limit, `ulimit -v`), though it is within `max_memory`.
-    #[error("image of {height}x{width} pixels needs about {needed} bytes of working memory, which the system cannot give now (free memory, a container limit or ulimit -v); downscale the image or free memory")]
+    #[error("image of {width}x{height} pixels needs about {needed} bytes of working memory, which the system cannot give now (free memory, a container limit or ulimit -v); downscale the image or free memory")]
     Unavailable {
         /// rows
         height: usize,

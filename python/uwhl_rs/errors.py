@@ -156,7 +156,8 @@ def shown(value) -> str:
 
 def compact_numbers(text: str) -> str:
     """``text`` with each number of 20 characters or more (the core prints
-    a float in full: 1e308 as 309 digits) written as ``{:g}``."""
+    some floats in full: 1e308 as 309 digits) and each in the core's
+    scientific form (``1.000000e308``) written as ``{:g}``."""
 
     def short(m: re.Match) -> str:
         try:
@@ -164,4 +165,4 @@ def compact_numbers(text: str) -> str:
         except (ValueError, OverflowError):
             return m.group()
 
-    return re.sub(r"-?\d[\d.]{19,}", short, text)
+    return re.sub(r"-?\d\.\d{6}e-?\d+|-?\d[\d.]{19,}", short, text)

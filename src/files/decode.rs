@@ -543,7 +543,7 @@ pub fn decode_mask<R: BufRead + Seek>(
         if need > budget {
             return Err(Failure::new(
                 Kind::Budget,
-                format!("mask of {}x{} pixels needs about {need} bytes, over --max-memory {budget}", h.height, h.width),
+                format!("mask of {}x{} pixels needs about {need} bytes, over --max-memory {budget}", h.width, h.height),
             ));
         }
         Ok(())

@@ -146,7 +146,7 @@ fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, 
             Kind::Budget,
             format!(
                 "{}x{} pixels need about {need} bytes, over --max-memory {} (use --max-side or raise --max-memory)",
-                h.height, h.width, opts.params.max_memory
+                h.width, h.height, opts.params.max_memory
             ),
         ));
     }
@@ -156,7 +156,7 @@ fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, 
             format!(
                 "{}x{} pixels need about {need} bytes, more than the system gives now (free memory, a container \
                  limit or ulimit -v); use --max-side",
-                h.height, h.width
+                h.width, h.height
             ),
         ));
     }

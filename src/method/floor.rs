@@ -65,12 +65,12 @@ impl Floor {
     pub fn check(&self) -> Result<(), String> {
         let max = f64::from(crate::method::distance::MAX_DISTANCE);
         if !(self.altitude.is_finite() && self.altitude > 0.0 && self.altitude <= max) {
-            return Err(format!("altitude {} m is not in (0, {max}]", self.altitude));
+            return Err(format!("altitude {} m is not in (0, {max}]", crate::error::shown_number(self.altitude)));
         }
         check_fov(self.fov)?;
         for (name, v) in [("pitch", self.pitch), ("roll", self.roll)] {
             if !(v.is_finite() && v.abs() <= MAX_TILT) {
-                return Err(format!("{name} {v} degrees is not within +-{MAX_TILT}"));
+                return Err(format!("{name} {} degrees is not within +-{MAX_TILT}", crate::error::shown_number(v)));
             }
         }
         Ok(())
@@ -115,7 +115,7 @@ pub fn check_fov(fov: f64) -> Result<(), String> {
     if fov.is_finite() && fov > 0.0 && fov <= MAX_FOV {
         Ok(())
     } else {
-        Err(format!("field of view {fov} degrees is not in (0, {MAX_FOV}]"))
+        Err(format!("field of view {} degrees is not in (0, {MAX_FOV}]", crate::error::shown_number(fov)))
     }
 }
 

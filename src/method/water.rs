@@ -34,6 +34,9 @@ pub const JERLOV: [(&str, f64, f64); 10] = [
     ("9C", 2.0708, 1.5942),
 ];
 
+/// The longest name of a water type (characters).
+pub const MAX_NAME: usize = 64;
+
 impl WaterType {
     /// A custom water type; both ratios must be finite, > 0 and <= `MAX_RATIO`.
     pub fn new(name: &str, beta_br: f64, beta_bg: f64) -> Result<Self> {
@@ -49,6 +52,14 @@ impl WaterType {
             return Err(Error::WaterType(
                 "a water type needs a non-empty name".into(),
             ));
+        }
+        // the name is printed on consoles, written into CSV cells and pages:
+        // a label, not a carrier of escape sequences or line breaks
+        if name.chars().any(char::is_control) || name.chars().count() > MAX_NAME {
+            return Err(Error::WaterType(format!(
+                "a water type's name is at most {MAX_NAME} characters without control characters, not {:?}",
+                name.chars().take(MAX_NAME).collect::<String>()
+            )));
         }
         Ok(Self {
             name: name.to_string(),
@@ -129,6 +140,11 @@ mod tests {
         assert!(WaterType::new("x", f64::NAN, 1.0).is_err());
         assert!(WaterType::new("x", 1.0, f64::INFINITY).is_err());
         assert!(WaterType::new("", 1.0, 1.0).is_err());
+        // a label: no escape sequences or line breaks, at most MAX_NAME characters
+        assert!(WaterType::new("a\u{1b}[31m", 1.0, 1.0).is_err());
+        assert!(WaterType::new("a\nb", 1.0, 1.0).is_err());
+        assert!(WaterType::new(&"é".repeat(MAX_NAME), 1.0, 1.0).is_ok());
+        assert!(WaterType::new(&"é".repeat(MAX_NAME + 1), 1.0, 1.0).is_err());
         assert!(WaterType::new("x", MAX_RATIO, 1.0).is_ok());
         assert!(WaterType::new("x", MAX_RATIO * 1.01, 1.0).is_err());
         // the t_B floor of METHOD §7 stays a normal f32 for every accepted ratio
