@@ -11,6 +11,7 @@ uploaded, the sidecar last (the commit marker).
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import socket
 import tempfile
@@ -157,6 +158,16 @@ def local_input(path: str, scratch: str, storage_options: dict) -> str:
     return fetch(path, scratch, storage_options) if is_url(path) else local_path(path)
 
 
+def _input_scratch(ctx: "Context", item: Item) -> str:
+    """The folder of ``item``'s local copy, its own: two inputs of one name
+    in different folders of a listing are fetched while the one before is
+    still being written (its hash and metadata read from its copy), so a
+    shared folder would let one overwrite or remove the other's copy."""
+    d = os.path.join(ctx.scratch, f"in{item.index}")
+    os.makedirs(d, exist_ok=True)
+    return d
+
+
 def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: bool) -> dict:
     """Uploads an input's outputs to object storage, the sidecar last: the
     sidecar is the commit marker (docs/SCALE.md). An earlier sidecar goes
@@ -179,6 +190,10 @@ def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: 
 def _unlink(p: str) -> None:
     try:
         os.unlink(p)
+        # an input's own scratch folder (``_input_scratch``) goes with its copy
+        parent = os.path.dirname(p)
+        if re.fullmatch(r"in\d+", os.path.basename(parent)):
+            os.rmdir(parent)
     except OSError:
         pass
 
@@ -297,7 +312,7 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
             out_dir = os.path.join(ctx.scratch, f"out{item.index}")
             _, _, _, claim = files.claim_outputs(out_dir, item.name, item.input, fmt, contact,
                                                  overwrite=True, rename=False)
-        local_in = local_input(item.input, ctx.scratch, so)
+        local_in = local_input(item.input, _input_scratch(ctx, item), so)
         write = files.restore_staged(local_in, out_dir, name=item.name, _claim=claim, _base=ctx.base,
                                      _label=item.input, sequence=ctx.sequence, **opts)
     except (Exception, MemoryError) as e:  # one bad file never stops the batch
@@ -359,7 +374,7 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
     def finish() -> dict:
         local_in = None
         try:
-            local_in = local_input(item.input, ctx.scratch, so)
+            local_in = local_input(item.input, _input_scratch(ctx, item), so)
             result = videofiles.restore_video(local_in, out_dir, name=claim.name, _claim=claim, _label=item.input,
                                               reuse_estimates=ctx.reuse, reuse_water_mask=ctx.reuse_water_mask,
                                               overwrite=ctx.overwrite, progress=ctx.progress, _stop=ctx.stop,
@@ -407,7 +422,7 @@ def _prime(item: Item, ctx: Context) -> None:
     d = os.path.join(ctx.scratch, "prime")
     opts = ctx.opts
     try:
-        local_in = local_input(item.input, ctx.scratch, ctx.storage_options)
+        local_in = local_input(item.input, _input_scratch(ctx, item), ctx.storage_options)
         _, _, _, claim = files.claim_outputs(d, item.name, item.input, opts.get("format", "jpg"),
                                              opts.get("contact", False), overwrite=True, rename=False)
     except (Exception, MemoryError):

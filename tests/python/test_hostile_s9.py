@@ -212,3 +212,28 @@ def test_a_port_that_nothing_uses_is_refused(binary, tmp_path):
                                                "--altitude", "2", "--fov", "60"]), capture_output=True, text=True, timeout=60)
         assert r.returncode == 0, (face, r.stderr)
         assert json.loads((tmp_path / face / "p.json").read_text())["distance"]["floor"]["port"] == "dome"
+
+
+def test_same_named_inputs_of_a_listing_each_keep_their_own_copy(moto_s3, tmp_path):
+    """Inputs of one name in different folders of an object-storage listing
+    were fetched to one scratch name: the next input's copy overwrote (or
+    its cleanup removed) the copy the previous input's hash and metadata
+    were still being read from. Sidecars recorded another input's hash and
+    inputs failed as missing. Each input's copy is now its own: every
+    sidecar's ``input_sha256`` is the sha256 of its own object."""
+    import hashlib
+    import sys
+
+    fs, endpoint = moto_s3
+    fs.mkdir("same9")
+    for k in range(12):
+        _png(tmp_path / "p.png", 40, 56, seed=k)
+        fs.put(str(tmp_path / "p.png"), f"same9/in/d{k:02d}/f.png")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", "s3://same9/in/", "-o", str(out), "-q",
+                        "--storage-option", f"endpoint_url={endpoint}"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    for k in range(12):
+        side = json.loads((out / f"d{k:02d}" / "f.json").read_text())
+        want = hashlib.sha256(fs.cat(f"same9/in/d{k:02d}/f.png")).hexdigest()
+        assert side["metadata"]["input_sha256"] == want, k
