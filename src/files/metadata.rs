@@ -253,23 +253,19 @@ pub fn time_tag(m: &Metadata) -> Option<String> {
 /// DateTime) as ISO 8601, with SubSecTimeOriginal and OffsetTimeOriginal
 /// when present (`2026-11-30T10:15:42.437+10:00`).
 pub fn taken_at(m: &Metadata) -> Option<String> {
-    let mut original = None;
-    let mut fallback = None;
+    let raw = time_tag(m)?;
+    let raw = raw.as_str();
     let mut subsec = None;
     let mut offset = None;
     for ifd in m.get_ifds() {
         for tag in ifd.get_tags() {
             match tag {
-                ExifTag::DateTimeOriginal(s) => original = Some(s.clone()),
-                ExifTag::ModifyDate(s) => fallback = Some(s.clone()),
                 ExifTag::SubSecTimeOriginal(s) => subsec = Some(s.clone()),
                 ExifTag::OffsetTimeOriginal(s) => offset = Some(s.clone()),
                 _ => {}
             }
         }
     }
-    let raw = original.or(fallback)?;
-    let raw = raw.trim_end_matches('\0').trim();
     // "YYYY:MM:DD HH:MM:SS"
     let (date, time) = raw.split_once(' ')?;
     // bytes, not characters: a hostile value may hold any UTF-8 (found by fuzz/meta_carry)

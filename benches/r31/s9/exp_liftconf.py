@@ -11,10 +11,12 @@ import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", ".."))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
 import exp
 import harness as H
+from exp_noshift import recovered
 import uwhl_rs
 
 
@@ -22,12 +24,7 @@ def finish(st, wt, q, mode):
     """H.finish with the lift's angle in the local confidence (mode "quad" or "max"), or today's (None)."""
     if mode is None:
         return H.finish(st, wt, q)
-    br, bg = H.JER[wt]
-    tb = np.clip(q, 0.1 ** br, 1.0)
-    t = H.channel_t(tb, wt)
-    a = st.a
-    img = st.img.astype(np.float64)
-    j = a + (img - a) / t
+    tb, t, img, j = recovered(st, wt, q)
     lo, hi = j.min(), j.max()
     shift = max(lo, -0.08)
     div = min(max(hi - shift, 0), 1.6)

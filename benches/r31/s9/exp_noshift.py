@@ -10,23 +10,29 @@ each display's own J; "x" the first three; "E" the E displays.
 
     python3 benches/r31/s9/exp_noshift.py tune 2 E
 """
+import os
 import sys
 import numpy as np
-sys.path.insert(0, "/work/main/benches/r31")
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
 import exp
 import harness as H
 import uwhl_rs
 
 
+def recovered(st, wt, q):
+    """METHOD §7 before the clamp: (t_B, t_c, the input, J)."""
+    br, _ = H.JER[wt]
+    tb = np.clip(q, 0.1 ** br, 1.0)
+    t = H.channel_t(tb, wt)
+    img = st.img.astype(np.float64)
+    return tb, t, img, st.a + (img - st.a) / t
+
+
 def finish(st, wt, q, shift=True, fallback=True):
     if shift is True:
         return H.finish(st, wt, q, fallback=fallback)
-    br, bg = H.JER[wt]
-    tb = np.clip(q, 0.1 ** br, 1.0)
-    t = H.channel_t(tb, wt)
-    a = st.a
-    img = st.img.astype(np.float64)
-    j = a + (img - a) / t
+    tb, t, img, j = recovered(st, wt, q)
     obj = st.objects
     if shift == "neutral":
         # today's clamp and gains; the pedestal made neutral in display space
