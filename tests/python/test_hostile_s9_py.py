@@ -25,7 +25,9 @@ import pytest
 
 import uwhl_rs
 
-PYTHON_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "python")
+#: where the package this test imported lives (the repository's python/ with a built extension beside it, or
+#: site-packages after `pip install`): the commands run here import the same one
+PYTHON_DIR = os.path.dirname(os.path.dirname(os.path.abspath(uwhl_rs.__file__)))
 
 
 def _env() -> dict:
