@@ -20,12 +20,13 @@ import os
 import posixpath
 import re
 import stat
+import tempfile
 
 from .errors import BatchError
 from .images import atomic_write_bytes
 
 __all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "need", "filesystem", "storage_error",
-           "on_storage", "read_bytes", "open_regular", "read_regular", "modified", "Folder"]
+           "on_storage", "read_bytes", "spool", "open_regular", "read_regular", "modified", "Folder"]
 
 #: how to get what batches on Dask or object storage need
 EXTRA = 'pip install "uwhl_rs[dask]"'
@@ -176,13 +177,77 @@ def on_storage(where: str, fn, *args, keep: tuple = (), **kwargs):
         raise storage_error(e, where) from None
 
 
-def read_bytes(path: str, storage_options: dict | None = None) -> bytes:
-    """The bytes of a local file or a storage URL."""
+#: bytes asked of object storage in one request when an object is copied
+#: (:func:`spool`): what memory holds of it at a time
+CHUNK = 4 << 20
+
+
+def _too_large(limit: int, where: str) -> OSError:
+    return OSError(errno.EFBIG, f"larger than {limit} bytes", where)
+
+
+def _read_object(fs, path: str, limit: int, where: str, size: int | None = None) -> bytes:
+    """The bytes of the object ``path`` of ``fs``, at most ``limit`` of them
+    (OSError EFBIG beyond). Its size (``size``, a listing's, else asked)
+    refuses a large object before it is fetched; the fetch is one ranged
+    read of ``limit + 1`` bytes, so a size that lies (the object replaced
+    since it was listed, a hostile store) still brings no more."""
+    if size is None:
+        size = fs.info(path).get("size")
+    if isinstance(size, int) and size > limit:
+        raise _too_large(limit, where)
+    if size == 0:
+        # a range of an empty object is refused (HTTP 416): nothing to fetch
+        return b""
+    data = fs.cat_file(path, start=0, end=limit + 1)
+    if len(data) > limit:
+        raise _too_large(limit, where)
+    return data
+
+
+def read_bytes(path: str, storage_options: dict | None = None, *, limit: int) -> bytes:
+    """The bytes of a local regular file or a storage URL, at most
+    ``limit`` of them: a larger one is an OSError (EFBIG) before more than
+    ``limit + 1`` bytes are read."""
     if is_url(path):
         fs, p = filesystem(path, storage_options)
-        return fs.cat_file(p)
-    with open(local_path(path), "rb") as f:
-        return f.read()
+        return _read_object(fs, p, limit, path)
+    return read_regular(path, limit, follow_links=True)
+
+
+def spool(path: str, storage_options: dict | None = None, *, limit: int, digest=None):
+    """A private copy of the object at the storage URL ``path``: a
+    temporary file (gone when closed), open for reading at its start. At
+    most ``limit`` bytes: a larger object is an OSError (EFBIG) before more
+    than ``limit + 1`` bytes are fetched. The object comes :data:`CHUNK`
+    bytes at a time, each fed to ``digest`` (a hashlib object) as it
+    comes, so memory holds a chunk and never the object (a photo can be
+    gigabytes)."""
+    fs, p = filesystem(path, storage_options)
+    size = fs.info(p).get("size")
+    if isinstance(size, int) and size > limit:
+        raise _too_large(limit, path)
+    out = tempfile.TemporaryFile(prefix="uwhl-")
+    try:
+        got = 0
+        # block_size and no cache: each read is one ranged request of a chunk,
+        # whatever default_block_size the storage options give
+        with fs.open(p, "rb", block_size=CHUNK, cache_type="none") as f:
+            while True:
+                block = f.read(min(CHUNK, limit + 1 - got))
+                if not block:
+                    break
+                got += len(block)
+                if got > limit:
+                    raise _too_large(limit, path)
+                if digest is not None:
+                    digest.update(block)
+                out.write(block)
+        out.seek(0)
+        return out
+    except BaseException:
+        out.close()
+        raise
 
 
 def open_regular(path: str, follow_links: bool = False):
@@ -248,6 +313,8 @@ class Folder:
         root = os.fspath(root)
         self.storage_options = storage_options or {}
         self.is_url = is_url(root)
+        #: the sizes (bytes) of the files the last listings gave, by path relative to the folder
+        self._sizes: dict[str, int] = {}
         if self.is_url:
             self.fs, path = filesystem(root, self.storage_options)
             self.root = path.rstrip("/")
@@ -295,6 +362,8 @@ class Folder:
                 if not rel or any(x.startswith(".") for x in parts) or (len(parts) > 1 and parts[0] in skip_top):
                     continue
                 found.append((rel, _info_time(info)))
+                if isinstance(info.get("size"), int):
+                    self._sizes[rel] = info["size"]
         else:
             for d, dirs, names in os.walk(os.path.join(self.root, *under.split("/")) if under else self.root):
                 rel_d = os.path.relpath(d, self.root)
@@ -311,38 +380,64 @@ class Folder:
         found.sort(key=lambda f: tuple(f[0].split("/")))
         return found
 
-    def read(self, rel: str, limit: int | None = None) -> bytes:
+    def read(self, rel: str, limit: int) -> bytes:
         """The bytes of ``rel``, at most ``limit`` of them (OSError EFBIG
-        beyond). Locally only a regular file, not through a symbolic link
-        (:func:`read_regular`): what the folder holds is not trusted."""
+        beyond, before more than ``limit + 1`` are read). Locally only a
+        regular file, not through a symbolic link (:func:`read_regular`):
+        what the folder holds is not trusted. On object storage the size of
+        the last listing (else asked) refuses a large object unfetched."""
         if not self.is_url:
             return read_regular(self.path(rel), limit)
-        data = read_bytes(self.path(rel), self.storage_options)
-        if limit is not None and len(data) > limit:
-            raise OSError(errno.EFBIG, f"larger than {limit} bytes", self.path(rel))
-        return data
+        return _read_object(self.fs, self.root + "/" + rel, limit, self.path(rel), self._sizes.get(rel))
 
-    def read_many(self, rels: list[str], limit: int | None = None) -> dict[str, bytes | Exception]:
+    def read_many(self, rels: list[str], limit: int) -> dict[str, bytes | Exception]:
         """The bytes of each of ``rels`` (as :meth:`read`), or the error
         that reading it raised (on object storage fetched concurrently, in
-        one call)."""
+        one call: ranged reads of at most ``limit + 1`` bytes, the objects
+        the listing says are larger not fetched)."""
+        out: dict[str, bytes | Exception] = {}
         if not self.is_url:
-            got: dict[str, bytes | Exception] = {}
             for rel in rels:
                 try:
-                    got[rel] = self.read(rel, limit)
+                    out[rel] = self.read(rel, limit)
                 except OSError as e:
-                    got[rel] = e
-            return got
-        full = {self.root + "/" + rel: rel for rel in rels}
-        fetched = self.fs.cat(list(full), on_error="return") if full else {}
-        out: dict[str, bytes | Exception] = {}
-        for path, rel in full.items():
-            data = fetched.get(path, FileNotFoundError(2, "not found", path))
-            if isinstance(data, bytes) and limit is not None and len(data) > limit:
-                data = OSError(errno.EFBIG, f"larger than {limit} bytes", path)
+                    out[rel] = e
+            return out
+        fetch = []
+        for rel in rels:
+            size = self._sizes.get(rel)
+            if size is None:
+                try:  # not listed: asked alone
+                    out[rel] = self.read(rel, limit)
+                except Exception as e:
+                    out[rel] = e
+            elif size > limit:
+                out[rel] = _too_large(limit, self.path(rel))
+            elif size == 0:
+                out[rel] = b""
+            else:
+                fetch.append(rel)
+        # ranges, not cat: cat would read a name holding * ? or [ as a pattern
+        got = self.fs.cat_ranges([self.root + "/" + rel for rel in fetch], 0, limit + 1,
+                                 on_error="return") if fetch else []
+        for rel, data in zip(fetch, got):
+            if isinstance(data, bytes) and len(data) > limit:
+                data = _too_large(limit, self.path(rel))
             out[rel] = data
-        return out
+        return {rel: out[rel] for rel in rels}
+
+    def open(self, rel: str, limit: int):
+        """``rel`` open for reading (a binary file object), at most
+        ``limit`` bytes (OSError EFBIG beyond): locally the regular file
+        itself (:func:`open_regular`), on object storage a private copy
+        (:func:`spool`)."""
+        if self.is_url:
+            return spool(self.path(rel), self.storage_options, limit=limit)
+        f = open_regular(self.path(rel))
+        if os.fstat(f.fileno()).st_size > limit:
+            f.close()
+            raise _too_large(limit, self.path(rel))
+        return f
 
     def modified(self, rel: str) -> float | None:
         """When ``rel`` was last written, None when it is not there."""
