@@ -21,12 +21,14 @@ import posixpath
 import re
 import stat
 import tempfile
+import urllib.parse
+import weakref
 
-from .errors import BatchError
+from .errors import BatchError, shown
 from .images import atomic_write_bytes
 
-__all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "need", "filesystem", "storage_error",
-           "on_storage", "read_bytes", "spool", "open_regular", "read_regular", "modified", "Folder"]
+__all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "storage_option_problem", "need", "filesystem",
+           "storage_error", "on_storage", "read_bytes", "spool", "open_regular", "read_regular", "modified", "Folder"]
 
 #: how to get what batches on Dask or object storage need
 EXTRA = 'pip install "uwhl_rs[dask]"'
@@ -80,12 +82,19 @@ def parse_storage_options(items: list[str] | None) -> dict:
             v = value
         d = out
         *parents, leaf = key.split(".")
+        if not all(x.strip() for x in [*parents, leaf]):
+            # ".x" or "a..b" would hand the client an option named "" (or nest under one)
+            raise BatchError(f"--storage-option {item!r}: a part of the key is empty (KEY or GROUP.KEY=VALUE)",
+                             "bad_arguments")
         for p in parents:
             d = d.setdefault(p, {})
             if not isinstance(d, dict):
                 raise BatchError(f"--storage-option {item!r}: {p} is given both as a value and as a group",
                                  "bad_arguments")
         d[leaf] = v
+    why = storage_option_problem(out)
+    if why:
+        raise BatchError(f"--storage-option {why}", "bad_arguments")
     return out
 
 
@@ -95,6 +104,126 @@ def _is_number(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+# What can be told of storage options without a request. s3fs builds its
+# client at the first request, so a malformed option would otherwise be
+# said as a store that cannot be reached (exit 7), or not at all (a
+# negative block size made every input "not a JPEG, PNG...").
+
+#: options the program cannot take: it calls the storage synchronously
+_REFUSED = {"asynchronous": "the program calls the storage synchronously",
+            "loop": "the program runs the storage client's event loop itself"}
+#: options that are groups of options (GROUP.KEY=VALUE), not values
+_GROUPS = ("client_kwargs", "config_kwargs", "s3_additional_kwargs", "config_kwargs.retries")
+#: options that are URLs of an endpoint
+_URLS = ("endpoint_url", "client_kwargs.endpoint_url")
+#: options that are whole numbers, and their least value
+_WHOLE = {"default_block_size": 1, "max_concurrency": 1, "config_kwargs.max_pool_connections": 1,
+          "config_kwargs.retries.max_attempts": 0, "config_kwargs.retries.total_max_attempts": 1}
+#: options that are numbers of seconds, more than 0
+_SECONDS = ("config_kwargs.connect_timeout", "config_kwargs.read_timeout")
+#: options that are true or false
+_FLAGS = ("anon", "use_ssl", "version_aware", "requester_pays", "cache_regions", "use_listings_cache",
+          "skip_instance_cache", "fixed_upload_size")
+
+
+def _option(options: dict, name: str):
+    """(given, value) of the option ``name`` (dotted: a group's) in ``options``."""
+    d = options
+    for part in name.split("."):
+        if not isinstance(d, dict) or part not in d:
+            return False, None
+        d = d[part]
+    return True, d
+
+
+def _is_endpoint(v) -> bool:
+    """Whether ``v`` is an http(s) URL with a host (and a port, if any, that is one)."""
+    if not isinstance(v, str):
+        return False
+    try:
+        u = urllib.parse.urlsplit(v)
+        u.port  # noqa: B018  (raises on a port that is no number or out of range)
+    except ValueError:
+        return False
+    return u.scheme.lower() in ("http", "https") and bool(u.hostname)
+
+
+def storage_option_problem(options: dict | None) -> str | None:
+    """What is wrong with ``options`` (fsspec storage options) that can be
+    told without a request, as ``NAME ...`` (the option and why), or None:
+    an option named ``asynchronous`` or ``loop``; a group given a value; an
+    endpoint that is not an http(s) URL with a host; a block size, count,
+    retry count or timeout that is not a number in range; a flag that is
+    not true or false. Other options are for the client to judge."""
+    options = options or {}
+    for name, why in _REFUSED.items():
+        if name in options:
+            return f"{name}: not an option to give ({why})"
+    for name in _GROUPS:
+        given, v = _option(options, name)
+        if given and not isinstance(v, dict):
+            return f"{name} is a group of options ({name}.KEY=VALUE), not a value ({shown(v)})"
+    for name in _URLS:
+        given, v = _option(options, name)
+        if given and v is not None and not _is_endpoint(v):
+            return f"{name} must be an http:// or https:// URL with a host, not {shown(v)}"
+    for name, lo in _WHOLE.items():
+        given, v = _option(options, name)
+        if given and v is not None and (isinstance(v, bool) or not isinstance(v, int) or v < lo):
+            return f"{name} must be a whole number >= {lo}, not {shown(v)}"
+    for name in _SECONDS:
+        given, v = _option(options, name)
+        if given and v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
+                                        or not 0 < v < float("inf")):
+            return f"{name} must be a number of seconds > 0, not {shown(v)}"
+    for name in _FLAGS:
+        given, v = _option(options, name)
+        if given and not isinstance(v, bool):
+            return f"{name} must be true or false, not {shown(v)}"
+    return None
+
+
+#: errors of building a storage client that say its options are wrong (botocore's,
+#: by class name: the extra may be missing); its network errors are not among them
+_OPTION_ERRORS = ("ProfileNotFound", "InvalidConfigError", "UnknownSignatureVersionError",
+                  "InvalidRetryConfigurationError", "InvalidS3AddressingStyleError",
+                  "InvalidEndpointConfigurationError", "InvalidProxiesConfigError", "ValidationError")
+
+
+def _build_client(fs, url: str) -> None:
+    """Builds ``fs``'s client now when the backend defers it to the first
+    request (s3fs): building it reads the options and sends nothing, so
+    an option the client refuses is a bad argument that names it, before
+    anything is listed, restored or written."""
+    protocols = fs.protocol if isinstance(fs.protocol, (tuple, list)) else (fs.protocol,)
+    connect = getattr(fs, "connect", None)
+    if not any(p in ("s3", "s3a") for p in protocols) or not callable(connect):
+        return
+    # fsspec gives one instance per options: a batch plan asks for it per input, and
+    # asking its client each time is a trip through the client's event loop
+    try:
+        if fs in _BUILT:
+            return
+    except TypeError:  # not hashable, not weakly referable: asked each time
+        pass
+    try:
+        connect()
+    except (TypeError, ValueError, AttributeError, KeyError) as e:
+        raise BatchError(f"{url}: bad storage options ({type(e).__name__}: {e})", "bad_arguments") from None
+    except Exception as e:
+        if any(c.__name__ in _OPTION_ERRORS for c in type(e).__mro__):
+            raise BatchError(f"{url}: bad storage options ({type(e).__name__}: {e})", "bad_arguments") from None
+        raise storage_error(e, url) from None
+    try:
+        _BUILT.add(fs)
+    except TypeError:
+        pass
+
+
+#: the filesystems whose client :func:`_build_client` built
+_BUILT: weakref.WeakSet = weakref.WeakSet()
 
 
 def storage_error(e: BaseException, where: str) -> BatchError:
@@ -107,19 +236,32 @@ def storage_error(e: BaseException, where: str) -> BatchError:
                           "or the AWS_ACCESS_KEY_ID / AWS_SECRET_ACCESS_KEY environment variables")
     if isinstance(e, PermissionError) or "AccessDenied" in text or "Forbidden" in text:
         return BatchError(f"{where}: access refused ({text}); check the credentials and the bucket's policy")
+    if any(c.__name__ in _OPTION_ERRORS for c in type(e).__mro__):
+        # an option the client judges only when it signs a request, before sending it
+        return BatchError(f"{where}: bad storage options ({name}: {text})", "bad_arguments")
     return BatchError(f"{where}: cannot reach the storage ({name}: {text})")
 
 
 def filesystem(url: str, storage_options: dict | None):
-    """(filesystem, path) of ``url`` through fsspec."""
+    """(filesystem, path) of ``url`` through fsspec, its client built (s3fs
+    otherwise builds it at the first request). Options that are malformed
+    (:func:`storage_option_problem`) or that the client refuses while it
+    is built, before any request, are a BatchError of kind
+    ``bad_arguments`` naming them; a store that cannot be reached is
+    found by the first request, as before."""
     (fsspec,) = need("fsspec")
+    why = storage_option_problem(storage_options)
+    if why:
+        raise BatchError(f"{url}: bad storage options ({why})", "bad_arguments")
     try:
-        return fsspec.core.url_to_fs(url, **(storage_options or {}))
+        fs, path = fsspec.core.url_to_fs(url, **(storage_options or {}))
     except ImportError as e:
         raise BatchError(f"{url}: no fsspec backend for this protocol is installed ({e}); "
                          f"{EXTRA} brings s3fs (s3://)", "bad_arguments") from None
     except (ValueError, TypeError) as e:
         raise BatchError(f"{url}: bad storage options ({e})", "bad_arguments") from None
+    _build_client(fs, url)
+    return fs, path
 
 
 #: fsspec protocols whose first path component is a bucket (a container)

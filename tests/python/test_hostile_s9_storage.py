@@ -320,3 +320,133 @@ def test_report_and_ifdo_on_s3_read_bounded_ranges(s3, restored, tmp_path, monke
     got = ifdo.write_ifdo("s3://survey/out/", str(head), storage_options=so)
     assert got["items"] == 1, got
     assert served.get("survey/out/huge.json", 0) == 0
+
+
+# ------------------------------------------------------------------ 2. malformed storage options
+
+
+@pytest.mark.parametrize("item", [".x=1", "a..b=1", "a.=1", "client_kwargs. =1"])
+def test_a_storage_option_with_an_empty_key_part_is_refused(item):
+    """``.x=1`` and ``a..b=1`` were taken, and handed the client an option
+    named "" (or a group of one)."""
+    from uwhl_rs.errors import BatchError
+    from uwhl_rs.storage import parse_storage_options
+
+    with pytest.raises(BatchError, match="a part of the key is empty") as e:
+        parse_storage_options([item])
+    assert e.value.kind == "bad_arguments"
+
+
+def _nested(item: str) -> dict:
+    """``KEY=VALUE`` (``GROUP.KEY``) as the API's storage_options, the value as JSON when it is JSON."""
+    key, _, value = item.partition("=")
+    try:
+        v = json.loads(value)
+    except ValueError:
+        v = value
+    out: dict = {}
+    d = out
+    *parents, leaf = key.split(".")
+    for p in parents:
+        d = d.setdefault(p, {})
+    d[leaf] = v
+    return out
+
+
+@pytest.mark.parametrize("item, says", [
+    ("client_kwargs=foo", "client_kwargs is a group of options (client_kwargs.KEY=VALUE), not a value ('foo')"),
+    ("config_kwargs.retries=3", "config_kwargs.retries is a group of options"),
+    ("endpoint_url=", "endpoint_url must be an http:// or https:// URL with a host, not ''"),
+    ("endpoint_url=notaurl", "endpoint_url must be an http:// or https:// URL with a host, not 'notaurl'"),
+    ("endpoint_url=ftp://h", "endpoint_url must be an http:// or https:// URL with a host"),
+    ("endpoint_url=http://", "endpoint_url must be an http:// or https:// URL with a host"),
+    ("endpoint_url=http://h:99999", "endpoint_url must be an http:// or https:// URL with a host"),
+    ("client_kwargs.endpoint_url=h", "client_kwargs.endpoint_url must be an http:// or https:// URL"),
+    ("asynchronous=true", "asynchronous: not an option to give"),
+    ("default_block_size=-1", "default_block_size must be a whole number >= 1, not -1"),
+    ("default_block_size=1.5", "default_block_size must be a whole number >= 1, not 1.5"),
+    ("max_concurrency=0", "max_concurrency must be a whole number >= 1, not 0"),
+    ("config_kwargs.connect_timeout=-1", "config_kwargs.connect_timeout must be a number of seconds > 0"),
+    ("anon=3", "anon must be true or false, not 3"),
+])
+def test_malformed_storage_options_are_named_before_any_request(item, says):
+    from uwhl_rs.errors import BatchError
+    from uwhl_rs.storage import filesystem, parse_storage_options, storage_option_problem
+
+    with pytest.raises(BatchError) as e:
+        parse_storage_options([item])
+    assert e.value.kind == "bad_arguments" and str(e.value).startswith(f"--storage-option {says}"), e.value
+    # the API's storage_options are checked alike
+    so = _nested(item)
+    assert storage_option_problem(so).startswith(says)
+    with pytest.raises(BatchError) as e:
+        filesystem("s3://survey/x", so)
+    assert e.value.kind == "bad_arguments" and says in str(e.value)
+    # well-formed ones pass
+    assert storage_option_problem({"endpoint_url": "https://s3.example.org:9000/", "anon": False,
+                                   "default_block_size": 1 << 20, "client_kwargs": {"region_name": "eu"},
+                                   "config_kwargs": {"retries": {"max_attempts": 0}, "read_timeout": 2.5}}) is None
+
+
+class _Listener:
+    """A TCP port on loopback that counts the connections made to it (and
+    closes each): where a storage option points the client."""
+
+    def __init__(self):
+        import threading
+
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(16)
+        self.port = self.sock.getsockname()[1]
+        self.connections = 0
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self):
+        while True:
+            try:
+                c, _ = self.sock.accept()
+            except OSError:
+                return
+            self.connections += 1
+            c.close()
+
+    def close(self):
+        self.sock.close()
+
+
+@pytest.mark.parametrize("bad", ["nonsense_option=1", "config_kwargs.retries.mode=bogus",
+                                 "client_kwargs.region_name=a/b", "config_kwargs.signature_version=zz"])
+def test_an_option_the_client_refuses_is_a_bad_argument_and_sends_nothing(bad, tmp_path):
+    """These pass the parser, and the client refuses them when it is built
+    (or signs, before it sends): they were "cannot reach the storage",
+    exit 7. Now exit 2 naming the option, and nothing reaches the
+    endpoint; an endpoint that answers nothing stays exit 7."""
+    pytest.importorskip("s3fs")
+    where = _Listener()
+    try:
+        env_so = ["--storage-option", f"endpoint_url=http://127.0.0.1:{where.port}"]
+        r = uwhl("report", "s3://survey/out/", *env_so, "--storage-option", bad)
+        assert r.returncode == 2 and "bad storage options" in r.stderr, r.stderr
+        assert bad.split("=")[0].split(".")[-1] in r.stderr or bad.split("=")[1] in r.stderr, r.stderr
+        r = uwhl("restore", "s3://survey/in/", "-o", tmp_path / "o", *env_so, "--storage-option", bad)
+        assert r.returncode == 2 and "bad storage options" in r.stderr, r.stderr
+        assert where.connections == 0
+        r = uwhl("report", "s3://survey/out/", *env_so, "--storage-option", "config_kwargs.retries.max_attempts=0")
+        assert r.returncode == 7 and "cannot reach the storage" in r.stderr, r.stderr
+        assert where.connections > 0
+    finally:
+        where.close()
+
+
+def test_a_negative_block_size_is_a_bad_argument_not_every_input_unreadable(s3, restored, tmp_path):
+    """``default_block_size=-1`` used to fail every input as "not a JPEG,
+    PNG..." (exit 3): a whole copy of an input was cut to nothing."""
+    fs, endpoint = s3
+    fs.put(str(restored / "in" / "f00.jpg"), "survey/blocks/f00.jpg")
+    r = uwhl("restore", "s3://survey/blocks/", "-o", tmp_path / "o", "--storage-option", f"endpoint_url={endpoint}",
+             "--storage-option", "default_block_size=-1")
+    assert r.returncode == 2, r.stderr
+    assert "--storage-option default_block_size must be a whole number >= 1, not -1" in r.stderr
+    assert not (tmp_path / "o").exists()
