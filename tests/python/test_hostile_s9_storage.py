@@ -450,3 +450,78 @@ def test_a_negative_block_size_is_a_bad_argument_not_every_input_unreadable(s3, 
     assert r.returncode == 2, r.stderr
     assert "--storage-option default_block_size must be a whole number >= 1, not -1" in r.stderr
     assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------------------ 3. names restore writes and its readers refused
+
+
+def _scene_with_gps(path):
+    Image.fromarray(_scene(60, 80, seed=2)).save(path, quality=90, exif=_gps_exif())
+
+
+def _check_backslash_photo(done, items, handle_end):
+    assert done["photos"] == 1 and done["thumbnails_written"] >= 1, done
+    assert not any("not a usable sidecar" in p for p in done["problems"]), done["problems"]
+    assert list(items) == ["back\\slash.jpg"]
+    item = items["back\\slash.jpg"]
+    # a backslash in a link is a separator to a browser: it is percent-encoded
+    assert item["image-handle"].endswith(handle_end)
+
+
+@pytest.mark.skipif("\\" in (os.sep + (os.altsep or "")), reason="a backslash separates folders here")
+def test_a_backslash_name_restored_locally_is_reported_and_listed(tmp_path):
+    """``back\\slash.png`` is restored as ``back\\slash.jpg`` and ``.json``
+    (a POSIX name holds a backslash like any character), and report and
+    ifdo said "outputs.image must be a file name beside the sidecar",
+    leaving the photo out."""
+    from uwhl_rs import ifdo, report
+
+    (tmp_path / "in").mkdir()
+    _scene_with_gps(tmp_path / "in" / "back\\slash.jpg")
+    r = uwhl("restore", "in", "-o", "out", "-q", cwd=tmp_path)
+    assert r.returncode == 0 and (tmp_path / "out" / "back\\slash.json").is_file(), r.stderr
+    done = report.write_report(tmp_path / "out")
+    assert done["thumbnails_written"] == 2, done
+    page = (tmp_path / "out" / "report" / "index.html").read_text()
+    assert '"full": "../back%5Cslash.jpg"' in page
+    got = ifdo.build_ifdo(str(tmp_path / "out"), {**HEADER, **POSITION})[0]
+    _check_backslash_photo(done, got["image-set-items"], "/out/back%5Cslash.jpg")
+    used = got["image-set-header"]["image-set-provenance"]["provenance-activities"][0]["used-entities"][0]
+    assert used["name"] == "back\\slash.jpg"
+
+
+def test_a_backslash_name_restored_to_s3_is_reported_and_listed(s3, tmp_path):
+    """The same for a key ``odd/back\\slash.jpg`` restored to object
+    storage, where a backslash never separates anything."""
+    from uwhl_rs import ifdo, report
+
+    fs, endpoint = s3
+    _scene_with_gps(tmp_path / "x.jpg")
+    fs.put(str(tmp_path / "x.jpg"), "survey/odd/back\\slash.jpg")
+    so = {"endpoint_url": endpoint}
+    r = uwhl("restore", "s3://survey/odd/", "-o", "s3://survey/odd_out/", "--storage-option",
+             f"endpoint_url={endpoint}", "-q")
+    assert r.returncode == 0 and fs.exists("survey/odd_out/back\\slash.json"), r.stderr
+    done = report.write_report("s3://survey/odd_out/", storage_options=so)
+    assert done["thumbnails_written"] == 2, done
+    got = ifdo.build_ifdo("s3://survey/odd_out/", {**HEADER, **POSITION}, storage_options=so)[0]
+    _check_backslash_photo(done, got["image-set-items"], "s3://survey/odd_out/back%5Cslash.jpg")
+    used = got["image-set-header"]["image-set-provenance"]["provenance-activities"][0]["used-entities"][0]
+    assert used["name"] == "back\\slash.jpg"
+
+
+def test_a_windows_folder_still_refuses_a_backslash_name(monkeypatch):
+    """Where a backslash separates folders (Windows, made so here), a
+    local folder's sidecar naming ``back\\slash.jpg`` points into a
+    sub-folder: refused as before. On POSIX it is a name; an output role
+    the readers do not use is not judged."""
+    from uwhl_rs import sidecars
+
+    doc = {"input": "x.png", "water_type": "II", "outputs": {"image": "back\\slash.jpg", "other": "a/b"}}
+    assert sidecars.parse(json.dumps(doc).encode()) == doc
+    monkeypatch.setattr(sidecars, "LOCAL_SEPARATORS", "/")
+    assert sidecars.local_outputs_problem(doc) is None
+    monkeypatch.setattr(sidecars, "LOCAL_SEPARATORS", "/\\")
+    why = sidecars.local_outputs_problem(doc)
+    assert why == "outputs.image must be a file name beside the sidecar (no folder, no ..)"
+    assert not sidecars.plain_name("sub/x.jpg") and not sidecars.plain_name("..")
