@@ -525,3 +525,22 @@ def test_a_windows_folder_still_refuses_a_backslash_name(monkeypatch):
     why = sidecars.local_outputs_problem(doc)
     assert why == "outputs.image must be a file name beside the sidecar (no folder, no ..)"
     assert not sidecars.plain_name("sub/x.jpg") and not sidecars.plain_name("..")
+
+
+def test_a_name_too_long_for_its_outputs_is_a_failed_write_wherever_they_go(s3, restored, tmp_path):
+    """A 245-character key: its outputs' names (``..._t_color.png``) are
+    longer than the 255 bytes a file name may have. That failed with
+    exit 5 (write_failed) for a local output folder and exit 3
+    (unreadable_input) for an output on object storage, whose outputs
+    are staged locally under the same names: now exit 5 for both."""
+    fs, endpoint = s3
+    key = "a" * 241 + ".jpg"
+    fs.put(str(restored / "in" / "f00.jpg"), f"survey/long/{key}")
+    so = ["--storage-option", f"endpoint_url={endpoint}"]
+    for out in (str(tmp_path / "o"), "s3://survey/long_out/"):
+        r = uwhl("restore", "s3://survey/long/", "-o", out, *so, "--json-errors", "-q")
+        assert r.returncode == 5, (out, r.stderr)
+        lines = [json.loads(x) for x in r.stderr.splitlines() if x.startswith("{")]
+        assert lines[0]["error"] == "write_failed", lines
+        assert "more than the 255 a file name may have" in lines[0]["message"], lines
+    assert not fs.exists("survey/long_out/" + key[:-4] + ".json")
