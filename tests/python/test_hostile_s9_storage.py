@@ -35,6 +35,8 @@ from fsspec.implementations.memory import MemoryFileSystem  # noqa: E402
 
 GUARD = 300  # seconds: only so that a hang fails the test instead of holding the suite
 PROTOCOL = "uwhlcount"
+#: the bucket of the tests on moto (its own: moto's buckets are shared by the process)
+BUCKET = "survey9"
 
 
 def uwhl(*args, cwd=None, timeout=GUARD):
@@ -269,9 +271,14 @@ def test_an_input_or_output_over_the_limit_is_not_fetched_past_it(store, restore
 
 @pytest.fixture(scope="module")
 def s3(moto_s3):
-    """moto's S3 server (conftest) with the bucket "survey"."""
+    """moto's S3 server (conftest) with the bucket "survey9". moto keeps
+    its buckets for the whole process: another module's server, or this
+    module's started again, may have it already."""
     fs, endpoint = moto_s3
-    fs.mkdir("survey")
+    try:
+        fs.mkdir(BUCKET)
+    except FileExistsError:
+        pass
     return fs, endpoint
 
 
@@ -286,12 +293,12 @@ def test_report_and_ifdo_on_s3_read_bounded_ranges(s3, restored, tmp_path, monke
     from uwhl_rs import ifdo, report
 
     fs, endpoint = s3
-    fs.put(str(restored / "in" / "f00.jpg"), "survey/in/f00.jpg")
-    r = uwhl("restore", "s3://survey/in/", "-o", "s3://survey/out/", "--storage-option", f"endpoint_url={endpoint}",
+    fs.put(str(restored / "in" / "f00.jpg"), "survey9/in/f00.jpg")
+    r = uwhl("restore", "s3://survey9/in/", "-o", "s3://survey9/out/", "--storage-option", f"endpoint_url={endpoint}",
              "-q")
     assert r.returncode == 0, r.stderr
-    fs.pipe("survey/out/huge.json", b" " * (3 << 20))
-    fs.pipe("survey/out/empty.json", b"")
+    fs.pipe("survey9/out/huge.json", b" " * (3 << 20))
+    fs.pipe("survey9/out/empty.json", b"")
     served: dict = {}
     cat_file, fetch_range = s3fs.S3FileSystem._cat_file, s3fs.core.S3File._fetch_range
 
@@ -308,17 +315,18 @@ def test_report_and_ifdo_on_s3_read_bounded_ranges(s3, restored, tmp_path, monke
     monkeypatch.setattr(s3fs.S3FileSystem, "_cat_file", counted_cat)
     monkeypatch.setattr(s3fs.core.S3File, "_fetch_range", counted_range)
     so = {"endpoint_url": endpoint}
-    done = report.write_report("s3://survey/out/", storage_options=so)
+    done = report.write_report("s3://survey9/out/", storage_options=so)
     assert done["photos"] == 1 and done["thumbnails_written"] == 2, done
-    assert "s3://survey/out/huge.json: cannot read (larger than 1048576 bytes)" in done["problems"]
-    assert any(p.startswith("s3://survey/out/empty.json: not a usable sidecar: not JSON") for p in done["problems"])
-    assert served.get("survey/out/huge.json", 0) == 0 and served["survey/out/f00.jpg"] == fs.size("survey/out/f00.jpg")
+    assert "s3://survey9/out/huge.json: cannot read (larger than 1048576 bytes)" in done["problems"]
+    assert any(p.startswith("s3://survey9/out/empty.json: not a usable sidecar: not JSON") for p in done["problems"])
+    assert served.get("survey9/out/huge.json", 0) == 0
+    assert served["survey9/out/f00.jpg"] == fs.size("survey9/out/f00.jpg")
     head = tmp_path / "header.yaml"
     head.write_text(yaml.safe_dump({**HEADER, **POSITION}))
     served.clear()
-    got = ifdo.write_ifdo("s3://survey/out/", str(head), storage_options=so)
+    got = ifdo.write_ifdo("s3://survey9/out/", str(head), storage_options=so)
     assert got["items"] == 1, got
-    assert served.get("survey/out/huge.json", 0) == 0
+    assert served.get("survey9/out/huge.json", 0) == 0
 
 
 # ------------------------------------------------------------------ 2. malformed storage options
@@ -379,7 +387,7 @@ def test_malformed_storage_options_are_named_before_any_request(item, says):
     so = _nested(item)
     assert storage_option_problem(so).startswith(says)
     with pytest.raises(BatchError) as e:
-        filesystem("s3://survey/x", so)
+        filesystem("s3://survey9/x", so)
     assert e.value.kind == "bad_arguments" and says in str(e.value)
     # well-formed ones pass
     assert storage_option_problem({"endpoint_url": "https://s3.example.org:9000/", "anon": False,
@@ -426,13 +434,13 @@ def test_an_option_the_client_refuses_is_a_bad_argument_and_sends_nothing(bad, t
     where = _Listener()
     try:
         env_so = ["--storage-option", f"endpoint_url=http://127.0.0.1:{where.port}"]
-        r = uwhl("report", "s3://survey/out/", *env_so, "--storage-option", bad)
+        r = uwhl("report", "s3://survey9/out/", *env_so, "--storage-option", bad)
         assert r.returncode == 2 and "bad storage options" in r.stderr, r.stderr
         assert bad.split("=")[0].split(".")[-1] in r.stderr or bad.split("=")[1] in r.stderr, r.stderr
-        r = uwhl("restore", "s3://survey/in/", "-o", tmp_path / "o", *env_so, "--storage-option", bad)
+        r = uwhl("restore", "s3://survey9/in/", "-o", tmp_path / "o", *env_so, "--storage-option", bad)
         assert r.returncode == 2 and "bad storage options" in r.stderr, r.stderr
         assert where.connections == 0
-        r = uwhl("report", "s3://survey/out/", *env_so, "--storage-option", "config_kwargs.retries.max_attempts=0")
+        r = uwhl("report", "s3://survey9/out/", *env_so, "--storage-option", "config_kwargs.retries.max_attempts=0")
         assert r.returncode == 7 and "cannot reach the storage" in r.stderr, r.stderr
         assert where.connections > 0
     finally:
@@ -443,8 +451,8 @@ def test_a_negative_block_size_is_a_bad_argument_not_every_input_unreadable(s3, 
     """``default_block_size=-1`` used to fail every input as "not a JPEG,
     PNG..." (exit 3): a whole copy of an input was cut to nothing."""
     fs, endpoint = s3
-    fs.put(str(restored / "in" / "f00.jpg"), "survey/blocks/f00.jpg")
-    r = uwhl("restore", "s3://survey/blocks/", "-o", tmp_path / "o", "--storage-option", f"endpoint_url={endpoint}",
+    fs.put(str(restored / "in" / "f00.jpg"), "survey9/blocks/f00.jpg")
+    r = uwhl("restore", "s3://survey9/blocks/", "-o", tmp_path / "o", "--storage-option", f"endpoint_url={endpoint}",
              "--storage-option", "default_block_size=-1")
     assert r.returncode == 2, r.stderr
     assert "--storage-option default_block_size must be a whole number >= 1, not -1" in r.stderr
@@ -496,15 +504,15 @@ def test_a_backslash_name_restored_to_s3_is_reported_and_listed(s3, tmp_path):
 
     fs, endpoint = s3
     _scene_with_gps(tmp_path / "x.jpg")
-    fs.put(str(tmp_path / "x.jpg"), "survey/odd/back\\slash.jpg")
+    fs.put(str(tmp_path / "x.jpg"), "survey9/odd/back\\slash.jpg")
     so = {"endpoint_url": endpoint}
-    r = uwhl("restore", "s3://survey/odd/", "-o", "s3://survey/odd_out/", "--storage-option",
+    r = uwhl("restore", "s3://survey9/odd/", "-o", "s3://survey9/odd_out/", "--storage-option",
              f"endpoint_url={endpoint}", "-q")
-    assert r.returncode == 0 and fs.exists("survey/odd_out/back\\slash.json"), r.stderr
-    done = report.write_report("s3://survey/odd_out/", storage_options=so)
+    assert r.returncode == 0 and fs.exists("survey9/odd_out/back\\slash.json"), r.stderr
+    done = report.write_report("s3://survey9/odd_out/", storage_options=so)
     assert done["thumbnails_written"] == 2, done
-    got = ifdo.build_ifdo("s3://survey/odd_out/", {**HEADER, **POSITION}, storage_options=so)[0]
-    _check_backslash_photo(done, got["image-set-items"], "s3://survey/odd_out/back%5Cslash.jpg")
+    got = ifdo.build_ifdo("s3://survey9/odd_out/", {**HEADER, **POSITION}, storage_options=so)[0]
+    _check_backslash_photo(done, got["image-set-items"], "s3://survey9/odd_out/back%5Cslash.jpg")
     used = got["image-set-header"]["image-set-provenance"]["provenance-activities"][0]["used-entities"][0]
     assert used["name"] == "back\\slash.jpg"
 
@@ -534,12 +542,12 @@ def test_a_name_too_long_for_its_outputs_is_a_failed_write_wherever_they_go(s3, 
     are staged locally under the same names: now exit 5 for both."""
     fs, endpoint = s3
     key = "a" * 241 + ".jpg"
-    fs.put(str(restored / "in" / "f00.jpg"), f"survey/long/{key}")
+    fs.put(str(restored / "in" / "f00.jpg"), f"survey9/long/{key}")
     so = ["--storage-option", f"endpoint_url={endpoint}"]
-    for out in (str(tmp_path / "o"), "s3://survey/long_out/"):
-        r = uwhl("restore", "s3://survey/long/", "-o", out, *so, "--json-errors", "-q")
+    for out in (str(tmp_path / "o"), "s3://survey9/long_out/"):
+        r = uwhl("restore", "s3://survey9/long/", "-o", out, *so, "--json-errors", "-q")
         assert r.returncode == 5, (out, r.stderr)
         lines = [json.loads(x) for x in r.stderr.splitlines() if x.startswith("{")]
         assert lines[0]["error"] == "write_failed", lines
         assert "more than the 255 a file name may have" in lines[0]["message"], lines
-    assert not fs.exists("survey/long_out/" + key[:-4] + ".json")
+    assert not fs.exists("survey9/long_out/" + key[:-4] + ".json")
