@@ -62,8 +62,17 @@ def output_suffixes(fmt: str = "jpg", contact: bool = False) -> list[str]:
 def claim_outputs(out_dir: str, name: str, in_path: str, fmt: str, contact: bool, *, overwrite: bool, rename: bool):
     """Claims ``name`` (or, with ``rename``, the first free ``name_2``, ...) for
     ``in_path``'s outputs in ``out_dir`` (``_core.claim_outputs``; the rules
-    are in docs/OUTPUTS.md): ``(status, sidecar, pid, claim)``."""
-    return _core.claim_outputs(out_dir, name, in_path, output_suffixes(fmt, contact), overwrite, rename)
+    are in docs/OUTPUTS.md): ``(status, sidecar, pid, claim)``. An OSError
+    (a name too long for the folder, a folder that cannot be written) is
+    a failed write of the outputs (its ``kind`` ``write_failed``), also
+    when the names are claimed in a staging folder for object storage."""
+    try:
+        return _core.claim_outputs(out_dir, name, in_path, output_suffixes(fmt, contact), overwrite, rename)
+    except OSError as e:
+        # claiming is the outputs' first write: the same failure is exit 5 wherever they go (a
+        # caller that restores before it writes, as for object storage, would say unreadable input)
+        e.kind = "write_failed"
+        raise
 
 
 def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = False) -> dict:

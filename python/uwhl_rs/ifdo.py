@@ -32,8 +32,8 @@ from urllib.parse import quote
 from .errors import IfdoError
 from .ifdocheck import DEFAULT_TIME_FORMAT, field_problems, plain_data
 from .outdir import collect_sidecars
-from .sidecars import display, printable
-from .storage import Folder, on_storage, read_regular
+from .sidecars import LOCAL_SEPARATORS, display, printable
+from .storage import Folder, is_url, on_storage, read_regular
 
 #: the iFDO version written, and the schema it is checked against
 IFDO_VERSION = "v2.0.1"
@@ -301,7 +301,7 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
             secs = 0.0
         activity_id = f"urn:uuid:{item['image-uuid']}#restoration"
         source = doc.get("input") or ""
-        used = {"name": source.replace("\\", "/").rsplit("/", 1)[-1]}
+        used = {"name": _input_name(source)}
         if md.get("input_sha256"):
             used["id"] = f"sha256:{md['input_sha256']}"
         if md.get("input_image_uuid"):
@@ -399,6 +399,17 @@ def inside(key: str) -> bool:
         parts = key.replace("\\", "/").split("/")  # where a backslash separates folders too
     return (bool(key) and not key.startswith(("/", "\\")) and not re.match(r"[A-Za-z]:", key)
             and all(p not in ("", ".", "..") for p in parts))
+
+
+def _input_name(source: str) -> str:
+    """The file name of a sidecar's ``input``: its last part after ``/``,
+    and after ``\\`` too in a Windows path (a drive or share, or any on
+    Windows). A backslash is a character of a URL's or POSIX name:
+    ``s3://b/back\\slash.png`` is ``back\\slash.png``."""
+    windows = "\\" in LOCAL_SEPARATORS or bool(re.match(r"[A-Za-z]:[\\/]|\\\\", source))
+    if windows and not is_url(source):
+        source = source.replace("\\", "/")
+    return source.rsplit("/", 1)[-1]
 
 
 def _shown(v):

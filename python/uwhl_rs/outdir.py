@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from . import _core
 from .sidecars import MAX_BYTES as SIDECAR_MAX_BYTES
-from .sidecars import SidecarError, display
+from .sidecars import SidecarError, display, local_outputs_problem
 from .sidecars import parse as parse_sidecar
 from .storage import Folder, read_regular
 
@@ -185,6 +185,10 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
             continue
         try:
             doc = parse_sidecar(data)
+            # a backslash is a name's own character on object storage and POSIX, a separator on Windows
+            why = None if doc is None or folder.is_url else local_outputs_problem(doc)
+            if why:
+                raise SidecarError(why)
         except SidecarError as e:
             problems.append(f"{where}: not a usable sidecar: {display(str(e))}")
             continue

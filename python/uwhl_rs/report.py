@@ -13,6 +13,7 @@ beside it: no network, no script library.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import html
 import io as _io
@@ -36,7 +37,7 @@ from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import FILE_NAME, REPORT_DIR, Photo, collect_sidecars, failed_inputs
 from .report_series import series_axis, series_svg, used_water
 from .sidecars import display, printable
-from .storage import Folder, is_url, on_storage, open_regular, read_bytes
+from .storage import Folder, is_url, on_storage, open_regular, spool
 
 __all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE", "MAX_INPUT_BYTES", "thumb_names",
            "script_json", "series_axis"]
@@ -60,7 +61,8 @@ _TYPE_COLORS = {"I": "#08306b", "IA": "#08519c", "IB": "#2171b5", "II": "#4292c6
 # have the report fetch a URL, read a device or FIFO, or show another file;
 # the outputs it names are bare file names beside it, inside the folder.
 
-#: the largest input file hashed and thumbnailed (raw files and TIFFs included)
+#: the largest input file hashed and thumbnailed (raw files and TIFFs included), and output
+#: photo thumbnailed; one on object storage is copied to a temporary file a chunk at a time
 MAX_INPUT_BYTES = 4 << 30
 
 
@@ -124,10 +126,16 @@ def _input_file(p: Photo, folder):
             return None, f"{shown}: not on the output folder's storage; not fetched"
         if not want:
             return None, f"{shown}: the sidecar records no input hash; not fetched"
-        f = _io.BytesIO(read_bytes(src, folder.storage_options))
-        if _sha256(f) != want:
+        h = hashlib.sha256()
+        try:
+            f = spool(src, folder.storage_options, limit=MAX_INPUT_BYTES, digest=h)
+        except OSError as e:
+            if e.errno != errno.EFBIG:
+                raise
+            return None, f"{shown}: larger than {MAX_INPUT_BYTES} bytes; not shown"
+        if h.hexdigest() != want:
+            f.close()
             return None, f"{shown}: changed since it was restored (another SHA-256)"
-        f.seek(0)
         return f, None
     if not want:
         return None, f"{shown}: the sidecar records no input hash (metadata.input_sha256); not shown"
@@ -243,17 +251,20 @@ def _thumb(job, folder, side: int, dst_time: float | None) -> str:
             if f is None:
                 return why + earlier
             name = p.doc["input"]
-        elif folder.is_url:
-            f, name = _io.BytesIO(folder.read(rel)), rel
         else:
-            f, name = open_regular(folder.path(rel)), rel
+            f, name = folder.open(rel, MAX_INPUT_BYTES), rel
         with f:
             im = _open_small(f, os.path.splitext(name)[1].lower(), side)
         buf = _io.BytesIO()
         im.save(buf, "JPEG", quality=82)
     except Exception as e:  # one unreadable file leaves its cell empty (or its earlier thumbnail), never the page
         src = display(p.doc["input"] if which == "in" else folder.path(rel))
-        why = "not found" if isinstance(e, FileNotFoundError) else f"no thumbnail ({type(e).__name__}: {e})"
+        if isinstance(e, FileNotFoundError):
+            why = "not found"
+        elif isinstance(e, OSError) and e.errno == errno.EFBIG:
+            why = f"no thumbnail ({e.strerror})"
+        else:
+            why = f"no thumbnail ({type(e).__name__}: {e})"
         return f"{src}: {display(why)}{earlier}"
     folder.write(dst, buf.getvalue())
     return "written"

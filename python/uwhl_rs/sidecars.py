@@ -23,8 +23,8 @@ import re
 
 from .errors import UwhlError
 
-__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "display", "printable",
-           "is_uuid_hex", "is_sha256"]
+__all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "local_outputs_problem",
+           "LOCAL_SEPARATORS", "display", "printable", "is_uuid_hex", "is_sha256"]
 
 #: the version of the checked fields (the sidecar's own ``uwhl_version`` says which program wrote it)
 SCHEMA_VERSION = 1
@@ -95,14 +95,34 @@ def printable(text: str) -> str:
     return _ORDER.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
 
 
-def plain_name(name: object) -> bool:
+#: what separates folders in a local path here: ``/``, and on Windows ``\\`` too
+LOCAL_SEPARATORS = "".join(sorted({"/", os.sep, os.altsep or "/"}))
+
+
+def plain_name(name: object, separators: str = "/") -> bool:
     """Whether ``name`` is a bare file name (an output beside its sidecar):
-    no folder part, not ``.`` or ``..``, no NUL. Other control characters
-    are allowed: ``restore`` writes the outputs of a photo whose name holds
+    none of ``separators`` (a folder part), not ``.`` or ``..``, no NUL.
+    A backslash is an ordinary character of a POSIX file name and of an
+    object's key, and ``restore`` names the outputs of ``back\\slash.png``
+    ``back\\slash.jpg``: only a local folder where it separates folders
+    (Windows: :data:`LOCAL_SEPARATORS`) refuses it. Control characters are
+    allowed: ``restore`` writes the outputs of a photo whose name holds
     them, and every reader shows names escaped (the page as text, the
     console through :func:`printable`)."""
     return (isinstance(name, str) and 0 < len(name) <= 255 and name not in (".", "..")
-            and not any(c in name for c in "/\\\0"))
+            and not any(c in name for c in separators + "\0"))
+
+
+def local_outputs_problem(doc: dict) -> str | None:
+    """Why a checked sidecar's outputs cannot be beside it in a local
+    folder here (an output's name holds a backslash and this is Windows),
+    as :func:`parse` says a field's problem; None when they can."""
+    outputs = doc.get("outputs") or {}
+    for role in OUTPUT_ROLES:
+        name = outputs.get(role)
+        if name is not None and not plain_name(name, LOCAL_SEPARATORS):
+            return f"outputs.{role} {_NOT_PLAIN}"
+    return None
 
 
 def is_uuid_hex(v: object) -> bool:
@@ -214,8 +234,14 @@ def _in_range(lo: float, hi: float):
     return f
 
 
+_NOT_PLAIN = "must be a file name beside the sidecar (no folder, no ..)"
+
+#: the outputs a sidecar names (``outputs``), each a file beside it
+OUTPUT_ROLES = ("image", "transmission", "transmission_color", "confidence", "contact_sheet", "video", "strip")
+
+
 def _output_name(v):
-    return None if v is None or plain_name(v) else "must be a file name beside the sidecar (no folder, no ..)"
+    return None if v is None or plain_name(v) else _NOT_PLAIN
 
 
 def _iso_time(v):
@@ -237,8 +263,7 @@ def _hex(pattern_check, what):
 #: the fields the readers use, and what each must be (absent is fine unless in REQUIRED)
 FIELDS = {
     "input": _path_text,
-    "outputs": _object({r: _output_name for r in ("image", "transmission", "transmission_color", "confidence",
-                                                       "contact_sheet", "video", "strip")}),
+    "outputs": _object({r: _output_name for r in OUTPUT_ROLES}),
     "kind": _text,
     # a video's sidecar (docs/OUTPUTS.md "Videos")
     "video": _object({

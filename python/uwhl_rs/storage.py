@@ -15,17 +15,19 @@ from __future__ import annotations
 import datetime as _dt
 import errno
 import importlib
-import json
 import os
 import posixpath
 import re
 import stat
+import tempfile
+import weakref
 
 from .errors import BatchError
 from .images import atomic_write_bytes
+from .storage_options import is_option_error, parse_storage_options, storage_option_problem
 
-__all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "need", "filesystem", "storage_error",
-           "on_storage", "read_bytes", "open_regular", "read_regular", "modified", "Folder"]
+__all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "storage_option_problem", "need", "filesystem",
+           "storage_error", "on_storage", "read_bytes", "spool", "open_regular", "read_regular", "modified", "Folder"]
 
 #: how to get what batches on Dask or object storage need
 EXTRA = 'pip install "uwhl_rs[dask]"'
@@ -63,37 +65,38 @@ def join(base: str, rel: str) -> str:
     return base.rstrip("/") + "/" + rel if is_url(base) else os.path.join(base, rel)
 
 
-def parse_storage_options(items: list[str] | None) -> dict:
-    """``--storage-option KEY=VALUE`` values as fsspec storage options:
-    values ``true``/``false``/``null`` and numbers are read as JSON, others
-    kept as text; ``a.b=V`` nests (``client_kwargs.region_name=eu-west-1``)."""
-    out: dict = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise BatchError(f"--storage-option {item!r} is not KEY=VALUE", "bad_arguments")
-        try:
-            v = json.loads(value) if value.strip() in ("true", "false", "null") or _is_number(value) else value
-        except ValueError:
-            v = value
-        d = out
-        *parents, leaf = key.split(".")
-        for p in parents:
-            d = d.setdefault(p, {})
-            if not isinstance(d, dict):
-                raise BatchError(f"--storage-option {item!r}: {p} is given both as a value and as a group",
-                                 "bad_arguments")
-        d[leaf] = v
-    return out
-
-
-def _is_number(text: str) -> bool:
+def _build_client(fs, url: str) -> None:
+    """Builds ``fs``'s client now when the backend defers it to the first
+    request (s3fs): building it reads the options and sends nothing, so
+    an option the client refuses is a bad argument that names it, before
+    anything is listed, restored or written."""
+    protocols = fs.protocol if isinstance(fs.protocol, (tuple, list)) else (fs.protocol,)
+    connect = getattr(fs, "connect", None)
+    if not any(p in ("s3", "s3a") for p in protocols) or not callable(connect):
+        return
+    # fsspec gives one instance per options: a batch plan asks for it per input, and
+    # asking its client each time is a trip through the client's event loop
     try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+        if fs in _BUILT:
+            return
+    except TypeError:  # not hashable, not weakly referable: asked each time
+        pass
+    try:
+        connect()
+    except (TypeError, ValueError, AttributeError, KeyError) as e:
+        raise BatchError(f"{url}: bad storage options ({type(e).__name__}: {e})", "bad_arguments") from None
+    except Exception as e:
+        if is_option_error(e):
+            raise BatchError(f"{url}: bad storage options ({type(e).__name__}: {e})", "bad_arguments") from None
+        raise storage_error(e, url) from None
+    try:
+        _BUILT.add(fs)
+    except TypeError:
+        pass
+
+
+#: the filesystems whose client :func:`_build_client` built
+_BUILT: weakref.WeakSet = weakref.WeakSet()
 
 
 def storage_error(e: BaseException, where: str) -> BatchError:
@@ -106,19 +109,32 @@ def storage_error(e: BaseException, where: str) -> BatchError:
                           "or the AWS_ACCESS_KEY_ID / AWS_SECRET_ACCESS_KEY environment variables")
     if isinstance(e, PermissionError) or "AccessDenied" in text or "Forbidden" in text:
         return BatchError(f"{where}: access refused ({text}); check the credentials and the bucket's policy")
+    if is_option_error(e):
+        # an option the client judges only when it signs a request, before sending it
+        return BatchError(f"{where}: bad storage options ({name}: {text})", "bad_arguments")
     return BatchError(f"{where}: cannot reach the storage ({name}: {text})")
 
 
 def filesystem(url: str, storage_options: dict | None):
-    """(filesystem, path) of ``url`` through fsspec."""
+    """(filesystem, path) of ``url`` through fsspec, its client built (s3fs
+    otherwise builds it at the first request). Options that are malformed
+    (:func:`storage_option_problem`) or that the client refuses while it
+    is built, before any request, are a BatchError of kind
+    ``bad_arguments`` naming them; a store that cannot be reached is
+    found by the first request, as before."""
     (fsspec,) = need("fsspec")
+    why = storage_option_problem(storage_options)
+    if why:
+        raise BatchError(f"{url}: bad storage options ({why})", "bad_arguments")
     try:
-        return fsspec.core.url_to_fs(url, **(storage_options or {}))
+        fs, path = fsspec.core.url_to_fs(url, **(storage_options or {}))
     except ImportError as e:
         raise BatchError(f"{url}: no fsspec backend for this protocol is installed ({e}); "
                          f"{EXTRA} brings s3fs (s3://)", "bad_arguments") from None
     except (ValueError, TypeError) as e:
         raise BatchError(f"{url}: bad storage options ({e})", "bad_arguments") from None
+    _build_client(fs, url)
+    return fs, path
 
 
 #: fsspec protocols whose first path component is a bucket (a container)
@@ -176,13 +192,77 @@ def on_storage(where: str, fn, *args, keep: tuple = (), **kwargs):
         raise storage_error(e, where) from None
 
 
-def read_bytes(path: str, storage_options: dict | None = None) -> bytes:
-    """The bytes of a local file or a storage URL."""
+#: bytes asked of object storage in one request when an object is copied
+#: (:func:`spool`): what memory holds of it at a time
+CHUNK = 4 << 20
+
+
+def _too_large(limit: int, where: str) -> OSError:
+    return OSError(errno.EFBIG, f"larger than {limit} bytes", where)
+
+
+def _read_object(fs, path: str, limit: int, where: str, size: int | None = None) -> bytes:
+    """The bytes of the object ``path`` of ``fs``, at most ``limit`` of them
+    (OSError EFBIG beyond). Its size (``size``, a listing's, else asked)
+    refuses a large object before it is fetched; the fetch is one ranged
+    read of ``limit + 1`` bytes, so a size that lies (the object replaced
+    since it was listed, a hostile store) still brings no more."""
+    if size is None:
+        size = fs.info(path).get("size")
+    if isinstance(size, int) and size > limit:
+        raise _too_large(limit, where)
+    if size == 0:
+        # a range of an empty object is refused (HTTP 416): nothing to fetch
+        return b""
+    data = fs.cat_file(path, start=0, end=limit + 1)
+    if len(data) > limit:
+        raise _too_large(limit, where)
+    return data
+
+
+def read_bytes(path: str, storage_options: dict | None = None, *, limit: int) -> bytes:
+    """The bytes of a local regular file or a storage URL, at most
+    ``limit`` of them: a larger one is an OSError (EFBIG) before more than
+    ``limit + 1`` bytes are read."""
     if is_url(path):
         fs, p = filesystem(path, storage_options)
-        return fs.cat_file(p)
-    with open(local_path(path), "rb") as f:
-        return f.read()
+        return _read_object(fs, p, limit, path)
+    return read_regular(path, limit, follow_links=True)
+
+
+def spool(path: str, storage_options: dict | None = None, *, limit: int, digest=None):
+    """A private copy of the object at the storage URL ``path``: a
+    temporary file (gone when closed), open for reading at its start. At
+    most ``limit`` bytes: a larger object is an OSError (EFBIG) before more
+    than ``limit + 1`` bytes are fetched. The object comes :data:`CHUNK`
+    bytes at a time, each fed to ``digest`` (a hashlib object) as it
+    comes, so memory holds a chunk and never the object (a photo can be
+    gigabytes)."""
+    fs, p = filesystem(path, storage_options)
+    size = fs.info(p).get("size")
+    if isinstance(size, int) and size > limit:
+        raise _too_large(limit, path)
+    out = tempfile.TemporaryFile(prefix="uwhl-")
+    try:
+        got = 0
+        # block_size and no cache: each read is one ranged request of a chunk,
+        # whatever default_block_size the storage options give
+        with fs.open(p, "rb", block_size=CHUNK, cache_type="none") as f:
+            while True:
+                block = f.read(min(CHUNK, limit + 1 - got))
+                if not block:
+                    break
+                got += len(block)
+                if got > limit:
+                    raise _too_large(limit, path)
+                if digest is not None:
+                    digest.update(block)
+                out.write(block)
+        out.seek(0)
+        return out
+    except BaseException:
+        out.close()
+        raise
 
 
 def open_regular(path: str, follow_links: bool = False):
@@ -248,6 +328,8 @@ class Folder:
         root = os.fspath(root)
         self.storage_options = storage_options or {}
         self.is_url = is_url(root)
+        #: the sizes (bytes) of the files the last listings gave, by path relative to the folder
+        self._sizes: dict[str, int] = {}
         if self.is_url:
             self.fs, path = filesystem(root, self.storage_options)
             self.root = path.rstrip("/")
@@ -295,6 +377,8 @@ class Folder:
                 if not rel or any(x.startswith(".") for x in parts) or (len(parts) > 1 and parts[0] in skip_top):
                     continue
                 found.append((rel, _info_time(info)))
+                if isinstance(info.get("size"), int):
+                    self._sizes[rel] = info["size"]
         else:
             for d, dirs, names in os.walk(os.path.join(self.root, *under.split("/")) if under else self.root):
                 rel_d = os.path.relpath(d, self.root)
@@ -311,38 +395,64 @@ class Folder:
         found.sort(key=lambda f: tuple(f[0].split("/")))
         return found
 
-    def read(self, rel: str, limit: int | None = None) -> bytes:
+    def read(self, rel: str, limit: int) -> bytes:
         """The bytes of ``rel``, at most ``limit`` of them (OSError EFBIG
-        beyond). Locally only a regular file, not through a symbolic link
-        (:func:`read_regular`): what the folder holds is not trusted."""
+        beyond, before more than ``limit + 1`` are read). Locally only a
+        regular file, not through a symbolic link (:func:`read_regular`):
+        what the folder holds is not trusted. On object storage the size of
+        the last listing (else asked) refuses a large object unfetched."""
         if not self.is_url:
             return read_regular(self.path(rel), limit)
-        data = read_bytes(self.path(rel), self.storage_options)
-        if limit is not None and len(data) > limit:
-            raise OSError(errno.EFBIG, f"larger than {limit} bytes", self.path(rel))
-        return data
+        return _read_object(self.fs, self.root + "/" + rel, limit, self.path(rel), self._sizes.get(rel))
 
-    def read_many(self, rels: list[str], limit: int | None = None) -> dict[str, bytes | Exception]:
+    def read_many(self, rels: list[str], limit: int) -> dict[str, bytes | Exception]:
         """The bytes of each of ``rels`` (as :meth:`read`), or the error
         that reading it raised (on object storage fetched concurrently, in
-        one call)."""
+        one call: ranged reads of at most ``limit + 1`` bytes, the objects
+        the listing says are larger not fetched)."""
+        out: dict[str, bytes | Exception] = {}
         if not self.is_url:
-            got: dict[str, bytes | Exception] = {}
             for rel in rels:
                 try:
-                    got[rel] = self.read(rel, limit)
+                    out[rel] = self.read(rel, limit)
                 except OSError as e:
-                    got[rel] = e
-            return got
-        full = {self.root + "/" + rel: rel for rel in rels}
-        fetched = self.fs.cat(list(full), on_error="return") if full else {}
-        out: dict[str, bytes | Exception] = {}
-        for path, rel in full.items():
-            data = fetched.get(path, FileNotFoundError(2, "not found", path))
-            if isinstance(data, bytes) and limit is not None and len(data) > limit:
-                data = OSError(errno.EFBIG, f"larger than {limit} bytes", path)
+                    out[rel] = e
+            return out
+        fetch = []
+        for rel in rels:
+            size = self._sizes.get(rel)
+            if size is None:
+                try:  # not listed: asked alone
+                    out[rel] = self.read(rel, limit)
+                except Exception as e:
+                    out[rel] = e
+            elif size > limit:
+                out[rel] = _too_large(limit, self.path(rel))
+            elif size == 0:
+                out[rel] = b""
+            else:
+                fetch.append(rel)
+        # ranges, not cat: cat would read a name holding * ? or [ as a pattern
+        got = self.fs.cat_ranges([self.root + "/" + rel for rel in fetch], 0, limit + 1,
+                                 on_error="return") if fetch else []
+        for rel, data in zip(fetch, got):
+            if isinstance(data, bytes) and len(data) > limit:
+                data = _too_large(limit, self.path(rel))
             out[rel] = data
-        return out
+        return {rel: out[rel] for rel in rels}
+
+    def open(self, rel: str, limit: int):
+        """``rel`` open for reading (a binary file object), at most
+        ``limit`` bytes (OSError EFBIG beyond): locally the regular file
+        itself (:func:`open_regular`), on object storage a private copy
+        (:func:`spool`)."""
+        if self.is_url:
+            return spool(self.path(rel), self.storage_options, limit=limit)
+        f = open_regular(self.path(rel))
+        if os.fstat(f.fileno()).st_size > limit:
+            f.close()
+            raise _too_large(limit, self.path(rel))
+        return f
 
     def modified(self, rel: str) -> float | None:
         """When ``rel`` was last written, None when it is not there."""
