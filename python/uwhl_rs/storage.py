@@ -115,6 +115,31 @@ def storage_error(e: BaseException, where: str) -> BatchError:
     return BatchError(f"{where}: cannot reach the storage ({name}: {text})")
 
 
+#: botocore's timeouts and attempts unless the options give their own: its
+#: defaults (60 s a read, retried) under s3fs's own 5 attempts held a batch
+#: 7 minutes on an endpoint that accepts connections and never answers
+S3_DEADLINES = {"connect_timeout": 10, "read_timeout": 20, "retries": {"total_max_attempts": 2}}
+
+#: s3fs's own attempts at a call (its default 5, each with botocore's): 2 x 2
+#: reads of 20 s give up on a silent endpoint in about 80 s, and a throttled
+#: request (SlowDown) is still tried 4 times
+S3FS_ATTEMPTS = 2
+
+
+def with_deadlines(url: str, storage_options: dict | None) -> dict:
+    """``storage_options`` for ``url`` with :data:`S3_DEADLINES` under
+    ``config_kwargs`` for an S3 URL, each only where the options do not set
+    it (the user's own timeouts and retries win)."""
+    so = dict(storage_options or {})
+    if url.split("://", 1)[0].lower() not in ("s3", "s3a"):
+        return so
+    config = dict(so.get("config_kwargs") or {})
+    for key, value in S3_DEADLINES.items():
+        config.setdefault(key, value)
+    so["config_kwargs"] = config
+    return so
+
+
 def filesystem(url: str, storage_options: dict | None):
     """(filesystem, path) of ``url`` through fsspec, its client built (s3fs
     otherwise builds it at the first request). Options that are malformed
@@ -127,13 +152,15 @@ def filesystem(url: str, storage_options: dict | None):
     if why:
         raise BatchError(f"{url}: bad storage options ({why})", "bad_arguments")
     try:
-        fs, path = fsspec.core.url_to_fs(url, **(storage_options or {}))
+        fs, path = fsspec.core.url_to_fs(url, **with_deadlines(url, storage_options))
     except ImportError as e:
         raise BatchError(f"{url}: no fsspec backend for this protocol is installed ({e}); "
                          f"{EXTRA} brings s3fs (s3://)", "bad_arguments") from None
     except (ValueError, TypeError) as e:
         raise BatchError(f"{url}: bad storage options ({e})", "bad_arguments") from None
     _build_client(fs, url)
+    if hasattr(fs, "retries") and url.split("://", 1)[0].lower() in ("s3", "s3a"):
+        fs.retries = S3FS_ATTEMPTS
     return fs, path
 
 

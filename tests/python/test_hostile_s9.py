@@ -237,3 +237,23 @@ def test_same_named_inputs_of_a_listing_each_keep_their_own_copy(moto_s3, tmp_pa
         side = json.loads((out / f"d{k:02d}" / "f.json").read_text())
         want = hashlib.sha256(fs.cat(f"same9/in/d{k:02d}/f.png")).hexdigest()
         assert side["metadata"]["input_sha256"] == want, k
+
+
+def test_an_s3_store_that_never_answers_is_given_up_on_within_its_deadlines(moto_s3):
+    """botocore's defaults (60 s a read, retried) under s3fs's 5 attempts
+    held a batch 7 minutes on an endpoint that accepts connections and never
+    answers. The client of an S3 URL is built with 10 s to connect, 20 s a
+    read and 2 attempts, s3fs makes 2, unless the options give their own
+    timeouts; other stores are left as they are."""
+    from uwhl_rs import storage
+
+    fs, endpoint = moto_s3
+    got, _ = storage.filesystem("s3://anything/x.png", {"endpoint_url": endpoint})
+    config = got.s3.meta.config
+    assert (config.connect_timeout, config.read_timeout, config.retries["total_max_attempts"]) == (10, 20, 2)
+    assert got.retries == storage.S3FS_ATTEMPTS == 2
+    # the user's own win, key by key
+    own = storage.with_deadlines("s3://b/x", {"config_kwargs": {"read_timeout": 300, "retries": {"mode": "adaptive"}}})
+    assert own["config_kwargs"] == {"read_timeout": 300, "retries": {"mode": "adaptive"}, "connect_timeout": 10}
+    assert storage.with_deadlines("gs://b/x", {"token": "anon"}) == {"token": "anon"}
+    assert storage.with_deadlines("file:///tmp/x", None) == {}
