@@ -12,6 +12,7 @@ imported only when a URL needs it. Paths inside a folder are relative and
 
 from __future__ import annotations
 
+import copy
 import datetime as _dt
 import errno
 import importlib
@@ -135,7 +136,8 @@ def with_deadlines(url: str, storage_options: dict | None) -> dict:
         return so
     config = dict(so.get("config_kwargs") or {})
     for key, value in S3_DEADLINES.items():
-        config.setdefault(key, value)
+        # a copy: the client may change what it is given, and the next call's options must be the same
+        config.setdefault(key, copy.deepcopy(value))
     so["config_kwargs"] = config
     return so
 

@@ -447,15 +447,16 @@ def test_s3_interrupted_outputs_without_sidecar_are_repaired(s3, inputs, local_r
     so = {"endpoint_url": endpoint}
     dest = "s3://survey/restored/dive_b"
     # an attempt that died after storing the photo, before the sidecar
-    real_put = fs.put_file
+    used = storage.filesystem(dest, so)[0]
+    assert storage.filesystem(dest, so)[0] is used  # fsspec's one instance for these options
+    real_put = used.put_file
 
     def dying_put(lpath, rpath, *a, **kw):
         if rpath.endswith("f01_t.png"):
             raise ConnectionError("the connection dropped")
         return real_put(lpath, rpath, *a, **kw)
 
-    assert storage.filesystem(dest, so)[0] is fs  # fsspec's one instance for these options
-    monkeypatch.setattr(fs, "put_file", dying_put)
+    monkeypatch.setattr(used, "put_file", dying_put)
     df = batch.restore_many(["s3://survey/dive_b/f01.png", "s3://survey/dive_b/f02.png"], dest, storage_options=so)
     monkeypatch.undo()
     assert list(df.status) == ["failed", "done"]

@@ -425,12 +425,16 @@ class _Listener:
 
 @pytest.mark.parametrize("bad", ["nonsense_option=1", "config_kwargs.retries.mode=bogus",
                                  "client_kwargs.region_name=a/b", "config_kwargs.signature_version=zz"])
-def test_an_option_the_client_refuses_is_a_bad_argument_and_sends_nothing(bad, tmp_path):
+def test_an_option_the_client_refuses_is_a_bad_argument_and_sends_nothing(bad, tmp_path, monkeypatch):
     """These pass the parser, and the client refuses them when it is built
     (or signs, before it sends): they were "cannot reach the storage",
     exit 7. Now exit 2 naming the option, and nothing reaches the
     endpoint; an endpoint that answers nothing stays exit 7."""
     pytest.importorskip("s3fs")
+    # credentials of its own: without any, the client stops at "no credentials" before it reaches the endpoint
+    for k, v in dict(AWS_ACCESS_KEY_ID="testing", AWS_SECRET_ACCESS_KEY="testing", AWS_DEFAULT_REGION="us-east-1",
+                     AWS_EC2_METADATA_DISABLED="true").items():
+        monkeypatch.setenv(k, v)
     where = _Listener()
     try:
         env_so = ["--storage-option", f"endpoint_url=http://127.0.0.1:{where.port}"]
