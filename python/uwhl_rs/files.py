@@ -249,10 +249,12 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     paths = output_paths(out_dir, claim.name, format, contact)
     budget = settings.max_memory
     masks = int(mask is not None) + int(water_mask is not None)
+    photo_need = [0]
 
     def plan(h: int, w: int, bpp: int, oriented: bool) -> None:
         need = input_need(h, w, bpp, oriented, half_size=half_size, max_side=max_side, preprocess=preprocess,
                           masks=masks, contact=contact) + base
+        photo_need[0] = need - base
         side, memory = spelt("max_side", flags), spelt("max_memory", flags)
         if need > budget:
             raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, over {memory} {budget} "
@@ -277,11 +279,17 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     # that cannot be read leaves the photo restored without it, flagged
     z, z_source, z_missing, z_floor, z_depth = None, None, None, None, None
     if isinstance(distance, (str, os.PathLike)):
-        z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), int(budget),
+        # the map gets what the budget leaves beside the photo (its plan, and the map at the photo's
+        # processed size that restore makes): one that does not fit is left out, the photo restored
+        room = max(0, int(budget) - photo_need[0] - 4 * image.shape[0] * image.shape[1])
+        z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), room,
                                                          tuple(int(x) for x in full_hw))
         if z is not None and settings.depth_along_axis:
             # METHOD §13.7: depth along the camera's axis, turned into ranges with the lens
             z, z_depth, z_missing = _core.depth_to_range_for(settings, in_path, z, *full_hw)
+        if z is not None and s > 1:
+            # checked against the photo as read; restore sees it shrunk by --max-side, and the map with it
+            z = np.ascontiguousarray(z[::s, ::s])
     elif distance is not None:
         z, z_source = distance, "array"
     elif settings.altitude is not None:

@@ -125,7 +125,8 @@ pub fn read_distance(path: &Path, max_pixels: u64, max_memory: u64) -> Result<Di
 
 /// [`read_distance`] of the map of a photo of `photo` = (height, width)
 /// pixels, when known: a map of more than [`map_cap`] pixels is refused
-/// from its header.
+/// from its header, and `max_memory` is what the budget leaves the map
+/// beside that photo.
 pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: Option<(u64, u64)>) -> Result<DistanceMap, Failure> {
     crate::files::jobs::regular_file(path).map_err(|m| Failure::new(Kind::Input, m))?;
     let f = File::open(path).map_err(|e| Failure::new(Kind::Input, format!("cannot open: {e}")))?;
@@ -152,7 +153,12 @@ pub fn read_distance_of(path: &Path, max_pixels: u64, max_memory: u64, photo: Op
         // the decoded samples and the metres, beside what the process holds anyway
         let need = n.saturating_mul(bytes_per.saturating_add(4)).saturating_add(crate::kernels::memory::process_base());
         if need > max_memory {
-            return Err(Failure::new(Kind::Budget, format!("the distance map of {w}x{h} pixels needs about {need} bytes, over --max-memory {max_memory}")));
+            let over = if photo.is_some() {
+                format!("more than the {max_memory} bytes --max-memory leaves it beside the photo")
+            } else {
+                format!("over --max-memory {max_memory}")
+            };
+            return Err(Failure::new(Kind::Budget, format!("the distance map of {w}x{h} pixels needs about {need} bytes, {over}")));
         }
         Ok(())
     };

@@ -343,9 +343,10 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
             continue;
         }
         let row = fields(line, delim).map_err(|e| format!("line {no}: {e}"))?;
-        // a row longer than the header has a value under no name: a
-        // delimiter inside a value, or columns shifted
-        if row.len() > header.len() {
+        // a value beyond the header's columns has no name: a delimiter
+        // inside a value, or columns shifted (empty ones, as a trailing
+        // delimiter leaves, say nothing)
+        if row.iter().skip(header.len()).any(|f| !f.trim().is_empty()) {
             return Err(format!("line {no}: {} fields, the header (line {head_no}) names {}", row.len(), header.len()));
         }
         let cell = |col: usize, what: &str| -> Result<&str, String> {
@@ -750,6 +751,7 @@ mod tests {
             ("file,altitude\na.jpg,\u{1b}[31m2\n", "\"\u{1b}[31m2\" is not a number"),
             ("file,altitude,pitch\na.jpg,2,89.5\n", "line 2, column 3 (pitch): 89.5 is not in [-89, 89]"),
             ("file,altitude\na.jpg,2,3,4\n", "line 2: 4 fields, the header (line 1) names 2"),
+            ("file,altitude\na.jpg,2,,\nb.jpg,2,,x\n", "line 3: 4 fields, the header (line 1) names 2"),
         ] {
             let e = parse_log(text).unwrap_err();
             assert!(e.contains(want), "{text:?}: {e}");
@@ -758,6 +760,8 @@ mod tests {
 
     #[test]
     fn the_same_record_twice_is_one_record() {
+        // a trailing delimiter leaves an empty field under no name: taken
+        assert!(parse_log("file,altitude\na.jpg,2,\nb.jpg,3,\n").is_ok());
         let log = parse_log("file,altitude,pitch\na.jpg,2,40\na.jpg,2,40\nb.jpg,3,0\n").unwrap();
         let (p, from) = log.pose(Path::new("a.jpg"), None).unwrap();
         assert_eq!((p.altitude, from["line"].clone()), (2.0, json!(2)));

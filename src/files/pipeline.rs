@@ -163,6 +163,28 @@ fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, 
     Ok(())
 }
 
+/// The bytes a photo of `h` x `w` pixels plans for (METHOD §13: with the
+/// map at its processed size), before the photo's header is read: its
+/// samples counted at 16 bits (the most a photo decodes to), so that a map
+/// it lets through fits [`check_plan`] too. The process's base is not in
+/// it (the map's reader adds it).
+fn photo_plan_with_map(h: usize, w: usize, opts: &Settings, masks: &Masks) -> u64 {
+    let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n)).max(1);
+    let plan = Plan {
+        height: h,
+        width: w,
+        decoded_bpp: 6,
+        decoded_is_rgb: true,
+        oriented: true,
+        factor,
+        reference: opts.preprocess == Preprocess::Reference,
+        masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
+        write_extra: 0,
+    };
+    let at_size = ((h / factor) as u64).saturating_mul((w / factor) as u64).saturating_mul(4);
+    plan.bytes().saturating_add(at_size)
+}
+
 /// A restored input before anything is written.
 #[derive(Debug, Clone)]
 pub struct Restored {
@@ -461,7 +483,14 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
         match crate::files::depth::expand(t, &job.input) {
             Ok(path) => {
                 // the photo's size from its header, so that a map far larger than the photo is not read
-                let map = crate::files::depth::read_distance_of(&path, opts.max_pixels, opts.params.max_memory, photo_size(&job.input))
+                // the map gets what the budget leaves beside the photo's own plan: one that
+                // does not fit is left out (the photo restored without it, flagged), whichever
+                // check would meet it, so a larger budget never fails what a smaller one restored
+                let photo = photo_size(&job.input);
+                let room_for_map = photo.map_or(opts.params.max_memory, |(h, w)| {
+                    opts.params.max_memory.saturating_sub(photo_plan_with_map(h as usize, w as usize, opts, masks))
+                });
+                let map = crate::files::depth::read_distance_of(&path, opts.max_pixels, room_for_map, photo)
                     .map_err(|f| format!("{}: {}", path.display(), f.message));
                 (path, map)
             }

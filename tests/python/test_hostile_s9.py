@@ -46,11 +46,11 @@ def test_stream_mode_does_not_take_its_own_outputs_as_inputs(binary, tmp_path):
 def test_a_distance_map_counts_in_the_memory_budget(binary, tmp_path):
     """The map was checked against the whole of --max-memory and the photo's
     plan left it out: with a small photo and a large float64 map, both
-    commands went 4-25 MiB over the limit. Now the map's read counts what
-    the process holds, and the photo's plan counts the map: at the tightest
-    budget that reads the map (the need its refusal names, plus the margin
-    of docs/CLI.md), the peak resident memory measured by the kernel stays
-    under it."""
+    commands went 4-39 MiB over the limit. Now the map gets what the budget
+    leaves beside the photo (the refusal names both), and one that does not
+    fit is left out with the photo restored: at the tightest budget that
+    reads the map (plus the margin of docs/CLI.md), the peak resident
+    memory measured by the kernel stays under it."""
     import re
 
     from test_parity import _cmd, _peak_rss
@@ -68,13 +68,47 @@ def test_a_distance_map_counts_in_the_memory_budget(binary, tmp_path):
         code, _, err = _peak_rss(_cmd(face, binary, [*args, "--distance", str(tmp_path / "p.npy"), "--max-memory", str(photo)]))
         assert code == 0, (face, err)
         why = json.loads((out / "p.json").read_text())["distance"]["rejected"]
-        need = int(re.search(r"needs about (\d+) bytes, over --max-memory", why).group(1))
-        budget = need + margin[face]
+        got = re.search(r"needs about (\d+) bytes, more than the (\d+) bytes --max-memory leaves it beside the photo", why)
+        assert got, (face, why)
+        # what the photo keeps for itself is the budget less what it left the map
+        need, room = int(got.group(1)), int(got.group(2))
+        budget = need + (photo - room) + margin[face]
         code, peak, err = _peak_rss(_cmd(face, binary, [*args, "--distance", str(tmp_path / "p.npy"), "--max-memory", str(budget)]))
         assert code == 0, (face, err)
         side = json.loads((out / "p.json").read_text())
         assert "max-memory" not in (side["distance"]["rejected"] or ""), (face, side["distance"])
         assert peak <= budget, (face, peak, budget)
+
+
+def test_a_map_that_does_not_fit_is_left_out_at_any_budget_and_shrinks_with_max_side(binary, tmp_path):
+    """A larger budget used to fail what a smaller one restored (the map's
+    own check dropped it, the photo's plan with the map failed the photo
+    with exit 4 naming only its pixels); with --max-side the Python command
+    compared the map with the shrunk photo and failed the input with exit 2.
+    Now every budget that fits the photo restores it, with the map or
+    without it (named in ``distance.rejected``), in both commands."""
+    from PIL import Image
+
+    from test_parity import _cmd
+
+    rng = np.random.default_rng(4)
+    Image.fromarray((rng.random((300, 400, 3)) * 200).astype(np.uint8)).save(tmp_path / "p.jpg")
+    np.save(tmp_path / "p.npy", np.full((1200, 1600), 3.0, np.float32))
+    for face in ("rust", "python"):
+        out = tmp_path / face
+        args = [str(tmp_path / "p.jpg"), "-o", str(out), "--overwrite", "-q", "--distance", str(tmp_path / "p.npy")]
+        r = subprocess.run(_cmd(face, binary, [*args, "--max-memory", "1M"]), capture_output=True, text=True, timeout=120)
+        import re
+
+        photo = int(re.search(r"need about (\d+) bytes", r.stderr).group(1))
+        # from the margin that absorbs run-to-run changes of the process's own size (docs/CLI.md)
+        margin = (1 << 20) if face == "rust" else (4 << 20)
+        for extra in (margin, margin + (8 << 20), margin + (16 << 20), margin + (32 << 20), margin + (64 << 20)):
+            r = subprocess.run(_cmd(face, binary, [*args, "--max-memory", str(photo + extra)]), capture_output=True,
+                               text=True, timeout=120)
+            assert r.returncode == 0, (face, extra, r.stderr)
+        r = subprocess.run(_cmd(face, binary, [*args, "--max-side", "100"]), capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, (face, r.stderr)
 
 
 def test_the_progress_line_says_when_a_distance_asked_for_is_not_used(binary, tmp_path):
