@@ -291,3 +291,23 @@ def test_an_s3_store_that_never_answers_is_given_up_on_within_its_deadlines(moto
     assert own["config_kwargs"] == {"read_timeout": 300, "retries": {"mode": "adaptive"}, "connect_timeout": 10}
     assert storage.with_deadlines("gs://b/x", {"token": "anon"}) == {"token": "anon"}
     assert storage.with_deadlines("file:///tmp/x", None) == {}
+
+
+def test_usage_errors_are_json_objects_with_json_errors_in_both_commands(binary, tmp_path):
+    """``uwhl``'s parser wrote its usage errors as text (and a "Try" line)
+    even with ``--json-errors``; uwhl-rs wrote the JSON object. Now both
+    write one object of kind bad_arguments, exit 2, and nothing else."""
+    from test_parity import _cmd
+
+    for face in ("rust", "python"):
+        for extra in (["-z"], ["--format", "xxx"], ["--quality", "0"]):
+            r = subprocess.run(_cmd(face, binary, ["a.jpg", "-o", str(tmp_path / "o"), "--json-errors", *extra]),
+                               capture_output=True, text=True, timeout=60)
+            lines = r.stderr.splitlines()
+            assert r.returncode == 2 and len(lines) == 1, (face, extra, r.stderr)
+            obj = json.loads(lines[0])
+            assert obj["error"] == "bad_arguments" and obj["exit_code"] == 2 and obj["input"] is None, (face, obj)
+    # after "--" it is an input's name, not the option
+    r = subprocess.run(_cmd("python", binary, ["-o", str(tmp_path / "o"), "-z", "--", "--json-errors"]),
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.startswith("uwhl restore: error:"), r.stderr

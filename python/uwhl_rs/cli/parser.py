@@ -143,7 +143,16 @@ class _Parser(argparse.ArgumentParser):
     by a shell glob), which must not drive the terminal or reorder the line,
     as in the binary's. Subcommands' parsers are of the same class."""
 
+    #: set by the command line when it holds --json-errors (before any "--"): a usage error is then
+    #: one JSON object, as every other error of the run and as uwhl-rs writes it
+    json_errors = False
+
     def error(self, message):
+        if _Parser.json_errors:
+            import json
+
+            obj = {"error": "bad_arguments", "input": None, "message": message, "exit_code": 2}
+            self.exit(2, json.dumps(obj, ensure_ascii=True) + "\n")
         # one line and where to look, as the binary's: the usage of a command of thirty options would bury it
         self.exit(2, f"{self.prog}: error: {printable(message)}\nTry '{self.prog} --help'.\n")
 
