@@ -117,6 +117,10 @@ fn outdir_value(v: OsString) -> Result<PathBuf, Failure> {
             "-o/--out: the output folder's name is empty (give a folder; '.' for the current one)",
         ));
     }
+    // "--" ends the options: as a folder's name it is a slip (the Python command refuses it too)
+    if v == "--" {
+        return Err(Failure::usage("-o/--out: expected a folder, not '--' (write ./-- for a folder of that name)"));
+    }
     Ok(v.into())
 }
 

@@ -311,3 +311,18 @@ def test_usage_errors_are_json_objects_with_json_errors_in_both_commands(binary,
     r = subprocess.run(_cmd("python", binary, ["-o", str(tmp_path / "o"), "-z", "--", "--json-errors"]),
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.startswith("uwhl restore: error:"), r.stderr
+
+
+def test_dash_dash_is_not_an_output_folder_in_either_command(binary, tmp_path):
+    """``-o --`` was a usage error for uwhl and a folder named ``--`` for
+    uwhl-rs; both refuse it now, and ``./--`` names such a folder."""
+    from test_parity import _cmd
+
+    _png(tmp_path / "a.png")
+    for face in ("rust", "python"):
+        r = subprocess.run(_cmd(face, binary, ["-o", "--", str(tmp_path / "a.png")]), capture_output=True, text=True,
+                           timeout=60, cwd=tmp_path)
+        assert r.returncode == 2 and not (tmp_path / "--").exists(), (face, r.stderr)
+    r = subprocess.run(_cmd("rust", binary, ["-o", "./--", str(tmp_path / "a.png"), "-q"]), capture_output=True, text=True,
+                       timeout=60, cwd=tmp_path)
+    assert r.returncode == 0 and (tmp_path / "--" / "a.json").is_file(), r.stderr
