@@ -18,7 +18,7 @@ from ..console import Console
 from ..errors import kind_of
 import sys
 
-from .parser import _Parser, attach_values, build_parser
+from .parser import attach_values, build_parser, usage_errors_as_json
 
 __all__ = ["main", "build_parser"]
 
@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     if flag is not None:
         # as uwhl-rs names the command that has an option of the Python command's
         p.exit(2, f"uwhl: {flag} is an option of the binary only: run 'uwhl-rs restore' (docs/CLI.md)\n")
-    _Parser.json_errors = "--json-errors" in args[:args.index("--")] if "--" in args else "--json-errors" in args
+    usage_errors_as_json(args)
     a = p.parse_args(attach_values(args))
     if a.cmd == "demo":
         try:

@@ -16,7 +16,7 @@ from .. import _core
 from ..errors import CommandError
 from ..sidecars import printable
 
-__all__ = ["build_parser", "water_types", "method_kwargs", "file_kwargs"]
+__all__ = ["build_parser", "water_types", "method_kwargs", "file_kwargs", "usage_errors_as_json"]
 
 #: every option's default in the table
 _DEFAULTS = {o["key"]: o["default"] for o in _core.OPTIONS}
@@ -135,6 +135,13 @@ def _folder_arguments(p: argparse.ArgumentParser) -> None:
                    help="an fsspec option for a URL OUTDIR, as for restore")
     p.add_argument("--json-errors", action="store_true", help="each error as one JSON object on stderr")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+
+
+def usage_errors_as_json(args: list[str]) -> None:
+    """Makes the parsers write their usage errors as JSON objects when the
+    command line ``args`` holds ``--json-errors`` before any ``--``."""
+    options = args[:args.index("--")] if "--" in args else args
+    _Parser.json_errors = "--json-errors" in options
 
 
 class _Parser(argparse.ArgumentParser):
