@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import numbers
 import os
 import time
 from collections.abc import Callable
@@ -16,7 +17,7 @@ import uwhl_rs
 
 from . import _core
 from ._core import ParameterError
-from .errors import ImageTooLargeError
+from .errors import ImageTooLargeError, shown
 from .images import ImageMeta, colorize_transmission, display_linear, read_image, to_srgb
 
 __all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor", "spelt"]
@@ -155,6 +156,11 @@ def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwarg
     method keywords as ``restore_kwargs``, which then only label the
     sidecar), the image is restored as that sequence's next frame and the
     sidecar says in ``reused_estimates`` whether it reused the estimates.
+
+    A distance (METHOD §13) comes from ``distance`` (an array, or a
+    template as ``--distance`` takes it) or from ``altitude`` as
+    ``--altitude`` takes it: metres (a number), a navigation log's path, or
+    ``"xmp"``, with ``fov`` and ``port`` (METHOD §13.7).
 
     Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
     the paths written and the sidecar dict).
@@ -346,6 +352,19 @@ def _subsample_label(v) -> int:
     return 0 if isinstance(v, str) and v == "auto" else int(v)
 
 
+def _altitude_source(altitude) -> str | None:
+    """``altitude`` as ``--altitude`` takes it: metres (a number, as the
+    flag's text), a navigation log's path, or ``"xmp"``; a ParameterError
+    for anything else (a bool is not metres)."""
+    if altitude is None:
+        return None
+    if isinstance(altitude, numbers.Real) and not isinstance(altitude, (bool, np.bool_)):
+        return repr(float(altitude))
+    if isinstance(altitude, (str, os.PathLike)):
+        return os.fspath(altitude)
+    raise ParameterError(f"altitude must be metres (a number), a navigation log's path or 'xmp', not {shown(altitude)}")
+
+
 def settings_of(*, format: str = _D["format"], bits: int | None = _D["bits"], quality: int = _D["quality"],
                 preprocess: str = _D["preprocess"], half_size: bool = _D["half_size"],
                 max_side: int | None = _D["max_side"], max_pixels: int = _D["max_pixels"], mask=None,
@@ -358,7 +377,7 @@ def settings_of(*, format: str = _D["format"], bits: int | None = _D["bits"], qu
                               half_size=half_size, max_side=max_side, max_pixels=max_pixels,
                               mask=_mask_label(mask), water_mask=_mask_label(water_mask),
                               distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
-                              altitude=None if altitude is None else os.fspath(altitude), fov=fov, port=port,
+                              altitude=_altitude_source(altitude), fov=fov, port=port,
                               distance_kind=distance_kind,
                               water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
 

@@ -326,3 +326,19 @@ def test_dash_dash_is_not_an_output_folder_in_either_command(binary, tmp_path):
     r = subprocess.run(_cmd("rust", binary, ["-o", "./--", str(tmp_path / "a.png"), "-q"]), capture_output=True, text=True,
                        timeout=60, cwd=tmp_path)
     assert r.returncode == 0 and (tmp_path / "--" / "a.json").is_file(), r.stderr
+
+
+def test_restore_file_takes_an_altitude_in_metres(tmp_path):
+    """``restore_file(altitude=2.0)`` raised a TypeError from os.fspath: a
+    number is metres, as ``--altitude 2`` is; what is neither a number nor
+    a path is a ParameterError naming it."""
+    import pytest
+
+    from uwhl_rs import ParameterError, files
+
+    _png(tmp_path / "a.png", 48, 64)
+    r = files.restore_file(tmp_path / "a.png", tmp_path / "o", altitude=2.5, fov=60)
+    assert r.sidecar["distance"]["floor"]["altitude"] == 2.5
+    for bad in (True, [1]):
+        with pytest.raises(ParameterError, match="altitude must be metres"):
+            files.restore_file(tmp_path / "a.png", tmp_path / "o2", altitude=bad, fov=60)
