@@ -11,7 +11,6 @@ uploaded, the sidecar last (the commit marker).
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import socket
 import tempfile
@@ -152,20 +151,17 @@ def fetch(url: str, scratch: str, storage_options: dict, header: bool = False) -
     return local
 
 
-def local_input(path: str, scratch: str, storage_options: dict) -> str:
-    """The input at ``path`` as a local file: a copy in ``scratch`` of a
-    URL, else the path itself."""
-    return fetch(path, scratch, storage_options) if is_url(path) else local_path(path)
-
-
-def _input_scratch(ctx: "Context", item: Item) -> str:
-    """The folder of ``item``'s local copy, its own: two inputs of one name
-    in different folders of a listing are fetched while the one before is
-    still being written (its hash and metadata read from its copy), so a
-    shared folder would let one overwrite or remove the other's copy."""
+def _local_input(item: Item, ctx: "Context") -> str:
+    """``item``'s input as a local file: the file itself, or a copy of a URL
+    in a scratch folder of its own. Two inputs of one name in different
+    folders of a listing are fetched while the one before is still being
+    written (its hash and metadata read from its copy): a shared folder
+    would let one overwrite or remove the other's copy."""
+    if not is_url(item.input):
+        return local_path(item.input)
     d = os.path.join(ctx.scratch, f"in{item.index}")
     os.makedirs(d, exist_ok=True)
-    return d
+    return fetch(item.input, d, ctx.storage_options)
 
 
 def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: bool) -> dict:
@@ -187,13 +183,11 @@ def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: 
     return dest
 
 
-def _unlink(p: str) -> None:
+def _drop_copy(p: str) -> None:
+    """Removes a copy :func:`_local_input` made, with its folder."""
     try:
         os.unlink(p)
-        # an input's own scratch folder (``_input_scratch``) goes with its copy
-        parent = os.path.dirname(p)
-        if re.fullmatch(r"in\d+", os.path.basename(parent)):
-            os.rmdir(parent)
+        os.rmdir(os.path.dirname(p))
     except OSError:
         pass
 
@@ -312,7 +306,7 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
             out_dir = os.path.join(ctx.scratch, f"out{item.index}")
             _, _, _, claim = files.claim_outputs(out_dir, item.name, item.input, fmt, contact,
                                                  overwrite=True, rename=False)
-        local_in = local_input(item.input, _input_scratch(ctx, item), so)
+        local_in = _local_input(item, ctx)
         write = files.restore_staged(local_in, out_dir, name=item.name, _claim=claim, _base=ctx.base,
                                      _label=item.input, sequence=ctx.sequence, **opts)
     except (Exception, MemoryError) as e:  # one bad file never stops the batch
@@ -328,7 +322,7 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
             return failure_row(item, e, True, time.perf_counter() - t0, local_in)
         finally:
             if local_in is not None and local_in != local_path(item.input):
-                _unlink(local_in)
+                _drop_copy(local_in)
         done = _done_row(item, result, time.perf_counter() - t0, outputs)
         if remote_out:
             shutil.rmtree(out_dir, ignore_errors=True)
@@ -374,7 +368,7 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
     def finish() -> dict:
         local_in = None
         try:
-            local_in = local_input(item.input, _input_scratch(ctx, item), so)
+            local_in = _local_input(item, ctx)
             result = videofiles.restore_video(local_in, out_dir, name=claim.name, _claim=claim, _label=item.input,
                                               reuse_estimates=ctx.reuse, reuse_water_mask=ctx.reuse_water_mask,
                                               overwrite=ctx.overwrite, progress=ctx.progress, _stop=ctx.stop,
@@ -384,7 +378,7 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
             return failure_row(item, e, False, time.perf_counter() - t0, local_in)
         finally:
             if local_in is not None and local_in != local_path(item.input):
-                _unlink(local_in)
+                _drop_copy(local_in)
         written = {"sidecar": result.paths["sidecar"], "strip": result.paths["strip"]}
         if "video" in result.paths:
             written["video"] = result.paths["video"]
@@ -422,7 +416,7 @@ def _prime(item: Item, ctx: Context) -> None:
     d = os.path.join(ctx.scratch, "prime")
     opts = ctx.opts
     try:
-        local_in = local_input(item.input, _input_scratch(ctx, item), ctx.storage_options)
+        local_in = _local_input(item, ctx)
         _, _, _, claim = files.claim_outputs(d, item.name, item.input, opts.get("format", "jpg"),
                                              opts.get("contact", False), overwrite=True, rename=False)
     except (Exception, MemoryError):
