@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
     "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
@@ -86,6 +86,8 @@ def check_combination(
     preprocess: str,
 ) -> None:
     """The checks of several options at once; ValueError with the usage message."""
+def unknown_short_said(word: str) -> str:
+    """The usage error of an unknown short option that began ``word``, as uwhl-rs says it."""
 def check_distance(
     distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool = False, port: bool = False,
 ) -> None:
@@ -230,9 +232,9 @@ def progress_said(fallback_share: Optional[float], flags: list[str]) -> str:
     """What an input's progress line says after its water type: a distance
     asked for and not used, colours that are the input's balance throughout."""
 
-def water_with_distance_note(water: Optional[str] = None, distance: Optional[str] = None) -> Optional[str]:
-    """The note printed once before the inputs when a water (its flag) is
-    given with a source of distance (its flag); None otherwise."""
+def water_with_distance_note(water_from: bool, water_type: bool, distance: bool, altitude: bool) -> Optional[str]:
+    """The note printed once before the inputs when a water is given with a
+    source of distance (each argument: that option was given); None otherwise."""
 def summary_columns() -> list[str]:
     """The columns of summary.csv, in order."""
 

@@ -129,23 +129,19 @@ fn dive_notes(opts: &Options, err: &mut dyn Write) {
         say_notes(&d.notes(), opts, err);
     }
     let s = &opts.settings;
-    let water = if s.water_from.is_some() {
-        Some("--water-from")
-    } else {
-        s.water_types.as_ref().map(|_| "--water-type")
-    };
-    let distance = if s.distance.is_some() {
-        Some("--distance")
-    } else {
-        s.altitude.as_ref().map(|_| "--altitude")
-    };
-    if let Some(n) = crate::files::sidecar::water_with_distance_note(water, distance) {
+    let note = crate::files::sidecar::water_with_distance_note(
+        s.water_from.is_some(),
+        s.water_types.is_some(),
+        s.distance.is_some(),
+        s.altitude.is_some(),
+    );
+    if let Some(n) = note {
         say_notes(&[n], opts, err);
     }
 }
 
 /// A sidecar's flags, as names.
-fn flags_of(side: &Value) -> Vec<&str> {
+fn sidecar_flags(side: &Value) -> Vec<&str> {
     side.get("flags").and_then(Value::as_array).map(|a| a.iter().filter_map(Value::as_str).collect()).unwrap_or_default()
 }
 
@@ -349,7 +345,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
                         job.input.display(),
                         img.display(),
                         side.get("water_type").and_then(Value::as_str).unwrap_or("?"),
-                        crate::files::sidecar::progress_said(side.get("fallback_share").and_then(Value::as_f64), &flags_of(&side))
+                        crate::files::sidecar::progress_said(side.get("fallback_share").and_then(Value::as_f64), &sidecar_flags(&side))
                     );
                     let _ = writeln!(out, "{}", printable(&line));
                 }

@@ -264,10 +264,24 @@ pub fn progress_said(fallback_share: Option<f64>, flags: &[&str]) -> String {
 
 /// The note both commands print once before the inputs when a water type
 /// (`--water-type`) or a dive's water (`--water-from`) is given with a
-/// source of distance: a photo whose distance is used is restored with the
-/// water fitted to it (METHOD §13), the given water only where it is not.
-pub fn water_with_distance_note(water_given: Option<&str>, distance_given: Option<&str>) -> Option<String> {
-    let (water, distance) = (water_given?, distance_given?);
+/// source of distance (`--distance`, `--altitude`): a photo whose distance
+/// is used is restored with the water fitted to it (METHOD §13), the given
+/// water only where it is not. Each argument says whether that option was given.
+pub fn water_with_distance_note(water_from: bool, water_type: bool, distance: bool, altitude: bool) -> Option<String> {
+    let water = if water_from {
+        "--water-from"
+    } else if water_type {
+        "--water-type"
+    } else {
+        return None;
+    };
+    let distance = if distance {
+        "--distance"
+    } else if altitude {
+        "--altitude"
+    } else {
+        return None;
+    };
     Some(format!(
         "{water} is used for the photos whose {distance} gives no usable distance; a photo with one is restored with \
          the water fitted to it (its sidecar's distance.water)"

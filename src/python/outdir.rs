@@ -154,13 +154,12 @@ fn progress_said(fallback_share: Option<f64>, flags: Vec<String>) -> String {
     crate::files::sidecar::progress_said(fallback_share, &flags)
 }
 
-/// The note printed once before the inputs when a water (its flag) is
-/// given with a source of distance (its flag)
+/// The note printed once before the inputs when a water is given with a
+/// source of distance; each argument says whether that option was given
 /// (`crate::files::sidecar::water_with_distance_note`).
 #[pyfunction]
-#[pyo3(signature = (water=None, distance=None))]
-fn water_with_distance_note(water: Option<&str>, distance: Option<&str>) -> Option<String> {
-    crate::files::sidecar::water_with_distance_note(water, distance)
+fn water_with_distance_note(water_from: bool, water_type: bool, distance: bool, altitude: bool) -> Option<String> {
+    crate::files::sidecar::water_with_distance_note(water_from, water_type, distance, altitude)
 }
 
 /// The columns of summary.csv, in order.

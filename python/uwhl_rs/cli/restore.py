@@ -83,9 +83,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
         for n in _core.FileSettings(water_from=a.water_from).dive_water_notes:
             console.note(f"note: {n}")
     # a given water meets a distance: which photos it is for (as uwhl-rs)
-    water = "--water-from" if a.water_from is not None else ("--water-type" if a.water_types is not None else None)
-    distance = "--distance" if a.distance is not None else ("--altitude" if a.altitude is not None else None)
-    note = _core.water_with_distance_note(water, distance)
+    note = _core.water_with_distance_note(a.water_from is not None, a.water_types is not None,
+                                          a.distance is not None, a.altitude is not None)
     if note:
         console.note(f"note: {note}")
     so: dict = {}
