@@ -113,24 +113,13 @@ pub(crate) fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor:
 /// overlapped loop), an input that does not fit beside the previous one's
 /// outputs, still being written, first waits until they are.
 fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, room: Room<'_>, given: &Given<'_>) -> Result<(), Failure> {
-    let factor = opts.max_side.map_or(1, |n| max_side_factor(h.height, h.width, n));
-    let plan = Plan {
-        height: h.height,
-        width: h.width,
-        decoded_bpp: h.bpp,
-        decoded_is_rgb: h.is_rgb,
-        oriented: h.oriented,
-        factor,
-        reference: opts.preprocess == Preprocess::Reference,
-        masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
-        write_extra: 0,
-    };
+    let plan = plan_of(h.height, h.width, h.bpp, h.is_rgb, h.oriented, opts, masks);
     // the budget bounds the process's peak: what it holds anyway counts,
     // and so does the distance (METHOD §13): the map as read (twice for
     // depth along the axis, turned into ranges on a copy) and the map at
     // the processed size that the restoration reads
     let map = |d: &crate::files::depth::DistanceMap| (d.data.len() as u64).saturating_mul(4);
-    let at_size = ((h.height / factor.max(1)) as u64).saturating_mul((h.width / factor.max(1)) as u64).saturating_mul(4);
+    let at_size = map_at_size(&plan);
     let distance = match given {
         Given::None => 0,
         Given::Map(d) => map(d).saturating_add(at_size),
@@ -169,20 +158,31 @@ fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, 
 /// it lets through fits [`check_plan`] too. The process's base is not in
 /// it (the map's reader adds it).
 fn photo_plan_with_map(h: usize, w: usize, opts: &Settings, masks: &Masks) -> u64 {
-    let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n)).max(1);
-    let plan = Plan {
+    let plan = plan_of(h, w, 6, true, true, opts, masks);
+    plan.bytes().saturating_add(map_at_size(&plan))
+}
+
+/// The memory plan of a photo of `h` x `w` pixels decoded to `bpp` bytes a
+/// pixel (`is_rgb`: already three channels; `oriented`: rotated on reading)
+/// under this run's options.
+fn plan_of(h: usize, w: usize, bpp: u64, is_rgb: bool, oriented: bool, opts: &Settings, masks: &Masks) -> Plan {
+    Plan {
         height: h,
         width: w,
-        decoded_bpp: 6,
-        decoded_is_rgb: true,
-        oriented: true,
-        factor,
+        decoded_bpp: bpp,
+        decoded_is_rgb: is_rgb,
+        oriented,
+        factor: opts.max_side.map_or(1, |n| max_side_factor(h, w, n)),
         reference: opts.preprocess == Preprocess::Reference,
         masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
         write_extra: 0,
-    };
-    let at_size = ((h / factor) as u64).saturating_mul((w / factor) as u64).saturating_mul(4);
-    plan.bytes().saturating_add(at_size)
+    }
+}
+
+/// Bytes of a distance map at the processed size of `plan` (float32 metres).
+fn map_at_size(plan: &Plan) -> u64 {
+    let (h, w) = plan.processed();
+    (h as u64).saturating_mul(w as u64).saturating_mul(4)
 }
 
 /// A restored input before anything is written.
