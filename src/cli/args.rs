@@ -196,25 +196,14 @@ impl Options {
 }
 
 /// What an unknown short option `c` says: the whole word it came from
-/// (`-dash.mp4`, not `-d`), and for a word that looks like a file name how
-/// to give it as one.
+/// (`-dash.mp4`, not `-d`; `crate::files::options::unknown_short_said`).
 fn unknown_short(args: &[OsString], c: char) -> String {
     let word = args
         .iter()
         .map(|a| a.to_string_lossy())
         .take_while(|a| a != "--")
         .find(|a| a.starts_with('-') && !a.starts_with("--") && a.chars().nth(1) == Some(c));
-    match word {
-        Some(w) if w.chars().count() > 2 => {
-            let hint = if w.contains('.') || std::path::Path::new(w.as_ref()).exists() {
-                format!(" (a file whose name starts with '-': write ./{w}, or put it after --)")
-            } else {
-                String::new()
-            };
-            format!("invalid option '{w}'{hint}")
-        }
-        _ => format!("invalid option '-{c}'"),
-    }
+    crate::files::options::unknown_short_said(&word.map_or_else(|| format!("-{c}"), |w| w.into_owned()))
 }
 
 /// Parses the command line (without the program name): `restore` and its

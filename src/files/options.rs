@@ -694,6 +694,16 @@ pub fn check_distance(
     Ok(())
 }
 
+/// The usage error of an unknown short option, in both commands: the whole
+/// `word` it began (`-dash.mp4`, not `-d`), and for a word that looks like
+/// a file name (a dot, or a path that is there, a dangling link too) the
+/// two ways to give it as one.
+pub fn unknown_short_said(word: &str) -> String {
+    let named = word.chars().count() > 2 && (word.contains('.') || std::fs::symlink_metadata(word).is_ok());
+    let hint = if named { format!(" (a file whose name starts with '-': write ./{word}, or put it after --)") } else { String::new() };
+    format!("invalid option '{word}'{hint}")
+}
+
 /// How a message names an option: by its command-line flag or by its
 /// Python keyword (the option table's two faces).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

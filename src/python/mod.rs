@@ -455,6 +455,13 @@ fn depth_to_range<'py>(py: Python<'py>, depth: numpy::PyReadonlyArray2<'py, f32>
     Ok(numpy::PyArray1::from_vec(py, z).reshape([h, w])?.into_any())
 }
 
+/// The usage error of an unknown short option that began `word`
+/// (`crate::files::options::unknown_short_said`), as uwhl-rs says it.
+#[pyfunction]
+fn unknown_short_said(word: &str) -> String {
+    crate::files::options::unknown_short_said(word)
+}
+
 /// The checks of the distance options (`crate::files::options::check_distance`);
 /// ValueError with the usage message.
 #[pyfunction]
@@ -941,6 +948,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(check_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(unknown_short_said, m)?)?;
     m.add_function(wrap_pyfunction!(depth_to_range, m)?)?;
     m.add_function(wrap_pyfunction!(floor_distance, m)?)?;
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;

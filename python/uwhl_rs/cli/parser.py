@@ -7,7 +7,6 @@ parsed flags become (the keywords of ``restore`` and ``restore_file``).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
 import uwhl_rs
@@ -223,17 +222,11 @@ class _Parser(argparse.ArgumentParser):
 
     @staticmethod
     def _unknown_short(flag: str, word: str | None) -> str:
-        """The usage error of an unknown short option ``flag``, in uwhl-rs's
-        words: the whole ``word`` when the flag is its first letter
-        (``-dash.mp4``, not ``-d``; ``None`` when it is not), and for a word
-        that looks like a file name (a dot, or a file of that name) the two
-        ways to give it as one."""
-        if word is None or len(word) <= 2:
-            return f"invalid option '{flag}'"
-        hint = ""
-        if "." in word or os.path.lexists(word):
-            hint = f" (a file whose name starts with '-': write ./{word}, or put it after --)"
-        return f"invalid option '{word}'{hint}"
+        """The usage error of an unknown short option ``flag`` in uwhl-rs's
+        words (``_core.unknown_short_said``): the whole ``word`` when the
+        flag is its first letter (``-dash.mp4``, not ``-d``; ``None`` when
+        it is not)."""
+        return _core.unknown_short_said(flag if word is None else word)
 
 
 def build_parser() -> argparse.ArgumentParser:
