@@ -235,37 +235,35 @@ pub fn output_exif(c: &Carried, width: u32, height: u32) -> Metadata {
 /// The EXIF time tag as written (DateTimeOriginal, else DateTime), trimmed;
 /// None without one. What a photo whose [`taken_at`] is None shows of it.
 pub fn time_tag(m: &Metadata) -> Option<String> {
-    let mut original = None;
-    let mut fallback = None;
+    time_fields(m).0
+}
+
+/// The EXIF fields of the time, in one pass over the tags: [`time_tag`],
+/// SubSecTimeOriginal and OffsetTimeOriginal as written.
+fn time_fields(m: &Metadata) -> (Option<String>, Option<String>, Option<String>) {
+    let (mut original, mut fallback, mut subsec, mut offset) = (None, None, None, None);
     for ifd in m.get_ifds() {
         for tag in ifd.get_tags() {
             match tag {
                 ExifTag::DateTimeOriginal(s) => original = Some(s.clone()),
                 ExifTag::ModifyDate(s) => fallback = Some(s.clone()),
-                _ => {}
-            }
-        }
-    }
-    original.or(fallback).map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty())
-}
-
-/// When the photograph was taken, from its EXIF: DateTimeOriginal (else
-/// DateTime) as ISO 8601, with SubSecTimeOriginal and OffsetTimeOriginal
-/// when present (`2026-11-30T10:15:42.437+10:00`).
-pub fn taken_at(m: &Metadata) -> Option<String> {
-    let raw = time_tag(m)?;
-    let raw = raw.as_str();
-    let mut subsec = None;
-    let mut offset = None;
-    for ifd in m.get_ifds() {
-        for tag in ifd.get_tags() {
-            match tag {
                 ExifTag::SubSecTimeOriginal(s) => subsec = Some(s.clone()),
                 ExifTag::OffsetTimeOriginal(s) => offset = Some(s.clone()),
                 _ => {}
             }
         }
     }
+    let raw = original.or(fallback).map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty());
+    (raw, subsec, offset)
+}
+
+/// When the photograph was taken, from its EXIF: DateTimeOriginal (else
+/// DateTime) as ISO 8601, with SubSecTimeOriginal and OffsetTimeOriginal
+/// when present (`2026-11-30T10:15:42.437+10:00`).
+pub fn taken_at(m: &Metadata) -> Option<String> {
+    let (raw, subsec, offset) = time_fields(m);
+    let raw = raw?;
+    let raw = raw.as_str();
     // "YYYY:MM:DD HH:MM:SS"
     let (date, time) = raw.split_once(' ')?;
     // bytes, not characters: a hostile value may hold any UTF-8 (found by fuzz/meta_carry)
