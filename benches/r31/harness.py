@@ -142,6 +142,17 @@ def finish(st: Image, wt, q, fallback=True, scale_tb=None, balance='sog'):
     top = (g * pct).max()
     k = g * (1 / top if top > 0 else 1)
     image = np.clip(jc * k, 0, 1)
+    image, ve = trust_blend(st, image, j, t, g, fallback)
+    return image, jc, tb, ve
+
+
+def trust_blend(st: Image, image, j, t, g, fallback=True):
+    """METHOD §12.5 on a displayed ``image`` made with the gains ``g`` from
+    J (``j``, before the clamp) and the channel transmissions ``t``: the veil
+    excess, and with ``fallback`` the blend toward the input's own balance.
+    Returns (image, veil excess)."""
+    img = st.img.astype(np.float64)
+    obj = st.objects
     sig = st.sigma
     exc = ((t * j) < -sig).any(axis=-1)
     ve = exc[obj].mean()
@@ -156,7 +167,7 @@ def finish(st: Image, wt, q, fallback=True, scale_tb=None, balance='sog'):
         base = np.maximum(img * kin, 0)
         scale = image.sum(-1) / np.maximum(base.sum(-1), 1e-9)
         image = np.clip((1 - wgt[..., None]) * image + wgt[..., None] * base * scale[..., None], 0, 1)
-    return image, jc, tb, ve
+    return image, ve
 
 
 def path_gains(jc, valid, wt, p=4.0):

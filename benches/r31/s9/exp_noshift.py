@@ -75,20 +75,7 @@ def finish(st, wt, q, shift=True, fallback=True):
         tp = (g * pct).max()
         k = g * (1 / tp if tp > 0 else 1)
         image = np.clip(jc * k, 0, 1)
-    sig = st.sigma
-    exc = ((t * j) < -sig).any(axis=-1)
-    ve = exc[obj].mean()
-    if fallback:
-        wp = np.clip((ve - 0.02) / 0.18, 0, 1)
-        kin = H.gains_from(H.sog(img, obj))
-        shown = np.sqrt(((g * np.maximum(j, 0)) ** 2).sum(-1)).clip(1e-6)
-        noise = ((g * sig / t) ** 2).sum(-1)
-        theta = np.sqrt(2 / 3 * noise) / shown
-        local = 1 / (1 + (theta / 0.15) ** 2)
-        wgt = 1 - (1 - wp) * (1 - 0.3 * (1 - local))
-        base = np.maximum(img * kin, 0)
-        scale = image.sum(-1) / np.maximum(base.sum(-1), 1e-9)
-        image = np.clip((1 - wgt[..., None]) * image + wgt[..., None] * base * scale[..., None], 0, 1)
+    image, ve = H.trust_blend(st, image, j, t, g, fallback)
     return image, jc, tb, ve
 
 
