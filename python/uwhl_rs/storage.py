@@ -127,12 +127,17 @@ S3_DEADLINES = {"connect_timeout": 10, "read_timeout": 20, "retries": {"total_ma
 S3FS_ATTEMPTS = 2
 
 
+def _is_s3(url: str) -> bool:
+    """Whether ``url`` is one s3fs serves (the deadlines below are its client's)."""
+    return url.split("://", 1)[0].lower() in ("s3", "s3a")
+
+
 def with_deadlines(url: str, storage_options: dict | None) -> dict:
     """``storage_options`` for ``url`` with :data:`S3_DEADLINES` under
     ``config_kwargs`` for an S3 URL, each only where the options do not set
     it (the user's own timeouts and retries win)."""
     so = dict(storage_options or {})
-    if url.split("://", 1)[0].lower() not in ("s3", "s3a"):
+    if not _is_s3(url):
         return so
     config = dict(so.get("config_kwargs") or {})
     for key, value in S3_DEADLINES.items():
@@ -161,7 +166,7 @@ def filesystem(url: str, storage_options: dict | None):
     except (ValueError, TypeError) as e:
         raise BatchError(f"{url}: bad storage options ({e})", "bad_arguments") from None
     _build_client(fs, url)
-    if hasattr(fs, "retries") and url.split("://", 1)[0].lower() in ("s3", "s3a"):
+    if hasattr(fs, "retries") and _is_s3(url):
         fs.retries = S3FS_ATTEMPTS
     return fs, path
 
