@@ -291,8 +291,9 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
     method : {"revised", "paper"}
         The profile (METHOD §12): the steps used where ``white_balance`` or
         ``type_choice`` is not given. ``"revised"`` (default): the
-        radiance white-balanced on the object pixels and the water type
-        with the least chromatic shades-of-gray color (METHOD §12.1-12.2).
+        radiance white-balanced on the object pixels and, of the three
+        types with the least chromatic shades-of-gray color, the one whose
+        display is nearest the other two (METHOD §12.1-12.2).
         ``"paper"``: METHOD §2-10 exactly (display stretch of METHOD §8,
         gray world with the t_R rule of METHOD §9).
     white_balance : {"stretch", "gray_world", "shades_of_gray", "white_patch"}, optional
@@ -300,9 +301,11 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         per-channel gains from the object pixels' mean, 4-norm mean or
         (masked-in pixels) 99th percentile, then one exposure (METHOD §12.1).
         Default: the profile's.
-    type_choice : {"gray_world", "shades_of_gray"}, optional
-        How the water type is chosen: METHOD §9 or METHOD §12.2. Default:
-        the profile's.
+    type_choice : {"gray_world", "shades_of_gray", "central"}, optional
+        How the water type is chosen: METHOD §9, the shades-of-gray score
+        of METHOD §12.2, or of its three best-scored types the one whose
+        displayed colours are nearest the other two' (METHOD §12.2,
+        ``"central"``). Default: the profile's (revised ``"central"``).
     haze_floor : "none" or a Jerlov type name, optional
         The transmission of a type clearer than this one is estimated with
         this type's ratios (its haze-lines are otherwise dominated by noise

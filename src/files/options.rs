@@ -303,9 +303,10 @@ the colours toward a shades-of-gray balance of the input where confidence is low
 (METHOD §12.5); default: the profile's (revised input_balance, paper none)",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "type_choice", flag: "--type-choice", short: None, metavar: "RULE",
-        kind: Kind::Choice(&["gray_world", "shades_of_gray"]),
+        kind: Kind::Choice(&["gray_world", "shades_of_gray", "central"]),
         default: Default::None, help: "how the water type is chosen: gray_world of the stretched image with the \
-t_R rule (METHOD §9) or the least chromatic shades_of_gray color of the radiance (METHOD §12.2); default: the profile's",
+t_R rule (METHOD §9), the least chromatic shades_of_gray color of the radiance, or central: of the three types \
+shades_of_gray scores best, the one whose displayed colours are nearest the other two (METHOD §12.2); default: the profile's",
         group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "haze_floor", flag: "--haze-floor", short: None, metavar: "TYPE",
         kind: Kind::Choice(&["none", "I", "IA", "IB", "II", "III", "1C", "3C", "5C", "7C", "9C"]),

@@ -156,12 +156,148 @@ struct RowSums {
     radiance: PowerSums,
 }
 
+/// The per-photo terms of the trust step (METHOD §12.5) for one type and
+/// veiling light: the recovery, A and the image noise.
+struct Terms {
+    rec: Recovery,
+    af: [f64; 3],
+    sigma: [f64; 3],
+}
+
+impl Terms {
+    fn new(a: [f32; 3], wt: &WaterType, sigma: [f64; 3]) -> Self {
+        Self {
+            rec: Recovery::new(a, wt),
+            af: a.map(f64::from),
+            sigma,
+        }
+    }
+
+    /// t_c of METHOD §7 (already clamped) and the raw radiance
+    /// J_c = A_c + (I_c - A_c) / t_c of input pixel `p`, before the
+    /// artifact clamp.
+    fn pixel(&self, p: &[f32], t: [f32; 3]) -> ([f64; 3], [f64; 3]) {
+        let t = t.map(f64::from);
+        let j = [0, 1, 2].map(|c| self.af[c] + (f64::from(p.get(c).copied().unwrap_or(0.0)) - self.af[c]) / t[c]);
+        (t, j)
+    }
+
+    /// Whether the estimated veil exceeds the observed light beyond the
+    /// noise: t_c J_c = I_c - (1 - t_c) A_c, the light left after the veil.
+    fn exceeds(&self, t: &[f64; 3], j: &[f64; 3]) -> bool {
+        (0..3).any(|c| t[c] * j[c] < -self.sigma[c])
+    }
+}
+
+/// The photo's terms of the blend (METHOD §12.5 steps 3-4): the display's
+/// gains g, the input's own balance k, the photo's fallback weight and
+/// which channels' noise the quantisation floor can exceed.
+struct Shade {
+    g: [f64; 3],
+    k: [f64; 3],
+    w_photo: f64,
+    floored: [bool; 3],
+}
+
+impl Shade {
+    fn new(terms: &Terms, radiance: &PowerSums, input: &PowerSums, veil_excess: f64) -> Self {
+        Self {
+            g: gains_from(radiance.color(SOG_P)),
+            k: gains_from(input.color(SOG_P)),
+            w_photo: ((veil_excess - EXCESS_LO) / (EXCESS_HI - EXCESS_LO)).clamp(0.0, 1.0),
+            floored: terms.sigma.map(|s| s < quantisation_sigma(1.0)),
+        }
+    }
+
+    /// The local confidence of input pixel `p` with t_c `t` and raw
+    /// radiance `j`, and, when `blend`, its displayed colour `d` moved
+    /// toward the input's balance: returns (confidence, blend weight).
+    fn apply(&self, terms: &Terms, p: &[f32], t: &[f64; 3], j: &[f64; 3], d: &mut [f32], blend: bool) -> (f32, f64) {
+        let g = &self.g;
+        let shown = (0..3).map(|c| (g[c] * j[c].max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
+        // the floor is looked up only for a channel whose noise it can exceed
+        let noise: f64 = p
+            .iter()
+            .zip(terms.sigma.iter().zip(&self.floored))
+            .zip(g.iter().zip(t))
+            .map(|((&v, (&s, &low)), (&gc, &tc))| {
+                let s = if low { s.max(quantisation_sigma(v)) } else { s };
+                (gc * s / tc).powi(2)
+            })
+            .sum();
+        let theta = (2.0 / 3.0 * noise).sqrt() / shown;
+        let local = 1.0 / (1.0 + (theta / THETA0).powi(2));
+        let confidence = (local * (1.0 - self.w_photo)) as f32;
+        if !blend {
+            return (confidence, 0.0);
+        }
+        let wgt = 1.0 - (1.0 - self.w_photo) * (1.0 - LOCAL_WEIGHT * (1.0 - local));
+        let base = [0, 1, 2].map(|c| (f64::from(p.get(c).copied().unwrap_or(0.0)) * self.k[c]).max(0.0));
+        let sum_d: f64 = d.iter().map(|&v| f64::from(v)).sum();
+        let scale = sum_d / (base[0] + base[1] + base[2]).max(1e-9);
+        for (c, v) in d.iter_mut().enumerate().take(3) {
+            let x = (1.0 - wgt) * f64::from(*v) + wgt * base[c] * scale;
+            *v = x.clamp(0.0, 1.0) as f32;
+        }
+        (confidence, wgt)
+    }
+}
+
+/// The first pass of the trust step (METHOD §12.5) over the object pixels
+/// (`objects(i)`): their number, how many the veil exceeds, the input's
+/// power sums and, given `radiance`, the clamped radiance's. `tb_row(y,
+/// row)` writes row y's t_B. Per row, combined in row order.
+fn first_pass(
+    img: &ImageRef,
+    objects: &(dyn Fn(usize) -> bool + Sync),
+    terms: &Terms,
+    tb_row: &(dyn Fn(usize, &mut [f32]) + Sync),
+    radiance: Option<&[f32]>,
+) -> RowSums {
+    let w = img.width;
+    let rows: Vec<RowSums> = (0..img.height)
+        .into_par_iter()
+        .map_init(
+            || (vec![0f32; w], vec![[0f32; 3]; w]),
+            |(tb, tc), y| {
+                let mut s = RowSums::default();
+                tb_row(y, tb);
+                row_t(&terms.rec, tb, tc);
+                for (i, &t) in (y * w..(y + 1) * w).zip(tc.iter()) {
+                    if !objects(i) {
+                        continue;
+                    }
+                    let p = &img.data[3 * i..3 * i + 3];
+                    let (t, j) = terms.pixel(p, t);
+                    s.objects += 1.0;
+                    if terms.exceeds(&t, &j) {
+                        s.excess += 1.0;
+                    }
+                    s.input.push([p[0], p[1], p[2]]);
+                    if let Some(r) = radiance.and_then(|r| r.get(3 * i..3 * i + 3)) {
+                        s.radiance.push([r[0], r[1], r[2]]);
+                    }
+                }
+                s
+            },
+        )
+        .collect();
+    rows.iter().fold(RowSums::default(), |mut acc, r| {
+        acc.objects += r.objects;
+        acc.excess += r.excess;
+        acc.input.add(&r.input);
+        acc.radiance.add(&r.radiance);
+        acc
+    })
+}
+
 /// The trust step of METHOD §12.5 for the chosen type `wt` with veiling
 /// light `a`: the returned t_B `t_b`, the clamped radiance `radiance` and
 /// the displayed image `image` (blended in place when `blend`).
 /// `objects(i)` says whether pixel i is an object pixel (masked-in, not
 /// VL). Sums are per row in f64, combined in row order, so the result does
 /// not depend on the thread count.
+#[allow(clippy::too_many_arguments)]
 pub fn trust(
     img: &ImageRef,
     objects: &(dyn Fn(usize) -> bool + Sync),
@@ -173,54 +309,12 @@ pub fn trust(
     blend: bool,
 ) -> Trust {
     let w = img.width;
-    let sigma = noise_sigma(img);
-    let rec = Recovery::new(a, wt);
-    let af = a.map(f64::from);
-    // t_c of METHOD §7 (a row at a time, [`row_t`]) and the raw radiance
-    // J_c = A_c + (I_c - A_c) / t_c, before the artifact clamp
-    let pixel = |i: usize, t: [f32; 3]| -> ([f64; 3], [f64; 3]) {
-        let p = &img.data[3 * i..3 * i + 3];
-        let t = t.map(f64::from);
-        let j = [0, 1, 2].map(|c| af[c] + (f64::from(p[c]) - af[c]) / t[c]);
-        (t, j)
-    };
+    let terms = Terms::new(a, wt, noise_sigma(img));
     let scratch = || vec![[0f32; 3]; w];
-    let rows: Vec<RowSums> = (0..img.height)
-        .into_par_iter()
-        .map_init(scratch, |tc, y| {
-            let mut s = RowSums::default();
-            row_t(&rec, &t_b[y * w..(y + 1) * w], tc);
-            for (i, &t) in (y * w..(y + 1) * w).zip(tc.iter()) {
-                if !objects(i) {
-                    continue;
-                }
-                let (t, j) = pixel(i, t);
-                s.objects += 1.0;
-                // t_c J_c = I_c - (1 - t_c) A_c: the light left after the veil
-                if (0..3).any(|c| t[c] * j[c] < -sigma[c]) {
-                    s.excess += 1.0;
-                }
-                let p = &img.data[3 * i..3 * i + 3];
-                s.input.push([p[0], p[1], p[2]]);
-                let r = &radiance[3 * i..3 * i + 3];
-                s.radiance.push([r[0], r[1], r[2]]);
-            }
-            s
-        })
-        .collect();
-    let total = rows.iter().fold(RowSums::default(), |mut acc, r| {
-        acc.objects += r.objects;
-        acc.excess += r.excess;
-        acc.input.add(&r.input);
-        acc.radiance.add(&r.radiance);
-        acc
-    });
+    let total = first_pass(img, objects, &terms, &|y, row| row.copy_from_slice(&t_b[y * w..(y + 1) * w]), Some(radiance));
     let veil_excess = if total.objects > 0.0 { total.excess / total.objects } else { 0.0 };
-    let w_photo = ((veil_excess - EXCESS_LO) / (EXCESS_HI - EXCESS_LO)).clamp(0.0, 1.0);
     // the display's gains (METHOD §12.1) and the input's own shades-of-gray balance
-    let g = gains_from(total.radiance.color(SOG_P));
-    let k = gains_from(total.input.color(SOG_P));
-    let floored = sigma.map(|s| s < quantisation_sigma(1.0));
+    let shade = Shade::new(&terms, &total.radiance, &total.input, veil_excess);
     let mut confidence = vec![0f32; t_b.len()];
     // per row, the sum of the blend weights, added in row order below
     let weights: Vec<f64> = confidence
@@ -229,42 +323,61 @@ pub fn trust(
         .enumerate()
         .map_init(scratch, |tc, (y, (conf_row, img_row))| {
             let mut row_weight = 0.0;
-            row_t(&rec, &t_b[y * w..(y + 1) * w], tc);
+            row_t(&terms.rec, &t_b[y * w..(y + 1) * w], tc);
             for (x, ((cf, d), &t)) in conf_row.iter_mut().zip(img_row.chunks_exact_mut(3)).zip(tc.iter()).enumerate() {
-                let i = y * w + x;
-                let (t, j) = pixel(i, t);
-                let shown = (0..3).map(|c| (g[c] * j[c].max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
-                let p = &img.data[3 * i..3 * i + 3];
-                // the floor is looked up only for a channel whose noise it can exceed
-                let noise: f64 = p
-                    .iter()
-                    .zip(sigma.iter().zip(&floored))
-                    .zip(g.iter().zip(&t))
-                    .map(|((&v, (&s, &low)), (&gc, &tc))| {
-                        let s = if low { s.max(quantisation_sigma(v)) } else { s };
-                        (gc * s / tc).powi(2)
-                    })
-                    .sum();
-                let theta = (2.0 / 3.0 * noise).sqrt() / shown;
-                let local = 1.0 / (1.0 + (theta / THETA0).powi(2));
-                *cf = (local * (1.0 - w_photo)) as f32;
-                if blend {
-                    let wgt = 1.0 - (1.0 - w_photo) * (1.0 - LOCAL_WEIGHT * (1.0 - local));
-                    row_weight += wgt;
-                    let base = [0, 1, 2].map(|c| (f64::from(p[c]) * k[c]).max(0.0));
-                    let sum_d: f64 = d.iter().map(|&v| f64::from(v)).sum();
-                    let scale = sum_d / (base[0] + base[1] + base[2]).max(1e-9);
-                    for c in 0..3 {
-                        let v = (1.0 - wgt) * f64::from(d[c]) + wgt * base[c] * scale;
-                        d[c] = v.clamp(0.0, 1.0) as f32;
-                    }
-                }
+                let p = &img.data[3 * (y * w + x)..3 * (y * w + x) + 3];
+                let (t, j) = terms.pixel(p, t);
+                let (c, wgt) = shade.apply(&terms, p, &t, &j, d, blend);
+                *cf = c;
+                row_weight += wgt;
             }
             row_weight
         })
         .collect();
     let fallback_share = blend.then(|| weights.iter().sum::<f64>() / t_b.len().max(1) as f64);
     Trust { confidence, veil_excess, fallback_share }
+}
+
+/// The trust step (METHOD §12.5) at a sample of the object pixels
+/// (`objects(i)`): `samples` are their indices, `shown` their displayed
+/// colours, blended in place as [`trust`] blends them. `tb_row(y, row)`
+/// writes row y's t_B and `radiance` are the power sums of the clamped
+/// radiance over every object pixel: the veil excess and the input's
+/// balance are the whole image's, so the colours are the same as the
+/// whole image's trust step gives there (up to the order of additions).
+/// `sigma` is the photo's noise ([`noise_sigma`] of the photo itself:
+/// the image here may be a sampled copy, whose neighbours are further
+/// apart). Serves the central type choice (METHOD §12.2), which compares
+/// types by their displays.
+#[allow(clippy::too_many_arguments)]
+pub fn blend_samples(
+    img: &ImageRef,
+    objects: &(dyn Fn(usize) -> bool + Sync),
+    (a, wt): ([f32; 3], &WaterType),
+    sigma: [f64; 3],
+    tb_row: &(dyn Fn(usize, &mut [f32]) + Sync),
+    radiance: &PowerSums,
+    samples: &[usize],
+    shown: &mut [[f32; 3]],
+) {
+    let terms = Terms::new(a, wt, sigma);
+    let total = first_pass(img, objects, &terms, tb_row, None);
+    let veil_excess = if total.objects > 0.0 { total.excess / total.objects } else { 0.0 };
+    let shade = Shade::new(&terms, radiance, &total.input, veil_excess);
+    let w = img.width.max(1);
+    let mut row = vec![0f32; w];
+    let mut row_y = usize::MAX;
+    for (&i, d) in samples.iter().zip(shown.iter_mut()) {
+        // samples come in raster order: each row's t_B is written once
+        if i / w != row_y {
+            row_y = i / w;
+            tb_row(row_y, &mut row);
+        }
+        let t = terms.rec.channel_t(terms.rec.clamp_tb(row.get(i % w).copied().unwrap_or(1.0)));
+        let p = img.data.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]);
+        let (t, j) = terms.pixel(p, t);
+        shade.apply(&terms, p, &t, &j, d, true);
+    }
 }
 
 #[cfg(test)]

@@ -73,7 +73,13 @@ pub enum TypeChoice {
     GrayWorld,
     /// METHOD §12.2: the least chromatic shades-of-gray color of the radiance, no exclusion
     ShadesOfGray,
+    /// METHOD §12.2: of the [`CENTRAL_OF`] types that [`TypeChoice::ShadesOfGray`]
+    /// scores best, the one whose displayed colours are nearest the others'
+    Central,
 }
+
+/// How many of the best-scored types the central type choice compares (METHOD §12.2).
+pub const CENTRAL_OF: usize = 3;
 
 /// Exponent of the shades-of-gray norm (METHOD §12.1-12.2).
 pub const SOG_P: f64 = 4.0;
@@ -122,7 +128,7 @@ impl Method {
     pub fn type_choice(self) -> TypeChoice {
         match self {
             Method::Paper => TypeChoice::GrayWorld,
-            Method::Revised => TypeChoice::ShadesOfGray,
+            Method::Revised => TypeChoice::Central,
         }
     }
 
@@ -200,13 +206,14 @@ impl WhiteBalance {
 
 impl TypeChoice {
     /// Every name.
-    pub const NAMES: [&'static str; 2] = ["gray_world", "shades_of_gray"];
+    pub const NAMES: [&'static str; 3] = ["gray_world", "shades_of_gray", "central"];
 
     /// The name used by both commands, the Python keyword and the sidecar.
     pub fn name(self) -> &'static str {
         match self {
             TypeChoice::GrayWorld => "gray_world",
             TypeChoice::ShadesOfGray => "shades_of_gray",
+            TypeChoice::Central => "central",
         }
     }
 
@@ -215,6 +222,7 @@ impl TypeChoice {
         match name {
             "gray_world" => Ok(TypeChoice::GrayWorld),
             "shades_of_gray" => Ok(TypeChoice::ShadesOfGray),
+            "central" => Ok(TypeChoice::Central),
             other => Err(unknown("type_choice", &Self::NAMES, other)),
         }
     }

@@ -152,6 +152,69 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
     }
 }
 
+/// How much more central (in summed median L1 chromaticity distance) a
+/// type must be than the best-scored one to be chosen instead (METHOD
+/// §12.2). Where the trust step shows the input's balance for every
+/// candidate, their displays differ only where clipped, by less than
+/// 1e-4 on the shared photos: the choice then rests on the scores, not on
+/// that noise.
+pub const CENTRAL_MARGIN: f64 = 1e-3;
+
+/// The central type choice (METHOD §12.2): of the `of` types with the
+/// lowest scores (not excluded, not NaN; ties by index), the one whose
+/// displayed colours `prints` (at the same pixels for every type) are
+/// nearest the others': the smallest sum of median L1 distances between
+/// the pixels' chromaticities, if it is smaller than the best-scored
+/// type's by more than [`CENTRAL_MARGIN`]; else the best-scored type.
+/// Ties go to the better score. None when fewer than two types compete
+/// or a competitor has no colours.
+pub fn central(stats: &[TypeStats], excluded: &[bool], prints: &[Option<Vec<[f32; 3]>>], of: usize) -> Option<usize> {
+    let score = |i: usize| stats.get(i).map_or(f64::NAN, |s| s.score);
+    let mut order: Vec<usize> = (0..stats.len())
+        .filter(|&i| !excluded.get(i).copied().unwrap_or(false) && !score(i).is_nan())
+        .collect();
+    order.sort_by(|&i, &j| score(i).total_cmp(&score(j)).then(i.cmp(&j)));
+    order.truncate(of);
+    if order.len() < 2 {
+        return None;
+    }
+    let chroma = |p: &[f32; 3]| -> [f64; 3] {
+        let v = p.map(|x| f64::from(x).max(1e-6));
+        let s = v[0] + v[1] + v[2];
+        v.map(|x| x / s)
+    };
+    let shown: Vec<Vec<[f64; 3]>> = order
+        .iter()
+        .map(|&i| prints.get(i).and_then(|p| p.as_ref()).map(|p| p.iter().map(chroma).collect()))
+        .collect::<Option<_>>()?;
+    let n = shown.first().map_or(0, Vec::len);
+    if n == 0 || shown.iter().any(|s| s.len() != n) {
+        return None;
+    }
+    let distance = |a: &[[f64; 3]], b: &[[f64; 3]]| -> f64 {
+        let mut d: Vec<f64> = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs()).sum())
+            .collect();
+        let (_, &mut m, _) = d.select_nth_unstable_by(n / 2, f64::total_cmp);
+        m
+    };
+    let spread: Vec<f64> = shown
+        .iter()
+        .map(|a| shown.iter().map(|b| distance(a, b)).sum())
+        .collect();
+    // the most central (the first of equals), against the best-scored
+    let (best, least) = spread
+        .iter()
+        .enumerate()
+        .fold((0, f64::INFINITY), |(b, m), (k, &v)| if v < m { (k, v) } else { (b, m) });
+    let first = spread.first().copied().unwrap_or(f64::INFINITY);
+    // within the margin the scores' own choice stands
+    let best = if least < first - CENTRAL_MARGIN { best } else { 0 };
+    order.get(best).copied()
+}
+
 /// Sums of the three displayed channels of a row of J (`sp` applied, the
 /// METHOD §7 clamp and METHOD §8 stretch, or the values as they are without)
 /// over the pixels where `counted` is true (METHOD §9's means). Without `sp`
@@ -319,6 +382,44 @@ pub(crate) fn combine(rows: &[RowStats]) -> RowStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn central_picks_the_display_between_the_others() {
+        let st = |score: f64| TypeStats { score, tr_diff: None };
+        // chromaticities by hand: A (0.6, 0.2, 0.2), B (0.4, 0.3, 0.3),
+        // C (0.2, 0.4, 0.4); L1 distances A-B 0.4, B-C 0.4, A-C 0.8: sums
+        // A 1.2, B 0.8, C 1.2, so B though A scores best; D scores worst
+        let print = |c: [f32; 3], n: usize| Some(vec![c; n]);
+        let stats = [st(0.1), st(0.2), st(0.3), st(0.9)];
+        let prints = [print([0.6, 0.2, 0.2], 5), print([0.4, 0.3, 0.3], 5), print([0.2, 0.4, 0.4], 5), print([0.4, 0.3, 0.3], 5)];
+        assert_eq!(central(&stats, &[false; 4], &prints, 3), Some(1));
+        // brightness does not count: the same colours at half the level
+        let dim = [print([0.3, 0.1, 0.1], 5), print([0.2, 0.15, 0.15], 5), print([0.1, 0.2, 0.2], 5), None];
+        assert_eq!(central(&stats, &[false; 4], &dim, 3), Some(1));
+        // the median over pixels: two of three pixels decide
+        let mixed = |a: [f32; 3], b: [f32; 3]| Some(vec![a, a, b]);
+        let m = [mixed([0.6, 0.2, 0.2], [0.2, 0.4, 0.4]), mixed([0.4, 0.3, 0.3], [0.4, 0.3, 0.3]), mixed([0.2, 0.4, 0.4], [0.6, 0.2, 0.2]), None];
+        assert_eq!(central(&stats, &[false; 4], &m, 3), Some(1));
+        // B excluded: A, C and D (= B's colours) compete, D is central
+        assert_eq!(central(&stats, &[false, true, false, false], &prints, 3), Some(3));
+        // two competitors are equally central: the better score wins
+        assert_eq!(central(&stats, &[false; 4], &prints, 2), Some(0));
+        // a NaN score never competes: B, C and D (B's colours) do, B and D
+        // tie at 0.4 and B scores better; fewer than two, or a competitor
+        // without colours, leave the choice to the scores
+        let nan = [st(f64::NAN), st(0.2), st(0.3), st(0.9)];
+        assert_eq!(central(&nan, &[false; 4], &prints, 3), Some(1));
+        let nan_b = [st(0.1), st(f64::NAN), st(0.3), st(0.9)];
+        assert_eq!(central(&nan_b, &[false; 4], &prints, 3), Some(3));
+        assert_eq!(central(&stats, &[false; 4], &prints, 1), None);
+        assert_eq!(central(&stats, &[false; 4], &[print([0.6, 0.2, 0.2], 5), None, print([0.2, 0.4, 0.4], 5), None], 3), None);
+        // more central by less than the margin: the best score stands
+        let near = [print([0.4, 0.3, 0.3], 5), print([0.4, 0.3, 0.3002], 5), print([0.4, 0.3, 0.3008], 5), None];
+        assert_eq!(central(&stats, &[false; 4], &near, 3), Some(0));
+        // a zero pixel is gray (1/3 each), not a division by zero
+        let zero = [print([0.0, 0.0, 0.0], 3), print([0.5, 0.5, 0.5], 3), print([0.9, 0.0, 0.0], 3), None];
+        assert_eq!(central(&stats, &[false; 4], &zero, 3), Some(0));
+    }
 
     #[test]
     fn score_by_hand() {

@@ -103,6 +103,31 @@ def test_type_choice_on_renders_of_every_type(noise):
     assert revised >= 7 and revised >= paper, (revised, paper)
 
 
+def _chromaticity(x):
+    y = np.maximum(x.astype(np.float64), 1e-6)
+    return y / y.sum(1, keepdims=True)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_central_choice_is_the_display_between_the_other_two(seed):
+    """The default type choice (METHOD §12.2) against the rule computed here
+    from the whole displays: each of the three best-scored types restored
+    alone, its displayed chromaticity over every object pixel, the type
+    whose summed median L1 distance to the other two is least. The core
+    compares 4,000 of those pixels and estimates the blend's veil excess on
+    them: it may differ only where two spreads are within 0.005."""
+    for t in NAMES:
+        img, _ = synth.demo_input(120, 160, water_type=t, seed=seed)
+        r = uwhl_rs.restore(img)
+        best3 = sorted(r.scores, key=r.scores.get)[:3]
+        objects = ~r.veiling_mask
+        shown = {k: _chromaticity(uwhl_rs.restore(img, water_types=[k]).image[objects]) for k in best3}
+        spread = {a: sum(np.median(np.abs(shown[a] - shown[b]).sum(1)) for b in best3) for a in best3}
+        assert r.water_type in best3 and spread[r.water_type] <= min(spread.values()) + 0.005, (t, r.water_type, spread)
+        # the scores are shades_of_gray's, whose choice is the best of them
+        assert uwhl_rs.restore(img, type_choice="shades_of_gray").water_type == best3[0]
+
+
 def test_haze_floor_estimates_a_clear_type_with_the_floors_ratios():
     """A type below the floor gets exactly the floor type's transmission
     (the same haze-lines, bound, matting and filter), and its own recovery."""
@@ -130,12 +155,16 @@ def test_paper_profile_is_the_paper_steps():
                                                     "white_balance": "stretch", "type_choice": "gray_world",
                                                     "haze_floor": "none", "fallback": "none"}
     assert uwhl_rs.method_steps() == {"method": "revised", "selection": "fast", "white_balance": "shades_of_gray",
-                                      "type_choice": "shades_of_gray", "haze_floor": "3C", "fallback": "input_balance"}
+                                      "type_choice": "central", "haze_floor": "3C", "fallback": "input_balance"}
     # an explicit step overrides the profile's
     assert uwhl_rs.method_steps(method="paper", white_balance="white_patch")["white_balance"] == "white_patch"
-    # the revised choice reports its scores and never excludes a type
+    # the revised choice never excludes a type; its scores are shades_of_gray's,
+    # which picks the lowest, and it picks among their three best (METHOD §12.2)
     rev = uwhl_rs.restore(img)
-    assert rev.excluded == [] and rev.scores[rev.water_type] == min(rev.scores.values())
+    sog = uwhl_rs.restore(img, type_choice="shades_of_gray")
+    assert rev.excluded == [] and rev.scores == sog.scores
+    assert sog.scores[sog.water_type] == min(sog.scores.values())
+    assert rev.water_type in sorted(rev.scores, key=rev.scores.get)[:3]
 
 
 @pytest.mark.parametrize("kw, name", [
@@ -164,7 +193,7 @@ def test_haze_floor_names_are_case_insensitive_on_the_command_line():
 
 @pytest.mark.parametrize("flags, steps", [
     ([], {"method": "revised", "selection": "fast", "white_balance": "shades_of_gray",
-          "type_choice": "shades_of_gray", "haze_floor": "3C", "t_scale": 0.9, "fallback": "input_balance"}),
+          "type_choice": "central", "haze_floor": "3C", "t_scale": 0.9, "fallback": "input_balance"}),
     (["--method", "paper", "--t-scale", "0.8"], {"method": "paper", "selection": "exhaustive",
                                                  "white_balance": "stretch", "type_choice": "gray_world",
                                                  "haze_floor": "none", "t_scale": 0.8, "fallback": "none"}),

@@ -16,9 +16,14 @@ use crate::method::veiling::Veiling;
 use crate::method::sphere::SphereIndex;
 use crate::kernels::util::{channel_percentiles, reuse, reuse_zeroed, Normalize};
 use crate::method::water::WaterType;
-use crate::method::fallback::{trust, Trust};
+use crate::method::fallback::{blend_samples, noise_sigma, trust, Trust};
 use crate::method::profile::{conditioned, gains_from, Fallback, PowerSums, TypeChoice, WhiteBalance, SOG_P, WHITE_PATCH_Q};
 use rayon::prelude::*;
+
+/// At most this many object pixels are compared by the central type
+/// choice (METHOD §12.2): its median distances are then within about 1% of
+/// those over every pixel.
+pub const PROBE_PIXELS: usize = 4000;
 
 /// Per-image state shared by every water type.
 pub(crate) struct Shared<'a> {
@@ -40,7 +45,20 @@ pub(crate) struct Shared<'a> {
     pub(crate) floor: Option<[f64; 2]>,
     /// the fallback where the result cannot be trusted (METHOD §12.5)
     pub(crate) fallback: Fallback,
+    /// the object pixels whose displayed colours the central type choice
+    /// compares (METHOD §12.2); None when no such comparison is made here
+    pub(crate) probe: Option<Probe>,
 }
+
+/// The pixels the central type choice compares (METHOD §12.2), and the
+/// photo's noise that the trust step's blend there uses (METHOD §12.5).
+pub(crate) struct Probe {
+    pixels: Vec<usize>,
+    noise: [f64; 3],
+}
+
+/// The displayed colours of one type at the probe's pixels (METHOD §12.2).
+pub(crate) type Print = Vec<[f32; 3]>;
 
 /// The selection statistics of the scored types, the choice among them,
 /// and the filtered plane q of the type chosen so far when it was kept.
@@ -48,6 +66,8 @@ pub(crate) struct Scored {
     pub(crate) stats: Vec<TypeStats>,
     pub(crate) choice: Choice,
     pub(crate) kept: Option<Kept>,
+    /// each type's displayed colours at the probe's pixels, where taken
+    pub(crate) prints: Vec<Option<Print>>,
 }
 
 impl Scored {
@@ -105,14 +125,34 @@ impl<'a> Shared<'a> {
             t_scale: params.t_scale as f32,
             floor: params.haze_floor_ratios(),
             fallback: params.fallback_used(),
+            probe: None,
         }
+    }
+
+    /// Takes the probe of the central type choice (METHOD §12.2): every
+    /// k-th object pixel (masked-in, not VL) in raster order, k the
+    /// smallest step that leaves at most [`PROBE_PIXELS`] of them, with
+    /// the photo's noise `noise` (None: this image's, which is the photo).
+    pub(crate) fn take_probe(&mut self, noise: Option<[f64; 3]>) {
+        let n = self.img.len();
+        let count = (0..n).into_par_iter().filter(|&i| self.is_object(i)).count();
+        let step = count.div_ceil(PROBE_PIXELS).max(1);
+        self.probe = Some(Probe {
+            pixels: (0..n).filter(|&i| self.is_object(i)).step_by(step).collect(),
+            noise: noise.unwrap_or_else(|| noise_sigma(&self.img)),
+        });
+    }
+
+    /// Whether pixel i is an object pixel: masked-in and not in VL.
+    pub(crate) fn is_object(&self, i: usize) -> bool {
+        self.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false)) && !self.vl.get(i).copied().unwrap_or(false)
     }
 
     /// Every type scored (METHOD §4-9) and the choice of METHOD §9.
     pub(crate) fn score_all(&self, types: &[&WaterType], work: &mut Work) -> Scored {
-        let (stats, kept) = self.score(types, work);
+        let (stats, kept, prints) = self.score(types, work);
         let choice = choose(&stats);
-        Scored { stats, choice, kept }
+        Scored { stats, choice, kept, prints }
     }
 
     /// METHOD §4-6 up to the guided filter's first pass: the refined
@@ -350,7 +390,7 @@ impl<'a> Shared<'a> {
                 sums.channels = self.channel_sums(j, Some(&sp));
                 sums.stats()
             }
-            TypeChoice::ShadesOfGray => TypeStats {
+            TypeChoice::ShadesOfGray | TypeChoice::Central => TypeStats {
                 score: self.object_sums(j, Some(&ArtifactClamp::new(st.lo, st.hi))).spread(),
                 tr_diff: None,
             },
@@ -359,10 +399,61 @@ impl<'a> Shared<'a> {
 
     /// Selection statistics of one type (METHOD §4-9, §12.2) without keeping any of
     /// its images.
-    pub(crate) fn evaluate(&self, wt: &WaterType, work: &mut Work) -> TypeStats {
+    /// With a probe, also the type's displayed colours at its pixels.
+    pub(crate) fn evaluate(&self, wt: &WaterType, work: &mut Work) -> (TypeStats, Option<Print>) {
         let bounds = self.refine(wt, work);
         let st = self.recover(wt, bounds, work, None);
-        self.type_stats(&work.j, &st)
+        (self.type_stats(&work.j, &st), self.print(wt, &work.j, &work.q, &st))
+    }
+
+    /// The displayed colours (METHOD §12.1, and the trust step's blend of
+    /// §12.5 when it is in use) at the probe's pixels of the recovered J
+    /// (before the artifact clamp) with row statistics `st` and filtered
+    /// plane `q`: what [`finish`] shows there for this type.
+    fn print(&self, wt: &WaterType, j: &[f32], q: &[f32], st: &RowStats) -> Option<Print> {
+        let Probe { pixels: probe, noise } = self.probe.as_ref()?;
+        let clamp = ArtifactClamp::new(st.lo, st.hi);
+        let sums = self.object_sums(j, Some(&clamp));
+        let pct = channel_percentiles(j, self.mask, &[WHITE_PATCH_Q], |_, v| clamp.apply(v));
+        let k = self.display_gains(&pct, &sums);
+        let mut shown: Print = probe
+            .iter()
+            .map(|&i| {
+                let v = j.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]);
+                let mut px = [0f32; 3];
+                for ((o, &x), &g) in px.iter_mut().zip(v).zip(&k) {
+                    *o = (clamp.apply(x) * g).clamp(0.0, 1.0);
+                }
+                px
+            })
+            .collect();
+        if self.fallback == Fallback::InputBalance {
+            // t_B as finish outputs it (METHOD §7, §12.3)
+            let rec = Recovery::new(self.a, &conditioned(wt, self.floor));
+            let w = self.img.width;
+            let tb_row = |y: usize, row: &mut [f32]| {
+                let qr = q.get(y * w..(y + 1) * w).unwrap_or(&[]);
+                row.iter_mut().zip(qr).for_each(|(t, &v)| *t = rec.clamp_tb(v));
+            };
+            blend_samples(&self.img, &|i| self.is_object(i), (self.a, wt), *noise, &tb_row, &sums, probe, &mut shown);
+        }
+        Some(shown)
+    }
+
+    /// The gains of METHOD §12.1 with the exposure folded in, from the
+    /// masked-in pixels' [`WHITE_PATCH_Q`] percentile per channel `pct`
+    /// and the object pixels' power sums `sums` of the clamped radiance.
+    fn display_gains(&self, pct: &[Vec<f64>; 3], sums: &PowerSums) -> [f32; 3] {
+        let at = |c: usize| pct.get(c).and_then(|v| v.first()).copied().unwrap_or(1.0);
+        let estimate = match self.balance {
+            WhiteBalance::GrayWorld => sums.color(1.0),
+            WhiteBalance::WhitePatch => [at(0), at(1), at(2)],
+            WhiteBalance::ShadesOfGray | WhiteBalance::Stretch => sums.color(SOG_P),
+        };
+        let gains = gains_from(estimate);
+        let top = (0..3).map(|c| gains[c] * at(c)).fold(0.0f64, f64::max);
+        let scale = if top > 0.0 { 1.0 / top } else { 1.0 };
+        gains.map(|g| (g * scale) as f32)
     }
 
     /// The displayed image of METHOD §12.1 from the clamped radiance:
@@ -375,16 +466,7 @@ impl<'a> Shared<'a> {
     /// correction: the gains alone set the colors.
     pub(crate) fn balance_image(&self, radiance: &[f32], sums: &PowerSums, spare: Vec<f32>) -> Vec<f32> {
         let pct = channel_percentiles(radiance, self.mask, &[WHITE_PATCH_Q], |_, v| v);
-        let at = |c: usize| pct.get(c).and_then(|v| v.first()).copied().unwrap_or(1.0);
-        let estimate = match self.balance {
-            WhiteBalance::GrayWorld => sums.color(1.0),
-            WhiteBalance::WhitePatch => [at(0), at(1), at(2)],
-            WhiteBalance::ShadesOfGray | WhiteBalance::Stretch => sums.color(SOG_P),
-        };
-        let gains = gains_from(estimate);
-        let top = (0..3).map(|c| gains[c] * at(c)).fold(0.0f64, f64::max);
-        let scale = if top > 0.0 { 1.0 / top } else { 1.0 };
-        let k: [f32; 3] = gains.map(|g| (g * scale) as f32);
+        let k = self.display_gains(&pct, sums);
         // allocated at its size once (or the previous frame's, given back):
         // the memory plan counts one image; every value is written below
         let mut image = reuse(spare, radiance.len());
@@ -402,11 +484,15 @@ impl<'a> Shared<'a> {
     /// so far can still win (a later type can only make the exclusion
     /// threshold stricter, or win itself; whether t_R differences exist
     /// does not depend on the type), so only its plane is kept.
-    pub(crate) fn score(&self, types: &[&WaterType], work: &mut Work) -> (Vec<TypeStats>, Option<Kept>) {
+    /// With a probe, also each type's displayed colours there.
+    pub(crate) fn score(&self, types: &[&WaterType], work: &mut Work) -> (Vec<TypeStats>, Option<Kept>, Vec<Option<Print>>) {
         let mut stats = Vec::with_capacity(types.len());
+        let mut prints = Vec::with_capacity(types.len());
         let mut kept: Option<Kept> = None;
         for (i, wt) in types.iter().enumerate() {
-            stats.push(self.evaluate(wt, work));
+            let (st, print) = self.evaluate(wt, work);
+            stats.push(st);
+            prints.push(print);
             if choose(&stats).winner == i {
                 let spare = kept.take().map_or_else(|| vec![0.0; work.q.len()], |k| k.q);
                 kept = Some(Kept {
@@ -415,7 +501,7 @@ impl<'a> Shared<'a> {
                 });
             }
         }
-        (stats, kept)
+        (stats, kept, prints)
     }
 }
 
@@ -484,7 +570,7 @@ pub(crate) fn finish(
                     sums.channels = shared.channel_sums(&image, None);
                     sums.stats()
                 }
-                TypeChoice::ShadesOfGray => TypeStats { score: shared.object_sums(&radiance, None).spread(), tr_diff: None },
+                TypeChoice::ShadesOfGray | TypeChoice::Central => TypeStats { score: shared.object_sums(&radiance, None).spread(), tr_diff: None },
             };
             (image, stats)
         }
@@ -497,9 +583,7 @@ pub(crate) fn finish(
     };
     // METHOD §12.5: confidence, veil excess and the blend toward the input's balance
     let trust = (shared.fallback == Fallback::InputBalance).then(|| {
-        let (mask, vl) = (shared.mask, shared.vl);
-        let objects = move |i: usize| mask.is_none_or(|m| m.get(i).copied().unwrap_or(false)) && !vl.get(i).copied().unwrap_or(false);
-        trust(&shared.img, &objects, shared.a, wt, &transmission, &radiance, &mut image, true)
+        trust(&shared.img, &|i| shared.is_object(i), shared.a, wt, &transmission, &radiance, &mut image, true)
     });
     if pool.keep {
         pool.guide = shared.guide.into_guide();

@@ -2,7 +2,7 @@
 //! on a sampled copy of the image, the uncertain ones again at full
 //! resolution.
 
-use super::evaluate::{Scored, Shared};
+use super::evaluate::{Print, Scored, Shared};
 use super::work::{Kept, Work};
 use crate::error::Result;
 use crate::method::image::ImageRef;
@@ -10,6 +10,8 @@ use crate::method::params::{default_radius, fast_factor, Params};
 use crate::method::select::{choose, Choice, TypeStats};
 use crate::method::sphere::SphereIndex;
 use crate::method::veiling::Veiling;
+use crate::method::fallback::noise_sigma;
+use crate::method::profile::TypeChoice;
 use crate::method::water::WaterType;
 
 /// How many of the copy's best-scoring surviving types fast selection
@@ -96,9 +98,14 @@ impl Small {
 }
 
 
+/// The copy's statistics of every type, and their displayed colours at its probe.
+pub(crate) type CopyScores = (Vec<TypeStats>, Vec<Option<Print>>);
+
 /// Every type's selection statistics on the sampled copy of the image
-/// (METHOD §9 there), with the full-resolution A and water region; None
-/// when the image is small enough to need no copy.
+/// (METHOD §9 there), with the full-resolution A and water region, and
+/// under the central type choice its displayed colours at the copy's
+/// probe (METHOD §12.2); None when the image is small enough to need no
+/// copy.
 pub(crate) fn copy_stats(
     img: &ImageRef,
     mask: Option<&[bool]>,
@@ -106,7 +113,7 @@ pub(crate) fn copy_stats(
     index: &SphereIndex,
     params: &Params,
     types: &[&WaterType],
-) -> Result<Option<Vec<TypeStats>>> {
+) -> Result<Option<CopyScores>> {
     let s = fast_factor(img.height, img.width);
     if s <= 1 {
         return Ok(None);
@@ -116,15 +123,20 @@ pub(crate) fn copy_stats(
     let sr = params
         .guided_radius
         .map_or_else(|| default_radius(small.h, small.w), |r| (r as f64 / s as f64).round() as usize);
-    let sh = Shared::with_region(simg, small.mask.as_deref(), &small.vl, veil.a, index, sr, params, Vec::new());
+    let mut sh = Shared::with_region(simg, small.mask.as_deref(), &small.vl, veil.a, index, sr, params, Vec::new());
+    if params.type_choice_used() == TypeChoice::Central {
+        sh.take_probe(Some(noise_sigma(img)));
+    }
     let mut work = Work::new(simg.len());
-    Ok(Some(types.iter().map(|wt| sh.evaluate(wt, &mut work)).collect()))
+    Ok(Some(types.iter().map(|wt| sh.evaluate(wt, &mut work)).unzip()))
 }
 
 /// The choice of fast selection from the copy's statistics: the copy's
 /// best survivors are scored again at full resolution where its choice is
 /// uncertain ([`rescore_candidates`]), and METHOD §9 chooses among them.
-pub(crate) fn rescore(shared: &Shared, types: &[&WaterType], copy: Vec<TypeStats>, work: &mut Work) -> Scored {
+/// The displayed colours are the copy's (`prints`), the same pixels for
+/// every type.
+pub(crate) fn rescore(shared: &Shared, types: &[&WaterType], copy: Vec<TypeStats>, prints: Vec<Option<Print>>, work: &mut Work) -> Scored {
     let c = choose(&copy);
     let mut order: Vec<usize> = (0..copy.len()).filter(|&i| !c.excluded.get(i).copied().unwrap_or(true)).collect();
     let score = |i: usize| copy.get(i).map_or(f64::NAN, |s| s.score);
@@ -135,7 +147,7 @@ pub(crate) fn rescore(shared: &Shared, types: &[&WaterType], copy: Vec<TypeStats
     let mut kept = None;
     let (winner, relaxed) = if order.len() > 1 {
         let picked: Vec<&WaterType> = order.iter().filter_map(|&i| types.get(i).copied()).collect();
-        let (full, k) = shared.score(&picked, work);
+        let (full, k, _) = shared.score(&picked, work);
         let sub = choose(&full);
         // the kept plane, by its index among all the types
         kept = k.and_then(|k| order.get(k.index).map(|&i| Kept { index: i, q: k.q }));
@@ -149,7 +161,7 @@ pub(crate) fn rescore(shared: &Shared, types: &[&WaterType], copy: Vec<TypeStats
     } else {
         (c.winner, c.relaxed)
     };
-    Scored { stats, choice: Choice { winner, excluded, relaxed, threshold: None }, kept }
+    Scored { stats, choice: Choice { winner, excluded, relaxed, threshold: None }, kept, prints }
 }
 
 #[cfg(test)]

@@ -18,7 +18,8 @@ pub(crate) mod work;
 
 use crate::error::{Error, Result};
 use crate::method::params::{check_params, default_radius, Flag, Input, Params, Restoration, Selection, Stage};
-use crate::method::select::choose;
+use crate::method::profile::{TypeChoice, CENTRAL_OF};
+use crate::method::select::{self, choose};
 use crate::method::sphere::SphereIndex;
 use crate::kernels::util::with_threads;
 use crate::method::veiling::{estimate, Veiling};
@@ -95,17 +96,28 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     clock.lap_if(copy.is_some(), Stage::FastCopyScoring);
     // §5-6: the per-image terms (matting model, guide and its statistics)
     let radius = params.guided_radius.unwrap_or_else(|| default_radius(img.height, img.width));
-    let shared = Shared::new(*img, input.mask, &veil, &index, radius, params, std::mem::take(&mut pool.guide));
+    let mut shared = Shared::new(*img, input.mask, &veil, &index, radius, params, std::mem::take(&mut pool.guide));
+    let central = params.type_choice_used() == TypeChoice::Central;
+    if central && copy.is_none() && types.len() >= 2 {
+        shared.take_probe(None);
+    }
     let matting_skipped = veil.vl_count > 0 && shared.matting.is_none();
     clock.lap(Stage::Guide);
     let mut work = Work::from_pool(img.len(), pool);
     clock.lap(Stage::WorkBuffers);
     // §4-9: the candidate types evaluated and scored, and the choice
     let scored = match copy {
-        Some(copy) => Some(fast::rescore(&shared, &types, copy, &mut work)),
+        Some((copy, prints)) => Some(fast::rescore(&shared, &types, copy, prints, &mut work)),
         None if types.len() >= 2 => Some(shared.score_all(&types, &mut work)),
         None => None,
     };
+    // METHOD §12.2: the central one of the best-scored types
+    let scored = scored.map(|mut s| {
+        if let Some(c) = central.then(|| select::central(&s.stats, &s.choice.excluded, &s.prints, CENTRAL_OF)).flatten() {
+            s.choice.winner = c;
+        }
+        s
+    });
     clock.lap(Stage::Scoring);
     // §4-8 once more for the chosen type: the outputs
     let winner = scored.as_ref().map_or(0, |s| s.choice.winner);
