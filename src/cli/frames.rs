@@ -82,8 +82,9 @@ enum Sink<'a> {
 }
 
 /// Runs `--raw-frames`: returns the exit code (0 at a clean end of stdin;
-/// 3 when it ends inside a frame or cannot be read; 4 when one frame does
-/// not fit `--max-memory`; 5 when the frames or lines cannot be written).
+/// 3 when it ends inside a frame, cannot be read, or none of its frames
+/// could be restored; 4 when one frame does not fit `--max-memory`; 5 when
+/// the frames or lines cannot be written).
 pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
     crate::kernels::memory::process_base();
     let Some((w, h)) = opts.raw_frames else {
@@ -149,6 +150,7 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     // lens cap): its first frame said on stderr, the rest in one line when
     // the run ends (/dev/zero would otherwise be thousands of lines a second)
     let mut run = Unrestored::default();
+    let mut restored = 0usize;
     let code = loop {
         match read_frame(input, &mut bytes_in) {
             Ok(Got::Frame) => {}
@@ -231,6 +233,7 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
             }
         };
         let t_restore = t1.elapsed().as_secs_f64();
+        restored += 1;
         run.end(err, opts.quiet);
         let (decision, change) = seq.last_decision();
         if decision != Decision::Reused && !opts.quiet {
@@ -287,6 +290,13 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     if !opts.quiet {
         let s = t0.elapsed().as_secs_f64();
         let _ = writeln!(err, "uwhl-rs: {k} frames in {s:.1} s ({:.2} frames a second)", k as f64 / s.max(1e-9));
+    }
+    // a stream of which no frame could be restored failed, as a video
+    // whose frames all fail does: its frames still went out in step
+    if code == 0 && k > 0 && restored == 0 {
+        let e = Failure::new(Kind::Input, format!("no frame could be restored (all {k} read from stdin)"));
+        report(err, opts.json_errors, None, &e);
+        return e.kind.exit_code();
     }
     code
 }

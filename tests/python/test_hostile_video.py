@@ -571,6 +571,22 @@ def test_raw_frames_out_keep_every_frame_black_ones_too(binary):
     assert len(got) == 4 and got[1].max() == 0
 
 
+def test_raw_frames_of_which_none_is_restored_fail(binary, tmp_path):
+    """Every frame black: each still goes out in step (stdout) or gets its
+    error line (a folder), and the run ends with exit 3 naming it, as a
+    video whose frames all fail does; one restored frame is enough for 0."""
+    black = bytes(16 * 16 * 3) * 3
+    r = _raw(binary, "--raw-frames", "16x16", "-o", "-", "-q", data=black)
+    assert r.returncode == 3 and b"no frame could be restored (all 3" in r.stderr, r.stderr
+    assert r.stdout == black
+    r = _raw(binary, "--raw-frames", "16x16", "-o", str(tmp_path / "f"), "-q", data=black)
+    lines = [json.loads(x) for x in r.stdout.decode().splitlines()]
+    assert r.returncode == 3 and len(lines) == 3 and all("error" in x for x in lines), (r.returncode, lines)
+    one = black + _noise(1, 16, 16)[0].tobytes()
+    r = _raw(binary, "--raw-frames", "16x16", "-o", "-", "-q", data=one)
+    assert r.returncode == 0 and len(r.stdout) == len(one), r.stderr
+
+
 def test_raw_frames_a_run_of_black_frames_is_two_lines_not_one_a_frame(binary):
     """A camera's black start (50 frames) and a lens cap later (20): each
     run is its first frame's line and one line for the rest, every frame
