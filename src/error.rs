@@ -130,7 +130,7 @@ pub const EXIT_CODES: &[(u8, &str, &str)] = &[
     (5, "write_failed", "an output could not be written"),
     (6, "internal", "internal error (a bug; please report it)"),
     (7, "unreachable", "the Dask scheduler or the storage could not be reached, or refused the credentials"),
-    (130, "interrupted", "interrupted (SIGINT); run the same command again to resume"),
+    (130, "interrupted", "interrupted (SIGINT or SIGTERM); run the same command again to resume"),
 ];
 
 /// A number as a message shows it: as Rust writes it when that is short,

@@ -120,7 +120,7 @@ fn main() -> ExitCode {
                 run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)
             } else {
                 if let Err(e) = install_interrupt_handler() {
-                    let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT ({e}); an interrupt ends the run at once");
+                    let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT and SIGTERM ({e}); either ends the run at once");
                 }
                 run_batch(&opts, &mut stdout, &mut stderr)
             }

@@ -253,15 +253,18 @@ fn overlapped<T: Send>(read: impl FnOnce(&mut Handoff<T>) + Send, mut write: imp
 
 static INTERRUPT: std::sync::OnceLock<std::sync::Arc<std::sync::atomic::AtomicBool>> = std::sync::OnceLock::new();
 
-/// Batch mode's SIGINT handling: the first SIGINT lets the input being
-/// written finish and stops the batch with exit 130 (docs/CLI.md); a second
-/// one ends the process at once. Stream mode keeps the default (the process
-/// ends at once; a shell reports 130).
+/// Batch mode's SIGINT and SIGTERM handling (SIGTERM is how batch systems
+/// and `timeout` stop a job): the first lets the input being written
+/// finish and stops the batch with exit 130 (docs/CLI.md); a second ends
+/// the process at once. Stream mode keeps the default (the process ends at
+/// once; a shell reports 130 or 143).
 pub fn install_interrupt_handler() -> std::io::Result<()> {
-    use signal_hook::consts::SIGINT;
+    use signal_hook::consts::{SIGINT, SIGTERM};
     let flag = INTERRUPT.get_or_init(Default::default).clone();
-    signal_hook::flag::register_conditional_default(SIGINT, flag.clone())?;
-    signal_hook::flag::register(SIGINT, flag)?;
+    for sig in [SIGINT, SIGTERM] {
+        signal_hook::flag::register_conditional_default(sig, flag.clone())?;
+        signal_hook::flag::register(sig, flag.clone())?;
+    }
     Ok(())
 }
 

@@ -234,13 +234,16 @@ def test_help_of_both_lists_the_shared_options_and_exit_codes(binary):
         assert f"  {code} " in py and f"  {code} " in rs, code
 
 
-@pytest.mark.skipif(not hasattr(signal, "SIGINT"), reason="no SIGINT")
-def test_interrupt_is_130_and_resumes(binary, files, tmp_path):
-    """SIGINT mid-batch: exit 130 with the resume hint, no temporaries, every
-    sidecar written has its outputs, and the same command run again
-    finishes the rest with exit 0 without touching the finished inputs.
-    SIGINT goes back to its default in the child: a shell that starts the
-    suite in the background passes it on ignored."""
+@pytest.mark.skipif(not hasattr(signal, "SIGTERM"), reason="no SIGINT / SIGTERM")
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_interrupt_is_130_and_resumes(binary, files, tmp_path, sig):
+    """SIGINT or SIGTERM (a batch system's stop) mid-batch: exit 130 with the
+    resume hint, no temporaries or claims, every sidecar written has its
+    outputs, and the same command run again finishes the rest with exit 0
+    without touching the finished inputs. SIGINT goes back to its default
+    in the child: a shell that starts the suite in the background passes
+    it on ignored."""
+    sig = getattr(signal, sig)
     many = tmp_path / "many"
     many.mkdir()
     for k in range(30):
@@ -253,7 +256,7 @@ def test_interrupt_is_130_and_resumes(binary, files, tmp_path):
         deadline = time.time() + 120
         while time.time() < deadline and not (out.exists() and any(f.endswith(".json") for f in os.listdir(out))):
             time.sleep(0.02)
-        p.send_signal(signal.SIGINT)
+        p.send_signal(sig)
         _, err = p.communicate(timeout=120)
         done = [f for f in os.listdir(out) if f.endswith(".json")]
         if len(done) == 30:

@@ -38,8 +38,26 @@ def _binary_only(argv: list[str]) -> str | None:
     return None
 
 
+def _stop_on_sigterm() -> None:
+    """SIGTERM (how batch systems and ``timeout`` stop a job) stops the
+    command as SIGINT does: the input being written finishes, exit 130,
+    nothing half-written stays. Only where SIGTERM still has its default
+    (a program that embeds the command keeps its own handler)."""
+    import signal
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, stop)
+    except (ValueError, AttributeError, OSError):
+        pass  # not the main thread, or no SIGTERM on this platform
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``uwhl`` command; returns the exit status."""
+    _stop_on_sigterm()
     p = build_parser()
     args = list(sys.argv[1:] if argv is None else argv)
     flag = _binary_only(args)
