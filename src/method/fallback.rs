@@ -123,7 +123,7 @@ pub fn noise_sigma(img: &ImageRef) -> [f64; 3] {
 }
 
 /// The median of `v` (the mean of the two middle values for an even count; 0 when empty).
-fn median(v: &mut [f64]) -> f64 {
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     let n = v.len();
     if n == 0 {
         return 0.0;

@@ -160,17 +160,18 @@ pub fn choose(stats: &[TypeStats]) -> Choice {
 /// that noise.
 pub const CENTRAL_MARGIN: f64 = 1e-3;
 
-/// The central type choice (METHOD §12.2): of the `of` types with the
-/// lowest scores (not excluded, not NaN; ties by index), the one whose
-/// displayed colours `prints` (at the same pixels for every type) are
-/// nearest the others': the smallest sum of median L1 distances between
-/// the pixels' chromaticities, if it is smaller than the best-scored
-/// type's by more than [`CENTRAL_MARGIN`]; else the best-scored type.
-/// Ties go to the better score. None when fewer than two types compete
-/// or a competitor has no colours.
-pub fn central(stats: &[TypeStats], excluded: &[bool], prints: &[Option<Vec<[f32; 3]>>], of: usize) -> Option<usize> {
-    let score = |i: usize| stats.get(i).map_or(f64::NAN, |s| s.score);
-    let mut order: Vec<usize> = (0..stats.len())
+/// The central type choice (METHOD §12.2): of the `of` types that
+/// `ranking` scores lowest (not excluded, not NaN; ties by index), the one
+/// whose displayed colours `prints` (at the same pixels for every type)
+/// are nearest the others': the smallest sum of median L1 distances
+/// between the pixels' chromaticities, if it is smaller than the scores'
+/// own choice `winner`'s by more than [`CENTRAL_MARGIN`]; else `winner`.
+/// `winner` is one of those `of` types whenever the ranking is the one the
+/// scores chose by (else the best-ranked type stands for it). None when
+/// fewer than two types compete or a competitor has no colours.
+pub fn central(ranking: &[TypeStats], excluded: &[bool], prints: &[Option<Vec<[f32; 3]>>], of: usize, winner: usize) -> Option<usize> {
+    let score = |i: usize| ranking.get(i).map_or(f64::NAN, |s| s.score);
+    let mut order: Vec<usize> = (0..ranking.len())
         .filter(|&i| !excluded.get(i).copied().unwrap_or(false) && !score(i).is_nan())
         .collect();
     order.sort_by(|&i, &j| score(i).total_cmp(&score(j)).then(i.cmp(&j)));
@@ -197,22 +198,27 @@ pub fn central(stats: &[TypeStats], excluded: &[bool], prints: &[Option<Vec<[f32
             .zip(b)
             .map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs()).sum())
             .collect();
-        let (_, &mut m, _) = d.select_nth_unstable_by(n / 2, f64::total_cmp);
-        m
+        crate::method::fallback::median(&mut d)
     };
     let spread: Vec<f64> = shown
         .iter()
         .map(|a| shown.iter().map(|b| distance(a, b)).sum())
         .collect();
-    // the most central (the first of equals), against the best-scored
+    // the most central (the first of equals, the better score)
     let (best, least) = spread
         .iter()
         .enumerate()
         .fold((0, f64::INFINITY), |(b, m), (k, &v)| if v < m { (k, v) } else { (b, m) });
-    let first = spread.first().copied().unwrap_or(f64::INFINITY);
-    // within the margin the scores' own choice stands
-    let best = if least < first - CENTRAL_MARGIN { best } else { 0 };
-    order.get(best).copied()
+    // within the margin the scores' own choice stands (the best-ranked
+    // one when the scores chose outside the ranking's best)
+    let own = order.iter().position(|&i| i == winner);
+    let kept = own.map_or(order.first().copied(), |_| Some(winner));
+    let reference = spread.get(own.unwrap_or(0)).copied().unwrap_or(f64::INFINITY);
+    if least < reference - CENTRAL_MARGIN {
+        order.get(best).copied()
+    } else {
+        kept
+    }
 }
 
 /// Sums of the three displayed channels of a row of J (`sp` applied, the
@@ -392,33 +398,40 @@ mod tests {
         let print = |c: [f32; 3], n: usize| Some(vec![c; n]);
         let stats = [st(0.1), st(0.2), st(0.3), st(0.9)];
         let prints = [print([0.6, 0.2, 0.2], 5), print([0.4, 0.3, 0.3], 5), print([0.2, 0.4, 0.4], 5), print([0.4, 0.3, 0.3], 5)];
-        assert_eq!(central(&stats, &[false; 4], &prints, 3), Some(1));
+        assert_eq!(central(&stats, &[false; 4], &prints, 3, 0), Some(1));
         // brightness does not count: the same colours at half the level
         let dim = [print([0.3, 0.1, 0.1], 5), print([0.2, 0.15, 0.15], 5), print([0.1, 0.2, 0.2], 5), None];
-        assert_eq!(central(&stats, &[false; 4], &dim, 3), Some(1));
+        assert_eq!(central(&stats, &[false; 4], &dim, 3, 0), Some(1));
         // the median over pixels: two of three pixels decide
         let mixed = |a: [f32; 3], b: [f32; 3]| Some(vec![a, a, b]);
         let m = [mixed([0.6, 0.2, 0.2], [0.2, 0.4, 0.4]), mixed([0.4, 0.3, 0.3], [0.4, 0.3, 0.3]), mixed([0.2, 0.4, 0.4], [0.6, 0.2, 0.2]), None];
-        assert_eq!(central(&stats, &[false; 4], &m, 3), Some(1));
+        assert_eq!(central(&stats, &[false; 4], &m, 3, 0), Some(1));
         // B excluded: A, C and D (= B's colours) compete, D is central
-        assert_eq!(central(&stats, &[false, true, false, false], &prints, 3), Some(3));
+        assert_eq!(central(&stats, &[false, true, false, false], &prints, 3, 0), Some(3));
         // two competitors are equally central: the better score wins
-        assert_eq!(central(&stats, &[false; 4], &prints, 2), Some(0));
+        assert_eq!(central(&stats, &[false; 4], &prints, 2, 0), Some(0));
         // a NaN score never competes: B, C and D (B's colours) do, B and D
         // tie at 0.4 and B scores better; fewer than two, or a competitor
         // without colours, leave the choice to the scores
         let nan = [st(f64::NAN), st(0.2), st(0.3), st(0.9)];
-        assert_eq!(central(&nan, &[false; 4], &prints, 3), Some(1));
+        assert_eq!(central(&nan, &[false; 4], &prints, 3, 1), Some(1));
         let nan_b = [st(0.1), st(f64::NAN), st(0.3), st(0.9)];
-        assert_eq!(central(&nan_b, &[false; 4], &prints, 3), Some(3));
-        assert_eq!(central(&stats, &[false; 4], &prints, 1), None);
-        assert_eq!(central(&stats, &[false; 4], &[print([0.6, 0.2, 0.2], 5), None, print([0.2, 0.4, 0.4], 5), None], 3), None);
+        assert_eq!(central(&nan_b, &[false; 4], &prints, 3, 0), Some(3));
+        assert_eq!(central(&stats, &[false; 4], &prints, 1, 0), None);
+        assert_eq!(central(&stats, &[false; 4], &[print([0.6, 0.2, 0.2], 5), None, print([0.2, 0.4, 0.4], 5), None], 3, 0), None);
         // more central by less than the margin: the best score stands
         let near = [print([0.4, 0.3, 0.3], 5), print([0.4, 0.3, 0.3002], 5), print([0.4, 0.3, 0.3008], 5), None];
-        assert_eq!(central(&stats, &[false; 4], &near, 3), Some(0));
+        assert_eq!(central(&stats, &[false; 4], &near, 3, 0), Some(0));
+        // fast selection ranks by the copy's scores and chose by full-resolution
+        // ones: within the margin its choice stands, even when not the copy's best
+        assert_eq!(central(&stats, &[false; 4], &near, 3, 2), Some(2));
+        // a choice outside the ranking's best: the best-ranked stands for it
+        assert_eq!(central(&stats, &[false; 4], &near, 3, 3), Some(0));
+        // and a clearly central type wins whichever the scores chose
+        assert_eq!(central(&stats, &[false; 4], &prints, 3, 2), Some(1));
         // a zero pixel is gray (1/3 each), not a division by zero
         let zero = [print([0.0, 0.0, 0.0], 3), print([0.5, 0.5, 0.5], 3), print([0.9, 0.0, 0.0], 3), None];
-        assert_eq!(central(&stats, &[false; 4], &zero, 3), Some(0));
+        assert_eq!(central(&stats, &[false; 4], &zero, 3, 0), Some(0));
     }
 
     #[test]

@@ -414,15 +414,22 @@ impl<'a> Shared<'a> {
         let Probe { pixels: probe, noise } = self.probe.as_ref()?;
         let clamp = ArtifactClamp::new(st.lo, st.hi);
         let sums = self.object_sums(j, Some(&clamp));
-        let pct = channel_percentiles(j, self.mask, &[WHITE_PATCH_Q], |_, v| clamp.apply(v));
-        let k = self.display_gains(&pct, &sums);
+        // each displayed value from the pixel's J: METHOD §8's stretch, or §12.1's gains
+        let value: Box<dyn Fn(usize, f32) -> f32> = if self.balance == WhiteBalance::Stretch {
+            let sp = self.stretch(j, st);
+            Box::new(move |c, x| sp.apply(c, x))
+        } else {
+            let pct = channel_percentiles(j, self.mask, &[WHITE_PATCH_Q], |_, v| clamp.apply(v));
+            let k = self.display_gains(&pct, &sums);
+            Box::new(move |c, x| (clamp.apply(x) * k.get(c).copied().unwrap_or(1.0)).clamp(0.0, 1.0))
+        };
         let mut shown: Print = probe
             .iter()
             .map(|&i| {
                 let v = j.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]);
                 let mut px = [0f32; 3];
-                for ((o, &x), &g) in px.iter_mut().zip(v).zip(&k) {
-                    *o = (clamp.apply(x) * g).clamp(0.0, 1.0);
+                for (c, (o, &x)) in px.iter_mut().zip(v).enumerate() {
+                    *o = value(c, x);
                 }
                 px
             })

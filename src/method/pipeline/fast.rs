@@ -135,7 +135,12 @@ pub(crate) fn copy_stats(
 /// best survivors are scored again at full resolution where its choice is
 /// uncertain ([`rescore_candidates`]), and METHOD §9 chooses among them.
 /// The displayed colours are the copy's (`prints`), the same pixels for
-/// every type.
+/// every type. The central choice ranks by the scores returned: the
+/// re-scored types' full-resolution ones, the copy's for the rest. On 40
+/// renders of 1100 x 1500 (ten types, four seeds) that differs from
+/// exhaustive selection on 1; ranking by the copy's scores alone on 2;
+/// re-scoring the copy's three best at full resolution still on 1, at
+/// 1.43 x the time at 12 MP.
 pub(crate) fn rescore(shared: &Shared, types: &[&WaterType], copy: Vec<TypeStats>, prints: Vec<Option<Print>>, work: &mut Work) -> Scored {
     let c = choose(&copy);
     let mut order: Vec<usize> = (0..copy.len()).filter(|&i| !c.excluded.get(i).copied().unwrap_or(true)).collect();

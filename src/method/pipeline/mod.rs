@@ -113,7 +113,10 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     };
     // METHOD §12.2: the central one of the best-scored types
     let scored = scored.map(|mut s| {
-        if let Some(c) = central.then(|| select::central(&s.stats, &s.choice.excluded, &s.prints, CENTRAL_OF)).flatten() {
+        if let Some(c) = central
+            .then(|| select::central(&s.stats, &s.choice.excluded, &s.prints, CENTRAL_OF, s.choice.winner))
+            .flatten()
+        {
             s.choice.winner = c;
         }
         s
