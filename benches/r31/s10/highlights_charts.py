@@ -1,29 +1,17 @@
 """`highlights.py`'s rule on the real charts (gray patches, charts masked
 out of estimation as `uwhl evaluate --mask-charts` does) and on the by-eye
 photos as a contact sheet. Usage: highlights_charts.py [OUT.png]"""
-import sys, json, os, numpy as np
+import sys, os, numpy as np
 import uwhl_rs
-from uwhl_rs import images, evaluate as ev
+from uwhl_rs import images
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, here); sys.path.insert(0, os.path.join(here, ".."))
 from highlights import neutral
 from viz import sheet, tile
 LOS = (None, 0.6, 0.7, 0.8, 0.9)
-man = json.load(open(os.path.join(here, "..", "..", "eval", "charts.json")))
-tot = {lo: [] for lo in LOS}
-for e in man["images"]:
-    p = os.path.normpath(os.path.join(here, "..", "..", "eval", e["path"]))
-    img, _ = images.read_image(p)
-    mask = np.ones(img.shape[:2], bool)
-    for ch in e["charts"]:
-        for x0, y0, x1, y1 in ch["region"]:
-            mask[y0:y1, x0:x1] = False
-    r = uwhl_rs.restore(img, mask=mask)
-    for lo in LOS:
-        out = r.image if lo is None else neutral(r.image, lo)
-        for c in e["charts"]:
-            tot[lo].append(np.mean([ev.angle_deg(ev._patch_mean(out, b)) for b in c["gray_patches"]]))
-print("charts psi-bar", {lo: round(float(np.mean(v)), 2) for lo, v in tot.items()})
+# per pixel on the display: the charts' own patches are neutralised too
+from common import charts
+charts(LOS, lambda r, objects, lo: r.image if lo is None else neutral(r.image, lo))
 D = "/work/shared/data/images/"
 rows, labels = [], []
 for n in ["uwhl_Ancuti2_input.jpg", "uwhl_ship_highres_input.jpg", "udc_hazed5.jpg", "uieb_616.png", "lcm_sample_1.jpg"]:
