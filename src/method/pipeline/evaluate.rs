@@ -381,19 +381,21 @@ impl<'a> Shared<'a> {
     /// clamp) with row statistics `st`, by the type choice in use:
     /// METHOD §9 (gray world of the stretched image, t_R differences) or
     /// METHOD §12.2 (shades-of-gray spread of the clamped radiance, no
-    /// exclusion).
-    pub(crate) fn type_stats(&self, j: &[f32], st: &RowStats) -> TypeStats {
+    /// exclusion), with the object pixels' power sums of the clamped
+    /// radiance when they were summed for it (the central choice's display
+    /// needs them too).
+    pub(crate) fn type_stats(&self, j: &[f32], st: &RowStats) -> (TypeStats, Option<PowerSums>) {
         match self.choice {
             TypeChoice::GrayWorld => {
                 let sp = self.stretch(j, st);
                 let mut sums = st.sums;
                 sums.channels = self.channel_sums(j, Some(&sp));
-                sums.stats()
+                (sums.stats(), None)
             }
-            TypeChoice::ShadesOfGray | TypeChoice::Central => TypeStats {
-                score: self.object_sums(j, Some(&ArtifactClamp::new(st.lo, st.hi))).spread(),
-                tr_diff: None,
-            },
+            TypeChoice::ShadesOfGray | TypeChoice::Central => {
+                let objects = self.object_sums(j, Some(&ArtifactClamp::new(st.lo, st.hi)));
+                (TypeStats { score: objects.spread(), tr_diff: None }, Some(objects))
+            }
         }
     }
 
@@ -403,17 +405,20 @@ impl<'a> Shared<'a> {
     pub(crate) fn evaluate(&self, wt: &WaterType, work: &mut Work) -> (TypeStats, Option<Print>) {
         let bounds = self.refine(wt, work);
         let st = self.recover(wt, bounds, work, None);
-        (self.type_stats(&work.j, &st), self.print(wt, &work.j, &work.q, &st))
+        let (stats, objects) = self.type_stats(&work.j, &st);
+        (stats, self.print(wt, &work.j, &work.q, &st, objects))
     }
 
     /// The displayed colours (METHOD §12.1, and the trust step's blend of
     /// §12.5 when it is in use) at the probe's pixels of the recovered J
     /// (before the artifact clamp) with row statistics `st` and filtered
     /// plane `q`: what [`finish`] shows there for this type.
-    fn print(&self, wt: &WaterType, j: &[f32], q: &[f32], st: &RowStats) -> Option<Print> {
+    /// `objects` are the object pixels' power sums of the clamped J when
+    /// scoring summed them (else they are summed here).
+    fn print(&self, wt: &WaterType, j: &[f32], q: &[f32], st: &RowStats, objects: Option<PowerSums>) -> Option<Print> {
         let Probe { pixels: probe, noise } = self.probe.as_ref()?;
         let clamp = ArtifactClamp::new(st.lo, st.hi);
-        let sums = self.object_sums(j, Some(&clamp));
+        let sums = objects.unwrap_or_else(|| self.object_sums(j, Some(&clamp)));
         // each displayed value from the pixel's J: METHOD §8's stretch, or §12.1's gains
         let value: Box<dyn Fn(usize, f32) -> f32> = if self.balance == WhiteBalance::Stretch {
             let sp = self.stretch(j, st);
@@ -562,7 +567,7 @@ pub(crate) fn finish(
     shared.floor_transmission(wt, &work.q, &mut transmission);
     // METHOD §8's stretch is the display, or only scores the gray-world choice (METHOD §9)
     let display = (shared.balance == WhiteBalance::Stretch).then(|| shared.stretch(&work.j, &st));
-    let gray_world = (display.is_none() && shared.choice == TypeChoice::GrayWorld).then(|| shared.type_stats(&work.j, &st));
+    let gray_world = (display.is_none() && shared.choice == TypeChoice::GrayWorld).then(|| shared.type_stats(&work.j, &st).0);
     clock.lap(Stage::ChosenStretch);
     pool.put(std::mem::take(&mut work.aux), std::mem::take(&mut work.q));
     let mut radiance = std::mem::take(&mut work.j);
