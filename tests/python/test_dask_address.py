@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import http.server
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -18,34 +17,9 @@ import pytest
 from uwhl_rs import synth
 from uwhl_rs.images import write_image
 
+from loopback import Server
+
 pytest.importorskip("distributed")
-
-
-class _Server:
-    """A loopback TCP server in a thread; ``answer(conn)`` handles each connection."""
-
-    def __init__(self, answer):
-        self.sock = socket.socket()
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.listen(16)
-        self.port = self.sock.getsockname()[1]
-        self.conns: list[socket.socket] = []
-        self.answer = answer
-        threading.Thread(target=self._loop, daemon=True).start()
-
-    def _loop(self):
-        while True:
-            try:
-                conn, _ = self.sock.accept()
-            except OSError:
-                return
-            self.conns.append(conn)
-            threading.Thread(target=self.answer, args=(conn,), daemon=True).start()
-
-    def close(self):
-        for c in self.conns:
-            c.close()
-        self.sock.close()
 
 
 def _junk(conn):
@@ -106,7 +80,7 @@ def test_an_http_server_is_not_waited_on_for_good(tmp_path, photo, http_server):
     (_silent, "", "cannot reach the Dask scheduler (no answer within 2 s"),
 ], ids=["sends_other_bytes", "accepts_and_never_answers"])
 def test_a_server_that_is_no_scheduler_is_refused(tmp_path, photo, handler, scheme, words):
-    srv = _Server(handler)
+    srv = Server(handler)
     try:
         address = f"{scheme}127.0.0.1:{srv.port}"
         _refused(_restore(tmp_path, photo, address), tmp_path, address, words)

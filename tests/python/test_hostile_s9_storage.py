@@ -19,7 +19,6 @@ import hashlib
 import io
 import json
 import os
-import socket
 import subprocess
 import sys
 
@@ -27,6 +26,7 @@ import pytest
 import yaml
 from PIL import Image
 
+from loopback import Server
 from test_ifdo import HEADER, POSITION
 from test_metadata import _gps_exif, _scene
 
@@ -395,34 +395,6 @@ def test_malformed_storage_options_are_named_before_any_request(item, says):
                                    "config_kwargs": {"retries": {"max_attempts": 0}, "read_timeout": 2.5}}) is None
 
 
-class _Listener:
-    """A TCP port on loopback that counts the connections made to it (and
-    closes each): where a storage option points the client."""
-
-    def __init__(self):
-        import threading
-
-        self.sock = socket.socket()
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.listen(16)
-        self.port = self.sock.getsockname()[1]
-        self.connections = 0
-        self.thread = threading.Thread(target=self._serve, daemon=True)
-        self.thread.start()
-
-    def _serve(self):
-        while True:
-            try:
-                c, _ = self.sock.accept()
-            except OSError:
-                return
-            self.connections += 1
-            c.close()
-
-    def close(self):
-        self.sock.close()
-
-
 @pytest.mark.parametrize("bad", ["nonsense_option=1", "config_kwargs.retries.mode=bogus",
                                  "client_kwargs.region_name=a/b", "config_kwargs.signature_version=zz"])
 def test_an_option_the_client_refuses_is_a_bad_argument_and_sends_nothing(bad, tmp_path, monkeypatch):
@@ -435,7 +407,8 @@ def test_an_option_the_client_refuses_is_a_bad_argument_and_sends_nothing(bad, t
     for k, v in dict(AWS_ACCESS_KEY_ID="testing", AWS_SECRET_ACCESS_KEY="testing", AWS_DEFAULT_REGION="us-east-1",
                      AWS_EC2_METADATA_DISABLED="true").items():
         monkeypatch.setenv(k, v)
-    where = _Listener()
+    # counts the connections made to it, closing each
+    where = Server(lambda conn: conn.close())
     try:
         env_so = ["--storage-option", f"endpoint_url=http://127.0.0.1:{where.port}"]
         r = uwhl("report", "s3://survey9/out/", *env_so, "--storage-option", bad)
@@ -443,10 +416,10 @@ def test_an_option_the_client_refuses_is_a_bad_argument_and_sends_nothing(bad, t
         assert bad.split("=")[0].split(".")[-1] in r.stderr or bad.split("=")[1] in r.stderr, r.stderr
         r = uwhl("restore", "s3://survey9/in/", "-o", tmp_path / "o", *env_so, "--storage-option", bad)
         assert r.returncode == 2 and "bad storage options" in r.stderr, r.stderr
-        assert where.connections == 0
+        assert len(where.conns) == 0
         r = uwhl("report", "s3://survey9/out/", *env_so, "--storage-option", "config_kwargs.retries.max_attempts=0")
         assert r.returncode == 7 and "cannot reach the storage" in r.stderr, r.stderr
-        assert where.connections > 0
+        assert len(where.conns) > 0
     finally:
         where.close()
 
