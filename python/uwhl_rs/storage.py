@@ -235,6 +235,12 @@ def _too_large(limit: int, where: str) -> OSError:
     return OSError(errno.EFBIG, f"larger than {limit} bytes", where)
 
 
+def _refuse_larger(size, limit: int, where: str) -> None:
+    """OSError EFBIG when ``size`` (bytes; not an int: unknown) is over ``limit``."""
+    if isinstance(size, int) and size > limit:
+        raise _too_large(limit, where)
+
+
 def _read_object(fs, path: str, limit: int, where: str, size: int | None = None) -> bytes:
     """The bytes of the object ``path`` of ``fs``, at most ``limit`` of them
     (OSError EFBIG beyond). Its size (``size``, a listing's, else asked)
@@ -243,8 +249,7 @@ def _read_object(fs, path: str, limit: int, where: str, size: int | None = None)
     since it was listed, a hostile store) still brings no more."""
     if size is None:
         size = fs.info(path).get("size")
-    if isinstance(size, int) and size > limit:
-        raise _too_large(limit, where)
+    _refuse_larger(size, limit, where)
     if size == 0:
         # a range of an empty object is refused (HTTP 416): nothing to fetch
         return b""
@@ -273,9 +278,7 @@ def spool(path: str, storage_options: dict | None = None, *, limit: int, digest=
     comes, so memory holds a chunk and never the object (a photo can be
     gigabytes)."""
     fs, p = filesystem(path, storage_options)
-    size = fs.info(p).get("size")
-    if isinstance(size, int) and size > limit:
-        raise _too_large(limit, path)
+    _refuse_larger(fs.info(p).get("size"), limit, path)
     out = tempfile.TemporaryFile(prefix="uwhl-")
     try:
         got = 0
@@ -483,9 +486,11 @@ class Folder:
         if self.is_url:
             return spool(self.path(rel), self.storage_options, limit=limit)
         f = open_regular(self.path(rel))
-        if os.fstat(f.fileno()).st_size > limit:
+        try:
+            _refuse_larger(os.fstat(f.fileno()).st_size, limit, self.path(rel))
+        except OSError:
             f.close()
-            raise _too_large(limit, self.path(rel))
+            raise
         return f
 
     def modified(self, rel: str) -> float | None:
