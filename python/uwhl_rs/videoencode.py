@@ -122,6 +122,11 @@ class Writer:
         #: streams dropped part way (a packet the container refused), and frames whose timestamp was not increasing
         self.notes: list[str] = []
         self.retimed = 0
+        #: frames of another size than the stream's first (a stream may change size mid-way):
+        #: how many, and the first as (written index, height, width)
+        self.size = (int(size[0]), int(size[1]))
+        self.rescaled = 0
+        self.first_rescaled: tuple[int, int, int] | None = None
         fmt = {".mkv": "matroska", ".ts": "mpegts", ".mts": "mpegts", ".m2ts": "mpegts", ".m4v": "mp4"}.get(ext)
         try:
             self.out = av.open(tmp, "w", format=fmt or ext.lstrip("."))
@@ -207,6 +212,13 @@ class Writer:
         (made increasing); a failed write is write_failed naming the output."""
         codes = _core.frame_from_linear(np.ascontiguousarray(image, dtype=np.float32), self.transfer, 16)
         f = self.av.VideoFrame.from_ndarray(codes, format="rgb48le")
+        if image.shape[:2] != self.size:
+            # a video stream holds one frame size: the encoder would scale this frame to it anyway;
+            # doing it here, and counting it, lets the sidecar say so
+            if self.first_rescaled is None:
+                self.first_rescaled = (self.frames, int(image.shape[0]), int(image.shape[1]))
+            self.rescaled += 1
+            f = f.reformat(width=self.size[1], height=self.size[0])
         if not self.rgb:
             f = f.reformat(format=self.pix, dst_colorspace="ITU709", dst_color_range=self.range)
         if pts is None or (self.last_pts is not None and pts <= self.last_pts):

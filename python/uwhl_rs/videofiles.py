@@ -321,6 +321,11 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
             if writer.retimed:
                 writer_notes.append(f"{writer.retimed} frames' timestamps were missing or did not increase (repeated "
                                     "or out of order): each was written one frame after the frame before it")
+            if writer.rescaled:
+                k, h, w = writer.first_rescaled
+                writer_notes.append(f"{writer.rescaled} frames are not the video's {writer.size[1]}x{writer.size[0]} "
+                                    f"(the stream changes size; the first, written frame {k}, is {w}x{h}): "
+                                    f"each was written scaled to {writer.size[1]}x{writer.size[0]}")
             writer = None
         t_done = time.perf_counter()
         if counts["restored"] == 0:

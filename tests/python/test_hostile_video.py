@@ -311,6 +311,54 @@ def test_black_and_flat_frames_are_written_unrestored_and_counted(tmp_path):
     assert "constant" in side["video"]["unrestored"][0]["error"]
 
 
+def _ts(path, h, w, n, seed):
+    """An MPEG transport stream of ``n`` frames of ``h`` x ``w`` (MPEG-2 video)."""
+    frames = _noise(n, h, w, seed)
+    with av.open(str(path), "w", format="mpegts") as out:
+        st = out.add_stream("mpeg2video", rate=24)
+        st.width, st.height, st.pix_fmt = w, h, "yuv420p"
+        for f in frames:
+            for p in st.encode(av.VideoFrame.from_ndarray(f, format="rgb24")):
+                out.mux(p)
+        for p in st.encode():
+            out.mux(p)
+
+
+def test_a_stream_that_changes_size_is_written_at_its_size_and_says_so(tmp_path):
+    # two transport streams laid end to end, as a recorder that switches
+    # resolution writes them: the decoder gives 64x48 frames, then 96x64
+    _ts(tmp_path / "a.ts", H, W, 6, 0)
+    _ts(tmp_path / "b.ts", 64, 96, 6, 1)
+    src = tmp_path / "cam.ts"
+    src.write_bytes((tmp_path / "a.ts").read_bytes() + (tmp_path / "b.ts").read_bytes())
+    os.unlink(tmp_path / "a.ts")
+    os.unlink(tmp_path / "b.ts")
+    with av.open(str(src)) as f:
+        sizes = [(fr.height, fr.width) for fr in f.decode(video=0)]
+    big = sum(s == (64, 96) for s in sizes)
+    assert big >= 5 and sizes[0] == (H, W)
+    out = tmp_path / "out"
+    r = _restore(src, "-o", out)
+    _clean(r)
+    assert r.returncode == 0, r.stderr
+    got = _decoded(out / _video_files(out)[0])
+    assert len(got) == len(sizes)
+    assert all(g[1].shape[:2] == (H, W) for g in got)
+    notes = json.loads((out / "cam.json").read_text())["video"]["notes"]
+    said = [n for n in notes if "scaled to 64x48" in n]
+    assert len(said) == 1 and said[0].startswith(f"{big} frames") and "96x64" in said[0], notes
+    # stills keep each frame's own size, and nothing is said
+    out2 = tmp_path / "stills"
+    r = _restore(src, "-o", out2, "--every", "1")
+    _clean(r)
+    assert r.returncode == 0, r.stderr
+    side = json.loads((out2 / "cam.json").read_text())
+    assert not any("scaled" in n for n in side["video"]["notes"])
+    from PIL import Image
+    shapes = [Image.open(out2 / s["image"]).size for s in side["video"]["stills"] if s.get("image")]
+    assert (W, H) in shapes and (96, 64) in shapes
+
+
 def test_a_video_of_black_frames_only_fails_by_name(tmp_path):
     src = tmp_path / "cap.mkv"
     _write(src, [np.zeros((H, W, 3), np.uint8)] * 3)
