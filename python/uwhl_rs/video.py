@@ -372,6 +372,14 @@ class FrameReader:
                     if frame.pts is not None and tb is not None:
                         t_k = float(frame.pts * tb)
                         last_t = t_k if last_t is None else max(last_t, t_k)
+                    if frame.width * frame.height > self.info.width * self.info.height:
+                        # the limits (--max-pixels, --max-memory) were checked against the size the
+                        # stream states; a larger frame part way would go past them: decoding stops here
+                        self.stopped = {"frame": k, "time": self._time_of(k),
+                                        "error": f"frame {k} is {frame.width}x{frame.height}, larger than the "
+                                                 f"{self.info.width}x{self.info.height} the stream states and its "
+                                                 f"memory was planned for"}
+                        return
                     if k % self.every == 0:
                         pts = frame.pts
                         t = float(pts * tb) if pts is not None and tb is not None else None

@@ -324,29 +324,37 @@ def _ts(path, h, w, n, seed):
             out.mux(p)
 
 
-def test_a_stream_that_changes_size_is_written_at_its_size_and_says_so(tmp_path):
-    # two transport streams laid end to end, as a recorder that switches
-    # resolution writes them: the decoder gives 64x48 frames, then 96x64
-    _ts(tmp_path / "a.ts", H, W, 6, 0)
-    _ts(tmp_path / "b.ts", 64, 96, 6, 1)
-    src = tmp_path / "cam.ts"
-    src.write_bytes((tmp_path / "a.ts").read_bytes() + (tmp_path / "b.ts").read_bytes())
-    os.unlink(tmp_path / "a.ts")
-    os.unlink(tmp_path / "b.ts")
+def _joined(tmp_path, name, *parts):
+    """Transport streams laid end to end, as a recorder that switches
+    resolution writes them: ``parts`` are (height, width) of 6 frames each.
+    Returns the file and the frame sizes its decoder gives."""
+    data = b""
+    for k, (h, w) in enumerate(parts):
+        _ts(tmp_path / "part.ts", h, w, 6, k)
+        data += (tmp_path / "part.ts").read_bytes()
+    os.unlink(tmp_path / "part.ts")
+    src = tmp_path / name
+    src.write_bytes(data)
     with av.open(str(src)) as f:
         sizes = [(fr.height, fr.width) for fr in f.decode(video=0)]
-    big = sum(s == (64, 96) for s in sizes)
-    assert big >= 5 and sizes[0] == (H, W)
+    assert sizes[0] == parts[0] and parts[1] in sizes
+    return src, sizes
+
+
+def test_a_stream_that_changes_size_is_written_at_its_size_and_says_so(tmp_path):
+    # 96x64 frames, then 64x48: the video is written at the stated 96x64
+    src, sizes = _joined(tmp_path, "cam.ts", (64, 96), (H, W))
+    small = sum(s == (H, W) for s in sizes)
     out = tmp_path / "out"
     r = _restore(src, "-o", out)
     _clean(r)
     assert r.returncode == 0, r.stderr
     got = _decoded(out / _video_files(out)[0])
     assert len(got) == len(sizes)
-    assert all(g[1].shape[:2] == (H, W) for g in got)
+    assert all(g[1].shape[:2] == (64, 96) for g in got)
     notes = json.loads((out / "cam.json").read_text())["video"]["notes"]
-    said = [n for n in notes if "scaled to 64x48" in n]
-    assert len(said) == 1 and said[0].startswith(f"{big} frames") and "96x64" in said[0], notes
+    said = [n for n in notes if "scaled to 96x64" in n]
+    assert len(said) == 1 and said[0].startswith(f"{small} frames") and "64x48" in said[0], notes
     # stills keep each frame's own size, and nothing is said
     out2 = tmp_path / "stills"
     r = _restore(src, "-o", out2, "--every", "1")
@@ -357,6 +365,23 @@ def test_a_stream_that_changes_size_is_written_at_its_size_and_says_so(tmp_path)
     from PIL import Image
     shapes = [Image.open(out2 / s["image"]).size for s in side["video"]["stills"] if s.get("image")]
     assert (W, H) in shapes and (96, 64) in shapes
+
+
+def test_a_frame_larger_than_the_stream_states_stops_it_there(tmp_path):
+    # the limits were checked for 64x48 frames; a 96x64 frame part way would go past
+    # --max-pixels: the frames before it are restored and kept, the stop said by frame
+    src, sizes = _joined(tmp_path, "grow.ts", (H, W), (64, 96))
+    first_big = sizes.index((64, 96))
+    out = tmp_path / "out"
+    r = _restore(src, "-o", out, "--max-pixels", str(H * W))
+    _clean(r)
+    assert r.returncode == 3, r.stderr
+    side = json.loads((out / "grow.json").read_text())
+    stop = side["video"]["stopped"]
+    assert stop["frame"] == first_big and "96x64, larger than the 64x48" in stop["error"]
+    assert "video_truncated" in side["flags"] and side["video"]["frames"]["restored"] == first_big
+    got = _decoded(out / _video_files(out)[0])
+    assert len(got) == first_big and all(g[1].shape[:2] == (H, W) for g in got)
 
 
 def test_a_video_of_black_frames_only_fails_by_name(tmp_path):
