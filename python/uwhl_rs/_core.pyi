@@ -174,8 +174,9 @@ def decode_mask_file(path: _PathArg, what: str, max_pixels: int, max_memory: int
     """A mask file as H x W bools (nonzero = True), read by the binary's mask reader."""
 def read_distance_for(
     template: str, input: _PathArg, max_pixels: int, max_memory: int, photo: Optional[tuple[int, int]] = None,
-) -> tuple[str, Optional[_F32], Optional[str]]:
-    """An input's distance map for a --distance template: (path, H x W metres or None, why not or None);
+) -> tuple[str, Optional[_F32], Optional[str], int]:
+    """An input's distance map for a --distance template: (path, H x W metres or None, why not or None,
+    how many distances beyond float32 were read as unknown);
     with photo (height, width), a map of more than 16 times its pixels is refused from its header."""
 def map_cap(height: int, width: int) -> int:
     """The most pixels a distance map of a photo of height x width pixels may have (4 Mpx at least)."""
@@ -198,7 +199,7 @@ def write_input_outputs(
     label: str, contact_sheet: Optional[bytes], reused: Optional[bool], read: float, restore: float,
     sheet_seconds: Optional[float], elapsed: float, distance_source: Optional[str] = None,
     distance_missing: Optional[str] = None, distance_floor: Optional[str] = None,
-    distance_depth: Optional[str] = None,
+    distance_depth: Optional[str] = None, distance_out_of_range: int = 0,
 ) -> str:
     """Writes one input's outputs through its claim (encodes, metadata, sidecar, commit): the sidecar as JSON."""
 

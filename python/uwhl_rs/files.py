@@ -283,19 +283,18 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
         wm = _shrink_mask(wm, s, "half")
     # METHOD §13: a template names the input's map (the binary's reader); one
     # that cannot be read leaves the photo restored without it, flagged
-    z, z_source, z_missing, z_floor, z_depth = None, None, None, None, None
+    z, z_source, z_missing, z_floor, z_depth, z_out = None, None, None, None, None, 0
     if isinstance(distance, (str, os.PathLike)):
         # the map gets what the budget leaves beside the photo (its plan, and the map at the photo's
         # processed size that restore makes): one that does not fit is left out, the photo restored
         room = max(0, int(budget) - photo_need[0] - 4 * image.shape[0] * image.shape[1])
-        z_source, z, z_missing = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), room,
+        z_source, z, z_missing, z_out = _core.read_distance_for(os.fspath(distance), in_path, int(max_pixels), room,
                                                          tuple(int(x) for x in full_hw))
         if z is not None and settings.depth_along_axis:
             # METHOD §13.7: depth along the camera's axis, turned into ranges with the lens
             z, z_depth, z_missing = _core.depth_to_range_for(settings, in_path, z, *full_hw)
-        if z is not None and s > 1:
-            # checked against the photo as read; restore sees it shrunk by --max-side, and the map with it
-            z = np.ascontiguousarray(z[::s, ::s])
+        # a map of any size (checked against the photo as read) goes to restore as it is, which
+        # samples it at the processed size (--max-side), as the binary does
     elif distance is not None:
         z, z_source = distance, "array"
     elif settings.altitude is not None:
@@ -329,7 +328,7 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
                                              label, sheet, reused, t_read - t_start, t_restore - t_read, t_sheet,
                                              time.perf_counter() - t_start, distance_source=z_source,
                                              distance_missing=z_missing, distance_floor=z_floor,
-                                             distance_depth=z_depth)
+                                             distance_depth=z_depth, distance_out_of_range=z_out)
         finally:
             # committed: nothing left to release; failed: the temporaries go
             claim.release()

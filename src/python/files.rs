@@ -211,9 +211,12 @@ fn decode_mask_file<'py>(
 /// `crate::files::depth`): `(path, map or None, why not or None)`. A map
 /// that cannot be read is not an error: the photo is restored without it
 /// and flagged `distance_missing`. With `photo` (its height and width), a
-/// map far larger than the photo is refused from its header.
+/// map far larger than the photo is refused from its header. The fourth
+/// value counts the distances beyond float32 read as unknown (the
+/// sidecar's `distance.out_of_range`).
 #[pyfunction]
 #[pyo3(signature = (template, input, max_pixels, max_memory, photo=None))]
+#[allow(clippy::type_complexity)]
 fn read_distance_for<'py>(
     py: Python<'py>,
     template: &str,
@@ -221,17 +224,20 @@ fn read_distance_for<'py>(
     max_pixels: u64,
     max_memory: u64,
     photo: Option<(u64, u64)>,
-) -> PyResult<(String, Option<Bound<'py, PyAny>>, Option<String>)> {
+) -> PyResult<(String, Option<Bound<'py, PyAny>>, Option<String>, usize)> {
     let path = match crate::files::depth::expand(template, &input) {
         Ok(p) => p,
-        Err(why) => return Ok((template.to_string(), None, Some(why))),
+        Err(why) => return Ok((template.to_string(), None, Some(why), 0)),
     };
     let shown = path.to_string_lossy().into_owned();
     match py.detach(|| crate::files::depth::read_distance_of(&path, max_pixels, max_memory, photo)) {
-        Ok(m) => Ok((shown, Some(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any()), None)),
+        Ok(m) => {
+            let out = m.out_of_range;
+            Ok((shown, Some(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any()), None, out))
+        }
         Err(f) => {
             let why = format!("{shown}: {}", f.message);
-            Ok((shown, None, Some(why)))
+            Ok((shown, None, Some(why), 0))
         }
     }
 }
@@ -362,7 +368,7 @@ fn source_of(d: &Bound<'_, PyDict>) -> PyResult<Source> {
 /// in all so far.
 /// The claim is used up; on failure its temporaries are removed.
 #[pyfunction]
-#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None, distance_floor=None, distance_depth=None))]
+#[pyo3(signature = (claim, res, image, source, settings, input, label, contact_sheet, reused, read, restore, sheet_seconds, elapsed, distance_source=None, distance_missing=None, distance_floor=None, distance_depth=None, distance_out_of_range=0))]
 #[allow(clippy::too_many_arguments)]
 fn write_input_outputs(
     py: Python<'_>,
@@ -383,6 +389,7 @@ fn write_input_outputs(
     distance_missing: Option<String>,
     distance_floor: Option<String>,
     distance_depth: Option<String>,
+    distance_out_of_range: usize,
 ) -> PyResult<String> {
     let source = source_of(source)?;
     let record = res.distance_json.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
@@ -390,6 +397,9 @@ fn write_input_outputs(
         Some(src) => crate::files::sidecar::distance_entry(record, src, distance_missing.as_deref()),
         None => record,
     };
+    if let (true, Some(serde_json::Value::Object(o))) = (distance_out_of_range > 0, distance.as_mut()) {
+        o.insert("out_of_range".into(), serde_json::Value::from(distance_out_of_range));
+    }
     for (key, text) in [("floor", &distance_floor), ("depth", &distance_depth)] {
         let value = text.as_deref().and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok());
         if let (Some(v), Some(serde_json::Value::Object(o))) = (value, distance.as_mut()) {

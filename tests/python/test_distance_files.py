@@ -351,3 +351,33 @@ def test_both_commands_record_the_same_fitted_water_to_the_last_digit(binary, tm
         water[impl] = _side(tmp_path / impl, "sea")["distance"]["water"]
     assert water["python"] is not None and water["python"] == water["rust"]
     assert len(water["rust"]["beta_range"]) == 3 and water["rust"]["plausible_types"]
+
+
+@pytest.mark.parametrize("every", [1, 2, 3])
+def test_both_commands_sample_a_map_of_any_size_alike_under_max_side(binary, tmp_path, every):
+    """docs/CLI.md "--distance": a map of the photo's aspect ratio at any
+    size is used; with --max-side the photo is shrunk and the map sampled at
+    the shrunk size. Both commands must use the same map (same veiling
+    light, same fitted water, same restored bytes), whatever the map's size.
+    Rows of a 10 km distance are unknown and counted in both sidecars."""
+    h, w = 240, 320
+    sc = synth.scene(h, w, kind="looking_down", seed=4)
+    z = np.repeat(np.linspace(9.0, 1.5, h)[:, None], w, 1).astype(np.float32)
+    img = synth.render(sc.clean, z, "3C", beta_b=0.3, noise=0.002, seed=1)
+    tifffile.imwrite(tmp_path / "sea.tif", np.ascontiguousarray(img, np.float32), photometric="rgb")
+    small = np.ascontiguousarray(z[::every, ::every])
+    small[:2] = 10_000.0  # beyond the 1 km a distance may be: unknown
+    np.save(tmp_path / "range.npy", small)
+    side, pixels = {}, {}
+    for impl, cmd in _cmds(binary).items():
+        r = _run(cmd, tmp_path / "sea.tif", "-o", tmp_path / impl, "--distance", tmp_path / "range.npy",
+                 "--max-side", "160", "--format", "tiff")
+        assert r.returncode == 0, r.stderr
+        side[impl] = _side(tmp_path / impl, "sea")
+        pixels[impl] = tifffile.imread(tmp_path / impl / "sea.tif")
+    py, rs = side["python"], side["rust"]
+    assert rs["distance"]["used"] and py["distance"]["used"]
+    assert py["distance"]["out_of_range"] == rs["distance"]["out_of_range"] == 2 * small.shape[1]
+    assert py["distance"]["water"] == rs["distance"]["water"]
+    assert py["veiling_light"] == rs["veiling_light"]
+    assert np.array_equal(pixels["python"], pixels["rust"])
