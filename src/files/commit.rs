@@ -140,8 +140,11 @@ fn input_key(p: &Path) -> PathBuf {
     fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
 }
 
-/// The largest sidecar read when deciding whose it is (they are a few kilobytes).
-const MAX_SIDECAR: u64 = 16 << 20;
+/// The largest sidecar read (they are a few kilobytes): the limit of the
+/// Python package's sidecar reader (`uwhl_rs.sidecars.MAX_BYTES`), so both
+/// take the same files. Parsed, JSON takes up to about 36 times its size:
+/// a planted file of the limit costs tens of megabytes, not hundreds.
+pub(crate) const MAX_SIDECAR: u64 = 1 << 20;
 
 /// What a sidecar says of its input: the path as given (`input`), the
 /// resolved one when it records it (`input_resolved`, absolute), and the
@@ -159,7 +162,7 @@ fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String
     Some((input, resolved, hash))
 }
 
-/// A sidecar's JSON read from `path`: a regular file of at most 16 MiB
+/// A sidecar's JSON read from `path`: a regular file of at most 1 MiB
 /// (a FIFO at its name is never waited on), None otherwise or when it is
 /// not JSON.
 pub(crate) fn read_sidecar(path: &Path) -> Option<serde_json::Value> {
@@ -778,6 +781,24 @@ mod tests {
         let v = parse_sidecar(br#"{"input": "caf\udce9.png", "x": "\ud83d\ude00\udc80"}"#).unwrap();
         assert_eq!(v["input"], "caf\u{fffd}.png");
         assert_eq!(v["x"], "\u{1f600}\u{fffd}");
+    }
+
+    #[test]
+    fn a_sidecar_over_one_mebibyte_is_not_read() {
+        // the Python reader's limit: a planted array of zeros the size of the
+        // old 16 MiB limit parsed to about 600 MB
+        let d = folder("bigside");
+        let p = d.join("a.json");
+        let body = |n: usize| format!("{{\"input\": \"a.jpg\", \"pad\": [{}0]}}", "0,".repeat(n));
+        let fits = body((MAX_SIDECAR as usize - 40) / 2);
+        assert!(fits.len() as u64 <= MAX_SIDECAR);
+        fs::write(&p, &fits).unwrap();
+        assert_eq!(read_sidecar(&p).unwrap()["input"], "a.jpg");
+        let over = body(MAX_SIDECAR as usize / 2);
+        assert!(over.len() as u64 > MAX_SIDECAR);
+        fs::write(&p, &over).unwrap();
+        assert!(read_sidecar(&p).is_none());
+        fs::remove_dir_all(&d).unwrap();
     }
 
     fn sha256_of(p: &Path) -> String {
