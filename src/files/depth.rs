@@ -451,6 +451,11 @@ fn exr_depth_channel(names: &[String]) -> Option<usize> {
         .or_else(|| (names.len() == 1).then_some(0))
 }
 
+/// The most samples an OpenEXR distance map's parts may hold together for
+/// each pixel of its depth channel (every channel of every part is
+/// decoded): a renderer's file of colour, depth and a dozen passes fits.
+const MAX_EXR_SAMPLES_PER_PIXEL: u64 = 32;
+
 /// An OpenEXR distance map in metres: the depth channel
 /// ([`exr_depth_channel`]) of the first part that has one, flat (not deep),
 /// every channel sampled at full resolution. The header is read and the size
@@ -479,7 +484,18 @@ fn read_exr<R: std::io::BufRead + Seek>(mut r: R, check: impl Fn(u64, u64, u64) 
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
     // every channel of every part is decoded, at most 4 bytes a sample
     let samples: u64 = meta.headers.iter().map(|hd| (hd.channels.list.len() as u64).saturating_mul(hd.layer_size.area() as u64)).sum();
-    let per_pixel = samples.saturating_mul(4) / (w as u64).saturating_mul(h as u64).max(1);
+    let area = (w as u64).saturating_mul(h as u64).max(1);
+    if samples > MAX_EXR_SAMPLES_PER_PIXEL.saturating_mul(area) {
+        // the pixel cap holds the depth part only: thousands of parts beside it
+        // would decode gigabytes from a small file
+        return Err(bad(format!(
+            "holds {samples} samples in {} part{}, more than {MAX_EXR_SAMPLES_PER_PIXEL} for each of the {w}x{h} pixels \
+             of its depth channel: write the depth in a file of its own",
+            meta.headers.len(),
+            if meta.headers.len() == 1 { "" } else { "s" }
+        )));
+    }
+    let per_pixel = samples.saturating_mul(4) / area;
     check(h as u64, w as u64, per_pixel.max(4))?;
     r.seek(SeekFrom::Start(0)).map_err(io)?;
     let image = read()
@@ -713,6 +729,16 @@ mod tests {
         let p = exr_file("big.exr", 3, 2, vec![("Z", col())]);
         let e = read_distance(&p, 5, 1 << 30).unwrap_err();
         assert!(e.message.contains("over --max-pixels 5"), "{}", e.message);
+        // a depth channel among more samples than a renderer's passes: refused from the
+        // header (thousands of parts of a small file once decoded to gigabytes)
+        let names: Vec<String> = (0..40).map(|i| format!("P{i:02}")).collect();
+        let mut many: Vec<(&str, FlatSamples)> = names.iter().map(|n| (n.as_str(), col())).collect();
+        many.push(("Z", col()));
+        let e = read_distance(&exr_file("passes.exr", 3, 2, many), 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("246 samples in 1 part, more than 32 for each of the 3x2 pixels"), "{}", e.message);
+        let mut fits: Vec<(&str, FlatSamples)> = names.iter().take(31).map(|n| (n.as_str(), col())).collect();
+        fits.push(("Z", col()));
+        assert_eq!(read_distance(&exr_file("fits.exr", 3, 2, fits), 1 << 20, 1 << 30).unwrap().data, vec![0.5; 6]);
         // cut short, or its magic number followed by noise
         let whole = std::fs::read(&p).unwrap();
         for (name, bytes) in [("cut.exr", whole[..whole.len() * 2 / 3].to_vec()), ("noise.exr", [&whole[..4], &[0xAB; 64][..]].concat())] {
