@@ -16,6 +16,10 @@ use crate::method::floor::{Floor, Port};
 /// Largest navigation log read, in bytes.
 const MAX_LOG_BYTES: u64 = 256 << 20;
 
+/// The most records a navigation log may hold: 10 Hz for more than two
+/// days, in at most about 200 MB once read.
+const MAX_RECORDS: usize = 2_000_000;
+
 /// Longest field of a log shown in a message, in characters.
 const SHOWN: usize = 40;
 
@@ -336,7 +340,16 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
             }
         }
     }
+    // each record is held twice over (by name and stem, or by time): a log of
+    // millions of 4-byte lines would take ten times its size in memory
+    let records = text.lines().filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#')).count().saturating_sub(1);
+    if records > MAX_RECORDS {
+        return Err(format!("{records} records, over the {MAX_RECORDS} a navigation log may have: give the dive's part of it"));
+    }
     let mut log = NavLog { named: name.is_some(), ..NavLog::default() };
+    if name.is_none() {
+        log.by_time.reserve_exact(records);
+    }
     let max = f64::from(crate::method::distance::MAX_DISTANCE);
     for (no, line) in lines {
         if line.trim().is_empty() || line.trim_start().starts_with('#') {
@@ -365,7 +378,8 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
         let tilt = |col: Option<usize>, what: &str| -> Result<f64, String> {
             let lim = crate::method::floor::MAX_TILT;
             col.map_or(Ok(0.0), |c| {
-                let v = number(c, what, f64::NEG_INFINITY, f64::INFINITY)?;
+                let s = cell(c, what)?;
+                let v: f64 = s.parse().map_err(|_| format!("line {no}, column {} ({what}): {} is not a number", c + 1, shown(s)))?;
                 if v.abs() <= lim {
                     Ok(v)
                 } else {
@@ -750,12 +764,22 @@ mod tests {
             ("file,altitude\na.jpg,1e300\n", "1.000000e300 is not in"),
             ("file,altitude\na.jpg,\u{1b}[31m2\n", "\"\u{1b}[31m2\" is not a number"),
             ("file,altitude,pitch\na.jpg,2,89.5\n", "line 2, column 3 (pitch): 89.5 is not in [-89, 89]"),
+            ("file,altitude,roll\na.jpg,2,1e400\n", "line 2, column 3 (roll): inf is not in [-89, 89]"),
+            ("file,altitude,roll\na.jpg,2,nan\n", "line 2, column 3 (roll): NaN is not in [-89, 89]"),
             ("file,altitude\na.jpg,2,3,4\n", "line 2: 4 fields, the header (line 1) names 2"),
             ("file,altitude\na.jpg,2,,\nb.jpg,2,,x\n", "line 3: 4 fields, the header (line 1) names 2"),
         ] {
             let e = parse_log(text).unwrap_err();
             assert!(e.contains(want), "{text:?}: {e}");
         }
+    }
+
+    #[test]
+    fn a_log_of_more_records_than_memory_should_hold_is_refused_before_parsing() {
+        let rows = |n: usize| format!("time,altitude\n# a comment is no record\n{}", "1,1\n".repeat(n));
+        let e = parse_log(&rows(MAX_RECORDS + 1)).unwrap_err();
+        assert!(e.starts_with(&format!("{} records, over the {MAX_RECORDS}", MAX_RECORDS + 1)), "{e}");
+        assert_eq!(parse_log(&rows(MAX_RECORDS)).unwrap().by_time.len(), MAX_RECORDS);
     }
 
     #[test]
