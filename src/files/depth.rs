@@ -274,8 +274,13 @@ fn read_npy<R: Read>(r: &mut R, check: impl Fn(u64, u64, u64) -> Result<(), Fail
         }
     }
     let descr = field("descr").ok_or_else(|| bad("without a 'descr' in its header"))?;
-    if field("fortran_order").as_deref() != Some("False") {
-        return Err(bad("in Fortran order: not read (save it with numpy.ascontiguousarray)"));
+    match field("fortran_order").as_deref() {
+        Some("False") => {}
+        Some("True") => return Err(bad("in Fortran order: not read (save it with numpy.ascontiguousarray)")),
+        other => {
+            let said = other.map_or("nothing".to_string(), |v| crate::files::nav::shown(v));
+            return Err(bad(&format!("whose header's 'fortran_order' is {said}, not True or False")));
+        }
     }
     let shape: Vec<u64> = field("shape")
         .ok_or_else(|| bad("without a 'shape' in its header"))?
@@ -590,6 +595,11 @@ mod tests {
         fortran[at..at + 5].copy_from_slice(b"True ");
         let e = read_distance(&tmp("f.npy", &fortran), 1 << 20, 1 << 30).unwrap_err();
         assert!(e.message.contains("Fortran"), "{}", e.message);
+        let mut zero = npy("<f4", "(1, 1)", &[0; 4]);
+        let at = zero.windows(5).position(|w| w == b"False").unwrap();
+        zero[at..at + 5].copy_from_slice(b"0    ");
+        let e = read_distance(&tmp("z.npy", &zero), 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("'fortran_order' is \"0\", not True or False"), "{}", e.message);
         // a key twice: NumPy would take the last shape, a first-match reader the first
         let mut two = npy("<f4", "(1, 1)", &[0; 4]);
         let at = two.windows(7).position(|w| w == b"'shape'").unwrap();

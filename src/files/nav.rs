@@ -189,7 +189,7 @@ impl AltitudeSource {
 /// `SHOWN` characters. Control and bidirectional characters stay as they
 /// are here: the consoles of both commands escape them as `\xNN` and
 /// `\uNNNN` (`printable`), and a sidecar's JSON escapes them.
-fn shown(s: &str) -> String {
+pub(crate) fn shown(s: &str) -> String {
     let t: String = s.chars().take(SHOWN).collect();
     if s.chars().count() > SHOWN {
         format!("\"{t}...\"")
