@@ -173,11 +173,16 @@ pub enum Flag {
     /// `--distance` named no readable map for this photo: it was restored
     /// without one (docs/OUTPUTS.md "Distance")
     DistanceMissing,
+    /// A has as much red as green or blue: no water gives its veil that
+    /// colour (every type attenuates red the most), so the photo was
+    /// perhaps taken in air, or A is not the water's; the water type means
+    /// nothing then (METHOD §3)
+    VeilingLightNotWater,
 }
 
 impl Flag {
     /// Every flag.
-    pub const ALL: [Flag; 9] = [
+    pub const ALL: [Flag; 10] = [
         Flag::NoWaterRegion,
         Flag::VeilingFallback,
         Flag::VeilingLightClamped,
@@ -187,6 +192,7 @@ impl Flag {
         Flag::Unreliable,
         Flag::DistanceRejected,
         Flag::DistanceMissing,
+        Flag::VeilingLightNotWater,
     ];
 
     /// The stable name (sidecar, Python `Restoration.flags`).
@@ -201,6 +207,7 @@ impl Flag {
             Flag::Unreliable => "unreliable",
             Flag::DistanceRejected => "distance_rejected",
             Flag::DistanceMissing => "distance_missing",
+            Flag::VeilingLightNotWater => "veiling_light_not_water",
         }
     }
 }

@@ -281,12 +281,24 @@ pub fn estimate(
         flags.push(Flag::VeilingLightClamped);
         a.iter_mut().for_each(|v| *v = v.max(MIN_A));
     }
+    if !water_coloured(a) {
+        flags.push(Flag::VeilingLightNotWater);
+    }
     Veiling {
         a,
         vl,
         vl_count,
         flags,
     }
+}
+
+/// Whether a veiling light can be the colour of water (METHOD §3): its red
+/// below its green or its blue. Water attenuates red the most in every
+/// type of the table, so its veil, lit by daylight that crossed it, is
+/// never reddest; a veil as red as it is green and blue is the haze of air,
+/// a warm wall taken for water, or water no type describes (tannin).
+pub fn water_coloured(a: [f32; 3]) -> bool {
+    a[0] < a[1].max(a[2])
 }
 
 #[cfg(test)]
@@ -332,7 +344,8 @@ mod tests {
         let img = ImageRef::new(&d, h, w).unwrap();
         let v = estimate(&img, None, None, None);
         assert_eq!(v.vl_count, 0);
-        assert_eq!(v.flags, vec![Flag::NoWaterRegion, Flag::VeilingFallback]);
+        // the fallback takes A from the warm squares: no water's colour, and said so
+        assert_eq!(v.flags, vec![Flag::NoWaterRegion, Flag::VeilingFallback, Flag::VeilingLightNotWater]);
         assert!(v.a.iter().all(|&x| x > 0.0 && x <= 1.0));
     }
 
@@ -350,6 +363,23 @@ mod tests {
     }
 
     #[test]
+    fn a_veil_as_red_as_green_or_blue_is_not_water() {
+        // by hand: red below the larger of green and blue is water's colour
+        assert!(water_coloured([0.02, 0.20, 0.40]) && water_coloured([0.04, 0.30, 0.18]));
+        assert!(water_coloured([0.45, 0.55, 0.78]) && water_coloured([0.29, 0.30, 0.10]));
+        assert!(!water_coloured([0.50, 0.44, 0.41]) && !water_coloured([0.4, 0.4, 0.4]) && !water_coloured([0.3, 0.3, 0.1]));
+        let (h, w) = (20, 20);
+        let d = water_over_texture(h, w, 5);
+        let img = ImageRef::new(&d, h, w).unwrap();
+        let wm: Vec<bool> = (0..h * w).map(|i| i < 3 * w).collect();
+        let v = estimate(&img, None, Some(&wm), Some([0.5, 0.44, 0.41]));
+        assert_eq!(v.flags, vec![Flag::VeilingLightNotWater]);
+        // the order the flags are taken in: clamped first
+        let v = estimate(&img, None, Some(&wm), Some([0.3, 0.0, 0.2]));
+        assert_eq!(v.flags, vec![Flag::VeilingLightClamped, Flag::VeilingLightNotWater]);
+    }
+
+    #[test]
     fn dark_flat_region_is_a_shadow_not_water() {
         // flat near-black top (a shadow) over bright texture: rejected
         let (h, w) = (40, 60);
@@ -360,7 +390,7 @@ mod tests {
         let img = ImageRef::new(&d, h, w).unwrap();
         let v = estimate(&img, None, None, None);
         assert_eq!(v.vl_count, 0);
-        assert_eq!(v.flags, vec![Flag::NoWaterRegion, Flag::VeilingFallback]);
+        assert_eq!(v.flags, vec![Flag::NoWaterRegion, Flag::VeilingFallback, Flag::VeilingLightNotWater]);
         // the same region given as a water mask is the user's word: kept
         let mut wm = vec![false; h * w];
         wm[..10 * w].iter_mut().for_each(|b| *b = true);

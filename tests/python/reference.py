@@ -400,6 +400,8 @@ def detect_veiling(img, mask=None, water_mask=None, veiling_light=None):
     clamped = np.maximum(a, A_MIN)
     if np.any(clamped != a):
         flags.append("veiling_light_clamped")
+    if not clamped[0] < max(clamped[1], clamped[2]):
+        flags.append("veiling_light_not_water")  # the project's diagnostic (METHOD §3), no pixel changes
     return {"A": [float(v) for v in clamped], "vl": vl, "flags": flags}
 
 

@@ -298,12 +298,17 @@ def test_veiling_estimation_mask():
 def test_veiling_textured_falls_back(seed):
     """A textured image without water (seeded uniform noise): no region in
     either, flags no_water_region + veiling_fallback, A from the fallback
-    within A_FALLBACK_ATOL; with a given A, only no_water_region."""
+    within A_FALLBACK_ATOL, and veiling_light_not_water when that A (noise's
+    gray) has red at least its green and blue; with a given A of water's
+    colour, only no_water_region, and of air's, that flag beside it."""
     img = random_image(40, 56, seed)
     a, vl, flags = _check_veiling(img, "textured", a_atol=A_FALLBACK_ATOL)
-    assert not vl.any() and flags == ["no_water_region", "veiling_fallback"]
-    _, _, flags = _check_veiling(img, "textured, given A", veiling_light=(0.5, 0.25, 0.125))
+    not_water = ["veiling_light_not_water"] if a[0] >= max(a[1], a[2]) else []
+    assert not vl.any() and flags == ["no_water_region", "veiling_fallback"] + not_water
+    _, _, flags = _check_veiling(img, "textured, given A", veiling_light=(0.125, 0.25, 0.5))
     assert flags == ["no_water_region"]
+    _, _, flags = _check_veiling(img, "textured, given A", veiling_light=(0.5, 0.25, 0.125))
+    assert flags == ["no_water_region", "veiling_light_not_water"]
 
 
 def test_veiling_tiny_water_mask_falls_back():

@@ -370,3 +370,19 @@ def test_photo_water_band_above_the_bottom_is_found(name):
     assert "veiling_fallback" not in res.flags
     assert vm.mean() > 0.05, vm.mean()
     assert np.flatnonzero(vm.any(axis=1))[-1] < 0.3 * vm.shape[0]
+
+
+# PROVENANCE.md: the same charts photographed above water (in air), and
+# photos taken under water whose water region is found (the list above)
+IN_AIR = ["chart_calib_2_above.jpg", "chart_calib_3_above.jpg"]
+
+
+@needs_photos
+@pytest.mark.parametrize("name", IN_AIR + OPEN_WATER)
+def test_a_photo_taken_in_air_is_flagged_and_one_under_water_is_not(name):
+    """METHOD §3 "Not water's colour": no water leaves its veil as red as
+    it is green or blue; air's haze is neutral to warm."""
+    res = uwhl_rs.restore(_load(name))
+    a = res.veiling_light
+    assert ("veiling_light_not_water" in res.flags) == (name in IN_AIR), (a, res.flags)
+    assert (a[0] >= max(a[1], a[2])) == (name in IN_AIR)
