@@ -19,6 +19,7 @@
 use crate::method::image::ImageRef;
 use crate::method::profile::{gains_from, PowerSums, SOG_P};
 use crate::method::recover::Recovery;
+use crate::method::veiling::water_coloured;
 use crate::method::water::WaterType;
 use rayon::prelude::*;
 
@@ -204,7 +205,12 @@ impl Shade {
         Self {
             g: gains_from(radiance.color(SOG_P)),
             k: gains_from(input.color(SOG_P)),
-            w_photo: ((veil_excess - EXCESS_LO) / (EXCESS_HI - EXCESS_LO)).clamp(0.0, 1.0),
+            // a veil of no water's colour (METHOD §3): the model does not hold, nothing of it is trusted
+            w_photo: if water_coloured(terms.af.map(|v| v as f32)) {
+                ((veil_excess - EXCESS_LO) / (EXCESS_HI - EXCESS_LO)).clamp(0.0, 1.0)
+            } else {
+                1.0
+            },
             floored: terms.sigma.map(|s| s < quantisation_sigma(1.0)),
         }
     }
@@ -334,8 +340,46 @@ pub fn trust(
             row_weight
         })
         .collect();
+    if blend && !water_coloured(a) {
+        // no water between camera and scene (or an A that is not the water's,
+        // METHOD §3): nothing was dehazed, so the brightness falls back too;
+        // the input's balance at the display's overall brightness
+        input_balance(img, objects, &shade.k, image);
+    }
     let fallback_share = blend.then(|| weights.iter().sum::<f64>() / t_b.len().max(1) as f64);
     Trust { confidence, veil_excess, fallback_share }
+}
+
+/// `image` replaced by the input balanced by its gains `k`, scaled so that
+/// its object pixels (`objects(i)`) sum to what the displayed ones did
+/// (METHOD §12.5, a veil of no water's colour). Per-row sums combined in
+/// row order: the same at any thread count.
+fn input_balance(img: &ImageRef, objects: &(dyn Fn(usize) -> bool + Sync), k: &[f64; 3], image: &mut [f32]) {
+    let w = img.width.max(1);
+    let rows: Vec<(f64, f64)> = image
+        .par_chunks(3 * w)
+        .enumerate()
+        .map(|(y, row)| {
+            let mut sums = (0.0, 0.0);
+            for (x, d) in row.chunks_exact(3).enumerate() {
+                let i = y * w + x;
+                if !objects(i) {
+                    continue;
+                }
+                let p = img.data.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]);
+                sums.0 += d.iter().map(|&v| f64::from(v)).sum::<f64>();
+                sums.1 += (0..3).map(|c| (f64::from(p[c]) * k[c]).max(0.0)).sum::<f64>();
+            }
+            sums
+        })
+        .collect();
+    let (shown, balanced) = rows.iter().fold((0.0, 0.0), |acc, r| (acc.0 + r.0, acc.1 + r.1));
+    let scale = if balanced > 0.0 { shown / balanced } else { 1.0 };
+    image.par_chunks_mut(3).zip(img.data.par_chunks(3)).for_each(|(d, p)| {
+        for c in 0..3 {
+            d[c] = ((f64::from(p[c]) * k[c]).max(0.0) * scale).clamp(0.0, 1.0) as f32;
+        }
+    });
 }
 
 /// The trust step (METHOD §12.5) at a sample of the object pixels
@@ -468,7 +512,7 @@ mod tests {
         let tb = vec![0.5f32; h * w];
         let radiance = vec![0.0f32, 0.3, 0.3].repeat(h * w);
         let mut out = vec![0.2f32, 0.3, 0.4].repeat(h * w);
-        let tr = trust(&img, &|_| true, [0.5, 0.4, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut out, true);
+        let tr = trust(&img, &|_| true, [0.5, 0.6, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut out, true);
         assert_eq!(tr.veil_excess, 1.0);
         assert!(tr.unreliable());
         assert!(tr.confidence.iter().all(|&c| c == 0.0));
@@ -479,10 +523,40 @@ mod tests {
         }
         // without the blend the image stays and the findings are the same
         let mut kept = vec![0.2f32, 0.3, 0.4].repeat(h * w);
-        let tr2 = trust(&img, &|_| true, [0.5, 0.4, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut kept, false);
+        let tr2 = trust(&img, &|_| true, [0.5, 0.6, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut kept, false);
         assert_eq!(kept, vec![0.2f32, 0.3, 0.4].repeat(h * w));
         assert_eq!(tr2.veil_excess, 1.0);
         assert_eq!(tr2.fallback_share, None);
+    }
+
+    #[test]
+    fn a_veil_of_no_waters_colour_shows_the_inputs_balance_at_the_displays_brightness() {
+        // A = (0.5, 0.4, 0.3): red the most, no water's veil (METHOD §3). The input is
+        // one colour (0.2, 0.4, 0.1) at brightness b = 1 (left half) and 1/2 (right):
+        // its balance is gray, b v. The display sums to 0.9 on the left, 0.3 on the
+        // right (mean 0.6 a pixel), so 3 v (1 + 1/2) / 2 = 0.6: v = 0.2667 on the left,
+        // 0.1333 on the right, not the displayed brightness of each pixel (0.3 / 0.1)
+        let (h, w) = (4, 4);
+        let b = |x: usize| if x < w / 2 { 1.0f32 } else { 0.5 };
+        let d: Vec<f32> = (0..h * w).flat_map(|i| [0.2 * b(i % w), 0.4 * b(i % w), 0.1 * b(i % w)]).collect();
+        let img = ImageRef::new(&d, h, w).unwrap();
+        let tb = vec![0.8f32; h * w];
+        let radiance = d.clone();
+        let mut out: Vec<f32> = (0..h * w).flat_map(|i| if b(i % w) == 1.0 { [0.3f32; 3] } else { [0.1; 3] }).collect();
+        let tr = trust(&img, &|_| true, [0.5, 0.4, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut out, true);
+        assert!(tr.confidence.iter().all(|&c| c == 0.0));
+        assert_eq!(tr.fallback_share, Some(1.0));
+        for (i, p) in out.chunks(3).enumerate() {
+            let v = if b(i % w) == 1.0 { 0.6 / 2.25 } else { 0.3 / 2.25 };
+            assert!(p.iter().all(|&x| (x - v).abs() < 1e-5), "{i}: {p:?} against {v}");
+        }
+        // the same veil coloured as water (red the least): the per-pixel blend, its brightness the display's
+        let mut out: Vec<f32> = (0..h * w).flat_map(|i| if b(i % w) == 1.0 { [0.3f32; 3] } else { [0.1; 3] }).collect();
+        trust(&img, &|_| true, [0.3, 0.4, 0.5], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut out, true);
+        for (i, p) in out.chunks(3).enumerate() {
+            let sum = if b(i % w) == 1.0 { 0.9 } else { 0.3 };
+            assert!((p.iter().sum::<f32>() - sum).abs() < 1e-5, "{i}: {p:?}");
+        }
     }
 
     #[test]
