@@ -61,8 +61,12 @@ FROM_USER = tuple(k for k in REQUIRED_HEADER if k not in DERIVED + FROM_PHOTOS)
 #: the largest header file read (a header is a few kB)
 MAX_HEADER_BYTES = 1 << 20
 
-#: the largest earlier iFDO read back for its set UUID
-MAX_EARLIER_BYTES = 256 << 20
+#: how much of an earlier iFDO is read back for its set UUID
+EARLIER_HEAD_BYTES = 64 << 10
+
+#: the header's set UUID as the YAML or JSON writer puts it: the key, quoted
+#: or not, then the UUID, quoted or not, alone on its line
+_SET_UUID = re.compile(r"""^\s*["']?image-set-uuid["']?\s*:\s*["']?([0-9A-Fa-f-]{32,36})["']?\s*,?\s*$""", re.M)
 
 #: the deepest nesting accepted in a header
 MAX_DEPTH = 32
@@ -205,16 +209,26 @@ def _folder_uri(folder) -> str:
 
 def _earlier_uuid(folder) -> str | None:
     """The set UUID of an iFDO already in the folder: a rerun describes the
-    same set. One that cannot be read (not a regular file, too large, not
-    YAML, anchors) is not an earlier iFDO."""
+    same set. Only the file's first :data:`EARLIER_HEAD_BYTES` are read, for
+    the header's ``image-set-uuid`` (the writer puts it among the header's
+    first fields, before the items and the provenance): parsing a whole
+    planted file of hundreds of megabytes took gigabytes. One whose head
+    holds no valid UUID (not a regular file, not an iFDO) is not an earlier
+    iFDO."""
     for name in ("ifdo.yaml", "ifdo.json"):
         try:
-            doc = load_yaml(folder.read(name, MAX_EARLIER_BYTES).decode("utf-8"), name)
-            u = str(_uuid.UUID(str(doc["image-set-header"]["image-set-uuid"])))
-            if not field_problems({"image-set-uuid": u}):
-                return u
-        except (OSError, ValueError, KeyError, TypeError, IfdoError):
+            head = folder.head(name, EARLIER_HEAD_BYTES).decode("utf-8", "replace")
+        except OSError:
             continue
+        m = _SET_UUID.search(head)
+        if not m:
+            continue
+        try:
+            u = str(_uuid.UUID(m.group(1)))
+        except ValueError:
+            continue
+        if not field_problems({"image-set-uuid": u}):
+            return u
     return None
 
 

@@ -442,6 +442,20 @@ class Folder:
             return read_regular(self.path(rel), limit)
         return _read_object(self.fs, self.root + "/" + rel, limit, self.path(rel), self._sizes.get(rel))
 
+    def head(self, rel: str, n: int) -> bytes:
+        """The first ``n`` bytes of ``rel`` (fewer when it is shorter), as
+        :meth:`read` takes the file: locally a regular file only, not
+        through a link; on object storage one ranged read."""
+        if not self.is_url:
+            with open_regular(self.path(rel)) as f:
+                return f.read(n)
+        size = self._sizes.get(rel)
+        if size is None:
+            size = self.fs.info(self.root + "/" + rel).get("size")
+        if size == 0:
+            return b""  # a range of an empty object is refused (HTTP 416)
+        return self.fs.cat_file(self.root + "/" + rel, start=0, end=n)[:n]
+
     def read_many(self, rels: list[str], limit: int) -> dict[str, bytes | Exception]:
         """The bytes of each of ``rels`` (as :meth:`read`), or the error
         that reading it raised (on object storage fetched concurrently, in

@@ -198,23 +198,29 @@ def test_a_listing_that_lies_still_brings_no_more_than_the_limit(store, restored
 
 
 def test_summary_and_an_earlier_ifdo_are_read_within_their_limits(store, restored, monkeypatch):
-    """summary.csv (512 MiB) and an earlier ifdo.yaml (256 MiB), with
-    limits made small here and sizes that lie: neither is asked for more
-    than its limit plus one byte, and each is then as if absent."""
+    """summary.csv (512 MiB), with its limit made small here and a size
+    that lies: not asked for more than its limit plus one byte, and then as
+    if absent. An earlier ifdo.yaml is read only for the set UUID at its
+    head (made 2000 bytes here): never more than that is asked for, and a
+    UUID beyond it is not seen."""
     from uwhl_rs import ifdo, outdir
     from uwhl_rs.storage import Folder
 
     monkeypatch.setattr(outdir, "SUMMARY_MAX_BYTES", 1000)
-    monkeypatch.setattr(ifdo, "MAX_EARLIER_BYTES", 2000)
+    monkeypatch.setattr(ifdo, "EARLIER_HEAD_BYTES", 2000)
     row = "input,status\nx.png,failed\n"
     store.pipe_file("/survey/out/summary.csv", (row * 5000).encode())
-    store.pipe_file("/survey/out/ifdo.yaml", b"image-set-header: {image-set-uuid: x}\n" + b"#" * 100_000)
+    u = "0b6f1c2e-4a1d-4c8e-9f3a-2d5e7b9c1a40"
+    store.pipe_file("/survey/out/ifdo.yaml", b"#" * 2100 + f"image-set-header:\n  image-set-uuid: {u}\n".encode())
     store.lies.update({"/survey/out/summary.csv": 10, "/survey/out/ifdo.yaml": 10})
     folder = Folder(f"{PROTOCOL}://survey/out")
     assert outdir.failed_inputs(folder) == ([], 0)
     assert ifdo._earlier_uuid(folder) is None
     assert 0 < store.served["/survey/out/summary.csv"] <= 1001
-    assert 0 < store.served["/survey/out/ifdo.yaml"] <= 2001
+    assert 0 < store.served["/survey/out/ifdo.yaml"] <= 2000
+    # at the head it is found, whatever follows (a planted ten megabytes of items)
+    store.pipe_file("/survey/out/ifdo.yaml", f"image-set-header:\n  image-set-uuid: {u}\nx: [".encode() + b"1," * 5_000_000)
+    assert ifdo._earlier_uuid(Folder(f"{PROTOCOL}://survey/out")) == u
     # within the limit they are read (the small summary's one failed row)
     store.pipe_file("/survey/out/summary.csv", row.encode())
     store.lies.clear()
