@@ -21,6 +21,7 @@ folder of ``uwhl restore`` or ``uwhl-rs restore``.
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import json
 import os
 import re
@@ -67,6 +68,9 @@ EARLIER_HEAD_BYTES = 64 << 10
 #: the header's set UUID as the YAML or JSON writer puts it: the key, quoted
 #: or not, then the UUID, quoted or not, alone on its line
 _SET_UUID = re.compile(r"""^\s*["']?image-set-uuid["']?\s*:\s*["']?([0-9A-Fa-f-]{32,36})["']?\s*,?\s*$""", re.M)
+
+#: the largest photo hashed for its item (as `uwhl report` hashes an input)
+MAX_PHOTO_BYTES = 4 << 30
 
 #: the deepest nesting accepted in a header
 MAX_DEPTH = 32
@@ -270,6 +274,11 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
         if not inside(key):
             notes.append(f"{shown}: its photo {display(key)!r} is not a path inside the folder; left out of the iFDO")
             continue
+        # the sidecar is not trusted: the item's hash is the photo's own, read here
+        why = _photo_problem(folder, key, md["photo_sha256"])
+        if why:
+            notes.append(f"{shown}: its photo {display(key)!r} {why}; left out of the iFDO")
+            continue
         agent = agent or _agent(doc)
         item: dict[str, Any] = {
             "image-uuid": uuid_text(md["image_uuid"]),
@@ -402,6 +411,29 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
 
 #: the longest a restoration is taken to last (a sidecar saying more is not believed)
 _MAX_SECONDS = 7 * 24 * 3600.0
+
+
+def _photo_problem(folder, key: str, want) -> str | None:
+    """Why the photo ``key`` of ``folder`` is not the one its sidecar
+    describes, or None: it must be a regular file there (not a link, FIFO
+    or folder) of at most :data:`MAX_PHOTO_BYTES` whose SHA-256 is the
+    recorded ``want``. An iFDO's items are published with their hashes:
+    a planted sidecar must not list a photo that is not there, or another
+    file under a photo's hash."""
+    if not isinstance(want, str) or not re.fullmatch(r"[0-9A-Fa-f]{64}", want):
+        return "has no recorded SHA-256"
+    h = hashlib.sha256()
+    try:
+        with folder.open(key, MAX_PHOTO_BYTES) as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+    except FileNotFoundError:
+        return "is not there"
+    except OSError as e:
+        return f"cannot be read ({e.strerror or e})"
+    if h.hexdigest() != want.lower():
+        return "is not the file its sidecar describes (another SHA-256)"
+    return None
 
 
 def inside(key: str) -> bool:

@@ -258,3 +258,33 @@ def test_a_photo_gets_another_uuid_when_restored_otherwise(binary, tmp_path):
     assert got["python", ()] == got["rust", ()]
     assert got["rust", ()]["x"] != got["rust", ()]["y"]
     assert got["rust", ("--water-type", "3C")]["x"] != got["rust", ()]["x"]
+
+
+def test_a_planted_sidecar_lists_no_photo_that_is_not_there_or_not_its_own(binary, dive, tmp_path):
+    """The iFDO publishes each photo's SHA-256: a sidecar naming a photo
+    that is not in the folder, or another file of the folder, or a photo
+    changed since, is left out with a note; the photos as written stay."""
+    out = tmp_path / "out"
+    assert restore("rust", binary, [dive], out).returncode == 0
+    names = sorted(p.stem for p in out.glob("*.json"))
+    side = json.loads((out / f"{names[0]}.json").read_text())
+    planted = {"ghost": "ghost.jpg", "other": "summary.csv"}
+    for stem, image in planted.items():
+        doc = copy.deepcopy(side)
+        doc["outputs"]["image"] = image
+        doc["metadata"]["image_uuid"] = uuid.uuid4().hex
+        (out / f"{stem}.json").write_text(json.dumps(doc))
+    # a photo changed after it was written: its sidecar's hash is not its own any more
+    changed = out / f"{names[1]}.jpg"
+    changed.write_bytes(changed.read_bytes() + b"\0")
+    head = header_file(tmp_path, {**HEADER, **POSITION})
+    r = uwhl("ifdo", out, "--header", head)
+    assert r.returncode == 0, r.stderr
+    items = yaml.safe_load((out / "ifdo.yaml").read_text())["image-set-items"]
+    assert sorted(items) == sorted(f"{n}.jpg" for n in names if n != names[1])
+    for n in items:
+        assert items[n]["image-hash-sha256"] == hashlib.sha256((out / n).read_bytes()).hexdigest()
+    said = r.stdout + r.stderr
+    assert "'ghost.jpg' is not there; left out of the iFDO" in said
+    assert "'summary.csv' is not the file its sidecar describes" in said
+    assert f"'{names[1]}.jpg' is not the file its sidecar describes" in said
