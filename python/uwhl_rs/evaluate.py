@@ -36,11 +36,11 @@ from . import truth as gt
 from .errors import ManifestError
 # the manifest's format and reader, re-exported: uwhl_rs.evaluate is where the command and tests find them
 from .manifest import METHODS, TYPE_ORDER, Chart, Entry, load_manifest
-from .evaluate_report import SUMMARY_EXTRAS, TRUTH_KEYS, write_report
+from .evaluate_report import SUMMARY_EXTRAS, TRUTH_KEYS, image_section, report_methods, write_report
 from .sidecars import display
 
 __all__ = ["METHODS", "Chart", "Entry", "ManifestError", "load_manifest", "evaluate_entry", "summarize",
-           "write_results", "write_report"]
+           "write_results", "write_report", "image_section", "report_methods"]
 
 
 # ------------------------------------------------------------------ metrics
@@ -88,12 +88,20 @@ def type_steps(a: str, b: str) -> int | None:
     return None
 
 
-def read_distance(path: str, height: int, width: int) -> np.ndarray:
+#: what evaluating one image keeps, per pixel: the restorations of every
+#: profile and of the ten candidate types, the baselines, the truth and the
+#: distance (a 2 MP photo peaked at about 1.05 GB, 445 bytes a pixel over
+#: the process's own, 2026-12-05)
+EVALUATE_BYTES_PER_PIXEL = 480
+
+
+def read_distance(path: str, height: int, width: int, max_memory: int | None = None) -> np.ndarray:
     """A distance map in metres, resized to height x width with nearest
     neighbour; NaN where it has no value (0, NaN, negative, beyond 1000 m).
     Read by the commands' own reader (``.npy``, float or 16-bit TIFF, 16-bit
     PNG in millimetres, OpenEXR: docs/OUTPUTS.md "Distance"), or a ``.mat``
-    holding one 2-D array (scipy)."""
+    holding one 2-D array (scipy). Within ``max_memory`` (default: the
+    machine's budget)."""
     ext = os.path.splitext(path)[1].lower()
     try:
         if ext == ".mat":
@@ -117,7 +125,7 @@ def read_distance(path: str, height: int, width: int) -> np.ndarray:
             d = np.asarray(loadmat(path, variable_names=[name])[name], dtype=np.float64)
         else:
             # the commands' reader, with their limits and the cap against the photo's size
-            d = np.asarray(_core.read_distance_file(path, int(gt.MAX_TRUTH_PIXELS), int(_core.default_max_memory()),
+            d = np.asarray(_core.read_distance_file(path, int(gt.MAX_TRUTH_PIXELS), gt._budget(max_memory),
                                                     (int(height), int(width))), dtype=np.float64)
     except ManifestError:
         raise
@@ -185,12 +193,21 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
     compare = [m for m in METHODS if m != method] if compare is None else [m for m in compare if m != method]
     img, meta = read_image(entry.path)
     h, w = img.shape[:2]
+    # every profile's and every candidate type's restoration is kept to be scored: refused
+    # whole, before the first, when they cannot all fit (the restores check only themselves)
+    budget = restore_kwargs.get("max_memory")
+    need = h * w * EVALUATE_BYTES_PER_PIXEL
+    limit = gt._budget(budget)
+    if need > limit:
+        raise MemoryError(f"evaluating {w}x{h} pixels keeps the restorations of every profile and candidate type, "
+                          f"about {need} bytes, more than the {limit} "
+                          + ("of --max-memory" if budget is not None else "the machine gives") + "; evaluate a smaller copy")
     for ch in entry.charts:
         for b in ch.gray_patches + ch.region:
             if b[2] > w or b[3] > h:
                 raise ManifestError(f"{entry.label}: chart {ch.name!r} box {list(b)} is outside the {w}x{h} image "
                                     "(x1 <= width, y1 <= height; pixels as displayed, after EXIF orientation)")
-    distance = read_distance(entry.distance, h, w) if entry.distance else None
+    distance = read_distance(entry.distance, h, w, budget) if entry.distance else None
     if distance is not None and entry.distance_depth is not None:
         import uwhl_rs
 
@@ -201,10 +218,10 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
         from .files import read_mask
 
         try:
-            water = read_mask(entry.water_mask, (h, w), "water_mask")
+            water = read_mask(entry.water_mask, (h, w), "water_mask", max_memory=budget)
         except ValueError as e:
             raise ManifestError(f"{entry.label}: {e}") from None
-    truth_img, scored = read_truth(entry, h, w, water) if entry.truth else (None, None)
+    truth_img, scored = read_truth(entry, h, w, water, budget) if entry.truth else (None, None)
     mask = None
     if mask_charts:
         mask = np.ones((h, w), bool)
@@ -305,15 +322,15 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
     }
 
 
-def read_truth(entry: Entry, height: int, width: int, water=None) -> tuple[np.ndarray, np.ndarray]:
+def read_truth(entry: Entry, height: int, width: int, water=None, max_memory: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The entry's true radiance, resized to the photo, and the pixels to
     score: those of its ``truth_mask`` (default: outside the water region
     ``water`` when given) where the truth is finite, not negative and
     bright enough (``uwhl_rs.truth.MIN_TRUTH_SUM``). A truth with no such
     pixel raises :class:`ManifestError`: it would measure nothing."""
-    img, scored = gt.read_truth(entry.truth, height, width)
+    img, scored = gt.read_truth(entry.truth, height, width, max_memory)
     if entry.truth_mask:
-        scored &= gt.read_truth_mask(entry.truth_mask, height, width)
+        scored &= gt.read_truth_mask(entry.truth_mask, height, width, max_memory)
     elif water is not None:
         scored &= ~water
     scored &= img.sum(axis=2) > gt.MIN_TRUTH_SUM

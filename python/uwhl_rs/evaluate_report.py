@@ -144,16 +144,73 @@ def _boxes_svg(entry_charts: list[Chart], w: int, h: int, uri: str) -> str:
             f'<image href="{uri}" width="{w * s:.0f}" height="{h * s:.0f}"/>{"".join(rects)}</svg>')
 
 
+def report_methods(method: str, compare=()) -> list[str]:
+    """The columns of the report: the baselines, then ``method``, then the
+    other profiles of ``compare``."""
+    return ["input", "stretch", "grayworld", method, *[m for m in compare if m != method]]
+
+
+def image_section(r: dict, e: Entry, methods: list[str]) -> str:
+    """The report's section of one evaluated image ``r`` (of
+    :func:`uwhl_rs.evaluate.evaluate_entry`, entry ``e``): its thumbnails,
+    maps, bars and tables. Made as soon as the image is evaluated, so that
+    its full-size images need not be kept until the page is written."""
+    parts: list[str] = []
+    imgs = r["_images"]
+    parts.append(f'<section class="image"><h2>{_esc(r["image"])}</h2><p>chosen {_esc(r["water_type"])}'
+                 + (f', true {_esc(r["water_type_truth"]["true"])}' if r["water_type_truth"] else "")
+                 + f', A = {", ".join(f"{v:.3f}" for v in r["veiling_light"])}</p><div class="row">')
+    parts.append(f"<figure>{_boxes_svg(e.charts, r['width'], r['height'], _png_data_uri(imgs['input']))}"
+                 "<figcaption>input, charts (blue) and gray patches (orange)</figcaption></figure>")
+    for m in methods[3:]:
+        if m in imgs:
+            p = r.get("profiles", {}).get(m, {})
+            parts.append(f'<figure><img src="{_png_data_uri(imgs[m])}"><figcaption>restored ({_esc(m)}, '
+                         f'{_esc(p.get("water_type", ""))})</figcaption></figure>')
+    parts.append(f'<figure><img src="{_map_uri(r["_transmission"])}"><figcaption>t_B</figcaption></figure>')
+    if r["_distance"] is not None:
+        parts.append(f'<figure><img src="{_map_uri(r["_distance"])}"><figcaption>distance</figcaption></figure>')
+    if r.get("_truth") is not None:
+        parts.append(_truth_figures(r))
+    parts.append("</div><div class='row'>")
+    if r["charts"]:
+        parts.append(f"<figure>{_bars(r['charts'], methods)}<figcaption>psi-bar per chart</figcaption></figure>")
+    if r["_distance"] is not None:
+        rho = r["rho"].get(r["method"], {}).get("rho_B")
+        parts.append(f"<figure>{_scatter(r['_distance'], r['_transmission'], rho)}</figure>")
+    if r.get("truth_angles"):
+        parts.append(_truth_table(r, methods))
+    parts.append("</div><table class='types'><tr><th>type</th><th>score</th><th>excluded</th>"
+                 "<th>psi-bar (deg)</th><th>rho (t_B)</th></tr>")
+    for name, t in r["types"].items():
+        rho = r["rho"].get(f"type:{name}", {}).get("rho_B")
+        mark = " &#10003;" if name == r["water_type"] else ""
+        parts.append(f"<tr><td>{_esc(name)}{mark}</td><td>{t['score']:.4f}</td><td>{'yes' if t['excluded'] else ''}"
+                     f"</td><td>{_fmt(t['psi_deg'])}</td><td>{_fmt(rho)}</td></tr>")
+    parts.append("</table>")
+    # the contact sheet: every candidate type restored with the method's A
+    sheet = [f'<figure class="type{" chosen" if name == r["water_type"] else ""}">'
+             f'<img src="{_png_data_uri(imgs[f"type:{name}"], 200)}"><figcaption>{_esc(name)}'
+             f'{" &#10003;" if name == r["water_type"] else ""} {t["score"]:.3f}</figcaption></figure>'
+             for name, t in r["types"].items() if f"type:{name}" in imgs]
+    if sheet:
+        parts.append('<div class="row sheet">' + "".join(sheet) + "</div>")
+    parts.append("</section>")
+    return "".join(parts)
+
+
 def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Entry], method: str,
-                 compare=()) -> str:
+                 compare=(), sections: dict[str, str] | None = None) -> str:
     """Writes ``report.html``: one self-contained page (images inline, no
     network) with the summary table and, per image, the input with its
     chart boxes, the restored image, t_B, the distance map, the psi-bar bars,
-    the -ln t_B scatter and the candidate types."""
+    the -ln t_B scatter and the candidate types. ``sections``: each
+    image's section made already (:func:`image_section`), by its label;
+    the others are made here from the results' images."""
     from .images import atomic_write_bytes
 
     by_label = {e.label: e for e in entries}
-    methods = ["input", "stretch", "grayworld", method, *[m for m in compare if m != method]]
+    methods = report_methods(method, compare)
     parts = ['<!doctype html><html><head><meta charset="utf-8"><title>uwhl evaluate</title><style>'
              'body{font:13px sans-serif;margin:16px}table{border-collapse:collapse}td,th{border:1px solid #ccc;'
              'padding:2px 6px;text-align:right}th{background:#eee}.row{display:flex;gap:8px;flex-wrap:wrap;'
@@ -202,47 +259,8 @@ def write_report(out_dir: str, doc: dict, results: list[dict], entries: list[Ent
                      + (f', the true one plausible in {wt["plausible"]:.0%}' if "plausible" in wt else "")
                      + f' ({wt["images"]} images with a true type).</p>')
     for r in results:
-        e = by_label[r["image"]]
-        imgs = r["_images"]
-        parts.append(f'<section class="image"><h2>{_esc(r["image"])}</h2><p>chosen {_esc(r["water_type"])}'
-                     + (f', true {_esc(r["water_type_truth"]["true"])}' if r["water_type_truth"] else "")
-                     + f', A = {", ".join(f"{v:.3f}" for v in r["veiling_light"])}</p><div class="row">')
-        parts.append(f"<figure>{_boxes_svg(e.charts, r['width'], r['height'], _png_data_uri(imgs['input']))}"
-                     "<figcaption>input, charts (blue) and gray patches (orange)</figcaption></figure>")
-        for m in methods[3:]:
-            if m in imgs:
-                p = r.get("profiles", {}).get(m, {})
-                parts.append(f'<figure><img src="{_png_data_uri(imgs[m])}"><figcaption>restored ({_esc(m)}, '
-                             f'{_esc(p.get("water_type", ""))})</figcaption></figure>')
-        parts.append(f'<figure><img src="{_map_uri(r["_transmission"])}"><figcaption>t_B</figcaption></figure>')
-        if r["_distance"] is not None:
-            parts.append(f'<figure><img src="{_map_uri(r["_distance"])}"><figcaption>distance</figcaption></figure>')
-        if r.get("_truth") is not None:
-            parts.append(_truth_figures(r))
-        parts.append("</div><div class='row'>")
-        if r["charts"]:
-            parts.append(f"<figure>{_bars(r['charts'], methods)}<figcaption>psi-bar per chart</figcaption></figure>")
-        if r["_distance"] is not None:
-            rho = r["rho"].get(r["method"], {}).get("rho_B")
-            parts.append(f"<figure>{_scatter(r['_distance'], r['_transmission'], rho)}</figure>")
-        if r.get("truth_angles"):
-            parts.append(_truth_table(r, methods))
-        parts.append("</div><table class='types'><tr><th>type</th><th>score</th><th>excluded</th>"
-                     "<th>psi-bar (deg)</th><th>rho (t_B)</th></tr>")
-        for name, t in r["types"].items():
-            rho = r["rho"].get(f"type:{name}", {}).get("rho_B")
-            mark = " &#10003;" if name == r["water_type"] else ""
-            parts.append(f"<tr><td>{_esc(name)}{mark}</td><td>{t['score']:.4f}</td><td>{'yes' if t['excluded'] else ''}"
-                         f"</td><td>{_fmt(t['psi_deg'])}</td><td>{_fmt(rho)}</td></tr>")
-        parts.append("</table>")
-        # the contact sheet: every candidate type restored with the method's A
-        sheet = [f'<figure class="type{" chosen" if name == r["water_type"] else ""}">'
-                 f'<img src="{_png_data_uri(imgs[f"type:{name}"], 200)}"><figcaption>{_esc(name)}'
-                 f'{" &#10003;" if name == r["water_type"] else ""} {t["score"]:.3f}</figcaption></figure>'
-                 for name, t in r["types"].items() if f"type:{name}" in imgs]
-        if sheet:
-            parts.append('<div class="row sheet">' + "".join(sheet) + "</div>")
-        parts.append("</section>")
+        parts.append(sections[r["image"]] if sections and r["image"] in sections
+                     else image_section(r, by_label[r["image"]], methods))
     parts.append("</body></html>\n")
     page = "".join(parts)
 

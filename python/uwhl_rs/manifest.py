@@ -22,6 +22,8 @@ _CHART_KEYS = {"name", "gray_patches", "region"}
 #: The Jerlov types in table order (METHOD §1).
 TYPE_ORDER = [n for n, _, _ in _core.JERLOV_TABLE]
 _METHOD_KEYS = {o["key"] for o in _core.OPTIONS if o["method"]}
+#: restore keywords that set the machine's limits, not the method: the command line's only
+_MACHINE_KEYS = {"max_memory", "threads"}
 #: A manifest lists images and boxes; anything larger is not one (and is not read into memory).
 MAX_MANIFEST_BYTES = 16 << 20
 #: Most charts of an entry, and boxes of a chart's gray patches or region: each box is averaged or masked
@@ -63,10 +65,10 @@ class Entry:
 def _box(v, what: str) -> tuple[int, int, int, int]:
     if not (isinstance(v, (list, tuple)) and len(v) == 4 and all(isinstance(x, int) and not isinstance(x, bool)
                                                                  for x in v)):
-        raise ManifestError(f"{what}: a box is [x0, y0, x1, y1] in integer pixels, not {v!r}")
+        raise ManifestError(f"{what}: a box is [x0, y0, x1, y1] in integer pixels, not {_short(v)}")
     x0, y0, x1, y1 = v
     if x0 < 0 or y0 < 0 or x1 <= x0 or y1 <= y0:
-        raise ManifestError(f"{what}: box {list(v)} is empty or starts before the image (need 0 <= x0 < x1, 0 <= y0 < y1)")
+        raise ManifestError(f"{what}: box {_short(list(v))} is empty or starts before the image (need 0 <= x0 < x1, 0 <= y0 < y1)")
     return x0, y0, x1, y1
 
 
@@ -98,7 +100,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
         label = f"images[{k}] ({raw['path']})"
     unknown = sorted(set(raw) - _ENTRY_KEYS)
     if unknown:
-        raise ManifestError(f"{label}: unknown key(s) {unknown} (known: {sorted(_ENTRY_KEYS)})")
+        raise ManifestError(f"{label}: unknown key(s) {_short(unknown)} (known: {sorted(_ENTRY_KEYS)})")
     if not isinstance(raw.get("path"), str):
         raise ManifestError(f"{label}: 'path' (the image, relative to the manifest) is required")
     path = os.path.join(folder, raw["path"])
@@ -110,7 +112,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
         if value is None:
             return None
         if not isinstance(value, str):
-            raise ManifestError(f"{label}: '{key}' is a file path, not {value!r}")
+            raise ManifestError(f"{label}: '{key}' is a file path, not {_short(value)}")
         value = os.path.join(folder, value)
         _regular(value, label, what)
         return value
@@ -124,7 +126,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
         raise ManifestError(f"{label}: 'truth_mask' says which pixels to score against 'truth', which is missing")
     wt = raw.get("water_type")
     if wt is not None and wt not in TYPE_ORDER:
-        raise ManifestError(f"{label}: water_type {wt!r} is not one of {TYPE_ORDER}")
+        raise ManifestError(f"{label}: water_type {_short(wt)} is not one of {TYPE_ORDER}")
     charts = []
     raw_charts = raw.get("charts")
     if raw_charts is not None and not isinstance(raw_charts, list):
@@ -134,10 +136,10 @@ def _entry(k: int, raw, folder: str) -> Entry:
     for c, ch in enumerate(raw_charts or []):
         what = f"{label} charts[{c}]"
         if not isinstance(ch, dict):
-            raise ManifestError(f"{what}: a chart is an object, not {ch!r}")
+            raise ManifestError(f"{what}: a chart is an object, not {_short(ch)}")
         unknown = sorted(set(ch) - _CHART_KEYS)
         if unknown:
-            raise ManifestError(f"{what}: unknown key(s) {unknown} (known: {sorted(_CHART_KEYS)})")
+            raise ManifestError(f"{what}: unknown key(s) {_short(unknown)} (known: {sorted(_CHART_KEYS)})")
         patches = ch.get("gray_patches")
         if not isinstance(patches, list) or not patches:
             raise ManifestError(f"{what}: 'gray_patches' (a list of boxes) is required")
@@ -153,9 +155,14 @@ def _entry(k: int, raw, folder: str) -> Entry:
     restore = raw.get("restore") or {}
     if not isinstance(restore, dict):
         raise ManifestError(f"{label}: 'restore' is an object of restore() keywords")
+    machine = sorted(set(restore) & _MACHINE_KEYS)
+    if machine:
+        # the user's limits hold for every entry: a manifest must not lift --max-memory or ask for 1024 threads
+        raise ManifestError(f"{label}: restore.{machine[0]} is the machine's, not the photo's: give "
+                            f"--{machine[0].replace('_', '-')} to uwhl evaluate")
     unknown = sorted(set(restore) - _METHOD_KEYS)
     if unknown:
-        raise ManifestError(f"{label}: unknown restore keyword(s) {unknown} (known: {sorted(_METHOD_KEYS)})")
+        raise ManifestError(f"{label}: unknown restore keyword(s) {_short(unknown)} (known: {sorted(_METHOD_KEYS - _MACHINE_KEYS)})")
     restore = dict(restore)
     if "water_types" in restore:
         restore["water_types"] = _water_types(restore["water_types"], f"{label}: restore.water_types")
@@ -278,7 +285,7 @@ def load_manifest(path: str) -> tuple[list[Entry], list[str]]:
         raise ManifestError(f"{path}: a manifest is an object with an 'images' list")
     unknown = sorted(set(doc) - {"images"})
     # refused like an entry's unknown key (a misspelt key would otherwise go unnoticed); the entries still run
-    problems = [f"{path}: unknown top-level key(s) {unknown} (the manifest has only 'images')"] if unknown else []
+    problems = [f"{path}: unknown top-level key(s) {_short(unknown)} (the manifest has only 'images')"] if unknown else []
     folder = os.path.dirname(os.path.abspath(path))
     entries = []
     for k, raw in enumerate(doc["images"]):

@@ -207,12 +207,16 @@ def _regular(path: str, what: str) -> None:
         raise ManifestError(f"{path}: the {what} must be a regular file")
 
 
-def _check_size(path: str, shape, what: str) -> None:
+def _check_size(path: str, shape, what: str, photo=None, max_memory: int | None = None) -> None:
     """Refuses, from a header's shape, what no truth or mask is or what is
     too large to read: not H x W, H x W x C or C x H x W with at most four
     channels (a 1-D array, the frames of an animation), over
-    ``MAX_TRUTH_PIXELS`` pixels, or more float64 values than the memory
-    budget holds. Sizes in Python integers: a header's product cannot wrap."""
+    ``MAX_TRUTH_PIXELS`` pixels or, for the photo (height, width)
+    ``photo``, over the pixels a distance map of it may have (16 times its
+    own: a small compressed file must not decode to gigabytes beside a
+    thumbnail), or more float64 values than ``max_memory`` (default: the
+    machine's budget) holds. Sizes in Python integers: a header's product
+    cannot wrap."""
     shape = tuple(int(x) for x in shape)
     if len(shape) == 2:
         channels = 1
@@ -229,13 +233,23 @@ def _check_size(path: str, shape, what: str) -> None:
     pixels = values // max(channels, 1)
     if pixels > MAX_TRUTH_PIXELS:
         raise ManifestError(f"{path}: the {what} is {pixels} pixels, over the limit of {MAX_TRUTH_PIXELS}; not read")
+    if photo is not None and pixels > _core.map_cap(int(photo[0]), int(photo[1])):
+        raise ManifestError(f"{path}: the {what} is {pixels} pixels, more than {_core.MAP_PER_PHOTO_PIXEL} times "
+                            f"the photo's {photo[1]}x{photo[0]}; not read")
     # read as float64, with a copy or two while it is checked and resized
     need = values * 8 * 3
-    if need > _core.default_max_memory():
-        raise ManifestError(f"{path}: the {what} needs about {need} bytes, over the memory budget; not read")
+    budget = _budget(max_memory)
+    if need > budget:
+        raise ManifestError(f"{path}: the {what} needs about {need} bytes, over the memory budget of {budget} "
+                            "(--max-memory); not read")
 
 
-def load_npy(path: str, what: str) -> np.ndarray:
+def _budget(max_memory: int | None) -> int:
+    """The memory a truth or mask may take: ``max_memory``, else the machine's budget."""
+    return int(max_memory) if max_memory is not None else int(_core.default_max_memory())
+
+
+def load_npy(path: str, what: str, photo=None, max_memory: int | None = None) -> np.ndarray:
     """The numbers of a ``.npy`` file as float64, for a message that names
     it as ``what``. Another file under that name is said to be one (numpy's
     own message would suggest unpickling it); a header claiming more than
@@ -245,26 +259,27 @@ def load_npy(path: str, what: str) -> np.ndarray:
             raise ManifestError(f"{path}: cannot read the {what}: not a .npy file (no NumPy header)")
     # mapped, not read: a header claiming a huge array costs nothing until its size is checked
     a = np.load(path, mmap_mode="r", allow_pickle=False)
-    _check_size(path, a.shape, what)
+    _check_size(path, a.shape, what, photo, max_memory)
     if a.dtype.kind not in "biuf":
         raise ManifestError(f"{path}: a .npy {what} holds numbers, not {a.dtype}")
     return np.array(a, dtype=np.float64)
 
 
-def _png16(path: str, what: str) -> np.ndarray:
+def _png16(path: str, what: str, photo=None, max_memory: int | None = None) -> np.ndarray:
     """A 16-bit PNG's codes / 65535, as they are (no sRGB curve: the truth is linear)."""
     def header(h, w, bpp, oriented):
-        _check_size(path, (h, w), what)
+        _check_size(path, (h, w), what, photo, max_memory)
 
-    img, info = _core.decode_file(path, False, MAX_TRUTH_PIXELS, int(_core.default_max_memory()), header)
+    img, info = _core.decode_file(path, False, MAX_TRUTH_PIXELS, _budget(max_memory), header)
     if info["bits"] != 16 or info["is_float"]:
         raise ManifestError(f"{path}: a PNG {what} is 16-bit, read as linear / 65535 (this one is "
                             f"{info['bits']}-bit; an 8-bit file is sRGB, too coarse to be a truth)")
     return np.asarray(img, dtype=np.float64)
 
 
-def _load_array(path: str, what: str) -> np.ndarray:
-    """The numbers of a float TIFF, a ``.npy`` or a 16-bit PNG (linear / 65535)."""
+def _load_array(path: str, what: str, photo=None, max_memory: int | None = None) -> np.ndarray:
+    """The numbers of a float TIFF, a ``.npy`` or a 16-bit PNG (linear / 65535),
+    within the limits of :func:`_check_size`."""
     ext = os.path.splitext(path)[1].lower()
     _regular(path, what)
     try:
@@ -273,7 +288,7 @@ def _load_array(path: str, what: str) -> np.ndarray:
 
             with tifffile.TiffFile(path) as tf:
                 page = tf.pages[0]
-                _check_size(path, page.shape, what)
+                _check_size(path, page.shape, what, photo, max_memory)
                 a = page.asarray()
             if a.dtype.kind == "u" and a.dtype.itemsize == 2:
                 a = a.astype(np.float64) / 65535.0
@@ -281,9 +296,9 @@ def _load_array(path: str, what: str) -> np.ndarray:
                 raise ManifestError(f"{path}: a TIFF {what} holds floats or 16-bit integers (linear / 65535), "
                                     f"not {a.dtype}")
         elif ext == ".npy":
-            a = load_npy(path, what)
+            a = load_npy(path, what, photo, max_memory)
         elif ext == ".png":
-            a = _png16(path, what)
+            a = _png16(path, what, photo, max_memory)
         else:
             raise ManifestError(f"{path}: a {what} is a float TIFF, a .npy or a 16-bit PNG, not {ext or 'none'}")
     except ManifestError:
@@ -293,7 +308,7 @@ def _load_array(path: str, what: str) -> np.ndarray:
     return np.asarray(a, dtype=np.float64)
 
 
-def read_truth(path: str, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+def read_truth(path: str, height: int, width: int, max_memory: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A true radiance image for a photo of height x width: ``(truth, usable)``.
 
     ``truth`` is H x W x 3 linear RGB (float TIFF or ``.npy`` as stored,
@@ -301,9 +316,10 @@ def read_truth(path: str, height: int, width: int) -> tuple[np.ndarray, np.ndarr
     resized by nearest neighbour; ``usable`` is False where a value is
     non-finite, negative or over ``MAX_TRUTH_VALUE`` (those pixels hold 0
     and are not scored).
+    At most 16 times the photo's pixels are read, within ``max_memory``.
     Raises :class:`ManifestError` naming the file for anything else.
     """
-    a = _load_array(path, "truth")
+    a = _load_array(path, "truth", (height, width), max_memory)
     if a.ndim == 2:
         a = np.repeat(a[:, :, None], 3, axis=2)
     elif a.ndim == 3 and a.shape[2] == 1:
@@ -319,19 +335,19 @@ def read_truth(path: str, height: int, width: int) -> tuple[np.ndarray, np.ndarr
     return resize_nearest(a, height, width), resize_nearest(usable, height, width)
 
 
-def read_truth_mask(path: str, height: int, width: int) -> np.ndarray:
+def read_truth_mask(path: str, height: int, width: int, max_memory: int | None = None) -> np.ndarray:
     """A truth mask (nonzero = score this pixel; any channel of a colour
     image), any size, resized by nearest neighbour to height x width. PNG,
     TIFF, JPEG or ``.npy``."""
     _regular(path, "truth mask")
     try:
         if path.lower().endswith(".npy"):
-            m = load_npy(path, "truth mask")
+            m = load_npy(path, "truth mask", (height, width), max_memory)
         else:
             import imageio.v3 as iio
 
             meta = iio.improps(path)
-            _check_size(path, meta.shape, "truth mask")
+            _check_size(path, meta.shape, "truth mask", (height, width), max_memory)
             m = np.asarray(iio.imread(path))
     except ManifestError:
         raise

@@ -194,3 +194,57 @@ def test_a_box_outside_the_image_names_its_entry_once(tmp_path):
     assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
     line = [x for x in r.stderr.splitlines() if "outside" in x]
     assert len(line) == 1 and line[0].count("images[0] (scene.png)") == 1, r.stderr
+
+
+@pytest.mark.parametrize("key, value", [("max_memory", 100_000_000_000), ("threads", 1024)])
+def test_an_entry_cannot_set_the_machines_limits(tmp_path, key, value):
+    """--max-memory and --threads are the user's, for every entry: a
+    manifest that lifts the memory limit or asks for 1024 threads on a
+    small machine is a bad entry, named, not obeyed."""
+    e = _scene(tmp_path)
+    e["restore"] = {key: value}
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert entries == [] and len(problems) == 1, problems
+    assert f"restore.{key} is the machine's" in problems[0] and f"--{key.replace('_', '-')}" in problems[0]
+
+
+def test_a_long_value_is_quoted_short(tmp_path):
+    """A message quotes a value of the manifest cut short: three values of
+    5 MB once made 15 MB of stderr."""
+    e = _scene(tmp_path)
+    e["water_type"] = "x" * 100_000
+    e["charts"] = [{"gray_patches": [[int("9" * 4000), 0, 1, 1]]}]
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e, {**_scene(tmp_path), "charts": ["c" * 100_000]}]}))
+    entries, problems = ev.load_manifest(str(tmp_path / "m.json"))
+    assert len(problems) == 2 and all(len(p) < 600 for p in problems), [len(p) for p in problems]
+
+
+def test_a_truth_far_larger_than_its_photo_is_not_read(tmp_path):
+    """A small compressed file can hold a huge truth: one with more than 16
+    times the photo's pixels (and 4 Mpx) is refused from its header."""
+    tifffile = pytest.importorskip("tifffile")
+    e = _scene(tmp_path)
+    tifffile.imwrite(tmp_path / "t.tif", np.zeros((2100, 2100), np.float32), compression="zlib")
+    assert (tmp_path / "t.tif").stat().st_size < 200_000
+    e["truth"] = "t.tif"
+    (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
+    r = _evaluate(tmp_path, tmp_path / "m.json")
+    assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
+    assert "t.tif: the truth is 4410000 pixels, more than 16 times the photo's 80x60" in r.stderr, r.stderr
+
+
+def test_the_memory_of_an_evaluation_is_planned_against_max_memory(tmp_path):
+    """Every profile's and type's restoration is kept to be scored: an
+    image whose evaluation cannot fit --max-memory is refused before its
+    first restore (exit 4, the entry named), the others evaluated."""
+    big = _scene(tmp_path, "big.png", h=1000, w=1500)
+    small = _scene(tmp_path, "small.png")
+    (tmp_path / "m.json").write_text(json.dumps({"images": [big, small]}))
+    need = 1000 * 1500 * ev.EVALUATE_BYTES_PER_PIXEL
+    r = _evaluate(tmp_path, tmp_path / "m.json", "--max-memory", str(need - 1))
+    assert r.returncode == 4 and "Traceback" not in r.stderr, r.stderr
+    assert "images[0] (big.png): over the memory budget: evaluating 1500x1000 pixels keeps the restorations" in r.stderr
+    assert f"about {need} bytes, more than the {need - 1} of --max-memory" in r.stderr
+    doc = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert [i["image"] for i in doc["images"]] == ["images[1] (small.png)"]

@@ -45,6 +45,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
     for p in problems:
         code = max(code, console.error("unreadable_input", about_manifest(p), a.manifest))
     results = []
+    sections: dict[str, str] = {}
+    methods = ev.report_methods(a.method, ev.METHODS)
     t0 = time.perf_counter()
     for k, entry in enumerate(entries, 1):
         t = time.perf_counter()
@@ -56,6 +58,10 @@ def run(a: argparse.Namespace, console: Console) -> int:
             code = max(code, console.error(kind_of(e), text, entry.label))
             problems.append(f"{entry.label}: {text}")
             continue
+        # its part of the page now, then its full-size images go: memory does not grow with the manifest
+        sections[r["image"]] = ev.image_section(r, entry, methods)
+        for key in [k for k in r if k.startswith("_")]:
+            del r[key]
         results.append(r)
         psi = [row["psi_deg"] for row in r["charts"] if row["method"] == r["method"]]
         rho = r["rho"].get(r["method"], {}).get("rho_B")
@@ -71,7 +77,7 @@ def run(a: argparse.Namespace, console: Console) -> int:
                       "profiles": {m: uwhl_rs.method_steps(**({**kwargs, "method": m} if m == a.method else {"method": m}))
                                    for m in ev.METHODS}}
         doc = ev.write_results(a.out, a.manifest, results, problems, parameters)
-        ev.write_report(a.out, doc, results, entries, a.method, ev.METHODS)
+        ev.write_report(a.out, doc, results, entries, a.method, ev.METHODS, sections)
     except OSError as e:
         raise CommandError(describe(e), "write_failed", a.out) from e
     truth = any(v.get("images_with_truth") for m, v in doc["summary"].items() if m not in ev.SUMMARY_EXTRAS)
