@@ -135,6 +135,22 @@ class Photo:
         return [f for f in self.doc.get("flags") or [] if f not in ROUTINE_FLAGS]
 
 
+#: the longest line of summary.csv read (a row is a few hundred bytes)
+LINE_MAX = 1 << 20
+
+
+def _lines(text):
+    """The lines of ``text`` (a text file), each at most :data:`LINE_MAX`
+    characters: a longer one is a ValueError, found without holding it."""
+    while True:
+        line = text.readline(LINE_MAX)
+        if not line:
+            return
+        if len(line) == LINE_MAX and not line.endswith("\n"):
+            raise ValueError(f"a line over {LINE_MAX} characters")
+        yield line
+
+
 def failed_inputs(out_dir, storage_options: dict | None = None, keep: int = FAILED_SHOWN) -> tuple[list[dict], int]:
     """The first ``keep`` failed rows of ``OUTDIR/summary.csv`` (inputs
     without a sidecar to show), every value text cut to ``CELL_SHOWN``
@@ -145,13 +161,16 @@ def failed_inputs(out_dir, storage_options: dict | None = None, keep: int = FAIL
     folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
     rows, total = [], 0
     try:
-        text = folder.read(FILE_NAME, SUMMARY_MAX_BYTES).decode("utf-8")
-        for r in csv.DictReader(io.StringIO(text, newline="")):
-            if r.get("status") == "failed":
-                total += 1
-                if len(rows) < keep:
-                    rows.append(r)
-        del text
+        # streamed: the file (or its private copy off object storage) is decoded a block at a time, and a line
+        # over LINE_MAX or a field past csv's own limit (128 KiB) ends the reading: a planted 512 MiB summary
+        # took 6 GB read whole
+        with folder.open(FILE_NAME, SUMMARY_MAX_BYTES) as raw, \
+                io.TextIOWrapper(raw, encoding="utf-8", newline="") as text:
+            for r in csv.DictReader(_lines(text)):
+                if r.get("status") == "failed":
+                    total += 1
+                    if len(rows) < keep:
+                        rows.append(r)
     except (OSError, ValueError, csv.Error):
         return [], 0
 
