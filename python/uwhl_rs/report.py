@@ -283,8 +283,8 @@ def _histogram_svg(counts: dict) -> str:
         h = H * counts[n] / top
         x = 30 + k * (bw + gap)
         out.append(f'<rect x="{x}" y="{H - h + top_pad:.1f}" width="{bw}" height="{h:.1f}" '
-                   f'fill="{_TYPE_COLORS.get(n, "#777")}"><title>{html.escape(n)}: {counts[n]}</title></rect>')
-        out.append(f'<text x="{x + bw / 2}" y="{H + top_pad + 16}" text-anchor="middle">{html.escape(n)}</text>')
+                   f'fill="{_TYPE_COLORS.get(n, "#777")}"><title>{_text(n)}: {counts[n]}</title></rect>')
+        out.append(f'<text x="{x + bw / 2}" y="{H + top_pad + 16}" text-anchor="middle">{_text(n)}</text>')
         out.append(f'<text x="{x + bw / 2}" y="{H - h + top_pad - 4:.1f}" text-anchor="middle" class="n">'
                    f'{counts[n]}</text>')
     out.append("</svg>")
@@ -529,14 +529,14 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     problems += [printable(x) for x in refused]
     axis = series_axis(photos)
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
-<title>uwhl report: {html.escape(folder.name)}</title><style>{_CSS}</style></head><body>
-<h1>{html.escape(folder.display)}</h1>
+<title>uwhl report: {_text(folder.name)}</title><style>{_CSS}</style></head><body>
+<h1>{_text(folder.display)}</h1>
 <p class="meta" id="summary">{len(photos)} photos{f" and {len(videos)} videos" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {n_failed} failed{f", {balanced} with the input's balance for colours" if balanced else ""}; water types:
-{', '.join(f'{html.escape(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
+{', '.join(f'{_text(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
 {html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
 {failed_html}
 <section id="flagged"><h2>Needs a look: {flagged + len(flagged_videos)} flagged (fallbacks, clamps; docs/OUTPUTS.md "Flags")</h2>
-{''.join(f'<p class="flags">video {html.escape(p.sidecar[:-5])}: {html.escape(", ".join(p.flags))}</p>' for p in flagged_videos)}
+{''.join(f'<p class="flags">video {_text(p.sidecar[:-5])}: {_text(", ".join(p.flags))}</p>' for p in flagged_videos)}
 <div id="flagged-grid"></div></section>
 <h2>Water types</h2>{_histogram_svg(counts)}
 <h2>Over the sequence ({'EXIF time' if axis.by_time else 'frame index, in name order'})</h2>{series_svg(axis, types) if photos else ''}

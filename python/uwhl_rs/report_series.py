@@ -12,6 +12,7 @@ import numpy as np
 
 from . import _core
 from .outdir import Photo
+from .sidecars import printable
 
 __all__ = ["Axis", "fitted_blue", "series_axis", "series_svg", "used_water"]
 
@@ -104,7 +105,7 @@ def series_svg(axis: Axis, types: list[str]) -> str:
     out.append(f'<text x="{left}" y="12" class="lab">water type</text>')
     for k, t in enumerate(types):
         y = H - 8 - (H - 30) * (k / max(1, len(types) - 1))
-        out.append(f'<text x="{left - 6}" y="{y + 4:.1f}" text-anchor="end" class="tick">{html.escape(t)}</text>')
+        out.append(f'<text x="{left - 6}" y="{y + 4:.1f}" text-anchor="end" class="tick">{html.escape(printable(t))}</text>')
     out.append(poly(wt, 0, max(1, len(types) - 1), 0, "#333", 1.2))
     a = np.array([p.doc.get("veiling_light") or [np.nan] * 3 for p in photos], dtype=float).reshape(-1, 3)
     hi = float(np.nanmax(a)) if np.isfinite(a).any() else 1.0
@@ -131,7 +132,7 @@ def series_svg(axis: Axis, types: list[str]) -> str:
                 out.append(f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{y(v[1]):.1f}" y2="{y(v[2]):.1f}" '
                            'stroke="#9ecae1" stroke-width="3"/>')
         out.append(poly([np.log10(v[0]) if v else None for v in blue], llo, lhi, 3 * H, "#08519c"))
-    out.append(f'<text x="{left}" y="{panels * H + 30}" class="tick">{html.escape(first)}</text>'
-               f'<text x="{W - 10}" y="{panels * H + 30}" text-anchor="end" class="tick">{html.escape(last)}</text>')
+    out.append(f'<text x="{left}" y="{panels * H + 30}" class="tick">{html.escape(printable(first))}</text>'
+               f'<text x="{W - 10}" y="{panels * H + 30}" text-anchor="end" class="tick">{html.escape(printable(last))}</text>')
     out.append("</svg>")
     return "".join(out)

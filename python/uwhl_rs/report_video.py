@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from .outdir import Photo
+from .sidecars import printable
 
 __all__ = ["is_video", "needs_a_look", "videos_html"]
 
@@ -68,7 +69,7 @@ def _series_svg(p: Photo, types: list[str]) -> str:
            f'<text x="{left}" y="12" class="lab">water type</text>']
     for k, t in enumerate(types):
         y = H - 8 - (H - 30) * (k / max(1, len(types) - 1))
-        out.append(f'<text x="{left - 6}" y="{y + 4:.1f}" text-anchor="end" class="tick">{html.escape(t)}</text>')
+        out.append(f'<text x="{left - 6}" y="{y + 4:.1f}" text-anchor="end" class="tick">{html.escape(printable(t))}</text>')
     out.append(steps([idx.get(e["water_type"], 0) for e in ev], 0, max(1, len(types) - 1), 0, "#333"))
     a = np.clip(np.array([e["veiling_light"] for e in ev], dtype=float), 0.0, None)
     hi = float(a.max()) if a.size else 1.0
@@ -80,7 +81,7 @@ def _series_svg(p: Photo, types: list[str]) -> str:
     for e, x in zip(ev, xs):
         if e["event"] in ("cut", "drift"):
             out.append(f'<line x1="{sx(x):.1f}" x2="{sx(x):.1f}" y1="16" y2="{2 * H}" stroke="#d95f02" '
-                       f'stroke-dasharray="3,3"><title>{html.escape(e["event"])} at frame {e["frame"]}</title></line>')
+                       f'stroke-dasharray="3,3"><title>{html.escape(printable(e["event"]))} at frame {e["frame"]}</title></line>')
     unit = "s" if by_time else "frame"
     out.append(f'<text x="{left}" y="{2 * H + 30}" class="tick">0 {unit}</text>'
                f'<text x="{W - 10}" y="{2 * H + 30}" text-anchor="end" class="tick">{x_end:.1f} {unit}</text></svg>')
@@ -115,16 +116,16 @@ def videos_html(videos: list[Photo], types: list[str], rel_url) -> str:
         size = "" if not st.get("width") else f" of {int(st['width'])}x{int(st.get('height') or 0)}"
         rate = "" if _rate(p) is None else f" at {_rate(p):.3g} frames/s"
         flagged = " flagged" if flags else ""
-        parts.append(f'<div class="cell{flagged}"><p><b>{html.escape(p.sidecar[:-5])}</b>: '
+        parts.append(f'<div class="cell{flagged}"><p><b>{html.escape(printable(p.sidecar[:-5]))}</b>: '
                      f'{int(fr.get("restored") or 0)} frames restored{size}{rate}'
                      + (f" ({unrestored} held nothing to restore: written as they came)" if unrestored else "")
                      + '; water type '
-                     f'<b>{html.escape(p.doc["water_type"])}</b> most of the time; {len(ev)} estimates, {cuts} at cuts'
-                     + (f'; <span class="flags">{", ".join(html.escape(f) for f in flags)}</span>' if flags else "")
+                     f'<b>{html.escape(printable(p.doc["water_type"]))}</b> most of the time; {len(ev)} estimates, {cuts} at cuts'
+                     + (f'; <span class="flags">{", ".join(html.escape(printable(f)) for f in flags)}</span>' if flags else "")
                      + "</p>")
         if stop:
             where = f"frame {int(stop['frame'])}" + ("" if stop.get("time") is None else f" ({float(stop['time']):.3f} s)")
-            parts.append(f'<p class="flags">stopped at {html.escape(where)}: {html.escape(stop["error"])}</p>')
+            parts.append(f'<p class="flags">stopped at {html.escape(printable(where))}: {html.escape(printable(stop["error"]))}</p>')
         if strip:
             parts.append(f'<img class="strip" alt="frames: input above, restored below" src="{html.escape(strip)}" '
                          'style="max-width:100%">')

@@ -715,3 +715,22 @@ def test_a_summary_line_too_long_to_be_a_row_ends_its_reading(tmp_path):
                  'd.png,failed,"' + "z\n" * 100_000 + '"\n'):
         (tmp_path / "summary.csv").write_text(head + "a.png,failed,x\n" + junk)
         assert outdir.failed_inputs(str(tmp_path)) == ([], 0)
+
+
+def test_control_and_bidi_characters_of_a_water_type_are_escaped_on_the_page(batch, tmp_path):
+    """docs/REPORT.md: text from a sidecar is shown as the console shows it,
+    \\xNN and \\uNNNN, so a name cannot reorder the page around it; the
+    water type too, in the summary line, the histogram and the series."""
+    out = _copy(batch, tmp_path)
+    side = sorted(out.glob("*.json"))[0]
+    doc = json.loads(side.read_text())
+    bad = "\u202eIII\u0007\u001b[31m"
+    doc["scores"] = {bad if k == doc["water_type"] else k: v for k, v in doc["scores"].items()}
+    doc["water_type"] = bad
+    side.write_text(json.dumps(doc))
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(out)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    page = (out / "report" / "index.html").read_text()
+    assert not any(c in page for c in "\u202e\u0007\u001b"), [c for c in "\u202e\u0007\u001b" if c in page]
+    assert "\\u202eIII\\x07\\x1b[31m" in page
