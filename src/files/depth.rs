@@ -278,7 +278,7 @@ fn read_npy<R: Read>(r: &mut R, check: impl Fn(u64, u64, u64) -> Result<(), Fail
         Some("False") => {}
         Some("True") => return Err(bad("in Fortran order: not read (save it with numpy.ascontiguousarray)")),
         other => {
-            let said = other.map_or("nothing".to_string(), |v| crate::files::nav::shown(v));
+            let said = other.map_or("nothing".to_string(), crate::files::nav::shown);
             return Err(bad(&format!("whose header's 'fortran_order' is {said}, not True or False")));
         }
     }

@@ -368,7 +368,7 @@ fn input_balance(img: &ImageRef, objects: &(dyn Fn(usize) -> bool + Sync), k: &[
                 }
                 let p = img.data.get(3 * i..3 * i + 3).unwrap_or(&[0.0; 3]);
                 sums.0 += d.iter().map(|&v| f64::from(v)).sum::<f64>();
-                sums.1 += (0..3).map(|c| (f64::from(p[c]) * k[c]).max(0.0)).sum::<f64>();
+                sums.1 += p.iter().zip(k).map(|(&v, &kc)| (f64::from(v) * kc).max(0.0)).sum::<f64>();
             }
             sums
         })
@@ -376,8 +376,8 @@ fn input_balance(img: &ImageRef, objects: &(dyn Fn(usize) -> bool + Sync), k: &[
     let (shown, balanced) = rows.iter().fold((0.0, 0.0), |acc, r| (acc.0 + r.0, acc.1 + r.1));
     let scale = if balanced > 0.0 { shown / balanced } else { 1.0 };
     image.par_chunks_mut(3).zip(img.data.par_chunks(3)).for_each(|(d, p)| {
-        for c in 0..3 {
-            d[c] = ((f64::from(p[c]) * k[c]).max(0.0) * scale).clamp(0.0, 1.0) as f32;
+        for ((dc, &pc), &kc) in d.iter_mut().zip(p).zip(k) {
+            *dc = ((f64::from(pc) * kc).max(0.0) * scale).clamp(0.0, 1.0) as f32;
         }
     });
 }
