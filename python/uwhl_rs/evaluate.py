@@ -125,7 +125,7 @@ def read_distance(path: str, height: int, width: int, max_memory: int | None = N
             d = np.asarray(loadmat(path, variable_names=[name])[name], dtype=np.float64)
         else:
             # the commands' reader, with their limits and the cap against the photo's size
-            d = np.asarray(_core.read_distance_file(path, int(gt.MAX_TRUTH_PIXELS), gt._budget(max_memory),
+            d = np.asarray(_core.read_distance_file(path, int(gt.MAX_TRUTH_PIXELS), gt.memory_budget(max_memory),
                                                     (int(height), int(width))), dtype=np.float64)
     except ManifestError:
         raise
@@ -197,7 +197,7 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
     # whole, before the first, when they cannot all fit (the restores check only themselves)
     budget = restore_kwargs.get("max_memory")
     need = h * w * EVALUATE_BYTES_PER_PIXEL
-    limit = gt._budget(budget)
+    limit = gt.memory_budget(budget)
     if need > limit:
         raise MemoryError(f"evaluating {w}x{h} pixels keeps the restorations of every profile and candidate type, "
                           f"about {need} bytes, more than the {limit} "

@@ -23,7 +23,7 @@ from .errors import ManifestError
 from .images import DEFAULT_MAX_PIXELS
 
 __all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "MAX_TRUTH_VALUE", "pixel_angles", "angle_stats", "best_gains", "score",
-           "median_interval", "paired_medians", "resize_nearest", "load_npy", "read_truth", "read_truth_mask"]
+           "median_interval", "paired_medians", "resize_nearest", "load_npy", "read_truth", "read_truth_mask", "memory_budget"]
 
 #: Truth pixels darker than this (sum of R, G, B, linear) carry no colour
 #: worth scoring: their angle is dominated by quantisation and noise.
@@ -238,13 +238,13 @@ def _check_size(path: str, shape, what: str, photo=None, max_memory: int | None 
                             f"the photo's {photo[1]}x{photo[0]}; not read")
     # read as float64, with a copy or two while it is checked and resized
     need = values * 8 * 3
-    budget = _budget(max_memory)
+    budget = memory_budget(max_memory)
     if need > budget:
         raise ManifestError(f"{path}: the {what} needs about {need} bytes, over the memory budget of {budget} "
                             "(--max-memory); not read")
 
 
-def _budget(max_memory: int | None) -> int:
+def memory_budget(max_memory: int | None) -> int:
     """The memory a truth or mask may take: ``max_memory``, else the machine's budget."""
     return int(max_memory) if max_memory is not None else int(_core.default_max_memory())
 
@@ -270,7 +270,7 @@ def _png16(path: str, what: str, photo=None, max_memory: int | None = None) -> n
     def header(h, w, bpp, oriented):
         _check_size(path, (h, w), what, photo, max_memory)
 
-    img, info = _core.decode_file(path, False, MAX_TRUTH_PIXELS, _budget(max_memory), header)
+    img, info = _core.decode_file(path, False, MAX_TRUTH_PIXELS, memory_budget(max_memory), header)
     if info["bits"] != 16 or info["is_float"]:
         raise ManifestError(f"{path}: a PNG {what} is 16-bit, read as linear / 65535 (this one is "
                             f"{info['bits']}-bit; an 8-bit file is sRGB, too coarse to be a truth)")
