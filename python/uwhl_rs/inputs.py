@@ -5,10 +5,10 @@ share (docs/OUTPUTS.md "Names"); the naming itself is the core's
 
 from __future__ import annotations
 
-import glob
 import os
 import re
 from dataclasses import dataclass
+from pathlib import Path
 
 from . import _core
 from .files import output_suffixes
@@ -37,6 +37,29 @@ def supported(path: str) -> bool:
     return ext in IMAGE_EXTENSIONS or ext in RAW_EXTENSIONS or ext in VIDEO_EXTENSIONS
 
 
+def _glob(pattern: str) -> list[str]:
+    """The paths ``pattern`` matches, as :func:`glob.glob` gives them
+    (``**`` any depth, names starting with a dot only when the pattern
+    spells the dot), but ``**`` never descends through a link to a folder:
+    two links back to a parent made the search grow without end, and a
+    link out of the tree took files a walk of the same folder does not."""
+    parts = pattern.split(os.sep)
+    first = next((k for k, p in enumerate(parts) if GLOB_CHARS.search(p)), len(parts))
+    anchor = os.sep.join(parts[:first]) or ("" if parts[0] else os.sep)
+    rest = parts[first:]
+    if not rest:
+        return [pattern] if os.path.lexists(pattern) else []
+    base = Path(anchor or ".")
+    out = []
+    for p in base.glob(os.sep.join(rest)):
+        rel = p.relative_to(base).parts
+        # a hidden name is matched only by a pattern part that starts with the dot itself
+        if any(r.startswith(".") and not any(q.startswith(".") for q in rest) for r in rel):
+            continue
+        out.append(str(p) if anchor else os.path.join(*rel))
+    return out
+
+
 def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",
                    contact: bool = False) -> tuple[list[Job], list[tuple[str, str]], list[str]]:
     """Expand files, folders (recursive) and globs into jobs.
@@ -55,7 +78,7 @@ def collect_inputs(inputs: list[str], out_dir: str, fmt: str = "jpg",
     problems: list[tuple[str, str]] = []
     for item in inputs:
         if not os.path.exists(item) and GLOB_CHARS.search(item):
-            hits = sorted(h for h in glob.glob(item, recursive=True) if os.path.isfile(h) and supported(h))
+            hits = sorted(h for h in _glob(item) if os.path.isfile(h) and supported(h))
             if not hits:
                 problems.append((item, "pattern matches no image file"))
             items.extend(hits)

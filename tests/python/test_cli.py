@@ -322,6 +322,29 @@ def test_glob_and_name_collisions(scenes, tmp_path):
     assert (tmp_path / "o2" / "sub" / "x.json").is_file()  # folder inputs mirror sub-folders
 
 
+def test_a_recursive_glob_does_not_follow_links_to_folders(tmp_path):
+    """``**`` goes down folders, not links to them, as a folder walk does:
+    two links back to a parent once made the search grow without end (the
+    run hung), and a link out of the tree took files the walk does not.
+    A hidden name is matched only when the pattern spells its dot."""
+    from uwhl_rs.inputs import _glob
+
+    (tmp_path / "in" / "sub").mkdir(parents=True)
+    (tmp_path / "outside").mkdir()
+    for p in ("in/a.jpg", "in/sub/b.jpg", "outside/c.jpg", "in/.h.jpg"):
+        (tmp_path / p).write_bytes(b"")
+    os.symlink("..", tmp_path / "in" / "sub" / "up")
+    os.symlink("..", tmp_path / "in" / "sub" / "up2")
+    os.symlink("../outside", tmp_path / "in" / "out")
+    root = str(tmp_path)
+    assert sorted(_glob(f"{root}/in/**/*.jpg")) == [f"{root}/in/a.jpg", f"{root}/in/sub/b.jpg"]
+    assert _glob(f"{root}/in/.*.jpg") == [f"{root}/in/.h.jpg"]
+    assert sorted(_glob(f"{root}/i?/*.jpg")) == [f"{root}/in/a.jpg"]
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", "in/**/*.jpg", "-o", "o", "-q"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=60)
+    assert "Traceback" not in r.stderr and "outside" not in r.stderr and "c.jpg" not in r.stderr, r.stderr
+
+
 def test_help_and_version():
     r = uwhl("--help")
     assert r.returncode == 0 and "restore" in r.stdout and "demo" in r.stdout
