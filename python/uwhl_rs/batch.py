@@ -327,6 +327,8 @@ def _run_here(items: list[Item], opts: dict, so: dict, overwrite: bool, reuse: i
                             pending.append((it, writer.submit(step)))
                         else:
                             settle(it.index, step)
+                        # the step holds its input's images: not past its write, into the next input's restore
+                        del step
                     settle_pending()  # (here, so that an interrupt while the last input is written stops a video)
                 except KeyboardInterrupt:
                     # a photo's write finishes; a video (minutes of frames) stops at its next frame

@@ -194,6 +194,7 @@ def restore_staged(
     _base: int = 0,
     _label: str | None = None,
     _flags: bool = False,
+    _make_room: Callable[[int], None] | None = None,
     **restore_kwargs,
 ) -> Callable[[], FileResult]:
     """:func:`restore_file` in two steps: this call reads and restores the
@@ -210,7 +211,10 @@ def restore_staged(
     (decoding, ``max_side``, ``restore``, the outputs: the binary's plan,
     ``_core.input_plan``) plus ``_base`` (the command: what the process
     holds anyway, ``_core.process_base()``) is checked against
-    ``max_memory`` (default ``_core.default_max_memory()``).
+    ``max_memory`` (default ``_core.default_max_memory()``). ``_make_room``
+    (a batch's): called with the input's own bytes of that plan before the
+    check, to wait until the inputs restored or written beside it leave
+    room for them.
 
     ``_label`` (batches on object storage): the input's name in the sidecar
     (``input``, ``source.path``) and in errors, when ``in_path`` is a local
@@ -241,7 +245,7 @@ def restore_staged(
                                    half_size=half_size, max_side=max_side, max_pixels=max_pixels, mask=mask,
                                    water_mask=water_mask, distance=distance, contact=contact, sequence=sequence,
                                    restore_kwargs=restore_kwargs, t_start=t_start, base=_base,
-                                   label=_label or in_path, flags=_flags)
+                                   label=_label or in_path, flags=_flags, make_room=_make_room)
     except BaseException:
         claim.release()
         raise
@@ -250,7 +254,7 @@ def restore_staged(
 
 def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, half_size, max_side, max_pixels, mask,
                       water_mask, distance, contact, sequence, restore_kwargs, t_start, base, label,
-                      flags=False) -> Callable[[], FileResult]:
+                      flags=False, make_room=None) -> Callable[[], FileResult]:
     """The body of :func:`restore_staged` once the names are claimed."""
     paths = output_paths(out_dir, claim.name, format, contact)
     budget = settings.max_memory
@@ -262,6 +266,8 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
                           masks=masks, contact=contact) + base
         photo_need[0] = need - base
         side, memory = spelt("max_side", flags), spelt("max_memory", flags)
+        if make_room is not None and need <= budget:
+            make_room(need - base)
         if need > budget:
             raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, over {memory} {budget} "
                                      f"(use {side} or raise {memory})")

@@ -215,6 +215,38 @@ class Context:
     progress: Callable[[str], None] | None = None
     #: set on an interrupt: a video being restored stops at its next frame (a photo's write finishes)
     stop: threading.Event = field(default_factory=threading.Event)
+    #: the inputs of a run (or a task) in this process share its memory (:class:`MemoryGate`)
+    gate: MemoryGate | None = None
+
+
+class MemoryGate:
+    """The memory a run's inputs hold at once, within its budget: an input
+    restored while the previous one is written, or the inputs of ``--jobs``
+    restored side by side, each wait (after reading their header, before
+    decoding) until the others' plans leave room for theirs, as the
+    binary's reader waits for its writer. An input alone always goes: its
+    own plan was checked against the whole budget."""
+
+    def __init__(self, budget: int):
+        self.budget = int(budget)
+        self.held = 0
+        self._cv = threading.Condition()
+
+    def reserve(self, need: int) -> int:
+        """Waits until ``need`` bytes fit beside what is held (or nothing
+        is), then holds them; returns ``need``, for :meth:`release`."""
+        with self._cv:
+            while self.held > 0 and self.held + need > self.budget:
+                self._cv.wait(0.2)  # in slices: an interrupt reaches the main thread between waits
+            self.held += need
+        return need
+
+    def release(self, n: int) -> None:
+        """Gives back ``n`` bytes of :meth:`reserve`."""
+        if n:
+            with self._cv:
+                self.held -= n
+                self._cv.notify_all()
 
 
 def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | None, reuse_water_mask: bool,
@@ -246,8 +278,10 @@ def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | Non
     from PIL import Image  # noqa: F401
 
     # (and 4 MiB for the writer threads' stacks and allocator arenas)
-    return Context(opts, dict(storage_options), overwrite, scratch, sequence, _core.process_base() + (4 << 20),
-                   reuse, reuse_water_mask)
+    base = _core.process_base() + (4 << 20)
+    budget = opts.get("max_memory") or _core.default_max_memory()
+    return Context(opts, dict(storage_options), overwrite, scratch, sequence, base, reuse, reuse_water_mask,
+                   gate=MemoryGate(max(0, int(budget) - base)))
 
 
 def _worker_resources(threads_default: int | None) -> tuple[int | None, int | None]:
@@ -284,6 +318,18 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
     fmt, contact = opts.get("format", "jpg"), opts.get("contact", False)
     remote_out = is_url(item.out_dir)
     local_in = None
+    held = [0]
+
+    def room(need: int) -> None:
+        # the run's other inputs (the one being written, --jobs) leave room for this one's plan
+        if ctx.gate is not None:
+            held[0] = ctx.gate.reserve(need)
+
+    def _give_back() -> None:
+        if ctx.gate is not None:
+            ctx.gate.release(held[0])
+            held[0] = 0
+
     if not remote_out:
         out_dir = local_path(item.out_dir)
         try:
@@ -308,9 +354,13 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
                                                  overwrite=True, rename=False)
         local_in = _local_input(item, ctx)
         write = files.restore_staged(local_in, out_dir, name=item.name, _claim=claim, _base=ctx.base,
-                                     _label=item.input, sequence=ctx.sequence, **opts)
+                                     _label=item.input, sequence=ctx.sequence, _make_room=room, **opts)
     except (Exception, MemoryError) as e:  # one bad file never stops the batch
+        _give_back()
         return failure_row(item, e, False, time.perf_counter() - t0, local_in)
+    except BaseException:
+        _give_back()
+        raise
 
     def finish() -> dict:
         try:
@@ -321,6 +371,7 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
         except (Exception, MemoryError) as e:
             return failure_row(item, e, True, time.perf_counter() - t0, local_in)
         finally:
+            _give_back()
             if local_in is not None and local_in != local_path(item.input):
                 _drop_copy(local_in)
         done = _done_row(item, result, time.perf_counter() - t0, outputs)

@@ -1,0 +1,57 @@
+"""The memory a batch's inputs hold at once (uwhl_rs.tasks.MemoryGate,
+docs/SCALE.md): an input restored while the previous one is written, or
+the inputs of --jobs, wait until the others' plans leave room for theirs;
+an input alone always goes."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from uwhl_rs import batch, images, synth, tasks
+
+
+def test_a_reservation_waits_for_room_and_an_input_alone_always_goes():
+    gate = tasks.MemoryGate(100)
+    assert gate.reserve(60) == 60 and gate.held == 60
+    got = threading.Event()
+    t = threading.Thread(target=lambda: (gate.reserve(50), got.set()), daemon=True)
+    t.start()
+    # 60 + 50 > 100: it waits (a gate that did not would have set the event by now)
+    assert not got.wait(0.5)
+    gate.release(60)
+    assert got.wait(10) and gate.held == 50
+    t.join(10)
+    gate.release(50)
+    # over the whole budget but alone: it goes (its own plan was checked against the budget)
+    assert gate.reserve(500) == 500 and gate.held == 500
+    gate.release(500)
+    assert gate.held == 0
+
+
+@pytest.mark.parametrize("jobs", [1, 3])
+def test_a_batch_holds_one_inputs_plan_at_a_time_when_two_do_not_fit(tmp_path, monkeypatch, jobs):
+    """With room for one input's plan only, no input is restored while
+    another is restored or written: the most held at once is one plan."""
+    for k in range(4):
+        img, _ = synth.demo_input(60, 80, water_type="3C", seed=k)
+        images.write_image(tmp_path / f"p{k}.png", img, bits=8, encoding="linear")
+    most, lock = [0], threading.Lock()
+    init, reserve = tasks.MemoryGate.__init__, tasks.MemoryGate.reserve
+
+    def small(self, budget):
+        init(self, 1)  # no two plans fit
+
+    def watched(self, need):
+        n = reserve(self, need)
+        with lock:
+            most[0] = max(most[0], self.held)
+            assert self.held == need, "an input was restored beside another's plan"
+        return n
+
+    monkeypatch.setattr(tasks.MemoryGate, "__init__", small)
+    monkeypatch.setattr(tasks.MemoryGate, "reserve", watched)
+    res = batch.run_batch([str(tmp_path / f"p{k}.png") for k in range(4)], str(tmp_path / "out"), jobs=jobs)
+    assert [r["status"] for r in res.rows] == ["done"] * 4, res.rows
+    assert most[0] > 0
