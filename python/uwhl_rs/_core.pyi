@@ -243,9 +243,10 @@ def summary_columns() -> list[str]:
 
 def input_plan(
     height: int, width: int, decoded_bpp: int, decoded_is_rgb: bool, oriented: bool, factor: int, reference: bool,
-    masks: int, write_extra: int = 0,
+    masks: int, write_extra: int = 0, sphere_points: Optional[int] = None,
 ) -> int:
-    """The bytes the whole input needs at its peak (decoding, max_side, restore, the outputs)."""
+    """The bytes the whole input needs at its peak (decoding, max_side, restore with the sphere index of
+    sphere_points, by default the method's, the outputs)."""
 def process_base() -> int:
     """What the process holds before its first input plus a margin, measured at the first call."""
 def default_max_memory() -> int:

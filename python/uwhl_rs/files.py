@@ -122,7 +122,8 @@ def max_side_factor(h: int, w: int, n: int | None) -> int:
 
 
 def input_need(h: int, w: int, bpp: int, oriented: bool, *, half_size: bool = False, max_side: int | None = None,
-               preprocess: str = "none", masks: int = 0, contact: bool = False) -> int:
+               preprocess: str = "none", masks: int = 0, contact: bool = False,
+               sphere_points: int | None = None) -> int:
     """Bytes one input of ``h`` x ``w`` pixels (``bpp`` decoded bytes per
     pixel, ``oriented``: rotated on reading) needs from decoding to its last
     output: the binary's plan (``_core.input_plan``) with what the Python
@@ -132,7 +133,8 @@ def input_need(h: int, w: int, bpp: int, oriented: bool, *, half_size: bool = Fa
     s = max_side_factor(h, w, max_side)
     # Pillow's or LibRaw's buffer and its numpy copy are both alive: never "already RGB"
     # ... and, writing, the display copy of the image and Pillow's copy of its codes (20 B/px)
-    plan = _core.input_plan(h, w, bpp, False, oriented, s, preprocess == "reference", masks, 20)
+    extra = {} if sphere_points is None else {"sphere_points": int(sphere_points)}
+    plan = _core.input_plan(h, w, bpp, False, oriented, s, preprocess == "reference", masks, 20, **extra)
     # the contact sheet: four cells of at most 360 px a side, and their labels
     return plan + ((8 << 20) if contact else 0)
 
@@ -263,7 +265,7 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
 
     def plan(h: int, w: int, bpp: int, oriented: bool) -> None:
         need = input_need(h, w, bpp, oriented, half_size=half_size, max_side=max_side, preprocess=preprocess,
-                          masks=masks, contact=contact) + base
+                          masks=masks, contact=contact, sphere_points=restore_kwargs.get("sphere_points")) + base
         photo_need[0] = need - base
         side, memory = spelt("max_side", flags), spelt("max_memory", flags)
         if make_room is not None and need <= budget:

@@ -10,7 +10,7 @@
 //! | decode | `b n` decoded + `b n` rotated copy (EXIF orientation) or RGB conversion + `12 n` f32 (while the RGB buffer is alive) |
 //! | reference stretch | `12 n` in + `12 n` out + `4 n` one channel's percentile copy |
 //! | downscale | `12 n` + `12 m` |
-//! | restore | `12 m` input + `params::memory_estimate(h, w, k)` |
+//! | restore | `12 m` input + `params::memory_estimate(h, w, k)` + the sphere index (`64` bytes a point) |
 //! | write | `12 m` input + the restoration (`33 m`) + the four outputs' codes and encoded files, encoded at once (`22 m`) + the photo's metadata carried (`18 m`: three copies of its encoding; `b n`: the input file read again, `crate::files::metadata`) + the allocator's slack (`8 m`) |
 //!
 //! plus `n` bytes per mask given (`--mask`, `--water-mask`; read once per run)
@@ -72,6 +72,9 @@ pub struct Plan {
     /// binary's `HELD_WHILE_WRITING` (the Python command: 16, its display
     /// copy of the image and Pillow's copy of the codes)
     pub write_extra: u64,
+    /// bytes of the sphere index and haze-line state (`--sphere-points`,
+    /// `crate::method::sphere::index_bytes`), alive while restoring
+    pub index: u64,
 }
 
 impl Plan {
@@ -100,7 +103,7 @@ impl Plan {
             0
         };
         let reference = if self.reference { mul(28, n) } else { 0 };
-        let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.masks > 0));
+        let restore = mul(12, m).saturating_add(memory_estimate(h, w, self.masks > 0)).saturating_add(self.index);
         let write = mul((12 + HELD_WHILE_WRITING).saturating_add(self.write_extra), m).saturating_add(decoded);
         let masks = u64::from(self.masks);
         let mask = mul(masks, n).saturating_add(mul(masks, m));
@@ -125,6 +128,7 @@ impl Plan {
             reference: false,
             masks: 0,
             write_extra: 0,
+            index: crate::method::sphere::index_bytes(crate::method::params::Params::default().sphere_points),
         }
     }
 }
@@ -143,13 +147,22 @@ mod tests {
         let p = plan(1000, 1000);
         // at 1 MP the restore phase (12 n + the method's estimate) and the
         // write phase ((12 + HELD_WHILE_WRITING) n + the 3 n decoded) are close
-        let restore = 12_000_000 + memory_estimate(1000, 1000, false);
+        let restore = 12_000_000 + memory_estimate(1000, 1000, false) + p.index;
         let write = (12 + HELD_WHILE_WRITING) * 1_000_000 + 3_000_000;
         assert_eq!(p.bytes(), restore.max(write));
         let small = Plan { factor: 4, ..p };
         assert_eq!(small.processed(), (250, 250));
         // with the image shrunk 4x the decode phase dominates: 3 n + 12 n
         assert!(small.bytes() >= 15_000_000 && small.bytes() < p.bytes());
+    }
+
+    #[test]
+    fn a_million_sphere_points_are_in_the_plan_whatever_the_size() {
+        // 64 x 64 pixels: the method's buffers are some 360 kB, the index of
+        // 1,000,000 points 64 MB (measured 53 MB); the restore phase holds both
+        let p = Plan { index: crate::method::sphere::index_bytes(1_000_000), ..plan(64, 64) };
+        assert_eq!(p.index, 64_000_000);
+        assert_eq!(p.bytes(), 12 * 4096 + memory_estimate(64, 64, false) + 64_000_000);
     }
 
     #[test]

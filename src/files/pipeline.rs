@@ -176,6 +176,7 @@ fn plan_of(h: usize, w: usize, bpp: u64, is_rgb: bool, oriented: bool, opts: &Se
         reference: opts.preprocess == Preprocess::Reference,
         masks: u8::from(masks.mask.is_some()) + u8::from(masks.water.is_some()),
         write_extra: 0,
+        index: crate::method::sphere::index_bytes(opts.params.sphere_points),
     }
 }
 

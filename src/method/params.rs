@@ -458,10 +458,11 @@ pub fn memory_estimate(h: usize, w: usize, holes: bool) -> u64 {
 }
 
 /// The working memory a restoration of an `h` x `w` image with `params`
-/// needs ([`memory_estimate`], and the sampled copy of fast selection
-/// where there is one): what `max_memory` is checked against.
+/// needs ([`memory_estimate`], the sphere index of its `sphere_points`, and
+/// the sampled copy of fast selection where there is one): what
+/// `max_memory` is checked against.
 pub fn needed_memory(h: usize, w: usize, holes: bool, params: &Params) -> u64 {
-    let mut needed = memory_estimate(h, w, holes);
+    let mut needed = memory_estimate(h, w, holes).saturating_add(crate::method::sphere::index_bytes(params.sphere_points));
     let s = fast_factor(h, w);
     // a copy exists only for several types on an image larger than it
     if params.selection_used() == Selection::Fast && s > 1 && params.water_types.len() >= 2 {

@@ -603,7 +603,7 @@ fn place(py: Python<'_>, tmp: std::path::PathBuf, path: std::path::PathBuf) -> P
 /// check from the header.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra = 0))]
+#[pyo3(signature = (height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra = 0, sphere_points = None))]
 fn input_plan(
     height: usize,
     width: usize,
@@ -614,8 +614,10 @@ fn input_plan(
     reference: bool,
     masks: u8,
     write_extra: u64,
+    sphere_points: Option<usize>,
 ) -> u64 {
-    crate::files::budget::Plan { height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra }
+    let index = crate::method::sphere::index_bytes(sphere_points.unwrap_or(crate::method::params::DEFAULT_SPHERE_POINTS));
+    crate::files::budget::Plan { height, width, decoded_bpp, decoded_is_rgb, oriented, factor, reference, masks, write_extra, index }
         .bytes()
 }
 

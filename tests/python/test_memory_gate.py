@@ -55,3 +55,19 @@ def test_a_batch_holds_one_inputs_plan_at_a_time_when_two_do_not_fit(tmp_path, m
     res = batch.run_batch([str(tmp_path / f"p{k}.png") for k in range(4)], str(tmp_path / "out"), jobs=jobs)
     assert [r["status"] for r in res.rows] == ["done"] * 4, res.rows
     assert most[0] > 0
+
+
+def test_the_sphere_index_is_in_the_memory_plan():
+    """--sphere-points up to a million: some 60 MB of index and haze-line
+    state whatever the image's size, counted in restore's own check (64
+    bytes a point) and in the commands' plan of an input."""
+    import uwhl_rs
+    from uwhl_rs import _core
+
+    img, _ = synth.demo_input(64, 64, water_type="3C", seed=1)
+    uwhl_rs.restore(img, sphere_points=500, max_memory=10 << 20)
+    with pytest.raises(MemoryError):
+        uwhl_rs.restore(img, sphere_points=1_000_000, max_memory=10 << 20)
+    small = _core.input_plan(64, 64, 3, True, False, 1, False, 0, 0, sphere_points=500)
+    big = _core.input_plan(64, 64, 3, True, False, 1, False, 0, 0, sphere_points=1_000_000)
+    assert big - small == (1_000_000 - 500) * 64
