@@ -3,7 +3,7 @@
 //!
 //! 1. [`claim`] picks the name the outputs are written under and claims it:
 //!    a claim file `.uwhl-claim-HASH` made exclusively, naming the process
-//!    and the input, so a second process on the same folder skips what the
+//!    (pid and start time) and the input, so a second process on the same folder skips what the
 //!    first is restoring, and a name in use by another input (another
 //!    camera's `frame.jpg`, an unrelated `x.jpg`) is never written over.
 //! 2. Every output, the sidecar included, is written to an exclusive
@@ -15,7 +15,8 @@
 //!    again. A sidecar therefore only ever lists files of its own run.
 //!
 //! A claim dropped without a commit removes its temporaries and its claim
-//! file. A claim file whose process no longer runs (kill -9, power cut) is
+//! file. A claim file whose process no longer runs (kill -9, power cut),
+//! or whose pid another process has since (its start time differs), is
 //! stale: the next run takes the name over, and when the claim named the
 //! same input it replaces the outputs that run may have renamed in without
 //! their sidecar (a stale claim of another input leaves the files at the
@@ -257,7 +258,7 @@ fn path_bytes(p: &Path) -> &[u8] {
 }
 
 /// The pid and input a claim file names.
-fn read_claim(path: &Path) -> Option<(u32, PathBuf)> {
+fn read_claim(path: &Path) -> Option<(u32, Option<u64>, PathBuf)> {
     use std::os::unix::ffi::OsStrExt;
     use std::os::unix::fs::OpenOptionsExt;
     let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW).open(path).ok()?;
@@ -273,7 +274,9 @@ fn read_claim(path: &Path) -> Option<(u32, PathBuf)> {
     if input.is_empty() {
         return None;
     }
-    Some((pid, PathBuf::from(std::ffi::OsStr::from_bytes(input))))
+    // the process's start time, after what earlier builds write and read (a claim of theirs has none)
+    let start = lines.next().and_then(|l| std::str::from_utf8(l).ok()).and_then(|l| l.parse().ok());
+    Some((pid, start, PathBuf::from(std::ffi::OsStr::from_bytes(input))))
 }
 
 fn in_flight<T>(f: impl FnOnce(&mut HashMap<PathBuf, PathBuf>) -> T) -> T {
@@ -361,6 +364,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
     fs::create_dir_all(req.dir)?;
     let key = input_key(req.input);
     let own = std::process::id();
+    let started = crate::files::jobs::process_start(own).map(|t| format!("{t}\n")).unwrap_or_default();
     // the input's SHA-256 once computed (only when a sidecar's names do not decide)
     let mut hash: Option<Option<String>> = None;
     let tries = if req.rename { MAX_NAMES } else { 1 };
@@ -401,11 +405,12 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                     let mut record = format!("{own}\n{name}\n").into_bytes();
                     record.extend_from_slice(path_bytes(&key));
                     record.push(b'\n');
+                    record.extend_from_slice(started.as_bytes());
                     f.write_all(&record)?;
                     break true;
                 }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => match read_claim(&claim_file) {
-                    Some((pid, holder)) if pid != own && crate::files::jobs::process_runs(pid) => {
+                    Some((pid, start, holder)) if pid != own && crate::files::jobs::process_is(pid, start) => {
                         if holder == key {
                             return Ok(Resolution::Skipped(Skip::Busy(pid), sidecar));
                         }
@@ -423,7 +428,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                     // when it was restoring this same input; a claim naming
                     // another input says nothing of them (they may be the
                     // user's own x_t.png), so they stay unrelated files
-                    Some((_, holder)) => {
+                    Some((_, _, holder)) => {
                         stale = holder == key;
                         let _ = fs::remove_file(&claim_file);
                     }
@@ -715,7 +720,7 @@ mod tests {
     }
 
     #[test]
-    fn a_live_claim_of_another_process_makes_the_input_busy_a_dead_one_is_taken_over() {
+    fn a_live_claim_of_another_process_makes_the_input_busy_a_dead_or_reused_one_is_taken_over() {
         let d = folder("busy");
         let s = suffixes();
         let a = d.join("a.jpg");
@@ -725,6 +730,15 @@ mod tests {
         // pid 1 runs on every Linux system
         fs::write(&claim_file, format!("1\na\n{}\n", key.display())).unwrap();
         assert!(matches!(claim(&request(&d, "a", &a, &s, false)).unwrap(), Resolution::Skipped(Skip::Busy(1), _)));
+        // pid 1 with the start time it has: busy; with another (the pid of a killed run, reused
+        // since by another process, here pid 1): taken over, as a dead process's
+        let start = crate::files::jobs::process_start(1).expect("/proc/1/stat");
+        fs::write(&claim_file, format!("1\na\n{}\n{start}\n", key.display())).unwrap();
+        assert!(matches!(claim(&request(&d, "a", &a, &s, false)).unwrap(), Resolution::Skipped(Skip::Busy(1), _)));
+        fs::write(&claim_file, format!("1\na\n{}\n{}\n", key.display(), start + 1)).unwrap();
+        let c = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
+        assert_eq!(c.name(), "a");
+        drop(c);
         // a dead process left its claim and one renamed output: taken over, replaced
         fs::write(&claim_file, format!("4194399\na\n{}\n", key.display())).unwrap();
         fs::write(d.join("a.png"), b"half of a killed run").unwrap();

@@ -77,6 +77,31 @@ pub fn process_runs(pid: u32) -> bool {
     !Path::new("/proc/self").exists() || Path::new("/proc").join(pid.to_string()).exists()
 }
 
+/// When process `pid` started, in clock ticks since boot (`/proc/PID/stat`,
+/// field 22), or None when that cannot be read. With the pid it names one
+/// process: a pid is reused (after a reboot, or a busy machine's wrap), a
+/// start time with it is not.
+pub fn process_start(pid: u32) -> Option<u64> {
+    let stat = fs::read_to_string(Path::new("/proc").join(pid.to_string()).join("stat")).ok()?;
+    // the command name (field 2) is in parentheses and may hold spaces and ')': fields 3.. follow the last ')'
+    let rest = stat.get(stat.rfind(')')? + 1..)?;
+    rest.split_whitespace().nth(19)?.parse().ok()
+}
+
+/// Whether the process that recorded itself as `pid` (and, when it did,
+/// its start time `start`) still runs: a live process of that pid that
+/// started at another time is another process.
+pub fn process_is(pid: u32, start: Option<u64>) -> bool {
+    if !process_runs(pid) {
+        return false;
+    }
+    match (start, process_start(pid)) {
+        (Some(then), Some(now)) => then == now,
+        // no start recorded (a claim of an older build), or none readable: the pid alone decides
+        _ => true,
+    }
+}
+
 /// Removes from `dir` the temporary files (`.uwhl-PID-...`, the names both
 /// commands write through) of processes that no longer run: what a killed
 /// run left. Those of a live process (a concurrent run) stay. Returns how
@@ -291,6 +316,16 @@ pub fn name_jobs(found: &[(PathBuf, PathBuf)], suffixes: &[String]) -> Vec<Strin
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_process_is_its_pid_and_its_start_time() {
+        let own = std::process::id();
+        let start = process_start(own).expect("/proc/self/stat");
+        assert!(process_is(own, Some(start)) && process_is(own, None));
+        // the same pid started at another time is another process
+        assert!(!process_is(own, Some(start + 1)));
+        assert!(!process_is(4_194_399, None) && process_start(4_194_399).is_none());
+    }
 
     #[test]
     fn stale_temporaries_of_dead_processes_go_live_ones_stay() {
