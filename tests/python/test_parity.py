@@ -660,3 +660,32 @@ def test_a_name_with_control_characters_is_printed_escaped_by_both(binary, files
         assert "red\\x1b[31m\\x0afake.png -> " in text and "bad\\x07.jpg: " in text, (face, text)
         assert "\u202e" not in text and "\u2028" not in text, face
         assert "x\\u202egnp.exe\\u2028y.png -> " in text, (face, text)
+
+
+@pytest.mark.parametrize("bad, code", [("trunc", 2), ("huge", 4)])
+def test_a_mask_that_cannot_be_read_is_one_error_before_any_input(binary, tmp_path, bad, code):
+    """docs/CLI.md: --mask is read once, before any input: a truncated mask
+    (exit 2) or one over --max-pixels (exit 4) is one line naming it in both
+    commands, and no output folder is made."""
+    from PIL import Image
+
+    from bothcmds import cmds, run_restore
+    from uwhl_rs import images
+
+    img, _ = synth.demo_input(40, 56, water_type="3C", seed=1)
+    for k in (1, 2):
+        images.write_image(tmp_path / f"p{k}.png", img, bits=8, encoding="linear")
+    mask = tmp_path / "mask.png"
+    if bad == "trunc":
+        Image.new("L", (56, 40), 255).save(mask)
+        mask.write_bytes(mask.read_bytes()[:60])
+    else:
+        Image.new("L", (200, 200), 255).save(mask)
+    for face, cmd in cmds(binary).items():
+        out = tmp_path / f"out_{face}"
+        r = run_restore(cmd, tmp_path / "p1.png", tmp_path / "p2.png", "-o", out, "--mask", mask,
+                        "--max-pixels", "10000")
+        assert r.returncode == code, (face, r.stderr)
+        lines = [x for x in r.stderr.splitlines() if x.startswith(("uwhl:", "uwhl-rs:"))]
+        assert len(lines) == 1 and f"--mask {mask}" in lines[0], (face, r.stderr)
+        assert not out.exists(), face

@@ -14,6 +14,7 @@ import uwhl_rs
 from .. import _core, batch, files, tasks
 from ..errors import CommandError, UwhlError
 from ..ifdo import load_header
+from ..images import DEFAULT_MAX_PIXELS
 from ..storage import is_url, parse_storage_options
 from . import ifdo as ifdo_command
 from . import report as report_command
@@ -64,6 +65,16 @@ def _check(a: argparse.Namespace, options: dict) -> None:
             # a FIFO or a device would block or never end: it is not opened
             why = "not a regular file (not opened)" if os.path.exists(path) else "no such file"
             raise _bad(f"{flag} {path}: {why}")
+        if path is not None:
+            # decoded once before any input, as the binary reads its masks: a mask that cannot be
+            # read is the command's error, not one line per input with a folder of failed rows
+            try:
+                _core.decode_mask_file(os.fspath(path), flag, int(options.get("max_pixels") or DEFAULT_MAX_PIXELS),
+                                       int(options.get("max_memory") or _core.default_max_memory()))
+            except MemoryError as e:
+                raise CommandError(str(e), "over_budget") from None
+            except UwhlError as e:
+                raise _bad(str(e)) from None
     if a.reuse_estimates is not None:
         # the sequence's keywords checked once here, not by every input
         method = {k: options[k] for k in files.METHOD_KEYS if k in options}
