@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
     "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
@@ -88,6 +88,9 @@ def check_combination(
     """The checks of several options at once; ValueError with the usage message."""
 def unknown_short_said(word: str) -> str:
     """The usage error of an unknown short option that began ``word``, as uwhl-rs says it."""
+def parse_water_types(values: list[str]) -> list[Union[str, tuple[str, float, float]]]:
+    """--water-type values parsed as the binary parses them: a table type by its name, a custom one as
+    (name, beta_br, beta_bg); ParameterError with the binary's message."""
 def check_distance(
     distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool = False, port: bool = False,
 ) -> None:

@@ -309,7 +309,7 @@ fn water_choice(item: &str) -> Result<WaterChoice, Failure> {
 }
 
 /// One `--water-type` value: its comma-separated items appended to `list`.
-fn water_types(list: &mut Vec<WaterChoice>, v: &str) -> Result<(), Failure> {
+pub(crate) fn water_types(list: &mut Vec<WaterChoice>, v: &str) -> Result<(), Failure> {
     for item in v.split(',').map(str::trim).filter(|n| !n.is_empty()) {
         let choice = water_choice(item)?;
         if list.iter().any(|c| c.water_type.name == choice.water_type.name) {

@@ -462,6 +462,26 @@ fn unknown_short_said(word: &str) -> String {
     crate::files::options::unknown_short_said(word)
 }
 
+/// `--water-type` values parsed as the binary parses them
+/// (`crate::files::settings`): a table type by its name, a custom one as
+/// `(name, beta_br, beta_bg)`. ParameterError with the binary's message.
+#[pyfunction]
+fn parse_water_types<'py>(py: Python<'py>, values: Vec<String>) -> PyResult<Bound<'py, PyList>> {
+    let mut list = Vec::new();
+    for v in &values {
+        crate::files::settings::water_types(&mut list, v).map_err(failure_to_py)?;
+    }
+    let out = PyList::empty(py);
+    for c in list {
+        if c.custom {
+            out.append((c.water_type.name, c.water_type.beta_br, c.water_type.beta_bg))?;
+        } else {
+            out.append(c.water_type.name)?;
+        }
+    }
+    Ok(out)
+}
+
 /// The checks of the distance options (`crate::files::options::check_distance`);
 /// ValueError with the usage message.
 #[pyfunction]
@@ -950,6 +970,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(check_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(parse_water_types, m)?)?;
     m.add_function(wrap_pyfunction!(unknown_short_said, m)?)?;
     m.add_function(wrap_pyfunction!(depth_to_range, m)?)?;
     m.add_function(wrap_pyfunction!(floor_distance, m)?)?;

@@ -689,3 +689,27 @@ def test_a_mask_that_cannot_be_read_is_one_error_before_any_input(binary, tmp_pa
         lines = [x for x in r.stderr.splitlines() if x.startswith(("uwhl:", "uwhl-rs:"))]
         assert len(lines) == 1 and f"--mask {mask}" in lines[0], (face, r.stderr)
         assert not out.exists(), face
+
+
+@pytest.mark.parametrize("value, said", [
+    ("", "no type named"), (",,", "no type named"), ("X:1:2:3", "a custom type is NAME:BETA_BR:BETA_BG"),
+    ("X:\uff11:2", "a custom type is"), ("X:1_0:2", "a custom type is"), ("III,III", "is listed twice"),
+    ("bogus", "unknown water type"),
+])
+def test_water_type_values_are_parsed_alike(binary, tmp_path, value, said):
+    """--water-type is read by one parser in both commands: an empty list,
+    a fourth field, digits Rust does not read (a full-width one, 1_0), a
+    type twice or an unknown name are one usage error (exit 2), the same
+    words, before any input."""
+    from bothcmds import cmds, run_restore
+    from uwhl_rs import images
+
+    img, _ = synth.demo_input(40, 56, water_type="3C", seed=1)
+    images.write_image(tmp_path / "p.png", img, bits=8, encoding="linear")
+    lines = {}
+    for face, cmd in cmds(binary).items():
+        r = run_restore(cmd, tmp_path / "p.png", "-o", tmp_path / face, "--water-type", value)
+        assert r.returncode == 2 and not (tmp_path / face).exists(), (face, r.stderr)
+        lines[face] = r.stderr.splitlines()[0].split(": ", 1)[1]
+        assert said in lines[face], (face, r.stderr)
+    assert lines["python"] == lines["rust"]

@@ -12,7 +12,7 @@ import sys
 import uwhl_rs
 
 from .. import _core
-from ..errors import CommandError
+from ..errors import CommandError, UwhlError
 from ..sidecars import printable
 
 __all__ = ["build_parser", "water_types", "method_kwargs", "file_kwargs", "usage_errors_as_json"]
@@ -97,26 +97,11 @@ def water_types(values: list[str] | None):
     """--water-type values: names (comma lists allowed) or NAME:BETA_BR:BETA_BG."""
     if not values:
         return None
-    out = []
-    for v in values:
-        for item in (x.strip() for x in v.split(",")):
-            if not item:
-                continue
-            if ":" in item:
-                parts = item.split(":")
-                try:
-                    out.append((parts[0], float(parts[1]), float(parts[2])))
-                except (IndexError, ValueError):
-                    raise CommandError(f"--water-type {item!r}: a custom type is NAME:BETA_BR:BETA_BG",
-                                       "bad_arguments") from None
-            elif item in uwhl_rs.WATER_TYPES:
-                out.append(item)
-            else:
-                raise CommandError(
-                    f"--water-type {item!r}: unknown; known types are {', '.join(uwhl_rs.WATER_TYPES)}"
-                    " (or give NAME:BETA_BR:BETA_BG)", "bad_arguments"
-                )
-    return out
+    # the binary's parser (numbers as Rust reads them, names checked by the core, an empty list refused)
+    try:
+        return _core.parse_water_types(list(values))
+    except UwhlError as e:
+        raise CommandError(str(e), "bad_arguments") from None
 
 
 def _folder(value: str) -> str:
