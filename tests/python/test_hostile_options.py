@@ -150,6 +150,17 @@ def test_an_empty_output_folder_is_a_usage_error(binary, tmp_path, face, spellin
     assert sorted(os.listdir(tmp_path)) == ["a.png"]  # nothing written in the current folder
 
 
+@pytest.mark.parametrize("face", FACES)
+def test_stdout_as_the_output_folder_is_a_usage_error(binary, tmp_path, face):
+    """``-o -`` is stdout (the binary's --raw-frames): neither command makes
+    a folder named "-" of it."""
+    _png(tmp_path / "a.png", 40, 60)
+    r = _run(face, binary, [str(tmp_path / "a.png"), "-o", "-"], cwd=tmp_path)
+    assert r.returncode == CONTRACT["bad_arguments"], r.stderr
+    assert "- (stdout) is for" in r.stderr and "--raw-frames" in r.stderr, r.stderr
+    assert sorted(os.listdir(tmp_path)) == ["a.png"]
+
+
 def test_stream_mode_with_stdout_closed_restores_nothing_and_says_so(binary, tmp_path):
     """``>&-``: every frame's outcome is its JSON line on stdout; with
     stdout closed they used to be restored, their lines dropped, exit 0."""

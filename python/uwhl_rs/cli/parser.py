@@ -106,9 +106,13 @@ def water_types(values: list[str] | None):
 
 def _folder(value: str) -> str:
     """An output folder's name as given: an empty one would be taken as the
-    current folder, never what was meant (an unset shell variable)."""
+    current folder, never what was meant (an unset shell variable), and
+    ``-`` is stdout's name."""
     if not value:
         raise argparse.ArgumentTypeError("the output folder's name is empty (give a folder; '.' for the current one)")
+    if value == "-":
+        # as uwhl-rs says: a folder named "-" is never what was meant
+        raise argparse.ArgumentTypeError("- (stdout) is for uwhl-rs --raw-frames; give an output folder (./- for one named so)")
     return value
 
 
