@@ -130,6 +130,10 @@ pub fn remove_stale_temps(dir: &Path) -> usize {
 pub fn outdir_problem(dir: &Path) -> Option<String> {
     match fs::metadata(dir) {
         Ok(m) if !m.is_dir() => Some("not a folder (a file is there): the outputs need a folder".into()),
+        // a link to nothing: the folder cannot be made at its name, nor written through it
+        Err(_) if fs::symlink_metadata(dir).is_ok_and(|m| m.file_type().is_symlink()) => {
+            Some("a link to nothing (its target does not exist): the outputs need a folder".into())
+        }
         _ => None,
     }
 }
@@ -316,6 +320,21 @@ pub fn name_jobs(found: &[(PathBuf, PathBuf)], suffixes: &[String]) -> Vec<Strin
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_dangling_link_is_no_output_folder() {
+        let d = std::env::temp_dir().join(format!("uwhl-dangling-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        fs::create_dir_all(&d).unwrap();
+        let link = d.join("out");
+        std::os::unix::fs::symlink(d.join("nowhere"), &link).unwrap();
+        assert!(outdir_problem(&link).unwrap().starts_with("a link to nothing"));
+        // a link to a folder is a folder; a name not there yet is made
+        fs::create_dir(d.join("nowhere")).unwrap();
+        assert_eq!(outdir_problem(&link), None);
+        assert_eq!(outdir_problem(&d.join("new")), None);
+        fs::remove_dir_all(&d).unwrap();
+    }
 
     #[test]
     fn a_process_is_its_pid_and_its_start_time() {
