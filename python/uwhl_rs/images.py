@@ -425,6 +425,10 @@ def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
         cm, more = _camera_matrix(raw)
         notes += more
         orientation = _FLIP_TO_EXIF.get(int(s.flip), 1)
+    if rgb.ndim != 3 or rgb.shape[2] < 3:
+        # a header that states another number of colours (a damaged or patched file) demosaics to fewer
+        raise ImageReadError(f"{path}: LibRaw made {rgb.shape[2] if rgb.ndim == 3 else 1} colour channel(s) of it, "
+                             "not 3 (a damaged raw header?)")
     img = _core._decode_u16(np.ascontiguousarray(rgb[:, :, :3]), False)
     if preprocess == "reference":
         img = _core._reference_raw(img)
