@@ -141,11 +141,38 @@ fn input_key(p: &Path) -> PathBuf {
     fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
 }
 
-/// The largest sidecar read (they are a few kilobytes): the limit of the
-/// Python package's sidecar reader (`uwhl_rs.sidecars.MAX_BYTES`), so both
-/// take the same files. Parsed, JSON takes up to about 36 times its size:
-/// a planted file of the limit costs tens of megabytes, not hundreds.
-pub(crate) const MAX_SIDECAR: u64 = 1 << 20;
+/// The largest sidecar read: a photo's is a few kilobytes, a video's
+/// with a still for every frame megabytes.
+pub(crate) const MAX_SIDECAR: u64 = 16 << 20;
+
+/// The most JSON values a sidecar read may hold. Parsed, a value takes
+/// some 75 bytes: a planted array of 8 million zeros (16 MiB) took 600 MB,
+/// a million values take at most some 75 MB; a video's sidecar of ten
+/// thousand stills holds about 60,000.
+pub(crate) const MAX_SIDECAR_VALUES: usize = 1_000_000;
+
+/// An upper bound of the values in JSON `text`: its commas, brackets and
+/// braces outside strings, counted in one pass before anything is parsed.
+fn json_values(text: &[u8]) -> usize {
+    let (mut n, mut in_string, mut escaped) = (1usize, false, false);
+    for &b in text {
+        if in_string {
+            match (escaped, b) {
+                (true, _) => escaped = false,
+                (false, b'\\') => escaped = true,
+                (false, b'"') => in_string = false,
+                _ => {}
+            }
+        } else {
+            match b {
+                b'"' => in_string = true,
+                b',' | b'[' | b'{' => n += 1,
+                _ => {}
+            }
+        }
+    }
+    n
+}
 
 /// What a sidecar says of its input: the path as given (`input`), the
 /// resolved one when it records it (`input_resolved`, absolute), and the
@@ -163,9 +190,9 @@ fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String
     Some((input, resolved, hash))
 }
 
-/// A sidecar's JSON read from `path`: a regular file of at most 1 MiB
-/// (a FIFO at its name is never waited on), None otherwise or when it is
-/// not JSON.
+/// A sidecar's JSON read from `path`: a regular file of at most
+/// [`MAX_SIDECAR`] bytes and [`MAX_SIDECAR_VALUES`] values (a FIFO at its
+/// name is never waited on), None otherwise or when it is not JSON.
 pub(crate) fn read_sidecar(path: &Path) -> Option<serde_json::Value> {
     use std::os::unix::fs::OpenOptionsExt;
     let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK).open(path).ok()?;
@@ -175,6 +202,9 @@ pub(crate) fn read_sidecar(path: &Path) -> Option<serde_json::Value> {
     }
     let mut text = Vec::new();
     f.take(MAX_SIDECAR).read_to_end(&mut text).ok()?;
+    if json_values(&text) > MAX_SIDECAR_VALUES {
+        return None;
+    }
     parse_sidecar(&text)
 }
 
@@ -798,20 +828,25 @@ mod tests {
     }
 
     #[test]
-    fn a_sidecar_over_one_mebibyte_is_not_read() {
-        // the Python reader's limit: a planted array of zeros the size of the
-        // old 16 MiB limit parsed to about 600 MB
+    fn a_sidecar_of_too_many_values_is_not_read_and_a_long_videos_is() {
+        // a planted array of 8 million zeros (16 MiB) parsed to about 600 MB
         let d = folder("bigside");
         let p = d.join("a.json");
         let body = |n: usize| format!("{{\"input\": \"a.jpg\", \"pad\": [{}0]}}", "0,".repeat(n));
-        let fits = body((MAX_SIDECAR as usize - 40) / 2);
-        assert!(fits.len() as u64 <= MAX_SIDECAR);
-        fs::write(&p, &fits).unwrap();
-        assert_eq!(read_sidecar(&p).unwrap()["input"], "a.jpg");
-        let over = body(MAX_SIDECAR as usize / 2);
-        assert!(over.len() as u64 > MAX_SIDECAR);
-        fs::write(&p, &over).unwrap();
+        fs::write(&p, body(MAX_SIDECAR_VALUES)).unwrap();
         assert!(read_sidecar(&p).is_none());
+        fs::write(&p, body(MAX_SIDECAR_VALUES - 10)).unwrap();
+        assert_eq!(read_sidecar(&p).unwrap()["input"], "a.jpg");
+        // commas, brackets and braces inside strings are no values
+        let words = format!("{{\"input\": \"a.jpg\", \"note\": \"{}\\\",\"}}", ",[{".repeat(MAX_SIDECAR_VALUES));
+        fs::write(&p, &words).unwrap();
+        assert_eq!(read_sidecar(&p).unwrap()["input"], "a.jpg");
+        // a video's sidecar with a still for each of 20,000 frames (some 2.6 MB) is read
+        let still = r#"{"frame": 123456, "time": 4115.2, "image": "dive_01h08m35.200s.jpg", "sidecar": "dive_01h08m35.200s.json"}"#;
+        let video = format!("{{\"input\": \"dive.mp4\", \"video\": {{\"stills\": [{}]}}}}", vec![still; 20_000].join(", "));
+        assert!(video.len() > 2 << 20);
+        fs::write(&p, &video).unwrap();
+        assert_eq!(read_sidecar(&p).unwrap()["input"], "dive.mp4");
         fs::remove_dir_all(&d).unwrap();
     }
 

@@ -163,7 +163,7 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     };
     for p in &paths {
         let Some(side) = crate::files::commit::read_sidecar(p) else {
-            skip(p, "not a sidecar (not a regular file, over 1 MiB or not JSON)");
+            skip(p, "not a sidecar (not a regular file, over 16 MiB or a million values, or not JSON)");
             continue;
         };
         if let Some(b) = fitted_beta(&side) {
