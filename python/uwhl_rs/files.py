@@ -196,7 +196,7 @@ def restore_staged(
     _base: int = 0,
     _label: str | None = None,
     _flags: bool = False,
-    _make_room: Callable[[int], None] | None = None,
+    _make_room=None,
     **restore_kwargs,
 ) -> Callable[[], FileResult]:
     """:func:`restore_file` in two steps: this call reads and restores the
@@ -214,9 +214,11 @@ def restore_staged(
     ``_core.input_plan``) plus ``_base`` (the command: what the process
     holds anyway, ``_core.process_base()``) is checked against
     ``max_memory`` (default ``_core.default_max_memory()``). ``_make_room``
-    (a batch's): called with the input's own bytes of that plan before the
-    check, to wait until the inputs restored or written beside it leave
-    room for them.
+    (a batch's, as :class:`uwhl_rs.tasks.MemoryGate`): the input's own bytes
+    of that plan are reserved in it before decoding; when the inputs
+    restored or written beside it leave no room, the read is given up, the
+    room waited for outside the decoder (a raw file's decoding holds the
+    process's stderr), and the input read again.
 
     ``_label`` (batches on object storage): the input's name in the sidecar
     (``input``, ``source.path``) and in errors, when ``in_path`` is a local
@@ -254,6 +256,16 @@ def restore_staged(
     return staged
 
 
+class _WaitForRoom(BaseException):
+    """Raised from the header hook to give a read up until the room for
+    ``need`` bytes is there (:func:`_read_and_restore`); a BaseException,
+    so that no decoder's ``except Exception`` takes it for a bad file."""
+
+    def __init__(self, need: int):
+        super().__init__(need)
+        self.need = need
+
+
 def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, half_size, max_side, max_pixels, mask,
                       water_mask, distance, contact, sequence, restore_kwargs, t_start, base, label,
                       flags=False, make_room=None) -> Callable[[], FileResult]:
@@ -262,14 +274,17 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     budget = settings.max_memory
     masks = int(mask is not None) + int(water_mask is not None)
     photo_need = [0]
+    reserved = [False]
 
     def plan(h: int, w: int, bpp: int, oriented: bool) -> None:
         need = input_need(h, w, bpp, oriented, half_size=half_size, max_side=max_side, preprocess=preprocess,
                           masks=masks, contact=contact, sphere_points=restore_kwargs.get("sphere_points")) + base
         photo_need[0] = need - base
         side, memory = spelt("max_side", flags), spelt("max_memory", flags)
-        if make_room is not None and need <= budget:
-            make_room(need - base)
+        if make_room is not None and need <= budget and not reserved[0]:
+            if not make_room.try_reserve(need - base):
+                raise _WaitForRoom(need - base)
+            reserved[0] = True
         if need > budget:
             raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, over {memory} {budget} "
                                      f"(use {side} or raise {memory})")
@@ -277,8 +292,14 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
             raise ImageTooLargeError(f"{label}: {w}x{h} pixels need about {need} bytes, more than the system "
                                      f"gives now (free memory, a container limit or ulimit -v); use {side}")
 
-    image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels,
-                             _on_header=plan, _flags=flags)
+    while True:
+        try:
+            image, meta = read_image(in_path, preprocess=preprocess, half_size=half_size, max_pixels=max_pixels,
+                                     _on_header=plan, _flags=flags)
+            break
+        except _WaitForRoom as w:
+            make_room.reserve(w.need)
+            reserved[0] = True
     full_hw = image.shape[:2]
     # the binary's words for its own flags: "--mask is 32x24 pixels but the input is 64x48"
     of = "the input" if flags else "the image"

@@ -351,7 +351,9 @@ def _decoder_messages():
                 text = tmp.read(1 << 20).decode("utf-8", "replace")
                 others = []
                 for line in text.splitlines():
-                    (said if _DECODER_LINE.search(line) else others).append(line)
+                    # the command's own lines (another input's error, its JSON) are never the decoder's
+                    ours = line.startswith(("uwhl:", "uwhl ", "uwhl-rs:", "{", "["))
+                    (said if _DECODER_LINE.search(line) and not ours else others).append(line)
                 if others:
                     try:
                         os.write(2, ("\n".join(others) + "\n").encode("utf-8", "replace"))

@@ -232,6 +232,15 @@ class MemoryGate:
         self.held = 0
         self._cv = threading.Condition()
 
+    def try_reserve(self, need: int) -> bool:
+        """Holds ``need`` bytes if they fit beside what is held (or nothing
+        is), without waiting; whether it did."""
+        with self._cv:
+            if self.held > 0 and self.held + need > self.budget:
+                return False
+            self.held += need
+        return True
+
     def reserve(self, need: int) -> int:
         """Waits until ``need`` bytes fit beside what is held (or nothing
         is), then holds them; returns ``need``, for :meth:`release`."""
@@ -320,10 +329,22 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
     local_in = None
     held = [0]
 
-    def room(need: int) -> None:
-        # the run's other inputs (the one being written, --jobs) leave room for this one's plan
-        if ctx.gate is not None:
+    class Room:
+        """This input's share of the run's gate: what it reserves it gives back once."""
+
+        @staticmethod
+        def try_reserve(need: int) -> bool:
+            if ctx.gate.try_reserve(need):
+                held[0] = need
+                return True
+            return False
+
+        @staticmethod
+        def reserve(need: int) -> None:
             held[0] = ctx.gate.reserve(need)
+
+    # the run's other inputs (the one being written, --jobs) leave room for this one's plan
+    room = Room() if ctx.gate is not None else None
 
     def _give_back() -> None:
         if ctx.gate is not None:

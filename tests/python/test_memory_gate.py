@@ -71,3 +71,21 @@ def test_the_sphere_index_is_in_the_memory_plan():
     small = _core.input_plan(64, 64, 3, True, False, 1, False, 0, 0, sphere_points=500)
     big = _core.input_plan(64, 64, 3, True, False, 1, False, 0, 0, sphere_points=1_000_000)
     assert big - small == (1_000_000 - 500) * 64
+
+
+def test_another_inputs_error_line_is_not_taken_for_the_raw_decoders(capfd):
+    """A raw file decodes with the process's stderr collected (LibRaw's
+    lines say whether it was cut short); with --jobs another input's error
+    line, written meanwhile, said "truncated" and failed the raw file.
+    The command's own lines are passed on, never the decoder's."""
+    import os
+
+    from uwhl_rs import images
+
+    with images._decoder_messages() as said:
+        os.write(2, b"uwhl: d.jpg: JPEG: cannot decode: truncated JPEG\n")
+        os.write(2, b'{"error": "unreadable_input", "message": "truncated"}\n')
+        os.write(2, b"e.dng: Unexpected end of file\n")
+    assert said == ["e.dng: Unexpected end of file"]
+    err = capfd.readouterr().err
+    assert "uwhl: d.jpg: JPEG: cannot decode: truncated JPEG" in err and '"error": "unreadable_input"' in err
