@@ -39,24 +39,29 @@ def supported(path: str) -> bool:
 
 def _glob(pattern: str) -> list[str]:
     """The paths ``pattern`` matches, as :func:`glob.glob` gives them
-    (``**`` any depth, names starting with a dot only when the pattern
-    spells the dot), but ``**`` never descends through a link to a folder:
-    two links back to a parent made the search grow without end, and a
-    link out of the tree took files a walk of the same folder does not."""
+    (``**`` any depth, files and folders; a name starting with a dot only
+    when the pattern spells one; the pattern's own leading part kept as
+    written, ``./`` too), but ``**`` never descends through a link to a
+    folder: two links back to a parent made the search grow without end,
+    and a link out of the tree took files a walk of the same folder does
+    not."""
     parts = pattern.split(os.sep)
     first = next((k for k, p in enumerate(parts) if GLOB_CHARS.search(p)), len(parts))
     anchor = os.sep.join(parts[:first]) or ("" if parts[0] else os.sep)
     rest = parts[first:]
     if not rest:
         return [pattern] if os.path.lexists(pattern) else []
+    if rest[-1] == "**":
+        # glob.glob's trailing ** gives the files as well as the folders; pathlib's the folders only
+        rest = [*rest, "*"]
+    spelled = any(q.startswith(".") and q not in (".", "..") for q in rest)
     base = Path(anchor or ".")
     out = []
     for p in base.glob(os.sep.join(rest)):
         rel = p.relative_to(base).parts
-        # a hidden name is matched only by a pattern part that starts with the dot itself
-        if any(r.startswith(".") and not any(q.startswith(".") for q in rest) for r in rel):
+        if not spelled and any(r.startswith(".") and r not in (".", "..") for r in rel):
             continue
-        out.append(str(p) if anchor else os.path.join(*rel))
+        out.append(os.path.join(anchor, *rel) if anchor else os.path.join(*rel))
     return out
 
 

@@ -340,6 +340,9 @@ def test_a_recursive_glob_does_not_follow_links_to_folders(tmp_path):
     assert sorted(_glob(f"{root}/in/**/*.jpg")) == [f"{root}/in/a.jpg", f"{root}/in/sub/b.jpg"]
     assert _glob(f"{root}/in/.*.jpg") == [f"{root}/in/.h.jpg"]
     assert sorted(_glob(f"{root}/i?/*.jpg")) == [f"{root}/in/a.jpg"]
+    # a trailing ** takes the files too, as glob.glob's does; the pattern's own ./ is kept
+    assert [p for p in sorted(_glob(f"{root}/in/**")) if p.endswith(".jpg")] == [f"{root}/in/a.jpg", f"{root}/in/sub/b.jpg"]
+    assert _glob(f"{root}/in/./*.jpg") == [f"{root}/in/./a.jpg"]
     r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", "in/**/*.jpg", "-o", "o", "-q"], cwd=tmp_path,
                        capture_output=True, text=True, timeout=60)
     assert "Traceback" not in r.stderr and "outside" not in r.stderr and "c.jpg" not in r.stderr, r.stderr
