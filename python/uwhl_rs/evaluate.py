@@ -88,11 +88,14 @@ def type_steps(a: str, b: str) -> int | None:
     return None
 
 
-#: what evaluating one image keeps, per pixel: the restorations of every
-#: profile and of the ten candidate types, the baselines, the truth and the
-#: distance (a 2 MP photo peaked at about 1.05 GB, 445 bytes a pixel over
-#: the process's own, 2026-12-05)
-EVALUATE_BYTES_PER_PIXEL = 480
+#: what evaluating one image keeps, per pixel: the baselines (input,
+#: stretch, gray world), the truth and the distance, and then each
+#: restoration kept to be scored (every profile, the distance's, each
+#: candidate type: image, radiance, transmission, confidence, masks). With
+#: two profiles and ten types a 2 MP photo peaked at about 1.05 GB, 445
+#: bytes a pixel over the process's own (2026-12-05): 48 + 12 x 36 = 480
+EVALUATE_BASE_PER_PIXEL = 48
+EVALUATE_PER_RESTORATION = 36
 
 
 def read_distance(path: str, height: int, width: int, max_memory: int | None = None) -> np.ndarray:
@@ -196,7 +199,9 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
     # every profile's and every candidate type's restoration is kept to be scored: refused
     # whole, before the first, when they cannot all fit (the restores check only themselves)
     budget = restore_kwargs.get("max_memory")
-    need = h * w * EVALUATE_BYTES_PER_PIXEL
+    kept = 1 + len(compare) + (1 if entry.distance else 0) + len(entry.restore.get("water_types")
+                                                                 or restore_kwargs.get("water_types") or TYPE_ORDER)
+    need = h * w * (EVALUATE_BASE_PER_PIXEL + EVALUATE_PER_RESTORATION * kept)
     limit = gt.memory_budget(budget)
     if need > limit:
         raise MemoryError(f"evaluating {w}x{h} pixels keeps the restorations of every profile and candidate type, "

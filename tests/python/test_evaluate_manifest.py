@@ -241,10 +241,14 @@ def test_the_memory_of_an_evaluation_is_planned_against_max_memory(tmp_path):
     big = _scene(tmp_path, "big.png", h=1000, w=1500)
     small = _scene(tmp_path, "small.png")
     (tmp_path / "m.json").write_text(json.dumps({"images": [big, small]}))
-    need = 1000 * 1500 * ev.EVALUATE_BYTES_PER_PIXEL
+    # two profiles and the ten types kept: 48 + 12 x 36 bytes a pixel
+    need = 1000 * 1500 * (ev.EVALUATE_BASE_PER_PIXEL + 12 * ev.EVALUATE_PER_RESTORATION)
     r = _evaluate(tmp_path, tmp_path / "m.json", "--max-memory", str(need - 1))
     assert r.returncode == 4 and "Traceback" not in r.stderr, r.stderr
     assert "images[0] (big.png): over the memory budget: evaluating 1500x1000 pixels keeps the restorations" in r.stderr
     assert f"about {need} bytes, more than the {need - 1} of --max-memory" in r.stderr
     doc = json.loads((tmp_path / "out" / "results.json").read_text())
     assert [i["image"] for i in doc["images"]] == ["images[1] (small.png)"]
+    # told one type, it keeps three restorations (two profiles, the type): it fits
+    r = _evaluate(tmp_path, tmp_path / "m.json", "--max-memory", str(need - 1), "--water-type", "3C")
+    assert r.returncode == 0, r.stderr
