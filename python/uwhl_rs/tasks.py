@@ -537,7 +537,8 @@ def _header_need(path: str, opts: dict) -> int:
     def hook(h, w, bpp, oriented):
         got.append(files.input_need(h, w, bpp, oriented, half_size=opts.get("half_size", False),
                                     max_side=opts.get("max_side"), preprocess=opts.get("preprocess", "none"),
-                                    masks=masks, contact=opts.get("contact", False)))
+                                    masks=masks, contact=opts.get("contact", False),
+                                    sphere_points=opts.get("sphere_points")))
         raise _Planned
 
     try:

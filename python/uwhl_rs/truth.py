@@ -23,7 +23,11 @@ from .errors import ManifestError
 from .images import DEFAULT_MAX_PIXELS
 
 __all__ = ["MIN_TRUTH_SUM", "MAX_TRUTH_PIXELS", "MAX_TRUTH_VALUE", "pixel_angles", "angle_stats", "best_gains", "score",
-           "median_interval", "paired_medians", "resize_nearest", "load_npy", "read_truth", "read_truth_mask", "memory_budget"]
+           "median_interval", "paired_medians", "resize_nearest", "load_npy", "read_truth", "read_truth_mask", "memory_budget", "TRUTH_PER_PHOTO_PIXEL"]
+
+#: the most pixels a truth or truth mask may have for each of its photo's
+#: (at least 4 Mpx)
+TRUTH_PER_PHOTO_PIXEL = 64
 
 #: Truth pixels darker than this (sum of R, G, B, linear) carry no colour
 #: worth scoring: their angle is dominated by quantisation and noise.
@@ -212,9 +216,10 @@ def _check_size(path: str, shape, what: str, photo=None, max_memory: int | None 
     too large to read: not H x W, H x W x C or C x H x W with at most four
     channels (a 1-D array, the frames of an animation), over
     ``MAX_TRUTH_PIXELS`` pixels or, for the photo (height, width)
-    ``photo``, over the pixels a distance map of it may have (16 times its
-    own: a small compressed file must not decode to gigabytes beside a
-    thumbnail), or more float64 values than ``max_memory`` (default: the
+    ``photo``, over :data:`TRUTH_PER_PHOTO_PIXEL` times its pixels (and
+    4 Mpx: a small compressed file must not decode to gigabytes beside a
+    thumbnail, while the truth of a photo evaluated at an eighth of its
+    size is read), or more float64 values than ``max_memory`` (default: the
     machine's budget) holds. Sizes in Python integers: a header's product
     cannot wrap."""
     shape = tuple(int(x) for x in shape)
@@ -233,8 +238,8 @@ def _check_size(path: str, shape, what: str, photo=None, max_memory: int | None 
     pixels = values // max(channels, 1)
     if pixels > MAX_TRUTH_PIXELS:
         raise ManifestError(f"{path}: the {what} is {pixels} pixels, over the limit of {MAX_TRUTH_PIXELS}; not read")
-    if photo is not None and pixels > _core.map_cap(int(photo[0]), int(photo[1])):
-        raise ManifestError(f"{path}: the {what} is {pixels} pixels, more than {_core.MAP_PER_PHOTO_PIXEL} times "
+    if photo is not None and pixels > max(TRUTH_PER_PHOTO_PIXEL * int(photo[0]) * int(photo[1]), 4 << 20):
+        raise ManifestError(f"{path}: the {what} is {pixels} pixels, more than {TRUTH_PER_PHOTO_PIXEL} times "
                             f"the photo's {photo[1]}x{photo[0]}; not read")
     # read as float64, with a copy or two while it is checked and resized
     need = values * 8 * 3

@@ -458,8 +458,10 @@ fn exr_depth_channel(names: &[String]) -> Option<usize> {
 
 /// The most samples an OpenEXR distance map's parts may hold together for
 /// each pixel of its depth channel (every channel of every part is
-/// decoded): a renderer's file of colour, depth and a dozen passes fits.
-const MAX_EXR_SAMPLES_PER_PIXEL: u64 = 32;
+/// decoded): a renderer's multilayer file of every pass and three
+/// Cryptomatte layers (some 70 channels) fits; 40,000 parts beside a
+/// small depth part do not.
+const MAX_EXR_SAMPLES_PER_PIXEL: u64 = 128;
 
 /// An OpenEXR distance map in metres: the depth channel
 /// ([`exr_depth_channel`]) of the first part that has one, flat (not deep),
@@ -741,12 +743,13 @@ mod tests {
         assert!(e.message.contains("over --max-pixels 5"), "{}", e.message);
         // a depth channel among more samples than a renderer's passes: refused from the
         // header (thousands of parts of a small file once decoded to gigabytes)
-        let names: Vec<String> = (0..40).map(|i| format!("P{i:02}")).collect();
+        let names: Vec<String> = (0..140).map(|i| format!("P{i:03}")).collect();
         let mut many: Vec<(&str, FlatSamples)> = names.iter().map(|n| (n.as_str(), col())).collect();
         many.push(("Z", col()));
         let e = read_distance(&exr_file("passes.exr", 3, 2, many), 1 << 20, 1 << 30).unwrap_err();
-        assert!(e.message.contains("246 samples in 1 part, more than 32 for each of the 3x2 pixels"), "{}", e.message);
-        let mut fits: Vec<(&str, FlatSamples)> = names.iter().take(31).map(|n| (n.as_str(), col())).collect();
+        assert!(e.message.contains("846 samples in 1 part, more than 128 for each of the 3x2 pixels"), "{}", e.message);
+        // a renderer's 70 channels (every pass, Cryptomatte) are read
+        let mut fits: Vec<(&str, FlatSamples)> = names.iter().take(69).map(|n| (n.as_str(), col())).collect();
         fits.push(("Z", col()));
         assert_eq!(read_distance(&exr_file("fits.exr", 3, 2, fits), 1 << 20, 1 << 30).unwrap().data, vec![0.5; 6]);
         // cut short, or its magic number followed by noise

@@ -16,9 +16,9 @@ use crate::method::floor::{Floor, Port};
 /// Largest navigation log read, in bytes.
 const MAX_LOG_BYTES: u64 = 256 << 20;
 
-/// The most records a navigation log may hold: 10 Hz for more than two
-/// days, in at most about 200 MB once read.
-const MAX_RECORDS: usize = 2_000_000;
+/// The most records a navigation log may hold: 50 Hz for a day, 10 Hz
+/// for five, in at most about 400 MB once read.
+const MAX_RECORDS: usize = 5_000_000;
 
 /// Longest field of a log shown in a message, in characters.
 const SHOWN: usize = 40;

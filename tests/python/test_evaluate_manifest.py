@@ -221,7 +221,7 @@ def test_a_long_value_is_quoted_short(tmp_path):
 
 
 def test_a_truth_far_larger_than_its_photo_is_not_read(tmp_path):
-    """A small compressed file can hold a huge truth: one with more than 16
+    """A small compressed file can hold a huge truth: one with more than 64
     times the photo's pixels (and 4 Mpx) is refused from its header."""
     tifffile = pytest.importorskip("tifffile")
     e = _scene(tmp_path)
@@ -231,7 +231,7 @@ def test_a_truth_far_larger_than_its_photo_is_not_read(tmp_path):
     (tmp_path / "m.json").write_text(json.dumps({"images": [e]}))
     r = _evaluate(tmp_path, tmp_path / "m.json")
     assert r.returncode == 3 and "Traceback" not in r.stderr, r.stderr
-    assert "t.tif: the truth is 4410000 pixels, more than 16 times the photo's 80x60" in r.stderr, r.stderr
+    assert "t.tif: the truth is 4410000 pixels, more than 64 times the photo's 80x60" in r.stderr, r.stderr
 
 
 def test_the_memory_of_an_evaluation_is_planned_against_max_memory(tmp_path):
