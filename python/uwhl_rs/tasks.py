@@ -227,9 +227,11 @@ class MemoryGate:
     binary's reader waits for its writer. An input alone always goes: its
     own plan was checked against the whole budget."""
 
-    def __init__(self, budget: int):
+    def __init__(self, budget: int, stop: threading.Event | None = None):
         self.budget = int(budget)
         self.held = 0
+        #: set on an interrupt: an input waiting for room is not restored then
+        self.stop = stop
         self._cv = threading.Condition()
 
     def try_reserve(self, need: int) -> bool:
@@ -246,6 +248,8 @@ class MemoryGate:
         is), then holds them; returns ``need``, for :meth:`release`."""
         with self._cv:
             while self.held > 0 and self.held + need > self.budget:
+                if self.stop is not None and self.stop.is_set():
+                    raise KeyboardInterrupt  # the run stops: no input waiting for room starts
                 self._cv.wait(0.2)  # in slices: an interrupt reaches the main thread between waits
             self.held += need
         return need
@@ -289,8 +293,10 @@ def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | Non
     # (and 4 MiB for the writer threads' stacks and allocator arenas)
     base = _core.process_base() + (4 << 20)
     budget = opts.get("max_memory") or _core.default_max_memory()
-    return Context(opts, dict(storage_options), overwrite, scratch, sequence, base, reuse, reuse_water_mask,
-                   gate=MemoryGate(max(0, int(budget) - base)))
+    ctx = Context(opts, dict(storage_options), overwrite, scratch, sequence, base, reuse, reuse_water_mask,
+                  gate=MemoryGate(max(0, int(budget) - base)))
+    ctx.gate.stop = ctx.stop
+    return ctx
 
 
 def _worker_resources(threads_default: int | None) -> tuple[int | None, int | None]:

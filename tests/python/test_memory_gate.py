@@ -89,3 +89,22 @@ def test_another_inputs_error_line_is_not_taken_for_the_raw_decoders(capfd):
     assert said == ["e.dng: Unexpected end of file"]
     err = capfd.readouterr().err
     assert "uwhl: d.jpg: JPEG: cannot decode: truncated JPEG" in err and '"error": "unreadable_input"' in err
+
+
+def test_an_input_waiting_for_room_does_not_start_after_an_interrupt():
+    stop = threading.Event()
+    gate = tasks.MemoryGate(100, stop=stop)
+    gate.reserve(80)
+    raised = []
+
+    def wait():
+        try:
+            gate.reserve(50)
+        except KeyboardInterrupt:
+            raised.append(True)
+
+    t = threading.Thread(target=wait, daemon=True)
+    t.start()
+    stop.set()
+    t.join(10)
+    assert raised == [True] and gate.held == 80
