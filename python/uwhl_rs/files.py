@@ -17,7 +17,7 @@ import uwhl_rs
 
 from . import _core
 from ._core import ParameterError
-from .errors import ImageTooLargeError, shown
+from .errors import ImageReadError, ImageTooLargeError, shown
 from .images import ImageMeta, colorize_transmission, display_linear, read_image, to_srgb
 
 __all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor", "spelt"]
@@ -256,10 +256,10 @@ def restore_staged(
     return staged
 
 
-class _WaitForRoom(BaseException):
+class _WaitForRoom(ImageReadError):
     """Raised from the header hook to give a read up until the room for
-    ``need`` bytes is there (:func:`_read_and_restore`); a BaseException,
-    so that no decoder's ``except Exception`` takes it for a bad file."""
+    ``need`` bytes is there (:func:`_read_and_restore`): an ImageReadError,
+    which ``read_image`` lets through as it is."""
 
     def __init__(self, need: int):
         super().__init__(need)
