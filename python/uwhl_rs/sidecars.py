@@ -29,8 +29,10 @@ __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", 
 #: the version of the checked fields (the sidecar's own ``uwhl_version`` says which program wrote it)
 SCHEMA_VERSION = 1
 
-#: the largest sidecar read, in bytes (one is a few kB; custom water types and notes stay far below)
-MAX_BYTES = 1 << 20
+#: the largest sidecar read, in bytes: a photo's is a few kB; a video's lists up to
+#: 5000 estimates (some 650 kB) and a still for every N-th frame (some 170 bytes each:
+#: 19,000 stills fit, a two-hour dive at --every 12)
+MAX_BYTES = 4 << 20
 
 #: the deepest nesting of arrays and objects accepted (the writers use 3)
 MAX_DEPTH = 16

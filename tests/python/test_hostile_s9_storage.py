@@ -169,27 +169,28 @@ def _put(fs, local_dir, prefix):
 
 
 def test_a_huge_sidecar_is_refused_from_its_listed_size_unfetched(store, restored):
-    """The listing says the object is 3 MiB, over a sidecar's 1 MiB: it is
+    """The listing says the object is 6 MiB, over a sidecar's 4 MiB: it is
     a note, and not one byte of it is asked for (it used to be fetched
     whole, then measured: 1.3 GB of memory for a 400 MB object)."""
     from uwhl_rs import report
+    from uwhl_rs.sidecars import MAX_BYTES
 
     _put(store, restored / "out", "/survey/out")
-    store.pipe_file("/survey/out/huge.json", b" " * (3 << 20))
+    store.pipe_file("/survey/out/huge.json", b" " * (6 << 20))
     done = report.write_report(f"{PROTOCOL}://survey/out")
     assert done["photos"] == 1
-    assert any(p.endswith("huge.json: cannot read (larger than 1048576 bytes)") for p in done["problems"]), done
+    assert any(p.endswith(f"huge.json: cannot read (larger than {MAX_BYTES} bytes)") for p in done["problems"]), done
     assert store.served.get("/survey/out/huge.json", 0) == 0
 
 
 def test_a_listing_that_lies_still_brings_no_more_than_the_limit(store, restored):
     """The listing says 100 bytes (the object replaced since, or a hostile
-    store): the read is bounded by the limit itself, 1 MiB + 1 byte."""
+    store): the read is bounded by the limit itself, 4 MiB + 1 byte."""
     from uwhl_rs.outdir import collect_sidecars
     from uwhl_rs.sidecars import MAX_BYTES
 
     _put(store, restored / "out", "/survey/out")
-    store.pipe_file("/survey/out/huge.json", b" " * (3 << 20))
+    store.pipe_file("/survey/out/huge.json", b" " * (6 << 20))
     store.lies["/survey/out/huge.json"] = 100
     photos, problems = collect_sidecars(f"{PROTOCOL}://survey/out")
     assert [p.sidecar for p in photos] == ["f00.json"]

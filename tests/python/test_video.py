@@ -323,3 +323,26 @@ def test_stills_over_an_earlier_video_take_its_place(clips, tmp_path):
     assert not (tmp_path / "cut.mkv").exists()
     side = json.loads((tmp_path / "cut.json").read_text())
     assert side["outputs"]["video"] is None and len(side["video"]["stills"]) == 2
+
+
+def test_a_long_videos_sidecar_is_read_by_the_report(tmp_path):
+    """A video's sidecar lists up to 5000 estimates and a still for every
+    N-th frame: a two-hour dive at --every 25 (9000 stills, some 1.6 MB)
+    is on the report's page, not a sidecar "larger than" the reader takes."""
+    est = [{"frame": 25 * k, "time": k * 1.0, "event": "scheduled", "change": 0.0123, "water_type": "3C",
+            "veiling_light": [0.012345, 0.234567, 0.345678]} for k in range(5000)]
+    stills = [{"frame": 25 * k, "time": k * 1.0, "image": f"dive_{k:05d}.jpg", "sidecar": f"dive_{k:05d}.json"}
+              for k in range(9000)]
+    side = {"input": "dive.mp4", "kind": "video", "outputs": {"stills": [s["image"] for s in stills],
+                                                              "strip": "dive_strip.jpg"},
+            "water_type": "3C", "veiling_light": [0.01, 0.2, 0.3], "flags": [],
+            "video": {"frames": {"decoded": 225000, "restored": 9000, "reused": 4000, "every": 25},
+                      "stream": {"width": 1920, "height": 1080, "rate": 25.0}, "estimates": est, "stills": stills}}
+    text = json.dumps(side)
+    assert len(text) > 1 << 20
+    (tmp_path / "dive.json").write_text(text)
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "report", str(tmp_path)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "larger than" not in r.stdout + r.stderr
+    assert "dive" in (tmp_path / "report" / "index.html").read_text()
