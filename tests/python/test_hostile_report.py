@@ -356,7 +356,7 @@ def _shapes() -> dict:
                                                 + "}" * 100000 + "}").encode()),
         "non_utf8": raw(lambda t: t.replace('"water_type": "', '"water_type": "\xff', 1).encode("latin-1")),
         "bom": raw(lambda t: b"\xef\xbb\xbf" + t.encode()),
-        "huge_file": raw(lambda t: json.dumps(dict(json.loads(t), padding="x" * (3 << 20))).encode()),
+        "huge_file": raw(lambda t: json.dumps(dict(json.loads(t), padding="x" * (6 << 20))).encode()),
         "huge_integer": number_text("vl_pixels", 0.123456789, "9" * 5000),
         "not_an_object_list": raw(lambda t: b"[1, 2, 3]"),
         "not_an_object_text": raw(lambda t: b'"a sidecar"'),

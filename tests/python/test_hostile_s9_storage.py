@@ -304,7 +304,7 @@ def test_report_and_ifdo_on_s3_read_bounded_ranges(s3, restored, tmp_path, monke
     r = uwhl("restore", "s3://survey9/in/", "-o", "s3://survey9/out/", "--storage-option", f"endpoint_url={endpoint}",
              "-q")
     assert r.returncode == 0, r.stderr
-    fs.pipe("survey9/out/huge.json", b" " * (3 << 20))
+    fs.pipe("survey9/out/huge.json", b" " * (6 << 20))
     fs.pipe("survey9/out/empty.json", b"")
     served: dict = {}
     cat_file, fetch_range = s3fs.S3FileSystem._cat_file, s3fs.core.S3File._fetch_range
@@ -324,7 +324,7 @@ def test_report_and_ifdo_on_s3_read_bounded_ranges(s3, restored, tmp_path, monke
     so = {"endpoint_url": endpoint}
     done = report.write_report("s3://survey9/out/", storage_options=so)
     assert done["photos"] == 1 and done["thumbnails_written"] == 2, done
-    assert "s3://survey9/out/huge.json: cannot read (larger than 1048576 bytes)" in done["problems"]
+    assert f"s3://survey9/out/huge.json: cannot read (larger than {4 << 20} bytes)" in done["problems"]
     assert any(p.startswith("s3://survey9/out/empty.json: not a usable sidecar: not JSON") for p in done["problems"])
     assert served.get("survey9/out/huge.json", 0) == 0
     assert served["survey9/out/f00.jpg"] == fs.size("survey9/out/f00.jpg")
