@@ -287,7 +287,8 @@ fn path_bytes(p: &Path) -> &[u8] {
     p.as_os_str().as_bytes()
 }
 
-/// The pid and input a claim file names.
+/// The pid, the process's start time (when the claim records it) and the
+/// input a claim file names.
 fn read_claim(path: &Path) -> Option<(u32, Option<u64>, PathBuf)> {
     use std::os::unix::ffi::OsStrExt;
     use std::os::unix::fs::OpenOptionsExt;

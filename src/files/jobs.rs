@@ -321,11 +321,17 @@ pub fn name_jobs(found: &[(PathBuf, PathBuf)], suffixes: &[String]) -> Vec<Strin
 mod tests {
     use super::*;
 
-    #[test]
-    fn a_dangling_link_is_no_output_folder() {
-        let d = std::env::temp_dir().join(format!("uwhl-dangling-{}", std::process::id()));
+    /// An empty folder of the system's temporary one, its name `uwhl-TAG-PID`.
+    fn scratch(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("uwhl-{tag}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&d);
         fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn a_dangling_link_is_no_output_folder() {
+        let d = scratch("dangling");
         let link = d.join("out");
         std::os::unix::fs::symlink(d.join("nowhere"), &link).unwrap();
         assert!(outdir_problem(&link).unwrap().starts_with("a link to nothing"));
@@ -348,9 +354,7 @@ mod tests {
 
     #[test]
     fn stale_temporaries_of_dead_processes_go_live_ones_stay() {
-        let d = std::env::temp_dir().join(format!("uwhl-stale-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&d);
-        fs::create_dir_all(&d).unwrap();
+        let d = scratch("stale");
         // a pid above the kernel's largest (4194304) never runs
         let dead = d.join(".uwhl-4194399-7.tmp");
         let dead_py = d.join(".uwhl-4194399-ab12cd.tmp.png");
@@ -366,9 +370,7 @@ mod tests {
 
     #[test]
     fn a_path_that_cannot_be_looked_at_says_why() {
-        let d = std::env::temp_dir().join(format!("uwhl-why-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&d);
-        fs::create_dir_all(&d).unwrap();
+        let d = scratch("why");
         std::os::unix::fs::symlink(d.join("b"), d.join("a")).unwrap();
         std::os::unix::fs::symlink(d.join("a"), d.join("b")).unwrap();
         fs::write(d.join("f"), b"x").unwrap();

@@ -304,6 +304,12 @@ fn column_from(header: &[String], names: &[&str], from: usize) -> Option<usize> 
     header.iter().enumerate().skip(from).find(|(_, h)| names.iter().any(|n| norm(h) == norm(n))).map(|(i, _)| i)
 }
 
+/// Whether a line of a log holds fields (the header or a record): not
+/// blank, not a `#` comment.
+fn holds_fields(line: &str) -> bool {
+    !line.trim().is_empty() && !line.trim_start().starts_with('#')
+}
+
 /// Parses a navigation log: a header naming its columns, then one row per
 /// record. Columns: `altitude` (metres above the seabed; also `alt`,
 /// `altitude_m`, `image-meters-above-ground`), a file name (`file`,
@@ -315,7 +321,7 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim_start_matches('\u{feff}')));
     let (head_no, head) = lines
         .by_ref()
-        .find(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .find(|(_, l)| holds_fields(l))
         .ok_or("no header line (the first line names the columns)")?;
     let delim = [',', ';', '\t'].into_iter().max_by_key(|d| head.matches(*d).count()).unwrap_or(',');
     let header = fields(head, delim).map_err(|e| format!("line {head_no}: {e}"))?;
@@ -342,7 +348,7 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
     }
     // each record is held twice over (by name and stem, or by time): a log of
     // millions of 4-byte lines would take ten times its size in memory
-    let records = text.lines().filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#')).count().saturating_sub(1);
+    let records = text.lines().filter(|l| holds_fields(l)).count().saturating_sub(1);
     if records > MAX_RECORDS {
         return Err(format!("{records} records, over the {MAX_RECORDS} a navigation log may have: give the dive's part of it"));
     }
@@ -352,7 +358,7 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
     }
     let max = f64::from(crate::method::distance::MAX_DISTANCE);
     for (no, line) in lines {
-        if line.trim().is_empty() || line.trim_start().starts_with('#') {
+        if !holds_fields(line) {
             continue;
         }
         let row = fields(line, delim).map_err(|e| format!("line {no}: {e}"))?;

@@ -198,20 +198,20 @@ struct Shade {
     k: [f64; 3],
     w_photo: f64,
     floored: [bool; 3],
+    /// whether A has water's colour (METHOD §3); when not, nothing of the restoration is trusted
+    water: bool,
 }
 
 impl Shade {
     fn new(terms: &Terms, radiance: &PowerSums, input: &PowerSums, veil_excess: f64) -> Self {
+        let water = water_coloured(terms.af.map(|v| v as f32));
         Self {
             g: gains_from(radiance.color(SOG_P)),
             k: gains_from(input.color(SOG_P)),
             // a veil of no water's colour (METHOD §3): the model does not hold, nothing of it is trusted
-            w_photo: if water_coloured(terms.af.map(|v| v as f32)) {
-                ((veil_excess - EXCESS_LO) / (EXCESS_HI - EXCESS_LO)).clamp(0.0, 1.0)
-            } else {
-                1.0
-            },
+            w_photo: if water { ((veil_excess - EXCESS_LO) / (EXCESS_HI - EXCESS_LO)).clamp(0.0, 1.0) } else { 1.0 },
             floored: terms.sigma.map(|s| s < quantisation_sigma(1.0)),
+            water,
         }
     }
 
@@ -340,7 +340,7 @@ pub fn trust(
             row_weight
         })
         .collect();
-    if blend && !water_coloured(a) {
+    if blend && !shade.water {
         // no water between camera and scene (or an A that is not the water's,
         // METHOD §3): nothing was dehazed, so the brightness falls back too;
         // the input's balance at the display's overall brightness
