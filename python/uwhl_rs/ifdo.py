@@ -21,7 +21,6 @@ folder of ``uwhl restore`` or ``uwhl-rs restore``.
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import json
 import os
 import re
@@ -33,8 +32,8 @@ from urllib.parse import quote
 from .errors import IfdoError
 from .ifdocheck import DEFAULT_TIME_FORMAT, field_problems, plain_data
 from .outdir import collect_sidecars
-from .sidecars import LOCAL_SEPARATORS, display, printable
-from .storage import Folder, is_url, on_storage, read_regular
+from .sidecars import LOCAL_SEPARATORS, display, is_sha256, printable
+from .storage import Folder, is_url, on_storage, read_regular, sha256_of
 
 #: the iFDO version written, and the schema it is checked against
 IFDO_VERSION = "v2.0.1"
@@ -420,18 +419,16 @@ def _photo_problem(folder, key: str, want) -> str | None:
     recorded ``want``. An iFDO's items are published with their hashes:
     a planted sidecar must not list a photo that is not there, or another
     file under a photo's hash."""
-    if not isinstance(want, str) or not re.fullmatch(r"[0-9A-Fa-f]{64}", want):
+    if not is_sha256(want):
         return "has no recorded SHA-256"
-    h = hashlib.sha256()
     try:
         with folder.open(key, MAX_PHOTO_BYTES) as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                h.update(block)
+            got = sha256_of(f)
     except FileNotFoundError:
         return "is not there"
     except OSError as e:
         return f"cannot be read ({e.strerror or e})"
-    if h.hexdigest() != want.lower():
+    if got != want.lower():
         return "is not the file its sidecar describes (another SHA-256)"
     return None
 

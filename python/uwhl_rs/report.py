@@ -37,7 +37,7 @@ from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import FILE_NAME, REPORT_DIR, Photo, collect_sidecars, failed_inputs
 from .report_series import series_axis, series_svg, used_water
 from .sidecars import display, printable
-from .storage import Folder, is_url, on_storage, open_regular, spool
+from .storage import Folder, is_url, on_storage, open_regular, sha256_of, spool
 
 __all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE", "MAX_INPUT_BYTES", "thumb_names",
            "script_json", "series_axis"]
@@ -107,13 +107,6 @@ def _candidates(src: str, folder) -> list[str]:
     return out
 
 
-def _sha256(f) -> str:
-    h = hashlib.sha256()
-    for block in iter(lambda: f.read(1 << 20), b""):
-        h.update(block)
-    return h.hexdigest()
-
-
 def _input_file(p: Photo, folder):
     """The batch's input of ``p`` opened (a binary file object), or None
     and why it is not shown."""
@@ -154,7 +147,7 @@ def _input_file(p: Photo, folder):
             why = f"{e.strerror or e}; not opened"
             continue
         try:
-            if os.fstat(f.fileno()).st_size <= MAX_INPUT_BYTES and _sha256(f) == want:
+            if os.fstat(f.fileno()).st_size <= MAX_INPUT_BYTES and sha256_of(f) == want:
                 f.seek(0)
                 return f, None
         except OSError:

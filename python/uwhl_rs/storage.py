@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import datetime as _dt
 import errno
+import hashlib
 import importlib
 import os
 import posixpath
@@ -28,7 +29,7 @@ from .images import atomic_write_bytes
 from .storage_options import is_option_error, parse_storage_options, storage_option_problem
 
 __all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "storage_option_problem", "need", "filesystem",
-           "storage_error", "on_storage", "read_bytes", "spool", "open_regular", "read_regular", "modified", "Folder"]
+           "storage_error", "on_storage", "read_bytes", "spool", "sha256_of", "open_regular", "read_regular", "modified", "Folder"]
 
 #: how to get what batches on Dask or object storage need
 EXTRA = 'pip install "uwhl_rs[dask]"'
@@ -300,6 +301,15 @@ def spool(path: str, storage_options: dict | None = None, *, limit: int, digest=
     except BaseException:
         out.close()
         raise
+
+
+def sha256_of(f) -> str:
+    """The SHA-256 (hex) of what is left to read of the binary file object
+    ``f``, read a mebibyte at a time."""
+    h = hashlib.sha256()
+    for block in iter(lambda: f.read(1 << 20), b""):
+        h.update(block)
+    return h.hexdigest()
 
 
 def open_regular(path: str, follow_links: bool = False):

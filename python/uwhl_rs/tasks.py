@@ -27,7 +27,7 @@ from .images import DEFAULT_MAX_PIXELS, read_image
 from .outdir import row_fields_from_sidecar
 from .storage import filesystem, is_url, join, local_path
 
-__all__ = ["COLUMNS", "MEMORY", "DONE_NOTE", "Item", "Context", "begin", "restore_items", "probe", "worker", "row"]
+__all__ = ["COLUMNS", "MEMORY", "DONE_NOTE", "Item", "Context", "MemoryGate", "GateShare", "begin", "restore_items", "probe", "worker", "row"]
 
 #: the Dask worker resource a task asks for: bytes of its memory plan
 MEMORY = "MEMORY"
@@ -261,6 +261,35 @@ class MemoryGate:
                 self.held -= n
                 self._cv.notify_all()
 
+    def share(self) -> "GateShare":
+        """One input's share of the gate (what ``restore_staged``'s ``_make_room`` takes)."""
+        return GateShare(self)
+
+
+class GateShare:
+    """What one input holds of a :class:`MemoryGate`: it reserves once and
+    gives back what it holds, once, whatever path the input took."""
+
+    def __init__(self, gate: MemoryGate):
+        self.gate = gate
+        self.held = 0
+
+    def try_reserve(self, need: int) -> bool:
+        """:meth:`MemoryGate.try_reserve`, remembered."""
+        if self.gate.try_reserve(need):
+            self.held = need
+            return True
+        return False
+
+    def reserve(self, need: int) -> None:
+        """:meth:`MemoryGate.reserve`, remembered."""
+        self.held = self.gate.reserve(need)
+
+    def release(self) -> None:
+        """Gives back what is held (nothing the second time)."""
+        self.gate.release(self.held)
+        self.held = 0
+
 
 def context(opts: dict, storage_options: dict, overwrite: bool, reuse: int | None, reuse_water_mask: bool,
             scratch: str) -> Context:
@@ -333,29 +362,12 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
     fmt, contact = opts.get("format", "jpg"), opts.get("contact", False)
     remote_out = is_url(item.out_dir)
     local_in = None
-    held = [0]
-
-    class Room:
-        """This input's share of the run's gate: what it reserves it gives back once."""
-
-        @staticmethod
-        def try_reserve(need: int) -> bool:
-            if ctx.gate.try_reserve(need):
-                held[0] = need
-                return True
-            return False
-
-        @staticmethod
-        def reserve(need: int) -> None:
-            held[0] = ctx.gate.reserve(need)
-
     # the run's other inputs (the one being written, --jobs) leave room for this one's plan
-    room = Room() if ctx.gate is not None else None
+    room = ctx.gate.share() if ctx.gate is not None else None
 
     def _give_back() -> None:
-        if ctx.gate is not None:
-            ctx.gate.release(held[0])
-            held[0] = 0
+        if room is not None:
+            room.release()
 
     if not remote_out:
         out_dir = local_path(item.out_dir)
