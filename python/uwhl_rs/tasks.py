@@ -454,11 +454,26 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
         return failure_row(item, OSError(e.errno, f"cannot claim output names in {out_dir}: {e}"), True, None)
     if status != "claimed":
         return skipped_row(item, sidecar, DONE_NOTE if status == "done" else reason)
+    # one frame's plan is held from here to the end of its restore, as a photo's from its header to its
+    # write: the run's photos leave room for it, and it for them (waiting here, not in the write, which
+    # runs while the next input is restored)
+    room = ctx.gate.share() if ctx.gate is not None else None
+    local_in = None
+    try:
+        local_in = _local_input(item, ctx)
+        if room is not None:
+            room.reserve(videofiles.frame_need(video.probe(local_in, transfer=opts.get("transfer")),
+                                               opts.get("max_side")))
+    except BaseException as e:
+        claim.release()
+        if local_in is not None and local_in != local_path(item.input):
+            _drop_copy(local_in)
+        if isinstance(e, (Exception, MemoryError)):
+            return failure_row(item, e, False, time.perf_counter() - t0, local_in)
+        raise  # an interrupt while it waited for room: its names are free again
 
     def finish() -> dict:
-        local_in = None
         try:
-            local_in = _local_input(item, ctx)
             result = videofiles.restore_video(local_in, out_dir, name=claim.name, _claim=claim, _label=item.input,
                                               reuse_estimates=ctx.reuse, reuse_water_mask=ctx.reuse_water_mask,
                                               overwrite=ctx.overwrite, progress=ctx.progress, _stop=ctx.stop,
@@ -467,6 +482,8 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
             claim.release()
             return failure_row(item, e, False, time.perf_counter() - t0, local_in)
         finally:
+            if room is not None:
+                room.release()
             if local_in is not None and local_in != local_path(item.input):
                 _drop_copy(local_in)
         written = {"sidecar": result.paths["sidecar"], "strip": result.paths["strip"]}

@@ -108,3 +108,39 @@ def test_an_input_waiting_for_room_does_not_start_after_an_interrupt():
     stop.set()
     t.join(10)
     assert raised == [True] and gate.held == 80
+
+
+@pytest.mark.parametrize("jobs", [1, 3])
+def test_a_video_beside_photos_holds_its_frame_plan_in_the_same_gate(tmp_path, monkeypatch, jobs):
+    """A video restored beside photos holds one frame's plan
+    (videofiles.frame_need) for as long as it is restored: with room for one
+    plan only, no photo is restored while the video is, nor the video while
+    a photo is."""
+    pytest.importorskip("av")
+    from uwhl_rs import clip, video, videofiles
+
+    c = clip.clip(frames=6, height=48, width=64, seed=5)
+    clip.write_clip(tmp_path / "v.mkv", c, codec="ffv1")
+    for k in range(3):
+        img, _ = synth.demo_input(60, 80, water_type="3C", seed=k)
+        images.write_image(tmp_path / f"p{k}.png", img, bits=8, encoding="linear")
+    frame = videofiles.frame_need(video.probe(str(tmp_path / "v.mkv")))
+    needs, lock = [], threading.Lock()
+    init, reserve = tasks.MemoryGate.__init__, tasks.MemoryGate.reserve
+
+    def small(self, budget, stop=None):
+        init(self, 1, stop)  # no two plans fit
+
+    def watched(self, need):
+        n = reserve(self, need)
+        with lock:
+            needs.append(need)
+            assert self.held == need, "an input was restored beside another's plan"
+        return n
+
+    monkeypatch.setattr(tasks.MemoryGate, "__init__", small)
+    monkeypatch.setattr(tasks.MemoryGate, "reserve", watched)
+    names = [str(tmp_path / "v.mkv")] + [str(tmp_path / f"p{k}.png") for k in range(3)]
+    res = batch.run_batch(names, str(tmp_path / "out"), jobs=jobs)
+    assert [r["status"] for r in res.rows] == ["done"] * 4, res.rows
+    assert frame in needs, (frame, needs)
