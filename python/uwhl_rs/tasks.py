@@ -10,6 +10,7 @@ uploaded, the sidecar last (the commit marker).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import socket
@@ -183,13 +184,12 @@ def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: 
     return dest
 
 
-def _drop_copy(p: str) -> None:
-    """Removes a copy :func:`_local_input` made, with its folder."""
-    try:
-        os.unlink(p)
-        os.rmdir(os.path.dirname(p))
-    except OSError:
-        pass
+def _drop_copy(item: Item, p: str | None) -> None:
+    """Removes ``p`` (``item``'s input from :func:`_local_input`) with its folder, if it is a copy."""
+    if p is not None and p != local_path(item.input):
+        with contextlib.suppress(OSError):
+            os.unlink(p)
+            os.rmdir(os.path.dirname(p))
 
 
 # ------------------------------------------------------------------ the step
@@ -411,8 +411,7 @@ def begin(item: Item, ctx: Context, prime: bool = False) -> dict | Callable[[], 
             return failure_row(item, e, True, time.perf_counter() - t0, local_in)
         finally:
             _give_back()
-            if local_in is not None and local_in != local_path(item.input):
-                _drop_copy(local_in)
+            _drop_copy(item, local_in)
         done = _done_row(item, result, time.perf_counter() - t0, outputs)
         if remote_out:
             shutil.rmtree(out_dir, ignore_errors=True)
@@ -454,20 +453,16 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
         return failure_row(item, OSError(e.errno, f"cannot claim output names in {out_dir}: {e}"), True, None)
     if status != "claimed":
         return skipped_row(item, sidecar, DONE_NOTE if status == "done" else reason)
-    # one frame's plan is held from here to the end of its restore, as a photo's from its header to its
-    # write: the run's photos leave room for it, and it for them (waiting here, not in the write, which
-    # runs while the next input is restored)
-    room = ctx.gate.share() if ctx.gate is not None else None
-    local_in = None
+    # a frame's plan is held from here (not from the write, which runs beside the next input's restore)
+    # to its last frame, as a photo's from its header to its write: photos wait for it, it for them
+    room, local_in = ctx.gate.share() if ctx.gate is not None else None, None
     try:
         local_in = _local_input(item, ctx)
         if room is not None:
-            room.reserve(videofiles.frame_need(video.probe(local_in, transfer=opts.get("transfer")),
-                                               opts.get("max_side")))
+            room.reserve(_header_need(local_in, opts))
     except BaseException as e:
         claim.release()
-        if local_in is not None and local_in != local_path(item.input):
-            _drop_copy(local_in)
+        _drop_copy(item, local_in)
         if isinstance(e, (Exception, MemoryError)):
             return failure_row(item, e, False, time.perf_counter() - t0, local_in)
         raise  # an interrupt while it waited for room: its names are free again
@@ -484,8 +479,7 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
         finally:
             if room is not None:
                 room.release()
-            if local_in is not None and local_in != local_path(item.input):
-                _drop_copy(local_in)
+            _drop_copy(item, local_in)
         written = {"sidecar": result.paths["sidecar"], "strip": result.paths["strip"]}
         if "video" in result.paths:
             written["video"] = result.paths["video"]
