@@ -21,7 +21,7 @@ import shutil
 import sys
 import tempfile
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from . import _core, cluster
 from .console import Console
@@ -236,7 +236,7 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
             _run_here(plan.items, opts, so, overwrite, reuse_estimates, reuse_water_mask, jobs, settle,
                       set() if overwrite else plan.done, getattr(listener, "note", None))
         else:
-            groups = _groups(plan, overwrite, reuse_estimates, settle)
+            groups = _on_any_worker(_groups(plan, overwrite, reuse_estimates, settle), opts)
             if groups:
                 c, started, threads = cluster.connect(client, dask, opts.get("threads"))
                 if threads is not None:
@@ -268,6 +268,26 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
         summary_error = None
     return BatchResult(problems + [rows[k] for k in sorted(rows)], total, interrupted, summary_error,
                        len(problems))
+
+
+#: options that name local files or folders (relative to the folder the command runs in)
+PATH_OPTIONS = ("mask", "water_mask", "distance", "altitude", "water_from")
+
+
+def _on_any_worker(groups: list[list[Item]], opts: dict) -> list[list[Item]]:
+    """``groups`` and ``opts`` (in place) with every relative local path
+    made absolute: a Dask worker runs in a folder of its own, where
+    ``-o out`` or ``--water-from cal`` would name another folder than the
+    one this command checked and reports."""
+    for k in PATH_OPTIONS:
+        v = opts.get(k)
+        if isinstance(v, (str, os.PathLike)) and not is_url(os.fspath(v)):
+            opts[k] = os.path.abspath(os.fspath(v))
+
+    def here(p: str) -> str:
+        return p if is_url(p) else os.path.abspath(p)
+
+    return [[replace(it, input=here(it.input), out_dir=here(it.out_dir)) for it in g] for g in groups]
 
 
 def _groups(plan: Plan, overwrite: bool, reuse: int | None, settle) -> list[list[Item]]:

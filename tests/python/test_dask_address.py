@@ -93,3 +93,37 @@ def test_a_bad_timeout_is_a_usage_error(tmp_path, photo):
                         "--dask", "127.0.0.1:9"], capture_output=True, text=True,
                        env={**os.environ, "UWHL_DASK_TIMEOUT": "soon"}, timeout=120)
     assert r.returncode == 2 and "UWHL_DASK_TIMEOUT" in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_a_dask_run_hands_its_workers_absolute_paths(tmp_path, monkeypatch):
+    """A worker runs in a folder of its own: ``-o out``, a relative input
+    and ``--water-from cal`` named from the command's folder must reach it
+    as the same folders, not as names the worker resolves in its own."""
+    from uwhl_rs import batch, cluster, images, synth
+
+    monkeypatch.chdir(tmp_path)
+    img, _ = synth.demo_input(40, 50, water_type="3C", seed=1)
+    images.write_image(tmp_path / "p.png", img, bits=8, encoding="linear")
+    (tmp_path / "cal").mkdir()
+    seen = {}
+
+    class Fake:
+        dashboard_link = "-"
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(cluster, "connect", lambda client, dask, threads: (Fake(), None, None))
+    monkeypatch.setattr(cluster, "check_workers", lambda c: None)
+
+    def run(c, groups, opts, so, overwrite, reuse, reuse_wm, settle):
+        seen["items"], seen["opts"] = [it for g in groups for it in g], dict(opts)
+
+    monkeypatch.setattr(cluster, "run_on_cluster", run)
+    batch.run_batch(["p.png"], "out", client=object(),
+                    options={"water_from": "cal", "distance": "depth/{stem}.tif", "mask": "m.png"})
+    (it,) = seen["items"]
+    assert it.input == str(tmp_path / "p.png") and it.out_dir == str(tmp_path / "out")
+    assert seen["opts"]["water_from"] == str(tmp_path / "cal")
+    assert seen["opts"]["distance"] == str(tmp_path / "depth" / "{stem}.tif")
+    assert seen["opts"]["mask"] == str(tmp_path / "m.png")
