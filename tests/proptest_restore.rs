@@ -157,7 +157,7 @@ proptest! {
 fn water_types() -> impl Strategy<Value = Vec<WaterType>> {
     (
         1u16..1024,
-        prop::option::of((1e-6f64..=uwhl::method::water::MAX_RATIO, 1e-6f64..=uwhl::method::water::MAX_RATIO)),
+        prop::option::of((uwhl::method::water::MIN_RATIO..=uwhl::method::water::MAX_RATIO, uwhl::method::water::MIN_RATIO..=uwhl::method::water::MAX_RATIO)),
     )
         .prop_map(|(bits, custom)| {
             let mut v: Vec<WaterType> = JERLOV

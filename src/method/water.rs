@@ -20,6 +20,12 @@ pub struct WaterType {
 /// property tests).
 pub const MAX_RATIO: f64 = 30.0;
 
+/// Smallest ratio accepted, 1 / `MAX_RATIO` (the Jerlov table stays above
+/// 0.11): the exponents 1 / beta_BR of METHOD §4 and 7 stay within those of
+/// the largest ratio (a subnormal ratio made them infinite and every pixel
+/// NaN).
+pub const MIN_RATIO: f64 = 1.0 / MAX_RATIO;
+
 /// The Jerlov (1968) table of METHOD §1: (name, beta_BR, beta_BG).
 pub const JERLOV: [(&str, f64, f64); 10] = [
     ("I", 0.1118, 0.4566),
@@ -38,12 +44,12 @@ pub const JERLOV: [(&str, f64, f64); 10] = [
 pub const MAX_NAME: usize = 64;
 
 impl WaterType {
-    /// A custom water type; both ratios must be finite, > 0 and <= `MAX_RATIO`.
+    /// A custom water type; both ratios must be finite and in [`MIN_RATIO`, `MAX_RATIO`].
     pub fn new(name: &str, beta_br: f64, beta_bg: f64) -> Result<Self> {
         for (label, v) in [("beta_BR", beta_br), ("beta_BG", beta_bg)] {
-            if !v.is_finite() || v <= 0.0 || v > MAX_RATIO {
+            if !v.is_finite() || !(MIN_RATIO..=MAX_RATIO).contains(&v) {
                 return Err(Error::WaterType(format!(
-                    "{label} of water type {name:?} is {}; it must be a finite number in (0, {MAX_RATIO}]",
+                    "{label} of water type {name:?} is {}; it must be a finite number in [1/{MAX_RATIO}, {MAX_RATIO}]",
                     crate::error::shown_number(v)
                 )));
             }
@@ -147,6 +153,10 @@ mod tests {
         assert!(WaterType::new(&"é".repeat(MAX_NAME + 1), 1.0, 1.0).is_err());
         assert!(WaterType::new("x", MAX_RATIO, 1.0).is_ok());
         assert!(WaterType::new("x", MAX_RATIO * 1.01, 1.0).is_err());
+        assert!(WaterType::new("x", 1.0, 1.0 / 30.0).is_ok());
+        // a subnormal ratio made 1 / beta_BR infinite and every pixel NaN
+        assert!(WaterType::new("x", 1e-310, 1.0).is_err());
+        assert!(WaterType::new("x", 1.0, 0.99 / 30.0).is_err());
         // the t_B floor of METHOD §7 stays a normal f32 for every accepted ratio
         assert!(0.1f32.powf(MAX_RATIO as f32) >= f32::MIN_POSITIVE);
         assert!(validate_types(&[]).is_err());
