@@ -195,7 +195,10 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
         None => median(&mut v.to_vec()),
     };
     let beta: [f64; 3] = std::array::from_fn(|c| med(&betas.iter().map(|b| b[c]).collect::<Vec<_>>()));
-    let (rbr, rbg) = (med(&br), med(&bg));
+    // one water: its ratios and its name from the median beta, so that the
+    // name, the beta recorded and the ratios restored with agree (medians
+    // of the ratios taken apart can be another type's)
+    let (rbr, rbg) = (beta[2] / beta[0], beta[2] / beta[1]);
     let (name, _) = nearest_type([beta[0] as f32, beta[1] as f32, beta[2] as f32]);
     let water_type = WaterType::new(&name, rbr, rbg)
         .map_err(|e| Failure::usage(format!("--water-from {}: the fitted water is not usable: {e}", dir.display())))?;
@@ -236,6 +239,30 @@ mod tests {
         let notes = w.notes().join("\n");
         assert!(notes.contains("e.json: not a sidecar") && notes.contains("f.json: its distance.water.beta"), "{notes}");
         assert!(!notes.contains("d.json"), "{notes}");
+    }
+
+    #[test]
+    fn the_name_the_beta_and_the_ratios_are_one_water() {
+        // three writable fits whose ratios, each taken apart, have the medians
+        // of Jerlov I while their median beta is a coastal water
+        let d = std::env::temp_dir().join(format!("uwhl-dive-c-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let fits = [[3.38297, 0.82833, 0.37822], [0.16084, 0.20893, 0.33307], [0.13030, 0.031906, 0.014568]];
+        for (k, b) in fits.iter().enumerate() {
+            let side = json!({"distance": {"used": true, "water": {"beta": b}}}).to_string();
+            std::fs::write(d.join(format!("c{k}.json")), side).unwrap();
+        }
+        let w = read_water_from(&d).unwrap();
+        assert_eq!(w.photos, 3);
+        // the median beta by hand: 0.16084, 0.20893, 0.33307
+        assert!((w.beta[0] - 0.16084).abs() < 1e-12 && (w.beta[1] - 0.20893).abs() < 1e-12);
+        assert!((w.water_type.beta_br - 0.33307 / 0.16084).abs() < 1e-9);
+        assert!((w.water_type.beta_bg - 0.33307 / 0.20893).abs() < 1e-9);
+        let beta = [w.beta[0] as f32, w.beta[1] as f32, w.beta[2] as f32];
+        assert_eq!(w.water_type.name, nearest_type(beta).0);
+        assert_ne!(w.water_type.name, "I");
+        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
