@@ -92,6 +92,16 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     };
     let bytes_per_sample: usize = if opts.pix_fmt_bits == 16 { 2 } else { 1 };
     let frame_bytes = w * h * 3 * bytes_per_sample;
+    // the frames' stated size is their header: held to --max-pixels as a photo's is
+    let pixels = (w as u64).saturating_mul(h as u64);
+    if pixels > opts.max_pixels {
+        let e = Failure::new(
+            Kind::Budget,
+            format!("frames of {w}x{h} = {pixels} pixels are over the limit of {} pixels (--max-pixels)", opts.max_pixels),
+        );
+        report(err, opts.json_errors, None, &e);
+        return e.kind.exit_code();
+    }
     let to_stdout = opts.outdir.as_os_str() == "-";
     if !to_stdout {
         if let Err(code) = super::run::outdir_usable(opts, err) {

@@ -154,3 +154,12 @@ def test_it_sits_in_an_ffmpeg_pipeline(binary, frames, tmp_path):
     # FFmpeg's decoding of the 16-bit RGB file is exact: the same frames as the Python sequence's
     want = _expected(_codes(frames, 16), 16)
     assert len(got) == 14 and all(np.array_equal(g, w) for g, w in zip(got, want))
+
+
+def test_frames_over_max_pixels_are_refused_before_reading(binary):
+    r = _run(binary, "--raw-frames", "300x200", "-o", "-", "--max-pixels", "100", data=b"\0" * 100)
+    assert r.returncode == 4 and b"300x200 = 60000 pixels are over the limit of 100 pixels (--max-pixels)" in r.stderr
+    assert r.stdout == b""
+    # at the limit: restored
+    r = _run(binary, "--raw-frames", "8x8", "--max-pixels", "64", "-o", "-", data=bytes(range(192)))
+    assert r.returncode == 0, r.stderr
