@@ -186,7 +186,9 @@ def _as_mask(mask, name: str, shape) -> np.ndarray | None:
         raise ParameterError(f"{name} has dtype {m.dtype}; expected bool (True/False per pixel)")
     if m.shape != tuple(shape):
         raise ParameterError(f"{name} has shape {m.shape}; the image needs {tuple(shape)}")
-    return np.ascontiguousarray(m)
+    # a bool view of other bytes (uint8 2 as bool) is True to NumPy but no bool to the core: every
+    # byte made 0 or 1 here, so the core sees the pixels NumPy does
+    return np.not_equal(m.view(np.uint8), 0)
 
 
 def _nearest_type(water: dict) -> str:
@@ -215,8 +217,8 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         values outside [0, 1] and constant images are rejected.
     water_types : list, optional
         Candidate water types: names from :data:`WATER_TYPES` and/or
-        ``(name, beta_BR, beta_BG)`` tuples with ratios in (0, 30] (above ~45
-        the t_B floor 0.1^beta_BR underflows in float32).
+        ``(name, beta_BR, beta_BG)`` tuples with ratios in [1/30, 30] (above ~45
+        the t_B floor 0.1^beta_BR underflows in float32; below 1/30 its exponents pass 30's).
         Default: all ten Jerlov types (METHOD §1).
     veiling_light : 3 floats in (0, 1], optional
         A given veiling light A; default: estimated from the water region
@@ -389,12 +391,12 @@ def _signature_from_table(f, before: list[str]) -> None:
 
 
 #: The keywords that name a profile and its steps (METHOD §12).
-STEP_KEYS = ("method", "selection", "white_balance", "type_choice", "haze_floor")
+STEP_KEYS = ("method", "selection", "white_balance", "type_choice", "haze_floor", "fallback")
 
 
 def method_steps(**kw) -> dict:
     """The profile and the steps that ``restore(**kw)`` uses, by keyword
-    (``method``, ``selection``, ``white_balance``, ``type_choice``, ``haze_floor``), defaults resolved:
+    (``method``, ``selection``, ``white_balance``, ``type_choice``, ``haze_floor``, ``fallback``), defaults resolved:
     what the sidecar and ``uwhl evaluate`` record."""
     return dict(_core.Params(**{k: kw.get(k) for k in STEP_KEYS}).steps())
 

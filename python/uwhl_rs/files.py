@@ -170,6 +170,16 @@ def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwarg
     return restore_staged(in_path, out_dir, **kwargs)()
 
 
+def _check_name(name) -> None:
+    """A caller's ``name`` is the start of file names in ``out_dir``, never
+    a path: no separator, not ``.`` or ``..``, no control characters (it
+    is printed and written into summary.csv)."""
+    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name or os.sep in name \
+            or any(ord(c) < 32 or ord(c) == 127 for c in name):
+        raise ParameterError(f"name must be a file name in the output folder (no path, no control characters), "
+                             f"not {shown(name)}")
+
+
 def restore_staged(
     in_path: str | os.PathLike,
     out_dir: str | os.PathLike,
@@ -238,6 +248,7 @@ def restore_staged(
         restore_kwargs = {**restore_kwargs, "water_types": [settings.dive_water_type]}
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     if _claim is None:
+        _check_name(name)
         status, sidecar_path, reason, _claim = claim_outputs(out_dir, name, in_path, format, contact,
                                                              overwrite=True, rename=False)
         if status != "claimed":

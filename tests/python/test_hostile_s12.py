@@ -1,0 +1,63 @@
+"""A hostile pass over the Python API (2026-12-05): what it found, each
+against an answer known without the code."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import uwhl_rs
+from uwhl_rs import ParameterError, files, images, synth
+
+
+@pytest.fixture(scope="module")
+def img():
+    return synth.demo_input(40, 50, water_type="3C", seed=1)[0]
+
+
+@pytest.mark.parametrize("kw", [
+    {"water_types": [("z", 1e-310, 1.0)]},   # a subnormal ratio: 1 / beta_BR was infinite
+    {"water_types": [("z", 1.0, 0.99 / 30)]},
+    {"water": {"beta": [1e300, 1.0, 1e-10]}},  # beta_B / beta_R of about 1e-310
+])
+def test_a_ratio_below_one_thirtieth_is_refused_by_name(img, kw):
+    with pytest.raises(ParameterError, match=r"must be a finite number in \[1/30, 30\]"):
+        uwhl_rs.restore(img, **kw)
+
+
+def test_the_smallest_ratio_accepted_restores_to_finite_colours(img):
+    r = uwhl_rs.restore(img, water_types=[("z", 1 / 30, 1 / 30)])
+    assert np.isfinite(r.image).all() and np.isfinite(r.transmission).all()
+
+
+def test_a_mask_of_other_bytes_is_the_mask_numpy_sees(img):
+    m = np.ones(img.shape[:2], bool)
+    m[10:20, 10:30] = False
+    odd = (m.astype(np.uint8) * 2).view(bool)  # True to NumPy, bytes of 2
+    assert (odd == m).all()
+    a, b = uwhl_rs.restore(img, mask=m), uwhl_rs.restore(img, mask=odd)
+    assert np.array_equal(a.image, b.image) and np.array_equal(a.transmission, b.transmission)
+    # a water mask of every pixel, spelt with bytes of 2, is refused as the plain one is
+    every = np.full(img.shape[:2], 2, np.uint8).view(bool)
+    with pytest.raises(ParameterError):
+        uwhl_rs.restore(img, water_mask=np.ones(img.shape[:2], bool))
+    with pytest.raises(ParameterError):
+        uwhl_rs.restore(img, water_mask=every)
+
+
+@pytest.mark.parametrize("name", ["../escape", "a/b", ".", "..", "a\nb", "a\x1b[31m", 3])
+def test_restore_file_takes_a_name_never_a_path(tmp_path, img, name):
+    src = tmp_path / "in.png"
+    images.write_image(src, img, bits=8, encoding="linear")
+    out = tmp_path / "out"
+    out.mkdir()
+    with pytest.raises(ParameterError, match="name must be a file name"):
+        files.restore_file(src, out, name=name)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.png", "out"]
+    assert list(out.iterdir()) == []
+
+
+def test_method_steps_records_the_fallback():
+    assert uwhl_rs.method_steps(fallback="none")["fallback"] == "none"
+    assert uwhl_rs.method_steps()["fallback"] == "input_balance"
+    assert uwhl_rs.method_steps(method="paper")["fallback"] == "none"
