@@ -15,6 +15,7 @@ import threading
 
 import uwhl_rs
 
+from . import _core
 from .errors import EXIT, BatchError
 from .storage import need
 from .tasks import MEMORY, Item, probe, restore_items, row
@@ -140,6 +141,20 @@ def _largest_worker_memory(client) -> int | None:
     return max(int(v) for v in values)
 
 
+#: the run whose task a worker process ran last
+_LAST_RUN: list[str | None] = [None]
+
+
+def _restore_in_run(run: str, *args) -> list[dict]:
+    """Task: :func:`tasks.restore_items` as part of ``run``. A worker serves
+    one run after another: at its first task of a run the ``--water-from``
+    folders are read again (an earlier run read them as they were then)."""
+    if run != _LAST_RUN[0]:
+        _LAST_RUN[0] = run
+        _core.forget_water_from()
+    return restore_items(*args)
+
+
 def run_on_cluster(c, groups: list[list[Item]], opts, so, overwrite, reuse, reuse_wm, settle) -> None:
     """Submits the planning and restoring tasks and settles each input as
     its task completes. A task whose worker died is retried by the
@@ -148,6 +163,7 @@ def run_on_cluster(c, groups: list[list[Item]], opts, so, overwrite, reuse, reus
     from distributed import as_completed
 
     budget = _largest_worker_memory(c)
+    run = os.urandom(8).hex()  # the tasks of this run: a worker reads --water-from again when a new run starts
     pending = as_completed()
     meta = {}  # future key -> ("probe"|"restore", payload)
 
@@ -160,7 +176,7 @@ def run_on_cluster(c, groups: list[list[Item]], opts, so, overwrite, reuse, reus
                                      f"memory ({budget} bytes); use --max-side or larger workers"))
             return
         kw = {"resources": {MEMORY: most}} if budget is not None and most > 0 else {}
-        f = c.submit(restore_items, g, opts, so, overwrite, reuse, reuse_wm, pure=False,
+        f = c.submit(_restore_in_run, run, g, opts, so, overwrite, reuse, reuse_wm, pure=False,
                      key=f"uwhl-restore-{g[0].index}-{os.urandom(4).hex()}", **kw)
         meta[f.key] = ("restore", g)
         pending.add(f)

@@ -162,11 +162,14 @@ def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwarg
     A distance (METHOD §13) comes from ``distance`` (an array, or a
     template as ``--distance`` takes it) or from ``altitude`` as
     ``--altitude`` takes it: metres (a number), a navigation log's path, or
-    ``"xmp"``, with ``fov`` and ``port`` (METHOD §13.7).
+    ``"xmp"``, with ``fov`` and ``port`` (METHOD §13.7). ``water_from``
+    (a folder of calibrated sidecars, METHOD §13.6) is read at each call.
 
     Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
     the paths written and the sidecar dict).
     """
+    if kwargs.get("water_from") is not None:
+        _core.forget_water_from()  # each call is a run of its own: the folder as it is now
     return restore_staged(in_path, out_dir, **kwargs)()
 
 

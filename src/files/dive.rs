@@ -1,9 +1,8 @@
 //! `--water-from DIR`: a dive restored with the water fitted on its
 //! photos that had a distance (METHOD §13, "A dive learns once"). The
 //! sidecars in DIR whose `distance` was used give their fitted attenuation;
-//! the median of their ratios beta_B/beta_R and beta_B/beta_G, each photo
-//! weighted by how far it pins its water down (METHOD §13.6), is the water
-//! type of every photo of the run (the veiling light stays each photo's
+//! its median, each photo weighted by how far it pins its water down
+//! (METHOD §13.6), is the water of every photo of the run (the veiling light stays each photo's
 //! own: it follows the exposure and the light at that depth).
 
 use std::path::{Path, PathBuf};
@@ -111,21 +110,33 @@ fn fitted_beta(side: &Value) -> Option<[f64; 3]> {
     crate::method::distance::writable(v).then_some(v)
 }
 
-/// [`read_water_from`] once per folder and process: every photo of a run
-/// gets the same water even when the run writes new sidecars into that
-/// folder (the Python command makes its settings per photo).
+type Seen = std::sync::Mutex<std::collections::HashMap<PathBuf, DiveWater>>;
+
+/// The folders read in this run (a process of the binary is one run; the
+/// Python command starts each with [`forget_water_from`]).
+fn seen() -> &'static Seen {
+    static SEEN: std::sync::OnceLock<Seen> = std::sync::OnceLock::new();
+    SEEN.get_or_init(Default::default)
+}
+
+/// [`read_water_from`] once per folder and run: every photo of a run gets
+/// the same water even when the run writes new sidecars into that folder
+/// (the Python command makes its settings per photo).
 pub fn water_from(dir: &Path) -> Result<DiveWater, Failure> {
-    use std::collections::HashMap;
-    use std::sync::{Mutex, OnceLock};
-    static SEEN: OnceLock<Mutex<HashMap<PathBuf, DiveWater>>> = OnceLock::new();
     let key = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    let cache = SEEN.get_or_init(|| Mutex::new(HashMap::new()));
-    if let Some(w) = cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).get(&key) {
+    if let Some(w) = seen().lock().unwrap_or_else(std::sync::PoisonError::into_inner).get(&key) {
         return Ok(w.clone());
     }
     let w = read_water_from(dir)?;
-    cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert(key, w.clone());
+    seen().lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert(key, w.clone());
     Ok(w)
+}
+
+/// A new run starts: the folders of [`water_from`] are read again (a
+/// Python process, or a Dask worker, serves one run after another, and
+/// the folder may have gained calibrated photos in between).
+pub fn forget_water_from() {
+    seen().lock().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
 }
 
 /// Reads the sidecars (`*.json`, regular files, not recursing) of `dir`

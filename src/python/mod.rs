@@ -667,6 +667,13 @@ fn outdir_problem(dir: std::path::PathBuf) -> Option<String> {
     crate::files::jobs::outdir_problem(&dir)
 }
 
+/// A new run starts: the `--water-from` folders are read again
+/// (`crate::files::dive::forget_water_from`).
+#[pyfunction]
+fn forget_water_from() {
+    crate::files::dive::forget_water_from();
+}
+
 /// Removes the temporaries that dead processes left in `dir`
 /// (`crate::files::jobs::remove_stale_temps`); returns how many.
 #[pyfunction]
@@ -977,6 +984,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
+    m.add_function(wrap_pyfunction!(forget_water_from, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;

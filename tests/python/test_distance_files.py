@@ -155,7 +155,7 @@ def _nearest(br, bg):
 @pytest.mark.parametrize("impl", ["python", "rust"])
 def test_water_from_takes_the_median_of_the_calibrated_photos(impl, binary, dive, tmp_path):
     """Three calibrated sidecars (hand-made), one not used and one hostile:
-    every photo of the run gets the median ratios as its one water type."""
+    every photo of the run gets the ratios of the median beta as its one water type."""
     d, _ = dive
     cal = tmp_path / "calibrated"
     cal.mkdir()
@@ -168,8 +168,8 @@ def test_water_from_takes_the_median_of_the_calibrated_photos(impl, binary, dive
     r = _run(_cmds(binary)[impl], d / "p1.tif", "-o", out, "--water-from", cal)
     assert r.returncode == 0, r.stderr
     side = _side(out, "p1")
-    br = float(np.median([b[2] / b[0] for b in fits]))
-    bg = float(np.median([b[2] / b[1] for b in fits]))
+    med = np.median(fits, axis=0)  # (0.50, 0.12, 0.06)
+    br, bg = float(med[2] / med[0]), float(med[2] / med[1])
     assert side["beta_ratios"] == pytest.approx([br, bg], rel=1e-9)
     assert side["water_type"] == _nearest(br, bg)
     assert list(side["scores"]) == [side["water_type"]]
@@ -381,3 +381,56 @@ def test_both_commands_sample_a_map_of_any_size_alike_under_max_side(binary, tmp
     assert py["distance"]["water"] == rs["distance"]["water"]
     assert py["veiling_light"] == rs["veiling_light"]
     assert np.array_equal(pixels["python"], pixels["rust"])
+
+
+def _calibrate(cal, fits):
+    for f in cal.glob("*.json"):
+        f.unlink()
+    for k, b in enumerate(fits):
+        (cal / f"c{k}.json").write_text(json.dumps({"distance": {"used": True, "water": {"beta": b}}}))
+
+
+I_FITS = [(0.05 / 0.1118, 0.05 / 0.4566, 0.05)] * 2  # Jerlov I at beta_B 0.05 1/m
+C9_FITS = [(0.3 / 2.0708, 0.3 / 1.5942, 0.3)] * 2  # 9C at 0.3 1/m
+
+
+def test_water_from_is_read_at_each_call_of_restore_file(dive, tmp_path):
+    """A process serves one call after another: the folder as it is at the
+    call, not as an earlier call found it."""
+    from uwhl_rs import files
+
+    d, _ = dive
+    cal = tmp_path / "cal"
+    cal.mkdir()
+    _calibrate(cal, I_FITS)
+    a = files.restore_file(d / "p1.tif", tmp_path / "a", water_from=cal)
+    _calibrate(cal, C9_FITS)
+    b = files.restore_file(d / "p1.tif", tmp_path / "b", water_from=cal)
+    assert a.sidecar["water_type"] == "I" and b.sidecar["water_type"] == "9C"
+
+
+def test_water_from_is_read_once_per_run_of_restore_many(dive, tmp_path):
+    pytest.importorskip("pandas")
+    from uwhl_rs import batch
+
+    d, _ = dive
+    cal = tmp_path / "cal"
+    cal.mkdir()
+    _calibrate(cal, I_FITS)
+    a = batch.restore_many(str(d / "p1.tif"), str(tmp_path / "a"), water_from=str(cal))
+    _calibrate(cal, C9_FITS)
+    b = batch.restore_many(str(d / "p1.tif"), str(tmp_path / "b"), water_from=str(cal))
+    assert list(a["water_type"]) == ["I"] and list(b["water_type"]) == ["9C"]
+
+
+def test_a_dask_worker_reads_water_from_again_at_a_new_runs_first_task(monkeypatch):
+    from uwhl_rs import cluster
+
+    read = []
+    monkeypatch.setattr(cluster._core, "forget_water_from", lambda: read.append(True))
+    monkeypatch.setattr(cluster, "restore_items", lambda *a: list(a))
+    assert cluster._restore_in_run("run1", 1, 2) == [1, 2]
+    cluster._restore_in_run("run1", 3)
+    assert len(read) == 1  # the same run: the folder as its first task read it
+    cluster._restore_in_run("run2", 4)
+    assert len(read) == 2

@@ -45,6 +45,7 @@ def _check(a: argparse.Namespace, options: dict) -> None:
         if a.water_types:
             raise _bad("--water-from gives the water type: it does not go with --water-type")
         try:
+            _core.forget_water_from()  # this run reads the folder once, from here (the process may serve many)
             _core.FileSettings(water_from=a.water_from)
         except UwhlError as e:
             raise _bad(str(e)) from None
