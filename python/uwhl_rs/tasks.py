@@ -26,7 +26,7 @@ from . import _core, files, video
 from .errors import EXIT, CommandError, ImageReadError, UwhlError, describe, kind_of
 from .images import DEFAULT_MAX_PIXELS, read_image
 from .outdir import row_fields_from_sidecar
-from .storage import filesystem, is_url, join, local_path
+from .storage import download, filesystem, is_url, join, local_path
 
 __all__ = ["COLUMNS", "MEMORY", "DONE_NOTE", "Item", "Context", "MemoryGate", "GateShare", "begin", "restore_items", "probe", "worker", "row"]
 
@@ -143,7 +143,7 @@ def fetch(url: str, scratch: str, storage_options: dict, header: bool = False) -
             with open(local, "wb") as f:
                 f.write(fs.cat_file(path, start=0, end=_HEADER_BYTES))
         else:
-            fs.get_file(path, local)
+            download(url, local, storage_options)
 
     try:
         _stored("unreadable_input", get)

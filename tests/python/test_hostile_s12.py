@@ -61,3 +61,36 @@ def test_method_steps_records_the_fallback():
     assert uwhl_rs.method_steps(fallback="none")["fallback"] == "none"
     assert uwhl_rs.method_steps()["fallback"] == "input_balance"
     assert uwhl_rs.method_steps(method="paper")["fallback"] == "none"
+
+
+def test_an_object_is_fetched_a_chunk_at_a_time(tmp_path, monkeypatch):
+    """A URL input is copied to scratch in chunks of storage.CHUNK: fsspec's
+    get_file held ten parts of 50 MiB of an S3 object in memory at once."""
+    fsspec = pytest.importorskip("fsspec")
+    from uwhl_rs import storage, tasks
+
+    monkeypatch.setattr(storage, "CHUNK", 1 << 16)
+    data = np.random.default_rng(1).integers(0, 256, 5 * (1 << 16) + 123, dtype=np.uint8).tobytes()
+    fs = fsspec.filesystem("memory")
+    fs.pipe("/s12/big.png", data)
+    reads = []
+    real_open = type(fs).open
+
+    def watched_open(self, path, mode="rb", **kw):
+        f = real_open(self, path, mode, **kw)
+        read = f.read
+
+        def counted(n=-1):
+            block = read(n)
+            reads.append(len(block))
+            return block
+
+        f.read = counted
+        return f
+
+    monkeypatch.setattr(type(fs), "open", watched_open)
+    monkeypatch.setattr(type(fs), "get_file", lambda *a, **k: pytest.fail("the whole object at once"))
+    local = tasks.fetch("memory://s12/big.png", str(tmp_path), {})
+    assert open(local, "rb").read() == data
+    assert max(reads) <= 1 << 16 and sum(reads) == len(data)
+    fs.rm("/s12", recursive=True)
