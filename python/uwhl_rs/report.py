@@ -113,30 +113,36 @@ def _input_file(p: Photo, folder):
     src = p.doc["input"]
     want = (p.doc.get("metadata") or {}).get("input_sha256")
     shown = display(src)
+    # the network is the folder's own storage only: never http(s), never elsewhere
+    if is_url(src) and (not folder.is_url or _scheme(src) != _scheme(folder.display)
+                        or _scheme(src) in ("http", "https")):
+        return None, f"{shown}: not on the output folder's storage; not fetched"
+    # refused before anything is opened, fetched or hashed: a planted sidecar naming /etc/shadow,
+    # a database or a key (another bucket's too) with its true hash would have it read and shown;
+    # an input given by name with another extension (x.dat) loses its thumbnail, not its row
+    if os.path.splitext(src)[1].lower() not in IMAGE_EXTENSIONS | RAW_EXTENSIONS:
+        return None, f"{shown}: not an image file name (a JPEG, PNG, TIFF or raw extension); not opened"
     if is_url(src):
-        # the network is the folder's own storage only: never http(s), never elsewhere
-        if not folder.is_url or _scheme(src) != _scheme(folder.display) or _scheme(src) in ("http", "https"):
-            return None, f"{shown}: not on the output folder's storage; not fetched"
         if not want:
             return None, f"{shown}: the sidecar records no input hash; not fetched"
         h = hashlib.sha256()
         try:
             f = spool(src, folder.storage_options, limit=MAX_INPUT_BYTES, digest=h)
+        except FileNotFoundError:
+            f = None
         except OSError as e:
             if e.errno != errno.EFBIG:
                 raise
             return None, f"{shown}: larger than {MAX_INPUT_BYTES} bytes; not shown"
-        if h.hexdigest() != want:
-            f.close()
-            return None, f"{shown}: changed since it was restored (another SHA-256)"
+        if f is None or h.hexdigest() != want:
+            if f is not None:
+                f.close()
+            # one message for both: the page (written where the sidecars are) does not tell
+            # whoever planted one which keys exist
+            return None, f"{shown}: not there as it was restored (gone, or another SHA-256)"
         return f, None
     if not want:
         return None, f"{shown}: the sidecar records no input hash (metadata.input_sha256); not shown"
-    # refused before anything is opened or hashed: a planted sidecar naming /etc/shadow, a
-    # database or a key with its true hash would have it read and shown; an input given by
-    # name with another extension (x.dat) loses its thumbnail, not its row
-    if os.path.splitext(src)[1].lower() not in IMAGE_EXTENSIONS | RAW_EXTENSIONS:
-        return None, f"{shown}: not an image file name (a JPEG, PNG, TIFF or raw extension); not opened"
     why = "not found"
     for c in _candidates(src, folder):
         try:

@@ -94,3 +94,30 @@ def test_an_object_is_fetched_a_chunk_at_a_time(tmp_path, monkeypatch):
     assert open(local, "rb").read() == data
     assert max(reads) <= 1 << 16 and sum(reads) == len(data)
     fs.rm("/s12", recursive=True)
+
+
+def test_a_planted_sidecar_does_not_make_the_report_fetch_other_objects(monkeypatch):
+    """A sidecar in the output prefix naming another bucket's database is
+    not fetched (the extension rule of local inputs holds for URLs), and a
+    missing image key reads as a changed one: the page does not tell the
+    planter which keys exist."""
+    fsspec = pytest.importorskip("fsspec")
+    from uwhl_rs import outdir, report, storage
+
+    fs = fsspec.filesystem("memory")
+    fs.pipe("/s12r/other/photo.jpg", b"not what was restored")
+    fetched = []
+    real = report.spool
+    monkeypatch.setattr(report, "spool", lambda src, *a, **k: (fetched.append(src), real(src, *a, **k))[1])
+    folder = storage.Folder("memory://s12r/run")
+
+    def why(src):
+        p = outdir.Photo("a.json", {"input": src, "metadata": {"input_sha256": "0" * 64}})
+        f, reason = report._input_file(p, folder)
+        assert f is None
+        return reason.split(": ", 1)[1]
+
+    assert why("memory://s12r/secret/db.sqlite").startswith("not an image file name")
+    assert fetched == []
+    assert why("memory://s12r/other/photo.jpg") == why("memory://s12r/other/gone.jpg")
+    fs.rm("/s12r", recursive=True)
