@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import posixpath
 import shutil
 import sys
 import tempfile
@@ -28,7 +29,7 @@ from .console import Console
 from .errors import EXIT, BatchError
 from .files import output_suffixes
 from .inputs import GLOB_CHARS, collect_inputs, supported
-from .outdir import FILE_NAME, SummaryWriter
+from .outdir import CSV_COLUMNS, FILE_NAME, SummaryWriter
 from .storage import (EXTRA, check_output_bucket, filesystem, is_url, join, local_path, need, parse_storage_options,
                       storage_error)
 from .tasks import COLUMNS, Item, begin, context, row, scratch_root, skipped_row
@@ -53,12 +54,32 @@ class Plan:
     notes: list[str] = field(default_factory=list)
 
 
-def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[list[tuple[str, str]], list]:
+def _earlier_outputs(fs, root: str, files: list[str]) -> list[str]:
+    """The folders under ``root`` (not ``root`` itself) that are an earlier
+    run's output folder: their ``summary.csv`` begins with the summary's
+    first six columns, as ``jobs::is_output_folder`` reads a local one (its
+    first 4 KiB only)."""
+    first = (",".join(CSV_COLUMNS[:6]) + ",").encode()
+    out = []
+    for f in files:
+        d, name = posixpath.split(f)
+        if name == FILE_NAME and d.rstrip("/") != root:
+            try:
+                if fs.cat_file(f, start=0, end=4096).startswith(first):
+                    out.append(d.rstrip("/") + "/")
+            except (OSError, ValueError):
+                pass  # unreadable: not known to be one, searched as before
+    return out
+
+
+def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[list[tuple[str, str]], list, list]:
     """URL inputs as (url, folder relative to the output folder), in the
     order a local folder walk gives (sorted by path components, hidden
-    entries skipped, the output folder never searched), and the problems."""
+    entries skipped, the output folder and earlier runs' output folders
+    never searched), the problems and the notes on the folders not searched."""
     found: list[tuple[str, str]] = []
     problems: list[tuple[str, str]] = []
+    notes: list[str] = []
     out_key = out.rstrip("/") + "/"
     for url in inputs:
         fs, path = filesystem(url, storage_options)
@@ -76,7 +97,13 @@ def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[li
             elif fs.isdir(path):
                 root = path.rstrip("/")
                 rels = []
-                for f in fs.find(root):
+                listed = fs.find(root)
+                earlier = _earlier_outputs(fs, root, listed)
+                notes += [f"{full(d.rstrip('/'))}: an output folder of an earlier restore (its summary.csv): not "
+                          "searched; name its files to restore them" for d in earlier]
+                for f in listed:
+                    if any(f.startswith(d) for d in earlier):
+                        continue
                     rel = f[len(root):].lstrip("/")
                     parts = rel.split("/")
                     if any(p.startswith(".") for p in parts) or not supported(rel):
@@ -104,7 +131,7 @@ def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[li
         if u not in seen:
             seen.add(u)
             unique.append((u, rel))
-    return unique, problems
+    return unique, problems, notes
 
 
 def plan_batch(inputs: list[str], out: str, *, format: str = "jpg", contact: bool = False,
@@ -131,8 +158,9 @@ def plan_batch(inputs: list[str], out: str, *, format: str = "jpg", contact: boo
             rel = "" if rel == "." else rel.replace(os.sep, "/")
             plan.items.append(Item(j.path, join(out if not out_local else anchor, rel), j.name))
     if remote:
-        found, problems = _list_remote(remote, out, so)
+        found, problems, notes = _list_remote(remote, out, so)
         plan.problems += problems
+        plan.notes += notes
         names = _core.name_jobs([(u, rel) for u, rel in found], suffixes)
         base = local_path(out)
         plan.items += [Item(u, join(base, rel), n) for (u, rel), n in zip(found, names)]

@@ -121,3 +121,26 @@ def test_a_planted_sidecar_does_not_make_the_report_fetch_other_objects(monkeypa
     assert fetched == []
     assert why("memory://s12r/other/photo.jpg") == why("memory://s12r/other/gone.jpg")
     fs.rm("/s12r", recursive=True)
+
+
+def test_a_listing_on_storage_skips_an_earlier_runs_output_folder_as_a_walk_does():
+    """s3://b/dv restored to s3://b/dv/r2 after s3://b/dv/r1: r1's restored
+    photo and maps are not inputs (a local walk skips such a folder with a
+    note); a folder whose summary.csv is another program's is searched."""
+    fsspec = pytest.importorskip("fsspec")
+    from uwhl_rs import batch
+    from uwhl_rs.outdir import CSV_COLUMNS
+
+    fs = fsspec.filesystem("memory")
+    fs.pipe("/s12w/dv/p.png", b"x")
+    fs.pipe("/s12w/dv/r1/summary.csv", (",".join(CSV_COLUMNS) + "\n").encode())
+    for f in ("p.jpg", "p_t.png", "p_t_color.png", "p_confidence.png"):
+        fs.pipe(f"/s12w/dv/r1/{f}", b"x")
+    fs.pipe("/s12w/dv/other/summary.csv", b"name,value\n")
+    fs.pipe("/s12w/dv/other/q.png", b"x")
+    try:
+        plan = batch.plan_batch(["memory://s12w/dv"], "memory://s12w/dv/r2")
+        assert sorted(it.input.split("s12w/", 1)[1] for it in plan.items) == ["dv/other/q.png", "dv/p.png"]
+        assert any("s12w/dv/r1: an output folder of an earlier restore" in n for n in plan.notes), plan.notes
+    finally:
+        fs.rm("/s12w", recursive=True)
