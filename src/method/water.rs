@@ -40,6 +40,12 @@ pub const JERLOV: [(&str, f64, f64); 10] = [
     ("9C", 2.0708, 1.5942),
 ];
 
+/// Most candidate types of one restoration: each keeps some 40 KB of the
+/// type choice's state that the memory plan does not count (10,000 types
+/// on a 64 x 64 image took 373 MB), and a dense grid of 30 x 30 ratios
+/// stays within it.
+pub const MAX_TYPES: usize = 1000;
+
 /// The longest name of a water type (characters).
 pub const MAX_NAME: usize = 64;
 
@@ -111,6 +117,12 @@ pub fn validate_types(types: &[WaterType]) -> Result<()> {
     if types.is_empty() {
         return Err(Error::WaterType("the list of water types is empty".into()));
     }
+    if types.len() > MAX_TYPES {
+        return Err(Error::WaterType(format!(
+            "{} water types are listed; at most {MAX_TYPES} are searched",
+            types.len()
+        )));
+    }
     for (i, t) in types.iter().enumerate() {
         WaterType::new(&t.name, t.beta_br, t.beta_bg)?;
         if types.iter().take(i).any(|o| o.name == t.name) {
@@ -160,6 +172,9 @@ mod tests {
         // the t_B floor of METHOD §7 stays a normal f32 for every accepted ratio
         assert!(0.1f32.powf(MAX_RATIO as f32) >= f32::MIN_POSITIVE);
         assert!(validate_types(&[]).is_err());
+        let grid: Vec<WaterType> = (0..=MAX_TYPES).map(|k| WaterType::new(&format!("g{k}"), 1.0, 1.0).unwrap()).collect();
+        assert!(validate_types(&grid[..MAX_TYPES]).is_ok());
+        assert!(validate_types(&grid).is_err());
         let a = WaterType::new("a", 1.0, 1.0).unwrap();
         assert!(validate_types(&[a.clone(), a]).is_err());
     }
