@@ -298,6 +298,8 @@ pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f:
             msg: format!("{n} is more than 1024"),
         });
     }
+    /// Thread counts whose pools are kept at once.
+    const MAX_POOLS: usize = 8;
     type Pools = Mutex<HashMap<(usize, usize), Arc<rayon::ThreadPool>>>;
     static POOLS: OnceLock<Pools> = OnceLock::new();
     let pools = POOLS.get_or_init(|| Mutex::new(HashMap::new()));
@@ -316,6 +318,12 @@ pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f:
         Some(mut map) => match map.get(&(generation, n)) {
             Some(p) => p.clone(),
             None => {
+                // a caller cycling through thread counts (1..64 left 2,082 threads
+                // alive) keeps at most MAX_POOLS pools; one dropped here ends its
+                // threads once no restoration still runs on it (the Arc)
+                if map.keys().filter(|k| k.0 == generation).count() >= MAX_POOLS {
+                    map.retain(|k, _| k.0 != generation);
+                }
                 let p = build_pool(n)?;
                 map.insert((generation, n), p.clone());
                 p
