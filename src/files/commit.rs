@@ -194,14 +194,21 @@ fn sidecar_input(path: &Path) -> Option<(PathBuf, Option<PathBuf>, Option<String
 /// [`MAX_SIDECAR`] bytes and [`MAX_SIDECAR_VALUES`] values (a FIFO at its
 /// name is never waited on), None otherwise or when it is not JSON.
 pub(crate) fn read_sidecar(path: &Path) -> Option<serde_json::Value> {
+    read_sidecar_within(path, MAX_SIDECAR)
+}
+
+/// [`read_sidecar`] of a file of at most `limit` bytes (and
+/// [`MAX_SIDECAR`]), read no further.
+pub(crate) fn read_sidecar_within(path: &Path, limit: u64) -> Option<serde_json::Value> {
     use std::os::unix::fs::OpenOptionsExt;
+    let limit = limit.min(MAX_SIDECAR);
     let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK).open(path).ok()?;
     let m = f.metadata().ok()?;
-    if !m.is_file() || m.len() > MAX_SIDECAR {
+    if !m.is_file() || m.len() > limit {
         return None;
     }
     let mut text = Vec::new();
-    f.take(MAX_SIDECAR).read_to_end(&mut text).ok()?;
+    f.take(limit).read_to_end(&mut text).ok()?;
     if json_values(&text) > MAX_SIDECAR_VALUES {
         return None;
     }

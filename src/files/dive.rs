@@ -16,6 +16,12 @@ use crate::method::water::WaterType;
 /// Most sidecars read from one folder.
 const MAX_SIDECARS: usize = 100_000;
 
+/// Largest sidecar read for its fit: a photo's is a few KiB (a video's,
+/// with a still for every frame, can be megabytes but records no fit), so
+/// a folder of planted or sparse 16 MiB files is not read whole, nor
+/// parsed beyond some 40 MB.
+const MAX_FIT_SIDECAR: u64 = 1 << 20;
+
 /// The water a folder of calibrated photos agrees on.
 #[derive(Debug, Clone)]
 pub struct DiveWater {
@@ -173,8 +179,8 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
         }
     };
     for p in &paths {
-        let Some(side) = crate::files::commit::read_sidecar(p) else {
-            skip(p, "not a sidecar (not a regular file, over 16 MiB or a million values, or not JSON)");
+        let Some(side) = crate::files::commit::read_sidecar_within(p, MAX_FIT_SIDECAR) else {
+            skip(p, "not a photo's sidecar (not a regular file, over 1 MiB, or not JSON)");
             continue;
         };
         if let Some(b) = fitted_beta(&side) {
@@ -234,6 +240,9 @@ mod tests {
         std::fs::write(d.join("e.json"), "{not json").unwrap();
         std::fs::write(d.join("f.json"), json!({"distance": {"used": true, "water": {"beta": [-1, "x", 1e300]}}}).to_string()).unwrap();
         std::fs::write(d.join("g.txt"), side([9.0, 9.0, 0.05], true)).unwrap();
+        // a fit padded past 1 MiB is no photo's sidecar: skipped and named, never read whole
+        let padded = format!("{}{}", side([9.0, 9.0, 0.05], true), " ".repeat(1 << 20));
+        std::fs::write(d.join("h.json"), padded).unwrap();
         let w = read_water_from(&d).unwrap();
         assert_eq!(w.photos, 3);
         assert!((w.beta[0] - 0.5).abs() < 1e-12 && (w.beta[2] - 0.05).abs() < 1e-12);
@@ -245,10 +254,11 @@ mod tests {
         assert!(read_water_from(&empty).unwrap_err().message.contains("no sidecar"));
         assert!(read_water_from(&d.join("nope")).unwrap_err().message.contains("cannot read"));
         assert!(!w.weighted);
-        // e (not JSON) and f (numbers no fit writes) are named; d (not used) is a photo without distance
-        assert_eq!(w.skipped.0, 2);
+        // e (not JSON), f (numbers no fit writes) and h (over 1 MiB) are named; d (not used) is a photo without distance
+        assert_eq!(w.skipped.0, 3);
         let notes = w.notes().join("\n");
-        assert!(notes.contains("e.json: not a sidecar") && notes.contains("f.json: its distance.water.beta"), "{notes}");
+        assert!(notes.contains("e.json: not a photo's sidecar") && notes.contains("f.json: its distance.water.beta"), "{notes}");
+        assert!(notes.contains("h.json: not a photo's sidecar (not a regular file, over 1 MiB"), "{notes}");
         assert!(!notes.contains("d.json"), "{notes}");
     }
 
