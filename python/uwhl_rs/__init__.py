@@ -191,18 +191,22 @@ def _as_mask(mask, name: str, shape) -> np.ndarray | None:
     return np.not_equal(m.view(np.uint8), 0)
 
 
-def _nearest_type(water: dict) -> str:
+def _nearest_type(water: dict, beta) -> str:
     """The name of a given water's one candidate type: its ``nearest_type``,
     which a fit (and uwhl-rs's --water-from, which names the dive's water
-    from its betas) only ever makes one of the Jerlov names, or "fitted"
-    without one. Anything else, text that could drive a terminal or bury a
-    line in the sidecar and the summary included, is refused."""
+    from its betas) only ever makes the Jerlov type nearest its ``beta``, or
+    "fitted" without one. Anything else (another type's name: the sidecar
+    would name a water it was not restored with; text that could drive a
+    terminal or bury a line in the sidecar and the summary) is refused."""
     name = water.get("nearest_type")
     if name is None:
         return "fitted"
     if not isinstance(name, str) or name not in WATER_TYPES:
         raise ParameterError(f"water's nearest_type must be a Jerlov type ({', '.join(WATER_TYPES)}) or None, "
                              f"not {shown(name)}")
+    nearest = _core.nearest_type(beta)[0]
+    if name != nearest:
+        raise ParameterError(f"water's nearest_type is {name}, but its beta is nearest to {nearest}")
     return name
 
 
@@ -353,7 +357,7 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
                                  "(the water of a restoration given distance)") from None
         if not all(np.isfinite(v) and v > 0 for v in (br, bg, bb)):
             raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}")
-        method["water_types"] = [(_nearest_type(water), bb / br, bb / bg)]
+        method["water_types"] = [(_nearest_type(water, (br, bg, bb)), bb / br, bb / bg)]
     params = _method_params(**method)
     _check_room(image, params, distance)
     img = _as_image(image)

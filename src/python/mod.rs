@@ -667,6 +667,13 @@ fn outdir_problem(dir: std::path::PathBuf) -> Option<String> {
     crate::files::jobs::outdir_problem(&dir)
 }
 
+/// The Jerlov type nearest to a water of attenuations `beta` (1/m, R, G, B)
+/// and how near (`crate::method::distance::nearest_type`, METHOD §13).
+#[pyfunction]
+fn nearest_type(beta: [f32; 3]) -> (&'static str, f32) {
+    crate::method::distance::nearest_type(beta)
+}
+
 /// A new run starts: the `--water-from` folders are read again
 /// (`crate::files::dive::forget_water_from`).
 #[pyfunction]
@@ -985,6 +992,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
     m.add_function(wrap_pyfunction!(forget_water_from, m)?)?;
+    m.add_function(wrap_pyfunction!(nearest_type, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;

@@ -174,3 +174,13 @@ print(threads() - base)
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert int(r.stdout) <= 292, r.stdout
+
+
+def test_a_given_water_is_named_by_its_beta(img):
+    """The sidecar names the type the water was restored with: a water whose
+    beta is Jerlov 9C's (0.3 / (2.0708, 1.5942, 1)) is not labelled I."""
+    beta = [0.3 / 2.0708, 0.3 / 1.5942, 0.3]
+    with pytest.raises(ParameterError, match="nearest_type is I, but its beta is nearest to 9C"):
+        uwhl_rs.restore(img, water={"beta": beta, "nearest_type": "I"})
+    assert uwhl_rs.restore(img, water={"beta": beta, "nearest_type": "9C"}).water_type == "9C"
+    assert uwhl_rs.restore(img, water={"beta": beta}).water_type == "fitted"
