@@ -56,18 +56,20 @@ def _water_from(cmd, photo, cal, out):
 # plain median 0.2) and blue-to-green 0.5, 0.6, 0.7 (median 0.6)
 BETAS = [[0.5, 0.1, 0.05], [0.4, 0.1 / 0.6 * 0.8, 0.08], [0.3, 0.09 / 0.7, 0.09]]
 FAIR = [[0.01, 1.0], [0.01, 1.0]]
+#: the ratios of the plain median beta (0.4, 0.09 / 0.7, 0.08), by hand
+PLAIN = [0.08 / 0.4, 0.08 / (0.09 / 0.7)]
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
 def test_equal_weights_give_the_plain_median_even_when_each_span_overflows(impl, binary, photo, tmp_path):
     """A blue range [1e-320, 1] has a span that overflows (hi / lo = inf, a
-    weight of 0): it is no range, and the folder gets the plain medians
-    (0.2, 0.6), not the smallest of each list that a zero total weight
-    would give (0.1, 0.5)."""
+    weight of 0): it is no range, and the folder gets the ratios of the
+    plain median beta (0.2, 0.622), not those of the smallest of each list
+    that a zero total weight would give (0.3, 0.1, 0.05: 0.167, 0.5)."""
     cal = _cal(tmp_path, [(b, [*FAIR, [1e-320, 1.0]]) for b in BETAS])
     r, side = _water_from(_cmds(binary)[impl], photo, cal, tmp_path / impl)
     assert r.returncode == 0, r.stderr
-    assert side["beta_ratios"] == pytest.approx([0.2, 0.6], rel=1e-9), side["parameters"]["water_from"]
+    assert side["beta_ratios"] == pytest.approx(PLAIN, rel=1e-9), side["parameters"]["water_from"]
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
@@ -75,14 +77,14 @@ def test_a_range_that_does_not_hold_its_own_fit_is_not_a_range(impl, binary, pho
     """The fit always lies inside its range (METHOD §13.2 step 6). A sidecar
     claiming blue beta 0.09 with a range [50, 50] would get the capped weight
     1 / ln 1.01 = 100 and outweigh the others (0.43 each): such a range is
-    not usable, so the folder gets the plain medians (0.2, 0.6),
-    weighted=false."""
+    not usable, so the folder gets the ratios of the plain median beta
+    (0.2, 0.622), weighted=false."""
     fits = [(BETAS[0], [*FAIR, [0.01, 0.1]]), (BETAS[1], [*FAIR, [0.01, 0.1]]), (BETAS[2], [*FAIR, [50.0, 50.0]])]
     cal = _cal(tmp_path, fits)
     r, side = _water_from(_cmds(binary)[impl], photo, cal, tmp_path / impl)
     assert r.returncode == 0, r.stderr
     assert side["parameters"]["water_from"]["weighted"] is False, side["parameters"]["water_from"]
-    assert side["beta_ratios"] == pytest.approx([0.2, 0.6], rel=1e-9)
+    assert side["beta_ratios"] == pytest.approx(PLAIN, rel=1e-9)
 
 
 @pytest.mark.parametrize("impl", ["python", "rust"])
