@@ -343,7 +343,7 @@ mod tests {
         // A_R^-beta_BR = 0.008^-20.15 overflows f32 (found by proptest: the
         // product gave inf, the guided filter NaN); by hand, I_R = A_R / 2:
         // (1 - 1/2)^20.15 = 8.8e-7, under the floor, and I = 0: 1 for red
-        let wt = WaterType::new("x", 20.153500771027755, 1e-6).unwrap();
+        let wt = WaterType::new("x", 20.153500771027755, crate::method::water::MIN_RATIO).unwrap();
         let ht = HazeType::new([0.008, 1e-4, 1e-4], &wt);
         let lb = ht.lower_bound(ht.compensated([0.004, 1e-4, 1e-4]));
         assert_eq!(lb, LB_FLOOR);
