@@ -462,6 +462,8 @@ class Sequence:
     def __init__(self, *, refresh_every: int = 0, reuse_water_mask: bool = False, scene_cut: float = 0.0,
                  smoothing: float = 1.0, **kwargs):
         refresh_every = _int_param("refresh_every", refresh_every, 0)
+        if refresh_every is None:
+            raise ParameterError("refresh_every must be an integer >= 0 (0: estimate on the first frame only); got None")
         if not isinstance(reuse_water_mask, (bool, np.bool_)):
             raise ParameterError(f"reuse_water_mask must be True or False; got {reuse_water_mask!r}")
         for name, v, lo_open in (("scene_cut", scene_cut, False), ("smoothing", smoothing, True)):

@@ -102,6 +102,8 @@ def read_mask(mask, shape, what: str, *, max_pixels: int | None = None, max_memo
                                    int(max_memory or _core.default_max_memory()))
     else:
         m = np.asarray(mask, dtype=bool)
+        if m.ndim != 2:
+            raise ParameterError(f"{what} must be a 2-D array of bools or an image file, not {shown(mask)}")
     if m.shape != tuple(shape):
         raise ParameterError(f"{what} is {m.shape[1]}x{m.shape[0]} pixels but {of} is {shape[1]}x{shape[0]}")
     return m
@@ -240,6 +242,15 @@ def restore_staged(
     t_start = time.perf_counter()
     if altitude is not None and distance is not None:
         raise ParameterError("distance and altitude are two sources of distance: give one")
+    for what, v in (("in_path", in_path), ("out_dir", out_dir)):
+        if not isinstance(v, (str, os.PathLike)):
+            raise ParameterError(f"{what} must be a path, not {shown(v)}")
+    if not isinstance(format, str):
+        raise ParameterError(f"format must be 'jpg', 'png' or 'tiff', not {shown(format)}")
+    if not isinstance(contact, (bool, np.bool_)):
+        raise ParameterError(f"contact must be True or False, not {shown(contact)}")
+    if sequence is not None and not isinstance(sequence, uwhl_rs.Sequence):
+        raise ParameterError(f"sequence must be a uwhl_rs.Sequence or None, not {shown(sequence)}")
     in_path = os.fspath(in_path)
     out_dir = os.fspath(out_dir)
     settings = settings_of(format=format, bits=bits, quality=quality, preprocess=preprocess, half_size=half_size,
@@ -415,13 +426,19 @@ def settings_of(*, format: str = _D["format"], bits: int | None = _D["bits"], qu
     """The core's settings of a file's restoration (``_core.FileSettings``:
     every option checked by the core's table, the binary's checks and
     messages); its ``parameters`` (JSON text) is what the sidecar records."""
-    return _core.FileSettings(format=format, bits=bits, quality=quality, preprocess=preprocess,
-                              half_size=half_size, max_side=max_side, max_pixels=max_pixels,
-                              mask=_mask_label(mask), water_mask=_mask_label(water_mask),
-                              distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
-                              altitude=_altitude_source(altitude), fov=fov, port=port,
-                              distance_kind=distance_kind,
-                              water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
+    if water_from is not None and not isinstance(water_from, (str, os.PathLike)):
+        raise ParameterError(f"water_from must be a folder's path or None, not {shown(water_from)}")
+    try:
+        return _core.FileSettings(format=format, bits=bits, quality=quality, preprocess=preprocess,
+                                  half_size=half_size, max_side=max_side, max_pixels=max_pixels,
+                                  mask=_mask_label(mask), water_mask=_mask_label(water_mask),
+                                  distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
+                                  altitude=_altitude_source(altitude), fov=fov, port=port,
+                                  distance_kind=distance_kind,
+                                  water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
+    except (TypeError, OverflowError) as e:
+        # a value of the wrong kind (format=None, bits=8.0): the core's argument named, not a traceback
+        raise ParameterError(str(e)) from None
 
 
 def _mask_label(mask):

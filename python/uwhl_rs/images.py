@@ -162,7 +162,7 @@ def read_image(
     what it raises propagates. ``_flags`` (the command's): the pixel limit
     is named ``--max-pixels``, as the command's flag, not ``max_pixels``.
     """
-    path = os.fspath(path)
+    path = _path_arg("path", path)
     if preprocess not in PREPROCESS_MODES:
         raise ValueError(f"preprocess must be one of {PREPROCESS_MODES}, not {preprocess!r}")
     _check_max_pixels(max_pixels)
@@ -226,7 +226,7 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
         than the core's default limit.
     """
     _check_max_pixels(max_pixels)
-    return np.asarray(_core.read_distance_file(os.fspath(path), int(max_pixels), int(_core.default_max_memory())))
+    return np.asarray(_core.read_distance_file(_path_arg("path", path), int(max_pixels), int(_core.default_max_memory())))
 
 
 #: the largest max_pixels (the option table's: the core's 64-bit count)
@@ -503,21 +503,19 @@ def atomic_write_bytes(path: str | os.PathLike, write) -> None:
 
 
 def _encodable(path: str, image: np.ndarray, bits: int, encoding: str) -> tuple[str, np.ndarray]:
-    """The extension and the integer samples :func:`write_image` writes (or ValueError)."""
+    """The extension and the integer samples :func:`write_image` writes (or a ParameterError naming what cannot be written)."""
     ext = os.path.splitext(path)[1].lower()
     if ext not in IMAGE_EXTENSIONS:
-        raise ValueError(f"{path}: cannot write {ext or 'a file without extension'}; use .jpg, .png or .tif")
+        raise ParameterError(f"{path}: cannot write {ext or 'a file without extension'}; use .jpg, .png or .tif")
     a = np.asarray(image)
     if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] != 3) or a.size == 0:
-        raise ValueError(f"{path}: cannot write an array of shape {a.shape} (need HxW or HxWx3, non-empty)")
+        raise ParameterError(f"{path}: cannot write an array of shape {a.shape} (need HxW or HxWx3, non-empty)")
     if a.dtype.kind == "f":
-        if bits not in (8, 16):
-            raise ValueError(f"bits must be 8 or 16, not {bits}")
         a = quantize(a, bits, encoding=encoding)
     elif a.dtype not in (np.uint8, np.uint16):
-        raise ValueError(f"{path}: cannot write samples of type {a.dtype} (float, uint8 or uint16)")
+        raise ParameterError(f"{path}: cannot write samples of type {a.dtype} (float, uint8 or uint16)")
     if ext in (".jpg", ".jpeg") and a.dtype != np.uint8:
-        raise ValueError(f"{path}: JPEG holds 8 bits per sample; use .png or .tif for 16 bits")
+        raise ParameterError(f"{path}: JPEG holds 8 bits per sample; use .png or .tif for 16 bits")
     return ext, a
 
 
@@ -540,6 +538,14 @@ def _os_error(path: str, e: OSError) -> OSError:
     return OSError(e.errno, f"cannot write {path}: {e.strerror or e}")
 
 
+def _path_arg(what: str, path) -> str:
+    """``path`` as text, or a ParameterError naming ``what`` (bytes and
+    other objects are no path the readers and writers take)."""
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise ParameterError(f"{what} must be a path (str or os.PathLike), not {shown(path)}")
+    return os.fspath(path)
+
+
 def write_image(
     path: str | os.PathLike,
     image: np.ndarray,
@@ -557,7 +563,11 @@ def write_image(
     appears complete or not at all, and is synced (with its folder) before
     this returns. Returns the path.
     """
-    path = os.fspath(path)
+    path = _path_arg("path", path)
+    if isinstance(bits, (bool, np.bool_)) or not isinstance(bits, (int, np.integer)) or bits not in (8, 16):
+        raise ParameterError(f"bits must be 8 or 16, not {shown(bits)}")
+    if isinstance(quality, (bool, np.bool_)) or not isinstance(quality, (int, np.integer)) or not 1 <= quality <= 100:
+        raise ParameterError(f"quality must be an integer in [1, 100], not {shown(quality)}")
     ext, a = _encodable(path, image, bits, encoding)
     try:
         atomic_write_bytes(path, lambda tmp: _encode_into(tmp, ext, a, quality))

@@ -184,3 +184,26 @@ def test_a_given_water_is_named_by_its_beta(img):
         uwhl_rs.restore(img, water={"beta": beta, "nearest_type": "I"})
     assert uwhl_rs.restore(img, water={"beta": beta, "nearest_type": "9C"}).water_type == "9C"
     assert uwhl_rs.restore(img, water={"beta": beta}).water_type == "fitted"
+
+
+@pytest.mark.parametrize("call, what", [
+    (lambda d: uwhl_rs.Sequence(refresh_every=None), "refresh_every"),
+    (lambda d: images.write_image(d / "x.png", np.zeros((4, 4, 3), np.float32), bits=8.0), "bits"),
+    (lambda d: images.write_image(d / "x.jpg", np.zeros((4, 4, 3), np.float32), quality=None), "quality"),
+    (lambda d: images.write_image(d / "x.jpg", np.zeros((4, 4, 3), np.float32), quality=float("nan")), "quality"),
+    (lambda d: images.write_image(d / "x.jpg", np.zeros((4, 4, 3), np.float32), quality=2 ** 70), "quality"),
+    (lambda d: images.write_image(d / "x.jpg", np.zeros((4, 4, 3), np.uint16)), "JPEG holds 8 bits"),
+    (lambda d: uwhl_rs.read_distance(b"/x.npy"), "path"),
+    (lambda d: images.read_image(None), "path"),
+    (lambda d: files.restore_file(None, d), "in_path"),
+    (lambda d: files.restore_file(d / "p.png", d / "o", contact="yes"), "contact"),
+    (lambda d: files.restore_file(d / "p.png", d / "o", format=None), "format"),
+    (lambda d: files.restore_file(d / "p.png", d / "o", bits=8.0), "bits"),
+    (lambda d: files.restore_file(d / "p.png", d / "o", sequence="x"), "sequence"),
+    (lambda d: files.restore_file(d / "p.png", d / "o", water_from=3), "water_from"),
+    (lambda d: files.restore_file(d / "p.png", d / "o", mask=3), "mask"),
+])
+def test_an_argument_of_the_wrong_kind_is_a_parameter_error_naming_it(tmp_path, img, call, what):
+    images.write_image(tmp_path / "p.png", img, bits=8, encoding="linear")
+    with pytest.raises(ParameterError, match=what):
+        call(tmp_path)
