@@ -349,7 +349,7 @@ class Params:
     def steps(self) -> list[tuple[str, str]]:
         """The profile and the steps used, as (keyword, name) pairs (METHOD §12)."""
     def budget(self, h: int, w: int) -> tuple[int, int]:
-        """(needed, max_memory): the working memory of an h x w restoration and its limit."""
+        """(needed, max_memory): the working memory of an h x w restoration and its limit (the values that need no image checked first)."""
 
 def restore_f32(
     image: _F32,

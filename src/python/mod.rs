@@ -324,9 +324,12 @@ impl PyParams {
     /// `(needed, max_memory)`: the working memory a restoration of an `h`
     /// x `w` image needs with these parameters, and the limit it is
     /// checked against, so that the Python layer can refuse an image from
-    /// its shape before copying it.
-    fn budget(&self, h: usize, w: usize) -> (u64, u64) {
-        (crate::method::params::needed_memory(h, w, false, &self.0), self.0.max_memory)
+    /// its shape before copying it. The values that need no image are
+    /// checked first (`check_values`): a sphere_points out of its range is
+    /// named as such, not as the memory its index would take.
+    fn budget(&self, h: usize, w: usize) -> PyResult<(u64, u64)> {
+        crate::method::params::check_values(&self.0).map_err(to_py_err)?;
+        Ok((crate::method::params::needed_memory(h, w, false, &self.0), self.0.max_memory))
     }
 }
 

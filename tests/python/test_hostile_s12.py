@@ -207,3 +207,20 @@ def test_an_argument_of_the_wrong_kind_is_a_parameter_error_naming_it(tmp_path, 
     images.write_image(tmp_path / "p.png", img, bits=8, encoding="linear")
     with pytest.raises(ParameterError, match=what):
         call(tmp_path)
+
+
+def test_sphere_points_out_of_range_is_named_as_such(img):
+    """10**12 points is out of 1..1,000,000, said before the memory its index
+    would take (a MemoryError named another problem)."""
+    with pytest.raises(ParameterError, match="sphere_points"):
+        uwhl_rs.restore(img, sphere_points=10 ** 12)
+
+
+def test_a_mask_that_leaves_only_water_names_the_mask(img):
+    """No water_mask given: the refusal names the mask, not a water_mask the
+    caller never passed."""
+    vl = uwhl_rs.restore(img).veiling_mask
+    with pytest.raises(ParameterError, match=r"bad mask: leaves only pixels of the water region"):
+        uwhl_rs.restore(img, mask=vl)
+    with pytest.raises(ParameterError, match="bad water_mask: covers every pixel"):
+        uwhl_rs.restore(img, mask=vl, water_mask=vl)

@@ -178,15 +178,26 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
 /// A water region of `water` pixels that covers every pixel used for
 /// estimation leaves no object pixels to choose the water type with
 /// (METHOD §9).
+/// The error names what the caller gave: the water mask, or, when the
+/// water region was found (§3), the mask that left only water.
 fn objects_left(input: &Input, water: usize) -> Result<()> {
     let usable = input.mask.map_or(input.image.len(), |m| m.iter().filter(|&&b| b).count());
-    if water >= usable {
-        return Err(Error::Mask {
+    if water < usable {
+        return Ok(());
+    }
+    Err(if input.water_mask.is_some() {
+        Error::Mask {
             name: "water_mask",
             msg: "covers every pixel used for estimation: no object pixels are left to choose the water type".into(),
-        });
-    }
-    Ok(())
+        }
+    } else {
+        Error::Mask {
+            name: "mask",
+            msg: "leaves only pixels of the water region found (METHOD §3): no object pixels are left to choose \
+                  the water type; mask in some of the scene, or give water_mask"
+                .into(),
+        }
+    })
 }
 
 #[cfg(test)]
