@@ -222,10 +222,14 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                             Failure::new(Kind::Write, format!("cannot write frame {k} to stdout ({why}): stopped"))
                         })
                     }
-                    Sink::Folder(_, lines) => {
+                    Sink::Folder(dir, lines) => {
                         let e = Failure::new(e.kind, format!("frame {k}: {}", e.message));
                         if first {
                             report(err, opts.json_errors, None, &e);
+                        }
+                        // an earlier run's outputs of frame k are not this run's frame k
+                        if let Err(why) = clear_frame(opts, dir, k) {
+                            report(err, opts.json_errors, None, &why);
                         }
                         writeln!(lines, "{}", crate::cli::run::json_line(&crate::cli::run::spaced(&e.to_json(Some(&format!("stdin#{k}"))))))
                             .and_then(|()| lines.flush())
@@ -336,6 +340,22 @@ impl Unrestored {
             let _ = writeln!(err, "uwhl-rs: frames {a}-{b}: the same ({} frames, not restored as frame {} was not)", b - a + 1, self.first);
         }
         self.count = 0;
+    }
+}
+
+/// Removes what an earlier run wrote as frame `k` in `dir` (a frame this
+/// run cannot restore has no outputs, only its line).
+fn clear_frame(opts: &Options, dir: &Path, k: usize) -> Result<(), Failure> {
+    let name = format!("frame_{k:06}");
+    let input = PathBuf::from(format!("stdin#{k}"));
+    let suffixes = crate::files::pipeline::output_suffixes(opts);
+    let request = Request { dir, base: &name, input: &input, suffixes: &suffixes, overwrite: true, rename: false };
+    match claim(&request) {
+        Ok(Resolution::Claimed(c)) => {
+            c.clear().map_err(|e| Failure::new(Kind::Write, format!("cannot remove the earlier {name} in {}: {e}", dir.display())))
+        }
+        Ok(Resolution::Skipped(why, s)) => Err(Failure::new(Kind::Write, format!("{}: {}", s.display(), why.reason()))),
+        Err(e) => Err(Failure::new(Kind::Write, format!("cannot claim output names in {}: {e}", dir.display()))),
     }
 }
 

@@ -569,6 +569,23 @@ impl Claim {
         }
     }
 
+    /// Nothing is written this time: the files an earlier run left at
+    /// every path (the sidecar first) are removed, so the folder holds no
+    /// output of another restoration under these names.
+    pub fn clear(self) -> io::Result<()> {
+        let Some((sidecar, outputs)) = self.paths.split_last() else {
+            return Ok(());
+        };
+        for p in std::iter::once(sidecar).chain(outputs) {
+            match fs::remove_file(p) {
+                Ok(()) => {}
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => return Err(e),
+            }
+        }
+        sync_dir(&self.dir)
+    }
+
     /// Puts the written temporaries (one per path not omitted, in the
     /// order of [`Claim::paths`], each made by [`Claim::temp`]) in place:
     /// syncs them, removes an earlier sidecar, removes the omitted outputs'

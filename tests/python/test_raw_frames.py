@@ -163,3 +163,17 @@ def test_frames_over_max_pixels_are_refused_before_reading(binary):
     # at the limit: restored
     r = _run(binary, "--raw-frames", "8x8", "--max-pixels", "64", "-o", "-", data=bytes(range(192)))
     assert r.returncode == 0, r.stderr
+
+
+def test_a_frame_not_restored_leaves_no_earlier_runs_outputs_under_its_name(binary, frames, tmp_path):
+    """A second run into the same folder whose frame 1 is black (no
+    haze-line to read): frame_000001's files are not the first run's."""
+    codes = _codes(frames[:3], 8)
+    r = _run(binary, "--raw-frames", f"{W}x{H}", "-o", tmp_path, "--format", "png", "-q", data=_bytes(codes, 8))
+    assert r.returncode == 0 and (tmp_path / "frame_000001.json").exists(), r.stderr.decode()
+    codes[1] = np.zeros_like(codes[1])
+    r = _run(binary, "--raw-frames", f"{W}x{H}", "-o", tmp_path, "--format", "png", "-q", data=_bytes(codes, 8))
+    lines = [json.loads(x) for x in r.stdout.decode().splitlines()]
+    assert [x.get("error") is not None for x in lines] == [False, True, False], lines
+    assert sorted(p.name for p in tmp_path.glob("frame_000001*")) == []
+    assert (tmp_path / "frame_000000.json").exists() and (tmp_path / "frame_000002.json").exists()
