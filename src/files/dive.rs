@@ -155,10 +155,18 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     // link to a sidecar of the folder would count its fit twice), in name
     // order, at most MAX_SIDECARS of them (more is an error, not a silent cut)
     let mut paths = Vec::new();
+    // a file with several names (hard links) is one photo's fit: read once
+    let mut files = std::collections::HashSet::new();
     for e in entries.flatten() {
         let p = e.path();
         if p.extension().and_then(|x| x.to_str()) != Some("json") || !e.file_type().is_ok_and(|t| t.is_file()) {
             continue;
+        }
+        if let Ok(m) = e.metadata() {
+            use std::os::unix::fs::MetadataExt;
+            if !files.insert((m.dev(), m.ino())) {
+                continue;
+            }
         }
         if paths.len() == MAX_SIDECARS {
             return Err(Failure::usage(format!(
@@ -243,6 +251,10 @@ mod tests {
         // a fit padded past 1 MiB is no photo's sidecar: skipped and named, never read whole
         let padded = format!("{}{}", side([9.0, 9.0, 0.05], true), " ".repeat(1 << 20));
         std::fs::write(d.join("h.json"), padded).unwrap();
+        // five more names of c.json: still one fit, not six that outvote a and b
+        for k in 0..5 {
+            std::fs::hard_link(d.join("c.json"), d.join(format!("c{k}.json"))).unwrap();
+        }
         let w = read_water_from(&d).unwrap();
         assert_eq!(w.photos, 3);
         assert!((w.beta[0] - 0.5).abs() < 1e-12 && (w.beta[2] - 0.05).abs() < 1e-12);
