@@ -140,6 +140,8 @@ def _check_room(image, params, distance=None) -> None:
 
 def _as_image(image) -> np.ndarray:
     a = np.asarray(image)
+    if a.dtype.kind == "f" and a.dtype.itemsize in (4, 8) and not a.dtype.isnative:
+        a = a.astype(a.dtype.newbyteorder("="))  # a big-endian file's floats are the same numbers
     if a.dtype not in (np.float32, np.float64):
         raise ImageError(
             f"image has dtype {a.dtype}; expected float32 or float64 linear RGB in [0, 1] "

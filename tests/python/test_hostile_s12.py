@@ -224,3 +224,13 @@ def test_a_mask_that_leaves_only_water_names_the_mask(img):
         uwhl_rs.restore(img, mask=vl)
     with pytest.raises(ParameterError, match="bad water_mask: covers every pixel"):
         uwhl_rs.restore(img, mask=vl, water_mask=vl)
+
+
+def test_big_endian_floats_are_the_same_image(img):
+    """A big-endian float32 or float64 array (as FITS and some TIFFs store
+    them) holds the same numbers: the same restoration, as distance maps
+    already were."""
+    a = uwhl_rs.restore(img)
+    for dt in (">f4", ">f8"):
+        b = uwhl_rs.restore(img.astype(dt))
+        assert np.array_equal(a.image, b.image) and np.array_equal(a.transmission, b.transmission)
