@@ -19,7 +19,7 @@ _RGB = tuple[float, float, float]
 #: every name the module registers, in registration order (the _stage_*
 #: names only in a build with the ``internals`` feature)
 __all__ = [
-    "restore_f32", "transfer_of_tag", "frame_to_linear", "frame_from_linear", "_decode_u16", "_quantize", "_colormap",
+    "restore_f32", "transfer_of_tag", "frame_to_linear", "frame_from_linear", "_decode_u16", "_quantize", "_colormap", "_restoration_from_state",
     "_downscale", "_reference_srgb", "_reference_raw", "_decode_png", "_encode_png", "Restoration", "Sequence",
     "Params", "_after_fork", "_stage_stretch", "_stage_guide", "_stage_edge_map", "_stage_veiling",
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
@@ -275,6 +275,8 @@ def _decode_u16(codes: npt.NDArray[np.uint16], linearize: bool) -> _F32:
     """16-bit codes (any shape) to float32 in [0, 1], through the inverse sRGB curve when `linearize`."""
 def _quantize(data: _F32, bits: Literal[8, 16], srgb: bool) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
     """float32 values (any shape) to uint8 or uint16 codes, through the sRGB curve when `srgb`."""
+def _restoration_from_state(state: dict[str, Any]) -> Restoration:
+    """A Restoration from the state its __reduce__ gave (unpickling)."""
 def _colormap(t: _F32) -> npt.NDArray[np.uint8]:
     """A transmission map (H, W) to its colour-mapped uint8 image (H, W, 3)."""
 def _downscale(image: _F32, factor: int) -> _F32:
@@ -336,6 +338,7 @@ class Restoration:
     def guided_subsample(self) -> int: ...
     @property
     def timings(self) -> dict[str, float]: ...
+    def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]: ...
     def channel_transmissions(self) -> _F32:
         """Per-channel transmissions (t_R, t_G, t_B) of the chosen type, (H, W, 3) float32 (METHOD §7)."""
 

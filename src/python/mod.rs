@@ -155,12 +155,69 @@ impl PyRestoration {
             .into_any())
     }
 
+    /// Pickling (a multiprocessing pool returns restorations): the fields
+    /// as a dict, for [`_restoration_from_state`].
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let d = PyDict::new(py);
+        d.set_item("image", self.image.bind(py))?;
+        d.set_item("radiance", self.radiance.bind(py))?;
+        d.set_item("transmission", self.transmission.bind(py))?;
+        d.set_item("water_type", &self.water_type)?;
+        d.set_item("beta_ratios", self.beta_ratios)?;
+        d.set_item("scores", self.scores.bind(py))?;
+        d.set_item("excluded", &self.excluded)?;
+        d.set_item("veiling_light", self.veiling_light)?;
+        d.set_item("veiling_mask", self.veiling_mask.bind(py))?;
+        d.set_item("flags", &self.flags)?;
+        d.set_item("confidence", self.confidence.as_ref().map(|c| c.bind(py)))?;
+        d.set_item("veil_excess", self.veil_excess)?;
+        d.set_item("fallback_share", self.fallback_share)?;
+        d.set_item("distance_json", &self.distance_json)?;
+        d.set_item("guided_radius", self.guided_radius)?;
+        d.set_item("guided_subsample", self.guided_subsample)?;
+        d.set_item("timings", self.timings.bind(py))?;
+        d.set_item("shape", self.shape)?;
+        Ok((py.import("uwhl_rs._core")?.getattr("_restoration_from_state")?, (d,)))
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Restoration(water_type={:?}, veiling_light=({:.4}, {:.4}, {:.4}), shape={}x{}, flags={:?})",
             self.water_type, self.veiling_light.0, self.veiling_light.1, self.veiling_light.2, self.shape.0, self.shape.1, self.flags
         )
     }
+}
+
+/// A restoration from the state its `__reduce__` gave (unpickling).
+#[pyfunction]
+fn _restoration_from_state(state: &Bound<'_, PyDict>) -> PyResult<PyRestoration> {
+    let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
+        state.get_item(k)?.ok_or_else(|| ParameterError::new_err(format!("a pickled Restoration without {k}")))
+    };
+    let opt = |k: &str| -> PyResult<Option<Bound<'_, PyAny>>> { Ok(get(k).ok().filter(|v| !v.is_none())) };
+    let water_type: String = get("water_type")?.extract()?;
+    let beta_ratios: (f64, f64) = get("beta_ratios")?.extract()?;
+    Ok(PyRestoration {
+        image: get("image")?.unbind(),
+        radiance: get("radiance")?.unbind(),
+        transmission: get("transmission")?.unbind(),
+        wt: WaterType::new(&water_type, beta_ratios.0, beta_ratios.1).map_err(to_py_err)?,
+        water_type,
+        beta_ratios,
+        scores: get("scores")?.cast_into::<PyDict>()?.unbind(),
+        excluded: get("excluded")?.extract()?,
+        veiling_light: get("veiling_light")?.extract()?,
+        veiling_mask: get("veiling_mask")?.unbind(),
+        flags: get("flags")?.extract()?,
+        confidence: opt("confidence")?.map(Bound::unbind),
+        veil_excess: opt("veil_excess")?.map(|v| v.extract()).transpose()?,
+        fallback_share: opt("fallback_share")?.map(|v| v.extract()).transpose()?,
+        distance_json: opt("distance_json")?.map(|v| v.extract()).transpose()?,
+        guided_radius: get("guided_radius")?.extract()?,
+        guided_subsample: get("guided_subsample")?.extract()?,
+        timings: get("timings")?.cast_into::<PyDict>()?.unbind(),
+        shape: get("shape")?.extract()?,
+    })
 }
 
 /// `water_types` as given in Python: names or `(name, beta_BR, beta_BG)`
@@ -996,6 +1053,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
     m.add_function(wrap_pyfunction!(forget_water_from, m)?)?;
     m.add_function(wrap_pyfunction!(nearest_type, m)?)?;
+    m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;

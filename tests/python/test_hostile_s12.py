@@ -234,3 +234,23 @@ def test_big_endian_floats_are_the_same_image(img):
     for dt in (">f4", ">f8"):
         b = uwhl_rs.restore(img.astype(dt))
         assert np.array_equal(a.image, b.image) and np.array_equal(a.transmission, b.transmission)
+
+
+def test_a_restoration_survives_pickling(img):
+    """A multiprocessing pool returns restorations by pickling them: every
+    field comes back equal, with or without a distance."""
+    import pickle
+
+    z = np.full(img.shape[:2], 5.0, np.float32)
+    for r in (uwhl_rs.restore(img), uwhl_rs.restore(img, distance=z), uwhl_rs.restore(img, method="paper")):
+        b = pickle.loads(pickle.dumps(r))
+        for k in ("image", "radiance", "transmission", "veiling_mask"):
+            assert np.array_equal(getattr(r, k), getattr(b, k)), k
+        assert (r.confidence is None) == (b.confidence is None)
+        if r.confidence is not None:
+            assert np.array_equal(r.confidence, b.confidence)
+        for k in ("water_type", "beta_ratios", "scores", "excluded", "veiling_light", "flags", "veil_excess",
+                  "fallback_share", "distance", "guided_radius", "guided_subsample", "timings"):
+            assert getattr(r, k) == getattr(b, k), k
+        assert np.array_equal(r.channel_transmissions(), b.channel_transmissions())
+        assert repr(r) == repr(b)
