@@ -264,12 +264,14 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
             _run_here(plan.items, opts, so, overwrite, reuse_estimates, reuse_water_mask, jobs, settle,
                       set() if overwrite else plan.done, getattr(listener, "note", None))
         else:
-            groups = _on_any_worker(_groups(plan, overwrite, reuse_estimates, settle), opts)
+            groups = _groups(plan, overwrite, reuse_estimates, settle)
             if groups:
                 c, started, threads = cluster.connect(client, dask, opts.get("threads"))
                 if threads is not None:
                     opts["threads"] = threads
                 cluster.check_workers(c)
+                if cluster.runs_elsewhere(c):
+                    groups = _on_any_worker(groups, opts)
                 if listener is not None:
                     listener.note(f"Dask dashboard: {c.dashboard_link}")
                 cluster.run_on_cluster(c, groups, opts, so, overwrite, reuse_estimates, reuse_water_mask, settle)
@@ -304,12 +306,15 @@ PATH_OPTIONS = ("mask", "water_mask", "distance", "altitude", "water_from")
 
 def _on_any_worker(groups: list[list[Item]], opts: dict) -> list[list[Item]]:
     """``groups`` and ``opts`` (in place) with every relative local path
-    made absolute: a Dask worker runs in a folder of its own, where
-    ``-o out`` or ``--water-from cal`` would name another folder than the
-    one this command checked and reports."""
+    made absolute, for workers that run in another folder than this
+    command, where ``-o out`` or ``--water-from cal`` would name other
+    folders than the ones it checked and reports. ``--altitude`` is a path
+    only when it names a file (else metres or ``xmp``)."""
     for k in PATH_OPTIONS:
         v = opts.get(k)
-        if isinstance(v, (str, os.PathLike)) and not is_url(os.fspath(v)):
+        if not isinstance(v, (str, os.PathLike)) or is_url(os.fspath(v)):
+            continue
+        if k != "altitude" or os.path.isfile(os.fspath(v)):
             opts[k] = os.path.abspath(os.fspath(v))
 
     def here(p: str) -> str:

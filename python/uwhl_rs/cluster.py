@@ -20,7 +20,7 @@ from .errors import EXIT, BatchError
 from .storage import need
 from .tasks import MEMORY, Item, probe, restore_items, row
 
-__all__ = ["connect", "check_workers", "run_on_cluster"]
+__all__ = ["connect", "check_workers", "runs_elsewhere", "run_on_cluster"]
 
 #: inputs whose header one planning task reads
 _PROBE_BATCH = 32
@@ -128,6 +128,19 @@ def check_workers(client) -> None:
         v = "no uwhl_rs" if isinstance(v, BaseException) else f"uwhl_rs {v}"
         raise BatchError(f"{len(wrong)} of {len(found)} Dask workers do not run uwhl_rs {uwhl_rs.__version__} "
                          f"(worker {w}: {v}); install the same version on the workers", "bad_arguments")
+
+
+def runs_elsewhere(client) -> bool:
+    """Whether some worker runs in another folder than this process (a
+    worker started by hand elsewhere, or on another machine): relative
+    paths would name other files there. Workers of ``--dask local:N`` run
+    here."""
+    try:
+        folders = client.run(os.getcwd, on_error="return")
+    except Exception:
+        return True  # not known: paths that hold anywhere
+    here = os.getcwd()
+    return any(f != here for f in folders.values())
 
 
 def _largest_worker_memory(client) -> int | None:

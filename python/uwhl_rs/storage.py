@@ -315,6 +315,11 @@ def download(url: str, local: str, storage_options: dict | None = None) -> None:
     a time: memory holds a chunk, never the object (fsspec's get_file held
     ten parts of 50 MiB at once on S3, more than a photo's own plan)."""
     fs, p = filesystem(url, storage_options)
+    if url.split("://", 1)[0].lower() in ("http", "https"):
+        # a web server need not answer ranges (ranged reads fail past the first chunk);
+        # fsspec streams its get_file in blocks
+        fs.get_file(p, local)
+        return
     with open(local, "wb") as out:
         for block in _chunks(fs, p, 1 << 62, url):
             out.write(block)

@@ -95,20 +95,28 @@ def test_a_bad_timeout_is_a_usage_error(tmp_path, photo):
     assert r.returncode == 2 and "UWHL_DASK_TIMEOUT" in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
-def test_a_dask_run_hands_its_workers_absolute_paths(tmp_path, monkeypatch):
-    """A worker runs in a folder of its own: ``-o out``, a relative input
-    and ``--water-from cal`` named from the command's folder must reach it
-    as the same folders, not as names the worker resolves in its own."""
+@pytest.mark.parametrize("elsewhere", [True, False])
+def test_a_dask_run_hands_its_workers_paths_that_hold_where_they_run(tmp_path, monkeypatch, elsewhere):
+    """A worker started in another folder: ``-o out``, a relative input,
+    ``--water-from cal``, a ``--distance`` template and a navigation log
+    named from the command's folder reach it as the same files (absolute),
+    while ``--altitude 2.5`` stays metres. Workers in the command's own
+    folder (``--dask local:N``) get the paths as given, so their sidecars
+    record what a local run records."""
     from uwhl_rs import batch, cluster, images, synth
 
     monkeypatch.chdir(tmp_path)
     img, _ = synth.demo_input(40, 50, water_type="3C", seed=1)
     images.write_image(tmp_path / "p.png", img, bits=8, encoding="linear")
     (tmp_path / "cal").mkdir()
+    (tmp_path / "nav.csv").write_text("name,altitude\np.png,2.0\n")
     seen = {}
 
     class Fake:
         dashboard_link = "-"
+
+        def run(self, f, *a, **k):
+            return {"tcp://w1": str(tmp_path / "elsewhere") if elsewhere else f(*a)}
 
         def close(self):
             pass
@@ -117,13 +125,17 @@ def test_a_dask_run_hands_its_workers_absolute_paths(tmp_path, monkeypatch):
     monkeypatch.setattr(cluster, "check_workers", lambda c: None)
 
     def run(c, groups, opts, so, overwrite, reuse, reuse_wm, settle):
-        seen["items"], seen["opts"] = [it for g in groups for it in g], dict(opts)
+        seen.setdefault("items", []).extend(it for g in groups for it in g)
+        seen.setdefault("opts", []).append(dict(opts))
 
     monkeypatch.setattr(cluster, "run_on_cluster", run)
-    batch.run_batch(["p.png"], "out", client=object(),
-                    options={"water_from": "cal", "distance": "depth/{stem}.tif", "mask": "m.png"})
-    (it,) = seen["items"]
-    assert it.input == str(tmp_path / "p.png") and it.out_dir == str(tmp_path / "out")
-    assert seen["opts"]["water_from"] == str(tmp_path / "cal")
-    assert seen["opts"]["distance"] == str(tmp_path / "depth" / "{stem}.tif")
-    assert seen["opts"]["mask"] == str(tmp_path / "m.png")
+    for altitude in ("nav.csv", "2.5", "xmp"):
+        batch.run_batch(["p.png"], "out", client=object(), overwrite=True,
+                        options={"water_from": "cal", "distance": "depth/{stem}.tif", "mask": "m.png",
+                                 "altitude": altitude})
+    it, opts = seen["items"][0], seen["opts"]
+    here = (lambda p: str(tmp_path / p)) if elsewhere else (lambda p: p)
+    assert it.input == here("p.png") and it.out_dir == here("out")
+    assert opts[0]["water_from"] == here("cal") and opts[0]["mask"] == here("m.png")
+    assert opts[0]["distance"] == (str(tmp_path / "depth" / "{stem}.tif") if elsewhere else "depth/{stem}.tif")
+    assert [o["altitude"] for o in opts] == [here("nav.csv"), "2.5", "xmp"]

@@ -254,3 +254,30 @@ def test_a_restoration_survives_pickling(img):
             assert getattr(r, k) == getattr(b, k), k
         assert np.array_equal(r.channel_transmissions(), b.channel_transmissions())
         assert repr(r) == repr(b)
+
+
+def test_a_web_server_that_ignores_ranges_still_gives_a_large_input(tmp_path):
+    """http.server answers every request whole (no ranges): a URL input of
+    more than one chunk is fetched all the same."""
+    pytest.importorskip("fsspec")
+    pytest.importorskip("aiohttp")
+    import functools
+    import http.server
+    import threading
+
+    from uwhl_rs import storage, tasks
+
+    data = np.random.default_rng(2).integers(0, 256, storage.CHUNK * 2 + 77, dtype=np.uint8).tobytes()
+    (tmp_path / "srv").mkdir()
+    (tmp_path / "srv" / "big.tif").write_bytes(data)
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(tmp_path / "srv"))
+    srv = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    srv.daemon_threads = True
+    threading.Thread(target=srv.serve_forever, daemon=True).start()
+    try:
+        (tmp_path / "got").mkdir()
+        local = tasks.fetch(f"http://127.0.0.1:{srv.server_address[1]}/big.tif", str(tmp_path / "got"), {})
+        assert open(local, "rb").read() == data
+    finally:
+        srv.shutdown()
+        srv.server_close()
