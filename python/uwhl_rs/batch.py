@@ -98,7 +98,10 @@ def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[li
                 root = path.rstrip("/")
                 rels = []
                 listed = fs.find(root)
-                earlier = _earlier_outputs(fs, root, listed)
+                # the run's own output folder (a rerun finds its summary.csv) is skipped below, without a note
+                same = is_url(out) and out.split("://", 1)[0].lower() == proto.lower()
+                own = filesystem(out, storage_options)[1].rstrip("/") + "/" if same else None
+                earlier = [d for d in _earlier_outputs(fs, root, listed) if not (own and d.startswith(own))]
                 notes += [f"{full(d.rstrip('/'))}: an output folder of an earlier restore (its summary.csv): not "
                           "searched; name its files to restore them" for d in earlier]
                 for f in listed:
@@ -108,7 +111,7 @@ def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[li
                     parts = rel.split("/")
                     if any(p.startswith(".") for p in parts) or not supported(rel):
                         continue
-                    if full(f).startswith(out_key):
+                    if full(f).startswith(out_key) or (own and f.startswith(own)):
                         continue
                     rels.append((tuple(parts), f))
                 rels.sort()

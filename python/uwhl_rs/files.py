@@ -20,7 +20,8 @@ from ._core import ParameterError
 from .errors import ImageReadError, ImageTooLargeError, shown
 from .images import ImageMeta, colorize_transmission, display_linear, read_image, to_srgb
 
-__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor", "spelt"]
+__all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor", "spelt",
+           "check_name"]
 
 #: Every option's default, from the core's one table (docs/CLI.md).
 _D = {o["key"]: o["default"] for o in _core.OPTIONS}
@@ -175,7 +176,7 @@ def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwarg
     return restore_staged(in_path, out_dir, **kwargs)()
 
 
-def _check_name(name) -> None:
+def check_name(name) -> None:
     """A caller's ``name`` is the start of file names in ``out_dir``, never
     a path: no separator, not ``.`` or ``..``, no control characters (it
     is printed and written into summary.csv)."""
@@ -260,9 +261,10 @@ def restore_staged(
     if settings.dive_water_type is not None:
         # METHOD §13, a dive learns once: the water of its calibrated photos
         restore_kwargs = {**restore_kwargs, "water_types": [settings.dive_water_type]}
+    if name:
+        check_name(name)  # a caller's name; the input's own stem is a file name already
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     if _claim is None:
-        _check_name(name)
         status, sidecar_path, reason, _claim = claim_outputs(out_dir, name, in_path, format, contact,
                                                              overwrite=True, rename=False)
         if status != "claimed":

@@ -3,6 +3,8 @@ against an answer known without the code."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -281,3 +283,41 @@ def test_a_web_server_that_ignores_ranges_still_gives_a_large_input(tmp_path):
     finally:
         srv.shutdown()
         srv.server_close()
+
+
+def test_an_input_whose_own_name_holds_a_tab_is_restored(tmp_path, img):
+    """The name check is for a caller's ``name``: an input's own stem (a tab
+    in it) is a file name already, and restored as the commands restore it."""
+    src = tmp_path / "tab\tx.png"
+    images.write_image(src, img, bits=8, encoding="linear")
+    r = files.restore_file(src, tmp_path / "o")
+    assert os.path.basename(r.paths["image"]) == "tab\tx.jpg"
+
+
+def test_restore_video_takes_a_name_never_a_path(tmp_path):
+    pytest.importorskip("av")
+    from uwhl_rs import clip, videofiles
+
+    c = clip.clip(frames=3, height=32, width=48, seed=2)
+    clip.write_clip(tmp_path / "v.mkv", c, codec="ffv1")
+    (tmp_path / "out").mkdir()
+    with pytest.raises(ParameterError, match="name must be a file name"):
+        videofiles.restore_video(tmp_path / "v.mkv", tmp_path / "out", name="../escaped")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "v.mkv"]
+
+
+def test_a_rerun_on_storage_does_not_call_its_own_output_folder_an_earlier_runs():
+    fsspec = pytest.importorskip("fsspec")
+    from uwhl_rs import batch
+    from uwhl_rs.outdir import CSV_COLUMNS
+
+    fs = fsspec.filesystem("memory")
+    fs.pipe("/s12o/dv/p.png", b"x")
+    fs.pipe("/s12o/dv/r1/summary.csv", (",".join(CSV_COLUMNS) + "\n").encode())
+    fs.pipe("/s12o/dv/r1/p.jpg", b"x")
+    try:
+        plan = batch.plan_batch(["memory://s12o/dv"], "memory://s12o/dv/r1")
+        assert [it.input.split("s12o/", 1)[1] for it in plan.items] == ["dv/p.png"]
+        assert plan.notes == []
+    finally:
+        fs.rm("/s12o", recursive=True)
