@@ -349,6 +349,11 @@ fn clear_frame(opts: &Options, dir: &Path, k: usize) -> Result<(), Failure> {
     let name = format!("frame_{k:06}");
     let input = PathBuf::from(format!("stdin#{k}"));
     let suffixes = crate::files::pipeline::output_suffixes(opts);
+    // nothing there (the usual case): no claim, no sync of the folder
+    let there = |s: &str| std::fs::symlink_metadata(dir.join(format!("{name}{s}"))).is_ok();
+    if !there(".json") && !suffixes.iter().any(|s| there(s)) {
+        return Ok(());
+    }
     let request = Request { dir, base: &name, input: &input, suffixes: &suffixes, overwrite: true, rename: false };
     match claim(&request) {
         Ok(Resolution::Claimed(c)) => {

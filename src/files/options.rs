@@ -273,7 +273,7 @@ refraction narrows the field of view in water; dome: it does not",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "water_from", flag: "--water-from", short: None, metavar: "DIR", kind: Kind::Path,
         default: Default::None, help: "restore with the water fitted on the photos of DIR that had a distance \
-(their sidecars' median attenuation ratios, each weighted by how narrow its fit's range is; each photo keeps its own \
+(the ratios of their sidecars' median attenuation, each fit weighted by how narrow its range is; each photo keeps its own \
 veiling light); not with a water type given",
         group: Group::Method, faces: Faces::Both, method: false },
     // method

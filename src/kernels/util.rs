@@ -298,11 +298,11 @@ pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f:
             msg: format!("{n} is more than 1024"),
         });
     }
-    /// Thread counts whose pools are kept at once.
+    /// Thread counts whose pools are kept at once (the least recently used goes).
     const MAX_POOLS: usize = 8;
-    type Pools = Mutex<HashMap<(usize, usize), Arc<rayon::ThreadPool>>>;
+    type Pools = Mutex<(u64, HashMap<(usize, usize), (Arc<rayon::ThreadPool>, u64)>)>;
     static POOLS: OnceLock<Pools> = OnceLock::new();
-    let pools = POOLS.get_or_init(|| Mutex::new(HashMap::new()));
+    let pools = POOLS.get_or_init(|| Mutex::new((0, HashMap::new())));
     // In a forked child the lock may have been held by a thread that no
     // longer exists: never wait for it there, build an uncached pool instead.
     let guard = if generation == 0 {
@@ -315,20 +315,31 @@ pub fn with_threads<T: Send, F: FnOnce() -> T + Send>(threads: Option<usize>, f:
         pools.try_lock().ok()
     };
     let pool = match guard {
-        Some(mut map) => match map.get(&(generation, n)) {
-            Some(p) => p.clone(),
-            None => {
-                // a caller cycling through thread counts (1..64 left 2,082 threads
-                // alive) keeps at most MAX_POOLS pools; one dropped here ends its
-                // threads once no restoration still runs on it (the Arc)
-                if map.keys().filter(|k| k.0 == generation).count() >= MAX_POOLS {
-                    map.retain(|k, _| k.0 != generation);
+        Some(mut cache) => {
+            let (clock, map) = &mut *cache;
+            *clock += 1;
+            let now = *clock;
+            match map.get_mut(&(generation, n)) {
+                Some((p, used)) => {
+                    *used = now;
+                    p.clone()
                 }
-                let p = build_pool(n)?;
-                map.insert((generation, n), p.clone());
-                p
+                None => {
+                    // a caller cycling through thread counts (1..64 left 2,082 threads
+                    // alive) keeps at most MAX_POOLS pools; the one dropped here ends
+                    // its threads once no restoration still runs on it (the Arc)
+                    if map.keys().filter(|k| k.0 == generation).count() >= MAX_POOLS {
+                        let oldest = map.iter().filter(|(k, _)| k.0 == generation).min_by_key(|(_, v)| v.1).map(|(k, _)| *k);
+                        if let Some(k) = oldest {
+                            map.remove(&k);
+                        }
+                    }
+                    let p = build_pool(n)?;
+                    map.insert((generation, n), (p.clone(), now));
+                    p
+                }
             }
-        },
+        }
         None => build_pool(n)?,
     };
     Ok(pool.install(f))
