@@ -261,8 +261,8 @@ def restore_staged(
     if settings.dive_water_type is not None:
         # METHOD §13, a dive learns once: the water of its calibrated photos
         restore_kwargs = {**restore_kwargs, "water_types": [settings.dive_water_type]}
-    if name:
-        check_name(name)  # a caller's name; the input's own stem is a file name already
+    if name and _claim is None:
+        check_name(name)  # a caller's name (a batch's names are the core's, claimed); a stem is a file name already
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     if _claim is None:
         status, sidecar_path, reason, _claim = claim_outputs(out_dir, name, in_path, format, contact,

@@ -224,8 +224,8 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
         # within the budget, but more than the system gives now (as a photo's plan is checked)
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, more "
                                  f"than the system gives now (free memory, a container limit or ulimit -v); use {side}")
-    if name:
-        files.check_name(name)  # a caller's name: never a path out of out_dir
+    if name and _claim is None:
+        files.check_name(name)  # a caller's name, never a path out of out_dir (a batch's are the core's, claimed)
     name = name or os.path.splitext(os.path.basename(in_path))[0]
     suffixes = video_suffixes(in_path, every=every, codec=codec)
     claim = _claim
