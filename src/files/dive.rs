@@ -225,7 +225,7 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     // of the ratios taken apart can be another type's)
     let (rbr, rbg) = (beta[2] / beta[0], beta[2] / beta[1]);
     let (name, _) = nearest_type([beta[0] as f32, beta[1] as f32, beta[2] as f32]);
-    let water_type = WaterType::new(&name, rbr, rbg)
+    let water_type = WaterType::new(name, rbr, rbg)
         .map_err(|e| Failure::usage(format!("--water-from {}: the fitted water is not usable: {e}", dir.display())))?;
     Ok(DiveWater { folder: dir.to_path_buf(), water_type, beta, spread, photos: betas.len(), weighted: weights.is_some(), skipped })
 }
