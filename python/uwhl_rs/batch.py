@@ -465,7 +465,7 @@ def restore_many(inputs, output: str, *, client=None, dask: str | None = None, s
     output = os.fspath(output)
     # the command's lines, from the one place that writes them
     listener = Console(out=sys.stderr) if progress else None
-    _core.forget_water_from()  # a run reads its --water-from folder once, as it is when the run starts
+    _core.new_run()  # a run reads its --water-from folder and navigation log once, as they are when it starts
     result = run_batch(inputs, output, client=client, dask=dask, storage_options=storage_options,
                        overwrite=overwrite, reuse_estimates=reuse_estimates, reuse_water_mask=reuse_water_mask,
                        listener=listener, options=options)

@@ -161,10 +161,10 @@ _LAST_RUN: list[str | None] = [None]
 def _restore_in_run(run: str, *args) -> list[dict]:
     """Task: :func:`tasks.restore_items` as part of ``run``. A worker serves
     one run after another: at its first task of a run the ``--water-from``
-    folders are read again (an earlier run read them as they were then)."""
+    folders and ``--altitude`` logs are read again (an earlier run read them as they were then)."""
     if run != _LAST_RUN[0]:
         _LAST_RUN[0] = run
-        _core.forget_water_from()
+        _core.new_run()
     return restore_items(*args)
 
 
@@ -176,7 +176,7 @@ def run_on_cluster(c, groups: list[list[Item]], opts, so, overwrite, reuse, reus
     from distributed import as_completed
 
     budget = _largest_worker_memory(c)
-    run = os.urandom(8).hex()  # the tasks of this run: a worker reads --water-from again when a new run starts
+    run = os.urandom(8).hex()  # the tasks of this run: a worker reads --water-from and --altitude logs again when a new run starts
     pending = as_completed()
     meta = {}  # future key -> ("probe"|"restore", payload)
 

@@ -171,8 +171,8 @@ def restore_file(in_path: str | os.PathLike, out_dir: str | os.PathLike, **kwarg
     Returns a :class:`FileResult` (the ``Restoration``, the read metadata,
     the paths written and the sidecar dict).
     """
-    if kwargs.get("water_from") is not None:
-        _core.forget_water_from()  # each call is a run of its own: the folder as it is now
+    if kwargs.get("water_from") is not None or kwargs.get("altitude") is not None:
+        _core.new_run()  # each call is a run of its own: the folder and the log as they are now
     return restore_staged(in_path, out_dir, **kwargs)()
 
 

@@ -199,7 +199,8 @@ pub(crate) fn shown(s: &str) -> String {
 }
 
 /// `--altitude VALUE`: a number of metres, `xmp`, or a navigation log's
-/// path (read once per process: every photo of a run sees the same log).
+/// path (read once per run: every photo of a run sees the same log; the
+/// Python command starts each run with [`forget_logs`]).
 pub fn altitude_source(value: &str) -> Result<AltitudeSource, Failure> {
     if value == "xmp" {
         return Ok(AltitudeSource::Xmp);
@@ -214,11 +215,23 @@ pub fn altitude_source(value: &str) -> Result<AltitudeSource, Failure> {
     Ok(AltitudeSource::Log(read_log_once(Path::new(value))?))
 }
 
+type Logs = std::sync::Mutex<HashMap<PathBuf, Arc<NavLog>>>;
+
+/// The navigation logs read in this run.
+fn logs() -> &'static Logs {
+    static SEEN: std::sync::OnceLock<Logs> = std::sync::OnceLock::new();
+    SEEN.get_or_init(Default::default)
+}
+
+/// A new run starts: navigation logs are read again (a Python process or a
+/// Dask worker serves one run after another, and a log may have grown).
+pub fn forget_logs() {
+    logs().lock().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
+}
+
 fn read_log_once(path: &Path) -> Result<Arc<NavLog>, Failure> {
-    use std::sync::{Mutex, OnceLock};
-    static SEEN: OnceLock<Mutex<HashMap<PathBuf, Arc<NavLog>>>> = OnceLock::new();
     let key = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
-    let cache = SEEN.get_or_init(|| Mutex::new(HashMap::new()));
+    let cache = logs();
     if let Some(l) = cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).get(&key) {
         return Ok(l.clone());
     }

@@ -734,11 +734,13 @@ fn nearest_type(beta: [f32; 3]) -> (&'static str, f32) {
     crate::method::distance::nearest_type(beta)
 }
 
-/// A new run starts: the `--water-from` folders are read again
-/// (`crate::files::dive::forget_water_from`).
+/// A new run starts: the `--water-from` folders and the `--altitude`
+/// navigation logs a run reads once are read again
+/// (`crate::files::dive::forget_water_from`, `crate::files::nav::forget_logs`).
 #[pyfunction]
-fn forget_water_from() {
+fn new_run() {
     crate::files::dive::forget_water_from();
+    crate::files::nav::forget_logs();
 }
 
 /// Removes the temporaries that dead processes left in `dir`
@@ -1051,7 +1053,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
-    m.add_function(wrap_pyfunction!(forget_water_from, m)?)?;
+    m.add_function(wrap_pyfunction!(new_run, m)?)?;
     m.add_function(wrap_pyfunction!(nearest_type, m)?)?;
     m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;

@@ -304,3 +304,18 @@ def test_restoring_with_the_floor_beats_the_estimate_on_an_oblique_view(photos):
     with_floor = angle(uwhl_rs.restore(img, distance=z).image)
     without = angle(uwhl_rs.restore(img).image)
     assert with_floor < without, (with_floor, without)
+
+
+def test_a_log_is_read_at_each_call_of_restore_file(photos, tmp_path):
+    """A process serves one call after another: the log as it is at the
+    call (a dive's log that grew, or was corrected), not as an earlier call
+    read it."""
+    from uwhl_rs import files
+
+    log = tmp_path / "nav.csv"
+    log.write_text("File,Altitude\nlevel.tif,2.5\n")
+    a = files.restore_file(photos / "level.tif", tmp_path / "a", altitude=str(log), fov=70)
+    log.write_text("File,Altitude\nlevel.tif,3.5\n")
+    b = files.restore_file(photos / "level.tif", tmp_path / "b", altitude=str(log), fov=70)
+    assert a.sidecar["distance"]["floor"]["altitude"] == 2.5
+    assert b.sidecar["distance"]["floor"]["altitude"] == 3.5

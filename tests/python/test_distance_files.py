@@ -427,7 +427,7 @@ def test_a_dask_worker_reads_water_from_again_at_a_new_runs_first_task(monkeypat
     from uwhl_rs import cluster
 
     read = []
-    monkeypatch.setattr(cluster._core, "forget_water_from", lambda: read.append(True))
+    monkeypatch.setattr(cluster._core, "new_run", lambda: read.append(True))
     monkeypatch.setattr(cluster, "restore_items", lambda *a: list(a))
     assert cluster._restore_in_run("run1", 1, 2) == [1, 2]
     cluster._restore_in_run("run1", 3)

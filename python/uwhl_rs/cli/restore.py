@@ -41,11 +41,12 @@ def _check(a: argparse.Namespace, options: dict) -> None:
             _core.Params(water_types=options["water_types"])
         except UwhlError as e:
             raise _bad(f"--water-type: {e}") from None
+    # this run reads its --water-from folder and navigation log once, from here (a process may serve many)
+    _core.new_run()
     if a.water_from is not None:
         if a.water_types:
             raise _bad("--water-from gives the water type: it does not go with --water-type")
         try:
-            _core.forget_water_from()  # this run reads the folder once, from here (the process may serve many)
             _core.FileSettings(water_from=a.water_from)
         except UwhlError as e:
             raise _bad(str(e)) from None
