@@ -393,6 +393,14 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
 /// The longest file name (in bytes) the common file systems hold (ext4, XFS, APFS, NTFS).
 pub const NAME_MAX: usize = 255;
 
+/// Removes a dead run's claim file (one already gone counts as removed).
+fn remove_stale(claim_file: &Path) -> io::Result<()> {
+    match fs::remove_file(claim_file) {
+        Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    }
+}
+
 /// Claims a name for `req.input`'s outputs (see the module documentation).
 /// Tries `NAME`, then (with `rename`) `NAME_2`, ... until one is free or
 /// holds this input's own sidecar. Errors: the folder cannot be created or
@@ -438,14 +446,22 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
         // true once this process holds the claim file; false when another
         // live process holds it for another input
         let owned = loop {
-            match OpenOptions::new().write(true).create_new(true).open(&claim_file) {
+            // what keeps this process from writing its claim, if anything
+            let failed: io::Error = match OpenOptions::new().write(true).create_new(true).open(&claim_file) {
                 Ok(mut f) => {
                     let mut record = format!("{own}\n{name}\n").into_bytes();
                     record.extend_from_slice(path_bytes(&key));
                     record.push(b'\n');
                     record.extend_from_slice(started.as_bytes());
-                    f.write_all(&record)?;
-                    break true;
+                    match f.write_all(&record) {
+                        Ok(()) => break true,
+                        Err(e) => {
+                            // a full disk: no empty claim is left for later runs to wait on
+                            drop(f);
+                            let _ = fs::remove_file(&claim_file);
+                            e
+                        }
+                    }
                 }
                 Err(e) if e.kind() == io::ErrorKind::AlreadyExists => match read_claim(&claim_file) {
                     Some((pid, start, holder)) if pid != own && crate::files::jobs::process_is(pid, start) => {
@@ -468,35 +484,43 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                     // user's own x_t.png), so they stay unrelated files
                     Some((_, _, holder)) => {
                         stale = holder == key;
-                        let _ = fs::remove_file(&claim_file);
+                        match remove_stale(&claim_file) {
+                            Ok(()) => continue,
+                            Err(e) => e,
+                        }
                     }
                     None => {
                         // a claim being written this instant, or one cut short by a crash
                         std::thread::sleep(std::time::Duration::from_millis(20));
-                        if read_claim(&claim_file).is_none() {
-                            // whose it was cannot be told: files at the name stay unrelated
-                            stale = false;
-                            let _ = fs::remove_file(&claim_file);
+                        if read_claim(&claim_file).is_some() {
+                            continue;
+                        }
+                        // whose it was cannot be told: files at the name stay unrelated
+                        stale = false;
+                        match remove_stale(&claim_file) {
+                            Ok(()) => continue,
+                            Err(e) => e,
                         }
                     }
                 },
-                Err(e) => {
-                    // a folder that cannot be written (a read-only mount of a
-                    // finished survey): an input whose sidecar is here is
-                    // done all the same, one whose name holds another's
-                    // sidecar looks on; anything else cannot be written
-                    if sidecar.exists() {
-                        if sidecar_is_inputs(&sidecar, req.input, &key, &mut hash) {
-                            if !req.overwrite {
-                                return Ok(Resolution::Skipped(Skip::Done, sidecar));
-                            }
-                        } else if req.rename {
-                            break false;
-                        }
+                Err(e) => e,
+            };
+            // a folder that cannot be written (a read-only mount of a
+            // finished survey, a full disk, a dead run's claim that cannot
+            // be removed): an input whose sidecar is here is done all the
+            // same, one whose name holds another's sidecar looks on;
+            // anything else cannot be written (never retried: a claim that
+            // cannot be removed would be met again, for ever)
+            if sidecar.exists() {
+                if sidecar_is_inputs(&sidecar, req.input, &key, &mut hash) {
+                    if !req.overwrite {
+                        return Ok(Resolution::Skipped(Skip::Done, sidecar));
                     }
-                    return Err(e);
+                } else if req.rename {
+                    break false;
                 }
             }
+            return Err(failed);
         };
         if !owned {
             continue;
@@ -959,6 +983,27 @@ mod tests {
         let c = claimed(claim(&request(&d, "x", &x, &s, false)).unwrap());
         assert_eq!(c.name(), "x");
         drop(c);
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_dead_runs_claim_that_cannot_be_removed_fails_the_input_once() {
+        // a claim that cannot be removed (here a folder at its name; on a
+        // read-only mount, a dead run's file) was retried for ever: the run
+        // spun at full CPU. Now the input fails (or is skipped, done) at once.
+        let d = folder("stuck-claim");
+        let s = suffixes();
+        let x = d.join("x.jpg");
+        fs::write(&x, b"photo").unwrap();
+        fs::create_dir(d.join(format!(".uwhl-claim-{:016x}", name_hash("x")))).unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (dd, xx, ss) = (d.clone(), x.clone(), s.clone());
+        std::thread::spawn(move || {
+            let r = claim(&Request { dir: &dd, base: "x", input: &xx, suffixes: &ss, overwrite: false, rename: false });
+            let _ = tx.send(r.map(|_| ()).map_err(|e| e.kind()));
+        });
+        let got = rx.recv_timeout(std::time::Duration::from_secs(20)).expect("the claim never returned");
+        assert!(got.is_err(), "{got:?}");
         fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -111,6 +111,11 @@ fn open_error(path: &Path, e: &std::io::Error) -> std::io::Error {
     }
 }
 
+/// The size and modification time of the file at `path`, if there is one.
+fn stamp(path: &Path) -> Option<(u64, std::time::SystemTime)> {
+    std::fs::symlink_metadata(path).ok().and_then(|m| Some((m.len(), m.modified().ok()?)))
+}
+
 /// The summary of a batch: made with its first row (a run refused before
 /// any input leaves no file), or why it could not be written.
 ///
@@ -128,6 +133,9 @@ pub struct Summary {
     outdir: std::path::PathBuf,
     /// the output folder, its lock held shared while the summary is in use
     presence: Option<File>,
+    /// when the run started: whether it was alone (no other run held the
+    /// folder's lock), and the file's size and time then
+    start: Option<(bool, Option<(u64, std::time::SystemTime)>)>,
     opened: bool,
     /// the reason it cannot be written, if so
     pub error: Option<String>,
@@ -139,8 +147,19 @@ pub struct Summary {
 
 impl Summary {
     /// The summary of a batch into `outdir/summary.csv` (started afresh).
+    /// The folder's shared lock is taken now, when the run starts, so that
+    /// a run starting later and writing its first row sooner does not take
+    /// itself for alone and start the file afresh over this run's rows.
     pub fn create(outdir: &Path) -> Self {
-        Self { outdir: outdir.to_path_buf(), presence: None, opened: false, error: None, read_only: false, columns: columns() }
+        let mut start = None;
+        let presence = File::open(outdir).ok().filter(|f| {
+            // exclusive if no other run holds it, then (a conversion) shared
+            let alone = f.try_lock().is_ok();
+            start = Some((alone, stamp(&outdir.join(FILE_NAME))));
+            f.lock_shared().is_ok()
+        });
+        let start = presence.as_ref().and(start);
+        Self { outdir: outdir.to_path_buf(), presence, start, opened: false, error: None, read_only: false, columns: columns() }
     }
 
     /// The path of the file.
@@ -155,18 +174,39 @@ impl Summary {
 
     fn open(&mut self) {
         self.opened = true;
-        match self.try_open() {
+        let held = self.presence.take().zip(self.start);
+        match self.try_open(held) {
             Ok(presence) => self.presence = Some(presence),
             Err(e) => self.fail(&e),
         }
     }
 
-    fn try_open(&self) -> std::io::Result<File> {
+    /// `held`: the folder, its shared lock taken when the run started, and
+    /// what the run found then. The file starts afresh when the run was
+    /// alone at its start and nobody wrote the file since (a run that
+    /// started later and finished sooner wrote its rows there: they stay).
+    fn try_open(&self, held: Option<(File, (bool, Option<(u64, std::time::SystemTime)>))>) -> std::io::Result<File> {
         let path = self.path();
         let fail = |e: std::io::Error| std::io::Error::new(e.kind(), format!("cannot write {}: {e}", path.display()));
         std::fs::create_dir_all(&self.outdir).map_err(fail)?;
-        let presence = File::open(&self.outdir).map_err(fail)?;
         let header = format!("{}\r\n", self.columns.join(","));
+        let presence = match held {
+            Some((f, (alone, then))) => {
+                if !(alone && stamp(&path) == then) {
+                    return Ok(f);
+                }
+                // alone since the start: converted to exclusive (it fails
+                // if a run that started since holds its shared lock)
+                match f.try_lock() {
+                    Ok(()) => {}
+                    Err(std::fs::TryLockError::WouldBlock) => return Ok(f),
+                    Err(std::fs::TryLockError::Error(e)) => return Err(fail(e)),
+                }
+                f.unlock().map_err(fail)?;
+                f
+            }
+            None => File::open(&self.outdir).map_err(fail)?,
+        };
         match presence.try_lock() {
             // alone: a new file. A run starting while this one takes the
             // shared lock below (the exclusive one is let go first) may
@@ -443,6 +483,35 @@ mod tests {
         third.failed(Path::new("d.jpg"), "unreadable_input", "bad", 3);
         assert!(third.error.as_deref().is_some_and(|e| e.contains("summary.csv")), "{:?}", third.error);
         drop(first);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_run_that_started_first_keeps_the_rows_of_one_that_finished_first() {
+        // the slow run holds the folder from its start: the quick one joins
+        // the file; when the slow one writes its first row, after the quick
+        // one finished, the file is not started afresh over the quick rows
+        let d = folder("late-first-row");
+        let out = d.join("out");
+        std::fs::create_dir_all(&out).unwrap();
+        let mut old = Summary::create(&out);
+        old.failed(Path::new("old"), "internal", "x", 6);
+        old.close();
+        let mut slow = Summary::create(&out);
+        let mut quick = Summary::create(&out);
+        quick.failed(Path::new("quick"), "internal", "x", 6);
+        quick.close();
+        slow.failed(Path::new("slow"), "internal", "x", 6);
+        slow.close();
+        let text = std::fs::read_to_string(out.join(FILE_NAME)).unwrap();
+        let inputs: Vec<&str> = text.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+        assert!(inputs.contains(&"quick") && inputs.contains(&"slow"), "{text}");
+        assert_eq!(text.lines().filter(|l| l.starts_with("input,")).count(), 1, "{text}");
+        // a run alone from start to first row still starts the file afresh
+        let mut next = Summary::create(&out);
+        next.failed(Path::new("again"), "internal", "x", 6);
+        next.close();
+        assert_eq!(std::fs::read_to_string(out.join(FILE_NAME)).unwrap().lines().count(), 2);
         std::fs::remove_dir_all(&d).unwrap();
     }
 
