@@ -111,8 +111,14 @@ fn open_error(path: &Path, e: &std::io::Error) -> std::io::Error {
     }
 }
 
+/// A file's size and modification time.
+type Stamp = Option<(u64, std::time::SystemTime)>;
+
+/// What a run found when it started: whether it was alone, and the file's [`Stamp`].
+type Start = (bool, Stamp);
+
 /// The size and modification time of the file at `path`, if there is one.
-fn stamp(path: &Path) -> Option<(u64, std::time::SystemTime)> {
+fn stamp(path: &Path) -> Stamp {
     std::fs::symlink_metadata(path).ok().and_then(|m| Some((m.len(), m.modified().ok()?)))
 }
 
@@ -135,7 +141,7 @@ pub struct Summary {
     presence: Option<File>,
     /// when the run started: whether it was alone (no other run held the
     /// folder's lock), and the file's size and time then
-    start: Option<(bool, Option<(u64, std::time::SystemTime)>)>,
+    start: Option<Start>,
     opened: bool,
     /// the reason it cannot be written, if so
     pub error: Option<String>,
@@ -185,7 +191,7 @@ impl Summary {
     /// what the run found then. The file starts afresh when the run was
     /// alone at its start and nobody wrote the file since (a run that
     /// started later and finished sooner wrote its rows there: they stay).
-    fn try_open(&self, held: Option<(File, (bool, Option<(u64, std::time::SystemTime)>))>) -> std::io::Result<File> {
+    fn try_open(&self, held: Option<(File, Start)>) -> std::io::Result<File> {
         let path = self.path();
         let fail = |e: std::io::Error| std::io::Error::new(e.kind(), format!("cannot write {}: {e}", path.display()));
         std::fs::create_dir_all(&self.outdir).map_err(fail)?;
