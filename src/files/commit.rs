@@ -393,9 +393,10 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
 /// The longest file name (in bytes) the common file systems hold (ext4, XFS, APFS, NTFS).
 pub const NAME_MAX: usize = 255;
 
-/// Removes a dead run's claim file (one already gone counts as removed).
-fn remove_stale(claim_file: &Path) -> io::Result<()> {
-    match fs::remove_file(claim_file) {
+/// Removes the file at `p` (a dead run's claim, an earlier run's output);
+/// one already gone counts as removed.
+fn remove_if_present(p: &Path) -> io::Result<()> {
+    match fs::remove_file(p) {
         Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
         _ => Ok(()),
     }
@@ -484,7 +485,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                     // user's own x_t.png), so they stay unrelated files
                     Some((_, _, holder)) => {
                         stale = holder == key;
-                        match remove_stale(&claim_file) {
+                        match remove_if_present(&claim_file) {
                             Ok(()) => continue,
                             Err(e) => e,
                         }
@@ -497,7 +498,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                         }
                         // whose it was cannot be told: files at the name stay unrelated
                         stale = false;
-                        match remove_stale(&claim_file) {
+                        match remove_if_present(&claim_file) {
                             Ok(()) => continue,
                             Err(e) => e,
                         }
@@ -601,11 +602,7 @@ impl Claim {
             return Ok(());
         };
         for p in std::iter::once(sidecar).chain(outputs) {
-            match fs::remove_file(p) {
-                Ok(()) => {}
-                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-                Err(e) => return Err(e),
-            }
+            remove_if_present(p)?;
         }
         sync_dir(&self.dir)
     }
@@ -642,11 +639,7 @@ impl Claim {
             .map(|(_, p)| p)
             .collect();
         for &i in &self.omitted {
-            match fs::remove_file(&outputs[i]) {
-                Ok(()) => {}
-                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-                Err(e) => return Err(e),
-            }
+            remove_if_present(&outputs[i])?;
         }
         let mut renamed = Vec::new();
         let result = (|| {
