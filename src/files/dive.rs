@@ -116,33 +116,21 @@ fn fitted_beta(side: &Value) -> Option<[f64; 3]> {
     crate::method::distance::writable(v).then_some(v)
 }
 
-type Seen = std::sync::Mutex<std::collections::HashMap<PathBuf, DiveWater>>;
-
-/// The folders read in this run (a process of the binary is one run; the
-/// Python command starts each with [`forget_water_from`]).
-fn seen() -> &'static Seen {
-    static SEEN: std::sync::OnceLock<Seen> = std::sync::OnceLock::new();
-    SEEN.get_or_init(Default::default)
-}
+/// The folders read in this run.
+static SEEN: crate::files::jobs::PerRun<DiveWater> = crate::files::jobs::PerRun::new();
 
 /// [`read_water_from`] once per folder and run: every photo of a run gets
 /// the same water even when the run writes new sidecars into that folder
 /// (the Python command makes its settings per photo).
 pub fn water_from(dir: &Path) -> Result<DiveWater, Failure> {
-    let key = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    if let Some(w) = seen().lock().unwrap_or_else(std::sync::PoisonError::into_inner).get(&key) {
-        return Ok(w.clone());
-    }
-    let w = read_water_from(dir)?;
-    seen().lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert(key, w.clone());
-    Ok(w)
+    SEEN.get_or_read(dir, || read_water_from(dir))
 }
 
 /// A new run starts: the folders of [`water_from`] are read again (a
 /// Python process, or a Dask worker, serves one run after another, and
 /// the folder may have gained calibrated photos in between).
 pub fn forget_water_from() {
-    seen().lock().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
+    SEEN.forget();
 }
 
 /// Reads the sidecars (`*.json`, regular files, not recursing) of `dir`

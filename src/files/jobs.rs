@@ -317,6 +317,46 @@ pub fn name_jobs(found: &[(PathBuf, PathBuf)], suffixes: &[String]) -> Vec<Strin
         .collect()
 }
 
+/// What a run reads once from a file or a folder, by its canonical path
+/// (`--water-from`'s folder, `--altitude`'s navigation log): every input of
+/// the run sees the same, even when the run writes beside it; the next run
+/// reads it again ([`PerRun::forget`]: a process of the binary is one run,
+/// a Python process or a Dask worker serves one after another).
+pub struct PerRun<T>(std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<PathBuf, T>>>);
+
+impl<T: Clone> Default for PerRun<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Clone> PerRun<T> {
+    /// An empty cache (for a `static`).
+    pub const fn new() -> Self {
+        Self(std::sync::OnceLock::new())
+    }
+
+    fn map(&self) -> std::sync::MutexGuard<'_, std::collections::HashMap<PathBuf, T>> {
+        self.0.get_or_init(Default::default).lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// What this run read from `path`, or `read()` of it now.
+    pub fn get_or_read<E>(&self, path: &Path, read: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+        let key = fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+        if let Some(v) = self.map().get(&key) {
+            return Ok(v.clone());
+        }
+        let v = read()?;
+        self.map().insert(key, v.clone());
+        Ok(v)
+    }
+
+    /// A new run starts: everything is read again.
+    pub fn forget(&self) {
+        self.map().clear();
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -215,29 +215,17 @@ pub fn altitude_source(value: &str) -> Result<AltitudeSource, Failure> {
     Ok(AltitudeSource::Log(read_log_once(Path::new(value))?))
 }
 
-type Logs = std::sync::Mutex<HashMap<PathBuf, Arc<NavLog>>>;
-
 /// The navigation logs read in this run.
-fn logs() -> &'static Logs {
-    static SEEN: std::sync::OnceLock<Logs> = std::sync::OnceLock::new();
-    SEEN.get_or_init(Default::default)
-}
+static LOGS: crate::files::jobs::PerRun<Arc<NavLog>> = crate::files::jobs::PerRun::new();
 
 /// A new run starts: navigation logs are read again (a Python process or a
 /// Dask worker serves one run after another, and a log may have grown).
 pub fn forget_logs() {
-    logs().lock().unwrap_or_else(std::sync::PoisonError::into_inner).clear();
+    LOGS.forget();
 }
 
 fn read_log_once(path: &Path) -> Result<Arc<NavLog>, Failure> {
-    let key = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
-    let cache = logs();
-    if let Some(l) = cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).get(&key) {
-        return Ok(l.clone());
-    }
-    let log = Arc::new(read_log(path)?);
-    cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner).insert(key, log.clone());
-    Ok(log)
+    LOGS.get_or_read(path, || read_log(path).map(Arc::new))
 }
 
 /// Reads a navigation log (a regular file of at most 256 MiB, UTF-8 CSV);
