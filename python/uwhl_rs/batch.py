@@ -31,7 +31,7 @@ from .files import output_suffixes
 from .inputs import GLOB_CHARS, collect_inputs, supported
 from .outdir import CSV_COLUMNS, FILE_NAME, SummaryWriter
 from .storage import (EXTRA, check_output_bucket, filesystem, is_url, join, local_path, need, parse_storage_options,
-                      storage_error)
+                      scheme, storage_error)
 from .tasks import COLUMNS, Item, begin, context, row, scratch_root, skipped_row
 
 __all__ = ["restore_many", "run_batch", "BatchResult", "BatchError", "parse_storage_options", "plan_batch", "EXTRA",
@@ -99,7 +99,7 @@ def _list_remote(inputs: list[str], out: str, storage_options: dict) -> tuple[li
                 rels = []
                 listed = fs.find(root)
                 # the run's own output folder (a rerun finds its summary.csv) is skipped below, without a note
-                same = is_url(out) and out.split("://", 1)[0].lower() == proto.lower()
+                same = is_url(out) and scheme(out) == scheme(url)
                 own = filesystem(out, storage_options)[1].rstrip("/") + "/" if same else None
                 earlier = [d for d in _earlier_outputs(fs, root, listed) if not (own and d.startswith(own))]
                 notes += [f"{full(d.rstrip('/'))}: an output folder of an earlier restore (its summary.csv): not "

@@ -37,7 +37,7 @@ from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
 from .outdir import FILE_NAME, REPORT_DIR, Photo, collect_sidecars, failed_inputs
 from .report_series import series_axis, series_svg, used_water
 from .sidecars import display, printable
-from .storage import Folder, is_url, on_storage, open_regular, sha256_of, spool
+from .storage import Folder, is_url, on_storage, open_regular, scheme, sha256_of, spool
 
 __all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE", "MAX_INPUT_BYTES", "thumb_names",
            "script_json", "series_axis"]
@@ -79,10 +79,6 @@ def thumb_names(sidecar: str) -> tuple[str, str]:
     return f"{tdir}/{slug}-{digest}_in.jpeg", f"{tdir}/{slug}-{digest}_out.jpeg"
 
 
-def _scheme(url: str) -> str:
-    return url.split("://", 1)[0].lower()
-
-
 def _candidates(src: str, folder) -> list[str]:
     """Where a relative ``input`` may be: the batch's working folder is not
     recorded, so the folders above the output folder (nearest first), then
@@ -114,8 +110,8 @@ def _input_file(p: Photo, folder):
     want = (p.doc.get("metadata") or {}).get("input_sha256")
     shown = display(src)
     # the network is the folder's own storage only: never http(s), never elsewhere
-    if is_url(src) and (not folder.is_url or _scheme(src) != _scheme(folder.display)
-                        or _scheme(src) in ("http", "https")):
+    if is_url(src) and (not folder.is_url or scheme(src) != scheme(folder.display)
+                        or scheme(src) in ("http", "https")):
         return None, f"{shown}: not on the output folder's storage; not fetched"
     # refused before anything is opened, fetched or hashed: a planted sidecar naming /etc/shadow,
     # a database or a key (another bucket's too) with its true hash would have it read and shown;

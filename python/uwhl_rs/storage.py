@@ -29,7 +29,7 @@ from .images import atomic_write_bytes
 from .storage_options import is_option_error, parse_storage_options, storage_option_problem
 
 __all__ = ["EXTRA", "is_url", "local_path", "parse_storage_options", "storage_option_problem", "need", "filesystem",
-           "storage_error", "on_storage", "read_bytes", "spool", "sha256_of", "open_regular", "read_regular", "modified", "Folder"]
+           "storage_error", "on_storage", "read_bytes", "spool", "download", "scheme", "sha256_of", "open_regular", "read_regular", "modified", "Folder"]
 
 #: how to get what batches on Dask or object storage need
 EXTRA = 'pip install "uwhl_rs[dask]"'
@@ -128,9 +128,14 @@ S3_DEADLINES = {"connect_timeout": 10, "read_timeout": 20, "retries": {"total_ma
 S3FS_ATTEMPTS = 2
 
 
+def scheme(url: str) -> str:
+    """The scheme of a storage URL, lower case (``s3``, ``http``)."""
+    return url.split("://", 1)[0].lower()
+
+
 def _is_s3(url: str) -> bool:
     """Whether ``url`` is one s3fs serves (the deadlines below are its client's)."""
-    return url.split("://", 1)[0].lower() in ("s3", "s3a")
+    return scheme(url) in ("s3", "s3a")
 
 
 def with_deadlines(url: str, storage_options: dict | None) -> dict:
@@ -315,7 +320,7 @@ def download(url: str, local: str, storage_options: dict | None = None) -> None:
     a time: memory holds a chunk, never the object (fsspec's get_file held
     ten parts of 50 MiB at once on S3, more than a photo's own plan)."""
     fs, p = filesystem(url, storage_options)
-    if url.split("://", 1)[0].lower() in ("http", "https"):
+    if scheme(url) in ("http", "https"):
         # a web server need not answer ranges (ranged reads fail past the first chunk);
         # fsspec streams its get_file in blocks
         fs.get_file(p, local)
