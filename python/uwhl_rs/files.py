@@ -18,7 +18,7 @@ import uwhl_rs
 from . import _core
 from ._core import ParameterError
 from .errors import ImageReadError, ImageTooLargeError, shown
-from .images import ImageMeta, colorize_transmission, display_linear, read_image, to_srgb
+from .images import ImageMeta, colorize_transmission, display_linear, path_arg, read_image, to_srgb
 
 __all__ = ["FileResult", "restore_file", "output_paths", "contact_sheet", "input_need", "max_side_factor", "spelt",
            "check_name"]
@@ -243,17 +243,14 @@ def restore_staged(
     t_start = time.perf_counter()
     if altitude is not None and distance is not None:
         raise ParameterError("distance and altitude are two sources of distance: give one")
-    for what, v in (("in_path", in_path), ("out_dir", out_dir)):
-        if not isinstance(v, (str, os.PathLike)):
-            raise ParameterError(f"{what} must be a path, not {shown(v)}")
     if not isinstance(format, str):
         raise ParameterError(f"format must be 'jpg', 'png' or 'tiff', not {shown(format)}")
     if not isinstance(contact, (bool, np.bool_)):
         raise ParameterError(f"contact must be True or False, not {shown(contact)}")
     if sequence is not None and not isinstance(sequence, uwhl_rs.Sequence):
         raise ParameterError(f"sequence must be a uwhl_rs.Sequence or None, not {shown(sequence)}")
-    in_path = os.fspath(in_path)
-    out_dir = os.fspath(out_dir)
+    in_path = path_arg("in_path", in_path)
+    out_dir = path_arg("out_dir", out_dir)
     settings = settings_of(format=format, bits=bits, quality=quality, preprocess=preprocess, half_size=half_size,
                            max_side=max_side, max_pixels=max_pixels, mask=mask, water_mask=water_mask,
                            distance=distance, altitude=altitude, fov=fov, port=port, distance_kind=distance_kind,

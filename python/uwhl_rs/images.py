@@ -36,6 +36,7 @@ __all__ = [
     "DEFAULT_MAX_PIXELS",
     "read_image",
     "read_distance",
+    "path_arg",
     "to_srgb",
     "srgb_to_linear",
     "linear_to_srgb",
@@ -162,7 +163,7 @@ def read_image(
     what it raises propagates. ``_flags`` (the command's): the pixel limit
     is named ``--max-pixels``, as the command's flag, not ``max_pixels``.
     """
-    path = _path_arg("path", path)
+    path = path_arg("path", path)
     if preprocess not in PREPROCESS_MODES:
         raise ValueError(f"preprocess must be one of {PREPROCESS_MODES}, not {preprocess!r}")
     _check_max_pixels(max_pixels)
@@ -226,7 +227,7 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
         than the core's default limit.
     """
     _check_max_pixels(max_pixels)
-    return np.asarray(_core.read_distance_file(_path_arg("path", path), int(max_pixels), int(_core.default_max_memory())))
+    return np.asarray(_core.read_distance_file(path_arg("path", path), int(max_pixels), int(_core.default_max_memory())))
 
 
 #: the largest max_pixels (the option table's: the core's 64-bit count)
@@ -538,7 +539,7 @@ def _os_error(path: str, e: OSError) -> OSError:
     return OSError(e.errno, f"cannot write {path}: {e.strerror or e}")
 
 
-def _path_arg(what: str, path) -> str:
+def path_arg(what: str, path) -> str:
     """``path`` as text, or a ParameterError naming ``what`` (bytes and
     other objects are no path the readers and writers take)."""
     if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
@@ -563,7 +564,7 @@ def write_image(
     appears complete or not at all, and is synced (with its folder) before
     this returns. Returns the path.
     """
-    path = _path_arg("path", path)
+    path = path_arg("path", path)
     if isinstance(bits, (bool, np.bool_)) or not isinstance(bits, (int, np.integer)) or bits not in (8, 16):
         raise ParameterError(f"bits must be 8 or 16, not {shown(bits)}")
     if isinstance(quality, (bool, np.bool_)) or not isinstance(quality, (int, np.integer)) or not 1 <= quality <= 100:
