@@ -124,6 +124,10 @@ pub struct Claim {
     /// outputs in the order of the suffixes, the sidecar last
     paths: Vec<PathBuf>,
     claim_file: PathBuf,
+    /// the claim file, open and locked (`flock`) for the claim's life
+    /// (None on a file system without locks); dropped after the file is
+    /// removed
+    _lock: Option<File>,
     temps: Vec<PathBuf>,
     /// indices of outputs not written this time: an earlier run's file at
     /// such a path is removed on commit
@@ -294,29 +298,6 @@ fn path_bytes(p: &Path) -> &[u8] {
     p.as_os_str().as_bytes()
 }
 
-/// The pid, the process's start time (when the claim records it) and the
-/// input a claim file names.
-fn read_claim(path: &Path) -> Option<(u32, Option<u64>, PathBuf)> {
-    use std::os::unix::ffi::OsStrExt;
-    use std::os::unix::fs::OpenOptionsExt;
-    let f = OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW).open(path).ok()?;
-    if !f.metadata().ok()?.is_file() {
-        return None;
-    }
-    let mut s = Vec::new();
-    f.take(1 << 16).read_to_end(&mut s).ok()?;
-    let mut lines = s.split(|&b| b == b'\n');
-    let pid = std::str::from_utf8(lines.next()?).ok()?.parse().ok()?;
-    let _name = lines.next()?;
-    let input = lines.next()?;
-    if input.is_empty() {
-        return None;
-    }
-    // the process's start time, after what earlier builds write and read (a claim of theirs has none)
-    let start = lines.next().and_then(|l| std::str::from_utf8(l).ok()).and_then(|l| l.parse().ok());
-    Some((pid, start, PathBuf::from(std::ffi::OsStr::from_bytes(input))))
-}
-
 fn in_flight<T>(f: impl FnOnce(&mut HashMap<PathBuf, PathBuf>) -> T) -> T {
     let mut g = IN_FLIGHT.lock().unwrap_or_else(PoisonError::into_inner);
     f(g.get_or_insert_with(HashMap::new))
@@ -402,6 +383,209 @@ fn remove_if_present(p: &Path) -> io::Result<()> {
     }
 }
 
+/// What [`hold_claim`] found at a claim file.
+enum Hold {
+    /// this process holds it: the open file, locked (None where the file
+    /// system has no locks), and whether it was a dead run's claim of the
+    /// same input (then that run's half-committed outputs are replaced)
+    Mine(Option<File>, bool),
+    /// a live process (its pid) holds it, for this input
+    Theirs(u32, PathBuf),
+}
+
+/// The file's device and inode: one file, under whatever name.
+fn identity(m: &fs::Metadata) -> (u64, u64) {
+    use std::os::unix::fs::MetadataExt;
+    (m.dev(), m.ino())
+}
+
+/// Takes `lock` exclusively without waiting: Some(true) taken, Some(false)
+/// another open file holds it, None the file system has no locks.
+fn try_lock(f: &File) -> Option<bool> {
+    match f.try_lock() {
+        Ok(()) => Some(true),
+        Err(fs::TryLockError::WouldBlock) => Some(false),
+        Err(fs::TryLockError::Error(_)) => None,
+    }
+}
+
+/// The pid, the process's start time (when the claim records it) and the
+/// input an open claim file names.
+fn read_record(f: &File) -> Option<(u32, Option<u64>, PathBuf)> {
+    use std::os::unix::ffi::OsStrExt;
+    let mut s = Vec::new();
+    (&*f).take(1 << 16).read_to_end(&mut s).ok()?;
+    let mut lines = s.split(|&b| b == b'\n');
+    let pid = std::str::from_utf8(lines.next()?).ok()?.parse().ok()?;
+    let _name = lines.next()?;
+    let input = lines.next()?;
+    if input.is_empty() {
+        return None;
+    }
+    // the process's start time, after what earlier builds write and read (a claim of theirs has none)
+    let start = lines.next().and_then(|l| std::str::from_utf8(l).ok()).and_then(|l| l.parse().ok());
+    Some((pid, start, PathBuf::from(std::ffi::OsStr::from_bytes(input))))
+}
+
+/// How often a claim that is held but not by a live process named in it
+/// (being taken over, or being written) is looked at again, 20 ms apart,
+/// before the input is given up as held by another process.
+const WAITS: usize = 100;
+
+/// Of those, how many for a takeover in progress (see [`settle_claim`]).
+const TAKEOVER_WAITS: usize = 5;
+
+/// Makes `claim_file` this process's, holding `record` (which names the
+/// input `key`), or says whose it is (docs/OUTPUTS.md "Names already in
+/// use").
+///
+/// The claim appears whole and locked: it is written and `flock`ed under
+/// an exclusive temporary name, then linked to its name (a link fails
+/// when the name exists, so two processes never both make it). Its owner
+/// keeps it open, so the lock lasts exactly as long as the owner: a claim
+/// nobody holds belongs to a process that is gone (kill -9, a power cut),
+/// by the kernel's word rather than a guess from pids. A taker locks the
+/// dead claim before removing it, and checks it still is the file at the
+/// name, so two takers never both remove one and both claim. Claims of
+/// builds that took no lock, and file systems without locks, fall back
+/// to the pid and start time the record holds.
+fn hold_claim(dir: &Path, claim_file: &Path, record: &[u8], key: &Path) -> io::Result<Hold> {
+    let (tmp, mut mine) = create_temp(dir, "")?;
+    let locked = try_lock(&mine) == Some(true);
+    if let Err(e) = mine.write_all(record) {
+        // a full disk: no empty claim is left for later runs to wait on
+        drop(mine);
+        let _ = fs::remove_file(&tmp);
+        return Err(e);
+    }
+    let result = settle_claim(&tmp, mine, locked, claim_file, record, key);
+    let _ = fs::remove_file(&tmp);
+    result
+}
+
+/// [`hold_claim`]'s loop: `tmp` is this process's claim, written, open as
+/// `mine` (locked when `locked`).
+fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record: &[u8], key: &Path) -> io::Result<Hold> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let own = std::process::id();
+    let mut links = true;
+    // a dead claim being taken over, locked until this one is in its place
+    let mut _dead: Option<File> = None;
+    let mut stale = false;
+    let mut waits = 0;
+    let wait = |waits: &mut usize| -> io::Result<()> {
+        *waits += 1;
+        if *waits > WAITS {
+            return Err(io::Error::other(format!("{} is held by another process", claim_file.display())));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        Ok(())
+    };
+    let mut mine = Some(mine);
+    loop {
+        let made = if links {
+            fs::hard_link(tmp, claim_file).map(|()| if locked { mine.take() } else { None })
+        } else {
+            claim_in_place(claim_file, record)
+        };
+        match made {
+            Ok(lock) => return Ok(Hold::Mine(lock, stale)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {}
+            Err(e) if links && matches!(e.raw_os_error(), Some(libc::EPERM | libc::EOPNOTSUPP | libc::ENOSYS | libc::EMLINK)) => {
+                // no links on this file system: made in place, locked at once
+                links = false;
+                continue;
+            }
+            Err(e) => return Err(e),
+        }
+        _dead = None;
+        stale = false;
+        let theirs = match OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW).open(claim_file) {
+            Ok(f) => f,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => continue,
+            // a link planted at the name is no claim: removed (its target untouched)
+            Err(e) if e.raw_os_error() == Some(libc::ELOOP) => {
+                remove_if_present(claim_file)?;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        let meta = theirs.metadata()?;
+        if !meta.is_file() {
+            // a folder at the name: it cannot be removed as a claim is
+            remove_if_present(claim_file)?;
+            continue;
+        }
+        let still_there = || fs::symlink_metadata(claim_file).map(|m| identity(&m) == identity(&meta)).unwrap_or(false);
+        let found = read_record(&theirs);
+        let held = try_lock(&theirs);
+        if held == Some(false) {
+            if !still_there() {
+                // taken over this instant: the new claim is looked at
+                continue;
+            }
+            match found {
+                // the lock says its owner runs, whatever the pid (a
+                // process of another pid namespace sharing the folder);
+                // a pid that does not run is a dead run's claim another
+                // process is taking over this instant: looked at again
+                // briefly, for the new owner's pid
+                Some((pid, start, holder)) => {
+                    if crate::files::jobs::process_is(pid, start) || waits >= TAKEOVER_WAITS {
+                        return Ok(Hold::Theirs(pid, holder));
+                    }
+                }
+                // a claim of a build that locks before it writes, caught
+                // in between: looked at again
+                None => {}
+            }
+            drop(theirs);
+            wait(&mut waits)?;
+            continue;
+        }
+        // nobody holds it: its owner is gone, unless it is a live process
+        // of a build that takes no lock, or the file system's locks do not
+        // tell (none at all; NFS's, which one process does not conflict
+        // with: this process's own claim, by its start time)
+        match found {
+            Some((pid, start, holder)) if (pid != own || start.is_some()) && crate::files::jobs::process_is(pid, start) => {
+                return Ok(Hold::Theirs(pid, holder));
+            }
+            // files at the name are that run's half-committed outputs only
+            // when it was restoring this same input: a claim naming
+            // another input says nothing of them
+            Some((_, _, holder)) => stale = holder == key,
+            None if waits == 0 => {
+                // a claim of a build that writes after it creates, being
+                // written this instant, or one cut short by a crash: looked
+                // at once more, then whose it was cannot be told
+                drop(theirs);
+                wait(&mut waits)?;
+                continue;
+            }
+            None => {}
+        }
+        if !still_there() {
+            continue;
+        }
+        remove_if_present(claim_file)?;
+        _dead = Some(theirs);
+    }
+}
+
+/// A claim file made at its name directly (a file system without links):
+/// created exclusively, locked, then written.
+fn claim_in_place(claim_file: &Path, record: &[u8]) -> io::Result<Option<File>> {
+    let mut f = OpenOptions::new().write(true).create_new(true).open(claim_file)?;
+    let locked = try_lock(&f) == Some(true);
+    if let Err(e) = f.write_all(record) {
+        drop(f);
+        let _ = fs::remove_file(claim_file);
+        return Err(e);
+    }
+    Ok(locked.then_some(f))
+}
+
 /// Claims a name for `req.input`'s outputs (see the module documentation).
 /// Tries `NAME`, then (with `rename`) `NAME_2`, ... until one is free or
 /// holds this input's own sidecar. Errors: the folder cannot be created or
@@ -443,109 +627,69 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
         // the claim file, made first, so that no other process decides on
         // this name while it is looked at
         let claim_file = req.dir.join(format!(".uwhl-claim-{:016x}", name_hash(&name)));
-        let mut stale = false;
-        // true once this process holds the claim file; false when another
-        // live process holds it for another input
-        let owned = loop {
-            // what keeps this process from writing its claim, if anything
-            let failed: io::Error = match OpenOptions::new().write(true).create_new(true).open(&claim_file) {
-                Ok(mut f) => {
-                    let mut record = format!("{own}\n{name}\n").into_bytes();
-                    record.extend_from_slice(path_bytes(&key));
-                    record.push(b'\n');
-                    record.extend_from_slice(started.as_bytes());
-                    match f.write_all(&record) {
-                        Ok(()) => break true,
-                        Err(e) => {
-                            // a full disk: no empty claim is left for later runs to wait on
-                            drop(f);
-                            let _ = fs::remove_file(&claim_file);
-                            e
-                        }
-                    }
+        let mut record = format!("{own}\n{name}\n").into_bytes();
+        record.extend_from_slice(path_bytes(&key));
+        record.push(b'\n');
+        record.extend_from_slice(started.as_bytes());
+        let (lock, stale) = match hold_claim(req.dir, &claim_file, &record, &key) {
+            Ok(Hold::Mine(lock, stale)) => (lock, stale),
+            Ok(Hold::Theirs(pid, holder)) => {
+                if holder == key {
+                    let why = if pid == own { Skip::InFlight } else { Skip::Busy(pid) };
+                    return Ok(Resolution::Skipped(why, sidecar));
                 }
-                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => match read_claim(&claim_file) {
-                    Some((pid, start, holder)) if pid != own && crate::files::jobs::process_is(pid, start) => {
-                        if holder == key {
-                            return Ok(Resolution::Skipped(Skip::Busy(pid), sidecar));
-                        }
-                        if !req.rename {
-                            return Err(io::Error::other(format!(
-                                "{} is being written by process {pid}",
-                                sidecar.display()
-                            )));
-                        }
-                        break false;
-                    }
-                    // the claim of a process that no longer runs (or an
-                    // earlier one with this process's pid): taken over. Files
-                    // at the name are that run's half-committed outputs only
-                    // when it was restoring this same input; a claim naming
-                    // another input says nothing of them (they may be the
-                    // user's own x_t.png), so they stay unrelated files
-                    Some((_, _, holder)) => {
-                        stale = holder == key;
-                        match remove_if_present(&claim_file) {
-                            Ok(()) => continue,
-                            Err(e) => e,
-                        }
-                    }
-                    None => {
-                        // a claim being written this instant, or one cut short by a crash
-                        std::thread::sleep(std::time::Duration::from_millis(20));
-                        if read_claim(&claim_file).is_some() {
-                            continue;
-                        }
-                        // whose it was cannot be told: files at the name stay unrelated
-                        stale = false;
-                        match remove_if_present(&claim_file) {
-                            Ok(()) => continue,
-                            Err(e) => e,
-                        }
-                    }
-                },
-                Err(e) => e,
-            };
+                if !req.rename {
+                    return Err(io::Error::other(format!("{} is being written by process {pid}", sidecar.display())));
+                }
+                continue;
+            }
             // a folder that cannot be written (a read-only mount of a
             // finished survey, a full disk, a dead run's claim that cannot
             // be removed): an input whose sidecar is here is done all the
             // same, one whose name holds another's sidecar looks on;
             // anything else cannot be written (never retried: a claim that
             // cannot be removed would be met again, for ever)
-            if sidecar.exists() {
-                if sidecar_is_inputs(&sidecar, req.input, &key, &mut hash) {
-                    if !req.overwrite {
-                        return Ok(Resolution::Skipped(Skip::Done, sidecar));
+            Err(failed) => {
+                if sidecar.exists() {
+                    if sidecar_is_inputs(&sidecar, req.input, &key, &mut hash) {
+                        if !req.overwrite {
+                            return Ok(Resolution::Skipped(Skip::Done, sidecar));
+                        }
+                    } else if req.rename {
+                        continue;
                     }
-                } else if req.rename {
-                    break false;
                 }
+                return Err(failed);
             }
-            return Err(failed);
         };
-        if !owned {
-            continue;
-        }
-        let release = |claim_file: &Path| {
-            let _ = fs::remove_file(claim_file);
-        };
-        if sidecar.exists() {
+        // None: this name is taken; Some(skip): the input is skipped
+        let give_up: Option<Option<Skip>> = if sidecar.exists() {
             let mine = sidecar_is_inputs(&sidecar, req.input, &key, &mut hash);
             if mine && !req.overwrite {
-                release(&claim_file);
-                return Ok(Resolution::Skipped(Skip::Done, sidecar));
-            }
-            if !mine && req.rename {
+                Some(Some(Skip::Done))
+            } else if !mine && req.rename {
                 // another input's outputs (another camera's frame.jpg): never replaced
-                release(&claim_file);
-                continue;
+                Some(None)
+            } else {
+                None
             }
         } else if req.rename && !stale && paths.iter().any(|p| fs::symlink_metadata(p).is_ok()) {
             // unrelated files at this name, not left by a killed run of this
             // input: never replaced, --overwrite or not (it redoes this
             // input's own outputs, found by its sidecar at a later name)
-            release(&claim_file);
-            continue;
+            Some(None)
+        } else {
+            None
+        };
+        if let Some(skip) = give_up {
+            // the claim file goes before its lock, so that nobody finds it
+            // unlocked while it is still this input's
+            let _ = fs::remove_file(&claim_file);
+            drop(lock);
+            match skip {
+                Some(why) => return Ok(Resolution::Skipped(why, sidecar)),
+                None => continue,
+            }
         }
         in_flight(|m| {
             for p in &paths {
@@ -557,6 +701,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
             name,
             paths,
             claim_file,
+            _lock: lock,
             temps: Vec::new(),
             omitted: Vec::new(),
         }));
@@ -975,6 +1120,68 @@ mod tests {
         fs::write(&claim_file, format!("4194399\nx\n{}\n", input_key(&x).display())).unwrap();
         let c = claimed(claim(&request(&d, "x", &x, &s, false)).unwrap());
         assert_eq!(c.name(), "x");
+        drop(c);
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn takers_of_a_dead_runs_claim_racing_each_other_claim_it_once() {
+        // several takers over one planted dead claim: each saw it dead,
+        // removed it and made its own, so two could both restore the input
+        // (a claim file is now locked by its owner for its life: a dead
+        // owner's lock is gone by the kernel's word, a live one's is not)
+        let d = folder("stale-race");
+        let s = suffixes();
+        let a = d.join("a.jpg");
+        fs::write(&a, b"photo").unwrap();
+        let key = input_key(&a);
+        let claim_file = d.join(format!(".uwhl-claim-{:016x}", name_hash("a")));
+        for round in 0..40 {
+            fs::write(&claim_file, format!("4194399\na\n{}\n", key.display())).unwrap();
+            let gate = std::sync::Arc::new(std::sync::Barrier::new(6));
+            let takers: Vec<_> = (0..6)
+                .map(|_| {
+                    let (dd, aa, ss, gate) = (d.clone(), a.clone(), s.clone(), gate.clone());
+                    std::thread::spawn(move || {
+                        gate.wait();
+                        claim(&Request { dir: &dd, base: "a", input: &aa, suffixes: &ss, overwrite: false, rename: true })
+                    })
+                })
+                .collect();
+            let got: Vec<_> = takers.into_iter().map(|t| t.join().unwrap().unwrap()).collect();
+            let claimed: Vec<_> = got.iter().filter(|r| matches!(r, Resolution::Claimed(_))).collect();
+            assert_eq!(claimed.len(), 1, "round {round}: {got:?}");
+            for r in &got {
+                match r {
+                    Resolution::Claimed(c) => assert_eq!(c.name(), "a"),
+                    Resolution::Skipped(Skip::Busy(_) | Skip::InFlight, _) => {}
+                    other => panic!("round {round}: {other:?}"),
+                }
+            }
+            drop(got);
+            assert!(!claim_file.exists(), "round {round}: the winner's claim outlived it");
+        }
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_claim_held_but_not_yet_readable_is_not_taken_for_abandoned() {
+        // a claim its owner has locked but not yet written (an owner that
+        // stalled between the two): busy, however long it stays empty
+        let d = folder("held-empty");
+        let s = suffixes();
+        let a = d.join("a.jpg");
+        fs::write(&a, b"photo").unwrap();
+        let claim_file = d.join(format!(".uwhl-claim-{:016x}", name_hash("a")));
+        let held = File::create(&claim_file).unwrap();
+        held.try_lock().unwrap();
+        let r = claim(&request(&d, "a", &a, &s, false));
+        assert!(claim_file.exists() && fs::read(&claim_file).unwrap().is_empty());
+        assert!(r.is_err() || matches!(r, Ok(Resolution::Skipped(Skip::Busy(_), _))), "{r:?}");
+        // once its owner is gone (the lock with it), it is taken over
+        drop(held);
+        let c = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
+        assert_eq!(c.name(), "a");
         drop(c);
         fs::remove_dir_all(&d).unwrap();
     }

@@ -16,6 +16,7 @@ import csv
 import io
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -256,6 +257,40 @@ def test_a_stale_claim_naming_another_input_does_not_replace_the_users_file(face
     assert r.returncode == 0, r.stderr
     assert (out / "x_t.png").read_bytes() == b"the user's own x_t.png"
     assert "x_2.json" in _names(out)
+
+
+def test_three_runs_over_dead_claims_restore_each_input_once(binary, tmp_path):
+    """Three runs of both commands over inputs a killed run had claimed:
+    each run could see a claim dead, remove it and make its own while
+    another did the same, and an input was restored twice (5 of 60 such
+    races before claims were locked). Each is restored once, under its
+    own name, and no claim or temporary is left."""
+    src = tmp_path / "in"
+    src.mkdir()
+    names = [f"p{k:02d}.png" for k in range(16)]
+    out = tmp_path / "out"
+    out.mkdir()
+    for k, n in enumerate(names):
+        # large enough that the three runs overlap
+        img, _ = synth.demo_input(240, 320, water_type="II", seed=k)
+        write_image(src / n, img, bits=8, encoding="linear")
+        # a killed run (a pid above the kernel's largest never runs) restoring this input
+        (out / _claim_name(n[:-4])).write_text(f"4194399\n{n[:-4]}\n{os.path.realpath(src / n)}\n")
+    procs = [subprocess.Popen(_cmd(face, binary, [src, "-o", out, "--format", "png"]), env=_env(),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for face in ("rust", "python", "rust")]
+    done = 0
+    for p in procs:
+        text, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err
+        # the last line of both commands: "N done, M skipped, K failed in S s"
+        counts = re.search(r"(\d+) done, (\d+) skipped, (\d+) failed", text + err)
+        assert counts, text + err
+        done += int(counts.group(1))
+        assert counts.group(3) == "0", text + err
+    assert done == len(names), done
+    assert {n for n in _names(out) if n.endswith(".json")} == {n[:-4] + ".json" for n in names}
+    assert not [n for n in _names(out) if n.startswith(".uwhl-")]
 
 
 def _read_only(path) -> list:
