@@ -298,6 +298,16 @@ fn path_bytes(p: &Path) -> &[u8] {
     p.as_os_str().as_bytes()
 }
 
+/// Every string in a JSON value (a sidecar's `outputs`, flat or nested).
+fn collect_strings(v: &serde_json::Value, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::String(s) => out.push(s.clone()),
+        serde_json::Value::Array(a) => a.iter().for_each(|x| collect_strings(x, out)),
+        serde_json::Value::Object(o) => o.values().for_each(|x| collect_strings(x, out)),
+        _ => {}
+    }
+}
+
 fn in_flight<T>(f: impl FnOnce(&mut HashMap<PathBuf, PathBuf>) -> T) -> T {
     let mut g = IN_FLIGHT.lock().unwrap_or_else(PoisonError::into_inner);
     f(g.get_or_insert_with(HashMap::new))
@@ -746,10 +756,38 @@ impl Claim {
         let Some((sidecar, outputs)) = self.paths.split_last() else {
             return Ok(());
         };
-        for p in std::iter::once(sidecar).chain(outputs) {
+        let earlier = self.earlier_outputs();
+        for p in std::iter::once(sidecar).chain(outputs).chain(&earlier) {
             remove_if_present(p)?;
         }
         sync_dir(&self.dir)
+    }
+
+    /// The outputs the sidecar now at this name lists that this run does
+    /// not write at all (another `--format`, a contact sheet not asked for
+    /// again, another codec): removed with that sidecar, so a sidecar never
+    /// stands beside an earlier run's image it does not list. Only files of
+    /// this folder named `NAME` + `.` or `_` + more are taken from the
+    /// sidecar (a hostile one names nothing else).
+    fn earlier_outputs(&self) -> Vec<PathBuf> {
+        let Some(sidecar) = self.paths.last() else { return Vec::new() };
+        let Some(listed) = read_sidecar(sidecar).and_then(|v| v.get("outputs").cloned()) else {
+            return Vec::new();
+        };
+        let mut names = Vec::new();
+        collect_strings(&listed, &mut names);
+        names
+            .into_iter()
+            .filter(|n| {
+                let rest = n.strip_prefix(self.name.as_str()).unwrap_or("");
+                (rest.starts_with('.') || rest.starts_with('_'))
+                    && rest.len() > 1
+                    && !n.contains(['/', '\\', '\0'])
+                    && Path::new(n).file_name().is_some_and(|f| f == n.as_str())
+            })
+            .map(|n| self.dir.join(n))
+            .filter(|p| !self.paths.contains(p) && fs::symlink_metadata(p).is_ok_and(|m| !m.is_dir()))
+            .collect()
     }
 
     /// Puts the written temporaries (one per path not omitted, in the
@@ -772,8 +810,14 @@ impl Claim {
         let Some((sidecar_tmp, output_temps)) = temps.split_last() else {
             return Err(io::Error::other("a claim without outputs"));
         };
+        let earlier = self.earlier_outputs();
         match fs::remove_file(sidecar) {
-            Ok(()) => sync_dir(&self.dir)?,
+            Ok(()) => {
+                for p in &earlier {
+                    remove_if_present(p)?;
+                }
+                sync_dir(&self.dir)?
+            }
             Err(e) if e.kind() == io::ErrorKind::NotFound => {}
             Err(e) => return Err(e),
         }
@@ -855,6 +899,38 @@ mod tests {
 
     fn request<'a>(dir: &'a Path, base: &'a str, input: &'a Path, s: &'a [String], overwrite: bool) -> Request<'a> {
         Request { dir, base, input, suffixes: s, overwrite, rename: true }
+    }
+
+    #[test]
+    fn an_overwrite_in_another_format_removes_the_earlier_runs_image_its_sidecar_listed() {
+        let d = folder("reformat");
+        fs::create_dir(d.join("in")).unwrap();
+        let a = d.join("in").join("a.jpg");
+        fs::write(&a, b"photo").unwrap();
+        let jpg: Vec<String> = vec![".jpg".into(), "_t.png".into(), "_sheet.png".into()];
+        let png: Vec<String> = vec![".png".into(), "_t.png".into()];
+        let mut first = claimed(claim(&request(&d, "a", &a, &jpg, false)).unwrap());
+        // the earlier sidecar lists its files, some of them hostile names
+        let side = format!(
+            "{{\"input\": \"{}\", \"outputs\": {{\"image\": \"a.jpg\", \"transmission\": \"a_t.png\", \"sheet\": \"a_sheet.png\", \
+             \"x\": [\"../a.jpg\", \"a\", \"a_/../b.png\", \"b.png\", \".a.png\", \"a_notes.txt\"]}}}}",
+            a.display()
+        );
+        let temps = write_all(&mut first, &side);
+        first.commit(&temps).unwrap();
+        fs::write(d.join("b.png"), b"the user's").unwrap();
+        fs::write(d.join("a"), b"the user's too").unwrap();
+        fs::write(d.parent().unwrap().join("a.jpg"), b"outside").ok();
+        // the same input again, --overwrite, as PNG without a sheet
+        let mut again = claimed(claim(&request(&d, "a", &a, &png, true)).unwrap());
+        let temps = write_all(&mut again, &format!("{{\"input\": \"{}\"}}", a.display()));
+        again.commit(&temps).unwrap();
+        let mut left: Vec<String> = fs::read_dir(&d).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        left.sort();
+        assert_eq!(left, ["a", "a.json", "a.png", "a_t.png", "b.png", "in"], "{left:?}");
+        assert_eq!(fs::read(d.join("b.png")).unwrap(), b"the user's");
+        let _ = fs::remove_file(d.parent().unwrap().join("a.jpg"));
+        fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]

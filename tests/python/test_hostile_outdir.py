@@ -259,6 +259,26 @@ def test_a_stale_claim_naming_another_input_does_not_replace_the_users_file(face
     assert "x_2.json" in _names(out)
 
 
+@pytest.mark.parametrize("face", FACES)
+def test_an_overwrite_in_another_format_leaves_no_earlier_image(face, binary, tmp_path):
+    """``--overwrite --format png`` after a JPEG run: the new sidecar lists
+    x.png, and x.jpg of the earlier run (which a reader would take for this
+    run's) is gone; a file of the user's beside it stays."""
+    _image(tmp_path / "x.png")
+    out = tmp_path / "out"
+    r = _run(face, binary, [tmp_path / "x.png", "-o", out, "--format", "jpg", "-q"])
+    assert r.returncode == 0, r.stderr
+    assert "x.jpg" in _names(out)
+    (out / "x_mine.txt").write_bytes(b"notes")
+    r = _run(face, binary, [tmp_path / "x.png", "-o", out, "--format", "png", "--overwrite", "-q"])
+    assert r.returncode == 0, r.stderr
+    names = _names(out)
+    assert "x.png" in names and "x.jpg" not in names, names
+    assert (out / "x_mine.txt").read_bytes() == b"notes"
+    listed = set(json.loads((out / "x.json").read_text())["outputs"].values())
+    assert {n for n in names if n.startswith("x") and n not in ("x.json", "x_mine.txt")} == listed
+
+
 def test_three_runs_over_dead_claims_restore_each_input_once(binary, tmp_path):
     """Three runs of both commands over inputs a killed run had claimed:
     each run could see a claim dead, remove it and make its own while
