@@ -424,7 +424,7 @@ fn try_lock(f: &File) -> Option<bool> {
 fn read_record(f: &File) -> Option<(u32, Option<u64>, PathBuf)> {
     use std::os::unix::ffi::OsStrExt;
     let mut s = Vec::new();
-    (&*f).take(1 << 16).read_to_end(&mut s).ok()?;
+    f.take(1 << 16).read_to_end(&mut s).ok()?;
     let mut lines = s.split(|&b| b == b'\n');
     let pid = std::str::from_utf8(lines.next()?).ok()?.parse().ok()?;
     let _name = lines.next()?;
@@ -534,20 +534,17 @@ fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record:
                 // taken over this instant: the new claim is looked at
                 continue;
             }
-            match found {
-                // the lock says its owner runs, whatever the pid (a
-                // process of another pid namespace sharing the folder);
-                // a pid that does not run is a dead run's claim another
-                // process is taking over this instant: looked at again
-                // briefly, for the new owner's pid
-                Some((pid, start, holder)) => {
-                    if crate::files::jobs::process_is(pid, start) || waits >= TAKEOVER_WAITS {
-                        return Ok(Hold::Theirs(pid, holder));
-                    }
-                }
-                // a claim of a build that locks before it writes, caught
-                // in between: looked at again
-                None => {}
+            // the lock says its owner runs, whatever the pid (a process of
+            // another pid namespace sharing the folder); a pid that does not
+            // run is a dead run's claim another process is taking over this
+            // instant: looked at again briefly, for the new owner's pid. A
+            // claim that cannot be read is one of a build that locks before
+            // it writes, caught in between: looked at again
+            let live = |&(pid, start, _): &(u32, Option<u64>, PathBuf)| {
+                crate::files::jobs::process_is(pid, start) || waits >= TAKEOVER_WAITS
+            };
+            if let Some((pid, _, holder)) = found.filter(live) {
+                return Ok(Hold::Theirs(pid, holder));
             }
             drop(theirs);
             wait(&mut waits)?;
