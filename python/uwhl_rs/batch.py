@@ -240,7 +240,7 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
         # what a killed run left in the output folders goes first
         for d in sorted({local_path(it.out_dir) for it in plan.items}):
             if os.path.isdir(d):
-                _core.remove_stale_temps(d)
+                _core.remove_stale_temps(d, local_path(output))
     problems = [row(Item(i, "", ""), "failed", error_kind="unreadable_input", error=why,
                     exit_code=EXIT["unreadable_input"], worker=None) for i, why in plan.problems]
     # summary.csv as the batch goes: in OUTDIR, or (object storage) in a

@@ -19,9 +19,9 @@ from . import _core
 from .sidecars import MAX_BYTES as SIDECAR_MAX_BYTES
 from .sidecars import SidecarError, display, local_outputs_problem
 from .sidecars import parse as parse_sidecar
-from .storage import Folder, read_regular
+from .storage import Folder, filesystem, join, read_regular
 
-__all__ = ["SummaryWriter", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
+__all__ = ["SummaryWriter", "remove_earlier", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
 
 FILE_NAME = "summary.csv"
@@ -214,3 +214,45 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
         if doc is not None:
             photos.append(Photo(rel, doc, when))
     return photos, problems
+
+
+def earlier_objects(fs, side: str, dest: dict, storage_options: dict) -> list[str]:
+    """The objects an ``--overwrite`` on object storage removes with the
+    earlier sidecar at ``side`` (``fs``'s path; ``dest``: role -> URL of
+    this run's outputs, the sidecar's among them): those it lists that
+    this run does not write (``_core.listed_outputs``: the input's name
+    plus a suffix the commands write), none that is another input's (its
+    own sidecar there). As ``Claim::commit`` does in a folder."""
+    try:
+        with fs.open(side, "rb") as f:
+            text = f.read(SIDECAR_MAX_BYTES + 1)
+    except (OSError, ValueError):
+        return []
+    if len(text) > SIDECAR_MAX_BYTES:
+        return []
+    name = os.path.basename(dest["sidecar"])[: -len(".json")]
+    written = {os.path.basename(v) for v in dest.values()}
+    folder = os.path.dirname(dest["sidecar"])
+    out = []
+    for n in _core.listed_outputs(name, text):
+        own_side = join(folder, os.path.splitext(n)[0] + ".json")
+        if n in written or (own_side != dest["sidecar"] and fs.exists(filesystem(own_side, storage_options)[1])):
+            continue
+        out.append(filesystem(join(folder, n), storage_options)[1])
+    return out
+
+
+def remove_earlier(fs, side: str, dest: dict, storage_options: dict) -> None:
+    """An ``--overwrite`` on object storage: the earlier sidecar at ``side``
+    is deleted, then the objects it listed that this run does not write
+    (:func:`earlier_objects`; best effort, as in a folder)."""
+    extra = earlier_objects(fs, side, dest, storage_options)
+    try:
+        fs.rm_file(side)
+    except FileNotFoundError:
+        pass
+    for p in extra:
+        try:
+            fs.rm_file(p)
+        except OSError:
+            pass

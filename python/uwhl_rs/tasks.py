@@ -25,7 +25,7 @@ import uwhl_rs
 from . import _core, files, video
 from .errors import EXIT, CommandError, ImageReadError, UwhlError, describe, kind_of
 from .images import DEFAULT_MAX_PIXELS, read_image
-from .outdir import row_fields_from_sidecar
+from .outdir import remove_earlier, row_fields_from_sidecar
 from .storage import download, filesystem, is_url, join, local_path
 
 __all__ = ["COLUMNS", "MEMORY", "DONE_NOTE", "Item", "Context", "MemoryGate", "GateShare", "begin", "restore_items", "probe", "worker", "row"]
@@ -168,15 +168,13 @@ def _local_input(item: Item, ctx: "Context") -> str:
 def _publish(files_written: dict, item: Item, storage_options: dict, overwrite: bool) -> dict:
     """Uploads an input's outputs to object storage, the sidecar last: the
     sidecar is the commit marker (docs/SCALE.md). An earlier sidecar goes
-    first, so that no sidecar ever lists outputs of another attempt."""
+    first (with what it lists that this run does not write), so that no
+    sidecar ever lists outputs of another attempt."""
     fs, _ = filesystem(item.out_dir, storage_options)
     dest = {role: join(item.out_dir, os.path.basename(p)) for role, p in files_written.items()}
     side = filesystem(dest["sidecar"], storage_options)[1]
     if overwrite:
-        try:
-            fs.rm_file(side)
-        except FileNotFoundError:
-            pass
+        remove_earlier(fs, side, dest, storage_options)
     for role, p in files_written.items():
         if role != "sidecar":
             fs.put_file(p, filesystem(dest[role], storage_options)[1])

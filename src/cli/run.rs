@@ -295,6 +295,12 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     say_notes(&notes, opts, err);
     let errors: Vec<(PathBuf, Failure)> = errors.into_iter().map(|(p, m)| (p, Failure::new(Kind::Input, m))).collect();
     let mut code = 0u8;
+    // what a killed run left in the output folders goes first, before
+    // this run holds the folder (its summary's lock)
+    let dirs: std::collections::BTreeSet<&Path> = jobs.iter().map(|j| j.dir.as_path()).collect();
+    for d in dirs {
+        crate::files::jobs::remove_stale_temps(d, &opts.outdir);
+    }
     // OUTDIR/summary.csv, a row per input as it is settled
     let mut summary = crate::files::summary::Summary::create(&opts.outdir);
     for (p, e) in &errors {
@@ -304,11 +310,6 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     }
     // --reuse-estimates N: the inputs are the frames of one sequence, in order
     let mut seq = sequence(opts);
-    // what a killed run left in the output folders goes first
-    let dirs: std::collections::BTreeSet<&Path> = jobs.iter().map(|j| j.dir.as_path()).collect();
-    for d in dirs {
-        crate::files::jobs::remove_stale_temps(d);
-    }
     let read = |h: &mut Handoff<(usize, Result<Prepared, Failure>)>| {
         for (i, job) in jobs.iter().enumerate() {
             if interrupted() {
@@ -475,7 +476,8 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
     };
     dive_notes(opts, err);
     let mut seq = sequence(opts);
-    crate::files::jobs::remove_stale_temps(&opts.outdir);
+    crate::files::jobs::remove_stale_temps(&opts.outdir, &opts.outdir);
+    let _presence = crate::files::jobs::hold_folder(&opts.outdir);
     // stdout gone (closed pipe, full disk): the frames' lines cannot be
     // reported, so the loop stops instead of restoring frames nobody hears of
     let gone = std::sync::atomic::AtomicBool::new(false);

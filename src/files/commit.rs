@@ -298,6 +298,30 @@ fn path_bytes(p: &Path) -> &[u8] {
     p.as_os_str().as_bytes()
 }
 
+/// Every suffix after `NAME` an output of either command can have: the
+/// photo in each `--format`, the maps, the contact sheet, a video's strip
+/// and its containers (python/uwhl_rs/videoencode.py `CODECS`). An
+/// earlier sidecar's listed output is removed by an `--overwrite` only
+/// under one of these.
+const EARLIER_SUFFIXES: &[&str] = &[
+    ".jpg", ".png", ".tif", "_t.png", "_t_color.png", "_confidence.png", "_sheet.png", "_strip.jpg", ".mp4", ".mov",
+    ".mkv", ".m4v", ".ts", ".mts", ".m2ts", ".avi",
+];
+
+/// The names a sidecar `doc` lists under `outputs` that are `name` + one
+/// of [`EARLIER_SUFFIXES`] (sorted, once each): what an `--overwrite` of
+/// the input at `name` may remove beside the sidecar, in a folder or on
+/// object storage.
+pub fn listed_outputs(name: &str, doc: &serde_json::Value) -> Vec<String> {
+    let Some(listed) = doc.get("outputs") else { return Vec::new() };
+    let mut names = Vec::new();
+    collect_strings(listed, &mut names);
+    names.retain(|n| n.strip_prefix(name).is_some_and(|rest| EARLIER_SUFFIXES.contains(&rest)));
+    names.sort();
+    names.dedup();
+    names
+}
+
 /// Every string in a JSON value (a sidecar's `outputs`, flat or nested).
 fn collect_strings(v: &serde_json::Value, out: &mut Vec<String>) {
     match v {
@@ -461,6 +485,12 @@ const TAKEOVER_WAITS: usize = 5;
 /// to the pid and start time the record holds.
 fn hold_claim(dir: &Path, claim_file: &Path, record: &[u8], key: &Path) -> io::Result<Hold> {
     let (tmp, mut mine) = create_temp(dir, "")?;
+    // readable by every user whatever the umask, so that another user's
+    // run on a shared folder can lock it and read whose it is
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let _ = mine.set_permissions(fs::Permissions::from_mode(0o644));
+    }
     let locked = try_lock(&mine) == Some(true);
     if let Err(e) = mine.write_all(record) {
         // a full disk: no empty claim is left for later runs to wait on
@@ -518,7 +548,14 @@ fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record:
                 remove_if_present(claim_file)?;
                 continue;
             }
-            Err(e) => return Err(e),
+            Err(e) => {
+                // a socket (or a device) at the name is no claim either
+                if fs::symlink_metadata(claim_file).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+                    remove_if_present(claim_file)?;
+                    continue;
+                }
+                return Err(io::Error::new(e.kind(), format!("cannot read the claim {}: {e}", claim_file.display())));
+            }
         };
         let meta = theirs.metadata()?;
         if !meta.is_file() {
@@ -583,7 +620,8 @@ fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record:
 /// A claim file made at its name directly (a file system without links):
 /// created exclusively, locked, then written.
 fn claim_in_place(claim_file: &Path, record: &[u8]) -> io::Result<Option<File>> {
-    let mut f = OpenOptions::new().write(true).create_new(true).open(claim_file)?;
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut f = OpenOptions::new().write(true).create_new(true).mode(0o644).open(claim_file)?;
     let locked = try_lock(&f) == Some(true);
     if let Err(e) = f.write_all(record) {
         drop(f);
@@ -754,8 +792,11 @@ impl Claim {
             return Ok(());
         };
         let earlier = self.earlier_outputs();
-        for p in std::iter::once(sidecar).chain(outputs).chain(&earlier) {
+        for p in std::iter::once(sidecar).chain(outputs) {
             remove_if_present(p)?;
+        }
+        for p in &earlier {
+            let _ = remove_if_present(p);
         }
         sync_dir(&self.dir)
     }
@@ -763,27 +804,22 @@ impl Claim {
     /// The outputs the sidecar now at this name lists that this run does
     /// not write at all (another `--format`, a contact sheet not asked for
     /// again, another codec): removed with that sidecar, so a sidecar never
-    /// stands beside an earlier run's image it does not list. Only files of
-    /// this folder named `NAME` + `.` or `_` + more are taken from the
-    /// sidecar (a hostile one names nothing else).
+    /// stands beside an earlier run's image it does not list. Only names
+    /// `NAME` + one of [`EARLIER_SUFFIXES`] in this folder are taken from
+    /// the sidecar (a hostile one names nothing else), and none that is
+    /// itself another input's output (`NAME_sheet.png` when
+    /// `NAME_sheet.json` is there).
     fn earlier_outputs(&self) -> Vec<PathBuf> {
         let Some(sidecar) = self.paths.last() else { return Vec::new() };
-        let Some(listed) = read_sidecar(sidecar).and_then(|v| v.get("outputs").cloned()) else {
-            return Vec::new();
-        };
-        let mut names = Vec::new();
-        collect_strings(&listed, &mut names);
-        names
+        let Some(doc) = read_sidecar(sidecar) else { return Vec::new() };
+        listed_outputs(&self.name, &doc)
             .into_iter()
-            .filter(|n| {
-                let rest = n.strip_prefix(self.name.as_str()).unwrap_or("");
-                (rest.starts_with('.') || rest.starts_with('_'))
-                    && rest.len() > 1
-                    && !n.contains(['/', '\\', '\0'])
-                    && Path::new(n).file_name().is_some_and(|f| f == n.as_str())
-            })
             .map(|n| self.dir.join(n))
-            .filter(|p| !self.paths.contains(p) && fs::symlink_metadata(p).is_ok_and(|m| !m.is_dir()))
+            .filter(|p| {
+                !self.paths.contains(p)
+                    && fs::symlink_metadata(p).is_ok_and(|m| m.is_file())
+                    && (p.with_extension("json") == *sidecar || !p.with_extension("json").exists())
+            })
             .collect()
     }
 
@@ -810,8 +846,12 @@ impl Claim {
         let earlier = self.earlier_outputs();
         match fs::remove_file(sidecar) {
             Ok(()) => {
+                // best effort: a file that cannot be removed (immutable, a
+                // read-only bind) stays beside the new sidecar, unlisted,
+                // rather than failing the input with its old outputs left
+                // without a sidecar
                 for p in &earlier {
-                    remove_if_present(p)?;
+                    let _ = remove_if_present(p);
                 }
                 sync_dir(&self.dir)?
             }
@@ -910,13 +950,19 @@ mod tests {
         // the earlier sidecar lists its files, some of them hostile names
         let side = format!(
             "{{\"input\": \"{}\", \"outputs\": {{\"image\": \"a.jpg\", \"transmission\": \"a_t.png\", \"sheet\": \"a_sheet.png\", \
-             \"x\": [\"../a.jpg\", \"a\", \"a_/../b.png\", \"b.png\", \".a.png\", \"a_notes.txt\"]}}}}",
+             \"x\": [\"../a.jpg\", \"a\", \"a_/../b.png\", \"b.png\", \".a.png\", \"a_notes.txt\", \"a_2.jpg\", \"a_t_color.png\"]}}}}",
             a.display()
         );
         let temps = write_all(&mut first, &side);
         first.commit(&temps).unwrap();
         fs::write(d.join("b.png"), b"the user's").unwrap();
         fs::write(d.join("a"), b"the user's too").unwrap();
+        fs::write(d.join("a_notes.txt"), b"the user's notes").unwrap();
+        // other inputs' outputs: a_2 (a second input named a), and the
+        // image of an input named a_t_color (its sidecar a_t_color.json)
+        fs::write(d.join("a_2.jpg"), b"another input's").unwrap();
+        fs::write(d.join("a_t_color.png"), b"input a_t_color's image").unwrap();
+        fs::write(d.join("a_t_color.json"), b"{}").unwrap();
         fs::write(d.parent().unwrap().join("a.jpg"), b"outside").ok();
         // the same input again, --overwrite, as PNG without a sheet
         let mut again = claimed(claim(&request(&d, "a", &a, &png, true)).unwrap());
@@ -924,7 +970,7 @@ mod tests {
         again.commit(&temps).unwrap();
         let mut left: Vec<String> = fs::read_dir(&d).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
         left.sort();
-        assert_eq!(left, ["a", "a.json", "a.png", "a_t.png", "b.png", "in"], "{left:?}");
+        assert_eq!(left, ["a", "a.json", "a.png", "a_2.jpg", "a_notes.txt", "a_t.png", "a_t_color.json", "a_t_color.png", "b.png", "in"], "{left:?}");
         assert_eq!(fs::read(d.join("b.png")).unwrap(), b"the user's");
         let _ = fs::remove_file(d.parent().unwrap().join("a.jpg"));
         fs::remove_dir_all(&d).unwrap();
@@ -1255,6 +1301,22 @@ mod tests {
         drop(held);
         let c = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
         assert_eq!(c.name(), "a");
+        drop(c);
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_socket_at_the_claim_name_is_no_claim_and_a_claim_is_readable_by_all() {
+        let d = folder("sock-claim");
+        let s = suffixes();
+        let x = d.join("x.jpg");
+        fs::write(&x, b"photo").unwrap();
+        let claim_file = d.join(format!(".uwhl-claim-{:016x}", name_hash("x")));
+        let _sock = std::os::unix::net::UnixListener::bind(&claim_file).unwrap();
+        let c = claimed(claim(&request(&d, "x", &x, &s, false)).unwrap());
+        use std::os::unix::fs::PermissionsExt;
+        // whatever the umask: another user's run can read and lock it
+        assert_eq!(fs::metadata(&claim_file).unwrap().permissions().mode() & 0o777, 0o644);
         drop(c);
         fs::remove_dir_all(&d).unwrap();
     }

@@ -106,7 +106,18 @@ pub fn process_is(pid: u32, start: Option<u64>) -> bool {
 /// commands write through) of processes that no longer run: what a killed
 /// run left. Those of a live process (a concurrent run) stay. Returns how
 /// many were removed; without `/proc` (no way to tell) none.
-pub fn remove_stale_temps(dir: &Path) -> usize {
+///
+/// Only when no other run holds the output folder `gate` (every run holds
+/// it with a shared `flock` while it runs, [`hold_folder`]): a run in
+/// another pid namespace (a container sharing the folder) has pids this
+/// process cannot see, and its live temporaries would be taken for a dead
+/// run's. What a killed run left is then swept by the next run that finds
+/// the folder to itself. Call it before this process takes its own hold.
+pub fn remove_stale_temps(dir: &Path, gate: &Path) -> usize {
+    let alone = fs::File::open(gate).map(|f| !matches!(f.try_lock(), Err(fs::TryLockError::WouldBlock)));
+    if alone.is_ok_and(|a| !a) {
+        return 0;
+    }
     let Ok(rd) = fs::read_dir(dir) else { return 0 };
     let own = std::process::id();
     let mut removed = 0;
@@ -122,6 +133,15 @@ pub fn remove_stale_temps(dir: &Path) -> usize {
         }
     }
     removed
+}
+
+/// The output folder `dir` held with a shared `flock` for as long as the
+/// returned file is kept: other runs then know this one is there (see
+/// [`remove_stale_temps`]). None when it cannot be opened or locked.
+pub fn hold_folder(dir: &Path) -> Option<fs::File> {
+    let f = fs::File::open(dir).ok()?;
+    f.lock_shared().ok()?;
+    Some(f)
 }
 
 /// Why the output folder `dir` cannot take outputs before anything is
@@ -403,7 +423,13 @@ mod tests {
         for p in [&dead, &dead_py, &live, &other] {
             fs::write(p, b"x").unwrap();
         }
-        assert_eq!(remove_stale_temps(&d), 2);
+        // another run holds the folder (it may be in another pid
+        // namespace, its pids not ours to judge): nothing is swept
+        let held = hold_folder(&d).unwrap();
+        assert_eq!(remove_stale_temps(&d, &d), 0);
+        assert!(dead.exists() && dead_py.exists());
+        drop(held);
+        assert_eq!(remove_stale_temps(&d, &d), 2);
         assert!(!dead.exists() && !dead_py.exists() && live.exists() && other.exists());
         fs::remove_dir_all(&d).unwrap();
     }

@@ -743,11 +743,23 @@ fn new_run() {
     crate::files::nav::forget_logs();
 }
 
-/// Removes the temporaries that dead processes left in `dir`
+/// The outputs an earlier sidecar (its bytes) lists for the input at
+/// output name `name` that an `--overwrite` may remove beside it: `name`
+/// plus a suffix either command writes (`crate::files::commit::listed_outputs`).
+/// Empty when the bytes are not a sidecar.
+#[pyfunction]
+fn listed_outputs(name: &str, sidecar: &[u8]) -> Vec<String> {
+    crate::files::commit::parse_sidecar(sidecar).map(|d| crate::files::commit::listed_outputs(name, &d)).unwrap_or_default()
+}
+
+/// Removes the temporaries that dead processes left in `dir`, when no
+/// other run holds the output folder `gate` (`dir` itself when not given)
 /// (`crate::files::jobs::remove_stale_temps`); returns how many.
 #[pyfunction]
-fn remove_stale_temps(py: Python<'_>, dir: std::path::PathBuf) -> usize {
-    py.detach(|| crate::files::jobs::remove_stale_temps(&dir))
+#[pyo3(signature = (dir, gate=None))]
+fn remove_stale_temps(py: Python<'_>, dir: std::path::PathBuf, gate: Option<std::path::PathBuf>) -> usize {
+    let gate = gate.unwrap_or_else(|| dir.clone());
+    py.detach(|| crate::files::jobs::remove_stale_temps(&dir, &gate))
 }
 
 /// The `options:` part of a command's `--help` for `face` ("python" or "rust").
@@ -1053,6 +1065,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(collect_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(name_jobs, m)?)?;
     m.add_function(wrap_pyfunction!(remove_stale_temps, m)?)?;
+    m.add_function(wrap_pyfunction!(listed_outputs, m)?)?;
     m.add_function(wrap_pyfunction!(new_run, m)?)?;
     m.add_function(wrap_pyfunction!(nearest_type, m)?)?;
     m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;

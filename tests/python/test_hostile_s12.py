@@ -326,3 +326,25 @@ def test_a_rerun_on_storage_does_not_call_its_own_output_folder_an_earlier_runs(
         assert plan.notes == []
     finally:
         fs.rm("/s12o", recursive=True)
+
+
+def test_an_overwrite_on_object_storage_in_another_format_leaves_no_earlier_image(tmp_path):
+    """As in a folder (docs/OUTPUTS.md): the earlier sidecar's image of
+    another --format goes with it; another input's object named like an
+    output of this one stays."""
+    import fsspec
+    from uwhl_rs.batch import restore_many
+    fs = fsspec.filesystem("memory")
+    src = tmp_path / "x00.png"
+    im, _ = synth.demo_input(48, 64, water_type="II", seed=0)
+    images.write_image(src, im, bits=8, encoding="linear")
+    restore_many([str(src)], "memory://s13ow/out", format="jpg")
+    assert fs.exists("/s13ow/out/x00.jpg")
+    # another input's outputs under a name an output of x00 could have
+    fs.pipe("/s13ow/out/x00_sheet.png", b"another input's image")
+    fs.pipe("/s13ow/out/x00_sheet.json", b"{}")
+    restore_many([str(src)], "memory://s13ow/out", format="png", overwrite=True)
+    names = {os.path.basename(p) for p in fs.ls("/s13ow/out", detail=False)}
+    assert "x00.png" in names and "x00.jpg" not in names, names
+    assert fs.cat("/s13ow/out/x00_sheet.png") == b"another input's image"
+    fs.rm("/s13ow", recursive=True)
