@@ -258,7 +258,14 @@ impl Summary {
                 if m.len() == 0 {
                     line.insert_str(0, &format!("{}\r\n", header.join(",")));
                 }
-                (&f).write_all(line.as_bytes())
+                let w = (&f).write_all(line.as_bytes());
+                if w.is_err() {
+                    // a full disk cut the row: what was written of it goes
+                    // (under the lock, nobody appended since), so that the
+                    // file holds whole rows only
+                    let _ = f.set_len(m.len());
+                }
+                w
             });
             let _ = f.unlock();
             r

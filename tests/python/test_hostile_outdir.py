@@ -237,6 +237,34 @@ def test_overwrite_beside_foreign_files_redoes_the_input_in_place_and_keeps_them
         assert [row["status"] for row in _rows(out)] == ["done"]
 
 
+@pytest.mark.parametrize("face", FACES)
+def test_a_summary_row_a_full_disk_cuts_is_taken_back(face, binary, tmp_path):
+    """A write that runs out of room mid-row (here a file size limit, as a
+    full disk does) left half a row that the next run's rows followed.
+    The cut row is taken back: the file holds whole rows only."""
+    import resource
+    import signal
+    src = tmp_path / "in"
+    src.mkdir()
+    for k in range(12):
+        _image(src / f"photo_with_a_long_name_{k:02d}.png", seed=k)
+    out = tmp_path / "out"
+    out.mkdir()
+
+    def limited():
+        # no output fits (each input fails as unwritable); the rows meet the limit mid-row
+        resource.setrlimit(resource.RLIMIT_FSIZE, (3000, 3000))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+    r = subprocess.run(_cmd(face, binary, [src, "-o", out, "-q", "--format", "png"]), env=_env(), capture_output=True,
+                       text=True, timeout=300, preexec_fn=limited)
+    assert r.returncode != 0 and "Traceback" not in r.stderr, r.stderr
+    text = open(out / "summary.csv", newline="", encoding="utf-8").read()
+    lines = list(csv.reader(io.StringIO(text, newline="")))
+    assert 1 < len(lines) < 13, "the limit did not cut the rows"
+    assert text.endswith("\r\n") and all(len(line) == len(lines[0]) for line in lines), text[-300:]
+
+
 def _claim_name(name: str) -> str:
     """The claim file of an output name (docs/OUTPUTS.md: FNV-1a 64 of the name)."""
     h = 0xcbf29ce484222325

@@ -14,7 +14,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import uwhl_rs
 from uwhl_rs import truth as TR
 
-VARIANTS = ("today", "cap1", "cap1.25", "cap1.5", "cap2", "mix0.3")
+VARIANTS = ("today", "cap1", "gate0.03", "gate0.05", "gate0.08")
 CONDS = ["gray/white", "gray/tinted", "own/white", "own/tinted"]
 
 
@@ -40,6 +40,12 @@ def estimate(I, obj, variant):
     if variant.startswith("cap"):
         k = float(variant[3:])
         return np.maximum(n, m / k)
+    if variant.startswith("gate"):
+        # only when the brightest pixels are near neutral in the input
+        # (a lamp's backscatter, a specular highlight: light the water did
+        # not filter), and then as the strict cap
+        g = float(variant[4:])
+        return np.maximum(n, m) if np.abs(m - 1 / 3).max() < g else e
     if variant.startswith("mix"):
         a = float(variant[3:])
         return n ** (1 - a) * np.maximum(m, 1e-6) ** a
@@ -123,7 +129,7 @@ def photos(outpng):
         res = uwhl_rs.restore(img)
         I = np.asarray(img, np.float64)
         tiles = [np.clip(img, 0, 1) ** (1 / 2.2)]
-        for v in ("today", "cap1", "cap1.5"):
+        for v in ("today", "cap1", "gate0.05"):
             out = reblend(res, I, ~res.veiling_mask, v)
             out = res.image if out is None else out
             tiles.append(np.clip(out, 0, 1) ** (1 / 2.2))
