@@ -92,27 +92,23 @@ def renders(split):
 
 
 def charts():
-    from uwhl_rs import images, evaluate as ev
-    here = os.path.dirname(os.path.abspath(__file__))
-    man = json.load(open(os.path.join(here, "..", "..", "eval", "charts.json")))
-    tot = {v: [] for v in VARIANTS}
-    for e in man["images"]:
-        img, _ = images.read_image(os.path.normpath(os.path.join(here, "..", "..", "eval", e["path"])))
-        mask = np.ones(img.shape[:2], bool)
-        for ch in e["charts"]:
-            for x0, y0, x1, y1 in ch["region"]:
-                mask[y0:y1, x0:x1] = False
-        res = uwhl_rs.restore(img, mask=mask)
-        I = np.asarray(img, np.float64)
-        for v in VARIANTS:
-            out = reblend(res, I, mask & ~res.veiling_mask, v)
-            out = res.image if out is None else out
-            per = []
-            for c in e["charts"]:
-                per.append(np.mean([ev.angle_deg(ev._patch_mean(out, b)) for b in c["gray_patches"]]))
-            tot[v] += per
-    for v in VARIANTS:
-        print(f"{v:10s} charts psi-bar {np.mean(tot[v]):.2f}", [round(float(x), 1) for x in tot[v]])
+    """The charts' mean gray-patch angle of each variant (``../s10/common.py``,
+    which restores each chart photo; the input is caught on its way in)."""
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "s10"))
+    import common
+    orig = uwhl_rs.restore
+    seen = {}
+
+    def restore(img, **k):
+        seen["input"] = np.asarray(img, np.float64)
+        seen["res"] = orig(img, **k)
+        return seen["res"]
+    common.uwhl_rs.restore = restore
+
+    def make(res, obj, v):
+        out = reblend(res, seen["input"], obj, v)
+        return res.image if out is None else out
+    common.charts(VARIANTS, make)
 
 
 def photos(outpng):
