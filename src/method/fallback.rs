@@ -37,6 +37,12 @@ pub const THETA0: f64 = 0.15;
 /// Largest share of a pixel's colour that low local confidence alone moves
 /// toward the fallback.
 pub const LOCAL_WEIGHT: f64 = 0.3;
+/// A channel value (linear) a pixel holds light in: 0.003, about 10 of
+/// 255 in 8-bit sRGB, a few quantisation steps.
+pub const LIT: f32 = 0.003;
+/// The share of the object pixels that must hold light ([`LIT`]) in each
+/// channel; below it the channel is empty and its restored colour a guess.
+pub const LIT_SHARE: f64 = 0.1;
 /// At most this many interior pixels are sampled for the noise estimate.
 const NOISE_SAMPLES: usize = 1 << 20;
 
@@ -51,6 +57,9 @@ pub struct Trust {
     /// the share of the shown colour that is the input's balance rather than
     /// the restoration's; None without the blend
     pub fallback_share: Option<f64>,
+    /// a channel of the input holds almost no light on the objects: fewer
+    /// than [`LIT_SHARE`] of them have [`LIT`] of it (flag `channel_empty`)
+    pub channel_empty: bool,
 }
 
 impl Trust {
@@ -153,6 +162,8 @@ fn row_t(rec: &Recovery, t_b: &[f32], out: &mut [[f32; 3]]) {
 struct RowSums {
     objects: f64,
     excess: f64,
+    /// object pixels with at least [`LIT`] of each channel
+    lit: [f64; 3],
     input: PowerSums,
     radiance: PowerSums,
 }
@@ -276,6 +287,11 @@ fn first_pass(
                     let p = &img.data[3 * i..3 * i + 3];
                     let (t, j) = terms.pixel(p, t);
                     s.objects += 1.0;
+                    for (l, &v) in s.lit.iter_mut().zip(p) {
+                        if v >= LIT {
+                            *l += 1.0;
+                        }
+                    }
                     if terms.exceeds(&t, &j) {
                         s.excess += 1.0;
                     }
@@ -291,6 +307,9 @@ fn first_pass(
     rows.iter().fold(RowSums::default(), |mut acc, r| {
         acc.objects += r.objects;
         acc.excess += r.excess;
+        for (a, l) in acc.lit.iter_mut().zip(r.lit) {
+            *a += l;
+        }
         acc.input.add(&r.input);
         acc.radiance.add(&r.radiance);
         acc
@@ -319,6 +338,7 @@ pub fn trust(
     let scratch = || vec![[0f32; 3]; w];
     let total = first_pass(img, objects, &terms, &|y, row| row.copy_from_slice(&t_b[y * w..(y + 1) * w]), Some(radiance));
     let veil_excess = if total.objects > 0.0 { total.excess / total.objects } else { 0.0 };
+    let channel_empty = total.objects > 0.0 && total.lit.iter().any(|&l| l < LIT_SHARE * total.objects);
     // the display's gains (METHOD §12.1) and the input's own shades-of-gray balance
     let shade = Shade::new(&terms, &total.radiance, &total.input, veil_excess);
     let mut confidence = vec![0f32; t_b.len()];
@@ -347,7 +367,7 @@ pub fn trust(
         input_balance(img, objects, &shade.k, image);
     }
     let fallback_share = blend.then(|| weights.iter().sum::<f64>() / t_b.len().max(1) as f64);
-    Trust { confidence, veil_excess, fallback_share }
+    Trust { confidence, veil_excess, fallback_share, channel_empty }
 }
 
 /// `image` replaced by the input balanced by its gains `k`, scaled so that
@@ -497,6 +517,24 @@ mod tests {
         }
         let share = tr.fallback_share.unwrap();
         assert!((share - 1.637e-4).abs() < 1e-6, "{share}");
+    }
+
+    #[test]
+    fn a_channel_the_water_took_is_empty_only_when_nine_pixels_in_ten_lack_it() {
+        // 20 object pixels; red at 0.003 (LIT, a few 8-bit codes) in k of
+        // them, 0.002 in the rest: empty while k < 2 (10% of 20), not at 2;
+        // pixels that are not objects (here the last 20) do not count
+        let (h, w) = (8, 5);
+        let tb = vec![1.0f32; h * w];
+        for (k, empty) in [(0, true), (1, true), (2, false), (20, false)] {
+            let d: Vec<f32> = (0..h * w)
+                .flat_map(|i| [if i < k || i >= 20 { 0.003f32 } else { 0.002 }, 0.4, 0.5])
+                .collect();
+            let img = ImageRef::new(&d, h, w).unwrap();
+            let mut out = d.clone();
+            let tr = trust(&img, &|i| i < 20, [0.01, 0.4, 0.6], &water("II", 0.2773, 0.7937), &tb, &d, &mut out, false);
+            assert_eq!(tr.channel_empty, empty, "k = {k}");
+        }
     }
 
     #[test]

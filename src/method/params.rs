@@ -178,11 +178,16 @@ pub enum Flag {
     /// perhaps taken in air, or A is not the water's; the water type means
     /// nothing then (METHOD §3)
     VeilingLightNotWater,
+    /// a channel of the input holds almost no light on the objects (fewer
+    /// than 10% of them have 0.003 of it, about 10 of 255 in 8-bit sRGB):
+    /// the water took it all, and its restored colour is a guess, from
+    /// noise and quantisation (METHOD §12.5)
+    ChannelEmpty,
 }
 
 impl Flag {
     /// Every flag.
-    pub const ALL: [Flag; 10] = [
+    pub const ALL: [Flag; 11] = [
         Flag::NoWaterRegion,
         Flag::VeilingFallback,
         Flag::VeilingLightClamped,
@@ -193,6 +198,7 @@ impl Flag {
         Flag::DistanceRejected,
         Flag::DistanceMissing,
         Flag::VeilingLightNotWater,
+        Flag::ChannelEmpty,
     ];
 
     /// The stable name (sidecar, Python `Restoration.flags`).
@@ -208,6 +214,7 @@ impl Flag {
             Flag::DistanceRejected => "distance_rejected",
             Flag::DistanceMissing => "distance_missing",
             Flag::VeilingLightNotWater => "veiling_light_not_water",
+            Flag::ChannelEmpty => "channel_empty",
         }
     }
 }

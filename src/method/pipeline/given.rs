@@ -234,6 +234,9 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
     if tr.as_ref().is_some_and(|t| t.unreliable()) {
         flags.push(Flag::Unreliable);
     }
+    if tr.as_ref().is_some_and(|t| t.channel_empty) {
+        flags.push(Flag::ChannelEmpty);
+    }
     if let Some(t) = &tr {
         settle_noise(&mut image, &t.confidence, img.height, img.width);
     }
