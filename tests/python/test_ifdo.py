@@ -217,6 +217,12 @@ def test_photos_without_position_need_the_header_default(binary, dive, tmp_path)
     assert r.returncode == 2
     assert "image-latitude" in r.stderr and "1 of 3 photos have no GPS position" in r.stderr
     assert not (out / "ifdo.yaml").exists()
+    # the same after a batch: the photos are restored and written, the iFDO
+    # is the output that could not be (exit 5, not the 2 of "nothing read")
+    out1 = tmp_path / "out1"
+    r = restore("python", binary, [dive], out1, "--ifdo", header_file(tmp_path, HEADER))
+    assert r.returncode == 5 and "no iFDO written" in r.stderr and "image-latitude" in r.stderr, r.stderr
+    assert len(list(out1.glob("*.json"))) == 3 and not (out1 / "ifdo.yaml").exists()
     # with every photo positioned and timed, nothing more is needed
     only = tmp_path / "positioned"
     only.mkdir()

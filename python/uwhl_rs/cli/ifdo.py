@@ -21,17 +21,20 @@ def file_format(header_path: str) -> str:
 
 
 def write(out_dir: str, header: dict, console: Console, *, handle_base: str | None = None,
-          file_format: str | None = None, storage_options: dict | None = None) -> int:
+          file_format: str | None = None, storage_options: dict | None = None,
+          refused: str = "bad_arguments") -> int:
     """Writes the iFDO of ``out_dir`` (a folder or a storage URL) with the
     ``header`` fields and says what it holds; raises a CommandError naming
-    the folder when it cannot."""
+    the folder when it cannot, of kind ``refused`` when the header and the
+    photos lack a field (``write_failed`` after a batch, whose photos are
+    written: docs/CLI.md exit codes)."""
     if not is_url(out_dir) and not os.path.isdir(out_dir):
         raise CommandError("no such folder", "unreadable_input", out_dir)
     try:
         done = write_ifdo(out_dir, header, handle_base=handle_base, file_format=file_format,
                           storage_options=storage_options)
     except IfdoError as e:
-        raise CommandError(f"no iFDO written: {e}", "bad_arguments", out_dir) from e
+        raise CommandError(f"no iFDO written: {e}", refused, out_dir) from e
     except BatchError as e:
         raise CommandError(f"cannot write the iFDO: {e}", e.kind, out_dir) from e
     except OSError as e:

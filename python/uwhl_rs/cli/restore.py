@@ -142,7 +142,7 @@ def run(a: argparse.Namespace, console: Console) -> int:
     if header is not None:
         try:
             ifdo_command.write(a.out, header, console, file_format=ifdo_command.file_format(a.ifdo),
-                               storage_options=so or None)
+                               storage_options=so or None, refused="write_failed")
         except (Exception, MemoryError) as e:
             code = max(code, console.failure(e))
     return code
