@@ -40,10 +40,15 @@ def connect(client, dask: str | None, threads: int | None):
         # Dask's own share of the machine (cgroups and ulimit counted); a
         # task may plan up to 80% of it, where Dask would pause the worker
         memory = int(MEMORY_LIMIT // n)
-        cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                           memory_limit=memory, resources={MEMORY: int(memory * 0.8)},
-                                           dashboard_address="127.0.0.1:0", host="127.0.0.1",
-                                           silence_logs=40)
+        try:
+            cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                               memory_limit=memory, resources={MEMORY: int(memory * 0.8)},
+                                               dashboard_address="127.0.0.1:0", host="127.0.0.1",
+                                               silence_logs=40)
+        except (Exception, MemoryError) as e:
+            raise BatchError(f"--dask {dask}: the local cluster's workers did not start ({type(e).__name__}: {e}); "
+                             "from a script, call restore_many under `if __name__ == \"__main__\":` "
+                             "(docs/API.md)") from None
         return distributed.Client(cluster), cluster, threads if threads is not None else max(1, cores // n)
     address = dask if "://" in dask else f"tcp://{dask}"
     timeout = _timeout()

@@ -139,3 +139,22 @@ def test_a_dask_run_hands_its_workers_paths_that_hold_where_they_run(tmp_path, m
     assert opts[0]["water_from"] == here("cal") and opts[0]["mask"] == here("m.png")
     assert opts[0]["distance"] == (str(tmp_path / "depth" / "{stem}.tif") if elsewhere else "depth/{stem}.tif")
     assert [o["altitude"] for o in opts] == [here("nav.csv"), "2.5", "xmp"]
+
+
+def test_a_script_starting_a_local_cluster_without_the_main_guard_is_told_so(tmp_path):
+    """Dask's local workers import the calling script (spawn): without
+    ``if __name__ == "__main__":`` each started the batch again and the
+    user got Dask's bootstrapping traceback; the call now raises a
+    BatchError saying what to do (docs/API.md)."""
+    pytest.importorskip("distributed")
+    img, _ = synth.demo_input(40, 56, water_type="II", seed=0)
+    (tmp_path / "in").mkdir()
+    write_image(tmp_path / "in" / "a.png", img, bits=8, encoding="linear")
+    script = tmp_path / "noguard.py"
+    script.write_text("from uwhl_rs.batch import restore_many\nrestore_many('in', 'out', dask='local:1')\n")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([os.path.dirname(os.path.dirname(os.path.abspath(synth.__file__))),
+                                         env.get("PYTHONPATH", "")])
+    r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=120, env=env)
+    assert r.returncode != 0
+    assert "BatchError" in r.stderr and 'if __name__ == "__main__":' in r.stderr, r.stderr[-2000:]
