@@ -110,7 +110,10 @@ def skipped_row(item: Item, sidecar: str, note: str = DONE_NOTE) -> dict:
 
 
 def _done_row(item: Item, result, seconds: float, outputs: dict) -> dict:
-    return row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=round(seconds, 4), exit_code=0,
+    # the sidecar's own time of the input, as the binary's summary gives it
+    total = (result.sidecar.get("seconds") or {}).get("total")
+    seconds = total if isinstance(total, (int, float)) else round(seconds, 4)
+    return row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=seconds, exit_code=0,
                reused_estimates=result.sidecar.get("reused_estimates"),
                **{role: outputs.get(role) for role in ("image", "transmission", "transmission_color",
                                                         "confidence", "contact_sheet", "sidecar")})

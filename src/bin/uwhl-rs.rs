@@ -15,7 +15,7 @@
 
 use std::io::Write;
 use std::process::ExitCode;
-use uwhl::cli::{help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_frames, run_stream, Command};
+use uwhl::cli::{demo_help, help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_frames, run_stream, Command};
 
 /// Whether stdout was closed when the process started (`>&-`). Rust's
 /// runtime puts /dev/null on a closed standard descriptor before `main`,
@@ -84,6 +84,10 @@ fn main() -> ExitCode {
     let code = match parse(std::env::args_os().skip(1)) {
         Ok(Command::Help) => {
             let _ = stdout.write_all(help().as_bytes());
+            0
+        }
+        Ok(Command::DemoHelp) => {
+            let _ = stdout.write_all(demo_help().as_bytes());
             0
         }
         Ok(Command::Version) => {

@@ -57,8 +57,27 @@ pub enum Command {
     Demo(Demo),
     /// `--help`
     Help,
+    /// `demo --help`
+    DemoHelp,
     /// `--version`
     Version,
+}
+
+/// The `demo --help` text: the demo's own options (as `uwhl demo --help`).
+pub fn demo_help() -> &'static str {
+    "usage: uwhl-rs demo [-o DIR] [--water-type T] [--size HxW] [--seed N]
+
+Render the package's synthetic underwater scene (nothing is downloaded),
+restore it, write input/restored/transmission/clean_truth PNGs and report
+true vs estimated water type and A.
+
+options:
+  -h, --help          this help
+  -o, --out DIR       output folder (default ./uwhl_demo)
+  --water-type T      water type to render: I, IA, IB, II, III, 1C, 3C, 5C, 7C, 9C (default III)
+  --size HxW          height x width of the scene (default 480x640)
+  --seed N            scene seed (default 7)
+"
 }
 
 /// The `--help` text: usage, the options of the table (`crate::files::options`)
@@ -137,7 +156,7 @@ fn parse_demo(p: &mut lexopt::Parser) -> Result<Command, Failure> {
     };
     while let Some(arg) = p.next().map_err(lex)? {
         match arg {
-            Short('h') | Long("help") => return Ok(Command::Help),
+            Short('h') | Long("help") => return Ok(Command::DemoHelp),
             Short('o') | Long("out") | Long("output") => d.out = outdir_value(p.value().map_err(lex)?)?,
             Long("water-type") => {
                 let v = text(p.value().map_err(lex)?, "--water-type")?;

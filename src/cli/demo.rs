@@ -41,10 +41,10 @@ pub fn run_demo(d: &Demo, out: &mut dyn Write) -> Result<u8, Failure> {
     let flags: Vec<&str> = res.flags.iter().map(|f| f.name()).collect();
     let a3 = |a: [f32; 3]| format!("({:.4}, {:.4}, {:.4})", a[0], a[1], a[2]);
     let lines = [
-        format!("uwhl-rs {}: built-in rendered scene {w}x{h}, seed {}", env!("CARGO_PKG_VERSION"), d.seed),
+        format!("uwhl-rs {}: built-in rendered scene {h}x{w} (height x width, as --size), seed {}", env!("CARGO_PKG_VERSION"), d.seed),
         format!("true water type:      {}", d.water_type.name),
         format!(
-            "estimated water type: {}   (types by score, best first: {}; excluded by the t_R rule: {})",
+            "estimated water type: {}   (scores, lowest first: {}; the default chooses among the three lowest, METHOD §12.2; excluded by the t_R rule: {})",
             res.water_type.name,
             names(&ranking),
             if res.excluded.is_empty() { "none".to_string() } else { res.excluded.join(", ") }

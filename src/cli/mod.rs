@@ -25,7 +25,7 @@ mod scene;
 // the scene names its water type as `super::WaterType`, here and in tests/common
 use crate::method::water::WaterType;
 
-pub use args::{help, parse, Command, Demo, Format, Options, Preprocess, WaterChoice};
+pub use args::{demo_help, help, parse, Command, Demo, Format, Options, Preprocess, WaterChoice};
 pub use demo::run_demo;
 pub use frames::run_frames;
 pub use run::{init_threads, install_interrupt_handler, report, run_batch, run_stream};

@@ -293,7 +293,19 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     dive_notes(opts, err);
     let (jobs, errors, notes) = collect_jobs(&opts.inputs, &opts.outdir, &output_suffixes(opts));
     say_notes(&notes, opts, err);
-    let errors: Vec<(PathBuf, Failure)> = errors.into_iter().map(|(p, m)| (p, Failure::new(Kind::Input, m))).collect();
+    let errors: Vec<(PathBuf, Failure)> = errors
+        .into_iter()
+        .map(|(p, m)| {
+            // a pattern the shell did not expand (quoted): this command takes paths only
+            let pattern = p.to_string_lossy().contains(['*', '?', '[']);
+            let m = if pattern && m == "no such file or folder" {
+                format!("{m} (uwhl-rs does not expand patterns: leave them unquoted for the shell, or use uwhl)")
+            } else {
+                m
+            };
+            (p, Failure::new(Kind::Input, m))
+        })
+        .collect();
     let mut code = 0u8;
     // what a killed run left in the output folders goes first, before
     // this run holds the folder (its summary's lock)

@@ -4,6 +4,7 @@ line, interrupted runs resume, and the help is complete."""
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import subprocess
@@ -398,3 +399,25 @@ def test_shared_images_end_to_end(tmp_path):
         side = _check_outputs(tmp_path, p.stem)
         assert side["source"]["kind"] == "srgb"
     assert f"{len(inputs)} done, 0 skipped, 0 failed" in r.stdout
+
+
+def test_the_binary_says_what_its_demo_takes_and_that_it_does_not_expand_patterns(binary, tmp_path):
+    r = subprocess.run([binary, "demo", "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.startswith("usage: uwhl-rs demo") and "--water-type" in r.stdout
+    # a quoted pattern reaches the binary as it is: it names what to do
+    r = subprocess.run([binary, str(tmp_path / "nothere" / "*.jpg"), "-o", str(tmp_path / "out")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 3 and "does not expand patterns" in r.stderr, r.stderr
+
+
+def test_a_rows_seconds_are_its_sidecars_in_both_commands(scenes, binary, tmp_path):
+    src = tmp_path / "in"
+    src.mkdir()
+    (src / "a.png").write_bytes((scenes / "scene_II.png").read_bytes())
+    for face, cmd in (("py", [sys.executable, "-m", "uwhl_rs", "restore"]), ("rs", [binary])):
+        out = tmp_path / face
+        assert subprocess.run([*cmd, str(src), "-o", str(out), "-q"], capture_output=True, timeout=300).returncode == 0
+        with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+            (row,) = list(csv.DictReader(f))
+        side = json.loads((out / "a.json").read_text())
+        assert float(row["seconds"]) == side["seconds"]["total"], face

@@ -44,9 +44,10 @@ def run(a: argparse.Namespace, console: Console) -> int:
     ok = np.isfinite(z)
     rho = float(np.corrcoef(z[ok], -np.log(res.transmission[ok]))[0, 1])
     ranking = sorted(res.scores, key=res.scores.get)
-    console.line(f"uwhl_rs {uwhl_rs.__version__}: built-in synthetic scene {w}x{h}, seed {seed}")
+    console.line(f"uwhl_rs {uwhl_rs.__version__}: built-in synthetic scene {h}x{w} (height x width, as --size), seed {seed}")
     console.line(f"true water type:      {truth['water_type']}")
-    console.line(f"estimated water type: {res.water_type}   (types by score, best first: {' '.join(ranking)};"
+    console.line(f"estimated water type: {res.water_type}   (scores, lowest first: {' '.join(ranking)};"
+          f" the default chooses among the three lowest, METHOD §12.2;"
           f" excluded by the t_R rule: {', '.join(res.excluded) or 'none'})")
     console.line(f"veiling light A: true {tuple(round(v, 4) for v in truth['veiling_light'])},"
           f" estimated {tuple(round(v, 4) for v in res.veiling_light)}")
