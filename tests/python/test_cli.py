@@ -421,3 +421,13 @@ def test_a_rows_seconds_are_its_sidecars_in_both_commands(scenes, binary, tmp_pa
             (row,) = list(csv.DictReader(f))
         side = json.loads((out / "a.json").read_text())
         assert float(row["seconds"]) == side["seconds"]["total"], face
+
+
+def test_an_option_of_the_other_command_is_a_usage_error_in_both_commands_words(binary, tmp_path):
+    r = uwhl("restore", tmp_path / "x.png", "--linear", "-o", tmp_path / "out")
+    assert r.returncode == 2
+    assert r.stderr.splitlines() == ["uwhl restore: error: --linear is an option of the binary only: run "
+                                     "'uwhl-rs restore' (docs/CLI.md)", "Try 'uwhl restore --help'."]
+    r = subprocess.run([binary, str(tmp_path / "x.png"), "--ifdo", "h.yaml", "-o", str(tmp_path / "out")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.splitlines()[-1] == "Try 'uwhl-rs --help'."

@@ -63,7 +63,9 @@ def main(argv: list[str] | None = None) -> int:
     flag = _binary_only(args)
     if flag is not None:
         # as uwhl-rs names the command that has an option of the Python command's
-        p.exit(2, f"uwhl: {flag} is an option of the binary only: run 'uwhl-rs restore' (docs/CLI.md)\n")
+        prog = f"uwhl {args[0]}" if args and not args[0].startswith("-") else "uwhl"
+        p.exit(2, f"{prog}: error: {flag} is an option of the binary only: run 'uwhl-rs restore' (docs/CLI.md)\n"
+                  f"Try '{prog} --help'.\n")
     usage_errors_as_json(args)
     a = p.parse_args(attach_values(args))
     if a.cmd == "demo":
