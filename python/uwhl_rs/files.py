@@ -494,7 +494,6 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
         except TypeError:  # Pillow < 10.1
             return ImageFont.load_default()
 
-    font = label_font(15)
     bar = 24
     cells = []
     # input with VL overlay
@@ -528,13 +527,22 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
     pad = 6
     sheet = Image.new("RGB", (cols * (tw + pad) + pad, rows * (th + bar + pad) + pad + 30), (24, 24, 24))
     draw = ImageDraw.Draw(sheet)
-    draw.text(
-        (pad, 6),
-        f"{os.path.basename(meta.path)}: chosen {res.water_type}, A = "
-        f"({', '.join(f'{v:.3f}' for v in res.veiling_light)}); flags: {', '.join(res.flags) or 'none'}",
-        fill=(235, 235, 235),
-        font=label_font(17),
-    )
+    def fitted(text: str, size: int, width: int):
+        """``text`` and a font small enough (down to 8 px) for ``width``
+        pixels, the text cut short if even that is too wide: a small sheet
+        (``--max-side 200``) keeps its labels in their cells."""
+        f = label_font(size)
+        need = draw.textlength(text, font=f)
+        if need > width:
+            f = label_font(max(8, int(size * width / need)))
+            while len(text) > 1 and draw.textlength(text, font=f) > width:
+                text = text[:-2] + "\u2026"
+        return text, f
+
+    title = (f"{os.path.basename(meta.path)}: chosen {res.water_type}, A = "
+             f"({', '.join(f'{v:.3f}' for v in res.veiling_light)}); flags: {', '.join(res.flags) or 'none'}")
+    title, title_font = fitted(title, 17, sheet.width - 2 * pad)
+    draw.text((pad, 6), title, fill=(235, 235, 235), font=title_font)
     for k, (img, text, frame) in enumerate(cells):
         x0 = pad + (k % cols) * (tw + pad)
         y0 = 30 + pad + (k // cols) * (th + bar + pad)
@@ -542,5 +550,6 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
         sheet.paste(tile, (x0, y0))
         if frame is not None:
             draw.rectangle([x0 - 3, y0 - 3, x0 + tw + 2, y0 + th + bar - 1], outline=frame, width=4)
-        draw.text((x0 + 4, y0 + th + 4), text, fill=frame or (235, 235, 235), font=font)
+        text, f = fitted(text, 15, tw - 8)
+        draw.text((x0 + 4, y0 + th + 4), text, fill=frame or (235, 235, 235), font=f)
     return np.asarray(sheet)
