@@ -152,13 +152,14 @@ fn check_plan(h: &crate::files::decode::Header, opts: &Settings, masks: &Masks, 
     Ok(())
 }
 
-/// The bytes a photo of `h` x `w` pixels plans for (METHOD §13: with the
-/// map at its processed size), before the photo's header is read: its
-/// samples counted at 16 bits (the most a photo decodes to), so that a map
-/// it lets through fits [`check_plan`] too. The process's base is not in
-/// it (the map's reader adds it).
-fn photo_plan_with_map(h: usize, w: usize, opts: &Settings, masks: &Masks) -> u64 {
-    let plan = plan_of(h, w, 6, true, true, opts, masks);
+/// The bytes a photo of `h` x `w` pixels decoding to `bpp` bytes a pixel
+/// (`is_rgb`: three channels as decoded) plans for (METHOD §13: with the
+/// map at its processed size), from its header before it is decoded, as
+/// [`check_plan`] counts it then: a map this lets through fits there too,
+/// and an 8-bit photo leaves the map what a 16-bit or float one would not.
+/// The process's base is not in it (the map's reader adds it).
+fn photo_plan_with_map(h: usize, w: usize, bpp: u64, is_rgb: bool, opts: &Settings, masks: &Masks) -> u64 {
+    let plan = plan_of(h, w, bpp, is_rgb, true, opts, masks);
     plan.bytes().saturating_add(map_at_size(&plan))
 }
 
@@ -240,11 +241,19 @@ pub fn decode_and_restore<R: BufRead + Seek>(
     decode_and_restore_gated(reader, opts, masks, seq, None, Given::None)
 }
 
-/// (height, width) of a photo from its header (PNG, JPEG, TIFF), None when
-/// it cannot be read that way (the decoder then says why).
-fn photo_size(input: &Path) -> Option<(u64, u64)> {
-    let (w, h) = image::ImageReader::open(input).ok()?.with_guessed_format().ok()?.into_dimensions().ok()?;
-    Some((u64::from(h), u64::from(w)))
+/// (height, width, bytes a pixel, three channels as decoded) of a photo
+/// from its header (PNG, JPEG, TIFF), None when it cannot be read that way
+/// (the decoder then says why).
+fn photo_size(input: &Path) -> Option<(u64, u64, u64, bool)> {
+    use image::{ColorType, ImageDecoder};
+    let reader = image::ImageReader::open(input).ok()?.with_guessed_format().ok()?;
+    let jpeg = reader.format() == Some(image::ImageFormat::Jpeg);
+    let decoder = reader.into_decoder().ok()?;
+    let (w, h) = decoder.dimensions();
+    let ct = decoder.color_type();
+    // as the decoder's own header counts it (crate::files::decode)
+    let is_rgb = matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && !jpeg;
+    Some((u64::from(h), u64::from(w), u64::from(ct.bytes_per_pixel()), is_rgb))
 }
 
 /// [`decode_and_restore`], with the memory check waiting at `gate` when given.
@@ -487,9 +496,10 @@ pub fn prepare(job: &Job, opts: &Settings, masks: &Masks, seq: Option<&mut Seque
                 // the map gets what the budget leaves beside the photo's own plan: one that
                 // does not fit is left out (the photo restored without it, flagged), whichever
                 // check would meet it, so a larger budget never fails what a smaller one restored
-                let photo = photo_size(&job.input);
-                let room_for_map = photo.map_or(opts.params.max_memory, |(h, w)| {
-                    opts.params.max_memory.saturating_sub(photo_plan_with_map(h as usize, w as usize, opts, masks))
+                let header = photo_size(&job.input);
+                let photo = header.map(|(h, w, ..)| (h, w));
+                let room_for_map = header.map_or(opts.params.max_memory, |(h, w, bpp, rgb)| {
+                    opts.params.max_memory.saturating_sub(photo_plan_with_map(h as usize, w as usize, bpp, rgb, opts, masks))
                 });
                 let map = crate::files::depth::read_distance_of(&path, opts.max_pixels, room_for_map, photo)
                     .map_err(|f| format!("{}: {}", path.display(), f.message));
@@ -798,3 +808,26 @@ pub fn sequence_of(opts: &Settings, refresh: usize, cut: f32, smoothing: f32) ->
     s
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_photos_header_gives_the_bytes_its_samples_decode_to() {
+        // the map's room is the budget less the photo's plan at these: an
+        // 8-bit photo was counted as a 16-bit one
+        let d = std::env::temp_dir().join(format!("uwhl-photo-size-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let eight = image::RgbImage::from_pixel(5, 3, image::Rgb([10, 20, 30]));
+        eight.save(d.join("a.png")).unwrap();
+        eight.save(d.join("a.jpg")).unwrap();
+        image::ImageBuffer::<image::Rgb<u16>, _>::from_pixel(5, 3, image::Rgb([1000u16, 2000, 3000])).save(d.join("b.png")).unwrap();
+        assert_eq!(photo_size(&d.join("a.png")), Some((3, 5, 3, true)));
+        // a JPEG decoder holds its planes beside the output: not "already RGB"
+        assert_eq!(photo_size(&d.join("a.jpg")), Some((3, 5, 3, false)));
+        assert_eq!(photo_size(&d.join("b.png")), Some((3, 5, 6, true)));
+        assert_eq!(photo_size(&d.join("none.png")), None);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
