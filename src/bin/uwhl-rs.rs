@@ -3,8 +3,8 @@
 //! exits with the documented code (see `uwhl-rs --help`).
 
 // deny, not forbid: the exceptions are the start-up hook below (a
-// `link_section`, which the unsafe_code lint counts) and the allocator's
-// setting, allowed where they are
+// `link_section`, which the unsafe_code lint counts), the allocator's
+// setting and SIGXFSZ's disposition, allowed where they are
 #![deny(unsafe_code)]
 #![deny(
     clippy::unwrap_used,
@@ -55,6 +55,18 @@ mod closed_stdout {
     }
 }
 
+/// A file past `ulimit -f` is then a write error (EFBIG) the run reports
+/// and recovers from (a summary.csv row taken back), as Python's runtime
+/// has it, not a signal that kills the process in the middle of a write.
+fn ignore_file_size_signal() {
+    // SAFETY: sets one signal's disposition to "ignore", first in main,
+    // before the process starts another thread; no handler runs.
+    #[allow(unsafe_code)]
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+}
+
 /// Makes freed image buffers leave the process at once, so that its
 /// resident size follows what it holds and `--max-memory` can bound it.
 ///
@@ -78,6 +90,7 @@ fn release_freed_buffers_promptly() {
 
 fn main() -> ExitCode {
     release_freed_buffers_promptly();
+    ignore_file_size_signal();
     let json_errors = std::env::args_os().any(|a| a == "--json-errors");
     let mut stdout = std::io::stdout().lock();
     let mut stderr = std::io::stderr().lock();

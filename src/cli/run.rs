@@ -296,10 +296,11 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     let errors: Vec<(PathBuf, Failure)> = errors
         .into_iter()
         .map(|(p, m)| {
-            // a pattern the shell did not expand (quoted): this command takes paths only
+            // a pattern that reached the command as it is (quoted, or one the
+            // shell found no match for): this command takes paths only
             let pattern = p.to_string_lossy().contains(['*', '?', '[']);
             let m = if pattern && m == "no such file or folder" {
-                format!("{m} (uwhl-rs does not expand patterns: leave them unquoted for the shell, or use uwhl)")
+                format!("{m} (a pattern given as it is: quoted, or matching nothing; uwhl-rs does not expand patterns, uwhl does)")
             } else {
                 m
             };

@@ -407,7 +407,7 @@ def test_the_binary_says_what_its_demo_takes_and_that_it_does_not_expand_pattern
     # a quoted pattern reaches the binary as it is: it names what to do
     r = subprocess.run([binary, str(tmp_path / "nothere" / "*.jpg"), "-o", str(tmp_path / "out")],
                        capture_output=True, text=True, timeout=60)
-    assert r.returncode == 3 and "does not expand patterns" in r.stderr, r.stderr
+    assert r.returncode == 3 and "uwhl-rs does not expand patterns" in r.stderr, r.stderr
 
 
 def test_a_rows_seconds_are_its_sidecars_in_both_commands(scenes, binary, tmp_path):

@@ -252,9 +252,11 @@ def test_a_summary_row_a_full_disk_cuts_is_taken_back(face, binary, tmp_path):
     out.mkdir()
 
     def limited():
-        # no output fits (each input fails as unwritable); the rows meet the limit mid-row
+        # no output fits (each input fails as unwritable); the rows meet the
+        # limit mid-row. SIGXFSZ as a shell leaves it (its default kills the
+        # writer mid-row): each command ignores it itself
         resource.setrlimit(resource.RLIMIT_FSIZE, (3000, 3000))
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        signal.signal(signal.SIGXFSZ, signal.SIG_DFL)
 
     r = subprocess.run(_cmd(face, binary, [src, "-o", out, "-q", "--format", "png"]), env=_env(), capture_output=True,
                        text=True, timeout=300, preexec_fn=limited)

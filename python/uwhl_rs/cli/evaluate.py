@@ -55,8 +55,8 @@ def run(a: argparse.Namespace, console: Console) -> int:
         except (Exception, MemoryError) as e:  # one entry's failure is its line; the others go on
             # the line is prefixed with the entry's label once, whether or not the error already named it
             text = describe(e, entry.path).removeprefix(f"{entry.label}: ")
-            # the manifest first, as the lines of the entries it could not read
-            code = max(code, console.error(kind_of(e), f"{entry.label}: {text}", a.manifest))
+            # named by its entry (a --json-errors line's input), which names the manifest's list
+            code = max(code, console.error(kind_of(e), text, entry.label))
             problems.append(f"{entry.label}: {text}")
             continue
         # its part of the page now, then its full-size images go: memory does not grow with the manifest
