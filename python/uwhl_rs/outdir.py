@@ -21,7 +21,7 @@ from .sidecars import SidecarError, display, local_outputs_problem
 from .sidecars import parse as parse_sidecar
 from .storage import Folder, filesystem, join, read_regular
 
-__all__ = ["SummaryWriter", "remove_earlier", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
+__all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
 
 FILE_NAME = "summary.csv"
@@ -256,3 +256,10 @@ def remove_earlier(fs, side: str, dest: dict, storage_options: dict) -> None:
             fs.rm_file(p)
         except OSError:
             pass
+
+
+def sidecar_seconds(sidecar: dict, wall: float) -> float:
+    """A done row's time: its sidecar's ``seconds.total``, as the binary's
+    summary gives it, else ``wall``, the time the task took."""
+    total = (sidecar.get("seconds") or {}).get("total")
+    return total if isinstance(total, (int, float)) and not isinstance(total, bool) else round(wall, 4)

@@ -25,7 +25,7 @@ import uwhl_rs
 from . import _core, files, video
 from .errors import EXIT, CommandError, ImageReadError, UwhlError, describe, kind_of
 from .images import DEFAULT_MAX_PIXELS, read_image
-from .outdir import remove_earlier, row_fields_from_sidecar
+from .outdir import remove_earlier, row_fields_from_sidecar, sidecar_seconds
 from .storage import download, filesystem, is_url, join, local_path
 
 __all__ = ["COLUMNS", "MEMORY", "DONE_NOTE", "Item", "Context", "MemoryGate", "GateShare", "begin", "restore_items", "probe", "worker", "row"]
@@ -110,10 +110,8 @@ def skipped_row(item: Item, sidecar: str, note: str = DONE_NOTE) -> dict:
 
 
 def _done_row(item: Item, result, seconds: float, outputs: dict) -> dict:
-    # the sidecar's own time of the input, as the binary's summary gives it
-    total = (result.sidecar.get("seconds") or {}).get("total")
-    seconds = total if isinstance(total, (int, float)) else round(seconds, 4)
-    return row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=seconds, exit_code=0,
+    return row(item, "done", **row_fields_from_sidecar(result.sidecar), seconds=sidecar_seconds(result.sidecar, seconds),
+               exit_code=0,
                reused_estimates=result.sidecar.get("reused_estimates"),
                **{role: outputs.get(role) for role in ("image", "transmission", "transmission_color",
                                                         "confidence", "contact_sheet", "sidecar")})
@@ -498,7 +496,7 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
             written = {k: v for k, v in dest.items() if not k.startswith("still")}
         side = result.sidecar
         shown = written.get("video") or f"{len(side['video']['stills'])} stills beside {written['strip']}"
-        r = row(item, "done", **row_fields_from_sidecar(side), seconds=round(time.perf_counter() - t0, 4),
+        r = row(item, "done", **row_fields_from_sidecar(side), seconds=sidecar_seconds(side, time.perf_counter() - t0),
                 exit_code=0, image=shown, sidecar=written["sidecar"], reused_estimates=None)
         if result.stopped is not None:
             # restored up to where the file stops: its outputs stand, and the run says so

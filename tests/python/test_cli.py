@@ -431,3 +431,7 @@ def test_an_option_of_the_other_command_is_a_usage_error_in_both_commands_words(
     r = subprocess.run([binary, str(tmp_path / "x.png"), "--ifdo", "h.yaml", "-o", str(tmp_path / "out")],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.splitlines()[-1] == "Try 'uwhl-rs --help'."
+    # with --json-errors, one JSON object, as every other usage error
+    r = uwhl("restore", "--json-errors", "--linear", tmp_path / "x.png", "-o", tmp_path / "out")
+    got = json.loads(r.stderr)
+    assert r.returncode == 2 and got["error"] == "bad_arguments" and "--linear" in got["message"], r.stderr

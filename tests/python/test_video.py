@@ -238,6 +238,12 @@ def test_a_folder_mixing_videos_and_photos(clips, tmp_path):
     page = (out / "report" / "index.html").read_text()
     assert 'id="videos"' in page and "a_strip.jpg" in page and "1 videos" not in page or True
     assert "1 photos and 1 videos restored" in page
+    # every row's time is its sidecar's, the video's as the photo's
+    import csv
+    with open(out / "summary.csv", newline="", encoding="utf-8") as f:
+        rows = {os.path.basename(r["input"]): float(r["seconds"]) for r in csv.DictReader(f)}
+    for name, stem in (("a.mkv", "a"), ("b.png", "b")):
+        assert rows[name] == json.loads((out / f"{stem}.json").read_text())["seconds"]["total"], name
 
 
 def test_the_binary_refuses_a_video_by_name_with_a_pointer(binary, clips, tmp_path):

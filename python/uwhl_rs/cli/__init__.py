@@ -12,6 +12,8 @@ exit status (docs/CLI.md "Exit codes").
 
 from __future__ import annotations
 
+import argparse
+
 from . import demo, evaluate, ifdo, report, restore
 from .. import _core
 from ..console import Console
@@ -60,13 +62,14 @@ def main(argv: list[str] | None = None) -> int:
     _stop_on_sigterm()
     p = build_parser()
     args = list(sys.argv[1:] if argv is None else argv)
-    flag = _binary_only(args)
-    if flag is not None:
-        # as uwhl-rs names the command that has an option of the Python command's
-        prog = f"uwhl {args[0]}" if args and not args[0].startswith("-") else "uwhl"
-        p.exit(2, f"{prog}: error: {flag} is an option of the binary only: run 'uwhl-rs restore' (docs/CLI.md)\n"
-                  f"Try '{prog} --help'.\n")
     usage_errors_as_json(args)
+    flag = _binary_only(args)
+    sub = next((t for t in args if not t.startswith("-")), None)
+    if flag is not None and sub == "restore":
+        # as uwhl-rs names the command that has an option of the Python
+        # command's; in restore's words (and JSON with --json-errors)
+        restore_parser = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction)).choices["restore"]
+        restore_parser.error(f"{flag} is an option of the binary only: run 'uwhl-rs restore' (docs/CLI.md)")
     a = p.parse_args(attach_values(args))
     if a.cmd == "demo":
         try:
