@@ -26,6 +26,16 @@ __all__ = ["connect", "check_workers", "runs_elsewhere", "run_on_cluster"]
 _PROBE_BATCH = 32
 
 
+def _from_a_script() -> bool:
+    """Whether this process runs a script of the user's (``python x.py``),
+    rather than the ``uwhl`` command or an interactive session."""
+    import sys
+    main = sys.modules.get("__main__")
+    spec = getattr(main, "__spec__", None)
+    return (bool(getattr(main, "__file__", None)) and not (spec and spec.name.startswith("uwhl_rs"))
+            and os.path.basename(sys.argv[0] if sys.argv else "") != "uwhl")
+
+
 def connect(client, dask: str | None, threads: int | None):
     """(client, cluster to close or None, threads for the core) for ``dask``
     (None: ``client`` as given, or in this process)."""
@@ -46,9 +56,12 @@ def connect(client, dask: str | None, threads: int | None):
                                                dashboard_address="127.0.0.1:0", host="127.0.0.1",
                                                silence_logs=40)
         except (Exception, MemoryError) as e:
-            raise BatchError(f"--dask {dask}: the local cluster's workers did not start ({type(e).__name__}: {e}); "
-                             "from a script, call restore_many under `if __name__ == \"__main__\":` "
-                             "(docs/API.md)") from None
+            # the common cause from a script: its workers import it (spawn)
+            # and, unguarded, start the batch again; the real cause is chained
+            hint = ("; a script that starts it calls restore_many under `if __name__ == \"__main__\":` (docs/API.md)"
+                    if _from_a_script() else "")
+            raise BatchError(f"--dask {dask}: the local cluster's workers did not start "
+                             f"({type(e).__name__}: {e}){hint}") from e
         return distributed.Client(cluster), cluster, threads if threads is not None else max(1, cores // n)
     address = dask if "://" in dask else f"tcp://{dask}"
     timeout = _timeout()
