@@ -41,8 +41,12 @@ pub const LOCAL_WEIGHT: f64 = 0.3;
 /// 255 in 8-bit sRGB, a few quantisation steps.
 pub const LIT: f32 = 0.003;
 /// The share of the object pixels that must hold light ([`LIT`]) in each
-/// channel; below it the channel is empty and its restored colour a guess.
+/// channel; below it the channel is empty and its restored colour a guess,
+/// when another channel has that share at [`BRIGHT`].
 pub const LIT_SHARE: f64 = 0.1;
+/// Ten times [`LIT`]: a channel this bright on a tenth of the objects says
+/// the photo is exposed, so a channel without light was taken by the water.
+pub const BRIGHT: f32 = 0.03;
 /// At most this many interior pixels are sampled for the noise estimate.
 const NOISE_SAMPLES: usize = 1 << 20;
 
@@ -57,8 +61,9 @@ pub struct Trust {
     /// the share of the shown colour that is the input's balance rather than
     /// the restoration's; None without the blend
     pub fallback_share: Option<f64>,
-    /// a channel of the input holds almost no light on the objects: fewer
-    /// than [`LIT_SHARE`] of them have [`LIT`] of it (flag `channel_empty`)
+    /// a channel of the input holds almost no light on the objects (fewer
+    /// than [`LIT_SHARE`] of them have [`LIT`] of it) while another is
+    /// exposed (that share has [`BRIGHT`] of it): flag `channel_empty`
     pub channel_empty: bool,
 }
 
@@ -164,6 +169,8 @@ struct RowSums {
     excess: f64,
     /// object pixels with at least [`LIT`] of each channel
     lit: [f64; 3],
+    /// object pixels with at least [`BRIGHT`] of each channel
+    bright: [f64; 3],
     input: PowerSums,
     radiance: PowerSums,
 }
@@ -287,10 +294,9 @@ fn first_pass(
                     let p = &img.data[3 * i..3 * i + 3];
                     let (t, j) = terms.pixel(p, t);
                     s.objects += 1.0;
-                    for (l, &v) in s.lit.iter_mut().zip(p) {
-                        if v >= LIT {
-                            *l += 1.0;
-                        }
+                    for ((l, b), &v) in s.lit.iter_mut().zip(s.bright.iter_mut()).zip(p) {
+                        *l += f64::from(u8::from(v >= LIT));
+                        *b += f64::from(u8::from(v >= BRIGHT));
                     }
                     if terms.exceeds(&t, &j) {
                         s.excess += 1.0;
@@ -307,8 +313,9 @@ fn first_pass(
     rows.iter().fold(RowSums::default(), |mut acc, r| {
         acc.objects += r.objects;
         acc.excess += r.excess;
-        for (a, l) in acc.lit.iter_mut().zip(r.lit) {
-            *a += l;
+        for c in 0..3 {
+            acc.lit[c] += r.lit[c];
+            acc.bright[c] += r.bright[c];
         }
         acc.input.add(&r.input);
         acc.radiance.add(&r.radiance);
@@ -338,7 +345,11 @@ pub fn trust(
     let scratch = || vec![[0f32; 3]; w];
     let total = first_pass(img, objects, &terms, &|y, row| row.copy_from_slice(&t_b[y * w..(y + 1) * w]), Some(radiance));
     let veil_excess = if total.objects > 0.0 { total.excess / total.objects } else { 0.0 };
-    let channel_empty = total.objects > 0.0 && total.lit.iter().any(|&l| l < LIT_SHARE * total.objects);
+    // one channel without light where another has plenty: the water took
+    // it (a photo dark in every channel is underexposed, not this)
+    let share = LIT_SHARE * total.objects;
+    let channel_empty =
+        total.objects > 0.0 && total.lit.iter().any(|&l| l < share) && total.bright.iter().any(|&b| b >= share);
     // the display's gains (METHOD §12.1) and the input's own shades-of-gray balance
     let shade = Shade::new(&terms, &total.radiance, &total.input, veil_excess);
     let mut confidence = vec![0f32; t_b.len()];
@@ -520,7 +531,7 @@ mod tests {
     }
 
     #[test]
-    fn a_channel_the_water_took_is_empty_only_when_nine_pixels_in_ten_lack_it() {
+    fn a_channel_the_water_took_is_empty_when_nine_pixels_in_ten_lack_it_and_another_is_exposed() {
         // 20 object pixels; red at 0.003 (LIT, a few 8-bit codes) in k of
         // them, 0.002 in the rest: empty while k < 2 (10% of 20), not at 2;
         // pixels that are not objects (here the last 20) do not count
@@ -535,6 +546,13 @@ mod tests {
             let tr = trust(&img, &|i| i < 20, [0.01, 0.4, 0.6], &water("II", 0.2773, 0.7937), &tb, &d, &mut out, false);
             assert_eq!(tr.channel_empty, empty, "k = {k}");
         }
+        // every channel dark (an underexposed photo, green and blue under
+        // 0.03 everywhere): not a channel the water took
+        let d: Vec<f32> = (0..h * w).flat_map(|_| [0.002f32, 0.02, 0.029]).collect();
+        let img = ImageRef::new(&d, h, w).unwrap();
+        let mut out = d.clone();
+        let tr = trust(&img, &|i| i < 20, [0.01, 0.4, 0.6], &water("II", 0.2773, 0.7937), &tb, &d, &mut out, false);
+        assert!(!tr.channel_empty);
     }
 
     #[test]

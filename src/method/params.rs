@@ -179,9 +179,10 @@ pub enum Flag {
     /// nothing then (METHOD §3)
     VeilingLightNotWater,
     /// a channel of the input holds almost no light on the objects (fewer
-    /// than 10% of them have 0.003 of it, about 10 of 255 in 8-bit sRGB):
-    /// the water took it all, and its restored colour is a guess, from
-    /// noise and quantisation (METHOD §12.5)
+    /// than 10% of them have 0.003 of it, about 10 of 255 in 8-bit sRGB)
+    /// while another is exposed (10% have 0.03 of it): the water took it,
+    /// and its restored colour is a guess, from noise and quantisation
+    /// (METHOD §12.5)
     ChannelEmpty,
 }
 
