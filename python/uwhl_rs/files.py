@@ -501,7 +501,7 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
     over = shown.copy()
     over[vl] = 0.45 * over[vl] + 0.55 * np.array([1.0, 0.0, 1.0], np.float32)
     n_vl = int(res.veiling_mask.sum())
-    cells.append((over, f"input; VL {n_vl} px ({res.veiling_mask.mean():.1%})", None))
+    cells.append((over, ("input", f"; VL {n_vl} px ({res.veiling_mask.mean():.1%})"), None))
     for name, score in res.scores.items():
         label = name
         try:
@@ -518,30 +518,33 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
             img = np.full((th, tw, 3), 0.3, np.float32)
             label = f"{name} failed: {e}"[:40]
         tag = " CHOSEN" if name == res.water_type else (" excluded" if name in res.excluded else "")
-        cells.append((img, f"{label}  {score:.4f}{tag}", _ORANGE if name == res.water_type else None))
+        cells.append((img, (label, f"  {score:.4f}{tag}"), _ORANGE if name == res.water_type else None))
     t_small = _core._downscale(np.ascontiguousarray(res.transmission, dtype=np.float32)[:, :, None], s)[:, :, 0]
-    cells.append((colorize_transmission(t_small).astype(np.float32) / 255.0, f"t_B of {res.water_type}", None))
+    cells.append((colorize_transmission(t_small).astype(np.float32) / 255.0, ("t_B of ", res.water_type), None))
 
     cols = 4
     rows = -(-len(cells) // cols)
     pad = 6
     sheet = Image.new("RGB", (cols * (tw + pad) + pad, rows * (th + bar + pad) + pad + 30), (24, 24, 24))
     draw = ImageDraw.Draw(sheet)
-    def fitted(text: str, size: int, width: int):
-        """``text`` and a font small enough (down to 8 px) for ``width``
-        pixels, the text cut short if even that is too wide: a small sheet
+    def fitted(head: str, tail: str, size: int, width: int):
+        """``head + tail`` and a font small enough (down to 8 px) for
+        ``width`` pixels; if even that is too wide, ``head`` (a name) is cut
+        short first, so the tail (score, choice, flags) stays: a small sheet
         (``--max-side 200``) keeps its labels in their cells."""
         f = label_font(size)
-        need = draw.textlength(text, font=f)
+        need = draw.textlength(head + tail, font=f)
         if need > width:
             f = label_font(max(8, int(size * width / need)))
-            while len(text) > 1 and draw.textlength(text, font=f) > width:
-                text = text[:-2] + "\u2026"
-        return text, f
+            while len(head) > 1 and draw.textlength(head + tail, font=f) > width:
+                head = head[:-2] + "\u2026"
+            while len(tail) > 1 and draw.textlength(head + tail, font=f) > width:
+                tail = tail[:-2] + "\u2026"
+        return head + tail, f
 
-    title = (f"{os.path.basename(meta.path)}: chosen {res.water_type}, A = "
-             f"({', '.join(f'{v:.3f}' for v in res.veiling_light)}); flags: {', '.join(res.flags) or 'none'}")
-    title, title_font = fitted(title, 17, sheet.width - 2 * pad)
+    title, title_font = fitted(os.path.basename(meta.path),
+                               f": chosen {res.water_type}, A = ({', '.join(f'{v:.3f}' for v in res.veiling_light)}); "
+                               f"flags: {', '.join(res.flags) or 'none'}", 17, sheet.width - 2 * pad)
     draw.text((pad, 6), title, fill=(235, 235, 235), font=title_font)
     for k, (img, text, frame) in enumerate(cells):
         x0 = pad + (k % cols) * (tw + pad)
@@ -550,6 +553,6 @@ def contact_sheet(image, meta: ImageMeta, res, *, mask=None, restore_kwargs=None
         sheet.paste(tile, (x0, y0))
         if frame is not None:
             draw.rectangle([x0 - 3, y0 - 3, x0 + tw + 2, y0 + th + bar - 1], outline=frame, width=4)
-        text, f = fitted(text, 15, tw - 8)
+        text, f = fitted(*text, 15, tw - 8)
         draw.text((x0 + 4, y0 + th + 4), text, fill=frame or (235, 235, 235), font=f)
     return np.asarray(sheet)
