@@ -313,9 +313,8 @@ fn first_pass(
     rows.iter().fold(RowSums::default(), |mut acc, r| {
         acc.objects += r.objects;
         acc.excess += r.excess;
-        for c in 0..3 {
-            acc.lit[c] += r.lit[c];
-            acc.bright[c] += r.bright[c];
+        for (a, l) in acc.lit.iter_mut().chain(acc.bright.iter_mut()).zip(r.lit.iter().chain(&r.bright)) {
+            *a += l;
         }
         acc.input.add(&r.input);
         acc.radiance.add(&r.radiance);
