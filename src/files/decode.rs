@@ -39,6 +39,15 @@ pub struct Header {
     pub oriented: bool,
 }
 
+/// The bytes a pixel of colour type `ct` decodes to, and whether the
+/// decoded buffer is already three channels ([`Header`]'s `bpp` and
+/// `is_rgb`): a JPEG decoder holds its component planes (as many bytes
+/// again) beside the interleaved output while it works, so it never is.
+pub fn decoded_layout(ct: ColorType, jpeg: bool) -> (u64, bool) {
+    let is_rgb = matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && !jpeg;
+    (u64::from(ct.bytes_per_pixel()), is_rgb)
+}
+
 /// A decoded input: H x W x 3 values in [0, 1] and where they came from.
 #[derive(Debug, Clone)]
 pub struct Decoded {
@@ -397,15 +406,8 @@ fn open_reader<R: BufRead + Seek>(
     let swap = matches!(code, 5..=8);
     let ct = decoder.color_type();
     let (height, width) = if swap { (w, h) } else { (h, w) };
-    check(&Header {
-        height: height as usize,
-        width: width as usize,
-        bpp: u64::from(ct.bytes_per_pixel()),
-        // a JPEG decoder holds its component planes (as many bytes again)
-        // beside the interleaved output while it works
-        is_rgb: matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && format != "JPEG",
-        oriented: code != 1,
-    })?;
+    let (bpp, is_rgb) = decoded_layout(ct, format == "JPEG");
+    check(&Header { height: height as usize, width: width as usize, bpp, is_rgb, oriented: code != 1 })?;
     // TIFF: the decoder's profile (its tag values are bounded by the decoder's limits), capped alike
     if let Some(Ok(None)) = meta.icc {
         meta.icc = match decoder.icc_profile() {

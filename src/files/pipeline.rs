@@ -245,15 +245,14 @@ pub fn decode_and_restore<R: BufRead + Seek>(
 /// from its header (PNG, JPEG, TIFF), None when it cannot be read that way
 /// (the decoder then says why).
 fn photo_size(input: &Path) -> Option<(u64, u64, u64, bool)> {
-    use image::{ColorType, ImageDecoder};
+    use image::ImageDecoder;
     let reader = image::ImageReader::open(input).ok()?.with_guessed_format().ok()?;
     let jpeg = reader.format() == Some(image::ImageFormat::Jpeg);
     let decoder = reader.into_decoder().ok()?;
     let (w, h) = decoder.dimensions();
-    let ct = decoder.color_type();
-    // as the decoder's own header counts it (crate::files::decode)
-    let is_rgb = matches!(ct, ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F) && !jpeg;
-    Some((u64::from(h), u64::from(w), u64::from(ct.bytes_per_pixel()), is_rgb))
+    // as the decoder's own header counts it
+    let (bpp, is_rgb) = crate::files::decode::decoded_layout(decoder.color_type(), jpeg);
+    Some((u64::from(h), u64::from(w), bpp, is_rgb))
 }
 
 /// [`decode_and_restore`], with the memory check waiting at `gate` when given.
