@@ -72,6 +72,15 @@ impl Trust {
     pub fn unreliable(&self) -> bool {
         self.veil_excess > EXCESS_FLAG
     }
+
+    /// The flags the trust step raises, in their order: `unreliable`,
+    /// `channel_empty`.
+    pub fn flags(&self) -> impl Iterator<Item = crate::method::params::Flag> {
+        use crate::method::params::Flag;
+        [(self.unreliable(), Flag::Unreliable), (self.channel_empty, Flag::ChannelEmpty)]
+            .into_iter()
+            .filter_map(|(raised, f)| raised.then_some(f))
+    }
 }
 
 /// The standard deviation of 8-bit sRGB quantisation at the linear value

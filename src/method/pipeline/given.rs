@@ -231,12 +231,7 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
         trust(img, &objects, a, &wt, &transmission, &radiance, &mut image, false)
     });
     let mut flags = veil.flags.clone();
-    if tr.as_ref().is_some_and(|t| t.unreliable()) {
-        flags.push(Flag::Unreliable);
-    }
-    if tr.as_ref().is_some_and(|t| t.channel_empty) {
-        flags.push(Flag::ChannelEmpty);
-    }
+    flags.extend(tr.iter().flat_map(|t| t.flags()));
     if let Some(t) = &tr {
         settle_noise(&mut image, &t.confidence, img.height, img.width);
     }

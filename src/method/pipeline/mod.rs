@@ -147,12 +147,7 @@ fn restore_inner(input: &Input, params: &Params, pool: &mut Buffers) -> Result<R
     if matting_skipped {
         flags.push(Flag::MattingSkipped);
     }
-    if out.trust.as_ref().is_some_and(|t| t.unreliable()) {
-        flags.push(Flag::Unreliable);
-    }
-    if out.trust.as_ref().is_some_and(|t| t.channel_empty) {
-        flags.push(Flag::ChannelEmpty);
-    }
+    flags.extend(out.trust.iter().flat_map(|t| t.flags()));
     let named = |keep: &dyn Fn(usize) -> bool| -> Vec<String> {
         types.iter().enumerate().filter(|(i, _)| keep(*i)).map(|(_, t)| t.name.clone()).collect()
     };
