@@ -143,14 +143,8 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     let transfer = opts.transfer.unwrap_or(Transfer::Bt709);
     let codec = Codec::new(transfer, if bytes_per_sample == 2 { 16 } else { 8 });
     let mut seq = frame_sequence(opts);
-    let mut _presence = None;
-    let mut sink = if to_stdout {
-        Sink::Stdout(out)
-    } else {
-        crate::files::jobs::remove_stale_temps(&opts.outdir, &opts.outdir);
-        _presence = crate::files::jobs::hold_folder(&opts.outdir);
-        Sink::Folder(&opts.outdir, out)
-    };
+    let _presence = (!to_stdout).then(|| crate::files::jobs::enter_folder(&opts.outdir));
+    let mut sink = if to_stdout { Sink::Stdout(out) } else { Sink::Folder(&opts.outdir, out) };
     // the buffers of every frame, made once
     let mut bytes_in = vec![0u8; frame_bytes];
     let mut samples16 = vec![0u16; if bytes_per_sample == 2 { w * h * 3 } else { 0 }];

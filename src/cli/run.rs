@@ -489,8 +489,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
     };
     dive_notes(opts, err);
     let mut seq = sequence(opts);
-    crate::files::jobs::remove_stale_temps(&opts.outdir, &opts.outdir);
-    let _presence = crate::files::jobs::hold_folder(&opts.outdir);
+    let _presence = crate::files::jobs::enter_folder(&opts.outdir);
     // stdout gone (closed pipe, full disk): the frames' lines cannot be
     // reported, so the loop stops instead of restoring frames nobody hears of
     let gone = std::sync::atomic::AtomicBool::new(false);

@@ -144,6 +144,14 @@ pub fn hold_folder(dir: &Path) -> Option<fs::File> {
     Some(f)
 }
 
+/// A run writing into `dir` starts: what killed runs left there is swept
+/// ([`remove_stale_temps`], while this run does not hold it yet), then the
+/// folder is held for the run ([`hold_folder`]; keep what this returns).
+pub fn enter_folder(dir: &Path) -> Option<fs::File> {
+    remove_stale_temps(dir, dir);
+    hold_folder(dir)
+}
+
 /// Why the output folder `dir` cannot take outputs before anything is
 /// read: something that is not a folder (a file, a FIFO) is at its name.
 /// A missing folder is fine (it is made when the first output is claimed).
