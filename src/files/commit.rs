@@ -298,25 +298,30 @@ fn path_bytes(p: &Path) -> &[u8] {
     p.as_os_str().as_bytes()
 }
 
-/// Every suffix after `NAME` an output of either command can have: the
-/// photo in each `--format`, the maps, the contact sheet, a video's strip
-/// and its containers (python/uwhl_rs/videoencode.py `CODECS`). An
-/// earlier sidecar's listed output is removed by an `--overwrite` only
-/// under one of these.
-const EARLIER_SUFFIXES: &[&str] = &[
-    ".jpg", ".png", ".tif", "_t.png", "_t_color.png", "_confidence.png", "_sheet.png", "_strip.jpg", ".mp4", ".mov",
-    ".mkv", ".m4v", ".ts", ".mts", ".m2ts", ".avi",
-];
+/// The suffixes after `NAME` of a video's outputs (the Python command's):
+/// its strip and the containers it writes (python/uwhl_rs/videoencode.py
+/// `CODECS`).
+const VIDEO_SUFFIXES: &[&str] = &["_strip.jpg", ".mp4", ".mov", ".mkv", ".m4v", ".ts", ".mts", ".m2ts", ".avi"];
 
-/// The names a sidecar `doc` lists under `outputs` that are `name` + one
-/// of [`EARLIER_SUFFIXES`] (sorted, once each): what an `--overwrite` of
-/// the input at `name` may remove beside the sidecar, in a folder or on
-/// object storage.
+/// Whether `suffix` follows `NAME` in some output of either command: a
+/// photo's in any `--format`, with its maps and contact sheet
+/// ([`output_suffixes`](crate::files::settings::output_suffixes)), or a
+/// video's ([`VIDEO_SUFFIXES`]). An earlier sidecar's listed output is
+/// removed by an `--overwrite` only under one of these.
+fn is_output_suffix(suffix: &str) -> bool {
+    use crate::files::settings::{output_suffixes, Format};
+    VIDEO_SUFFIXES.contains(&suffix) || Format::ALL.iter().any(|&f| output_suffixes(f, true).iter().any(|s| s == suffix))
+}
+
+/// The names a sidecar `doc` lists under `outputs` that are `name` + an
+/// output's suffix ([`is_output_suffix`]; sorted, once each): what an
+/// `--overwrite` of the input at `name` may remove beside the sidecar, in
+/// a folder or on object storage.
 pub fn listed_outputs(name: &str, doc: &serde_json::Value) -> Vec<String> {
     let Some(listed) = doc.get("outputs") else { return Vec::new() };
     let mut names = Vec::new();
     collect_strings(listed, &mut names);
-    names.retain(|n| n.strip_prefix(name).is_some_and(|rest| EARLIER_SUFFIXES.contains(&rest)));
+    names.retain(|n| n.strip_prefix(name).is_some_and(is_output_suffix));
     names.sort();
     names.dedup();
     names
@@ -805,7 +810,7 @@ impl Claim {
     /// not write at all (another `--format`, a contact sheet not asked for
     /// again, another codec): removed with that sidecar, so a sidecar never
     /// stands beside an earlier run's image it does not list. Only names
-    /// `NAME` + one of [`EARLIER_SUFFIXES`] in this folder are taken from
+    /// `NAME` + an output's suffix ([`listed_outputs`]) in this folder are taken from
     /// the sidecar (a hostile one names nothing else), and none that is
     /// itself another input's output (`NAME_sheet.png` when
     /// `NAME_sheet.json` is there).
@@ -936,6 +941,19 @@ mod tests {
 
     fn request<'a>(dir: &'a Path, base: &'a str, input: &'a Path, s: &'a [String], overwrite: bool) -> Request<'a> {
         Request { dir, base, input, suffixes: s, overwrite, rename: true }
+    }
+
+    #[test]
+    fn the_suffixes_an_overwrite_may_remove_are_the_commands_outputs_only() {
+        for s in [".jpg", ".png", ".tif", "_t.png", "_t_color.png", "_confidence.png", "_sheet.png", "_strip.jpg"] {
+            assert!(is_output_suffix(s), "{s}");
+        }
+        for s in [".mp4", ".mov", ".mkv", ".m4v", ".ts", ".mts", ".m2ts", ".avi"] {
+            assert!(is_output_suffix(s), "{s}");
+        }
+        for s in ["", ".json", "_2.jpg", "_notes.txt", ".tiff", ".webm", "_t.jpg", "/../x.png"] {
+            assert!(!is_output_suffix(s), "{s}");
+        }
     }
 
     #[test]

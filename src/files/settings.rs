@@ -21,6 +21,9 @@ pub enum Format {
 }
 
 impl Format {
+    /// Every format, in the order of `--format`'s values.
+    pub const ALL: [Format; 3] = [Format::Jpg, Format::Png, Format::Tiff];
+
     /// The name used on the command line and in the sidecar.
     pub fn name(self) -> &'static str {
         match self {
