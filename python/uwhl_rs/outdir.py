@@ -19,7 +19,7 @@ from . import _core
 from .sidecars import MAX_BYTES as SIDECAR_MAX_BYTES
 from .sidecars import SidecarError, display, local_outputs_problem
 from .sidecars import parse as parse_sidecar
-from .storage import Folder, filesystem, join, read_regular
+from .storage import Folder, filesystem, join, read_bytes, read_regular
 
 __all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
@@ -216,19 +216,16 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
     return photos, problems
 
 
-def earlier_objects(fs, side: str, dest: dict, storage_options: dict) -> list[str]:
-    """The objects an ``--overwrite`` on object storage removes with the
-    earlier sidecar at ``side`` (``fs``'s path; ``dest``: role -> URL of
-    this run's outputs, the sidecar's among them): those it lists that
-    this run does not write (``_core.listed_outputs``: the input's name
-    plus a suffix the commands write), none that is another input's (its
-    own sidecar there). As ``Claim::commit`` does in a folder."""
+def earlier_objects(fs, dest: dict, storage_options: dict) -> list[str]:
+    """The objects (``fs``'s paths) an ``--overwrite`` on object storage
+    removes with the earlier sidecar at ``dest["sidecar"]`` (``dest``: role
+    -> URL of this run's outputs): those it lists that this run does not
+    write (``_core.listed_outputs``: the input's name plus a suffix the
+    commands write), none that is another input's (its own sidecar there).
+    As ``Claim::commit`` does in a folder."""
     try:
-        with fs.open(side, "rb") as f:
-            text = f.read(SIDECAR_MAX_BYTES + 1)
+        text = read_bytes(dest["sidecar"], storage_options, limit=SIDECAR_MAX_BYTES)
     except (OSError, ValueError):
-        return []
-    if len(text) > SIDECAR_MAX_BYTES:
         return []
     name = os.path.basename(dest["sidecar"])[: -len(".json")]
     written = {os.path.basename(v) for v in dest.values()}
@@ -246,7 +243,7 @@ def remove_earlier(fs, side: str, dest: dict, storage_options: dict) -> None:
     """An ``--overwrite`` on object storage: the earlier sidecar at ``side``
     is deleted, then the objects it listed that this run does not write
     (:func:`earlier_objects`; best effort, as in a folder)."""
-    extra = earlier_objects(fs, side, dest, storage_options)
+    extra = earlier_objects(fs, dest, storage_options)
     try:
         fs.rm_file(side)
     except FileNotFoundError:
