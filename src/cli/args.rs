@@ -63,9 +63,20 @@ pub enum Command {
     Version,
 }
 
+/// The demo's default output folder.
+const DEMO_OUT: &str = "uwhl_demo";
+/// The demo's default water type.
+const DEMO_TYPE: &str = "III";
+/// The demo's default size (height, width).
+const DEMO_SIZE: (usize, usize) = (480, 640);
+/// The demo's default seed.
+const DEMO_SEED: u64 = 7;
+
 /// The `demo --help` text: the demo's own options (as `uwhl demo --help`).
-pub fn demo_help() -> &'static str {
-    "usage: uwhl-rs demo [-o DIR] [--water-type T] [--size HxW] [--seed N]
+pub fn demo_help() -> String {
+    let types: Vec<String> = crate::method::water::jerlov_types().into_iter().map(|t| t.name).collect();
+    format!(
+        "usage: uwhl-rs demo [-o DIR] [--water-type T] [--size HxW] [--seed N]
 
 Render the package's synthetic underwater scene (nothing is downloaded),
 restore it, write input/restored/transmission/clean_truth PNGs and report
@@ -73,11 +84,15 @@ true vs estimated water type and A.
 
 options:
   -h, --help          this help
-  -o, --out DIR       output folder (default ./uwhl_demo)
-  --water-type T      water type to render: I, IA, IB, II, III, 1C, 3C, 5C, 7C, 9C (default III)
-  --size HxW          height x width of the scene (default 480x640)
-  --seed N            scene seed (default 7)
-"
+  -o, --out DIR       output folder (default ./{DEMO_OUT})
+  --water-type T      water type to render: {} (default {DEMO_TYPE})
+  --size HxW          height x width of the scene (default {}x{})
+  --seed N            scene seed (default {DEMO_SEED})
+",
+        types.join(", "),
+        DEMO_SIZE.0,
+        DEMO_SIZE.1
+    )
 }
 
 /// The `--help` text: usage, the options of the table (`crate::files::options`)
@@ -149,10 +164,10 @@ fn parse_demo(p: &mut lexopt::Parser) -> Result<Command, Failure> {
     let lex = |e: lexopt::Error| Failure::usage(e.to_string());
     let text = |v: OsString, flag: &str| v.into_string().map_err(|v| Failure::usage(format!("{flag}: {v:?} is not valid UTF-8")));
     let mut d = Demo {
-        out: PathBuf::from("uwhl_demo"),
-        water_type: WaterType::by_name("III").map_err(|e| Failure::new(Kind::Internal, e.to_string()))?,
-        size: (480, 640),
-        seed: 7,
+        out: PathBuf::from(DEMO_OUT),
+        water_type: WaterType::by_name(DEMO_TYPE).map_err(|e| Failure::new(Kind::Internal, e.to_string()))?,
+        size: DEMO_SIZE,
+        seed: DEMO_SEED,
     };
     while let Some(arg) = p.next().map_err(lex)? {
         match arg {
