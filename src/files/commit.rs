@@ -1263,9 +1263,9 @@ mod tests {
 
     #[test]
     fn takers_of_a_dead_runs_claim_racing_each_other_claim_it_once() {
-        // several takers over one planted dead claim: each saw it dead,
-        // removed it and made its own, so two could both restore the input
-        // (a claim file is now locked by its owner for its life: a dead
+        // several takers over one planted dead claim: were each to see it
+        // dead, remove it and make its own, two would both restore the
+        // input (a claim file is locked by its owner for its life: a dead
         // owner's lock is gone by the kernel's word, a live one's is not)
         let d = folder("stale-race");
         let s = suffixes();

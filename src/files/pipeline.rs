@@ -815,7 +815,7 @@ mod tests {
     #[test]
     fn a_photos_header_gives_the_bytes_its_samples_decode_to() {
         // the map's room is the budget less the photo's plan at these: an
-        // 8-bit photo was counted as a 16-bit one
+        // 8-bit photo's 3 bytes a pixel, not a 16-bit one's 6
         let d = std::env::temp_dir().join(format!("uwhl-photo-size-{}", std::process::id()));
         std::fs::create_dir_all(&d).unwrap();
         let eight = image::RgbImage::from_pixel(5, 3, image::Rgb([10, 20, 30]));

@@ -143,9 +143,9 @@ def test_a_dask_run_hands_its_workers_paths_that_hold_where_they_run(tmp_path, m
 
 def test_a_script_starting_a_local_cluster_without_the_main_guard_is_told_so(tmp_path):
     """Dask's local workers import the calling script (spawn): without
-    ``if __name__ == "__main__":`` each started the batch again and the
-    user got Dask's bootstrapping traceback; the call now raises a
-    BatchError saying what to do (docs/API.md)."""
+    ``if __name__ == "__main__":`` each starts the batch again and the
+    cluster fails to start; the call raises a BatchError saying what to
+    do (docs/API.md)."""
     pytest.importorskip("distributed")
     img, _ = synth.demo_input(40, 56, water_type="II", seed=0)
     (tmp_path / "in").mkdir()

@@ -311,10 +311,9 @@ def test_an_overwrite_in_another_format_leaves_no_earlier_image(face, binary, tm
 
 def test_three_runs_over_dead_claims_restore_each_input_once(binary, tmp_path):
     """Three runs of both commands over inputs a killed run had claimed:
-    each run could see a claim dead, remove it and make its own while
-    another did the same, and an input was restored twice (5 of 60 such
-    races before claims were locked). Each is restored once, under its
-    own name, and no claim or temporary is left."""
+    each run may see a claim dead while another takes it over; each input
+    is restored once, under its own name, and no claim or temporary is
+    left."""
     src = tmp_path / "in"
     src.mkdir()
     names = [f"p{k:02d}.png" for k in range(16)]
