@@ -84,8 +84,9 @@ def load_yaml(text: str, label: str):
     import yaml
 
     loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-    depth = 0
-    try:
+
+    def check(loader) -> None:
+        depth = 0
         for ev in yaml.parse(text, Loader=loader):
             where = f"line {ev.start_mark.line + 1}" if ev.start_mark is not None else "somewhere"
             if isinstance(ev, yaml.AliasEvent) or getattr(ev, "anchor", None):
@@ -96,12 +97,26 @@ def load_yaml(text: str, label: str):
                     raise IfdoError(f"{label}: nested deeper than {MAX_DEPTH} levels ({where})")
             elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
+
+    try:
+        check(loader)
         return yaml.load(text, Loader=loader)
     except IfdoError:  # a ValueError too: said once, as it is
         raise
     except ValueError as e:  # an integer of thousands of digits, a date out of range
         raise IfdoError(f"{label}: a value cannot be read ({str(e).splitlines()[0][:200]})") from None
     except yaml.YAMLError as e:
+        if loader is not yaml.SafeLoader:
+            # libyaml may refuse a document before its events reach a rule
+            # of ours (newer releases stop deep nesting in the scanner, in
+            # their own words): the pure-Python parser's events say which
+            # rule, and it stops there too
+            try:
+                check(yaml.SafeLoader)
+            except IfdoError:
+                raise
+            except (yaml.YAMLError, ValueError, RecursionError):
+                pass
         raise IfdoError(f"{label}: not YAML or JSON ({str(e).splitlines()[0]})") from None
 
 
