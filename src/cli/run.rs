@@ -311,6 +311,11 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     // what a killed run left in the output folders goes first, before
     // this run holds the folder (its summary's lock)
     let dirs: std::collections::BTreeSet<&Path> = jobs.iter().map(|j| j.dir.as_path()).collect();
+    if !jobs.is_empty() {
+        // made now, so that the summary below holds it from the start
+        // (crate::files::jobs::enter_folder says why)
+        let _ = std::fs::create_dir_all(&opts.outdir);
+    }
     for d in dirs {
         crate::files::jobs::remove_stale_temps(d, &opts.outdir);
     }

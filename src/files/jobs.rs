@@ -144,17 +144,23 @@ pub fn hold_folder(dir: &Path) -> Option<fs::File> {
     Some(f)
 }
 
-/// A run writing into `dir` starts: what killed runs left there is swept
+/// A run writing into `dir` starts: the folder is made if it is missing
+/// (a folder made at the first output would not be held while that
+/// output's temporaries are written, and a run in another pid namespace
+/// starting then could sweep them), what killed runs left there is swept
 /// ([`remove_stale_temps`], while this run does not hold it yet), then the
 /// folder is held for the run ([`hold_folder`]; keep what this returns).
+/// A folder that cannot be made is not an error here: each output's claim
+/// then says why it cannot be written.
 pub fn enter_folder(dir: &Path) -> Option<fs::File> {
+    let _ = fs::create_dir_all(dir);
     remove_stale_temps(dir, dir);
     hold_folder(dir)
 }
 
 /// Why the output folder `dir` cannot take outputs before anything is
 /// read: something that is not a folder (a file, a FIFO) is at its name.
-/// A missing folder is fine (it is made when the first output is claimed).
+/// A missing folder is fine (it is made when the run starts, [`enter_folder`]).
 pub fn outdir_problem(dir: &Path) -> Option<String> {
     match fs::metadata(dir) {
         Ok(m) if !m.is_dir() => Some("not a folder (a file is there): the outputs need a folder".into()),
@@ -418,6 +424,21 @@ mod tests {
         // the same pid started at another time is another process
         assert!(!process_is(own, Some(start + 1)));
         assert!(!process_is(4_194_399, None) && process_start(4_194_399).is_none());
+    }
+
+    #[test]
+    fn a_missing_output_folder_is_made_and_held_from_the_start() {
+        let root = scratch("enter");
+        let d = root.join("not").join("yet");
+        assert!(!d.exists());
+        let held = enter_folder(&d).unwrap();
+        assert!(d.is_dir());
+        // another run (another open file description) cannot take it alone
+        let other = fs::File::open(&d).unwrap();
+        assert!(matches!(other.try_lock(), Err(fs::TryLockError::WouldBlock)));
+        drop(held);
+        assert!(other.try_lock().is_ok());
+        fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]

@@ -407,3 +407,42 @@ def test_a_missing_output_bucket_is_found_before_any_input_is_restored(s3, tmp_p
                        timeout=300, env=env)
     assert r.returncode == 0, r.stderr
     assert fs.exists("present/new/i0.json")
+
+
+@pytest.mark.parametrize("mode", [["--stream"], ["--raw-frames", "8x6"]])
+def test_a_pipe_into_a_missing_output_folder_holds_it_before_any_output(binary, tmp_path, mode):
+    """Every run holds its output folder with a shared lock, so that a run
+    in another pid namespace (whose pids this one cannot see) never sweeps
+    its temporaries. A pipe into a folder that did not exist yet held
+    nothing until it ended: the folder is made and held when the run starts,
+    before the first input arrives."""
+    import fcntl
+    import time
+
+    out = tmp_path / "not" / "yet"
+    p = subprocess.Popen([binary, "restore", *mode, "-o", str(out)], stdin=subprocess.PIPE,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        # waiting for the run to start (a condition, not a time limit on it)
+        deadline = time.monotonic() + 60
+        while not out.is_dir() and time.monotonic() < deadline and p.poll() is None:
+            time.sleep(0.05)
+        assert out.is_dir(), p.poll()
+        fd = os.open(out, os.O_RDONLY)
+        try:
+            # the run takes its lock right after making the folder
+            while time.monotonic() < deadline:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    break
+                fcntl.flock(fd, fcntl.LOCK_UN)
+                time.sleep(0.05)
+            else:
+                pytest.fail("the running pipe does not hold its output folder")
+            assert p.poll() is None
+        finally:
+            os.close(fd)
+    finally:
+        _, err = p.communicate(b"", timeout=120)
+    assert p.returncode == 0, err
