@@ -29,7 +29,7 @@ from .console import Console
 from .errors import EXIT, BatchError
 from .files import output_suffixes
 from .inputs import GLOB_CHARS, collect_inputs, supported
-from .outdir import CSV_COLUMNS, FILE_NAME, SummaryWriter
+from .outdir import CSV_COLUMNS, FILE_NAME, SummaryWriter, stored_names
 from .storage import (EXTRA, check_output_bucket, filesystem, is_url, join, local_path, need, parse_storage_options,
                       scheme, storage_error)
 from .tasks import COLUMNS, Item, begin, context, row, scratch_root, skipped_row
@@ -167,23 +167,26 @@ def plan_batch(inputs: list[str], out: str, *, format: str = "jpg", contact: boo
         names = _core.name_jobs([(u, rel) for u, rel in found], suffixes)
         base = local_path(out)
         plan.items += [Item(u, join(base, rel), n) for (u, rel), n in zip(found, names)]
-    for k, it in enumerate(plan.items):
-        it.index = k
     # what is done already: the sidecars at the destination, listed once
+    # (in a folder the claims tell this input's sidecar from another's)
+    done = []
     if out_local:
-        plan.done = {k for k, it in enumerate(plan.items) if os.path.exists(os.path.join(it.out_dir, it.name + ".json"))}
+        done = [it for it in plan.items if os.path.exists(os.path.join(it.out_dir, it.name + ".json"))]
     elif plan.items:
         fs, root = filesystem(out, so)
         try:
-            existing = set(fs.find(root.rstrip("/"))) if fs.exists(root.rstrip("/")) else set()
+            listing = fs.find(root.rstrip("/"), detail=True) if fs.exists(root.rstrip("/")) else {}
+            existing = {p: i.get("size") if isinstance(i, dict) else None for p, i in listing.items()}
+            done, refused = stored_names(plan.items, existing, so)
         except FileNotFoundError:
-            existing = set()
+            refused = []
         except Exception as e:
             raise storage_error(e, out) from None
-        for k, it in enumerate(plan.items):
-            key = filesystem(join(it.out_dir, it.name + ".json"), so)[1]
-            if key in existing:
-                plan.done.add(k)
+        plan.problems += [(it.input, why) for it, why in refused]
+        plan.items = [it for it in plan.items if all(it is not r for r, _ in refused)]
+    for k, it in enumerate(plan.items):
+        it.index = k
+    plan.done = {it.index for it in done}
     return plan
 
 

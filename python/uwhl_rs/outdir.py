@@ -9,19 +9,22 @@ Rows are the dicts of ``uwhl_rs.tasks`` (its ``COLUMNS``).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
+import json
 import os
 import posixpath
 from dataclasses import dataclass
 
 from . import _core
 from .sidecars import MAX_BYTES as SIDECAR_MAX_BYTES
-from .sidecars import SidecarError, display, local_outputs_problem
+from .sidecars import SidecarError, display, is_sha256, local_outputs_problem
 from .sidecars import parse as parse_sidecar
-from .storage import Folder, filesystem, join, read_bytes, read_regular
+from .storage import (Folder, filesystem, is_url, join, local_path, read_bytes, read_regular, scheme, sha256_of,
+                      stored_sha256)
 
-__all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
+__all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "stored_names", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
 
 FILE_NAME = "summary.csv"
@@ -253,6 +256,103 @@ def remove_earlier(fs, side: str, dest: dict, storage_options: dict) -> None:
             fs.rm_file(p)
         except OSError:
             pass
+
+
+#: the names an input on object storage tries (``NAME``, ``NAME_2``, ...), as ``commit::MAX_NAMES`` in a folder
+MAX_NAMES = 10_000
+
+
+def _records(doc: object, input: str, hashes: dict, storage_options: dict) -> bool:
+    """Whether the sidecar ``doc`` (parsed JSON) is the restoration of
+    ``input`` (a URL or a local path as the batch was given it): it names
+    it (a URL as it is, or its object; a local path as given, or the same
+    file from here), else the input's SHA-256 is the one it recorded (a
+    rerun that names it otherwise). As ``commit::sidecar_is_inputs`` does
+    in a folder. ``hashes`` keeps each input's hash once computed."""
+    if not isinstance(doc, dict) or not isinstance(doc.get("input"), str):
+        return False
+    given = doc["input"]
+    if given == input:
+        return True
+    if is_url(input):
+        if is_url(given) and scheme(given) == scheme(input):
+            with contextlib.suppress(Exception):  # a recorded URL this process cannot name
+                if filesystem(given, storage_options)[1] == filesystem(input, storage_options)[1]:
+                    return True
+    elif not is_url(given) and "\0" not in given:
+        with contextlib.suppress(OSError, ValueError):
+            if os.path.realpath(local_path(given)) == os.path.realpath(local_path(input)):
+                return True
+    md = doc.get("metadata")
+    want = md.get("input_sha256") if isinstance(md, dict) else None
+    if not is_sha256(want):
+        return False
+    if input not in hashes:
+        try:
+            if is_url(input):
+                hashes[input] = stored_sha256(input, storage_options)
+            else:
+                with open(local_path(input), "rb") as f:
+                    hashes[input] = sha256_of(f)
+        except Exception:  # unreadable now: its own task says why
+            hashes[input] = None
+    return hashes[input] == want.lower()
+
+
+def stored_names(items: list, existing: dict, storage_options: dict) -> tuple[list, list]:
+    """Names on object storage the way a folder's claims give them
+    (docs/OUTPUTS.md "Names already in use"): an input whose ``NAME.json``
+    at the destination records another input (an earlier batch of another
+    dive into the same prefix) takes the first of ``NAME_2``, ``NAME_3``,
+    ... that is free or records it, so that neither is skipped as done nor
+    written over the other's outputs. ``items``: the batch's ``Item``s
+    (their ``name`` changed in place); ``existing``: the destination's
+    objects (filesystem paths) and their sizes (None if not listed).
+    Returns the items whose sidecar records them (done, unless
+    overwritten), and (item, reason) for those that found no name."""
+
+    def key(out_dir: str, name: str) -> str:
+        return filesystem(join(out_dir, name + ".json"), storage_options)[1]
+
+    def read(paths: list[str]) -> dict:
+        # what is larger than any sidecar, or empty, records nothing
+        small = [p for p in paths if existing.get(p) is None or 0 < existing[p] <= SIDECAR_MAX_BYTES]
+        fs = filesystem(items[0].out_dir, storage_options)[0]
+        got = fs.cat_ranges(small, 0, SIDECAR_MAX_BYTES + 1, on_error="return") if small else []
+        docs = {}
+        for p, data in zip(small, got):
+            try:
+                ok = isinstance(data, bytes) and len(data) <= SIDECAR_MAX_BYTES
+                docs[p] = json.loads(data) if ok else None
+            except (ValueError, RecursionError):
+                docs[p] = None
+        return docs
+
+    taken = {(it.out_dir, it.name) for it in items}
+    first = read([k for k in (key(it.out_dir, it.name) for it in items) if k in existing]) if items else {}
+    hashes: dict = {}
+    done, refused = [], []
+    for it in items:
+        base = it.name
+        for n in range(1, MAX_NAMES + 1):
+            name = base if n == 1 else f"{base}_{n}"
+            if n > 1 and (it.out_dir, name) in taken:
+                continue
+            side = key(it.out_dir, name)
+            if side not in existing:
+                break
+            doc = first[side] if side in first else read([side]).get(side)
+            if _records(doc, it.input, hashes, storage_options):
+                done.append(it)
+                break
+        else:
+            refused.append((it, f"{base}.json and {MAX_NAMES - 1} further names at the destination are other inputs' "
+                                "sidecars: no name is left for its outputs"))
+            continue
+        if name != base:
+            taken.add((it.out_dir, name))
+            it.name = name
+    return done, refused
 
 
 def sidecar_seconds(sidecar: dict, wall: float) -> float:

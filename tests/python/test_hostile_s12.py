@@ -348,3 +348,62 @@ def test_an_overwrite_on_object_storage_in_another_format_leaves_no_earlier_imag
     assert "x00.png" in names and "x00.jpg" not in names, names
     assert fs.cat("/s13ow/out/x00_sheet.png") == b"another input's image"
     fs.rm("/s13ow", recursive=True)
+
+
+def test_another_inputs_sidecar_on_object_storage_is_neither_done_nor_written_over(tmp_path):
+    """Two dives into one prefix: dive2/a.png was skipped as done because
+    dive1's a.json was there (any object at NAME.json counted). As in a
+    folder (docs/OUTPUTS.md "Names already in use"), a sidecar counts only
+    if it records this input (by its name, or by the hash of its bytes);
+    else the input takes the next free name and the other's outputs stay."""
+    import fsspec
+    from uwhl_rs.batch import restore_many
+    fs = fsspec.filesystem("memory")
+    out = "memory://s14n/out"
+    for k, d in enumerate(["dive1", "dive2", "dive4"]):
+        (tmp_path / d).mkdir()
+        im, _ = synth.demo_input(48, 64, water_type="II", seed=k)
+        images.write_image(tmp_path / d / "a.png", im, bits=8, encoding="linear")
+    (tmp_path / "copy").mkdir()
+    (tmp_path / "copy" / "a.png").write_bytes((tmp_path / "dive2" / "a.png").read_bytes())
+
+    def run(d, **kw):
+        rows = restore_many([str(tmp_path / d)], out, **kw)
+        assert len(rows) == 1
+        r = rows.iloc[0]
+        return r["status"], os.path.basename(r["sidecar"] or "")
+
+    try:
+        assert run("dive1") == ("done", "a.json")
+        first = fs.cat("/s14n/out/a.jpg")
+        assert run("dive2") == ("done", "a_2.json")
+        assert fs.cat("/s14n/out/a.jpg") == first
+        # reruns find their own, under either name; the same bytes elsewhere are the same input
+        assert run("dive1")[0] == "skipped" and run("dive2") == ("skipped", "a_2.json")
+        assert run("copy") == ("skipped", "a_2.json")
+        # an overwrite redoes its own name only
+        assert run("dive2", overwrite=True) == ("done", "a_2.json")
+        assert fs.cat("/s14n/out/a.jpg") == first
+        # a planted object that is no sidecar of this input is passed by
+        fs.pipe("/s14n/out/a_3.json", b"not json")
+        assert run("dive4") == ("done", "a_4.json")
+        assert fs.cat("/s14n/out/a_3.json") == b"not json"
+    finally:
+        fs.rm("/s14n", recursive=True)
+
+
+def test_a_stored_input_named_another_way_recognises_its_sidecar(tmp_path):
+    """A rerun that spells the input's URL otherwise (``memory:///x`` and
+    ``memory://x``) finds the sidecar of the first run as its own."""
+    import fsspec
+    from uwhl_rs.batch import restore_many
+    fs = fsspec.filesystem("memory")
+    im, _ = synth.demo_input(48, 64, water_type="II", seed=3)
+    images.write_image(tmp_path / "a.png", im, bits=8, encoding="linear")
+    fs.put(str(tmp_path / "a.png"), "/s14u/in/a.png")
+    try:
+        assert restore_many(["memory:///s14u/in/a.png"], "memory://s14u/out").iloc[0]["status"] == "done"
+        again = restore_many(["memory://s14u/in/a.png"], "memory://s14u/out").iloc[0]
+        assert again["status"] == "skipped" and again["sidecar"].endswith("/a.json")
+    finally:
+        fs.rm("/s14u", recursive=True)
