@@ -276,18 +276,22 @@ fn file_sha256(p: &Path) -> Option<String> {
 fn sidecar_is_inputs(path: &Path, input: &Path, key: &Path, hash: &mut Option<Option<String>>) -> bool {
     let Some((given, resolved, recorded)) = sidecar_input(path) else { return false };
     let named = match &resolved {
-        // the resolved path, where recorded, decides alone: a relative
+        // the resolved path, where recorded, decides by name: a relative
         // `input` equal to ours may name another file from another folder
         Some(r) => r == key,
-        None => given == input || (given.is_absolute() && input_key(&given) == key),
+        None if given.is_absolute() => given == input || input_key(&given) == key,
+        // a relative path names a file only from the folder its run started
+        // in, which the sidecar does not record (`a.png` of another dive):
+        // the contents decide where the sidecar records their hash, else
+        // the path as given or from here
+        None => recorded.is_none() && (given == input || input_key(&given) == key),
     };
     if named {
         return true;
     }
     match recorded {
         Some(h) => hash.get_or_insert_with(|| file_sha256(input)).as_deref() == Some(h.as_str()),
-        // a sidecar without the hash: its relative path, from here
-        None => resolved.is_none() && given.is_relative() && input_key(&given) == key,
+        None => false,
     }
 }
 
@@ -1213,6 +1217,21 @@ mod tests {
         let c = claimed(claim(&request(&out, "r", Path::new("a.jpg"), &s, false)).unwrap());
         assert_eq!(c.name(), "r_2");
         drop(c);
+        // the same relative name in another dive (each run started in its
+        // own folder): the recorded hash is the other dive's photo's
+        let here = std::env::current_dir().unwrap();
+        let up: PathBuf = here.components().skip(1).map(|_| "..").collect();
+        let rel = up.join(b.strip_prefix("/").unwrap());
+        assert!(rel.is_relative() && rel.is_file());
+        let side = serde_json::json!({"input": rel, "metadata": {"input_sha256": sha256_of(&a)}});
+        fs::write(out.join("dive.json"), side.to_string()).unwrap();
+        let c = claimed(claim(&request(&out, "dive", &rel, &s, false)).unwrap());
+        assert_eq!(c.name(), "dive_2");
+        drop(c);
+        // and its own photo under that relative name is recognised by its hash
+        let side = serde_json::json!({"input": rel, "metadata": {"input_sha256": sha256_of(&b)}});
+        fs::write(out.join("dive.json"), side.to_string()).unwrap();
+        assert!(matches!(claim(&request(&out, "dive", &rel, &s, false)).unwrap(), Resolution::Skipped(Skip::Done, _)));
         fs::remove_dir_all(&d).unwrap();
     }
 

@@ -702,10 +702,22 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
         confidence: conf_path.as_deref(),
         contact_sheet: sheet_path.as_deref(),
     };
+    // the input file's absolute path, links resolved, where it is a local
+    // file the batch names by its path (a URL's input is a private copy):
+    // a rerun recognises its sidecar by it whatever folder it starts in
+    // (crate::files::commit, docs/OUTPUTS.md "Names already in use")
+    let resolved = out
+        .input
+        .filter(|_| !out.label.contains("://"))
+        .and_then(|p| std::fs::canonicalize(p).ok())
+        .and_then(|p| p.to_str().map(str::to_owned));
     let make = |seconds: Seconds| {
         let mut side = sidecar(out.label, out.implementation, &names, out.source, &out.estimates, out.parameters, seconds);
         if let (Some(reused), Some(obj)) = (out.reused, side.as_object_mut()) {
             obj.insert("reused_estimates".into(), Value::Bool(reused));
+        }
+        if let (Some(r), Some(obj)) = (&resolved, side.as_object_mut()) {
+            obj.insert("input_resolved".into(), Value::String(r.clone()));
         }
         side
     };

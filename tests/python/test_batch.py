@@ -66,6 +66,7 @@ def sidecar_core(data: bytes, where: bool = True) -> dict:
     doc = json.loads(data)
     if not where:
         doc.pop("input")
+        doc.pop("input_resolved", None)
         doc["source"].pop("path")
     for k in RUN_KEYS:
         doc.pop(k)
