@@ -9,7 +9,6 @@ Rows are the dicts of ``uwhl_rs.tasks`` (its ``COLUMNS``).
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
@@ -21,8 +20,7 @@ from . import _core
 from .sidecars import MAX_BYTES as SIDECAR_MAX_BYTES
 from .sidecars import SidecarError, display, is_sha256, local_outputs_problem
 from .sidecars import parse as parse_sidecar
-from .storage import (Folder, filesystem, is_url, join, local_path, read_bytes, read_regular, scheme, sha256_of,
-                      stored_sha256)
+from .storage import Folder, filesystem, is_url, join, local_path, read_bytes, read_regular, scheme, sha256_of
 
 __all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "stored_names", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
@@ -260,43 +258,77 @@ def remove_earlier(fs, side: str, dest: dict, storage_options: dict) -> None:
 
 #: the names an input on object storage tries (``NAME``, ``NAME_2``, ...), as ``commit::MAX_NAMES`` in a folder
 MAX_NAMES = 10_000
+#: the bytes of earlier sidecars fetched at once while a batch is planned
+PLAN_READ_BYTES = 64 << 20
 
 
-def _records(doc: object, input: str, hashes: dict, storage_options: dict) -> bool:
-    """Whether the sidecar ``doc`` (parsed JSON) is the restoration of
-    ``input`` (a URL or a local path as the batch was given it): it names
-    it (a URL as it is, or its object; a local path as given, or the same
-    file from here), else the input's SHA-256 is the one it recorded (a
-    rerun that names it otherwise). As ``commit::sidecar_is_inputs`` does
-    in a folder. ``hashes`` keeps each input's hash once computed."""
+def _recorded(data: object) -> tuple | None:
+    """What a sidecar's bytes say of its input: (``input``,
+    ``input_resolved`` or None, ``metadata.input_sha256`` or None); None
+    when they are no sidecar. Nothing else of the document is kept."""
+    try:
+        doc = json.loads(data) if isinstance(data, bytes) and len(data) <= SIDECAR_MAX_BYTES else None
+    except (ValueError, RecursionError):
+        return None
     if not isinstance(doc, dict) or not isinstance(doc.get("input"), str):
-        return False
-    given = doc["input"]
+        return None
+    resolved = doc.get("input_resolved")
+    md = doc.get("metadata")
+    sha = md.get("input_sha256") if isinstance(md, dict) else None
+    return (doc["input"], resolved if isinstance(resolved, str) and resolved.startswith("/") else None,
+            sha.lower() if is_sha256(sha) else None)
+
+
+def _same_object(given: str, input: str, storage_options: dict) -> bool:
+    """Whether the recorded URL ``given`` names the object of the input URL
+    ``input``: equal, or equal once the input's own file system strips
+    its protocol (``memory:///x`` and ``memory://x``). No file system is
+    made from the recorded text (a chained URL could reach any host), and
+    a chained URL (``::``) is compared as it is."""
     if given == input:
         return True
-    if is_url(input):
-        if is_url(given) and scheme(given) == scheme(input):
-            with contextlib.suppress(Exception):  # a recorded URL this process cannot name
-                if filesystem(given, storage_options)[1] == filesystem(input, storage_options)[1]:
-                    return True
-    elif not is_url(given) and "\0" not in given:
-        with contextlib.suppress(OSError, ValueError):
-            if os.path.realpath(local_path(given)) == os.path.realpath(local_path(input)):
-                return True
-    md = doc.get("metadata")
-    want = md.get("input_sha256") if isinstance(md, dict) else None
-    if not is_sha256(want):
+    if "::" in given or "::" in input or not is_url(given) or scheme(given) != scheme(input):
         return False
+    fs, path = filesystem(input, storage_options)
+    try:
+        return type(fs)._strip_protocol(given).rstrip("/") == path.rstrip("/")
+    except Exception:  # a recorded URL the input's file system cannot read
+        return False
+
+
+def _records(rec: tuple | None, input: str, hashes: dict, storage_options: dict) -> bool:
+    """Whether the sidecar that says ``rec`` (:func:`_recorded`) is the
+    restoration of ``input`` (a URL or a local path as the batch was given
+    it), as ``commit::sidecar_is_inputs`` decides in a folder: a URL by
+    naming its object; a local file by its resolved path where the sidecar
+    records one, by its absolute path, or by the contents (its SHA-256,
+    the only thing a relative path recorded by a run in another folder
+    says). A stored input is never fetched to be hashed: another spelling
+    of its URL is restored again under the next name. ``hashes`` keeps
+    each local input's hash once computed."""
+    if rec is None:
+        return False
+    given, resolved, want = rec
+    if is_url(input):
+        return _same_object(given, input, storage_options)
+    if is_url(given) or "\0" in given:
+        return False
+    real = os.path.realpath(local_path(input))
+    if resolved is not None:
+        named = resolved == real
+    elif os.path.isabs(given):
+        named = given == input or os.path.realpath(given) == real
+    else:
+        named = want is None and (given == input or os.path.realpath(given) == real)
+    if named or want is None:
+        return named
     if input not in hashes:
         try:
-            if is_url(input):
-                hashes[input] = stored_sha256(input, storage_options)
-            else:
-                with open(local_path(input), "rb") as f:
-                    hashes[input] = sha256_of(f)
-        except Exception:  # unreadable now: its own task says why
+            with open(local_path(input), "rb") as f:
+                hashes[input] = sha256_of(f)
+        except OSError:  # unreadable now: its own task says why
             hashes[input] = None
-    return hashes[input] == want.lower()
+    return hashes[input] == want
 
 
 def stored_names(items: list, existing: dict, storage_options: dict) -> tuple[list, list]:
@@ -307,51 +339,66 @@ def stored_names(items: list, existing: dict, storage_options: dict) -> tuple[li
     ... that is free or records it, so that neither is skipped as done nor
     written over the other's outputs. ``items``: the batch's ``Item``s
     (their ``name`` changed in place); ``existing``: the destination's
-    objects (filesystem paths) and their sizes (None if not listed).
+    objects (file system paths) and their sizes (None if not listed).
     Returns the items whose sidecar records them (done, unless
-    overwritten), and (item, reason) for those that found no name."""
+    overwritten), and (item, reason) for those that found no name.
 
-    def key(out_dir: str, name: str) -> str:
-        return filesystem(join(out_dir, name + ".json"), storage_options)[1]
+    The sidecars of one name level are fetched together (ranged reads of
+    at most the sidecar limit, :data:`PLAN_READ_BYTES` at a time), and of
+    each only what names its input is kept."""
+    if not items:
+        return [], []
+    fs = filesystem(items[0].out_dir, storage_options)[0]
+
+    def key(it, name: str) -> str:
+        return filesystem(join(it.out_dir, name + ".json"), storage_options)[1]
 
     def read(paths: list[str]) -> dict:
         # what is larger than any sidecar, or empty, records nothing
-        small = [p for p in paths if existing.get(p) is None or 0 < existing[p] <= SIDECAR_MAX_BYTES]
-        fs = filesystem(items[0].out_dir, storage_options)[0]
-        got = fs.cat_ranges(small, 0, SIDECAR_MAX_BYTES + 1, on_error="return") if small else []
-        docs = {}
-        for p, data in zip(small, got):
-            try:
-                ok = isinstance(data, bytes) and len(data) <= SIDECAR_MAX_BYTES
-                docs[p] = json.loads(data) if ok else None
-            except (ValueError, RecursionError):
-                docs[p] = None
-        return docs
+        todo = [p for p in paths if existing.get(p) is None or 0 < existing[p] <= SIDECAR_MAX_BYTES]
+        got: dict = {}
+        i = 0
+        while i < len(todo):
+            j, size = i, 0
+            while j < len(todo) and (j == i or size + (existing.get(todo[j]) or SIDECAR_MAX_BYTES) <= PLAN_READ_BYTES):
+                size += existing.get(todo[j]) or SIDECAR_MAX_BYTES
+                j += 1
+            part, i = todo[i:j], j
+            data = fs.cat_ranges(part, 0, SIDECAR_MAX_BYTES + 1, on_error="return")
+            got.update((p, _recorded(d)) for p, d in zip(part, data))
+        return got
 
     taken = {(it.out_dir, it.name) for it in items}
-    first = read([k for k in (key(it.out_dir, it.name) for it in items) if k in existing]) if items else {}
     hashes: dict = {}
     done, refused = [], []
-    for it in items:
-        base = it.name
-        for n in range(1, MAX_NAMES + 1):
+    # the items still looking for a name, each at its next candidate
+    looking = [(it, it.name, 1) for it in items]
+    while looking:
+        paths = {}
+        for it, base, n in looking:
             name = base if n == 1 else f"{base}_{n}"
-            if n > 1 and (it.out_dir, name) in taken:
+            paths[id(it)] = (name, key(it, name))
+        recs = read(sorted({p for _, p in paths.values() if p in existing}))
+        after = []
+        for it, base, n in looking:
+            name, side = paths[id(it)]
+            if side in existing and not _records(recs.get(side), it.input, hashes, storage_options):
+                # another input's name: the next one this batch has not given
+                m = n + 1
+                while m <= MAX_NAMES and (it.out_dir, f"{base}_{m}") in taken:
+                    m += 1
+                if m > MAX_NAMES:
+                    refused.append((it, f"{base}.json and the further names at the destination are other inputs' "
+                                        "sidecars: no name is left for its outputs"))
+                else:
+                    after.append((it, base, m))
                 continue
-            side = key(it.out_dir, name)
-            if side not in existing:
-                break
-            doc = first[side] if side in first else read([side]).get(side)
-            if _records(doc, it.input, hashes, storage_options):
+            if side in existing:
                 done.append(it)
-                break
-        else:
-            refused.append((it, f"{base}.json and {MAX_NAMES - 1} further names at the destination are other inputs' "
-                                "sidecars: no name is left for its outputs"))
-            continue
-        if name != base:
-            taken.add((it.out_dir, name))
-            it.name = name
+            if name != it.name:
+                taken.add((it.out_dir, name))
+                it.name = name
+        looking = after
     return done, refused
 
 

@@ -315,16 +315,6 @@ def _chunks(fs, p: str, limit: int, where: str):
             yield block
 
 
-def stored_sha256(url: str, storage_options: dict | None = None) -> str:
-    """The SHA-256 (hex) of the object at the storage URL ``url``, read a
-    chunk at a time (memory never holds the object)."""
-    fs, p = filesystem(url, storage_options)
-    h = hashlib.sha256()
-    for block in _chunks(fs, p, 1 << 62, url):
-        h.update(block)
-    return h.hexdigest()
-
-
 def download(url: str, local: str, storage_options: dict | None = None) -> None:
     """Copies the object at ``url`` to the local file ``local`` a chunk at
     a time: memory holds a chunk, never the object (fsspec's get_file held

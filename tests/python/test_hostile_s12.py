@@ -3,6 +3,7 @@ against an answer known without the code."""
 
 from __future__ import annotations
 
+import json
 import os
 
 import numpy as np
@@ -407,3 +408,66 @@ def test_a_stored_input_named_another_way_recognises_its_sidecar(tmp_path):
         assert again["status"] == "skipped" and again["sidecar"].endswith("/a.json")
     finally:
         fs.rm("/s14u", recursive=True)
+
+
+def test_two_dives_named_relatively_from_their_own_folders_into_one_prefix(tmp_path, monkeypatch):
+    """``cd dive1 && uwhl restore a.png -o s3://...`` then the same in dive2:
+    both sidecars say ``input: a.png``. The second photo is another input
+    (its resolved path, else the hash of its bytes, decides), restored as
+    a_2; each dive's rerun finds its own."""
+    import fsspec
+    from uwhl_rs.batch import restore_many
+    fs = fsspec.filesystem("memory")
+    for k, d in enumerate(["dive1", "dive2"]):
+        (tmp_path / d).mkdir()
+        im, _ = synth.demo_input(48, 64, water_type="II", seed=10 + k)
+        images.write_image(tmp_path / d / "a.png", im, bits=8, encoding="linear")
+
+    def run(d):
+        monkeypatch.chdir(tmp_path / d)
+        r = restore_many(["a.png"], "memory://s14r/out").iloc[0]
+        return r["status"], os.path.basename(r["sidecar"] or "")
+
+    try:
+        assert run("dive1") == ("done", "a.json")
+        assert run("dive2") == ("done", "a_2.json")
+        assert run("dive1") == ("skipped", "a.json") and run("dive2") == ("skipped", "a_2.json")
+        # a sidecar of an earlier build (no input_resolved): the hash decides
+        doc = json.loads(fs.cat("/s14r/out/a.json"))
+        doc.pop("input_resolved", None)
+        fs.pipe("/s14r/out/a.json", json.dumps(doc).encode())
+        assert run("dive2") == ("skipped", "a_2.json") and run("dive1") == ("skipped", "a.json")
+    finally:
+        fs.rm("/s14r", recursive=True)
+
+
+def test_a_planted_sidecars_recorded_url_is_never_opened(tmp_path, monkeypatch):
+    """The recorded input of a sidecar at the destination is text, compared
+    with the input's URL: no file system is made from it (a chained URL such
+    as ``zip://a::http://host/x.zip`` would fetch from that host while the
+    batch is only being planned)."""
+    import fsspec
+    from uwhl_rs import batch, outdir
+    fs = fsspec.filesystem("memory")
+    im, _ = synth.demo_input(48, 64, water_type="II", seed=4)
+    images.write_image(tmp_path / "a.png", im, bits=8, encoding="linear")
+    fs.put(str(tmp_path / "a.png"), "/s14p/in/a.png")
+    planted = ["zip://a.png::http://127.0.0.1:9/evil.zip", "http://127.0.0.1:9/a.png", "file:///etc/passwd",
+               "memory://s14p/in/a.png::http://127.0.0.1:9/x"]
+    for k, given in enumerate(planted):
+        name = "a" if k == 0 else f"a_{k + 1}"
+        fs.pipe(f"/s14p/out/{name}.json", json.dumps({"input": given, "metadata": {"input_sha256": "0" * 64}}).encode())
+    seen = []
+    real = outdir.filesystem
+
+    def watched(url, so=None):
+        seen.append(url)
+        return real(url, so)
+
+    monkeypatch.setattr(outdir, "filesystem", watched)
+    try:
+        plan = batch.plan_batch(["memory://s14p/in/a.png"], "memory://s14p/out")
+        assert [it.name for it in plan.items] == ["a_5"] and plan.done == set()
+        assert not [u for u in seen if u in planted or "127.0.0.1" in u or u.startswith("file:")], seen
+    finally:
+        fs.rm("/s14p", recursive=True)
