@@ -143,7 +143,18 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     let transfer = opts.transfer.unwrap_or(Transfer::Bt709);
     let codec = Codec::new(transfer, if bytes_per_sample == 2 { 16 } else { 8 });
     let mut seq = frame_sequence(opts);
-    let _presence = (!to_stdout).then(|| crate::files::jobs::enter_folder(&opts.outdir));
+    let _presence = if to_stdout {
+        None
+    } else {
+        match crate::files::jobs::enter_folder(&opts.outdir) {
+            Ok(p) => p,
+            Err(why) => {
+                let e = Failure::new(Kind::Write, why);
+                report(err, opts.json_errors, Some(&opts.outdir), &e);
+                return e.kind.exit_code();
+            }
+        }
+    };
     let mut sink = if to_stdout { Sink::Stdout(out) } else { Sink::Folder(&opts.outdir, out) };
     // the buffers of every frame, made once
     let mut bytes_in = vec![0u8; frame_bytes];

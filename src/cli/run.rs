@@ -494,7 +494,14 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
     };
     dive_notes(opts, err);
     let mut seq = sequence(opts);
-    let _presence = crate::files::jobs::enter_folder(&opts.outdir);
+    let _presence = match crate::files::jobs::enter_folder(&opts.outdir) {
+        Ok(p) => p,
+        Err(why) => {
+            let e = Failure::new(Kind::Write, why);
+            report(err, opts.json_errors, Some(&opts.outdir), &e);
+            return e.kind.exit_code();
+        }
+    };
     // stdout gone (closed pipe, full disk): the frames' lines cannot be
     // reported, so the loop stops instead of restoring frames nobody hears of
     let gone = std::sync::atomic::AtomicBool::new(false);

@@ -140,8 +140,24 @@ pub fn remove_stale_temps(dir: &Path, gate: &Path) -> usize {
 /// [`remove_stale_temps`]). None when it cannot be opened or locked.
 pub fn hold_folder(dir: &Path) -> Option<fs::File> {
     let f = fs::File::open(dir).ok()?;
-    f.lock_shared().ok()?;
-    Some(f)
+    lock_shared_within(&f).then_some(f)
+}
+
+/// Takes a shared `flock` of `f`, waiting at most two seconds: the runs'
+/// own exclusive locks of a folder are only ever tried and let go at once,
+/// so a lock held longer is some other program's (`flock -x OUTDIR ...`),
+/// and a run goes on without its hold rather than wait for it unseen.
+pub fn lock_shared_within(f: &fs::File) -> bool {
+    let until = std::time::Instant::now() + std::time::Duration::from_secs(2);
+    loop {
+        match f.try_lock_shared() {
+            Ok(()) => return true,
+            Err(fs::TryLockError::WouldBlock) if std::time::Instant::now() < until => {
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+            Err(_) => return false,
+        }
+    }
 }
 
 /// A run writing into `dir` starts: the folder is made if it is missing
@@ -150,12 +166,12 @@ pub fn hold_folder(dir: &Path) -> Option<fs::File> {
 /// starting then could sweep them), what killed runs left there is swept
 /// ([`remove_stale_temps`], while this run does not hold it yet), then the
 /// folder is held for the run ([`hold_folder`]; keep what this returns).
-/// A folder that cannot be made is not an error here: each output's claim
-/// then says why it cannot be written.
-pub fn enter_folder(dir: &Path) -> Option<fs::File> {
-    let _ = fs::create_dir_all(dir);
+/// A folder that cannot be made is the error returned (a pipe of frames
+/// would otherwise restore each frame to fail its write).
+pub fn enter_folder(dir: &Path) -> Result<Option<fs::File>, String> {
+    fs::create_dir_all(dir).map_err(|e| format!("cannot make the output folder: {e}"))?;
     remove_stale_temps(dir, dir);
-    hold_folder(dir)
+    Ok(hold_folder(dir))
 }
 
 /// Why the output folder `dir` cannot take outputs before anything is
@@ -168,6 +184,16 @@ pub fn outdir_problem(dir: &Path) -> Option<String> {
         Err(_) if fs::symlink_metadata(dir).is_ok_and(|m| m.file_type().is_symlink()) => {
             Some("a link to nothing (its target does not exist): the outputs need a folder".into())
         }
+        // the folder would be made below something that cannot hold it
+        Err(_) => dir.ancestors().skip(1).filter(|a| !a.as_os_str().is_empty()).find_map(|a| match fs::metadata(a) {
+            Ok(m) if !m.is_dir() => Some(format!("{} is not a folder (a file is there): the outputs need a folder", a.display())),
+            Ok(_) => None,
+            Err(_) if fs::symlink_metadata(a).is_ok_and(|m| m.file_type().is_symlink()) => Some(format!(
+                "{} is a link to nothing (its target does not exist): the output folder cannot be made below it",
+                a.display()
+            )),
+            Err(_) => None,
+        }),
         _ => None,
     }
 }
@@ -431,7 +457,7 @@ mod tests {
         let root = scratch("enter");
         let d = root.join("not").join("yet");
         assert!(!d.exists());
-        let held = enter_folder(&d).unwrap();
+        let held = enter_folder(&d).unwrap().unwrap();
         assert!(d.is_dir());
         // another run (another open file description) cannot take it alone
         let other = fs::File::open(&d).unwrap();

@@ -162,7 +162,7 @@ impl Summary {
             // exclusive if no other run holds it, then (a conversion) shared
             let alone = f.try_lock().is_ok();
             start = Some((alone, stamp(&outdir.join(FILE_NAME))));
-            f.lock_shared().is_ok()
+            crate::files::jobs::lock_shared_within(f)
         });
         let start = presence.as_ref().and(start);
         Self { outdir: outdir.to_path_buf(), presence, start, opened: false, error: None, read_only: false, columns: columns() }
@@ -227,11 +227,14 @@ impl Summary {
                     return Err(fail(e));
                 }
                 presence.unlock().map_err(fail)?;
-                presence.lock_shared().map_err(fail)?;
+                // (another program's long exclusive lock: the run goes on without its hold)
+                crate::files::jobs::lock_shared_within(&presence);
             }
             // another run writes the file: its rows and this run's go in it
             // (a missing file is made by the first row, with the header)
-            Err(std::fs::TryLockError::WouldBlock) => presence.lock_shared().map_err(fail)?,
+            Err(std::fs::TryLockError::WouldBlock) => {
+                crate::files::jobs::lock_shared_within(&presence);
+            }
             Err(std::fs::TryLockError::Error(e)) => return Err(fail(e)),
         }
         Ok(presence)

@@ -446,3 +446,49 @@ def test_a_pipe_into_a_missing_output_folder_holds_it_before_any_output(binary, 
     finally:
         _, err = p.communicate(b"", timeout=120)
     assert p.returncode == 0, err
+
+
+@pytest.mark.parametrize("mode", [[], ["--stream"]])
+def test_a_folder_another_program_locks_exclusively_does_not_hang_the_run(binary, tmp_path, mode):
+    """Runs hold their output folder with a shared lock, and their own
+    exclusive locks are only tried and let go. A program holding an
+    exclusive lock on the folder (``flock -x out sleep ...``) made a run
+    wait for it without a word; the run now goes on without its hold."""
+    import fcntl
+
+    src = tmp_path / "p.png"
+    _image(src)
+    out = tmp_path / "out"
+    out.mkdir()
+    fd = os.open(out, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        args = [binary, "restore", *mode, "-o", str(out)] + ([] if mode else [str(src)])
+        r = subprocess.run(args, input=f"{src}\n" if mode else None, capture_output=True, text=True, timeout=120)
+    finally:
+        os.close(fd)
+    assert r.returncode == 0, r.stderr
+    assert (out / "p.json").is_file()
+
+
+@pytest.mark.parametrize("face", FACES)
+@pytest.mark.parametrize("below", ["file", "dangling"])
+def test_an_output_folder_that_cannot_be_made_is_refused_before_any_input(face, binary, tmp_path, below):
+    """An output folder below a file, or below a link to nothing: one
+    message naming the part of the path, exit 5, before any input is read
+    (a pipe of frames restored every frame to fail each write, exit 0)."""
+    src = tmp_path / "p.png"
+    _image(src)
+    if below == "file":
+        (tmp_path / "x").write_text("a file")
+    else:
+        (tmp_path / "x").symlink_to(tmp_path / "nothing")
+    out = tmp_path / "x" / "sub"
+    r = _run(face, binary, [src, "-o", out])
+    assert r.returncode == 5, r.stderr
+    assert "x is " in r.stderr and ("not a folder" in r.stderr if below == "file" else "link to nothing" in r.stderr)
+    assert "p.png" not in r.stderr.replace(str(out), "")
+    if face == "rust":
+        for mode, data in ((["--stream"], f"{src}\n".encode()), (["--raw-frames", "8x6"], bytes(8 * 6 * 3))):
+            p = subprocess.run([binary, "restore", *mode, "-o", str(out)], input=data, capture_output=True, timeout=120)
+            assert p.returncode == 5 and b"x is " in p.stderr, p.stderr
