@@ -11,6 +11,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import dither as D  # noqa: E402
 import entropy as E  # noqa: E402
 import rules as R  # noqa: E402
 
@@ -30,8 +31,10 @@ for e in man["images"]:
             mask[y0:y1, x0:x1] = False
     est = uwhl_rs.restore(img, mask=mask)
     im64 = np.asarray(img, np.float64)
+    if os.environ.get("DITHER"):
+        im64 = D.dithered(im64)
     ent, n = E.scores(im64, np.array(est.veiling_light, np.float64), mask & ~np.asarray(est.veiling_mask, bool),
-                      E.immerkaer(im64)[None, None, :], 0.05, 2.0)
+                      E.immerkaer(np.asarray(img, np.float64))[None, None, :], 0.05, 2.0)
     row = {"chosen": est.water_type, "sog": {t: float(est.scores[t]) for t in R.TY}, "ent": ent}
     picks = {name: f(row) for name, f in R.RULES.items()}
     disp = {}

@@ -38,7 +38,6 @@ def main():
         a0 = np.array(est.veiling_light, np.float64)
         sig = E.immerkaer(img)
         mask = ~np.asarray(est.veiling_mask, bool)
-        span = np.exp(max(args.steps)) - 1
         d0 = np.abs(img - a0)
         ok = mask & np.all(d0 > 2 * sig, axis=2)
         px = img[ok]

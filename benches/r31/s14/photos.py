@@ -9,6 +9,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+import dither as DI  # noqa: E402
 import entropy as E  # noqa: E402
 import rules as R  # noqa: E402
 from viz import sheet, tile  # noqa: E402
@@ -24,9 +25,12 @@ for p in sorted(glob.glob(D + "*.jpg") + glob.glob(D + "*.png")):
     s = int(np.ceil(max(img.shape[:2]) / 480))
     img = np.ascontiguousarray(img[::s, ::s])
     r = uwhl_rs.restore(img)
-    im64 = np.asarray(img, np.float64)
-    ent, _ = E.scores(im64, np.array(r.veiling_light, np.float64), ~np.asarray(r.veiling_mask, bool),
-                      E.immerkaer(im64)[None, None, :], 0.05, 2.0)
+    if os.environ.get("DITHER"):
+        ent = DI.ent_scores(img, r)
+    else:
+        im64 = np.asarray(img, np.float64)
+        ent, _ = E.scores(im64, np.array(r.veiling_light, np.float64), ~np.asarray(r.veiling_mask, bool),
+                          E.immerkaer(im64)[None, None, :], 0.05, 2.0)
     k = R.RULES[RULE]({"chosen": r.water_type, "sog": {t: float(r.scores[t]) for t in R.TY}, "ent": ent})
     e = uwhl_rs.restore(img, water_types=[k]) if k and k != r.water_type else r
     n = os.path.basename(p)
