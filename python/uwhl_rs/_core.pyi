@@ -217,7 +217,7 @@ def write_input_outputs(
 @final
 class Summary:
     """OUTDIR/summary.csv, written by the binary's writer: one locked append per row."""
-    def __new__(cls, out_dir: _PathArg) -> "Summary": ...
+    def __new__(cls, out_dir: _PathArg, waiting: Optional[Callable[[str], Any]] = None) -> "Summary": ...
     @property
     def path(self) -> Path:
         """The file's path."""

@@ -249,7 +249,8 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
     # summary.csv as the batch goes: in OUTDIR, or (object storage) in a
     # local file uploaded when the batch ends
     scratch = None if not is_url(output) else tempfile.mkdtemp(prefix="uwhl-summary-")
-    csv_rows = SummaryWriter(scratch or local_path(output))
+    csv_rows = SummaryWriter(scratch or local_path(output),
+                             waiting=(lambda t: listener.note(f"note: {t}")) if listener is not None else None)
     for r in problems:
         csv_rows.add(r)
         if listener is not None:

@@ -87,9 +87,11 @@ class SummaryWriter:
     two runs on one folder keep every row whole. A skipped input's row is
     filled from its sidecar."""
 
-    def __init__(self, out_dir: str):
+    def __init__(self, out_dir: str, waiting=None):
+        """``waiting``: called with a note if another program's lock keeps
+        the folder (the batch then waits for it: docs/OUTPUTS.md)."""
         self.out_dir = out_dir
-        self._core = _core.Summary(out_dir)
+        self._core = _core.Summary(out_dir, waiting)
         self.path = os.fspath(self._core.path)
 
     @property

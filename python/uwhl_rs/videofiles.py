@@ -449,7 +449,7 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
         output = {"codec": codec, "encoder": encoder, "pix_fmt": pix_deep if info.bits > 8 else pix8,
                   "crf": int(o["video_quality"]) if codec in ("h264", "hevc") else None, "transfer": info.transfer,
                   "matrix": "rgb" if codec == "ffv1" else "bt709"}
-    return {
+    doc = {
         "input": label,
         "kind": "video",
         "implementation": "python",
@@ -477,3 +477,9 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
         "parameters": json.loads(settings.parameters),
         "seconds": {"open": round(t_open, 4), "frames": round(t_frames, 4), "total": round(t_open + t_frames, 4)},
     }
+    # a local file's absolute path, links resolved, as a photo's sidecar
+    # records it: a rerun from another folder recognises it, and the same
+    # relative name in another dive is another input (docs/OUTPUTS.md)
+    if "://" not in str(label):
+        doc["input_resolved"] = os.path.realpath(in_path)
+    return doc

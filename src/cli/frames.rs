@@ -146,7 +146,8 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     let _presence = if to_stdout {
         None
     } else {
-        match crate::files::jobs::enter_folder(&opts.outdir) {
+        let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
+        match crate::files::jobs::enter_folder(&opts.outdir, &mut || super::run::say_notes(&wait_note, opts, err)) {
             Ok(p) => p,
             Err(why) => {
                 let e = Failure::new(Kind::Write, why);

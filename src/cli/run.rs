@@ -147,7 +147,7 @@ fn sidecar_flags(side: &Value) -> Vec<&str> {
 
 /// Remarks that are not errors, one `uwhl-rs: note:` line each on stderr
 /// (none with `-q`).
-fn say_notes(notes: &[String], opts: &Options, err: &mut dyn Write) {
+pub(crate) fn say_notes(notes: &[String], opts: &Options, err: &mut dyn Write) {
     if !opts.quiet {
         for n in notes {
             let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {n}")));
@@ -320,7 +320,8 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         crate::files::jobs::remove_stale_temps(d, &opts.outdir);
     }
     // OUTDIR/summary.csv, a row per input as it is settled
-    let mut summary = crate::files::summary::Summary::create(&opts.outdir);
+    let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
+    let mut summary = crate::files::summary::Summary::create_waiting(&opts.outdir, &mut || say_notes(&wait_note, opts, err));
     for (p, e) in &errors {
         report(err, opts.json_errors, Some(p), e);
         code = code.max(e.kind.exit_code());
@@ -494,7 +495,8 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
     };
     dive_notes(opts, err);
     let mut seq = sequence(opts);
-    let _presence = match crate::files::jobs::enter_folder(&opts.outdir) {
+    let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
+    let _presence = match crate::files::jobs::enter_folder(&opts.outdir, &mut || say_notes(&wait_note, opts, err)) {
         Ok(p) => p,
         Err(why) => {
             let e = Failure::new(Kind::Write, why);

@@ -280,6 +280,8 @@ fn sidecar_is_inputs(path: &Path, input: &Path, key: &Path, hash: &mut Option<Op
         // `input` equal to ours may name another file from another folder
         Some(r) => r == key,
         None if given.is_absolute() => given == input || input_key(&given) == key,
+        // a URL (a stored input restored into this folder) names its object
+        None if given.to_str().is_some_and(|g| g.contains("://")) => given == input,
         // a relative path names a file only from the folder its run started
         // in, which the sidecar does not record (`a.png` of another dive):
         // the contents decide where the sidecar records their hash, else

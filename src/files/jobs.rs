@@ -139,14 +139,34 @@ pub fn remove_stale_temps(dir: &Path, gate: &Path) -> usize {
 /// returned file is kept: other runs then know this one is there (see
 /// [`remove_stale_temps`]). None when it cannot be opened or locked.
 pub fn hold_folder(dir: &Path) -> Option<fs::File> {
-    let f = fs::File::open(dir).ok()?;
-    lock_shared_within(&f).then_some(f)
+    hold_folder_waiting(dir, &mut || {})
 }
 
-/// Takes a shared `flock` of `f`, waiting at most two seconds: the runs'
-/// own exclusive locks of a folder are only ever tried and let go at once,
-/// so a lock held longer is some other program's (`flock -x OUTDIR ...`),
-/// and a run goes on without its hold rather than wait for it unseen.
+/// [`hold_folder`], saying so through `waiting` (once) when the folder's
+/// lock is not had within two seconds ([`lock_shared_waiting`]).
+pub fn hold_folder_waiting(dir: &Path, waiting: &mut dyn FnMut()) -> Option<fs::File> {
+    let f = fs::File::open(dir).ok()?;
+    lock_shared_waiting(&f, waiting).then_some(f)
+}
+
+/// Takes a shared `flock` of `f`. The runs' own exclusive locks of a
+/// folder are only ever tried and let go at once, so a lock that keeps it
+/// from being had for two seconds is some other program's (`flock -x
+/// OUTDIR ...`): `waiting` is called once to say so, and the lock is then
+/// waited for. Going on without it would let a run that starts when the
+/// other program lets go take the folder for its own and start summary.csv
+/// afresh over this run's rows. False if the lock cannot be taken at all
+/// (a file system without locks).
+pub fn lock_shared_waiting(f: &fs::File, waiting: &mut dyn FnMut()) -> bool {
+    if lock_shared_within(f) {
+        return true;
+    }
+    waiting();
+    f.lock_shared().is_ok()
+}
+
+/// Takes a shared `flock` of `f`, trying for at most two seconds; false
+/// if it is not had by then (or cannot be taken).
 pub fn lock_shared_within(f: &fs::File) -> bool {
     let until = std::time::Instant::now() + std::time::Duration::from_secs(2);
     loop {
@@ -168,10 +188,17 @@ pub fn lock_shared_within(f: &fs::File) -> bool {
 /// folder is held for the run ([`hold_folder`]; keep what this returns).
 /// A folder that cannot be made is the error returned (a pipe of frames
 /// would otherwise restore each frame to fail its write).
-pub fn enter_folder(dir: &Path) -> Result<Option<fs::File>, String> {
+/// `waiting` is called if another program's lock keeps the folder
+/// ([`lock_shared_waiting`]).
+pub fn enter_folder(dir: &Path, waiting: &mut dyn FnMut()) -> Result<Option<fs::File>, String> {
     fs::create_dir_all(dir).map_err(|e| format!("cannot make the output folder: {e}"))?;
     remove_stale_temps(dir, dir);
-    Ok(hold_folder(dir))
+    Ok(hold_folder_waiting(dir, waiting))
+}
+
+/// The note said while another program's lock keeps the output folder `dir`.
+pub fn waiting_note(dir: &Path) -> String {
+    format!("{}: another program holds a lock on this folder (flock); waiting for it to let go", dir.display())
 }
 
 /// Why the output folder `dir` cannot take outputs before anything is
@@ -457,7 +484,7 @@ mod tests {
         let root = scratch("enter");
         let d = root.join("not").join("yet");
         assert!(!d.exists());
-        let held = enter_folder(&d).unwrap().unwrap();
+        let held = enter_folder(&d, &mut || {}).unwrap().unwrap();
         assert!(d.is_dir());
         // another run (another open file description) cannot take it alone
         let other = fs::File::open(&d).unwrap();

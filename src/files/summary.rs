@@ -157,12 +157,18 @@ impl Summary {
     /// a run starting later and writing its first row sooner does not take
     /// itself for alone and start the file afresh over this run's rows.
     pub fn create(outdir: &Path) -> Self {
+        Self::create_waiting(outdir, &mut || {})
+    }
+
+    /// [`Summary::create`], calling `waiting` once if another program's
+    /// lock keeps the folder (`crate::files::jobs::lock_shared_waiting`).
+    pub fn create_waiting(outdir: &Path, waiting: &mut dyn FnMut()) -> Self {
         let mut start = None;
         let presence = File::open(outdir).ok().filter(|f| {
             // exclusive if no other run holds it, then (a conversion) shared
             let alone = f.try_lock().is_ok();
             start = Some((alone, stamp(&outdir.join(FILE_NAME))));
-            crate::files::jobs::lock_shared_within(f)
+            crate::files::jobs::lock_shared_waiting(f, waiting)
         });
         let start = presence.as_ref().and(start);
         Self { outdir: outdir.to_path_buf(), presence, start, opened: false, error: None, read_only: false, columns: columns() }

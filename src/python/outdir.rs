@@ -80,9 +80,22 @@ struct PySummary {
 
 #[pymethods]
 impl PySummary {
+    /// `waiting`: called with the note to say once if another program's
+    /// lock keeps the folder (`crate::files::jobs::lock_shared_waiting`);
+    /// the folder is then waited for, other threads running meanwhile.
     #[new]
-    fn new(out_dir: std::path::PathBuf) -> Self {
-        let s = Summary::create(&out_dir);
+    #[pyo3(signature = (out_dir, waiting=None))]
+    fn new(py: Python<'_>, out_dir: std::path::PathBuf, waiting: Option<Py<PyAny>>) -> Self {
+        let note = crate::files::jobs::waiting_note(&out_dir);
+        let s = py.detach(|| {
+            Summary::create_waiting(&out_dir, &mut || {
+                if let Some(w) = &waiting {
+                    Python::attach(|py| {
+                        let _ = w.call1(py, (note.as_str(),));
+                    });
+                }
+            })
+        });
         Self { path: s.path(), inner: Mutex::new(s) }
     }
 

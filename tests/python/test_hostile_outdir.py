@@ -448,12 +448,15 @@ def test_a_pipe_into_a_missing_output_folder_holds_it_before_any_output(binary, 
     assert p.returncode == 0, err
 
 
-@pytest.mark.parametrize("mode", [[], ["--stream"]])
-def test_a_folder_another_program_locks_exclusively_does_not_hang_the_run(binary, tmp_path, mode):
+@pytest.mark.parametrize("face,mode", [("rust", []), ("rust", ["--stream"]), ("python", [])])
+def test_a_folder_another_program_locks_exclusively_is_waited_for_with_a_note(face, binary, tmp_path, mode):
     """Runs hold their output folder with a shared lock, and their own
     exclusive locks are only tried and let go. A program holding an
     exclusive lock on the folder (``flock -x out sleep ...``) made a run
-    wait for it without a word; the run now goes on without its hold."""
+    wait for it without a word. The run says it is waiting (going on
+    without its hold would let a run starting later take the folder for
+    its own and start summary.csv afresh over its rows), and finishes once
+    the lock is let go."""
     import fcntl
 
     src = tmp_path / "p.png"
@@ -461,13 +464,21 @@ def test_a_folder_another_program_locks_exclusively_does_not_hang_the_run(binary
     out = tmp_path / "out"
     out.mkdir()
     fd = os.open(out, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    args = _cmd(face, binary, [*mode, "-o", out] + ([] if mode else [src]))
+    p = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_env())
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        args = [binary, "restore", *mode, "-o", str(out)] + ([] if mode else [str(src)])
-        r = subprocess.run(args, input=f"{src}\n" if mode else None, capture_output=True, text=True, timeout=120)
+        if mode:
+            p.stdin.write(f"{src}\n".encode())
+        p.stdin.close()
+        # the note comes before anything is written; the lock is then let go
+        line = p.stderr.readline().decode()
+        assert "another program holds a lock on this folder" in line and str(out) in line, line
+        assert not (out / "p.json").exists()
     finally:
         os.close(fd)
-    assert r.returncode == 0, r.stderr
+    rest = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 0, rest
     assert (out / "p.json").is_file()
 
 

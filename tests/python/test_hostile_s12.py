@@ -471,3 +471,45 @@ def test_a_planted_sidecars_recorded_url_is_never_opened(tmp_path, monkeypatch):
         assert not [u for u in seen if u in planted or "127.0.0.1" in u or u.startswith("file:")], seen
     finally:
         fs.rm("/s14p", recursive=True)
+
+
+def test_a_stored_input_restored_into_a_folder_is_skipped_at_rerun(tmp_path):
+    """The sidecar of a URL input names it by its URL, which the hash rule
+    for relative paths must not judge as a local file: a rerun skips it
+    (it was restored again as a_2, a_3, ... each time)."""
+    import fsspec
+    from uwhl_rs.batch import restore_many
+    fs = fsspec.filesystem("memory")
+    im, _ = synth.demo_input(48, 64, water_type="II", seed=5)
+    images.write_image(tmp_path / "a.png", im, bits=8, encoding="linear")
+    fs.put(str(tmp_path / "a.png"), "/s14l/in/a.png")
+    out = tmp_path / "out"
+    try:
+        assert restore_many(["memory://s14l/in/a.png"], str(out)).iloc[0]["status"] == "done"
+        again = restore_many(["memory://s14l/in/a.png"], str(out)).iloc[0]
+        assert again["status"] == "skipped" and again["sidecar"].endswith("a.json"), again.to_dict()
+        assert not (out / "a_2.json").exists()
+    finally:
+        fs.rm("/s14l", recursive=True)
+
+
+def test_two_dives_videos_of_one_name_are_two_inputs(tmp_path, monkeypatch):
+    """A video's sidecar records its resolved path as a photo's does:
+    ``cd dive2 && uwhl restore v.mkv`` into dive1's folder restores dive2's
+    video as v_2 (it was skipped as done), and each rerun skips its own."""
+    pytest.importorskip("av")
+    from uwhl_rs import clip
+    from uwhl_rs.batch import restore_many
+    for k, d in enumerate(["dive1", "dive2"]):
+        (tmp_path / d).mkdir()
+        clip.write_clip(tmp_path / d / "v.mkv", clip.clip(frames=4, height=40, width=56, seed=k), codec="ffv1")
+    out = tmp_path / "out"
+
+    def run(d):
+        monkeypatch.chdir(tmp_path / d)
+        r = restore_many(["v.mkv"], str(out)).iloc[0]
+        return r["status"], os.path.basename(r["sidecar"] or "")
+
+    assert run("dive1") == ("done", "v.json")
+    assert run("dive2") == ("done", "v_2.json")
+    assert run("dive1") == ("skipped", "v.json") and run("dive2") == ("skipped", "v_2.json")
