@@ -1234,6 +1234,14 @@ mod tests {
         let side = serde_json::json!({"input": rel, "metadata": {"input_sha256": sha256_of(&b)}});
         fs::write(out.join("dive.json"), side.to_string()).unwrap();
         assert!(matches!(claim(&request(&out, "dive", &rel, &s, false)).unwrap(), Resolution::Skipped(Skip::Done, _)));
+        // a stored input restored into the folder: its URL names it, not a hash of a local file of that name
+        let url = Path::new("s3://bucket/dive/u.png");
+        let side = serde_json::json!({"input": url, "metadata": {"input_sha256": sha256_of(&a)}});
+        fs::write(out.join("u.json"), side.to_string()).unwrap();
+        assert!(matches!(claim(&request(&out, "u", url, &s, false)).unwrap(), Resolution::Skipped(Skip::Done, _)));
+        let c = claimed(claim(&request(&out, "u", Path::new("s3://bucket/other/u.png"), &s, false)).unwrap());
+        assert_eq!(c.name(), "u_2");
+        drop(c);
         fs::remove_dir_all(&d).unwrap();
     }
 
