@@ -480,6 +480,9 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
     # a local file's absolute path, links resolved, as a photo's sidecar
     # records it: a rerun from another folder recognises it, and the same
     # relative name in another dive is another input (docs/OUTPUTS.md)
-    if "://" not in str(label):
-        doc["input_resolved"] = os.path.realpath(in_path)
+    # (a name that is not UTF-8 has none: as the photo's sidecar, its input
+    # is recorded with U+FFFD and that name decides)
+    resolved = os.path.realpath(in_path) if "://" not in str(label) else None
+    if resolved is not None and resolved.encode("utf-8", "surrogateescape").decode("utf-8", "replace") == resolved:
+        doc["input_resolved"] = resolved
     return doc

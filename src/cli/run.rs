@@ -313,8 +313,13 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     let dirs: std::collections::BTreeSet<&Path> = jobs.iter().map(|j| j.dir.as_path()).collect();
     if !jobs.is_empty() {
         // made now, so that the summary below holds it from the start
-        // (crate::files::jobs::enter_folder says why)
-        let _ = std::fs::create_dir_all(&opts.outdir);
+        // (crate::files::jobs::enter_folder says why); one that cannot be
+        // made would fail every input and the summary, one by one
+        if let Err(e) = std::fs::create_dir_all(&opts.outdir) {
+            let e = Failure::new(Kind::Write, format!("cannot make the output folder: {e}"));
+            report(err, opts.json_errors, Some(&opts.outdir), &e);
+            return e.kind.exit_code();
+        }
     }
     for d in dirs {
         crate::files::jobs::remove_stale_temps(d, &opts.outdir);

@@ -503,3 +503,16 @@ def test_an_output_folder_that_cannot_be_made_is_refused_before_any_input(face, 
         for mode, data in ((["--stream"], f"{src}\n".encode()), (["--raw-frames", "8x6"], bytes(8 * 6 * 3))):
             p = subprocess.run([binary, "restore", *mode, "-o", str(out)], input=data, capture_output=True, timeout=120)
             assert p.returncode == 5 and b"x is " in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize("face", FACES)
+def test_a_batch_into_a_folder_the_system_will_not_make_is_one_error(face, binary, tmp_path):
+    """``-o /proc/...``: the folder cannot be made (by root either), and a
+    batch said so for every input and again for summary.csv; it is one
+    error now, exit 5, as for a pipe of frames."""
+    src = tmp_path / "p.png"
+    _image(src)
+    out = f"/proc/uwhl-not-here-{os.getpid()}/out"
+    r = _run(face, binary, [src, src, "-o", out])
+    assert r.returncode == 5, r.stderr
+    assert "cannot make the output folder" in r.stderr and r.stderr.count("\n") == 1, r.stderr

@@ -117,6 +117,11 @@ def run(a: argparse.Namespace, console: Console) -> int:
         why = _core.outdir_problem(a.out)
         if why:
             raise CommandError(why, "write_failed", a.out)
+        try:
+            # made now (held by the run from its start: docs/OUTPUTS.md); one that cannot be made is one error
+            os.makedirs(a.out, exist_ok=True)
+        except OSError as e:
+            raise CommandError(f"cannot make the output folder: {e.strerror or e}", "write_failed", a.out) from None
     t0 = time.perf_counter()
     # "_flags": each input's errors name the options as this command's flags (--max-memory), as uwhl-rs does
     result = batch.run_batch(a.inputs, a.out, dask=a.dask, storage_options=so, overwrite=a.overwrite,
