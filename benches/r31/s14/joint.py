@@ -19,6 +19,19 @@ import truth as T  # noqa: E402
 import uwhl_rs  # noqa: E402
 
 
+def pixels(image, est, n):
+    """The default's A, the noise sigma and at most ``n`` object pixels
+    (outside VL, 2 sigma from A in every channel; a fixed sample)."""
+    img = np.asarray(image, np.float64)
+    a0 = np.array(est.veiling_light, np.float64)
+    sig = E.immerkaer(img)
+    ok = ~np.asarray(est.veiling_mask, bool) & np.all(np.abs(img - a0) > 2 * sig, axis=2)
+    px = img[ok]
+    if len(px) > n:
+        px = px[np.random.default_rng(0).choice(len(px), n, replace=False)]
+    return a0, sig, px
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--split", default="tune")
@@ -34,15 +47,7 @@ def main():
         if i % args.every or r.geometry not in args.geoms:
             continue
         est = uwhl_rs.restore(r.image)
-        img = np.asarray(r.image, np.float64)
-        a0 = np.array(est.veiling_light, np.float64)
-        sig = E.immerkaer(img)
-        mask = ~np.asarray(est.veiling_mask, bool)
-        d0 = np.abs(img - a0)
-        ok = mask & np.all(d0 > 2 * sig, axis=2)
-        px = img[ok]
-        if len(px) > args.n:
-            px = px[np.random.default_rng(0).choice(len(px), args.n, replace=False)]
+        a0, sig, px = pixels(r.image, est, args.n)
         if len(px) < 200:
             continue
         best = (np.inf, None, None)

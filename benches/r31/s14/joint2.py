@@ -15,6 +15,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
 import entropy as E  # noqa: E402
+import joint as J  # noqa: E402
 import truth as T  # noqa: E402
 
 import uwhl_rs  # noqa: E402
@@ -45,14 +46,7 @@ def main():
         if i % args.every:
             continue
         est = uwhl_rs.restore(r.image)
-        img = np.asarray(r.image, np.float64)
-        a0 = np.array(est.veiling_light, np.float64)
-        sig = E.immerkaer(img)
-        mask = ~np.asarray(est.veiling_mask, bool)
-        ok = mask & np.all(np.abs(img - a0) > 2 * sig, axis=2)
-        px = img[ok]
-        if len(px) > 20000:
-            px = px[np.random.default_rng(0).choice(len(px), 20000, replace=False)]
+        a0, sig, px = J.pixels(r.image, est, 20000)
         for w in args.w:
             for aname, a in (("est", a0), ("true", r.a)):
                 lg = np.log(np.maximum(np.abs(px - a), sig))
