@@ -333,6 +333,24 @@ def _records(rec: tuple | None, input: str, hashes: dict, storage_options: dict)
     return hashes[input] == want
 
 
+def _family(it, key, existing: dict) -> list:
+    """The names other than its planned one that a batch may have given
+    ``it`` (stem ``S``, extension ``E``: ``S``, ``S_E``, each followed by
+    ``_2``, ``_3``, ...), each sequence up to its first name without a
+    sidecar in ``existing``, as (name, sidecar key)."""
+    stem, ext = os.path.splitext(posixpath.basename(it.input.rstrip("/")))
+    out = []
+    for base in (stem, f"{stem}_{ext[1:].lower()}"):
+        for k in range(1, MAX_NAMES + 1):
+            name = base if k == 1 else f"{base}_{k}"
+            side = key(it, name)
+            if side not in existing:
+                break
+            if name != it.name:
+                out.append((name, side))
+    return out
+
+
 def stored_names(items: list, existing: dict, storage_options: dict) -> tuple[list, list]:
     """Names on object storage the way a folder's claims give them
     (docs/OUTPUTS.md "Names already in use"): an input whose ``NAME.json``
@@ -370,11 +388,35 @@ def stored_names(items: list, existing: dict, storage_options: dict) -> tuple[li
             got.update((p, _recorded(d)) for p, d in zip(part, data))
         return got
 
-    taken = {(it.out_dir, it.name) for it in items}
     hashes: dict = {}
     done, refused = [], []
-    # the items still looking for a name, each at its next candidate
-    looking = [(it, it.name, 1) for it in items]
+    # an earlier batch may have named an input otherwise (it held other
+    # inputs of its stem, or in another order): its sidecar there decides,
+    # as commit::earlier_name does in a folder
+    family = {id(it): _family(it, key, existing) for it in items}
+    recs = read(sorted({side for v in family.values() for _, side in v}))
+    found: dict = {}
+    for it in items:
+        for name, side in family[id(it)]:
+            if (it.out_dir, name) not in found and _records(recs.get(side), it.input, hashes, storage_options):
+                found[(it.out_dir, name)] = it
+                break
+    placed = {id(it): name for (_, name), it in found.items()}
+    taken = {(it.out_dir, placed.get(id(it), it.name)) for it in items}
+    for it in items:
+        if id(it) in placed:
+            it.name = placed[id(it)]
+            done.append(it)
+    # the items still looking for a name, each at its next candidate (the
+    # planned name first, unless an input found its own there)
+    looking = [(it, it.name, 2 if (it.out_dir, it.name) in found else 1) for it in items if id(it) not in placed]
+    for i, (it, base, n) in enumerate(looking):
+        while n > 1 and n <= MAX_NAMES and (it.out_dir, f"{base}_{n}") in taken:
+            n += 1
+        looking[i] = (it, base, n)
+    refused = [(it, f"{base}.json and the further names are other inputs': no name is left for its outputs")
+               for it, base, n in looking if n > MAX_NAMES]
+    looking = [x for x in looking if x[2] <= MAX_NAMES]
     while looking:
         paths = {}
         for it, base, n in looking:

@@ -642,6 +642,43 @@ fn claim_in_place(claim_file: &Path, record: &[u8]) -> io::Result<Option<File>> 
     Ok(locked.then_some(f))
 }
 
+/// The name under which an earlier run restored `req.input` into
+/// `req.dir`, when a batch would have named it otherwise than `req.base`:
+/// the names a batch gives an input of stem `S` and extension `E` are `S`,
+/// `S_E` (when inputs of one folder share the stem) and those followed by
+/// `_2`, `_3`, ... (docs/OUTPUTS.md "Names"). Each sequence is looked at
+/// up to its first name without a sidecar; the first sidecar that is this
+/// input's ([`sidecar_is_inputs`]) gives the name. So a rerun whose batch
+/// gives the inputs of one stem in another order, or holds more of them,
+/// skips what is done instead of restoring it again under a new name.
+fn earlier_name(req: &Request<'_>, key: &Path, hash: &mut Option<Option<String>>) -> Option<String> {
+    let stem = req.input.file_stem()?.to_string_lossy().into_owned();
+    let ext = crate::files::jobs::extension(req.input);
+    let family = [stem.clone(), format!("{stem}_{ext}")];
+    // the planned name and its own sequence are the claim's to try
+    if !family.iter().any(|f| req.base == f || req.base.strip_prefix(f.as_str()).is_some_and(|r| is_counter(r))) {
+        return None;
+    }
+    for base in &family {
+        for k in 1..=MAX_NAMES {
+            let name = if k == 1 { base.clone() } else { format!("{base}_{k}") };
+            let sidecar = req.dir.join(format!("{name}.json"));
+            if !sidecar.exists() {
+                break;
+            }
+            if name != req.base && sidecar_is_inputs(&sidecar, req.input, key, hash) {
+                return Some(name);
+            }
+        }
+    }
+    None
+}
+
+/// Whether `r` is `_N` with N a number of at least 2 (a name's counter).
+fn is_counter(r: &str) -> bool {
+    r.strip_prefix('_').is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) && n != "0" && n != "1")
+}
+
 /// Claims a name for `req.input`'s outputs (see the module documentation).
 /// Tries `NAME`, then (with `rename`) `NAME_2`, ... until one is free or
 /// holds this input's own sidecar. Errors: the folder cannot be created or
@@ -654,9 +691,16 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
     let started = crate::files::jobs::process_start(own).map(|t| format!("{t}\n")).unwrap_or_default();
     // the input's SHA-256 once computed (only when a sidecar's names do not decide)
     let mut hash: Option<Option<String>> = None;
+    // an earlier run may have named it otherwise (its batch held other
+    // inputs of its stem, or in another order): its sidecar there decides
+    let start = if req.rename {
+        earlier_name(req, &key, &mut hash).unwrap_or_else(|| req.base.to_string())
+    } else {
+        req.base.to_string()
+    };
     let tries = if req.rename { MAX_NAMES } else { 1 };
     for k in 1..=tries {
-        let name = if k == 1 { req.base.to_string() } else { format!("{}_{k}", req.base) };
+        let name = if k == 1 { start.clone() } else { format!("{start}_{k}") };
         if req.rename && RESERVED.contains(&name.as_str()) {
             continue;
         }
@@ -1242,6 +1286,39 @@ mod tests {
         let c = claimed(claim(&request(&out, "u", Path::new("s3://bucket/other/u.png"), &s, false)).unwrap());
         assert_eq!(c.name(), "u_2");
         drop(c);
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_rerun_finds_the_input_under_the_name_another_batch_gave_it() {
+        let d = folder("family");
+        let s = suffixes();
+        let (a, b) = (d.join("d1").join("a.png"), d.join("d2").join("a.png"));
+        for (p, bytes) in [(&a, b"one".as_slice()), (&b, b"two".as_slice())] {
+            fs::create_dir_all(p.parent().unwrap()).unwrap();
+            fs::write(p, bytes).unwrap();
+        }
+        let out = d.join("out");
+        fs::create_dir_all(&out).unwrap();
+        // a batch of both named them a_png and a_png_2
+        for (name, p) in [("a_png", &a), ("a_png_2", &b)] {
+            let side = serde_json::json!({"input": p, "input_resolved": input_key(p)});
+            fs::write(out.join(format!("{name}.json")), side.to_string()).unwrap();
+        }
+        // alone, or first in a batch, each is planned as `a` or `a_png`
+        let got = claim(&request(&out, "a", &b, &s, false)).unwrap();
+        assert!(matches!(got, Resolution::Skipped(Skip::Done, ref p) if p.ends_with("a_png_2.json")), "{got:?}");
+        let got = claim(&request(&out, "a_png", &b, &s, false)).unwrap();
+        assert!(matches!(got, Resolution::Skipped(Skip::Done, ref p) if p.ends_with("a_png_2.json")), "{got:?}");
+        let got = claim(&request(&out, "a_png_2", &a, &s, false)).unwrap();
+        assert!(matches!(got, Resolution::Skipped(Skip::Done, ref p) if p.ends_with("a_png.json")), "{got:?}");
+        // a third input of that stem is another: the next free name
+        let c = d.join("d3").join("a.png");
+        fs::create_dir_all(c.parent().unwrap()).unwrap();
+        fs::write(&c, b"three").unwrap();
+        let got = claimed(claim(&request(&out, "a_png", &c, &s, false)).unwrap());
+        assert_eq!(got.name(), "a_png_3");
+        drop(got);
         fs::remove_dir_all(&d).unwrap();
     }
 

@@ -513,3 +513,37 @@ def test_two_dives_videos_of_one_name_are_two_inputs(tmp_path, monkeypatch):
     assert run("dive1") == ("done", "v.json")
     assert run("dive2") == ("done", "v_2.json")
     assert run("dive1") == ("skipped", "v.json") and run("dive2") == ("skipped", "v_2.json")
+
+
+@pytest.mark.parametrize("dest", ["folder", "memory"])
+def test_a_rerun_with_the_inputs_of_one_stem_in_another_order_skips_them(tmp_path, dest):
+    """``uwhl restore d1/a.png d2/a.png`` names them a_png and a_png_2; a
+    rerun given d2 first (or with a new d0 among them) named d2 a_png, found
+    d1's sidecar there, and restored it again as a_png_2_2. The names a
+    batch may have given an input (its stem, stem_ext, and their _2, _3,
+    ...) are looked at for its own sidecar first."""
+    import fsspec
+    from uwhl_rs.batch import restore_many
+    fs = fsspec.filesystem("memory")
+    for k, d in enumerate(["d0", "d1", "d2"]):
+        (tmp_path / d).mkdir()
+        im, _ = synth.demo_input(48, 64, water_type="II", seed=20 + k)
+        images.write_image(tmp_path / d / "a.png", im, bits=8, encoding="linear")
+    out = str(tmp_path / "out") if dest == "folder" else "memory://s14o/out"
+
+    def run(*ds):
+        rows = restore_many([str(tmp_path / d / "a.png") for d in ds], out)
+        return {os.path.basename(os.path.dirname(r["input"])): (r["status"], os.path.basename(r["sidecar"]))
+                for _, r in rows.iterrows()}
+
+    try:
+        assert run("d1", "d2") == {"d1": ("done", "a_png.json"), "d2": ("done", "a_png_2.json")}
+        assert run("d2", "d1") == {"d1": ("skipped", "a_png.json"), "d2": ("skipped", "a_png_2.json")}
+        got = run("d0", "d1", "d2")
+        assert got["d1"] == ("skipped", "a_png.json") and got["d2"] == ("skipped", "a_png_2.json")
+        assert got["d0"][0] == "done" and got["d0"][1] not in ("a_png.json", "a_png_2.json")
+        # alone, each is found under the name a batch of several gave it
+        assert run("d2") == {"d2": ("skipped", "a_png_2.json")}
+    finally:
+        if dest == "memory":
+            fs.rm("/s14o", recursive=True)
