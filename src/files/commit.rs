@@ -656,7 +656,7 @@ fn earlier_name(req: &Request<'_>, key: &Path, hash: &mut Option<Option<String>>
     let ext = crate::files::jobs::extension(req.input);
     let family = [stem.clone(), format!("{stem}_{ext}")];
     // the planned name and its own sequence are the claim's to try
-    if !family.iter().any(|f| req.base == f || req.base.strip_prefix(f.as_str()).is_some_and(|r| is_counter(r))) {
+    if !family.iter().any(|f| req.base == f || req.base.strip_prefix(f.as_str()).is_some_and(is_counter)) {
         return None;
     }
     for base in &family {
