@@ -299,6 +299,11 @@ def _same_object(given: str, input: str, storage_options: dict) -> bool:
 
 
 def _records(rec: tuple | None, input: str, hashes: dict, storage_options: dict) -> bool:
+    """Whether the sidecar that says ``rec`` is ``input``'s (:func:`_match`)."""
+    return _match(rec, input, hashes, storage_options) is not None
+
+
+def _match(rec: tuple | None, input: str, hashes: dict, storage_options: dict) -> str | None:
     """Whether the sidecar that says ``rec`` (:func:`_recorded`) is the
     restoration of ``input`` (a URL or a local path as the batch was given
     it), as ``commit::sidecar_is_inputs`` decides in a folder: a URL by
@@ -307,14 +312,15 @@ def _records(rec: tuple | None, input: str, hashes: dict, storage_options: dict)
     the only thing a relative path recorded by a run in another folder
     says). A stored input is never fetched to be hashed: another spelling
     of its URL is restored again under the next name. ``hashes`` keeps
-    each local input's hash once computed."""
+    each local input's hash once computed. Returns ``"named"`` (by its URL
+    or path), ``"contents"`` (by the hash alone) or None."""
     if rec is None:
-        return False
+        return None
     given, resolved, want = rec
     if is_url(input):
-        return _same_object(given, input, storage_options)
+        return "named" if _same_object(given, input, storage_options) else None
     if is_url(given) or "\0" in given:
-        return False
+        return None
     real = os.path.realpath(local_path(input))
     if resolved is not None:
         named = resolved == real
@@ -322,30 +328,42 @@ def _records(rec: tuple | None, input: str, hashes: dict, storage_options: dict)
         named = given == input or os.path.realpath(given) == real
     else:
         named = want is None and (given == input or os.path.realpath(given) == real)
-    if named or want is None:
-        return named
+    if named:
+        return "named"
+    if want is None:
+        return None
     if input not in hashes:
         try:
             with open(local_path(input), "rb") as f:
                 hashes[input] = sha256_of(f)
         except OSError:  # unreadable now: its own task says why
             hashes[input] = None
-    return hashes[input] == want
+    return "contents" if hashes[input] == want else None
+
+
+#: names in a row without a sidecar after which a sequence is no longer looked along (``commit::FAMILY_GAP``)
+FAMILY_GAP = 16
 
 
 def _family(it, key, existing: dict) -> list:
     """The names other than its planned one that a batch may have given
     ``it`` (stem ``S``, extension ``E``: ``S``, ``S_E``, each followed by
-    ``_2``, ``_3``, ...), each sequence up to its first name without a
-    sidecar in ``existing``, as (name, sidecar key)."""
+    ``_2``, ``_3``, ...) that hold a sidecar in ``existing``, each sequence
+    until :data:`FAMILY_GAP` names in a row hold none, as (name, sidecar
+    key)."""
     stem, ext = os.path.splitext(posixpath.basename(it.input.rstrip("/")))
     out = []
     for base in (stem, f"{stem}_{ext[1:].lower()}"):
+        missing = 0
         for k in range(1, MAX_NAMES + 1):
             name = base if k == 1 else f"{base}_{k}"
             side = key(it, name)
             if side not in existing:
-                break
+                missing += 1
+                if missing > FAMILY_GAP:
+                    break
+                continue
+            missing = 0
             if name != it.name:
                 out.append((name, side))
     return out
@@ -393,12 +411,17 @@ def stored_names(items: list, existing: dict, storage_options: dict) -> tuple[li
     # an earlier batch may have named an input otherwise (it held other
     # inputs of its stem, or in another order): its sidecar there decides,
     # as commit::earlier_name does in a folder
+    # (by its name only: a sidecar of another file with the same bytes is
+    # that file's, which an --overwrite would write over)
     family = {id(it): _family(it, key, existing) for it in items}
-    recs = read(sorted({side for v in family.values() for _, side in v}))
+    planned = {id(it): key(it, it.name) for it in items}
+    recs = read(sorted({side for v in family.values() for _, side in v} | {p for p in planned.values() if p in existing}))
     found: dict = {}
     for it in items:
+        if _match(recs.get(planned[id(it)]), it.input, hashes, storage_options) == "named":
+            continue
         for name, side in family[id(it)]:
-            if (it.out_dir, name) not in found and _records(recs.get(side), it.input, hashes, storage_options):
+            if (it.out_dir, name) not in found and _match(recs.get(side), it.input, hashes, storage_options) == "named":
                 found[(it.out_dir, name)] = it
                 break
     placed = {id(it): name for (_, name), it in found.items()}

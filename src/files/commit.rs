@@ -274,7 +274,21 @@ fn file_sha256(p: &Path) -> Option<String> {
 /// sidecar's `input_sha256`, computed for the input only when the names
 /// do not decide). `hash` caches the input's hash over one [`claim`].
 fn sidecar_is_inputs(path: &Path, input: &Path, key: &Path, hash: &mut Option<Option<String>>) -> bool {
-    let Some((given, resolved, recorded)) = sidecar_input(path) else { return false };
+    sidecar_match(path, input, key, hash) != Match::No
+}
+
+/// How a sidecar is an input's ([`sidecar_is_inputs`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Match {
+    No,
+    /// by its path or URL
+    Named,
+    /// by the SHA-256 of its bytes only (another file with the same bytes, or a relative path from elsewhere)
+    Contents,
+}
+
+fn sidecar_match(path: &Path, input: &Path, key: &Path, hash: &mut Option<Option<String>>) -> Match {
+    let Some((given, resolved, recorded)) = sidecar_input(path) else { return Match::No };
     let named = match &resolved {
         // the resolved path, where recorded, decides by name: a relative
         // `input` equal to ours may name another file from another folder
@@ -289,11 +303,11 @@ fn sidecar_is_inputs(path: &Path, input: &Path, key: &Path, hash: &mut Option<Op
         None => recorded.is_none() && (given == input || input_key(&given) == key),
     };
     if named {
-        return true;
+        return Match::Named;
     }
     match recorded {
-        Some(h) => hash.get_or_insert_with(|| file_sha256(input)).as_deref() == Some(h.as_str()),
-        None => false,
+        Some(h) if hash.get_or_insert_with(|| file_sha256(input)).as_deref() == Some(h.as_str()) => Match::Contents,
+        _ => Match::No,
     }
 }
 
@@ -646,11 +660,15 @@ fn claim_in_place(claim_file: &Path, record: &[u8]) -> io::Result<Option<File>> 
 /// `req.dir`, when a batch would have named it otherwise than `req.base`:
 /// the names a batch gives an input of stem `S` and extension `E` are `S`,
 /// `S_E` (when inputs of one folder share the stem) and those followed by
-/// `_2`, `_3`, ... (docs/OUTPUTS.md "Names"). Each sequence is looked at
-/// up to its first name without a sidecar; the first sidecar that is this
-/// input's ([`sidecar_is_inputs`]) gives the name. So a rerun whose batch
-/// gives the inputs of one stem in another order, or holds more of them,
-/// skips what is done instead of restoring it again under a new name.
+/// `_2`, `_3`, ... (docs/OUTPUTS.md "Names already in use"). Each sequence
+/// is looked at until [`FAMILY_GAP`] names in a row have no sidecar (an
+/// input that failed, or was skipped, leaves a hole). A sidecar that names
+/// this input by its path decides, the planned name's first; one that
+/// matches only by the bytes' hash (another file with the same bytes) is
+/// taken only without `--overwrite` (skipped as done: with it, that file's
+/// outputs would be written over). So a rerun whose batch gives the inputs
+/// of one stem in another order, or holds more of them, skips what is
+/// done instead of restoring it again under a new name.
 fn earlier_name(req: &Request<'_>, key: &Path, hash: &mut Option<Option<String>>) -> Option<String> {
     let stem = req.input.file_stem()?.to_string_lossy().into_owned();
     let ext = crate::files::jobs::extension(req.input);
@@ -659,20 +677,40 @@ fn earlier_name(req: &Request<'_>, key: &Path, hash: &mut Option<Option<String>>
     if !family.iter().any(|f| req.base == f || req.base.strip_prefix(f.as_str()).is_some_and(is_counter)) {
         return None;
     }
+    let planned = req.dir.join(format!("{}.json", req.base));
+    if planned.exists() && sidecar_match(&planned, req.input, key, hash) == Match::Named {
+        return None;
+    }
+    let mut by_contents = None;
     for base in &family {
+        let mut missing = 0;
         for k in 1..=MAX_NAMES {
             let name = if k == 1 { base.clone() } else { format!("{base}_{k}") };
             let sidecar = req.dir.join(format!("{name}.json"));
             if !sidecar.exists() {
-                break;
+                missing += 1;
+                if missing > FAMILY_GAP {
+                    break;
+                }
+                continue;
             }
-            if name != req.base && sidecar_is_inputs(&sidecar, req.input, key, hash) {
-                return Some(name);
+            missing = 0;
+            if name == req.base {
+                continue;
+            }
+            match sidecar_match(&sidecar, req.input, key, hash) {
+                Match::Named => return Some(name),
+                Match::Contents if by_contents.is_none() && !req.overwrite => by_contents = Some(name),
+                _ => {}
             }
         }
     }
-    None
+    by_contents
 }
+
+/// Names in a row without a sidecar after which [`earlier_name`] stops
+/// looking along a sequence.
+const FAMILY_GAP: usize = 16;
 
 /// Whether `r` is `_N` with N a number of at least 2 (a name's counter).
 fn is_counter(r: &str) -> bool {
@@ -1318,6 +1356,29 @@ mod tests {
         fs::write(&c, b"three").unwrap();
         let got = claimed(claim(&request(&out, "a_png", &c, &s, false)).unwrap());
         assert_eq!(got.name(), "a_png_3");
+        drop(got);
+        // a hole in the sequence (an input that failed): looked past
+        let side = serde_json::json!({"input": &c, "input_resolved": input_key(&c)});
+        fs::write(out.join("a_png_5.json"), side.to_string()).unwrap();
+        let got = claim(&request(&out, "a", &c, &s, false)).unwrap();
+        assert!(matches!(got, Resolution::Skipped(Skip::Done, ref p) if p.ends_with("a_png_5.json")), "{got:?}");
+        // the same bytes as d1's photo, elsewhere: done by its contents, but
+        // never redone over d1's outputs with --overwrite
+        let e = d.join("d4").join("a.png");
+        fs::create_dir_all(e.parent().unwrap()).unwrap();
+        fs::write(&e, b"one").unwrap();
+        let side = serde_json::json!({"input": &a, "input_resolved": input_key(&a), "metadata": {"input_sha256": sha256_of(&a)}});
+        fs::write(out.join("a_png.json"), side.to_string()).unwrap();
+        let got = claim(&request(&out, "a_png_6", &e, &s, false)).unwrap();
+        assert!(matches!(got, Resolution::Skipped(Skip::Done, ref p) if p.ends_with("a_png.json")), "{got:?}");
+        let got = claimed(claim(&request(&out, "a_png_6", &e, &s, true)).unwrap());
+        assert_eq!(got.name(), "a_png_6");
+        drop(got);
+        // an input whose planned name holds its own sidecar by path stays there
+        let side = serde_json::json!({"input": &e, "input_resolved": input_key(&e), "metadata": {"input_sha256": sha256_of(&e)}});
+        fs::write(out.join("a_png_6.json"), side.to_string()).unwrap();
+        let got = claim(&request(&out, "a_png_6", &e, &s, true)).unwrap();
+        assert!(matches!(got, Resolution::Claimed(ref c) if c.name() == "a_png_6"), "{got:?}");
         drop(got);
         fs::remove_dir_all(&d).unwrap();
     }

@@ -547,3 +547,34 @@ def test_a_rerun_with_the_inputs_of_one_stem_in_another_order_skips_them(tmp_pat
     finally:
         if dest == "memory":
             fs.rm("/s14o", recursive=True)
+
+
+@pytest.mark.parametrize("dest", ["folder", "memory"])
+def test_a_hole_among_the_names_of_a_stem_is_looked_past(tmp_path, dest):
+    """d1 alone is ``a``; then d1 d2 d3 together: d1 is found at ``a``, d2
+    and d3 take ``a_png_2`` and ``a_png_3``, and ``a_png`` stays empty. A
+    look that stopped at the first name without a sidecar restored d3 again
+    when it came alone."""
+    import fsspec
+    from uwhl_rs.batch import restore_many
+    fs = fsspec.filesystem("memory")
+    for k, d in enumerate(["d1", "d2", "d3"]):
+        (tmp_path / d).mkdir()
+        im, _ = synth.demo_input(48, 64, water_type="II", seed=30 + k)
+        images.write_image(tmp_path / d / "a.png", im, bits=8, encoding="linear")
+    out = str(tmp_path / "out") if dest == "folder" else "memory://s14g/out"
+
+    def run(*ds):
+        rows = restore_many([str(tmp_path / d / "a.png") for d in ds], out)
+        return {os.path.basename(os.path.dirname(r["input"])): (r["status"], os.path.basename(r["sidecar"]))
+                for _, r in rows.iterrows()}
+
+    try:
+        assert run("d1") == {"d1": ("done", "a.json")}
+        got = run("d1", "d2", "d3")
+        assert got["d1"] == ("skipped", "a.json") and got["d2"][0] == got["d3"][0] == "done"
+        assert run("d3") == {"d3": ("skipped", got["d3"][1])}
+        assert run("d2") == {"d2": ("skipped", got["d2"][1])}
+    finally:
+        if dest == "memory":
+            fs.rm("/s14g", recursive=True)
