@@ -146,14 +146,9 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     let _presence = if to_stdout {
         None
     } else {
-        let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
-        match crate::files::jobs::enter_folder(&opts.outdir, &mut || super::run::say_notes(&wait_note, opts, err)) {
+        match super::run::enter_outdir(opts, err) {
             Ok(p) => p,
-            Err(why) => {
-                let e = Failure::new(Kind::Write, why);
-                report(err, opts.json_errors, Some(&opts.outdir), &e);
-                return e.kind.exit_code();
-            }
+            Err(code) => return code,
         }
     };
     let mut sink = if to_stdout { Sink::Stdout(out) } else { Sink::Folder(&opts.outdir, out) };

@@ -108,12 +108,26 @@ pub fn init_threads(threads: Option<usize>) {
 pub(crate) fn outdir_usable(opts: &Options, err: &mut dyn Write) -> Result<(), u8> {
     match crate::files::jobs::outdir_problem(&opts.outdir) {
         None => Ok(()),
-        Some(why) => {
-            let e = Failure::new(Kind::Write, why);
-            report(err, opts.json_errors, Some(&opts.outdir), &e);
-            Err(e.kind.exit_code())
-        }
+        Some(why) => Err(write_refused(opts, err, why)),
     }
+}
+
+/// A pipe's output folder made, swept and held for the run
+/// (`crate::files::jobs::enter_folder`; keep what this returns), a note
+/// said while another program's lock keeps it; the exit code when it
+/// cannot be made.
+pub(crate) fn enter_outdir(opts: &Options, err: &mut dyn Write) -> Result<Option<std::fs::File>, u8> {
+    let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
+    let entered = crate::files::jobs::enter_folder(&opts.outdir, &mut || say_notes(&wait_note, opts, err));
+    entered.map_err(|why| write_refused(opts, err, why))
+}
+
+/// The output folder cannot take outputs (`why`): reported once, and the
+/// exit code returned.
+fn write_refused(opts: &Options, err: &mut dyn Write, why: String) -> u8 {
+    let e = Failure::new(Kind::Write, why);
+    report(err, opts.json_errors, Some(&opts.outdir), &e);
+    e.kind.exit_code()
 }
 
 fn load_run_masks(opts: &Options, err: &mut dyn Write) -> Result<Masks, u8> {
@@ -147,7 +161,7 @@ fn sidecar_flags(side: &Value) -> Vec<&str> {
 
 /// Remarks that are not errors, one `uwhl-rs: note:` line each on stderr
 /// (none with `-q`).
-pub(crate) fn say_notes(notes: &[String], opts: &Options, err: &mut dyn Write) {
+fn say_notes(notes: &[String], opts: &Options, err: &mut dyn Write) {
     if !opts.quiet {
         for n in notes {
             let _ = writeln!(err, "{}", printable(&format!("uwhl-rs: note: {n}")));
@@ -315,10 +329,8 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         // made now, so that the summary below holds it from the start
         // (crate::files::jobs::enter_folder says why); one that cannot be
         // made would fail every input and the summary, one by one
-        if let Err(e) = std::fs::create_dir_all(&opts.outdir) {
-            let e = Failure::new(Kind::Write, format!("cannot make the output folder: {e}"));
-            report(err, opts.json_errors, Some(&opts.outdir), &e);
-            return e.kind.exit_code();
+        if let Err(why) = crate::files::jobs::make_folder(&opts.outdir) {
+            return write_refused(opts, err, why);
         }
     }
     for d in dirs {
@@ -500,14 +512,9 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
     };
     dive_notes(opts, err);
     let mut seq = sequence(opts);
-    let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
-    let _presence = match crate::files::jobs::enter_folder(&opts.outdir, &mut || say_notes(&wait_note, opts, err)) {
+    let _presence = match enter_outdir(opts, err) {
         Ok(p) => p,
-        Err(why) => {
-            let e = Failure::new(Kind::Write, why);
-            report(err, opts.json_errors, Some(&opts.outdir), &e);
-            return e.kind.exit_code();
-        }
+        Err(code) => return code,
     };
     // stdout gone (closed pipe, full disk): the frames' lines cannot be
     // reported, so the loop stops instead of restoring frames nobody hears of

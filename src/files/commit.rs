@@ -670,9 +670,8 @@ fn claim_in_place(claim_file: &Path, record: &[u8]) -> io::Result<Option<File>> 
 /// of one stem in another order, or holds more of them, skips what is
 /// done instead of restoring it again under a new name.
 fn earlier_name(req: &Request<'_>, key: &Path, hash: &mut Option<Option<String>>) -> Option<String> {
-    let stem = req.input.file_stem()?.to_string_lossy().into_owned();
-    let ext = crate::files::jobs::extension(req.input);
-    let family = [stem.clone(), format!("{stem}_{ext}")];
+    req.input.file_stem()?;
+    let family = crate::files::jobs::name_bases(req.input);
     // the planned name and its own sequence are the claim's to try
     if !family.iter().any(|f| req.base == f || req.base.strip_prefix(f.as_str()).is_some_and(is_counter)) {
         return None;

@@ -191,7 +191,7 @@ pub fn lock_shared_within(f: &fs::File) -> bool {
 /// `waiting` is called if another program's lock keeps the folder
 /// ([`lock_shared_waiting`]).
 pub fn enter_folder(dir: &Path, waiting: &mut dyn FnMut()) -> Result<Option<fs::File>, String> {
-    fs::create_dir_all(dir).map_err(|e| format!("cannot make the output folder: {e}"))?;
+    make_folder(dir)?;
     remove_stale_temps(dir, dir);
     Ok(hold_folder_waiting(dir, waiting))
 }
@@ -365,6 +365,21 @@ pub fn inside_outdir(outdir: &Path) -> String {
     format!("is inside the output folder {}: not taken as an input", outdir.display())
 }
 
+/// The two bases [`name_jobs`] names an input from: its stem `S`, and
+/// `S_E` (E its lowercased extension) when inputs of one folder share the
+/// stem; either may then be followed by `_2`, `_3`, ...
+pub fn name_bases(p: &Path) -> [String; 2] {
+    let stem = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let with_ext = format!("{stem}_{}", extension(p));
+    [stem, with_ext]
+}
+
+/// Makes the output folder `dir` (and its parents) if it is missing; the
+/// error says the folder cannot be made.
+pub fn make_folder(dir: &Path) -> Result<(), String> {
+    fs::create_dir_all(dir).map_err(|e| format!("cannot make the output folder: {e}"))
+}
+
 /// The output names of a batch's inputs, given in discovery order as
 /// (input, folder relative to the output folder): the naming rules of
 /// [`collect_jobs`], which object-storage batches (listed by fsspec, not
@@ -372,7 +387,7 @@ pub fn inside_outdir(outdir: &Path) -> String {
 /// `NAME_ext`, then `NAME_ext_2`, ...; a name one of whose output files
 /// (`NAME` + each of `suffixes`, and `NAME.json`) is taken gets `NAME_2`, ...
 pub fn name_jobs(found: &[(PathBuf, PathBuf)], suffixes: &[String]) -> Vec<String> {
-    let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = |p: &Path| name_bases(p)[0].clone();
     let mut count: BTreeMap<(PathBuf, String), usize> = BTreeMap::new();
     for (p, rel) in found {
         *count.entry((rel.clone(), stem(p))).or_insert(0) += 1;
@@ -381,9 +396,9 @@ pub fn name_jobs(found: &[(PathBuf, PathBuf)], suffixes: &[String]) -> Vec<Strin
     found
         .iter()
         .map(|(p, rel)| {
-            let s = stem(p);
+            let [s, with_ext] = name_bases(p);
             let shared = count.get(&(rel.clone(), s.clone())).copied().unwrap_or(0) > 1;
-            let base = if shared { format!("{s}_{}", extension(p)) } else { s };
+            let base = if shared { with_ext } else { s };
             let files = |name: &str| -> Vec<(PathBuf, String)> {
                 suffixes
                     .iter()
