@@ -515,6 +515,24 @@ def test_two_dives_videos_of_one_name_are_two_inputs(tmp_path, monkeypatch):
     assert run("dive1") == ("skipped", "v.json") and run("dive2") == ("skipped", "v_2.json")
 
 
+def _dives_of_one_stem(tmp_path, dives, seed, out):
+    """A different photo ``a.png`` in each of ``dives`` under ``tmp_path``;
+    returns run(*dives): restore_many of those photos into ``out``, as
+    {dive: (status, sidecar name)}."""
+    from uwhl_rs.batch import restore_many
+    for k, d in enumerate(dives):
+        (tmp_path / d).mkdir()
+        im, _ = synth.demo_input(48, 64, water_type="II", seed=seed + k)
+        images.write_image(tmp_path / d / "a.png", im, bits=8, encoding="linear")
+
+    def run(*ds):
+        rows = restore_many([str(tmp_path / d / "a.png") for d in ds], out)
+        return {os.path.basename(os.path.dirname(r["input"])): (r["status"], os.path.basename(r["sidecar"]))
+                for _, r in rows.iterrows()}
+
+    return run
+
+
 @pytest.mark.parametrize("dest", ["folder", "memory"])
 def test_a_rerun_with_the_inputs_of_one_stem_in_another_order_skips_them(tmp_path, dest):
     """``uwhl restore d1/a.png d2/a.png`` names them a_png and a_png_2; a
@@ -523,19 +541,9 @@ def test_a_rerun_with_the_inputs_of_one_stem_in_another_order_skips_them(tmp_pat
     batch may have given an input (its stem, stem_ext, and their _2, _3,
     ...) are looked at for its own sidecar first."""
     import fsspec
-    from uwhl_rs.batch import restore_many
     fs = fsspec.filesystem("memory")
-    for k, d in enumerate(["d0", "d1", "d2"]):
-        (tmp_path / d).mkdir()
-        im, _ = synth.demo_input(48, 64, water_type="II", seed=20 + k)
-        images.write_image(tmp_path / d / "a.png", im, bits=8, encoding="linear")
     out = str(tmp_path / "out") if dest == "folder" else "memory://s14o/out"
-
-    def run(*ds):
-        rows = restore_many([str(tmp_path / d / "a.png") for d in ds], out)
-        return {os.path.basename(os.path.dirname(r["input"])): (r["status"], os.path.basename(r["sidecar"]))
-                for _, r in rows.iterrows()}
-
+    run = _dives_of_one_stem(tmp_path, ["d0", "d1", "d2"], 20, out)
     try:
         assert run("d1", "d2") == {"d1": ("done", "a_png.json"), "d2": ("done", "a_png_2.json")}
         assert run("d2", "d1") == {"d1": ("skipped", "a_png.json"), "d2": ("skipped", "a_png_2.json")}
@@ -556,19 +564,9 @@ def test_a_hole_among_the_names_of_a_stem_is_looked_past(tmp_path, dest):
     look that stopped at the first name without a sidecar restored d3 again
     when it came alone."""
     import fsspec
-    from uwhl_rs.batch import restore_many
     fs = fsspec.filesystem("memory")
-    for k, d in enumerate(["d1", "d2", "d3"]):
-        (tmp_path / d).mkdir()
-        im, _ = synth.demo_input(48, 64, water_type="II", seed=30 + k)
-        images.write_image(tmp_path / d / "a.png", im, bits=8, encoding="linear")
     out = str(tmp_path / "out") if dest == "folder" else "memory://s14g/out"
-
-    def run(*ds):
-        rows = restore_many([str(tmp_path / d / "a.png") for d in ds], out)
-        return {os.path.basename(os.path.dirname(r["input"])): (r["status"], os.path.basename(r["sidecar"]))
-                for _, r in rows.iterrows()}
-
+    run = _dives_of_one_stem(tmp_path, ["d1", "d2", "d3"], 30, out)
     try:
         assert run("d1") == {"d1": ("done", "a.json")}
         got = run("d1", "d2", "d3")
@@ -578,3 +576,4 @@ def test_a_hole_among_the_names_of_a_stem_is_looked_past(tmp_path, dest):
     finally:
         if dest == "memory":
             fs.rm("/s14g", recursive=True)
+
