@@ -29,7 +29,7 @@ from .console import Console
 from .errors import EXIT, BatchError
 from .files import output_suffixes
 from .inputs import GLOB_CHARS, collect_inputs, supported
-from .outdir import CSV_COLUMNS, FILE_NAME, SummaryWriter, stored_names
+from .outdir import CSV_COLUMNS, FILE_NAME, SummaryWriter, folder_done, stored_names
 from .storage import (EXTRA, check_output_bucket, filesystem, is_url, join, local_path, need, parse_storage_options,
                       scheme, storage_error)
 from .tasks import COLUMNS, Item, begin, context, row, scratch_root, skipped_row
@@ -167,11 +167,11 @@ def plan_batch(inputs: list[str], out: str, *, format: str = "jpg", contact: boo
         names = _core.name_jobs([(u, rel) for u, rel in found], suffixes)
         base = local_path(out)
         plan.items += [Item(u, join(base, rel), n) for (u, rel), n in zip(found, names)]
-    # what is done already: the sidecars at the destination, listed once
-    # (in a folder the claims tell this input's sidecar from another's)
+    # what is done already: the sidecars at the destination that record
+    # their input (in a folder, each input's claim decides the rest)
     done = []
     if out_local:
-        done = [it for it in plan.items if os.path.exists(os.path.join(it.out_dir, it.name + ".json"))]
+        done = folder_done(plan.items)
     elif plan.items:
         fs, root = filesystem(out, so)
         try:

@@ -22,7 +22,7 @@ from .sidecars import SidecarError, display, is_sha256, local_outputs_problem
 from .sidecars import parse as parse_sidecar
 from .storage import Folder, filesystem, is_url, join, local_path, read_bytes, read_regular, scheme, sha256_of
 
-__all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "stored_names", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
+__all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "stored_names", "folder_done", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
            "collect_sidecars", "failed_inputs"]
 
 FILE_NAME = "summary.csv"
@@ -339,6 +339,24 @@ def _match(rec: tuple | None, input: str, hashes: dict, storage_options: dict) -
         except OSError:  # unreadable now: its own task says why
             hashes[input] = None
     return "contents" if hashes[input] == want else None
+
+
+def folder_done(items: list) -> list:
+    """The items (of a batch into local folders) whose planned sidecar
+    records them (:func:`_match`: by path, or by the bytes' hash), read
+    once each; what a cluster's batch settles as skipped without a task.
+    Another input's sidecar at the name is not this one's: its claim then
+    finds it a name (``commit::claim``)."""
+    hashes: dict = {}
+    done = []
+    for it in items:
+        try:
+            data = read_regular(os.path.join(it.out_dir, it.name + ".json"), SIDECAR_MAX_BYTES)
+        except (OSError, ValueError):
+            continue
+        if _records(_recorded(data), it.input, hashes, {}):
+            done.append(it)
+    return done
 
 
 #: names in a row without a sidecar after which a sequence is no longer looked along (``commit::FAMILY_GAP``)

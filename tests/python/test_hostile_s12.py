@@ -577,3 +577,20 @@ def test_a_hole_among_the_names_of_a_stem_is_looked_past(tmp_path, dest):
         if dest == "memory":
             fs.rm("/s14g", recursive=True)
 
+
+def test_a_cluster_batch_into_a_folder_settles_as_done_only_the_inputs_own_sidecars(tmp_path):
+    """A batch on a cluster settles what its plan finds done without a
+    task. Into a local folder, any NAME.json counted, so dive2/a.png was
+    skipped as done behind dive1's a.json (the claims, which tell them
+    apart, never ran). The plan now takes a sidecar only if it records the
+    input."""
+    from uwhl_rs import batch
+    out = str(tmp_path / "out")
+    run = _dives_of_one_stem(tmp_path, ["dive1", "dive2"], 40, out)
+    assert run("dive1") == {"dive1": ("done", "a.json")}
+    assert batch.plan_batch([str(tmp_path / "dive2" / "a.png")], out).done == set()
+    assert batch.plan_batch([str(tmp_path / "dive1" / "a.png")], out).done == {0}
+    # a planted file at the name is no sidecar of anything
+    (tmp_path / "out" / "b.json").write_text("{not json")
+    (tmp_path / "dive1" / "b.png").write_bytes((tmp_path / "dive1" / "a.png").read_bytes())
+    assert batch.plan_batch([str(tmp_path / "dive1" / "b.png")], out).done == set()
