@@ -161,3 +161,49 @@ def test_water_from_one_photo_restores_another_with_its_type():
         uwhl_rs.restore(b_img, water=fit, water_types=["3C"])
     with pytest.raises(uwhl_rs.ParameterError):
         uwhl_rs.restore(b_img, water={"beta": [0, 1, 1]})
+
+
+def test_a_given_light_path_removes_that_tint_in_the_fitted_water():
+    """METHOD §13.4 with the path given: the display's gains are e^(beta_c d)
+    of the fitted water (up to one factor), read back from the display over
+    the radiance; and on a warm scene under light that crossed 6 m of the
+    water, the true path brings the colours nearer the truth than the
+    photo's own estimate, whose warm content pulls it short."""
+    img, j, z, beta, a = _render("3C", 0.23, seed=4)
+    d_true = 6.0
+    e = np.exp(-beta * d_true)
+    warm = np.array([1.0, 0.75, 0.5])  # the scene's own colour: orange
+    jj = j * warm
+    t = np.exp(-beta[None, None, :] * z[:, :, None])
+    lit = jj * (e / e.max()) * t + a * (1 - t) + np.random.default_rng(4).normal(0, 0.003, j.shape)
+    lit = np.clip(lit, 0, 1).astype(np.float32)
+    given = uwhl_rs.restore(lit, distance=z, light_path=d_true)
+    assert given.distance["light_path"] == pytest.approx(d_true) and given.distance["light_path_given"]
+    est = uwhl_rs.restore(lit, distance=z)
+    assert not est.distance["light_path_given"] and est.distance["light_path"] < d_true - 1, est.distance
+    # the gains, read back where nothing is clipped and the colour kept (a
+    # high confidence: the settling of far noise moves the median by 1e-4)
+    fb = np.array(given.water["beta"])
+    ok = (given.confidence > 0.9) & (given.image.max(axis=2) < 0.98) & (given.radiance.min(axis=2) > 0.02)
+    assert ok.sum() > 1000
+    g = given.image[ok] / given.radiance[ok]
+    want = np.exp((fb - fb[2]) * d_true)
+    assert np.allclose(np.median(g / g[:, 2:3], axis=0), want / want[2], rtol=1e-3), (np.median(g / g[:, 2:3], axis=0), want)
+    obj = np.ones(z.shape, bool)
+    with_path = truth.score(given.image, jj, obj)["median"]
+    without = truth.score(est.image, jj, obj)["median"]
+    assert with_path < without - 1, (with_path, without)
+
+
+def test_a_light_path_needs_a_distance_and_metres_in_range():
+    img, _, z, _, _ = _render("3C", 0.23, seed=5)
+    with pytest.raises(uwhl_rs.ParameterError, match="give distance too"):
+        uwhl_rs.restore(img, light_path=5)
+    with pytest.raises(uwhl_rs.ParameterError, match="give distance too"):
+        uwhl_rs.Sequence(light_path=5)
+    for bad in (-1, float("nan"), float("inf"), 1e4, "5", True):
+        with pytest.raises(uwhl_rs.ParameterError, match="light_path"):
+            uwhl_rs.restore(img, distance=z, light_path=bad)
+    # 0 is a path (a strobe in the dark): the display then takes no tint out
+    res = uwhl_rs.restore(img, distance=z, light_path=0)
+    assert res.distance["light_path"] == 0 and res.distance["light_path_given"]
