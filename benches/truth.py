@@ -343,15 +343,11 @@ def method_rows(r: Render, only=None) -> tuple[dict, dict]:
                           BETA_B[r.water_type] / synth.JERLOV[r.water_type][1], BETA_B[r.water_type]])
     variants = {"distance": z, "distance_holes": holes(z, 0.3, seed=len(r.name)),
                 "distance_noise": z * np.random.default_rng(len(r.name)).lognormal(0.0, 0.1, z.shape).astype(np.float32),
-                "distance_other": np.ascontiguousarray(z[::-1, ::-1]),
-                "distance_light": z, "distance_light_long": z}
-    # the light path given (METHOD §13.4): the true one, and 2 m too long
-    path = LIGHT_PATH if r.light == "tinted" else 0.0
-    given = {"distance_light": {"light_path": path}, "distance_light_long": {"light_path": path + 2.0}}
+                "distance_other": np.ascontiguousarray(z[::-1, ::-1])}
     for key, zz in variants.items():
         if not want(key):
             continue
-        res = uwhl_rs.restore(r.image, distance=zz, **given.get(key, {}))
+        res = uwhl_rs.restore(r.image, distance=zz)
         out[key] = res.image
         f = {"type": res.water_type, "rho": rho_of(r.distance, res.transmission), "used": res.distance["used"]}
         if res.water is not None:

@@ -93,11 +93,9 @@ def parse_water_types(values: list[str]) -> list[Union[str, tuple[str, float, fl
     (name, beta_br, beta_bg); ParameterError with the binary's message."""
 def check_distance(
     distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool = False, port: bool = False,
-    light: bool = False,
 ) -> None:
     """The checks of the distance options together (one source, no sequence, --distance-kind depth with
-    --distance, --fov and a given --port with --altitude or depth along the axis, --light-path with a distance);
-    ValueError with the usage message."""
+    --distance, --fov and a given --port with --altitude or depth along the axis); ValueError with the usage message."""
 def depth_to_range(depth: _F32, fov: float, port: str) -> _F32:
     """Depth along the camera's axis as the range along each pixel's ray (METHOD §13.7)."""
 def floor_distance(height: int, width: int, altitude: float, fov: float, pitch: float, roll: float,

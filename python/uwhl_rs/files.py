@@ -359,11 +359,7 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     if sequence is not None:
         res = sequence.restore(image, mask=m, water_mask=wm)
     else:
-        kw = restore_kwargs
-        if z is None and kw.get("light_path") is not None:
-            # a photo without its map is restored without distance: the path's tint has no fitted water
-            kw = {k: v for k, v in kw.items() if k != "light_path"}
-        res = uwhl_rs.restore(image, mask=m, water_mask=wm, distance=z, **kw)
+        res = uwhl_rs.restore(image, mask=m, water_mask=wm, distance=z, **restore_kwargs)
     t_restore = time.perf_counter()
 
     def write() -> FileResult:

@@ -200,7 +200,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     label = display(_label or in_path)
     fmt, bits, jpeg_quality = options.pop("format", "jpg"), options.pop("bits", None), options.pop("quality", 95)
     for k in ("mask", "water_mask", "distance", "altitude", "fov", "water_from", "contact", "half_size",
-              "preprocess", "port", "distance_kind", "light_path"):
+              "preprocess", "port", "distance_kind"):
         v = options.pop(k, None)
         if v not in (None, False, "none", "flat", "range"):
             raise ParameterError(f"{files.spelt(k, _flags)} is for photos: a video is restored as a sequence of "

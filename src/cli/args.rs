@@ -359,7 +359,6 @@ where
         o.depth_along_axis,
         o.reuse_estimates.is_some(),
         o.port_given,
-        o.params.light_path.is_some(),
         crate::files::options::Names::Flags,
     )
     .map_err(Failure::usage)?;

@@ -63,13 +63,6 @@ pub enum Kind {
         /// inclusive upper bound (infinity: none)
         le: f64,
     },
-    /// a finite number in `ge..=le` (a closed range: 0 is a value)
-    FloatIn {
-        /// inclusive lower bound
-        ge: f64,
-        /// inclusive upper bound
-        le: f64,
-    },
     /// one of the names
     Choice(&'static [&'static str]),
     /// a byte count > 0 with an optional suffix K, M, G, T (powers of 1024)
@@ -97,7 +90,7 @@ impl Kind {
         match self {
             Kind::Flag => "flag",
             Kind::Int { .. } | Kind::IntOf(_) => "int",
-            Kind::Float { .. } | Kind::FloatIn { .. } => "float",
+            Kind::Float { .. } => "float",
             Kind::Choice(_) => "choice",
             Kind::Bytes => "bytes",
             Kind::Path => "path",
@@ -293,12 +286,6 @@ veiling light); not with a water type given",
         default: Default::Float(DEFAULT_T_SCALE), help: "scale of the haze-line transmission t~ (METHOD §4.6): t_B of the \
 nearest object of each haze-line; in (0, 1]",
         group: Group::Method, faces: Faces::Both, method: true },
-    Spec { key: "light_path", flag: "--light-path", short: None, metavar: "M",
-        kind: Kind::FloatIn { ge: 0.0, le: crate::method::pipeline::given::PATH_GIVEN_MAX },
-        default: Default::None, help: "with a distance (--distance or --altitude): the metres of water the light on \
-the scene crossed, about the scene's depth below the surface (0: a strobe in the dark); the display removes that tint \
-in the fitted water instead of estimating it from the photo (METHOD §13.4)",
-        group: Group::Method, faces: Faces::Both, method: true },
     Spec { key: "method", flag: "--method", short: None, metavar: "PROFILE", kind: Kind::Choice(&["revised", "paper"]),
         default: Default::Name("revised"), help: "revised: white balance of the restored radiance, shades-of-gray \
 type choice, haze floor 3C, fast selection (METHOD §12); paper: the paper's method bit for bit (display stretch, \
@@ -484,10 +471,6 @@ impl Spec {
                 Ok(x) if x.is_finite() && x > gt && x <= le => Ok(Value::Float(x)),
                 _ if le.is_finite() => Err(bad(format!("is not a number in ({gt}, {le}]"))),
                 _ => Err(bad(format!("is not a finite number > {gt}"))),
-            },
-            Kind::FloatIn { ge, le } => match t.parse::<f64>() {
-                Ok(x) if x.is_finite() && x >= ge && x <= le => Ok(Value::Float(x)),
-                _ => Err(bad(format!("is not a number in [{ge}, {le}]"))),
             },
             Kind::Choice(names) => {
                 let lower = t.to_ascii_lowercase();
@@ -679,8 +662,7 @@ pub fn check_combination(
 /// The checks of the distance options together (METHOD §13), made by both
 /// commands before any input is read: one source of distance, none with
 /// a sequence (it reuses one water for its frames; a distance fits each
-/// photo's own), a light path only with a distance (METHOD §13.4: the
-/// tint is taken in the fitted water), depth along the axis only of a distance map, and the lens
+/// photo's own), depth along the axis only of a distance map, and the lens
 /// and the window (`port`: given, not defaulted) only with `--altitude` or
 /// depth along the axis.
 #[allow(clippy::too_many_arguments)]
@@ -691,18 +673,9 @@ pub fn check_distance(
     depth: bool,
     reuse_estimates: bool,
     port: bool,
-    light: bool,
     names: Names,
 ) -> Result<(), String> {
     let n = |key: &str| names.of(key);
-    if light && !distance && !altitude {
-        return Err(format!(
-            "{} is the tint of the light in the water fitted from a distance: give {} or {}",
-            n("light_path"),
-            n("distance"),
-            n("altitude")
-        ));
-    }
     if depth && !distance {
         return Err(format!("{} depth describes the maps of {}: give both", n("distance_kind"), n("distance")));
     }
@@ -805,22 +778,6 @@ impl crate::method::params::Params {
             ("t_scale", V::Float(x)) => self.t_scale = *x,
             ("t_scale", V::Int(n)) => self.t_scale = *n as f64,
             ("t_scale", _) => return Err(bad()),
-            ("light_path", V::Float(_) | V::Int(_)) => {
-                let x = match v {
-                    V::Int(n) => *n as f64,
-                    V::Float(x) => *x,
-                    _ => f64::NAN,
-                };
-                let max = crate::method::pipeline::given::PATH_GIVEN_MAX;
-                // checked as given, as for the command line: the Python keyword reaches here unchecked
-                if !(x.is_finite() && (0.0..=max).contains(&x)) {
-                    return Err(crate::error::Error::Param {
-                        name: "light_path",
-                        msg: format!("{x} is not a number of metres in [0, {max}]"),
-                    });
-                }
-                self.light_path = Some(x);
-            }
             ("method", V::Text(t)) => self.method = crate::method::profile::Method::from_name(t)?,
             ("white_balance", V::Text(t)) => self.white_balance = Some(crate::method::profile::WhiteBalance::from_name(t)?),
             ("type_choice", V::Text(t)) => self.type_choice = Some(crate::method::profile::TypeChoice::from_name(t)?),
@@ -847,7 +804,6 @@ impl crate::method::params::Params {
             "guided_radius" => json!(self.guided_radius),
             "guided_eps" => json!(self.guided_eps),
             "t_scale" => json!(self.t_scale),
-            "light_path" => json!(self.light_path),
             "guided_subsample" => json!(self.guided_subsample),
             "sphere_points" => json!(self.sphere_points),
             "threads" => json!(self.threads),

@@ -117,7 +117,7 @@ pub fn distance_entry(record: Option<Value>, source: &str, missing: Option<&str>
     match (record, missing) {
         (_, Some(why)) => Some(json!({
             "source": source, "coverage": 0.0, "used": false, "rejected": why, "water": null, "light_path": null,
-            "light_path_given": false, "haze_order": null,
+            "haze_order": null,
         })),
         (Some(mut r), None) => {
             if let Some(o) = r.as_object_mut() {
@@ -158,7 +158,6 @@ pub fn distance_record(d: &crate::DistanceUse, source: Option<&str>) -> Value {
         "rejected": d.rejected,
         "water": water,
         "light_path": d.light_path.map(f64::from),
-        "light_path_given": d.light_path_given,
         "haze_order": d.haze_order.map(f64::from),
     })
 }

@@ -113,12 +113,6 @@ pub struct Params {
     pub haze_floor: Option<Option<&'static str>>,
     /// what is done where the result cannot be trusted; default the profile's (METHOD §12.5)
     pub fallback: Option<Fallback>,
-    /// the light path d (metres of water the light on the scene crossed,
-    /// about the scene's depth below the surface; 0: a strobe) whose tint
-    /// the display removes when a distance is given (METHOD §13.4); default:
-    /// estimated from the photo. Only a restoration with a distance has a
-    /// water in 1/m to take the tint in: without one it is not used
-    pub light_path: Option<f64>,
 }
 
 /// Window radius, in blocks, that [`auto_subsample`] keeps at least.
@@ -149,7 +143,6 @@ impl Default for Params {
             type_choice: None,
             haze_floor: None,
             fallback: None,
-            light_path: None,
         }
     }
 }

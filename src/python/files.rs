@@ -93,7 +93,6 @@ impl PyFileSettings {
             s.depth_along_axis,
             false,
             false,
-            s.params.light_path.is_some(),
             crate::files::options::Names::Keywords,
         )
         .map_err(ParameterError::new_err)?;

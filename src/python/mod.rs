@@ -292,7 +292,7 @@ pub(crate) fn method_value(
         },
         Kind::Subsample => Value::Int(int("an integer >= 0 or \"auto\"")?),
         Kind::Int { .. } | Kind::Bytes | Kind::IntOf(_) => Value::Int(int("an integer >= 0")?),
-        Kind::Float { .. } | Kind::FloatIn { .. } => {
+        Kind::Float { .. } => {
             if is_bool || text {
                 return Err(wrong("a number"));
             }
@@ -545,10 +545,10 @@ fn parse_water_types<'py>(py: Python<'py>, values: Vec<String>) -> PyResult<Boun
 /// The checks of the distance options (`crate::files::options::check_distance`);
 /// ValueError with the usage message.
 #[pyfunction]
-#[pyo3(signature = (distance, altitude, fov, reuse_estimates, depth=false, port=false, light=false))]
-fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool, port: bool, light: bool) -> PyResult<()> {
+#[pyo3(signature = (distance, altitude, fov, reuse_estimates, depth=false, port=false))]
+fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool, port: bool) -> PyResult<()> {
     use crate::files::options::Names;
-    crate::files::options::check_distance(distance, altitude, fov, depth, reuse_estimates, port, light, Names::Flags)
+    crate::files::options::check_distance(distance, altitude, fov, depth, reuse_estimates, port, Names::Flags)
         .map_err(PyValueError::new_err)
 }
 
@@ -788,11 +788,6 @@ fn image_data<'a>(image: &'a PyReadonlyArray3<'a, f32>) -> PyResult<(&'a [f32], 
     Ok((data, shape[0], shape[1]))
 }
 
-/// Why a light path is refused without a distance: the tint it names is
-/// taken in the water a distance fits (METHOD §13.4).
-const NO_TINT_WITHOUT_DISTANCE: &str =
-    "light_path is the tint of the light in the water fitted from a distance (METHOD §13.4): give distance too";
-
 /// Native entry point behind `uwhl_rs.restore` (which checks dtypes and
 /// converts float64 to float32 first). Releases the GIL while it works.
 #[pyfunction]
@@ -807,9 +802,6 @@ fn restore_f32(
 ) -> PyResult<PyRestoration> {
     let (data, h, w) = image_data(&image)?;
     let params = &params.0;
-    if distance.is_none() && params.light_path.is_some() {
-        return Err(ParameterError::new_err(NO_TINT_WITHOUT_DISTANCE));
-    }
     let wm = mask_slice("water_mask", &water_mask, h, w)?;
     let mk = mask_slice("mask", &mask, h, w)?;
     let z = match &distance {
@@ -922,9 +914,6 @@ impl PySequence {
     #[pyo3(signature = (params, *, refresh_every=0, reuse_water_mask=false, scene_cut=0.0, smoothing=1.0))]
     fn new(params: &PyParams, refresh_every: usize, reuse_water_mask: bool, scene_cut: f32, smoothing: f32) -> PyResult<Self> {
         let params = params.0.clone();
-        if params.light_path.is_some() {
-            return Err(ParameterError::new_err(NO_TINT_WITHOUT_DISTANCE));
-        }
         // what needs no frame is checked now: a bad value is said before the first frame
         crate::method::params::check_values(&params).map_err(to_py_err)?;
         let mut seq = Sequence::new(params);

@@ -434,33 +434,3 @@ def test_a_dask_worker_reads_water_from_again_at_a_new_runs_first_task(monkeypat
     assert len(read) == 1  # the same run: the folder as its first task read it
     cluster._restore_in_run("run2", 4)
     assert len(read) == 2
-
-
-@pytest.mark.parametrize("impl", ["python", "rust"])
-def test_a_light_path_is_given_with_a_distance_and_recorded(impl, binary, receding, tmp_path):
-    """--light-path: refused without a distance (nothing written), out of
-    range named; with --distance the sidecar records the path as given, and
-    a photo without its map is restored without it, the path unused."""
-    import shutil
-
-    cmd = _cmds(binary)[impl]
-    src = tmp_path / "in"
-    src.mkdir()
-    for name in ("sea.tif", "other.tif"):
-        shutil.copy(receding / "sea.tif", src / name)
-    shutil.copy(receding / "range.npy", src / "sea.npy")
-    r = _run(cmd, src / "sea.tif", "-o", tmp_path / "none", "--light-path", "5")
-    assert r.returncode == 2 and "--light-path" in r.stderr and "--distance" in r.stderr, r.stderr
-    assert not (tmp_path / "none").exists() or not any((tmp_path / "none").iterdir())
-    for bad in ("-1", "nan", "2000", "deep"):
-        r = _run(cmd, src / "sea.tif", "-o", tmp_path / "bad", "--distance", src / "{stem}.npy", "--light-path", bad)
-        assert r.returncode == 2 and "--light-path" in r.stderr and "Traceback" not in r.stderr, (bad, r.stderr)
-    out = tmp_path / impl
-    r = _run(cmd, src / "sea.tif", src / "other.tif", "-o", out, "--distance", src / "{stem}.npy", "--light-path", "4.5")
-    assert r.returncode == 0, r.stderr
-    side = _side(out, "sea")
-    assert side["distance"]["used"] and side["distance"]["light_path"] == 4.5, side["distance"]
-    assert side["distance"]["light_path_given"] and side["parameters"]["light_path"] == 4.5
-    other = _side(out, "other")
-    assert "distance_missing" in other["flags"] and other["distance"]["light_path"] is None
-    assert not other["distance"]["light_path_given"]

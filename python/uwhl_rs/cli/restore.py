@@ -53,7 +53,7 @@ def _check(a: argparse.Namespace, options: dict) -> None:
     try:
         _core.check_distance(a.distance is not None, a.altitude is not None, a.fov is not None,
                              a.reuse_estimates is not None, getattr(a, "distance_kind", "range") == "depth",
-                             a.port is not None, getattr(a, "light_path", None) is not None)
+                             a.port is not None)
     except ValueError as e:
         raise _bad(str(e)) from None
     if a.altitude is not None:

@@ -29,11 +29,6 @@ pub const MIN_T: f32 = 0.05;
 /// may remove (METHOD §13.4); the shortest is 0 (white light).
 pub const PATH_MAX: f64 = 15.0;
 
-/// The longest light path a user may give (`light_path`, metres): below
-/// the photic zone's 200 m no daylight is left to tint, and a longer path
-/// is a mistake of units.
-pub const PATH_GIVEN_MAX: f64 = 1000.0;
-
 /// The longer side at which the haze-lines are run to check the map's
 /// order of near and far against the photo's own haze (METHOD §13.1).
 pub const ORDER_SIDE: usize = 160;
@@ -58,9 +53,6 @@ pub struct DistanceUse {
     /// the light path (metres of the same water) whose tint the display
     /// removed (METHOD §13.4)
     pub light_path: Option<f32>,
-    /// whether that path was given (`Params::light_path`) rather than
-    /// estimated from the photo
-    pub light_path_given: bool,
     /// the rank correlation of the map with the haze-lines' -ln t_B at
     /// [`ORDER_SIDE`] (METHOD §13.1); None when not checked
     pub haze_order: Option<f32>,
@@ -154,7 +146,7 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
     let rejected = |why: String, coverage: f32, fit: Option<WaterFit>, haze_order: Option<f32>| -> Result<Restoration> {
         let mut res = super::restore(input, params)?;
         res.flags.push(Flag::DistanceRejected);
-        res.distance = Some(DistanceUse { coverage, fit, nearest: None, rejected: Some(why), light_path: None, light_path_given: false, haze_order });
+        res.distance = Some(DistanceUse { coverage, fit, nearest: None, rejected: Some(why), light_path: None, haze_order });
         Ok(res)
     };
     let z = match resize_distance(distance, zh, zw, img.height, img.width) {
@@ -224,22 +216,8 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
     let inside = |i: usize| input.mask.is_none_or(|m| m.get(i).copied().unwrap_or(false));
     // §13.4: the tint of light that crossed the same water, then exposure
     let objects = |i: usize| inside(i) && known(z.get(i).copied().unwrap_or(f32::NAN)) && !veil.vl.get(i).copied().unwrap_or(false);
-    let gains: [f32; 3];
-    let d = match params.light_path {
-        Some(d) => {
-            // relative to the most attenuated channel, whose gain is 1: a
-            // long path in murky water would take e^(beta_c d) past f32
-            // (the exposure below sets the scale either way)
-            let top = fit.beta.iter().fold(0f32, |m, &b| m.max(b));
-            gains = std::array::from_fn(|c| (f64::from(fit.beta[c] - top) * d).exp() as f32);
-            d
-        }
-        None => {
-            let d = light_path(&radiance, img.height, img.width, &objects, fit.beta);
-            gains = std::array::from_fn(|c| (f64::from(fit.beta[c]) * d).exp() as f32);
-            d
-        }
-    };
+    let d = light_path(&radiance, img.height, img.width, &objects, fit.beta);
+    let gains: [f32; 3] = std::array::from_fn(|c| (f64::from(fit.beta[c]) * d).exp() as f32);
     let mut image = expose(&radiance, &gains, &inside);
     // the output radiance is J in [0, 1] (METHOD §10)
     radiance.par_iter_mut().for_each(|v| *v = v.min(1.0));
@@ -279,7 +257,6 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
             fit: Some(fit),
             rejected: None,
             light_path: Some(d as f32),
-            light_path_given: params.light_path.is_some(),
             haze_order,
         }),
         guided_radius: 0,
