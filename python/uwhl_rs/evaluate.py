@@ -37,7 +37,7 @@ from .errors import ManifestError
 # the manifest's format and reader, re-exported: uwhl_rs.evaluate is where the command and tests find them
 from .manifest import METHODS, TYPE_ORDER, Chart, Entry, load_manifest
 from .evaluate_report import SUMMARY_EXTRAS, TRUTH_KEYS, image_section, report_methods, write_report
-from .sidecars import display
+from .sidecars import printable
 
 __all__ = ["METHODS", "Chart", "Entry", "ManifestError", "load_manifest", "evaluate_entry", "summarize",
            "write_results", "write_report", "image_section", "report_methods"]
@@ -98,6 +98,40 @@ EVALUATE_BASE_PER_PIXEL = 48
 EVALUATE_PER_RESTORATION = 36
 
 
+#: bytes a .mat may hold beyond its one map's doubles (headers, names, a few small variables)
+MAT_SLACK = 1 << 20
+
+
+def _mat_inflates_within(path: str, cap: int) -> bool:
+    """Whether the compressed data elements of the MAT v5 file ``path``
+    inflate to at most ``cap`` bytes in all, counted while inflating (never
+    held): scipy trusts the sizes inside, and an element that says 2 x 2
+    can inflate to 4 GiB. Uncompressed elements are bounded by the file."""
+    import struct
+    import zlib
+
+    with open(path, "rb") as f:
+        head = f.read(128)
+        if len(head) < 128:
+            return True  # no v5 file: scipy says so
+        order = "<" if head[126:128] == b"IM" else ">"
+        total = 0
+        while len(tag := f.read(8)) == 8:
+            kind, n = struct.unpack(order + "II", tag)
+            if kind != 15:  # miCOMPRESSED
+                f.seek(n + (-n % 8), os.SEEK_CUR)
+                continue
+            z, left = zlib.decompressobj(), n
+            while left > 0 and (block := f.read(min(left, 1 << 20))):
+                left -= len(block)
+                while block:
+                    total += len(z.decompress(block, 1 << 20))
+                    if total > cap:
+                        return False
+                    block = z.unconsumed_tail
+    return True
+
+
 def read_distance(path: str, height: int, width: int, max_memory: int | None = None) -> np.ndarray:
     """A distance map in metres, resized to height x width with nearest
     neighbour; NaN where it has no value (0, NaN, negative, beyond 1000 m).
@@ -125,6 +159,10 @@ def read_distance(path: str, height: int, width: int, max_memory: int | None = N
             if h * w > min(_core.map_cap(height, width), gt.MAX_TRUTH_PIXELS):
                 raise ManifestError(f"{path}: the distance map is {w}x{h} pixels, more than "
                                     f"{_core.MAP_PER_PHOTO_PIXEL} times the photo's {width}x{height}: not read")
+            cap = 8 * h * w + MAT_SLACK
+            if not _mat_inflates_within(path, cap):
+                raise ManifestError(f"{path}: its compressed arrays hold more than the {w}x{h} map's {cap} bytes: "
+                                    "not read")
             d = np.asarray(loadmat(path, variable_names=[name])[name], dtype=np.float64)
         else:
             # the commands' reader, with their limits and the cap against the photo's size
@@ -487,7 +525,7 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
 
 
 class _DisplayedRows:
-    """A CSV writer whose text cells are written as :func:`display` shows
+    """A CSV writer whose text cells are written as :func:`printable` shows
     them, those of ``TEXT_COLUMNS`` (names from the manifest) with a
     spreadsheet formula neutralised as summary.csv does (docs/EVALUATE.md);
     the numbers, written as text too, are left as they are."""
@@ -498,7 +536,8 @@ class _DisplayedRows:
         self._w = writer
 
     def writerow(self, row) -> None:
-        self._w.writerow([(_core.csv_text(display(x)) if k in self.TEXT_COLUMNS else display(x))
+        # printable: a name's ESC or U+202E would act on the terminal that shows the file
+        self._w.writerow([(_core.csv_text(printable(x)) if k in self.TEXT_COLUMNS else printable(x))
                           if isinstance(x, str) else x for k, x in enumerate(row)])
 
 

@@ -267,13 +267,24 @@ def _read_manifest(path: str) -> dict:
         raise ManifestError(f"{path}: the manifest is not UTF-8 text (byte 0x{data[e.start]:02x} at offset "
                             f"{e.start})") from None
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_once_each)
     except json.JSONDecodeError as e:
         raise ManifestError(f"{path}: not JSON ({e})") from None
     except RecursionError:
         raise ManifestError(f"{path}: not a manifest (JSON nested too deeply)") from None
     except ValueError as e:  # e.g. an integer of more digits than Python converts
         raise ManifestError(f"{path}: not a manifest ({e})") from None
+
+
+def _once_each(pairs: list) -> dict:
+    """A JSON object whose keys are each given once: with two ``images``
+    the last would be taken and the first list dropped without a word."""
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"the key {json.dumps(k)[:100]} is given twice in one object")
+        out[k] = v
+    return out
 
 
 def load_manifest(path: str) -> tuple[list[Entry], list[str]]:

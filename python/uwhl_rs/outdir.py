@@ -10,10 +10,10 @@ Rows are the dicts of ``uwhl_rs.tasks`` (its ``COLUMNS``).
 from __future__ import annotations
 
 import csv
-import io
 import json
 import os
 import posixpath
+import threading
 from dataclasses import dataclass
 
 from . import _core
@@ -23,7 +23,7 @@ from .sidecars import parse as parse_sidecar
 from .storage import Folder, filesystem, is_url, join, local_path, read_bytes, read_regular, scheme, sha256_of
 
 __all__ = ["SummaryWriter", "sidecar_seconds", "remove_earlier", "stored_names", "folder_done", "CSV_COLUMNS", "row_fields_from_sidecar", "summary_cell", "FILE_NAME", "REPORT_DIR", "Photo",
-           "collect_sidecars", "failed_inputs"]
+           "collect_sidecars", "failed_inputs", "Digests"]
 
 FILE_NAME = "summary.csv"
 
@@ -38,6 +38,9 @@ OWN_JSON = ("ifdo.json",)
 
 #: the largest summary.csv read back (about a million rows)
 SUMMARY_MAX_BYTES = 512 << 20
+#: the most rows of summary.csv read (a few hundred bytes each: a run of
+#: millions of inputs; past it the report says the count stops there)
+SUMMARY_ROWS_MAX = 5_000_000
 #: failed rows of summary.csv shown on the report's page, and characters of each cell
 FAILED_SHOWN = 200
 CELL_SHOWN = 300
@@ -142,46 +145,128 @@ class Photo:
 LINE_MAX = 1 << 20
 
 
-def _lines(text):
-    """The lines of ``text`` (a text file), each at most :data:`LINE_MAX`
-    characters: a longer one is a ValueError, found without holding it."""
+def _lines(raw):
+    """The lines of the binary file ``raw`` decoded as UTF-8, each at most
+    :data:`LINE_MAX` bytes: a longer one is a ValueError, found without
+    holding it. Decoded a line at a time (no character spans a newline
+    byte), so a bad byte stops the reading at its own row."""
     while True:
-        line = text.readline(LINE_MAX)
+        line = raw.readline(LINE_MAX)
         if not line:
             return
-        if len(line) == LINE_MAX and not line.endswith("\n"):
-            raise ValueError(f"a line over {LINE_MAX} characters")
-        yield line
+        if len(line) == LINE_MAX and not line.endswith(b"\n"):
+            raise ValueError(f"a line over {LINE_MAX} bytes")
+        yield line.decode("utf-8")
 
 
-def failed_inputs(out_dir, storage_options: dict | None = None, keep: int = FAILED_SHOWN) -> tuple[list[dict], int]:
+def failed_inputs(out_dir, storage_options: dict | None = None,
+                  keep: int = FAILED_SHOWN) -> tuple[list[dict], int, str | None]:
     """The first ``keep`` failed rows of ``OUTDIR/summary.csv`` (inputs
     without a sidecar to show), every value text cut to ``CELL_SHOWN``
-    characters, and how many rows failed in all; none when there is no
-    summary (or it cannot be read: a FIFO, a link, not UTF-8, not CSV).
-    The rows are read one by one: a summary of a million failures is not
-    held in memory, nor put whole on a page."""
+    characters, how many rows failed in all, and why the summary was not
+    read to its end (None: it was, or there is none). A summary that
+    cannot be read from some row on (a line or field too long, bytes not
+    UTF-8, more than ``SUMMARY_ROWS_MAX`` rows) keeps the failures before
+    it; one that cannot be opened (a FIFO, a link, over
+    ``SUMMARY_MAX_BYTES``) gives none, and says so. The rows are read one
+    by one: a summary of a million failures is not held in memory, nor
+    put whole on a page."""
     folder = out_dir if isinstance(out_dir, Folder) else Folder(out_dir, storage_options)
-    rows, total = [], 0
+    rows, total, n, why = [], 0, 0, None
     try:
         # streamed: the file (or its private copy off object storage) is decoded a block at a time, and a line
         # over LINE_MAX or a field past csv's own limit (128 KiB) ends the reading: a planted 512 MiB summary
         # took 6 GB read whole
-        with folder.open(FILE_NAME, SUMMARY_MAX_BYTES) as raw, \
-                io.TextIOWrapper(raw, encoding="utf-8", newline="") as text:
-            for r in csv.DictReader(_lines(text)):
-                if r.get("status") == "failed":
+        with folder.open(FILE_NAME, SUMMARY_MAX_BYTES) as raw:
+            reader = csv.reader(_lines(raw))
+            header = next(reader, [])
+            status = header.index("status") if "status" in header else None
+            for row in reader:
+                n += 1
+                if n > SUMMARY_ROWS_MAX:
+                    raise ValueError(f"more than {SUMMARY_ROWS_MAX} rows")
+                if status is not None and status < len(row) and row[status] == "failed":
                     total += 1
                     if len(rows) < keep:
-                        rows.append(r)
-    except (OSError, ValueError, csv.Error):
-        return [], 0
+                        rows.append(dict(zip(header, row)))
+    except FileNotFoundError:
+        return [], 0, None
+    except (OSError, ValueError, csv.Error) as e:
+        said = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
+        where = f"from row {n + 1} on" if n else "at all"
+        why = f"{display(folder.path(FILE_NAME))}: not read {where} ({display(said)[:200]})"
 
     def cell(v) -> str:
         t = display(summary_cell(v)) if isinstance(v, str) else ""
         return t if len(t) <= CELL_SHOWN else t[:CELL_SHOWN - 1] + "\u2026"
-    # a short row has None for its missing cells, a long one a list under None
-    return [{k: cell(v) for k, v in r.items() if isinstance(k, str)} for r in rows], total
+    # a short row lacks its missing cells, a long one's extra cells have no column
+    return [{k: cell(v) for k, v in r.items()} for r in rows], total, why
+
+
+class Digests:
+    """The SHA-256 of each input a report run has hashed: a local file by
+    its identity (device, inode, size, modification time), a stored one by
+    its URL. Sidecars naming the same file, planted ones too, then cost one
+    read of it per run, not one each. Safe across the run's threads (two
+    may hash one file at once; neither waits)."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._known: dict = {}
+
+    def of_file(self, f) -> str:
+        """The SHA-256 of the open local file ``f`` (read from where it
+        stands when not known; the caller seeks back)."""
+        st = os.fstat(f.fileno())
+        key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+        with self._lock:
+            known = self._known.get(key)
+        if known is None:
+            known = sha256_of(f)
+            with self._lock:
+                self._known[key] = known
+        return known
+
+    def of_url(self, url: str) -> str | None:
+        """The SHA-256 a stored input had when fetched this run, or None."""
+        with self._lock:
+            return self._known.get(("url", url))
+
+    def fetched(self, url: str, digest: str) -> None:
+        """Remembers what ``url`` held when fetched."""
+        with self._lock:
+            self._known[("url", url)] = digest
+
+
+#: bytes of sidecars fetched together off object storage (by their listed sizes)
+READ_BATCH_BYTES = 64 << 20
+
+
+def _read_each(folder: Folder, listed: list):
+    """(rel, when, bytes or the error reading raised) for each of
+    ``listed``, in order: a local folder's files one at a time, object
+    storage's fetched together in batches of at most READ_BATCH_BYTES by
+    their listed sizes, so that many large planted ``.json`` files are not
+    held at once."""
+    if not folder.is_url:
+        for rel, when in listed:
+            try:
+                data = folder.read(rel, SIDECAR_MAX_BYTES)
+            except OSError as e:
+                data = e
+            yield rel, when, data
+        return
+    sizes = [min(folder.listed_size(rel) or 0, SIDECAR_MAX_BYTES + 1) for rel, _ in listed]
+    start = 0
+    while start < len(listed):
+        end, size = start, 0
+        while end < len(listed) and (end == start or size + sizes[end] <= READ_BATCH_BYTES):
+            size += sizes[end]
+            end += 1
+        got = folder.read_many([rel for rel, _ in listed[start:end]], SIDECAR_MAX_BYTES)
+        for rel, when in listed[start:end]:
+            yield rel, when, got.pop(rel)
+        start = end
 
 
 def collect_sidecars(out_dir, storage_options: dict | None = None, *,
@@ -196,10 +281,8 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
     if listed is None:
         listed = folder.files()
     listed = [(rel, when) for rel, when in listed if rel.endswith(".json") and rel not in OWN_JSON]
-    got = folder.read_many([rel for rel, _ in listed], SIDECAR_MAX_BYTES)
     photos, problems = [], []
-    for rel, when in listed:
-        data = got.pop(rel)  # each document parsed, its bytes let go
+    for rel, when, data in _read_each(folder, listed):
         where = display(folder.path(rel))
         if isinstance(data, Exception):
             why = data.strerror if isinstance(data, OSError) and data.strerror else str(data)

@@ -34,10 +34,10 @@ import uwhl_rs
 from . import _core, report_video
 from .errors import UwhlError
 from .images import IMAGE_EXTENSIONS, RAW_EXTENSIONS, read_image, to_srgb
-from .outdir import FILE_NAME, REPORT_DIR, Photo, collect_sidecars, failed_inputs
+from .outdir import FILE_NAME, REPORT_DIR, Digests, Photo, collect_sidecars, failed_inputs
 from .report_series import series_axis, series_svg, used_water
 from .sidecars import display, printable
-from .storage import Folder, is_url, on_storage, open_regular, scheme, sha256_of, spool
+from .storage import Folder, is_url, on_storage, open_regular, scheme, spool
 
 __all__ = ["write_report", "collect_sidecars", "REPORT_DIR", "THUMB_SIDE", "PAGE_SIZE", "MAX_INPUT_BYTES", "thumb_names",
            "script_json", "series_axis"]
@@ -47,6 +47,8 @@ THUMB_SIDE = 256
 #: A file decoded whole for its thumbnail (16-bit or float TIFF) may have at most this many pixels:
 #: its float copy is 12 bytes a pixel, and thumbnails are made several at a time.
 THUMB_MAX_PIXELS = 64_000_000
+#: what Pillow may decode a thumbnail from (the formats of IMAGE_EXTENSIONS)
+THUMB_FORMATS = ("JPEG", "PNG", "TIFF")
 #: thumbnails per page of the grid
 PAGE_SIZE = 120
 
@@ -103,9 +105,9 @@ def _candidates(src: str, folder) -> list[str]:
     return out
 
 
-def _input_file(p: Photo, folder):
+def _input_file(p: Photo, folder, digests: Digests):
     """The batch's input of ``p`` opened (a binary file object), or None
-    and why it is not shown."""
+    and why it is not shown. Each file is hashed once a run (``digests``)."""
     src = p.doc["input"]
     want = (p.doc.get("metadata") or {}).get("input_sha256")
     shown = display(src)
@@ -121,6 +123,8 @@ def _input_file(p: Photo, folder):
     if is_url(src):
         if not want:
             return None, f"{shown}: the sidecar records no input hash; not fetched"
+        if digests.of_url(src) not in (None, want):
+            return None, f"{shown}: not there as it was restored (gone, or another SHA-256)"
         h = hashlib.sha256()
         try:
             f = spool(src, folder.storage_options, limit=MAX_INPUT_BYTES, digest=h)
@@ -130,6 +134,8 @@ def _input_file(p: Photo, folder):
             if e.errno != errno.EFBIG:
                 raise
             return None, f"{shown}: larger than {MAX_INPUT_BYTES} bytes; not shown"
+        if f is not None:
+            digests.fetched(src, h.hexdigest())
         if f is None or h.hexdigest() != want:
             if f is not None:
                 f.close()
@@ -149,7 +155,7 @@ def _input_file(p: Photo, folder):
             why = f"{e.strerror or e}; not opened"
             continue
         try:
-            if os.fstat(f.fileno()).st_size <= MAX_INPUT_BYTES and sha256_of(f) == want:
+            if os.fstat(f.fileno()).st_size <= MAX_INPUT_BYTES and digests.of_file(f) == want:
                 f.seek(0)
                 return f, None
         except OSError:
@@ -180,7 +186,8 @@ def _open_small(f, ext: str, side: int):
         im = ImageOps.exif_transpose(im)
     else:
         try:
-            im = Image.open(f)
+            # the formats of an image's name only: a planted PostScript named .jpg would run Ghostscript
+            im = Image.open(f, formats=THUMB_FORMATS)
         except UnidentifiedImageError:
             if ext not in (".tif", ".tiff"):
                 raise
@@ -188,6 +195,10 @@ def _open_small(f, ext: str, side: int):
             im = _from_array(f, ext)
             im.thumbnail((side, side))
             return im
+        # the header's size before any pixel: a 13000 x 13000 PNG of 657 KB took 2.7 GB (JPEG decodes
+        # at 1/8 a side)
+        if im.width * im.height > THUMB_MAX_PIXELS * (64 if im.format == "JPEG" else 1):
+            raise ValueError(f"{im.width}x{im.height} pixels: over the {THUMB_MAX_PIXELS} a thumbnail is made of")
         if im.format == "JPEG":
             im.draft("RGB", (side, side))
         im = ImageOps.exif_transpose(im)
@@ -226,7 +237,7 @@ def _from_array(f, ext: str):
     return Image.fromarray((np.clip(to_srgb(small, meta), 0, 1) * 255 + 0.5).astype(np.uint8))
 
 
-def _thumb(job, folder, side: int, dst_time: float | None) -> str:
+def _thumb(job, folder, side: int, dst_time: float | None, digests: Digests) -> str:
     """Writes one thumbnail (``job``: the photo, "in" or "out", where, when
     the photo's output was written, whether it is missing) unless one is
     there written after the output (every restore of an input rewrites it,
@@ -242,7 +253,7 @@ def _thumb(job, folder, side: int, dst_time: float | None) -> str:
         return f"{display(folder.path(rel))}: not found{earlier}"
     try:
         if which == "in":
-            f, why = _input_file(p, folder)
+            f, why = _input_file(p, folder, digests)
             if f is None:
                 return why + earlier
             name = p.doc["input"]
@@ -472,8 +483,12 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     # thumbnail it cannot make is a note on the page already. The filter is set once around the pool.
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=UserWarning, module=r"PIL(\.|$)")
+        # the size is refused by _open_small itself, with a note on the page
+        warnings.filterwarnings("ignore", message="Image size .* could be decompression bomb")
         with ThreadPoolExecutor(max_workers=workers or min(8, os.cpu_count() or 1)) as pool:
-            notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2])), jobs))
+            digests = Digests()
+            notes = list(pool.map(lambda j: None if j is None else _thumb(j, folder, side, thumbs_at.get(j[2]), digests),
+                                  jobs))
     problems += [n for n in notes if n not in (None, "written", "kept")]
     refused: list[str] = []
 
@@ -512,7 +527,9 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     balanced = sum(1 for d in data if isinstance(d["balance"], (int, float))
                    and _core.BALANCED_SHARE <= d["balance"] <= 1)
     flagged_videos = [p for p in videos if report_video.needs_a_look(p)]
-    failed, n_failed = failed_inputs(folder)
+    failed, n_failed, summary_why = failed_inputs(folder)
+    if summary_why:
+        problems.append(printable(summary_why))
     more = n_failed - len(failed)
     failed_html = "" if not failed else (
         f'<section id="failed"><h2>Failed: {n_failed} (from summary.csv)</h2><table class="failed">'

@@ -21,6 +21,8 @@ import math
 import os
 import re
 
+import numpy as np
+
 from .errors import UwhlError
 
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "local_outputs_problem",
@@ -349,14 +351,13 @@ def _bounded_int(text: str):
 def _depth(data: bytes) -> int:
     """The deepest nesting of ``data``'s arrays and objects, counted
     without recursion (outside strings)."""
-    deepest = depth = 0
-    for c in _STRINGS.sub(b'""', data):
-        if c in b"[{":
-            depth += 1
-            deepest = max(deepest, depth)
-        elif c in b"]}":
-            depth -= 1
-    return deepest
+    # the running depth as a cumulative sum (a byte at a time in Python took
+    # 0.15 s a 4 MiB file: a folder of planted ones took minutes)
+    b = np.frombuffer(_STRINGS.sub(b'""', data), dtype=np.uint8)
+    if not b.size:
+        return 0
+    step = (b == ord("[")).astype(np.int32) + (b == ord("{")) - (b == ord("]")) - (b == ord("}"))
+    return max(0, int(np.cumsum(step).max()))
 
 
 def parse(data: bytes) -> dict | None:

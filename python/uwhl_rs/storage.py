@@ -493,6 +493,10 @@ class Folder:
             return b""  # a range of an empty object is refused (HTTP 416)
         return self.fs.cat_file(self.root + "/" + rel, start=0, end=n)[:n]
 
+    def listed_size(self, rel: str) -> int | None:
+        """The size in bytes the listing of :meth:`files` gave ``rel`` (object storage), or None."""
+        return self._sizes.get(rel)
+
     def read_many(self, rels: list[str], limit: int) -> dict[str, bytes | Exception]:
         """The bytes of each of ``rels`` (as :meth:`read`), or the error
         that reading it raised (on object storage fetched concurrently, in

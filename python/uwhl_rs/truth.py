@@ -353,7 +353,14 @@ def read_truth_mask(path: str, height: int, width: int, max_memory: int | None =
 
             meta = iio.improps(path)
             _check_size(path, meta.shape, "truth mask", (height, width), max_memory)
-            m = np.asarray(iio.imread(path))
+            # the first page only: improps describes page 0, and a 300-page TIFF of 1.3 MB decoded whole
+            # took 1.2 GB past --max-memory (imageio's index is a TIFF's series, not its page)
+            if path.lower().endswith((".tif", ".tiff")):
+                import tifffile
+
+                m = np.asarray(tifffile.imread(path, key=0))
+            else:
+                m = np.asarray(iio.imread(path, index=0))
     except ManifestError:
         raise
     except Exception as e:

@@ -704,17 +704,19 @@ def test_the_fitted_blue_attenuation_is_drawn_from_what_a_fit_writes_only(tmp_pa
 def test_a_summary_line_too_long_to_be_a_row_ends_its_reading(tmp_path):
     """summary.csv is read a line at a time (docs/REPORT.md): a line of
     more than a mebibyte, or a field past csv's limit, is no summary of
-    ours and is not held whole; the rows of a sound one are all counted."""
+    ours and is not held whole; the rows of a sound one are all counted,
+    and those before a bad line are kept, with where the reading stopped."""
     from uwhl_rs import outdir
 
     head = "input,status,error\n"
     (tmp_path / "summary.csv").write_text(head + "a.png,failed,x\nb.png,done,\nc.png,failed,y\n")
-    rows, total = outdir.failed_inputs(str(tmp_path))
-    assert total == 2 and [r["input"] for r in rows] == ["a.png", "c.png"]
+    rows, total, why = outdir.failed_inputs(str(tmp_path))
+    assert total == 2 and [r["input"] for r in rows] == ["a.png", "c.png"] and why is None
     for junk in ("d.png,failed," + "z" * (outdir.LINE_MAX + 10) + "\n",
                  'd.png,failed,"' + "z\n" * 100_000 + '"\n'):
         (tmp_path / "summary.csv").write_text(head + "a.png,failed,x\n" + junk)
-        assert outdir.failed_inputs(str(tmp_path)) == ([], 0)
+        rows, total, why = outdir.failed_inputs(str(tmp_path))
+        assert total == 1 and [r["input"] for r in rows] == ["a.png"] and "not read from row 2 on" in why, why
 
 
 def test_control_and_bidi_characters_of_a_water_type_are_escaped_on_the_page(batch, tmp_path):

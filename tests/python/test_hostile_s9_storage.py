@@ -215,7 +215,8 @@ def test_summary_and_an_earlier_ifdo_are_read_within_their_limits(store, restore
     store.pipe_file("/survey/out/ifdo.yaml", b"#" * 2100 + f"image-set-header:\n  image-set-uuid: {u}\n".encode())
     store.lies.update({"/survey/out/summary.csv": 10, "/survey/out/ifdo.yaml": 10})
     folder = Folder(f"{PROTOCOL}://survey/out")
-    assert outdir.failed_inputs(folder) == ([], 0)
+    rows, total, why = outdir.failed_inputs(folder)
+    assert (rows, total) == ([], 0) and "summary.csv: not read at all" in why, why
     assert ifdo._earlier_uuid(folder) is None
     assert 0 < store.served["/survey/out/summary.csv"] <= 1001
     assert 0 < store.served["/survey/out/ifdo.yaml"] <= 2000

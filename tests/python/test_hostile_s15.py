@@ -1,0 +1,200 @@
+"""What the report and evaluate read, planted (a hostile review): a file
+many sidecars name is hashed once a run; sidecars are read one at a time
+and their nesting measured without a byte loop; a thumbnail's source is
+refused by its header's size and decoded only from an image format; the
+rows of summary.csv read before a bad one are kept, and the page says
+where the reading stopped; evaluate reads one page of a truth mask,
+refuses a .mat whose arrays inflate past its map, a manifest that gives a
+key twice, and writes results.csv's names as the console shows them."""
+
+import json
+import os
+import subprocess
+import sys
+import zlib
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import uwhl_rs
+from uwhl_rs import outdir, report, sidecars, synth
+from uwhl_rs.errors import ManifestError
+
+
+@pytest.fixture(scope="module")
+def batch(tmp_path_factory):
+    """One photo restored by the command: a sidecar of ours to plant copies of."""
+    d = tmp_path_factory.mktemp("s15")
+    (d / "in").mkdir()
+    img, _ = synth.demo_input(48, 64, water_type="3C", seed=2)
+    uwhl_rs.images.write_image(d / "in" / "a.png", img, bits=8, encoding="linear")
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", "in", "-o", "out", "-q"], cwd=d,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return d
+
+
+def test_a_file_many_sidecars_name_is_hashed_once_a_run(batch, tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    out.mkdir()
+    big = tmp_path / "big.tif"
+    with open(big, "wb") as f:
+        f.truncate(8 << 20)  # sparse: no image, and no sidecar's hash
+    doc = json.loads((batch / "out" / "a.json").read_text())
+    doc["input"], doc["outputs"] = str(big), {}
+    doc.setdefault("metadata", {})["input_sha256"] = "0" * 64
+    for k in range(10):
+        (out / f"p{k}.json").write_text(json.dumps(doc))
+    sizes = []
+    real = outdir.sha256_of
+
+    def counted(f):
+        sizes.append(os.fstat(f.fileno()).st_size)
+        return real(f)
+    monkeypatch.setattr(outdir, "sha256_of", counted)
+    done = report.write_report(out, workers=4)
+    assert done["photos"] == 10
+    assert sizes.count(8 << 20) <= 4  # once, or once by each worker that raced to it; not ten times
+    assert sum("no file there has the SHA-256" in p for p in done["problems"]) == 10
+
+
+def test_digests_tell_a_rewritten_file_from_the_one_hashed(tmp_path):
+    p = tmp_path / "x.bin"
+    p.write_bytes(b"one")
+    d = outdir.Digests()
+    with open(p, "rb") as f:
+        first = d.of_file(f)
+    p.write_bytes(b"two, longer")
+    with open(p, "rb") as f:
+        assert d.of_file(f) != first  # another size: another identity, hashed again
+    assert d.of_url("s3://b/x.png") is None
+    d.fetched("s3://b/x.png", "ab" * 32)
+    assert d.of_url("s3://b/x.png") == "ab" * 32
+
+
+def test_sidecars_of_a_folder_are_read_one_at_a_time(batch, tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    out.mkdir()
+    for k in range(5):
+        (out / f"j{k}.json").write_bytes(b"\0" * 1000)
+    reads = []
+    real = uwhl_rs.storage.Folder.read
+    monkeypatch.setattr(uwhl_rs.storage.Folder, "read", lambda self, rel, limit: reads.append(rel) or real(self, rel, limit))
+    folder = uwhl_rs.storage.Folder(str(out))
+    each = outdir._read_each(folder, [(f"j{k}.json", None) for k in range(5)])
+    next(each)
+    assert len(reads) == 1  # the next is read when asked for, not before
+    photos, problems = outdir.collect_sidecars(str(out))
+    assert not photos and len(problems) == 5 and all("not JSON" in p for p in problems), problems
+
+
+@pytest.mark.parametrize("data,deepest", [
+    (b"", 0), (b"]]]", 0), (b'{"a": [1, {"b": "[[[{{"}]}', 3), (b"[[]][[[ ]]]", 3),
+    (b'{"k": "\\"[[["}', 1), (b"{" * 17 + b"}" * 17, 17),
+])
+def test_the_nesting_of_a_sidecar_is_counted_outside_strings(data, deepest):
+    assert sidecars._depth(data) == deepest
+
+
+def _png_claiming(path, w, h):
+    """A small PNG whose header says w x h (its data is that of 8 x 8): what
+    a thumbnail must refuse from its header, before decoding."""
+    Image.new("RGB", (8, 8), (10, 20, 30)).save(path)
+    b = bytearray(path.read_bytes())
+    b[16:24] = w.to_bytes(4, "big") + h.to_bytes(4, "big")
+    b[29:33] = zlib.crc32(bytes(b[12:29])).to_bytes(4, "big")
+    path.write_bytes(bytes(b))
+
+
+def test_a_thumbnail_is_refused_by_its_headers_size_and_made_only_of_image_formats(tmp_path):
+    _png_claiming(tmp_path / "bomb.png", 12000, 12000)
+    with open(tmp_path / "bomb.png", "rb") as f, pytest.raises(ValueError, match="12000x12000 pixels"):
+        report._open_small(f, ".png", 160)
+    _png_claiming(tmp_path / "ok.png", 8, 8)
+    with open(tmp_path / "ok.png", "rb") as f:
+        assert report._open_small(f, ".png", 160).size == (8, 8)
+    # PostScript named .jpg: Pillow would hand it to Ghostscript; a fake one on PATH says if it ran
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "gs").write_text(f"#!/bin/sh\ntouch {tmp_path / 'ran'}\nexit 1\n")
+    (fake / "gs").chmod(0o755)
+    (tmp_path / "ps.jpg").write_bytes(b"%!PS-Adobe-3.0 EPSF-3.0\n%%BoundingBox: 0 0 10 10\nshowpage\n")
+    old = os.environ["PATH"]
+    os.environ["PATH"] = f"{fake}{os.pathsep}{old}"
+    try:
+        with open(tmp_path / "ps.jpg", "rb") as f, pytest.raises(Exception):
+            report._open_small(f, ".jpg", 160)
+    finally:
+        os.environ["PATH"] = old
+    assert not (tmp_path / "ran").exists()
+
+
+def test_summary_rows_before_a_bad_one_are_kept_and_the_stop_is_said(tmp_path):
+    head = "input,status,error\n"
+    (tmp_path / "summary.csv").write_bytes((head + "a.png,failed,x\nb.png,done,\n").encode() + b"c.png,failed,\xff\n")
+    rows, total, why = outdir.failed_inputs(str(tmp_path))
+    assert total == 1 and [r["input"] for r in rows] == ["a.png"]
+    assert why and "summary.csv: not read from row" in why and "utf-8" in why.lower(), why
+    (tmp_path / "summary.csv").write_text(head + "a.png,failed,x\n")
+    assert outdir.failed_inputs(str(tmp_path)) == ([{"input": "a.png", "status": "failed", "error": "x"}], 1, None)
+    os.remove(tmp_path / "summary.csv")
+    assert outdir.failed_inputs(str(tmp_path)) == ([], 0, None)
+
+
+def test_the_report_page_says_where_summary_reading_stopped(batch, tmp_path):
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(batch / "out", out)
+    with open(out / "summary.csv", "ab") as f:
+        f.write(b"z.png,failed," + b"q" * (outdir.LINE_MAX + 5) + b"\n")
+    done = report.write_report(out)
+    assert any("summary.csv: not read from row" in p for p in done["problems"]), done["problems"]
+    assert "summary.csv: not read from row" in (out / "report" / "index.html").read_text(encoding="utf-8")
+
+
+def test_a_truth_mask_of_many_pages_is_read_by_its_first(tmp_path):
+    tifffile = pytest.importorskip("tifffile")
+    pages = np.zeros((30, 40, 50), np.uint8)
+    pages[0, :20] = 1  # the first page scores the top half
+    tifffile.imwrite(tmp_path / "m.tif", pages)
+    from uwhl_rs import truth
+
+    m = truth.read_truth_mask(str(tmp_path / "m.tif"), 40, 50)
+    assert m.shape == (40, 50) and m[:20].all() and not m[20:].any()
+
+
+def test_a_mat_whose_arrays_inflate_past_its_map_is_not_read(tmp_path):
+    sio = pytest.importorskip("scipy.io")
+    from uwhl_rs import evaluate
+
+    z = np.full((30, 40), 3.0)
+    sio.savemat(tmp_path / "ok.mat", {"z": z}, do_compression=True)
+    assert np.allclose(evaluate.read_distance(str(tmp_path / "ok.mat"), 30, 40), 3.0)
+    # a second variable (3-D: not a map) of 16 MiB of zeros, a few kilobytes compressed
+    sio.savemat(tmp_path / "bomb.mat", {"z": z, "pad": np.zeros((2, 1024, 1024))}, do_compression=True)
+    assert (tmp_path / "bomb.mat").stat().st_size < 200_000
+    with pytest.raises(ManifestError, match="inflate|hold more than"):
+        evaluate.read_distance(str(tmp_path / "bomb.mat"), 30, 40)
+
+
+def test_a_manifest_that_gives_a_key_twice_is_refused(tmp_path):
+    from uwhl_rs import manifest
+
+    (tmp_path / "m.json").write_text('{"images": [{"path": "a.png"}], "images": []}')
+    with pytest.raises(ManifestError, match='"images" is given twice'):
+        manifest.load_manifest(str(tmp_path / "m.json"))
+
+
+def test_results_csv_writes_control_characters_as_escapes(tmp_path):
+    import csv
+    import io
+
+    from uwhl_rs import evaluate
+
+    buf = io.StringIO()
+    evaluate._DisplayedRows(csv.writer(buf)).writerow(["a\x1b[2Jb.png", "l\u202ex", "c", "d", 1.5, "x", "y", "\x07z", "w"])
+    text = buf.getvalue()
+    assert "\x1b" not in text and "\u202e" not in text and "\x07" not in text
+    assert "a\\x1b[2Jb.png" in text and "l\\u202ex" in text and "\\x07z" in text
