@@ -207,12 +207,13 @@ class Digests:
     """The SHA-256 of each input a report run has hashed: a local file by
     its identity (device, inode, size, modification time), a stored one by
     its URL. Sidecars naming the same file, planted ones too, then cost one
-    read of it per run, not one each. Safe across the run's threads (two
-    may hash one file at once; neither waits)."""
+    read of it per run, not one each. Safe across the run's threads: a
+    thread asking for a file another is hashing waits for its answer."""
 
     def __init__(self):
         self._lock = threading.Lock()
         self._known: dict = {}
+        self._busy: dict = {}
 
     def of_file(self, f) -> str:
         """The SHA-256 of the open local file ``f`` (read from where it
@@ -220,11 +221,14 @@ class Digests:
         st = os.fstat(f.fileno())
         key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
         with self._lock:
-            known = self._known.get(key)
-        if known is None:
-            known = sha256_of(f)
+            one = self._busy.setdefault(key, threading.Lock())
+        with one:
             with self._lock:
-                self._known[key] = known
+                known = self._known.get(key)
+            if known is None:
+                known = sha256_of(f)
+                with self._lock:
+                    self._known[key] = known
         return known
 
     def of_url(self, url: str) -> str | None:
