@@ -116,7 +116,7 @@ def test_a_planted_sidecar_does_not_make_the_report_fetch_other_objects(monkeypa
 
     def why(src):
         p = outdir.Photo("a.json", {"input": src, "metadata": {"input_sha256": "0" * 64}})
-        f, reason = report._input_file(p, folder)
+        f, reason = report._input_file(p, folder, outdir.Digests())
         assert f is None
         return reason.split(": ", 1)[1]
 
