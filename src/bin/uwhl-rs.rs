@@ -92,8 +92,11 @@ fn main() -> ExitCode {
     release_freed_buffers_promptly();
     ignore_file_size_signal();
     let json_errors = std::env::args_os().any(|a| a == "--json-errors");
-    let mut stdout = std::io::stdout().lock();
-    let mut stderr = std::io::stderr().lock();
+    // the handles, not their locks: a line another thread writes (a
+    // dependency's own message) would wait for ever on a lock held for the
+    // whole run, and the run for that thread
+    let mut stdout = std::io::stdout();
+    let mut stderr = std::io::stderr();
     let code = match parse(std::env::args_os().skip(1)) {
         Ok(Command::Help) => {
             let _ = stdout.write_all(help().as_bytes());

@@ -306,6 +306,7 @@ fn open<R: BufRead + Seek>(
         }
         Some(ImageFormat::Tiff) => {
             let mut inner = reader.into_inner();
+            exif::tiff_structure(&mut inner).map_err(|why| Failure::new(Kind::Input, format!("a damaged TIFF: {why}")))?;
             let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
             // what the file holds, read before the decoder takes the reader:
             // its words for a layout it cannot read are its own type names

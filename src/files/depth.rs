@@ -369,9 +369,11 @@ fn read_png<R: std::io::BufRead + Seek>(r: R, check: impl Fn(u64, u64, u64) -> R
 }
 
 /// A single-channel TIFF: float32/float64 metres, or 16-bit millimetres.
-fn read_tiff<R: Read + Seek>(r: R, check: impl Fn(u64, u64, u64) -> Result<(), Failure>, max_memory: u64) -> Result<(Vec<f32>, usize, usize), Failure> {
+fn read_tiff<R: Read + Seek>(mut r: R, check: impl Fn(u64, u64, u64) -> Result<(), Failure>, max_memory: u64) -> Result<(Vec<f32>, usize, usize), Failure> {
     use tiff::decoder::{Decoder, DecodingResult, Limits};
     let bad = |m: String| Failure::new(Kind::Input, format!("a TIFF distance map {m}"));
+    crate::files::exif::tiff_structure(&mut r).map_err(|why| bad(format!("is damaged: {why}")))?;
+    r.seek(std::io::SeekFrom::Start(0)).map_err(|e| bad(format!("cannot be read: {e}")))?;
     let mut limits = Limits::default();
     limits.decoding_buffer_size = usize::try_from(max_memory).unwrap_or(usize::MAX);
     let mut d = Decoder::new(r).map_err(|e| bad(format!("cannot be read: {e}")))?.with_limits(limits);

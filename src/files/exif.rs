@@ -263,6 +263,21 @@ pub fn check(src: &mut dyn Source) -> Result<Walked, String> {
     Ok(Walked { ifds, entries })
 }
 
+/// A whole TIFF file's structure checked by [`check`] before a decoder
+/// reads it: Err with the reason when it fails. The `tiff` crate trusts
+/// a tag's count (an ASCII ImageWidth of 4 GiB went to a `dbg!` on stderr,
+/// which deadlocked a binary that held stderr). A BigTIFF is left to the
+/// decoder: [`check`] walks classic TIFF only.
+pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
+    let mut src = ReaderSource::new(r).map_err(|e| e.to_string())?;
+    let mut magic = [0u8; 4];
+    if !src.read_at(0, &mut magic) || !matches!(&magic, b"II*\0" | b"MM\0*") {
+        return Ok(());
+    }
+    // the walk's words are an EXIF block's; here the block is the file
+    check(&mut src).map(|_| ()).map_err(|m| m.replace("the block", "the file").replace("EXIF ", "TIFF "))
+}
+
 /// How the pixels of a TIFF file's first image are laid out, from its
 /// IFD0, in words (`2 samples per pixel (gray + alpha), 8 bits each`): what
 /// a decoder that cannot read them names. None when IFD0 cannot be read.
@@ -793,6 +808,20 @@ mod tests {
     fn short(v: u16, le: bool) -> [u8; 4] {
         let b = if le { v.to_le_bytes() } else { v.to_be_bytes() };
         [b[0], b[1], 0, 0]
+    }
+
+    #[test]
+    fn a_tiff_file_whose_tag_counts_pass_its_end_is_refused_before_a_decoder() {
+        // ImageWidth typed ASCII with a count of nearly 4 GiB: the `tiff` crate's dbg! case
+        let b = tiff(true, &[(0x0100, 2, 0xFFFF_FF00, [0; 4])], 0, &[]);
+        let why = tiff_structure(&mut std::io::Cursor::new(b)).unwrap_err();
+        assert!(why.contains("TIFF tag 0x0100") && why.contains("outside the file") && !why.contains("EXIF"), "{why}");
+        let ok = tiff(false, &[(0x0100, 3, 1, short(6, false))], 0, &[]);
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(ok)), Ok(()));
+        // a BigTIFF (magic 43) is the decoder's to read
+        let mut big = tiff(true, &[(0x0100, 2, 0xFFFF_FF00, [0; 4])], 0, &[]);
+        big[2] = 43;
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(big)), Ok(()));
     }
 
     #[test]

@@ -247,6 +247,10 @@ pub fn decode_and_restore<R: BufRead + Seek>(
 fn photo_size(input: &Path) -> Option<(u64, u64, u64, bool)> {
     use image::ImageDecoder;
     let reader = image::ImageReader::open(input).ok()?.with_guessed_format().ok()?;
+    if reader.format() == Some(image::ImageFormat::Tiff) {
+        // a damaged structure is said by the decoding (decode.rs), before the tiff crate sees it
+        crate::files::exif::tiff_structure(&mut std::fs::File::open(input).ok()?).ok()?;
+    }
     let jpeg = reader.format() == Some(image::ImageFormat::Jpeg);
     let decoder = reader.into_decoder().ok()?;
     let (w, h) = decoder.dimensions();

@@ -198,3 +198,39 @@ def test_results_csv_writes_control_characters_as_escapes(tmp_path):
     text = buf.getvalue()
     assert "\x1b" not in text and "\u202e" not in text and "\x07" not in text
     assert "a\\x1b[2Jb.png" in text and "l\\u202ex" in text and "\\x07z" in text
+
+
+def _poisoned_tiff(path, arr):
+    """``arr`` as a TIFF whose ImageWidth is retyped ASCII with a count of
+    nearly 4 GiB: the tiff crate printed a dbg! line for it, and the binary,
+    which held stderr for its whole run, waited for ever."""
+    import struct
+
+    tifffile = pytest.importorskip("tifffile")
+    tifffile.imwrite(path, arr, photometric="rgb" if arr.ndim == 3 else None)
+    b = bytearray(path.read_bytes())
+    off = struct.unpack("<I", b[4:8])[0]
+    for i in range(struct.unpack("<H", b[off:off + 2])[0]):
+        p = off + 2 + 12 * i
+        if struct.unpack("<H", b[p:p + 2])[0] == 256:
+            b[p + 2:p + 8] = struct.pack("<HI", 2, 0xFFFFFF00)
+    path.write_bytes(bytes(b))
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_a_tiff_whose_tag_passes_its_end_is_named_in_both_commands(impl, binary, tmp_path):
+    from bothcmds import cmds, run_restore, sidecar
+
+    img, _ = synth.demo_input(48, 64, water_type="3C", seed=3)
+    (tmp_path / "depth").mkdir()
+    _poisoned_tiff(tmp_path / "p.tif", (img * 255).astype(np.uint8))
+    uwhl_rs.images.write_image(tmp_path / "a.png", img, bits=8, encoding="linear")
+    _poisoned_tiff(tmp_path / "depth" / "a.tif", np.ones((48, 64), np.float32))
+    cmd = cmds(binary)[impl]
+    r = run_restore(cmd, tmp_path / "p.tif", tmp_path / "a.png", "-o", tmp_path / "out",
+                    "--distance", tmp_path / "depth" / "{stem}.tif")
+    assert r.returncode == 3, r.stderr  # the photo failed, named; the other restored
+    assert "p.tif: " in r.stderr and "a damaged TIFF: the value of TIFF tag 0x0100" in r.stderr, r.stderr
+    assert "ifd.rs" not in r.stderr and "LimitsExceeded" not in r.stderr, r.stderr
+    rec = sidecar(tmp_path / "out", "a")["distance"]
+    assert not rec["used"] and "is damaged: the value of TIFF tag 0x0100" in rec["rejected"], rec
