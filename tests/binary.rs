@@ -357,7 +357,7 @@ fn hostile_files_give_clear_errors() {
         // 12000 x 12000 from 0.4 MB: about 13 GB to restore, over an 8 GB budget
         ("bomb.tif", &["--max-memory", "8G"], 4, "--max-memory"),
         ("bomb.tif", &["--max-memory", "64G", "--max-side", "1000"], 3, "constant"),
-        ("bad_offsets.tif", &[], 3, "a damaged TIFF: the TIFF image data"),
+        ("bad_offsets.tif", &[], 3, "cannot decode"),
     ];
     for (name, extra, want, msg) in cases {
         let t = Instant::now();

@@ -204,7 +204,7 @@ def restore_staged(
     altitude=None,
     distance_kind: str = _D["distance_kind"],
     fov=None,
-    port: str = _D["port"],
+    port: str | None = None,
     water_from=None,
     contact: bool = False,
     sequence=None,
@@ -421,12 +421,15 @@ def settings_of(*, format: str = _D["format"], bits: int | None = _D["bits"], qu
                 preprocess: str = _D["preprocess"], half_size: bool = _D["half_size"],
                 max_side: int | None = _D["max_side"], max_pixels: int = _D["max_pixels"], mask=None,
                 water_mask=None, distance=None, altitude=None, distance_kind: str = _D["distance_kind"], fov=None,
-                port: str = _D["port"], water_from=None, contact: bool = False, **restore_kwargs):
+                port: str | None = None, water_from=None, contact: bool = False, **restore_kwargs):
     """The core's settings of a file's restoration (``_core.FileSettings``:
     every option checked by the core's table, the binary's checks and
     messages); its ``parameters`` (JSON text) is what the sidecar records."""
     if water_from is not None and not isinstance(water_from, (str, os.PathLike)):
         raise ParameterError(f"water_from must be a folder's path or None, not {shown(water_from)}")
+    if distance is not None and not isinstance(distance, (str, os.PathLike)) and distance_kind == "depth":
+        raise ParameterError("distance_kind depth turns the maps read from files into ranges: turn an array of depth "
+                             "into ranges with uwhl_rs.depth_to_range and give that")
     try:
         return _core.FileSettings(format=format, bits=bits, quality=quality, preprocess=preprocess,
                                   half_size=half_size, max_side=max_side, max_pixels=max_pixels,

@@ -552,25 +552,46 @@ impl NavLog {
 /// attribute (`...:image-meters-above-ground="2.4"`) or an element
 /// (`<...:image-meters-above-ground>2.4</...>`).
 pub fn xmp_altitude(xmp: &str) -> Option<f64> {
-    xmp_altitude_values(xmp).find_map(|v| v.trim().parse::<f64>().ok())
+    xmp_altitude_values(&without_comments(xmp)).find_map(|v| v.trim().parse::<f64>().ok())
+}
+
+/// `xmp` with its XML comments (`<!-- ... -->`, an unclosed one to the
+/// end) taken out: a commented-out field is no field.
+fn without_comments(xmp: &str) -> std::borrow::Cow<'_, str> {
+    if !xmp.contains("<!--") {
+        return std::borrow::Cow::Borrowed(xmp);
+    }
+    let (mut out, mut rest) = (String::with_capacity(xmp.len()), xmp);
+    while let Some(i) = rest.find("<!--") {
+        out.push_str(rest.get(..i).unwrap_or(""));
+        rest = rest.get(i + 4..).and_then(|r| r.find("-->").and_then(|j| r.get(j + 3..))).unwrap_or("");
+    }
+    out.push_str(rest);
+    std::borrow::Cow::Owned(out)
 }
 
 /// The first value of `image-meters-above-ground` in an XMP packet as
 /// text, number or not: what a photo whose [`xmp_altitude`] is None says
 /// instead of one.
 fn xmp_altitude_text(xmp: &str) -> Option<String> {
-    xmp_altitude_values(xmp).next().map(|v| v.trim().to_string())
+    xmp_altitude_values(&without_comments(xmp)).next().map(|v| v.trim().to_string())
 }
 
 /// Every value of the iFDO field `image-meters-above-ground` in an XMP
-/// packet, attribute or element, in order.
+/// packet, attribute or element, in order: the name whole (after a
+/// namespace's `:`, a tag's `<` or a space), not the end of another
+/// (`not-image-meters-above-ground`).
 fn xmp_altitude_values(xmp: &str) -> impl Iterator<Item = &str> {
     const KEY: &str = "image-meters-above-ground";
     let mut rest = xmp;
     std::iter::from_fn(move || loop {
         let i = rest.find(KEY)?;
+        let whole = rest.get(..i).and_then(|b| b.chars().next_back()).is_none_or(|c| c == ':' || c == '<' || c.is_whitespace());
         let after = rest.get(i + KEY.len()..)?;
         rest = after;
+        if !whole {
+            continue;
+        }
         let value = if let Some(v) = after.trim_start().strip_prefix('=') {
             let v = v.trim_start();
             v.chars().next().filter(|c| *c == '"' || *c == '\'').and_then(|q| v.get(1..).and_then(|t| t.split(q).next()))
@@ -807,6 +828,11 @@ mod tests {
         assert_eq!(xmp_altitude("<ifdo:image-meters-above-ground> 3 </ifdo:image-meters-above-ground>"), Some(3.0));
         assert_eq!(xmp_altitude("<x:image-meters-above-ground-note>n</x><a image-meters-above-ground='1.5'/>"), Some(1.5));
         assert_eq!(xmp_altitude("<x/>"), None);
+        // a field commented out, or the end of another name, is no field
+        assert_eq!(xmp_altitude(r#"<!-- ifdo:image-meters-above-ground="7" --><a ifdo:image-meters-above-ground="2"/>"#), Some(2.0));
+        assert_eq!(xmp_altitude(r#"<a ifdo:not-image-meters-above-ground="9" ifdo:image-meters-above-ground="4"/>"#), Some(4.0));
+        assert_eq!(xmp_altitude(r#"<a ifdo:not-image-meters-above-ground="9"/>"#), None);
+        assert_eq!(xmp_altitude(r#"<a/><!-- ifdo:image-meters-above-ground="7" "#), None);
     }
 
     #[test]

@@ -42,6 +42,8 @@ impl PyFileSettings {
     fn new(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
         let mut s = Settings::default();
         let Some(kwargs) = kwargs else { return Ok(Self(s)) };
+        // a window given, not defaulted, as the binary tells --port from its default
+        let mut port_given = false;
         for (k, v) in kwargs.iter() {
             let key: String = k.extract()?;
             let spec = spec(&key)
@@ -49,6 +51,7 @@ impl PyFileSettings {
             if v.is_none() {
                 continue;
             }
+            port_given |= key == "port";
             if key == "water_types" {
                 s.water_types = Some(parse_choices(&v)?);
                 continue;
@@ -92,10 +95,13 @@ impl PyFileSettings {
             s.fov.is_some(),
             s.depth_along_axis,
             false,
-            false,
+            port_given,
             crate::files::options::Names::Keywords,
         )
         .map_err(ParameterError::new_err)?;
+        if s.water_from.is_some() && s.water_types.is_some() {
+            return Err(ParameterError::new_err("water_from gives the water type: it does not go with water_types"));
+        }
         Ok(Self(s))
     }
 

@@ -234,3 +234,24 @@ def test_a_tiff_whose_tag_passes_its_end_is_named_in_both_commands(impl, binary,
     assert "ifd.rs" not in r.stderr and "LimitsExceeded" not in r.stderr, r.stderr
     rec = sidecar(tmp_path / "out", "a")["distance"]
     assert not rec["used"] and "is damaged: the value of TIFF tag 0x0100" in rec["rejected"], rec
+
+
+def test_restore_file_refuses_what_the_commands_refuse(tmp_path):
+    """The API as the commands: a dive's water with water types, a window
+    without a lens to bend, depth of an array (hostile review)."""
+    h, w = 90, 120
+    sc = synth.scene(h, w, kind="looking_down", seed=5)
+    z = np.repeat(np.linspace(8.0, 1.0, h)[:, None], w, 1).astype(np.float32)
+    img = synth.render(sc.clean, z, "3C", beta_b=0.3, noise=0.002, seed=1)
+    uwhl_rs.images.write_image(tmp_path / "sea.png", img, bits=16, encoding="linear")
+    cal = tmp_path / "cal"
+    r = uwhl_rs.restore_file(tmp_path / "sea.png", cal, distance=z)
+    assert r.sidecar["distance"]["used"], r.sidecar["distance"]
+    with pytest.raises(uwhl_rs.ParameterError, match="water_from gives the water type"):
+        uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o1", water_from=cal, water_types=["I"])
+    with pytest.raises(uwhl_rs.ParameterError, match="port is the window of altitude"):
+        uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o2", port="dome")
+    with pytest.raises(uwhl_rs.ParameterError, match="depth_to_range"):
+        uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o3", distance=z, distance_kind="depth", fov=80)
+    # the default window is no window given: a photo restores as before
+    assert uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o4", water_from=cal).sidecar["water_type"]

@@ -308,7 +308,7 @@ def file_kwargs(a: argparse.Namespace, water_types) -> dict:
     that restores)."""
     kw = dict(format=a.format, bits=a.bits, quality=a.quality, preprocess=a.preprocess, half_size=a.half_size,
               max_side=a.max_side, max_pixels=a.max_pixels, mask=a.mask, water_mask=a.water_mask,
-              distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port or _DEFAULTS["port"], water_from=a.water_from,
+              distance=a.distance, altitude=a.altitude, fov=a.fov, port=a.port, water_from=a.water_from,
               distance_kind=a.distance_kind,
               contact=a.contact_sheet, water_types=water_types, **method_kwargs(a, skip=("max_memory",)))
     # videos (uwhl_rs.videofiles): set only when given, so that photos see none of them
