@@ -4,7 +4,6 @@
 //! from the photo's own XMP (the iFDO field `image-meters-above-ground`);
 //! the field of view from `--fov` or the photo's EXIF lens fields.
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -46,13 +45,110 @@ pub struct Pose {
     pub roll: f64,
 }
 
+/// One record of a log by name: where its file name lies in
+/// [`ByName::text`], how long it and its stem are, its line and pose.
+#[derive(Debug, Clone, Copy)]
+struct Named {
+    at: u32,
+    len: u32,
+    stem: u32,
+    line: u32,
+    pose: Pose,
+}
+
+/// A log's records by name, about 50 bytes each besides the names: the
+/// names in one string and the records sorted by file name and by stem (a
+/// map of two owned keys a record took ten times the log's size; a named
+/// log of a million rows, half a gigabyte).
+#[derive(Debug, Clone, Default)]
+struct ByName {
+    text: String,
+    rows: Vec<Named>,
+    /// indices into `rows`, by file name, then line
+    by_file: Vec<u32>,
+    /// indices into `rows` whose stem is not the whole name, by stem, then line
+    by_stem: Vec<u32>,
+}
+
+impl ByName {
+    fn file(&self, r: &Named) -> &str {
+        self.text.get(r.at as usize..(r.at + r.len) as usize).unwrap_or("")
+    }
+
+    fn stem(&self, r: &Named) -> &str {
+        self.text.get(r.at as usize..(r.at + r.stem) as usize).unwrap_or("")
+    }
+
+    fn push(&mut self, file: &str, line: usize, pose: Pose) -> Result<(), String> {
+        let too_long = || "a log of more than 4 GiB of names".to_string();
+        let at = u32::try_from(self.text.len()).map_err(|_| too_long())?;
+        let stem = Path::new(file).file_stem().map_or(file.len(), |s| s.len()).min(file.len());
+        self.text.push_str(file);
+        u32::try_from(self.text.len()).map_err(|_| too_long())?;
+        let line = u32::try_from(line).map_err(|_| too_long())?;
+        self.rows.push(Named { at, len: file.len() as u32, stem: stem as u32, line, pose });
+        Ok(())
+    }
+
+    /// Sorts the indices; the same file twice with one pose is one record,
+    /// with two poses the error names the earliest line where that happens.
+    fn index(&mut self) -> Result<(), String> {
+        let at = |i: &u32| self.rows.get(*i as usize);
+        let file = |i: &u32| at(i).map_or(("", 0), |r| (self.file(r), r.line));
+        let stem = |i: &u32| at(i).map_or(("", 0), |r| (self.stem(r), r.line));
+        let mut by_file: Vec<u32> = (0..self.rows.len() as u32).collect();
+        by_file.sort_by(|a, b| file(a).cmp(&file(b)));
+        let mut clash: Option<(u32, u32, &str)> = None;
+        let mut keep: Vec<u32> = Vec::with_capacity(by_file.len());
+        for i in by_file {
+            let (Some(r), (name, line)) = (at(&i), file(&i)) else { continue };
+            match keep.last().and_then(&at).filter(|f| self.file(f) == name) {
+                Some(f) => {
+                    if f.pose != r.pose && clash.is_none_or(|c| line < c.0) {
+                        clash = Some((line, f.line, name));
+                    }
+                }
+                None => keep.push(i),
+            }
+        }
+        if let Some((line, first, name)) = clash {
+            return Err(format!("line {line}: {} is also on line {first}, with another altitude or tilt", shown(name)));
+        }
+        let mut by_stem: Vec<u32> = keep.iter().copied().filter(|i| at(i).is_some_and(|r| r.stem < r.len)).collect();
+        by_stem.sort_by(|a, b| stem(a).cmp(&stem(b)));
+        by_stem.dedup_by(|b, a| stem(a).0 == stem(b).0);
+        self.by_file = keep;
+        self.by_stem = by_stem;
+        Ok(())
+    }
+
+    /// The record of the file name `file`, else the first (in the log) whose stem is `stem`.
+    fn get(&self, file: &str, stem: &str) -> Option<&Named> {
+        self.first(&self.by_file, file, false).or_else(|| self.first(&self.by_stem, stem, true))
+    }
+
+    /// The earliest record of `list` (sorted by file name, or by stem when
+    /// `by_stem`, then line) whose key is `key`.
+    fn first(&self, list: &[u32], key: &str, by_stem: bool) -> Option<&Named> {
+        let part = |i: u32| {
+            self.rows.get(i as usize).map_or("", |r| if by_stem { self.stem(r) } else { self.file(r) })
+        };
+        let k = list.partition_point(|&i| part(i) < key);
+        list.get(k).filter(|&&i| part(i) == key).and_then(|&i| self.rows.get(i as usize))
+    }
+
+    fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+}
+
 /// A navigation log: the rows by file name and by time.
 #[derive(Debug, Clone, Default)]
 pub struct NavLog {
     /// the file read
     pub path: PathBuf,
-    /// by the file name and its stem: (line, pose)
-    by_name: HashMap<String, (usize, Pose)>,
+    /// by the file name and its stem
+    by_name: ByName,
     /// (seconds, line, pose) sorted by time
     by_time: Vec<(f64, usize, Pose)>,
     /// whether the log names its photos
@@ -398,21 +494,10 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
         if let Some(c) = name {
             let n = cell(c, "file name")?;
             // a path in the log names the file by its last part
-            let file = n.rsplit(['/', '\\']).next().unwrap_or(n).to_string();
-            let stem = Path::new(&file).file_stem().map(|s| s.to_string_lossy().into_owned());
-            // the same record logged twice is one record; two that disagree are refused
-            if let Some((first, p)) = log.by_name.get(&file) {
-                if *p == pose {
-                    continue;
-                }
-                return Err(format!("line {no}: {} is also on line {first}, with another altitude or tilt", shown(&file)));
-            }
-            if let Some(stem) = stem.filter(|s| *s != file) {
-                log.by_name.entry(stem).or_insert((no, pose));
-            }
-            log.by_name.insert(file, (no, pose));
+            let file = n.rsplit(['/', '\\']).next().unwrap_or(n);
+            log.by_name.push(file, no, pose)?;
         }
-        if let Some(c) = time {
+        if let (Some(c), None) = (time, name) {
             let s = cell(c, "time")?;
             let t = parse_time(s).ok_or_else(|| {
                 format!("line {no}, column {} (time): {} is not an ISO 8601 time nor seconds since 1970 (within {MAX_SECONDS:e})", c + 1, shown(s))
@@ -423,6 +508,8 @@ pub fn parse_log(text: &str) -> Result<NavLog, String> {
     if log.by_name.is_empty() && log.by_time.is_empty() {
         return Err("no records after the header".into());
     }
+    // the same record logged twice is one record; two that disagree are refused
+    log.by_name.index()?;
     log.by_time.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     // two records of one time that disagree: which one the photo of that
     // time had is unknown (the same record twice is harmless)
@@ -508,8 +595,8 @@ impl NavLog {
         let file = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let stem = input.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         if self.named {
-            return match self.by_name.get(&file).or_else(|| self.by_name.get(&stem)) {
-                Some((line, p)) => Ok((*p, json!({"log": self.path.to_string_lossy(), "line": line, "matched": "name"}))),
+            return match self.by_name.get(&file, &stem) {
+                Some(r) => Ok((r.pose, json!({"log": self.path.to_string_lossy(), "line": r.line, "matched": "name"}))),
                 None => Err(format!("{} has no row for {}", self.path.display(), shown(&file))),
             };
         }
@@ -747,6 +834,21 @@ mod tests {
         assert_eq!(log.pose(Path::new("b.tif"), None).unwrap().0.altitude, 4.0);
         let e = log.pose(Path::new("c.jpg"), None).unwrap_err();
         assert!(e.contains("no row for \"c.jpg\""), "{e}");
+    }
+
+    #[test]
+    fn by_name_the_file_wins_then_the_earliest_stem_and_clashes_name_their_first_line() {
+        let log = parse_log("file,altitude\nd.png,5\nd.jpg,6\nd,7\ne.jpg,1\ne.jpg,1\n").unwrap();
+        let alt = |name: &str| log.pose(Path::new(name), None).map(|(p, from)| (p.altitude, from["line"].clone()));
+        assert_eq!(alt("d.jpg"), Ok((6.0, json!(3))));
+        assert_eq!(alt("d"), Ok((7.0, json!(4))));
+        // by stem: the first of d.png and d.jpg in the log
+        assert_eq!(alt("d.tif"), Ok((5.0, json!(2))));
+        // the same record twice is one record: its first line
+        assert_eq!(alt("e.jpg"), Ok((1.0, json!(5))));
+        // of two clashes, the one the log reaches first is named
+        let e = parse_log("file,altitude\nz.jpg,1\na.jpg,1\nz.jpg,2\na.jpg,3\n").unwrap_err();
+        assert_eq!(e, "line 4: \"z.jpg\" is also on line 2, with another altitude or tilt");
     }
 
     #[test]
