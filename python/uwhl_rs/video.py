@@ -157,6 +157,21 @@ def _index_missing(path: str) -> bool:
         return False
 
 
+#: the containers a video is read from: FFmpeg's demuxers that hold their
+#: own streams. Playlists and lists of other files (concat, hls, image2's
+#: patterns) would open files, FIFOs or sockets the user never named.
+FORMATS = "mov,mp4,m4a,3gp,3g2,mj2,matroska,webm,avi,mpegts,mxf,mpeg,asf,flv,ogg,h264,hevc,mjpeg"
+
+
+def _av_open(path: str):
+    """FFmpeg's reader of ``path`` itself: by its absolute path (a bare
+    ``file:x.mp4``, ``concat:a|b`` or ``unix:s`` would be a protocol), with
+    the file protocol only and the container formats of :data:`FORMATS`."""
+    av = _av()
+    return av.open(os.path.abspath(path), metadata_errors="replace",
+                   options={"protocol_whitelist": "file", "format_whitelist": FORMATS})
+
+
 def _open(path: str):
     """The container at ``path`` opened for reading, with an error naming
     what is wrong (not a file, an empty file, not a video FFmpeg reads)."""
@@ -172,7 +187,7 @@ def _open(path: str):
         # the words of a photo's reader (and uwhl-rs's) for an empty file
         raise ImageReadError(f"{path}: empty file")
     try:
-        return av.open(path, metadata_errors="replace")
+        return _av_open(path)
     except av.FFmpegError as e:
         # an MP4 or MOV written to the end keeps its index there: cut short, it is unreadable as a whole; the
         # hint is for such a file only (its boxes say so), not for any file called .mp4
@@ -275,7 +290,7 @@ def _rotation(path: str) -> int:
     0 when it has none or the frame cannot be decoded."""
     av = _av()
     try:
-        with av.open(path, metadata_errors="replace") as c:
+        with _av_open(path) as c:
             for frame in c.decode(c.streams.video[0]):
                 r = getattr(frame, "rotation", 0) or 0
                 return int(round(float(r) / 90.0)) * 90 % 360 if math.isfinite(float(r)) else 0

@@ -346,6 +346,22 @@ pub fn collect_jobs(
         }
         seen.insert(real)
     });
+    // an output subfolder that is a link (or lies under one) would put
+    // its files elsewhere: its inputs fail, named, and nothing is written there
+    let mut linked: BTreeMap<PathBuf, Option<PathBuf>> = BTreeMap::new();
+    found.retain(|(p, rel)| {
+        let link = linked.entry(rel.clone()).or_insert_with(|| linked_below(outdir, rel)).clone();
+        match link {
+            Some(l) => {
+                errors.push((p.clone(), format!(
+                    "cannot write into {}: a symbolic link inside the output folder (its files would land elsewhere); not followed",
+                    l.display()
+                )));
+                false
+            }
+            None => true,
+        }
+    });
     let names = name_jobs(&found, suffixes);
     let jobs = found
         .into_iter()
@@ -357,6 +373,21 @@ pub fn collect_jobs(
         })
         .collect();
     (jobs, errors, notes)
+}
+
+/// The first of `outdir/rel`'s folders below `outdir` that is a symbolic
+/// link, None when none is (those not made yet are not).
+pub fn linked_below(outdir: &Path, rel: &Path) -> Option<PathBuf> {
+    let mut at = outdir.to_path_buf();
+    for part in rel.components() {
+        at.push(part);
+        match fs::symlink_metadata(&at) {
+            Ok(m) if m.file_type().is_symlink() => return Some(at),
+            Ok(_) => {}
+            Err(_) => return None,
+        }
+    }
+    None
 }
 
 /// Why a file under the output folder is not taken as an input (a batch's

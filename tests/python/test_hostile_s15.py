@@ -255,3 +255,51 @@ def test_restore_file_refuses_what_the_commands_refuse(tmp_path):
         uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o3", distance=z, distance_kind="depth", fov=80)
     # the default window is no window given: a photo restores as before
     assert uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o4", water_from=cal).sidecar["water_type"]
+
+
+def test_a_video_is_read_from_its_own_file_and_never_from_files_it_names(tmp_path):
+    """FFmpeg took a bare ``file:x.mp4`` or ``concat:a|b`` as a protocol (the
+    named video restored from other files), and a ``.mp4`` that is an
+    ffconcat list opened what it lists (a FIFO: the batch hung)."""
+    import av
+
+    with av.open(str(tmp_path / "ten.mp4"), "w") as out:
+        st = out.add_stream("ffv1", rate=24)
+        st.width, st.height, st.pix_fmt = 32, 24, "bgr0"
+        for k in range(4):
+            px = np.random.default_rng(k).integers(20, 200, (24, 32, 3), dtype=np.uint8)
+            f = av.VideoFrame.from_ndarray(px, format="rgb24").reformat(format="bgr0")
+            f.pts = k
+            for p in st.encode(f):
+                out.mux(p)
+        for p in st.encode():
+            out.mux(p)
+    (tmp_path / "file:ten.mp4").write_bytes(b"junk")
+    os.mkfifo(tmp_path / "ff")
+    (tmp_path / "clip.mp4").write_text("ffconcat version 1.0\nfile ff\nfile ten.mp4\n")
+    r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", "file:ten.mp4", "clip.mp4", "ten.mp4", "-o", "out",
+                        "-q"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 3, r.stderr
+    assert "file:ten.mp4: not a video FFmpeg can read" in r.stderr and "clip.mp4: not a video" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.json")) == ["ten.json"]
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_an_output_subfolder_that_is_a_link_is_not_written_through(impl, binary, tmp_path):
+    """dive/sub/a.jpg goes to OUT/sub/: a link there (to a folder outside)
+    fails a.jpg, named, and nothing is written where it points."""
+    from bothcmds import cmds, run_restore
+
+    img, _ = synth.demo_input(48, 64, water_type="3C", seed=4)
+    (tmp_path / "dive" / "sub").mkdir(parents=True)
+    uwhl_rs.images.write_image(tmp_path / "dive" / "sub" / "a.png", img, bits=8, encoding="linear")
+    uwhl_rs.images.write_image(tmp_path / "dive" / "top.png", img, bits=8, encoding="linear")
+    (tmp_path / "out").mkdir()
+    (tmp_path / "elsewhere").mkdir()
+    os.symlink(tmp_path / "elsewhere", tmp_path / "out" / "sub")
+    r = run_restore(cmds(binary)[impl], tmp_path / "dive", "-o", tmp_path / "out")
+    assert r.returncode == 3, r.stderr
+    assert "a symbolic link inside the output folder" in r.stderr and "sub" in r.stderr, r.stderr
+    assert not any((tmp_path / "elsewhere").iterdir())
+    assert (tmp_path / "out" / "top.json").exists()
