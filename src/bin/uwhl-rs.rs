@@ -88,6 +88,21 @@ fn release_freed_buffers_promptly() {
     }
 }
 
+/// Whether the signal `sig` is ignored (SIG_IGN) now, before the run
+/// installs a handler: one ignored at start stays ignored.
+fn ignored_now(sig: i32) -> bool {
+    #[cfg(unix)]
+    // SAFETY: with a null new action sigaction only writes the current one
+    // into `old`, a zeroed struct of its own type
+    #[allow(unsafe_code)]
+    unsafe {
+        let mut old: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
+    }
+    #[cfg(not(unix))]
+    false
+}
+
 fn main() -> ExitCode {
     release_freed_buffers_promptly();
     ignore_file_size_signal();
@@ -139,7 +154,7 @@ fn main() -> ExitCode {
                 let mut stdin = std::io::BufReader::new(std::io::stdin());
                 run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)
             } else {
-                if let Err(e) = install_interrupt_handler() {
+                if let Err(e) = install_interrupt_handler(&ignored_now) {
                     let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT and SIGTERM ({e}); either ends the run at once");
                 }
                 run_batch(&opts, &mut stdout, &mut stderr)

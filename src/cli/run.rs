@@ -271,11 +271,15 @@ static INTERRUPT: std::sync::OnceLock<std::sync::Arc<std::sync::atomic::AtomicBo
 /// and `timeout` stop a job): the first lets the input being written
 /// finish and stops the batch with exit 130 (docs/CLI.md); a second ends
 /// the process at once. Stream mode keeps the default (the process ends at
-/// once; a shell reports 130 or 143).
-pub fn install_interrupt_handler() -> std::io::Result<()> {
+/// once; a shell reports 130 or 143). `ignored_at_start(sig)`: whether the
+/// signal was ignored when the process started (the binary asks the
+/// kernel; this library forbids the unsafe call).
+pub fn install_interrupt_handler(ignored_at_start: &dyn Fn(i32) -> bool) -> std::io::Result<()> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let flag = INTERRUPT.get_or_init(Default::default).clone();
-    for sig in [SIGINT, SIGTERM] {
+    // a signal ignored when the run started stays ignored (a script's
+    // background job has SIGINT so), as the Python command leaves it
+    for sig in [SIGINT, SIGTERM].into_iter().filter(|&s| !ignored_at_start(s)) {
         signal_hook::flag::register_conditional_default(sig, flag.clone())?;
         signal_hook::flag::register(sig, flag.clone())?;
     }

@@ -303,3 +303,28 @@ def test_an_output_subfolder_that_is_a_link_is_not_written_through(impl, binary,
     assert "a symbolic link inside the output folder" in r.stderr and "sub" in r.stderr, r.stderr
     assert not any((tmp_path / "elsewhere").iterdir())
     assert (tmp_path / "out" / "top.json").exists()
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_a_sigint_ignored_at_start_stays_ignored(impl, binary, tmp_path):
+    """A script's background job starts with SIGINT ignored: both commands
+    keep it so (the binary stopped, exit 130, where Python went on)."""
+    import signal
+    import time
+
+    from bothcmds import cmds
+
+    n = 8
+    for k in range(n):
+        img, _ = synth.demo_input(240, 320, water_type="3C", seed=10 + k)
+        uwhl_rs.images.write_image(tmp_path / f"p{k}.png", img, bits=8, encoding="linear")
+    p = subprocess.Popen([*cmds(binary)[impl], "restore", *(str(tmp_path / f"p{k}.png") for k in range(n)), "-o",
+                          str(tmp_path / "out"), "-q"], stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    # once the first input is done (or the run is over), SIGINT: a handler would stop the rest
+    while p.poll() is None and not any((tmp_path / "out").glob("*.json")):
+        time.sleep(0.01)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 0, err
+    assert len(list((tmp_path / "out").glob("p*.json"))) == n
