@@ -145,8 +145,10 @@ pub struct Summary {
     opened: bool,
     /// the reason it cannot be written, if so
     pub error: Option<String>,
-    /// it cannot be written because the output folder is on a read-only
-    /// file system (a rerun over an archived survey: see docs/OUTPUTS.md)
+    /// it cannot be written because the output folder is read-only: on a
+    /// read-only file system, or by its permissions (`chmod a-w`, an
+    /// immutable file: a finished survey shared) (a rerun over an archived
+    /// survey: see docs/OUTPUTS.md)
     pub read_only: bool,
     columns: Vec<String>,
 }
@@ -180,7 +182,7 @@ impl Summary {
     }
 
     fn fail(&mut self, e: &std::io::Error) {
-        self.read_only = e.kind() == std::io::ErrorKind::ReadOnlyFilesystem;
+        self.read_only = matches!(e.kind(), std::io::ErrorKind::ReadOnlyFilesystem | std::io::ErrorKind::PermissionDenied);
         self.error = Some(e.to_string());
     }
 
@@ -416,6 +418,19 @@ fn path_text(p: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_folder_read_only_by_mount_or_by_permissions_is_read_only() {
+        use std::io::{Error, ErrorKind};
+        let mut s = Summary { outdir: std::path::PathBuf::from("/o"), presence: None, start: None, opened: false, error: None, read_only: false, columns: columns() };
+        for (kind, want) in [(ErrorKind::ReadOnlyFilesystem, true), (ErrorKind::PermissionDenied, true), (ErrorKind::StorageFull, false)] {
+            s.fail(&Error::from(kind));
+            assert_eq!(s.read_only, want, "{kind:?}");
+        }
+        // EPERM (an immutable file) is a permission too
+        s.fail(&Error::from_raw_os_error(1));
+        assert!(s.read_only);
+    }
 
     #[test]
     fn fields_are_quoted_as_python_csv_quotes_them() {
