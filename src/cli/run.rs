@@ -116,7 +116,7 @@ pub(crate) fn outdir_usable(opts: &Options, err: &mut dyn Write) -> Result<(), u
 /// (`crate::files::jobs::enter_folder`; keep what this returns), a note
 /// said while another program's lock keeps it; the exit code when it
 /// cannot be made.
-pub(crate) fn enter_outdir(opts: &Options, err: &mut dyn Write) -> Result<Option<std::fs::File>, u8> {
+pub(crate) fn enter_outdir(opts: &Options, err: &mut dyn Write) -> Result<Option<crate::files::jobs::Held>, u8> {
     let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
     let entered = crate::files::jobs::enter_folder(&opts.outdir, &mut || say_notes(&wait_note, opts, err));
     entered.map_err(|why| write_refused(opts, err, why))

@@ -722,6 +722,9 @@ fn is_counter(r: &str) -> bool {
 /// written, an output name longer than [`NAME_MAX`] bytes, or (without
 /// `rename`) another process holds the name.
 pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
+    if let Some(why) = crate::files::jobs::outdir_moved(req.dir) {
+        return Err(io::Error::other(why));
+    }
     fs::create_dir_all(req.dir)?;
     let key = input_key(req.input);
     let own = std::process::id();
@@ -925,6 +928,9 @@ impl Claim {
     pub fn commit(self, temps: &[PathBuf]) -> io::Result<()> {
         if temps.len() + self.omitted.len() != self.paths.len() || !temps.iter().all(|t| self.temps.contains(t)) {
             return Err(io::Error::other("commit needs one temporary of this claim per output"));
+        }
+        if let Some(why) = self.paths.last().and_then(|p| p.parent()).and_then(crate::files::jobs::outdir_moved) {
+            return Err(io::Error::other(why));
         }
         for t in temps {
             File::open(t)?.sync_all()?;

@@ -135,6 +135,69 @@ pub fn remove_stale_temps(dir: &Path, gate: &Path) -> usize {
     removed
 }
 
+/// The output folders this process's runs hold, each with the identity
+/// (device, inode) its folder had when the run took it.
+static HELD: std::sync::Mutex<Vec<(PathBuf, (u64, u64))>> = std::sync::Mutex::new(Vec::new());
+
+/// An output folder a run holds, remembered with its identity for as long
+/// as this is kept: a write at or below it is refused once its path names
+/// another folder ([`outdir_moved`]).
+#[derive(Debug)]
+pub struct Mark {
+    dir: PathBuf,
+}
+
+impl Mark {
+    /// Remembers `dir` as a held output folder, with the identity of
+    /// `file` (that folder, opened).
+    pub fn new(dir: &Path, file: &fs::File) -> Self {
+        use std::os::unix::fs::MetadataExt;
+        if let Ok(m) = file.metadata() {
+            if let Ok(mut held) = HELD.lock() {
+                held.push((dir.to_path_buf(), (m.dev(), m.ino())));
+            }
+        }
+        Self { dir: dir.to_path_buf() }
+    }
+}
+
+impl Drop for Mark {
+    fn drop(&mut self) {
+        if let Ok(mut held) = HELD.lock() {
+            if let Some(i) = held.iter().position(|(d, _)| *d == self.dir) {
+                held.remove(i);
+            }
+        }
+    }
+}
+
+/// An output folder held for a run ([`enter_folder`]): its shared `flock`
+/// for as long as this is kept, and its [`Mark`].
+#[derive(Debug)]
+pub struct Held {
+    /// the open folder, its shared `flock` taken
+    pub file: fs::File,
+    _mark: Mark,
+}
+
+/// Why nothing may be written at `path` now: it is at or below an output
+/// folder a run holds, and that folder's name now leads elsewhere (the
+/// folder moved, or a link was put in its place: its files would land in
+/// another folder). Checked before each input's names are claimed, before
+/// its outputs are renamed into place, and before each summary row; a
+/// swap between the check and the write is not seen.
+pub fn outdir_moved(path: &Path) -> Option<String> {
+    use std::os::unix::fs::MetadataExt;
+    let held = HELD.lock().ok()?;
+    held.iter().filter(|(d, _)| path.starts_with(d)).find_map(|(d, id)| match fs::metadata(d) {
+        Ok(m) if (m.dev(), m.ino()) == *id => None,
+        _ => Some(format!(
+            "the output folder {} was moved or replaced during the run (a link put in its place?): nothing more is written there",
+            d.display()
+        )),
+    })
+}
+
 /// The output folder `dir` held with a shared `flock` for as long as the
 /// returned file is kept: other runs then know this one is there (see
 /// [`remove_stale_temps`]). None when it cannot be opened or locked.
@@ -190,10 +253,10 @@ pub fn lock_shared_within(f: &fs::File) -> bool {
 /// would otherwise restore each frame to fail its write).
 /// `waiting` is called if another program's lock keeps the folder
 /// ([`lock_shared_waiting`]).
-pub fn enter_folder(dir: &Path, waiting: &mut dyn FnMut()) -> Result<Option<fs::File>, String> {
+pub fn enter_folder(dir: &Path, waiting: &mut dyn FnMut()) -> Result<Option<Held>, String> {
     make_folder(dir)?;
     remove_stale_temps(dir, dir);
-    Ok(hold_folder_waiting(dir, waiting))
+    Ok(hold_folder_waiting(dir, waiting).map(|file| Held { _mark: Mark::new(dir, &file), file }))
 }
 
 /// The note said while another program's lock keeps the output folder `dir`.
@@ -523,6 +586,29 @@ mod tests {
         // the same pid started at another time is another process
         assert!(!process_is(own, Some(start + 1)));
         assert!(!process_is(4_194_399, None) && process_start(4_194_399).is_none());
+    }
+
+    #[test]
+    fn a_held_folder_moved_or_replaced_by_a_link_takes_no_more_writes() {
+        let root = scratch("moved");
+        let d = root.join("out");
+        let held = enter_folder(&d, &mut || {}).unwrap().unwrap();
+        assert_eq!(outdir_moved(&d.join("sub")), None);
+        fs::rename(&d, root.join("old")).unwrap();
+        fs::create_dir(root.join("elsewhere")).unwrap();
+        std::os::unix::fs::symlink(root.join("elsewhere"), &d).unwrap();
+        let why = outdir_moved(&d.join("sub")).unwrap();
+        assert!(why.contains("was moved or replaced during the run"), "{why}");
+        let suffixes = [".jpg".to_string()];
+        let req = crate::files::commit::Request {
+            dir: &d, base: "a", input: Path::new("/nowhere/a.png"), suffixes: &suffixes, overwrite: false, rename: true,
+        };
+        assert!(crate::files::commit::claim(&req).unwrap_err().to_string().contains("moved or replaced"));
+        assert_eq!(fs::read_dir(root.join("elsewhere")).unwrap().count(), 0);
+        // a folder no run holds is not judged
+        drop(held);
+        assert_eq!(outdir_moved(&d.join("sub")), None);
+        fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]

@@ -139,6 +139,8 @@ pub struct Summary {
     outdir: std::path::PathBuf,
     /// the output folder, its lock held shared while the summary is in use
     presence: Option<File>,
+    /// the folder remembered as held (`crate::files::jobs::outdir_moved`)
+    mark: Option<crate::files::jobs::Mark>,
     /// when the run started: whether it was alone (no other run held the
     /// folder's lock), and the file's size and time then
     start: Option<Start>,
@@ -173,7 +175,8 @@ impl Summary {
             crate::files::jobs::lock_shared_waiting(f, waiting)
         });
         let start = presence.as_ref().and(start);
-        Self { outdir: outdir.to_path_buf(), presence, start, opened: false, error: None, read_only: false, columns: columns() }
+        let mark = presence.as_ref().map(|f| crate::files::jobs::Mark::new(outdir, f));
+        Self { outdir: outdir.to_path_buf(), presence, mark, start, opened: false, error: None, read_only: false, columns: columns() }
     }
 
     /// The path of the file.
@@ -252,6 +255,12 @@ impl Summary {
     /// empty), text neutralised ([`neutralise`]) and quoted, in one write
     /// under the file's lock.
     pub fn write(&mut self, row: &serde_json::Map<String, Value>) {
+        if let Some(why) = crate::files::jobs::outdir_moved(&self.path()) {
+            self.fail(&std::io::Error::other(why));
+            self.opened = true;
+            self.presence = None;
+            return;
+        }
         if !self.opened {
             self.open();
         }
@@ -319,6 +328,7 @@ impl Summary {
     /// Closes the file and lets the folder's lock go (also when dropped).
     pub fn close(&mut self) {
         self.presence = None;
+        self.mark = None;
     }
     /// A restored input: its sidecar `side`, its outputs in `dir`.
     pub fn done(&mut self, input: &Path, side: &Value, dir: &Path) {
@@ -422,7 +432,7 @@ mod tests {
     #[test]
     fn a_folder_read_only_by_mount_or_by_permissions_is_read_only() {
         use std::io::{Error, ErrorKind};
-        let mut s = Summary { outdir: std::path::PathBuf::from("/o"), presence: None, start: None, opened: false, error: None, read_only: false, columns: columns() };
+        let mut s = Summary { outdir: std::path::PathBuf::from("/o"), presence: None, mark: None, start: None, opened: false, error: None, read_only: false, columns: columns() };
         for (kind, want) in [(ErrorKind::ReadOnlyFilesystem, true), (ErrorKind::PermissionDenied, true), (ErrorKind::StorageFull, false)] {
             s.fail(&Error::from(kind));
             assert_eq!(s.read_only, want, "{kind:?}");
