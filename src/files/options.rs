@@ -332,7 +332,7 @@ guided filter on S x S blocks (for video and sequences: t_B within ~4e-4 on aver
     Spec { key: "sphere_points", flag: "--sphere-points", short: None, metavar: "N", kind: Kind::Int { min: 1, max: crate::method::sphere::MAX_POINTS as u64 },
         default: Default::Int(DEFAULT_SPHERE_POINTS as u64), help: "haze-line clusters",
         group: Group::Method, faces: Faces::Both, method: true },
-    Spec { key: "reuse_estimates", flag: "--reuse-estimates", short: None, metavar: "N", kind: Kind::Int { min: 1, max: u64::MAX },
+    Spec { key: "reuse_estimates", flag: "--reuse-estimates", short: None, metavar: "N", kind: Kind::Int { min: 1, max: i64::MAX as u64 },
         default: Default::None, help: "sequence mode for the frames of one video or dive (inputs in the order \
 given, folders by name, or stream lines): choose the water type and estimate the veiling light on every N-th \
 restored input and reuse them in between",
@@ -457,6 +457,7 @@ impl Spec {
             Kind::Flag | Kind::WaterTypes => Ok(Value::Text(text.to_string())),
             Kind::Int { min, max } => match t.parse::<u64>() {
                 Ok(n) if n >= min && n <= max => Ok(Value::Int(n)),
+                Ok(n) if n > max && max >= u64::from(u32::MAX) => Err(bad(format!("is over {max}"))),
                 _ if max >= u64::from(u32::MAX) => Err(bad(format!("is not an integer >= {min}"))),
                 _ => Err(bad(format!("is not an integer in {min}..{max}"))),
             },

@@ -328,3 +328,11 @@ def test_a_sigint_ignored_at_start_stays_ignored(impl, binary, tmp_path):
     _, err = p.communicate(timeout=300)
     assert p.returncode == 0, err
     assert len(list((tmp_path / "out").glob("p*.json"))) == n
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_reuse_estimates_past_the_largest_count_is_refused_alike(impl, binary, tmp_path):
+    from bothcmds import cmds, run_restore
+
+    r = run_restore(cmds(binary)[impl], tmp_path / "x.png", "-o", tmp_path / "o", "--reuse-estimates", str(2**63))
+    assert r.returncode == 2 and f'--reuse-estimates: "{2**63}" is over {2**63 - 1}' in r.stderr, r.stderr
