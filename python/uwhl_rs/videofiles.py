@@ -35,6 +35,7 @@ from . import _core, files, video
 from .videoencode import CODECS, Writer, check_size, codec_for, extension, resolve_codec, write_error
 from .errors import CommandError, ImageTooLargeError, ParameterError
 from .sidecars import display
+from .storage import sha256_of
 
 __all__ = ["VideoResult", "video_suffixes", "restore_video", "still_name", "resolve_codec", "frame_need", "CODECS"]
 
@@ -485,4 +486,12 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
     resolved = os.path.realpath(in_path) if "://" not in str(label) else None
     if resolved is not None and resolved.encode("utf-8", "surrogateescape").decode("utf-8", "replace") == resolved:
         doc["input_resolved"] = resolved
+    elif resolved is not None:
+        # no name to know it by: its bytes' SHA-256 does, as a photo's does (a
+        # rerun would otherwise restore it again under NAME_2, NAME_3, ...)
+        try:
+            with open(in_path, "rb") as f:
+                doc.setdefault("metadata", {})["input_sha256"] = sha256_of(f)
+        except OSError:
+            pass
     return doc

@@ -257,13 +257,10 @@ def test_restore_file_refuses_what_the_commands_refuse(tmp_path):
     assert uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o4", water_from=cal).sidecar["water_type"]
 
 
-def test_a_video_is_read_from_its_own_file_and_never_from_files_it_names(tmp_path):
-    """FFmpeg took a bare ``file:x.mp4`` or ``concat:a|b`` as a protocol (the
-    named video restored from other files), and a ``.mp4`` that is an
-    ffconcat list opened what it lists (a FIFO: the batch hung)."""
-    import av
-
-    with av.open(str(tmp_path / "ten.mp4"), "w") as out:
+def _tiny_video(path):
+    """Four frames of noise, 32 x 24, FFV1."""
+    av = pytest.importorskip("av")
+    with av.open(os.fsdecode(path), "w", format="mp4") as out:
         st = out.add_stream("ffv1", rate=24)
         st.width, st.height, st.pix_fmt = 32, 24, "bgr0"
         for k in range(4):
@@ -274,6 +271,27 @@ def test_a_video_is_read_from_its_own_file_and_never_from_files_it_names(tmp_pat
                 out.mux(p)
         for p in st.encode():
             out.mux(p)
+
+
+def test_a_video_named_in_bytes_that_are_not_utf8_is_known_again_by_its_hash(tmp_path):
+    """Its sidecar cannot record its name (U+FFFD stands in): it records the
+    file's SHA-256, and a rerun skips it (it was restored again as b_2, b_3)."""
+    d = tmp_path / "nu"
+    d.mkdir()
+    name = os.path.join(os.fsencode(d), b"b\xff.mp4")
+    _tiny_video(os.fsdecode(name))
+    for k in range(2):
+        r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", str(d), "-o", str(tmp_path / "out"), "-q"],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+    assert len(list((tmp_path / "out").glob("*.json"))) == 1
+
+
+def test_a_video_is_read_from_its_own_file_and_never_from_files_it_names(tmp_path):
+    """FFmpeg took a bare ``file:x.mp4`` or ``concat:a|b`` as a protocol (the
+    named video restored from other files), and a ``.mp4`` that is an
+    ffconcat list opened what it lists (a FIFO: the batch hung)."""
+    _tiny_video(tmp_path / "ten.mp4")
     (tmp_path / "file:ten.mp4").write_bytes(b"junk")
     os.mkfifo(tmp_path / "ff")
     (tmp_path / "clip.mp4").write_text("ffconcat version 1.0\nfile ff\nfile ten.mp4\n")
