@@ -168,7 +168,7 @@ def read_image(
         raise ValueError(f"preprocess must be one of {PREPROCESS_MODES}, not {preprocess!r}")
     _check_max_pixels(max_pixels)
     if not os.path.exists(path):
-        raise ImageReadError(f"{path}: no such file")
+        raise ImageReadError(f"{path}: no such file or folder")
     if os.path.isdir(path):
         raise ImageReadError(f"{path}: is a folder, not an image")
     if not os.path.isfile(path):
@@ -267,7 +267,8 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
     except MemoryError as e:
         raise ImageTooLargeError(f"{path}: {e}") from None
     except _core.ImageError as e:
-        raise ImageReadError(f"{path}: {kind}: {e}") from None
+        # the core's words, as the binary says them (they name the format where it matters)
+        raise ImageReadError(f"{path}: {e}") from None
     orientation = int(info["orientation"])
     notes = tuple(info["notes"])
     if info["is_float"]:

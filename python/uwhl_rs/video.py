@@ -177,7 +177,7 @@ def _open(path: str):
     what is wrong (not a file, an empty file, not a video FFmpeg reads)."""
     av = _av()
     if not os.path.isfile(path):
-        why = "no such file" if not os.path.exists(path) else "not a regular file (not opened)"
+        why = "no such file or folder" if not os.path.exists(path) else "not a regular file (not opened)"
         raise ImageReadError(f"{path}: {why}")
     try:
         empty = os.path.getsize(path) == 0

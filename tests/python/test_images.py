@@ -247,7 +247,8 @@ def test_bad_files_give_clear_errors(tmp_path):
     images.write_image(tmp_path / "p16.png", a.astype(np.uint16) * 257)
     png16 = (tmp_path / "p16.png").read_bytes()
     (tmp_path / "cut16.png").write_bytes(png16[: len(png16) // 2])
-    assert "PNG" in _error(tmp_path / "cut16.png")
+    # the binary's words: the format is not named, what is wrong with the file is
+    assert "cannot decode: the file ends before its image data" in _error(tmp_path / "cut16.png")
 
 
 def test_absurd_size_is_refused_before_decoding(tmp_path):
