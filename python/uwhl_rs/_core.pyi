@@ -25,8 +25,9 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "new_run", "nearest_type", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "new_run", "nearest_type", "outdir_problem", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
+    "name_bases", "MAX_NAMES", "FAMILY_GAP",
     "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
     "place", "IMAGE_EXTENSIONS", "RAW_EXTENSIONS", "FIT_BETA_GRID", "MAP_PER_PHOTO_PIXEL", "map_cap", "VIDEO_SCENE_CUT", "VIDEO_SMOOTHING", "VIDEO_EXTENSIONS",
@@ -55,6 +56,10 @@ FIT_BETA_GRID: tuple[float, float]
 MAP_PER_PHOTO_PIXEL: int
 #: a fallback_share from which a photo's colours are the input's balance throughout
 BALANCED_SHARE: float
+#: the names a claim tries for an input (NAME, NAME_2, ...)
+MAX_NAMES: int
+#: names in a row without a sidecar after which a rerun stops looking along a sequence for an input's earlier name
+FAMILY_GAP: int
 #: the scene-cut threshold and A smoothing of videos and raw frames (METHOD §10)
 VIDEO_SCENE_CUT: float
 VIDEO_SMOOTHING: float
@@ -91,6 +96,8 @@ def unknown_short_said(word: str) -> str:
 def parse_water_types(values: list[str]) -> list[Union[str, tuple[str, float, float]]]:
     """--water-type values parsed as the binary parses them: a table type by its name, a custom one as
     (name, beta_br, beta_bg); ParameterError with the binary's message."""
+def check_water(water_from: bool, water_types: bool) -> None:
+    """A dive's water (--water-from) with water types given; ValueError with the usage message."""
 def check_distance(
     distance: bool, altitude: bool, fov: bool, reuse_estimates: bool, depth: bool = False, port: bool = False,
 ) -> None:
@@ -108,6 +115,8 @@ def collect_jobs(
     inputs: list[_PathArg], out_dir: _PathArg, suffixes: list[str]
 ) -> tuple[list[tuple[Path, Path, str]], list[tuple[Path, str]], list[str]]:
     """The jobs of a batch as (input, output folder, name), the problems as (input, reason), and notes (folders not searched)."""
+def name_bases(path: _PathArg) -> tuple[str, str]:
+    """The two bases a batch names an input from: its stem S, and S_E with E its extension in ASCII lower case."""
 def name_jobs(found: list[tuple[str, str]], suffixes: list[str]) -> list[str]:
     """The output names of (input, relative folder) pairs listed elsewhere, in discovery order."""
 

@@ -345,8 +345,8 @@ def remove_earlier(fs, side: str, dest: dict, storage_options: dict) -> None:
             pass
 
 
-#: the names an input on object storage tries (``NAME``, ``NAME_2``, ...), as ``commit::MAX_NAMES`` in a folder
-MAX_NAMES = 10_000
+#: the names an input on object storage tries (``NAME``, ``NAME_2``, ...), as a claim in a folder does
+MAX_NAMES = _core.MAX_NAMES
 #: the bytes of earlier sidecars fetched at once while a batch is planned
 PLAN_READ_BYTES = 64 << 20
 
@@ -446,26 +446,20 @@ def folder_done(items: list) -> list:
     return done
 
 
-#: names in a row without a sidecar after which a sequence is no longer looked along (``commit::FAMILY_GAP``)
-FAMILY_GAP = 16
-
-
 def _family(it, key, existing: dict) -> list:
     """The names other than its planned one that a batch may have given
-    ``it`` (stem ``S``, extension ``E``: ``S``, ``S_E``, each followed by
-    ``_2``, ``_3``, ...) that hold a sidecar in ``existing``, each sequence
-    until :data:`FAMILY_GAP` names in a row hold none, as (name, sidecar
-    key)."""
-    stem, ext = os.path.splitext(posixpath.basename(it.input.rstrip("/")))
+    ``it`` (``_core.name_bases``: ``S``, ``S_E``, each followed by ``_2``,
+    ``_3``, ...) that hold a sidecar in ``existing``, each sequence until
+    ``_core.FAMILY_GAP`` names in a row hold none, as (name, sidecar key)."""
     out = []
-    for base in (stem, f"{stem}_{ext[1:].lower()}"):
+    for base in _core.name_bases(it.input.rstrip("/")):
         missing = 0
         for k in range(1, MAX_NAMES + 1):
             name = base if k == 1 else f"{base}_{k}"
             side = key(it, name)
             if side not in existing:
                 missing += 1
-                if missing > FAMILY_GAP:
+                if missing > _core.FAMILY_GAP:
                     break
                 continue
             missing = 0

@@ -480,15 +480,15 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
     }
     # a local file's absolute path, links resolved, as a photo's sidecar
     # records it: a rerun from another folder recognises it, and the same
-    # relative name in another dive is another input (docs/OUTPUTS.md)
-    # (a name that is not UTF-8 has none: as the photo's sidecar, its input
-    # is recorded with U+FFFD and that name decides)
+    # relative name in another dive is another input (docs/OUTPUTS.md); a
+    # name that is not UTF-8 cannot be recorded (U+FFFD stands in for its
+    # bytes), so the file's hash is
     resolved = os.path.realpath(in_path) if "://" not in str(label) else None
     if resolved is not None and resolved.encode("utf-8", "surrogateescape").decode("utf-8", "replace") == resolved:
         doc["input_resolved"] = resolved
     elif resolved is not None:
-        # no name to know it by: its bytes' SHA-256 does, as a photo's does (a
-        # rerun would otherwise restore it again under NAME_2, NAME_3, ...)
+        # as a photo's sidecar records it (a rerun would otherwise restore it
+        # again under NAME_2, NAME_3, ...)
         try:
             with open(in_path, "rb") as f:
                 doc.setdefault("metadata", {})["input_sha256"] = sha256_of(f)

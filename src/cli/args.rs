@@ -349,9 +349,8 @@ where
         crate::files::options::Names::Flags,
     )
     .map_err(Failure::usage)?;
-    if o.water_from.is_some() && o.water_types.is_some() {
-        return Err(Failure::usage("--water-from gives the water type: it does not go with --water-type"));
-    }
+    crate::files::options::check_water(o.water_from.is_some(), o.water_types.is_some(), crate::files::options::Names::Flags)
+        .map_err(Failure::usage)?;
     crate::files::options::check_distance(
         o.distance.is_some(),
         o.altitude.is_some(),

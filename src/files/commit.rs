@@ -35,7 +35,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// The most names tried for one input (`NAME`, `NAME_2`, ...).
-const MAX_NAMES: usize = 10_000;
+pub const MAX_NAMES: usize = 10_000;
 
 /// Output paths claimed by this process and not yet committed or released,
 /// with the input each belongs to: two inputs in flight at once (the
@@ -709,7 +709,7 @@ fn earlier_name(req: &Request<'_>, key: &Path, hash: &mut Option<Option<String>>
 
 /// Names in a row without a sidecar after which [`earlier_name`] stops
 /// looking along a sequence.
-const FAMILY_GAP: usize = 16;
+pub const FAMILY_GAP: usize = 16;
 
 /// Whether `r` is `_N` with N a number of at least 2 (a name's counter).
 fn is_counter(r: &str) -> bool {

@@ -144,7 +144,9 @@ static HELD: std::sync::Mutex<Vec<(PathBuf, (u64, u64))>> = std::sync::Mutex::ne
 /// another folder ([`outdir_moved`]).
 #[derive(Debug)]
 pub struct Mark {
-    dir: PathBuf,
+    /// the entry of [`HELD`] this remembers; None when the folder's
+    /// identity could not be read
+    entry: Option<(PathBuf, (u64, u64))>,
 }
 
 impl Mark {
@@ -152,19 +154,20 @@ impl Mark {
     /// `file` (that folder, opened).
     pub fn new(dir: &Path, file: &fs::File) -> Self {
         use std::os::unix::fs::MetadataExt;
-        if let Ok(m) = file.metadata() {
-            if let Ok(mut held) = HELD.lock() {
-                held.push((dir.to_path_buf(), (m.dev(), m.ino())));
-            }
+        let entry = file.metadata().ok().map(|m| (dir.to_path_buf(), (m.dev(), m.ino())));
+        if let (Some(e), Ok(mut held)) = (&entry, HELD.lock()) {
+            held.push(e.clone());
         }
-        Self { dir: dir.to_path_buf() }
+        Self { entry }
     }
 }
 
 impl Drop for Mark {
+    /// Forgets its own entry: two runs of one process may hold one path as
+    /// two folders (one taken before a swap, one after).
     fn drop(&mut self) {
-        if let Ok(mut held) = HELD.lock() {
-            if let Some(i) = held.iter().position(|(d, _)| *d == self.dir) {
+        if let (Some(e), Ok(mut held)) = (&self.entry, HELD.lock()) {
+            if let Some(i) = held.iter().position(|x| x == e) {
                 held.remove(i);
             }
         }

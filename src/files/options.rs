@@ -696,6 +696,15 @@ pub fn check_distance(
     Ok(())
 }
 
+/// A dive's water (`--water-from`) is the water type: both commands
+/// refuse it with water types given, before any input is read.
+pub fn check_water(water_from: bool, water_types: bool, names: Names) -> Result<(), String> {
+    if water_from && water_types {
+        return Err(format!("{} gives the water type: it does not go with {}", names.of("water_from"), names.of("water_types")));
+    }
+    Ok(())
+}
+
 /// The usage error of an unknown short option, in both commands: the whole
 /// `word` it began (`-dash.mp4`, not `-d`), and for a word that looks like
 /// a file name (a dot, or a path that is there, a dangling link too) the

@@ -99,9 +99,8 @@ impl PyFileSettings {
             crate::files::options::Names::Keywords,
         )
         .map_err(ParameterError::new_err)?;
-        if s.water_from.is_some() && s.water_types.is_some() {
-            return Err(ParameterError::new_err("water_from gives the water type: it does not go with water_types"));
-        }
+        crate::files::options::check_water(s.water_from.is_some(), s.water_types.is_some(), crate::files::options::Names::Keywords)
+            .map_err(ParameterError::new_err)?;
         Ok(Self(s))
     }
 

@@ -552,6 +552,13 @@ fn check_distance(distance: bool, altitude: bool, fov: bool, reuse_estimates: bo
         .map_err(PyValueError::new_err)
 }
 
+/// A dive's water with water types (`crate::files::options::check_water`);
+/// ValueError with the usage message.
+#[pyfunction]
+fn check_water(water_from: bool, water_types: bool) -> PyResult<()> {
+    crate::files::options::check_water(water_from, water_types, crate::files::options::Names::Flags).map_err(PyValueError::new_err)
+}
+
 /// The jobs of a batch (`crate::files::jobs::collect_jobs`, output files
 /// `NAME` + each suffix): `(jobs, problems, notes)`, jobs as `(input,
 /// output folder, name)`, problems as `(input, reason)`, notes the folders
@@ -1058,6 +1065,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(options_help, m)?)?;
     m.add_function(wrap_pyfunction!(check_combination, m)?)?;
     m.add_function(wrap_pyfunction!(check_distance, m)?)?;
+    m.add_function(wrap_pyfunction!(check_water, m)?)?;
     m.add_function(wrap_pyfunction!(parse_water_types, m)?)?;
     m.add_function(wrap_pyfunction!(unknown_short_said, m)?)?;
     m.add_function(wrap_pyfunction!(depth_to_range, m)?)?;

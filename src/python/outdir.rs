@@ -181,6 +181,14 @@ fn summary_columns() -> Vec<String> {
     summary::columns()
 }
 
+/// The two bases a batch names an input from (`crate::files::jobs::name_bases`):
+/// its stem `S`, and `S_E` with E its extension in ASCII lower case.
+#[pyfunction]
+fn name_bases(path: std::path::PathBuf) -> (String, String) {
+    let [s, with_ext] = crate::files::jobs::name_bases(&path);
+    (s, with_ext)
+}
+
 /// Adds the bindings of this file to `_core`.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySummary>()?;
@@ -191,5 +199,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(water_with_distance_note, m)?)?;
     m.add("BALANCED_SHARE", crate::method::fallback::BALANCED)?;
     m.add_function(wrap_pyfunction!(summary_columns, m)?)?;
+    m.add_function(wrap_pyfunction!(name_bases, m)?)?;
+    m.add("MAX_NAMES", crate::files::commit::MAX_NAMES)?;
+    m.add("FAMILY_GAP", crate::files::commit::FAMILY_GAP)?;
     Ok(())
 }

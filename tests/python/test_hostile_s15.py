@@ -236,9 +236,9 @@ def test_a_tiff_whose_tag_passes_its_end_is_named_in_both_commands(impl, binary,
     assert not rec["used"] and "is damaged: the value of TIFF tag 0x0100" in rec["rejected"], rec
 
 
-def test_restore_file_refuses_what_the_commands_refuse(tmp_path):
-    """The API as the commands: a dive's water with water types, a window
-    without a lens to bend, depth of an array (hostile review)."""
+def _calibrated(tmp_path):
+    """A photo of a receding seabed and a folder of its restoration with
+    its distance: a dive's water for --water-from."""
     h, w = 90, 120
     sc = synth.scene(h, w, kind="looking_down", seed=5)
     z = np.repeat(np.linspace(8.0, 1.0, h)[:, None], w, 1).astype(np.float32)
@@ -247,6 +247,25 @@ def test_restore_file_refuses_what_the_commands_refuse(tmp_path):
     cal = tmp_path / "cal"
     r = uwhl_rs.restore_file(tmp_path / "sea.png", cal, distance=z)
     assert r.sidecar["distance"]["used"], r.sidecar["distance"]
+    return z, cal
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_a_dives_water_with_water_types_is_refused_alike(impl, binary, tmp_path):
+    from bothcmds import cmds, run_restore
+
+    _, cal = _calibrated(tmp_path)
+    r = run_restore(cmds(binary)[impl], tmp_path / "sea.png", "-o", tmp_path / "o", "--water-from", cal,
+                    "--water-type", "I")
+    assert r.returncode == 2, r.stderr
+    assert "--water-from gives the water type: it does not go with --water-type" in r.stderr, r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_restore_file_refuses_what_the_commands_refuse(tmp_path):
+    """The API as the commands: a dive's water with water types, a window
+    without a lens to bend, depth of an array (hostile review)."""
+    z, cal = _calibrated(tmp_path)
     with pytest.raises(uwhl_rs.ParameterError, match="water_from gives the water type"):
         uwhl_rs.restore_file(tmp_path / "sea.png", tmp_path / "o1", water_from=cal, water_types=["I"])
     with pytest.raises(uwhl_rs.ParameterError, match="port is the window of altitude"):

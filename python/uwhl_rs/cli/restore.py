@@ -43,9 +43,11 @@ def _check(a: argparse.Namespace, options: dict) -> None:
             raise _bad(f"--water-type: {e}") from None
     # this run reads its --water-from folder and navigation log once, from here (a process may serve many)
     _core.new_run()
+    try:
+        _core.check_water(a.water_from is not None, bool(a.water_types))
+    except ValueError as e:
+        raise _bad(str(e)) from None
     if a.water_from is not None:
-        if a.water_types:
-            raise _bad("--water-from gives the water type: it does not go with --water-type")
         try:
             _core.FileSettings(water_from=a.water_from)
         except UwhlError as e:
