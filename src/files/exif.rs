@@ -77,94 +77,141 @@ impl<R: Read + Seek> Source for ReaderSource<'_, R> {
     }
 }
 
-/// One IFD entry: tag, type, count and the four value-or-offset bytes.
+/// One IFD entry: tag, type, count and the value-or-offset bytes (four
+/// in classic TIFF, eight in BigTIFF; the rest zero).
 #[derive(Debug, Clone, Copy)]
 struct Entry {
     tag: u16,
     kind: u16,
-    count: u32,
-    raw: [u8; 4],
+    count: u64,
+    raw: [u8; 8],
 }
 
-/// The byte order of a TIFF header.
+/// The byte order of a TIFF header, and whether it is a BigTIFF (magic 43:
+/// counts, offsets and the value field of an entry are eight bytes).
 #[derive(Debug, Clone, Copy)]
-struct Order(bool);
+struct Order {
+    le: bool,
+    big: bool,
+}
 
 impl Order {
     fn u16(self, b: [u8; 2]) -> u16 {
-        if self.0 { u16::from_le_bytes(b) } else { u16::from_be_bytes(b) }
+        if self.le { u16::from_le_bytes(b) } else { u16::from_be_bytes(b) }
     }
     fn u32(self, b: [u8; 4]) -> u32 {
-        if self.0 { u32::from_le_bytes(b) } else { u32::from_be_bytes(b) }
+        if self.le { u32::from_le_bytes(b) } else { u32::from_be_bytes(b) }
+    }
+    fn u64(self, b: [u8; 8]) -> u64 {
+        if self.le { u64::from_le_bytes(b) } else { u64::from_be_bytes(b) }
+    }
+    /// Bytes of an entry's value field: values this size or smaller are
+    /// stored in it, larger ones at the offset it holds.
+    fn inline(self) -> u64 {
+        if self.big { 8 } else { 4 }
+    }
+    /// The offset an entry's value field holds.
+    fn offset(self, raw: [u8; 8]) -> u64 {
+        if self.big { self.u64(raw) } else { u64::from(self.u32([raw[0], raw[1], raw[2], raw[3]])) }
     }
 }
 
-/// Bytes per value of a TIFF type (6.0 and the IFD type 13); None if unknown.
+/// Bytes per value of a TIFF type (6.0, the IFD type 13 and BigTIFF's
+/// LONG8, SLONG8 and IFD8); None if unknown.
 fn type_size(kind: u16) -> Option<u64> {
     match kind {
         1 | 2 | 6 | 7 => Some(1),
         3 | 8 => Some(2),
         4 | 9 | 11 | 13 => Some(4),
-        5 | 10 | 12 => Some(8),
+        5 | 10 | 12 | 16 | 17 | 18 => Some(8),
         _ => None,
     }
 }
 
-/// The byte order and the offset of IFD0.
+/// The byte order and the offset of IFD0: a classic TIFF header (magic
+/// 42), or a BigTIFF's (magic 43, offset size 8, then the 8-byte offset).
 fn header(src: &mut dyn Source) -> Result<(Order, u64), String> {
     let mut h = [0u8; 8];
     if !src.read_at(0, &mut h) {
         return Err("the EXIF block is shorter than a TIFF header".into());
     }
-    let order = match &h[..4] {
-        b"II*\0" => Order(true),
-        b"MM\0*" => Order(false),
+    let le = match &h[..2] {
+        b"II" => true,
+        b"MM" => false,
         _ => return Err("the EXIF block does not start with a TIFF header".into()),
     };
-    Ok((order, u64::from(order.u32([h[4], h[5], h[6], h[7]]))))
+    let classic = Order { le, big: false };
+    match classic.u16([h[2], h[3]]) {
+        42 => Ok((classic, u64::from(classic.u32([h[4], h[5], h[6], h[7]])))),
+        43 => {
+            let big = Order { le, big: true };
+            let mut off = [0u8; 8];
+            if big.u16([h[4], h[5]]) != 8 || big.u16([h[6], h[7]]) != 0 || !src.read_at(8, &mut off) {
+                return Err("the EXIF block's BigTIFF header is not offset size 8 followed by an offset".into());
+            }
+            Ok((big, big.u64(off)))
+        }
+        _ => Err("the EXIF block does not start with a TIFF header".into()),
+    }
 }
 
-/// The entries of the IFD at `at` and its link to the next IFD.
+/// The entries of the IFD at `at` and its link to the next IFD (at most
+/// [`MAX_ENTRIES`] entries: a BigTIFF's count is eight bytes).
 fn ifd(src: &mut dyn Source, o: Order, at: u64) -> Result<(Vec<Entry>, u64), String> {
-    let mut n = [0u8; 2];
-    if !src.read_at(at, &mut n) {
+    let (count_size, entry_size, link_size) = if o.big { (8, 20, 8) } else { (2, 12, 4) };
+    let mut c = [0u8; 8];
+    if !src.read_at(at, &mut c[..count_size]) {
         return Err(format!("an EXIF IFD offset ({at}) is outside the block"));
     }
-    let n = usize::from(o.u16(n));
-    let mut raw = vec![0u8; n * 12 + 4];
-    if !src.read_at(at + 2, &mut raw) {
+    let n = if o.big { o.u64(c) } else { u64::from(o.u16([c[0], c[1]])) };
+    if n > MAX_ENTRIES as u64 {
+        return Err(format!("the EXIF IFD at {at} has {n} entries, over {MAX_ENTRIES}"));
+    }
+    let n = n as usize;
+    let mut raw = vec![0u8; n * entry_size + link_size];
+    if !src.read_at(at + count_size as u64, &mut raw) {
         return Err(format!("the EXIF IFD at {at} ({n} entries) runs past the block"));
     }
     let entries = raw
-        .chunks_exact(12)
-        .map(|e| Entry {
-            tag: o.u16([e[0], e[1]]),
-            kind: o.u16([e[2], e[3]]),
-            count: o.u32([e[4], e[5], e[6], e[7]]),
-            raw: [e[8], e[9], e[10], e[11]],
+        .chunks_exact(entry_size)
+        .take(n)
+        .map(|e| {
+            let (count, value) = e[4..].split_at(entry_size / 2 - 2);
+            let mut v = [0u8; 8];
+            v[..value.len()].copy_from_slice(value);
+            let mut k = [0u8; 8];
+            k[..count.len()].copy_from_slice(count);
+            Entry {
+                tag: o.u16([e[0], e[1]]),
+                kind: o.u16([e[2], e[3]]),
+                count: if o.big { o.u64(k) } else { u64::from(o.u32([k[0], k[1], k[2], k[3]])) },
+                raw: v,
+            }
         })
         .collect();
-    let l = &raw[n * 12..];
-    Ok((entries, u64::from(o.u32([l[0], l[1], l[2], l[3]]))))
+    let mut l = [0u8; 8];
+    l[..link_size].copy_from_slice(&raw[n * entry_size..]);
+    Ok((entries, o.offset(l)))
 }
 
 /// The integer values (BYTE, SHORT, LONG) of an entry, at most `max` of them.
-fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u32) -> Result<Vec<u64>, String> {
+fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u64) -> Result<Vec<u64>, String> {
     let size = match e.kind {
         1 => 1,
         3 => 2,
         4 | 13 => 4,
+        16 | 18 => 8,
         k => return Err(format!("EXIF tag 0x{:04X} has type {k}, not an integer", e.tag)),
     };
     if e.count > max {
         return Err(format!("EXIF tag 0x{:04X} has {} values, over {max}", e.tag, e.count));
     }
     let bytes = size * e.count as usize;
-    let data = if bytes <= 4 {
+    let data = if bytes as u64 <= o.inline() {
         e.raw[..bytes].to_vec()
     } else {
         let mut v = vec![0u8; bytes];
-        if !src.read_at(u64::from(o.u32(e.raw)), &mut v) {
+        if !src.read_at(o.offset(e.raw), &mut v) {
             return Err(format!("the values of EXIF tag 0x{:04X} are outside the block", e.tag));
         }
         v
@@ -174,7 +221,8 @@ fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u32) -> Result<Vec<u
         .map(|c| match size {
             1 => u64::from(c[0]),
             2 => u64::from(o.u16([c[0], c[1]])),
-            _ => u64::from(o.u32([c[0], c[1], c[2], c[3]])),
+            4 => u64::from(o.u32([c[0], c[1], c[2], c[3]])),
+            _ => o.u64([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]),
         })
         .collect())
 }
@@ -199,10 +247,14 @@ pub struct Walked {
 /// all, image strips and the thumbnail inside the block and no larger than
 /// it. The reason is returned when one fails.
 pub fn check(src: &mut dyn Source) -> Result<Walked, String> {
+    // an EXIF block is classic TIFF (EXIF 2.3, 4.6.2); its readers know no other
+    if header(src)?.0.big {
+        return Err("the EXIF block is a BigTIFF, which EXIF does not allow".into());
+    }
     walk(src, true)
 }
 
-/// [`check`], with the image strips and thumbnail checked only when
+/// [`check`] of classic TIFF or BigTIFF, with the image strips and thumbnail checked only when
 /// `check_data`: a whole TIFF file cut short is the decoder's to name
 /// ("the file ends before its image data does").
 fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
@@ -227,9 +279,9 @@ fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
         let (mut strips, mut counts, mut thumb, mut thumb_len) = (None, None, None, None);
         for e in &list {
             let size = type_size(e.kind).ok_or_else(|| format!("EXIF tag 0x{:04X} has an unknown type {}", e.tag, e.kind))?;
-            let bytes = size * u64::from(e.count);
-            if bytes > 4 {
-                let off = u64::from(o.u32(e.raw));
+            let bytes = size.checked_mul(e.count).unwrap_or(u64::MAX);
+            if bytes > o.inline() {
+                let off = o.offset(e.raw);
                 if off.checked_add(bytes).is_none_or(|end| end > len) {
                     return Err(format!("the value of EXIF tag 0x{:04X} ({bytes} bytes at {off}) is outside the block", e.tag));
                 }
@@ -242,7 +294,7 @@ fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
                 t if SUB_IFDS.contains(&t) => {
                     let first = integers(src, o, e, 1 << 16)?;
                     match first.first() {
-                        Some(&sub) if matches!(e.kind, 4 | 13) => todo.push((sub, false)),
+                        Some(&sub) if matches!(e.kind, 4 | 13 | 16 | 18) => todo.push((sub, false)),
                         _ => return Err(format!("EXIF sub-IFD tag 0x{t:04X} is not a LONG offset")),
                     }
                 }
@@ -273,12 +325,13 @@ fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
 /// A whole TIFF file's structure checked by [`check`] before a decoder
 /// reads it: Err with the reason when it fails. The `tiff` crate trusts
 /// a tag's count (an ASCII ImageWidth of 4 GiB went to a `dbg!` on stderr,
-/// which deadlocked a binary that held stderr). A BigTIFF is left to the
-/// decoder: [`check`] walks classic TIFF only.
+/// which deadlocked a binary that held stderr), in classic TIFF and in
+/// BigTIFF alike (magic 42 or 43); a file that is neither is the
+/// decoder's to name.
 pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
     let mut src = ReaderSource::new(r).map_err(|e| e.to_string())?;
     let mut magic = [0u8; 4];
-    if !src.read_at(0, &mut magic) || !matches!(&magic, b"II*\0" | b"MM\0*") {
+    if !src.read_at(0, &mut magic) || !matches!(&magic, b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+") {
         return Ok(());
     }
     // the walk's words are an EXIF block's; here the block is the file
@@ -336,11 +389,11 @@ pub fn exif_orientation(src: &mut dyn Source) -> Result<Option<u8>, String> {
         return Err("the EXIF Orientation has no value".into());
     }
     // the first value: inline when all of them fit in the entry, else at its offset
-    let size = if e.kind == 3 { 2 } else { 4 };
+    let size: u64 = if e.kind == 3 { 2 } else { 4 };
     let mut b = [0u8; 4];
-    if size * u64::from(e.count) <= 4 {
+    if size.saturating_mul(e.count) <= o.inline() {
         b[..size as usize].copy_from_slice(&e.raw[..size as usize]);
-    } else if !src.read_at(u64::from(o.u32(e.raw)), &mut b[..size as usize]) {
+    } else if !src.read_at(o.offset(e.raw), &mut b[..size as usize]) {
         return Err("the EXIF Orientation's value is outside the block".into());
     }
     let v = if size == 2 { u32::from(o.u16([b[0], b[1]])) } else { o.u32(b) };
@@ -656,14 +709,14 @@ fn tiff_xmp(src: &mut dyn Source) -> Result<Option<String>, String> {
     let (o, ifd0) = header(src)?;
     let (list, _) = ifd(src, o, ifd0)?;
     let Some(e) = list.iter().find(|e| e.tag == 700) else { return Ok(None) };
-    let n = u64::from(e.count) * type_size(e.kind).unwrap_or(1);
+    let n = e.count.saturating_mul(type_size(e.kind).unwrap_or(1));
     if n > MAX_BLOCK {
         return Err(format!("the XMP packet is {n} bytes, over {MAX_BLOCK}"));
     }
     let mut v = vec![0u8; n as usize];
-    if n <= 4 {
+    if n <= o.inline() {
         v.copy_from_slice(&e.raw[..n as usize]);
-    } else if !src.read_at(u64::from(o.u32(e.raw)), &mut v) {
+    } else if !src.read_at(o.offset(e.raw), &mut v) {
         return Err("the XMP packet is outside the file".into());
     }
     Ok(Some(String::from_utf8_lossy(&v).into_owned()))
@@ -825,10 +878,89 @@ mod tests {
         assert!(why.contains("TIFF tag 0x0100") && why.contains("outside the file") && !why.contains("EXIF"), "{why}");
         let ok = tiff(false, &[(0x0100, 3, 1, short(6, false))], 0, &[]);
         assert_eq!(tiff_structure(&mut std::io::Cursor::new(ok)), Ok(()));
-        // a BigTIFF (magic 43) is the decoder's to read
-        let mut big = tiff(true, &[(0x0100, 2, 0xFFFF_FF00, [0; 4])], 0, &[]);
-        big[2] = 43;
-        assert_eq!(tiff_structure(&mut std::io::Cursor::new(big)), Ok(()));
+        // neither TIFF nor BigTIFF: the decoder's to name
+        let mut other = tiff(true, &[(0x0100, 2, 0xFFFF_FF00, [0; 4])], 0, &[]);
+        other[2] = 44;
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(other)), Ok(()));
+    }
+
+    /// A BigTIFF (magic 43, offset size 8) with one IFD at 16 of 20-byte
+    /// entries `(tag, type, count, value field)`, its next-IFD link, then `tail`.
+    fn bigtiff(le: bool, entries: &[(u16, u16, u64, [u8; 8])], next: u64, tail: &[u8]) -> Vec<u8> {
+        let u16b = |v: u16| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        let u64b = |v: u64| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+        let mut b = if le { b"II".to_vec() } else { b"MM".to_vec() };
+        b.extend(u16b(43));
+        b.extend(u16b(8));
+        b.extend(u16b(0));
+        b.extend(u64b(16));
+        b.extend(u64b(entries.len() as u64));
+        for &(t, k, c, v) in entries {
+            b.extend(u16b(t));
+            b.extend(u16b(k));
+            b.extend(u64b(c));
+            b.extend(v);
+        }
+        b.extend(u64b(next));
+        b.extend(tail);
+        b
+    }
+
+    #[test]
+    fn a_bigtiff_is_walked_with_eight_byte_counts_and_offsets() {
+        let le8 = |v: u64| v.to_le_bytes();
+        let be8 = |v: u64| v.to_be_bytes();
+        // the dbg! case in BigTIFF: an ASCII count far past the file
+        let b = bigtiff(true, &[(0x0100, 2, 0xFFFF_FFFF_FF00, [0; 8])], 0, &[]);
+        let why = tiff_structure(&mut std::io::Cursor::new(b)).unwrap_err();
+        assert!(why.contains("TIFF tag 0x0100") && why.contains("outside the file"), "{why}");
+        // a count whose size overflows 64 bits is outside too, not a wrap to a small number
+        let b = bigtiff(false, &[(0x0100, 16, u64::MAX / 4, [0; 8])], 0, &[]);
+        assert!(tiff_structure(&mut std::io::Cursor::new(b)).unwrap_err().contains("outside the file"));
+        // a value of 8 bytes stays in the entry; 9 bytes go to the offset, which must be inside
+        let inline = bigtiff(true, &[(0x010E, 2, 8, *b"abcdefg\0")], 0, &[]);
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(inline)), Ok(()));
+        let outside = bigtiff(true, &[(0x010E, 2, 9, le8(4000))], 0, &[]);
+        assert!(tiff_structure(&mut std::io::Cursor::new(outside)).unwrap_err().contains("outside the file"));
+        // the next-IFD link (8 bytes) back to IFD0, big-endian: a loop
+        let b = bigtiff(false, &[(0x0100, 3, 1, [0, 6, 0, 0, 0, 0, 0, 0])], 16, &[]);
+        assert!(tiff_structure(&mut std::io::Cursor::new(b)).unwrap_err().contains("loop"));
+        // an IFD8 sub-IFD pointing back at IFD0
+        let b = bigtiff(false, &[(0x8769, 18, 1, be8(16))], 0, &[]);
+        assert!(tiff_structure(&mut std::io::Cursor::new(b)).unwrap_err().contains("loop"));
+        // an entry count of 2^40 is refused before anything that size is allocated
+        let mut b = bigtiff(true, &[], 0, &[]);
+        b[16..24].copy_from_slice(&le8(1 << 40));
+        assert!(tiff_structure(&mut std::io::Cursor::new(b)).unwrap_err().contains("over 8192"));
+        // a header that says offset size 4 is not BigTIFF
+        let mut b = bigtiff(true, &[], 0, &[]);
+        b[4] = 4;
+        assert!(tiff_structure(&mut std::io::Cursor::new(b)).unwrap_err().contains("BigTIFF header"));
+        // an EXIF block must be classic TIFF, whatever it holds
+        let b = bigtiff(true, &[(0x0112, 3, 1, [1, 0, 0, 0, 0, 0, 0, 0])], 0, &[]);
+        assert!(check(&mut b.as_slice()).unwrap_err().contains("BigTIFF"));
+    }
+
+    #[test]
+    fn a_bigtiff_written_by_the_tiff_crate_passes_and_keeps_its_values() {
+        let mut f = std::io::Cursor::new(Vec::new());
+        let data: Vec<f32> = (0..40 * 30).map(|i| i as f32 * 0.01).collect();
+        tiff::encoder::TiffEncoder::new_big(&mut f)
+            .unwrap()
+            .write_image::<tiff::encoder::colortype::Gray32Float>(40, 30, &data)
+            .unwrap();
+        let bytes = f.into_inner();
+        assert_eq!(&bytes[..4], b"II+\0");
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(&bytes)), Ok(()));
+        // IFD0's ImageWidth, read through the 8-byte layout
+        let mut src = bytes.as_slice();
+        let (o, at) = header(&mut src).unwrap();
+        let (list, next) = ifd(&mut src, o, at).unwrap();
+        let width = list.iter().find(|e| e.tag == 0x0100).unwrap();
+        assert_eq!(integers(&mut src, o, width, 1).unwrap(), vec![40]);
+        assert_eq!(next, 0);
+        // cut short by 8 bytes (its IFD or its strips), the walk with the data checked fails
+        assert!(walk(&mut &bytes[..bytes.len() - 8], true).is_err());
     }
 
     #[test]
