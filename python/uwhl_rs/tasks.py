@@ -557,7 +557,7 @@ def _header_need(path: str, opts: dict) -> int:
     if video.is_video(path):
         from . import videofiles
 
-        info = video.probe(path, transfer=opts.get("transfer"))
+        info = video.probe(path, transfer=opts.get("transfer"), rotation=False)
         return videofiles.frame_need(info, opts.get("max_side"))
     got = []
     masks = int(opts.get("mask") is not None) + int(opts.get("water_mask") is not None)

@@ -284,10 +284,12 @@ def _stream_span(container, vs) -> tuple[float | None, float | None]:
     return None, None
 
 
-def _rotation(path: str) -> int:
+def display_rotation(path: str) -> int:
     """The counter-clockwise rotation (degrees) a player applies to the
     stream's frames (a phone's display matrix), read from its first frame;
-    0 when it has none or the frame cannot be decoded."""
+    0 when it has none or the frame cannot be decoded. It decodes a whole
+    frame: a caller that plans memory reads the size from :func:`probe`
+    (``rotation=False``) and checks it first."""
     av = _av()
     try:
         with _av_open(path) as c:
@@ -299,14 +301,17 @@ def _rotation(path: str) -> int:
     return 0
 
 
-def probe(path: str | os.PathLike, *, transfer: str | None = None) -> StreamInfo:
+def probe(path: str | os.PathLike, *, transfer: str | None = None, rotation: bool = True) -> StreamInfo:
     """The first video stream of the file at ``path`` (ImageReadError when
     it is not a video FFmpeg reads, or its transfer curve is not read and
-    ``transfer`` does not say one)."""
+    ``transfer`` does not say one). The headers only, unless ``rotation``:
+    then the first frame is decoded for its display matrix (:func:`display_rotation`),
+    and ``info.rotation`` is 0 without it."""
     path = os.fspath(path)
     with _open(path) as c:
         info = _info(path, c, transfer)
-    info.rotation = _rotation(path)
+    if rotation:
+        info.rotation = display_rotation(path)
     return info
 
 

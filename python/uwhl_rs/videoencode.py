@@ -52,7 +52,7 @@ def resolve_codec(choice: str, path: str) -> str:
     if choice != "input":
         return choice
     try:
-        return codec_for(choice, video.probe(path, transfer="bt709"))
+        return codec_for(choice, video.probe(path, transfer="bt709", rotation=False))
     except (ValueError, OSError):
         return choice
 

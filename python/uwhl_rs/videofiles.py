@@ -209,7 +209,8 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     max_pixels = options.pop("max_pixels", None)
     settings = _core.FileSettings(format=fmt, bits=bits, quality=jpeg_quality, max_side=max_side, **options)
     budget = settings.max_memory
-    info = video.probe(in_path, transfer=transfer)
+    # the headers only: the rotation decodes a frame, which waits for the memory check
+    info = video.probe(in_path, transfer=transfer, rotation=False)
     codec = codec_for(video_codec, info)
     side, memory = files.spelt("max_side", _flags), files.spelt("max_memory", _flags)
     if max_pixels is not None and info.width * info.height > int(max_pixels):
@@ -225,6 +226,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
         # within the budget, but more than the system gives now (as a photo's plan is checked)
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, more "
                                  f"than the system gives now (free memory, a container limit or ulimit -v); use {side}")
+    info.rotation = video.display_rotation(in_path)
     if name and _claim is None:
         files.check_name(name)  # a caller's name, never a path out of out_dir (a batch's are the core's, claimed)
     name = name or os.path.splitext(os.path.basename(in_path))[0]
