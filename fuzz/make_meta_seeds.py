@@ -1,8 +1,9 @@
 """Writes the seeds of the metadata fuzz targets (committed; rerun to
 regenerate): fuzz/meta_seeds/<target>/ for meta_exif, meta_xmp, meta_icc,
-meta_container and meta_carry. Each seed is built here byte by byte (EXIF
-blocks, XMP packets, ICC profiles from Pillow's ImageCms, JPEG and PNG
-files around them), the valid shapes beside the hostile ones of issue 30."""
+meta_container, meta_carry and meta_depth. Each seed is built here byte by
+byte (EXIF blocks, XMP packets, ICC profiles from Pillow's ImageCms, JPEG
+and PNG files around them, distance maps in each format the readers take),
+the valid shapes beside the hostile ones of issue 30 and of the reviews."""
 
 import io
 import os
@@ -10,6 +11,7 @@ import shutil
 import struct
 import zlib
 
+import numpy as np
 from PIL import Image, ImageCms
 
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "meta_seeds")
@@ -118,6 +120,71 @@ def files(exif, xmp, icc):
     }
 
 
+def tiff_float(w, h, values, big=False, little=True):
+    """A one-strip float32 TIFF (or BigTIFF) of `w` x `h` values."""
+    e = "<" if little else ">"
+    data = struct.pack(e + "%df" % (w * h), *values)
+    tags = [(0x0100, 3, w), (0x0101, 3, h), (0x0102, 3, 32), (0x0103, 3, 1), (0x0106, 3, 1),
+            (0x0111, 4, 0), (0x0115, 3, 1), (0x0116, 3, h), (0x0117, 4, len(data)), (0x0153, 3, 3)]
+    head = (b"II" if little else b"MM")
+    if big:
+        ifd_at = 16
+        size = 8 + len(tags) * 20 + 8
+        head += struct.pack(e + "HHHQ", 43, 8, 0, ifd_at)
+        body = struct.pack(e + "Q", len(tags))
+        for tag, kind, v in tags:
+            v = ifd_at + size if tag == 0x0111 else v
+            val = struct.pack(e + ("H" if kind == 3 else "I"), v).ljust(8, b"\0")
+            body += struct.pack(e + "HHQ", tag, kind, 1) + val
+        return head + body + struct.pack(e + "Q", 0) + data
+    ifd_at = 8
+    size = 2 + len(tags) * 12 + 4
+    head += struct.pack(e + "HI", 42, ifd_at)
+    body = struct.pack(e + "H", len(tags))
+    for tag, kind, v in tags:
+        v = ifd_at + size if tag == 0x0111 else v
+        val = struct.pack(e + ("H" if kind == 3 else "I"), v).ljust(4, b"\0")
+        body += struct.pack(e + "HHI", tag, kind, 1) + val
+    return head + body + struct.pack(e + "I", 0) + data
+
+
+def exr_float(w, h, values, channel=b"Z"):
+    """A scanline OpenEXR file, uncompressed, of one FLOAT channel."""
+    def attr(name, kind, value):
+        return name + b"\0" + kind + b"\0" + struct.pack("<i", len(value)) + value
+    chlist = channel + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1) + b"\0"
+    box = struct.pack("<iiii", 0, 0, w - 1, h - 1)
+    header = (b"\x76\x2f\x31\x01" + struct.pack("<I", 2) + attr(b"channels", b"chlist", chlist)
+              + attr(b"compression", b"compression", b"\0") + attr(b"dataWindow", b"box2i", box)
+              + attr(b"displayWindow", b"box2i", box) + attr(b"lineOrder", b"lineOrder", b"\0")
+              + attr(b"pixelAspectRatio", b"float", struct.pack("<f", 1.0))
+              + attr(b"screenWindowCenter", b"v2f", struct.pack("<ff", 0, 0))
+              + attr(b"screenWindowWidth", b"float", struct.pack("<f", 1.0)) + b"\0")
+    start = len(header) + 8 * h
+    rows, table = b"", b""
+    for y in range(h):
+        line = struct.pack("<%df" % w, *values[y * w:(y + 1) * w])
+        table += struct.pack("<Q", start + len(rows))
+        rows += struct.pack("<ii", y, len(line)) + line
+    return header + table + rows
+
+
+def depth_maps():
+    w, h = 6, 5
+    vals = [0.5 + 0.25 * i for i in range(w * h)]
+    npy = io.BytesIO()
+    np.save(npy, np.array(vals, np.float32).reshape(h, w))
+    png = io.BytesIO()
+    Image.fromarray(np.array([v * 1000 for v in vals], np.uint16).reshape(h, w)).save(png, format="PNG")
+    # the tiff crate's dbg! case in BigTIFF: an ASCII ImageWidth of 2^48 bytes
+    dbg = b"II" + struct.pack("<HHHQQ", 43, 8, 0, 16, 1) + struct.pack("<HHQQ", 0x0100, 2, 0xFFFFFFFFFF00, 0) \
+        + struct.pack("<Q", 0)
+    colmap = b"%d&%d&1&" % (w, h) + struct.pack("<%df" % (w * h), *vals)
+    return {"map.npy": npy.getvalue(), "map16.png": png.getvalue(), "map.tif": tiff_float(w, h, vals),
+            "map_be.tif": tiff_float(w, h, vals, little=False), "map_big.tif": tiff_float(w, h, vals, big=True),
+            "ascii_width_big.tif": dbg, "map.exr": exr_float(w, h, vals), "map.geometric.bin": colmap}
+
+
 def main():
     shutil.rmtree(HERE, ignore_errors=True)
     exif, xmp, icc = exif_blocks(), xmp_packets(), icc_profiles()
@@ -128,6 +195,7 @@ def main():
         "icc": icc,
         "container": containers,
         "carry": containers,
+        "depth": depth_maps(),
     }
     for target, seeds in groups.items():
         os.makedirs(os.path.join(HERE, target))
