@@ -254,6 +254,9 @@ where
     let mut p = lexopt::Parser::from_args(args.clone());
     let lex = |e: lexopt::Error| Failure::usage(e.to_string());
     let mut first = true;
+    // the folder is read once the command line is known to be whole, so
+    // that a usage error is named before the folder's (as in Python)
+    let mut water_from: Option<Val> = None;
     while let Some(arg) = p.next().map_err(lex)? {
         let is_first = std::mem::replace(&mut first, false);
         let spec = match &arg {
@@ -301,6 +304,10 @@ where
                 .map_err(|v| Failure::usage(format!("{}: {v:?} is not valid UTF-8", spec.flag)))?;
             spec.parse(&t).map_err(Failure::usage)?
         };
+        if spec.key == "water_from" {
+            water_from = Some(value);
+            continue;
+        }
         o.set(spec.key, value)?;
     }
     o.outdir = outdir.ok_or_else(|| Failure::usage("-o OUTDIR is required"))?;
@@ -316,7 +323,7 @@ where
                 "--max-side with --raw-frames -o -: the frames out would not be the size of the frames in (write to a folder instead)",
             ));
         }
-        if o.distance.is_some() || o.altitude.is_some() || o.water_from.is_some() {
+        if o.distance.is_some() || o.altitude.is_some() || water_from.is_some() {
             return Err(Failure::usage("--raw-frames restores a sequence: --distance, --altitude and --water-from are for photos"));
         }
         // the samples' curve is --transfer's: these photo options would be silently ignored
@@ -349,7 +356,7 @@ where
         crate::files::options::Names::Flags,
     )
     .map_err(Failure::usage)?;
-    crate::files::options::check_water(o.water_from.is_some(), o.water_types.is_some(), crate::files::options::Names::Flags)
+    crate::files::options::check_water(water_from.is_some(), o.water_types.is_some(), crate::files::options::Names::Flags)
         .map_err(Failure::usage)?;
     crate::files::options::check_distance(
         o.distance.is_some(),
@@ -361,6 +368,9 @@ where
         crate::files::options::Names::Flags,
     )
     .map_err(Failure::usage)?;
+    if let Some(v) = water_from {
+        o.set("water_from", v)?;
+    }
     Ok(Command::Run(Box::new(o)))
 }
 

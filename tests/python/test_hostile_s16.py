@@ -39,3 +39,24 @@ def test_a_video_over_the_memory_budget_is_refused_before_a_frame_is_decoded(tmp
     # within the budget the rotation is read, once
     videofiles.restore_video(src, tmp_path / "out2", max_memory=need * 4)
     assert decoded == [str(src)]
+
+
+@pytest.mark.parametrize("impl", ["python", "rust"])
+def test_a_usage_error_is_named_before_a_bad_water_folder_in_both_commands(impl, binary, tmp_path):
+    # --water-from naming a folder with no fits, given with --water-type:
+    # the combination is a usage error whatever the folder holds, and both
+    # commands name it (the binary read the folder first and named that)
+    from bothcmds import cmds, run_restore
+    from PIL import Image
+
+    Image.new("RGB", (32, 24), (20, 80, 120)).save(tmp_path / "a.png")
+    empty = tmp_path / "nofits"
+    empty.mkdir()
+    r = run_restore(cmds(binary)[impl], tmp_path / "a.png", "-o", tmp_path / "o", "--water-from", empty,
+                    "--water-type", "I")
+    assert r.returncode == 2, r.stderr
+    assert "--water-from gives the water type: it does not go with --water-type" in r.stderr, r.stderr
+    # alone, the folder's own problem is named
+    r = run_restore(cmds(binary)[impl], tmp_path / "a.png", "-o", tmp_path / "o", "--water-from", empty)
+    assert r.returncode == 2 and "nofits" in r.stderr, r.stderr
+    assert not (tmp_path / "o").exists()
