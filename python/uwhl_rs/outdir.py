@@ -298,12 +298,28 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
             why = None if doc is None or folder.is_url else local_outputs_problem(doc)
             if why:
                 raise SidecarError(why)
+            if doc is not None:
+                _own_outputs(rel, doc, data)
         except SidecarError as e:
             problems.append(f"{where}: not a usable sidecar: {display(str(e))}")
             continue
         if doc is not None:
             photos.append(Photo(rel, doc, when))
     return photos, problems
+
+
+def _own_outputs(rel: str, doc: dict, data: bytes) -> None:
+    """Raises :class:`SidecarError` when the sidecar at ``rel`` lists an
+    output that is not its own: both commands write NAME.json beside
+    NAME.jpg, NAME_t.png and the rest (``_core.listed_outputs``), so a
+    ``a.json`` naming ``blue.jpg`` was planted, and taking it would hand
+    blue.jpg another image UUID and history in the report and the iFDO."""
+    name = posixpath.basename(rel)[: -len(".json")]
+    own = set(_core.listed_outputs(name, data))
+    for role, value in (doc.get("outputs") or {}).items():
+        if isinstance(value, str) and value not in own:
+            raise SidecarError(f"outputs.{role} is {display(value)!r}, not an output of its own name "
+                               f"{display(name)!r} (NAME.json lists NAME.jpg, NAME_t.png, ...)")
 
 
 def earlier_objects(fs, dest: dict, storage_options: dict) -> list[str]:

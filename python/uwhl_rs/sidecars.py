@@ -45,6 +45,13 @@ VIDEO_ESTIMATES = 5000
 #: the longest text field accepted (names, paths, notes)
 MAX_TEXT = 4096
 
+#: the most entries of ``parameters`` (the writers use about 30)
+MAX_PARAMETERS = 256
+
+#: the most bytes of ``parameters`` as JSON (the writers' are about 1 kB; four
+#: paths of MAX_TEXT characters fit)
+MAX_PARAMETER_BYTES = 32 << 10
+
 #: keys whose presence makes a JSON object a sidecar (else it is another file, left alone)
 _MARKS = ("input", "outputs", "water_type", "uwhl_version")
 
@@ -232,6 +239,21 @@ def _object(fields: dict, required: tuple = ()):
     return f
 
 
+def _parameters(v):
+    """The options a photo was restored with: an object of at most
+    :data:`MAX_PARAMETERS` entries and :data:`MAX_PARAMETER_BYTES` as JSON.
+    The report and the iFDO export copy it whole into every photo's entry,
+    so a planted one of 4 MiB of small lists became a YAML file of 20 MB
+    and 750 MB of memory a sidecar; real ones are about 1 KB."""
+    why = _object({})(v)
+    if why:
+        return why
+    if len(v) > MAX_PARAMETERS:
+        return f"has more than {MAX_PARAMETERS} entries"
+    size = len(json.dumps(v))
+    return None if size <= MAX_PARAMETER_BYTES else f"is {size} bytes as JSON, over {MAX_PARAMETER_BYTES}"
+
+
 def _in_range(lo: float, hi: float):
     def f(v):
         return _number(v) or (None if lo <= v <= hi else f"must be between {lo:g} and {hi:g}")
@@ -301,7 +323,7 @@ FIELDS = {
     "fallback_share": _optional(_in_range(0, 1)),
     "guided_radius": _count,
     "guided_subsample": _count,
-    "parameters": _object({}),
+    "parameters": _parameters,
     "source": _object({"path": _optional(_text), "height": _optional(_count), "width": _optional(_count),
                        "notes": _optional(_list_of(_text))}),
     "seconds": _map_of(_optional(_number)),
@@ -360,6 +382,17 @@ def _depth(data: bytes) -> int:
     return max(0, int(np.cumsum(step).max()))
 
 
+def _lone_surrogate(doc) -> bool:
+    """Whether a string (a key or a value) of ``doc`` holds a surrogate
+    code point that is not half of a pair (JSON's escapes allow one; UTF-8
+    cannot encode it)."""
+    try:
+        json.dumps(doc, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError:
+        return True
+    return False
+
+
 def parse(data: bytes) -> dict | None:
     """The checked sidecar in ``data`` (the bytes of a ``.json`` file of an
     output folder); None when it is a JSON object that is no sidecar at
@@ -385,6 +418,9 @@ def parse(data: bytes) -> dict | None:
         raise SidecarError(f"not a JSON object (a {type(doc).__name__})")
     if not any(k in doc for k in _MARKS):
         return None
+    if b"\\u" in data and _lone_surrogate(doc):
+        # "\ud800" parses to a str no file name, console or YAML file can hold
+        raise SidecarError("holds a lone UTF-16 surrogate escape (such as \\ud800), which is no character")
     check(doc)
     return _unknown_as_null(doc)
 

@@ -257,13 +257,16 @@ def test_sidecars_cannot_make_the_report_fetch_open_fifos_or_show_other_files(ba
         "g004": str(secret),  # a real image outside the batch, not the one the batch restored
     }
     for name, src in planted.items():
-        doc = dict(base, input=src)
+        doc = dict(base, input=src, outputs={k: v.replace("f000", name) for k, v in base["outputs"].items()})
         if name.startswith("g"):
-            doc["outputs"] = dict(doc["outputs"], image="fifo.jpg" if name == "g004" else "f000.jpg")
+            doc["outputs"] = {"image": f"{name}.jpg" if name == "g004" else "f000.jpg"}
         (out / f"{name}.json").write_text(json.dumps(doc))
-    os.mkfifo(out / "fifo.jpg")  # an output that is a FIFO
-    os.symlink(secret, out / "link.jpg")  # an output that is a link to a file outside
-    doc = dict(base, outputs=dict(base["outputs"], image="link.jpg", transmission_color="fifo.jpg"))
+    # g003 names f000.jpg, another sidecar's output: left out whole, not shown as a photo
+    del planted["g003"]
+    os.mkfifo(out / "g004.jpg")  # an output that is a FIFO
+    os.symlink(secret, out / "g005.jpg")  # an output that is a link to a file outside
+    os.mkfifo(out / "g005_t_color.png")
+    doc = dict(base, outputs={"image": "g005.jpg", "transmission_color": "g005_t_color.png"})
     (out / "g005.json").write_text(json.dumps(doc))
     planted["g005"] = base["input"]
     os.mkfifo(out / "zz.json")  # a sidecar that is a FIFO
@@ -283,8 +286,10 @@ def test_sidecars_cannot_make_the_report_fetch_open_fifos_or_show_other_files(ba
     assert links["g004"][0] is None and links["g005"] == (None, None), links
     assert links["f001"][0] == "../f000.jpg" or links["f001"][0].endswith("f001.jpg"), links
     attrs = [v for _, a in _elements((out / "report" / "index.html").read_text()).elements for v in a.values()]
-    assert not any(v and ("fifo.jpg" in v or "link.jpg" in v) for v in attrs), attrs
-    assert "link.jpg: not a regular file" in r.stdout and "fifo.jpg: not a regular file" in r.stdout, r.stdout
+    assert not any(v and ("g004.jpg" in v or "g005" in v) for v in attrs), attrs
+    assert "g005.jpg: not a regular file" in r.stdout and "g004.jpg: not a regular file" in r.stdout, r.stdout
+    assert "g003.json: not a usable sidecar: outputs.image is 'f000.jpg', not an output of its own name" \
+        in r.stdout, r.stdout
     assert any("zz.json" in line for line in r.stdout.splitlines())
     # the iFDO over the same folder: no hang on the FIFO sidecar, summary or earlier file
     r = uwhl("ifdo", out, "--header", _header(tmp_path))
@@ -526,7 +531,9 @@ def test_two_sidecars_naming_one_photo_give_one_item(batch, tmp_path):
     assert sorted(doc["image-set-items"]) == ["f000.jpg", "f001.jpg", "f002.jpg"]
     names = [e["name"] for e in doc["image-set-header"]["image-set-provenance"]["provenance-entities"]]
     assert sorted(names) == ["f000.jpg", "f001.jpg", "f002.jpg"]
-    assert any("another sidecar" in line for line in r.stdout.splitlines()), r.stdout
+    # the copy names f000.jpg, not an output of its own name: planted, left out whole
+    assert "copy_of_f000.json: not a usable sidecar: outputs.image is 'f000.jpg', not an output of its own name" \
+        in r.stdout, r.stdout
 
 
 def test_a_large_ifdo_json_of_the_folder_is_no_sidecar(batch, tmp_path):

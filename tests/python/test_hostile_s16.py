@@ -60,3 +60,86 @@ def test_a_usage_error_is_named_before_a_bad_water_folder_in_both_commands(impl,
     r = run_restore(cmds(binary)[impl], tmp_path / "a.png", "-o", tmp_path / "o", "--water-from", empty)
     assert r.returncode == 2 and "nofits" in r.stderr, r.stderr
     assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------------------ planted sidecars (report, iFDO)
+
+
+@pytest.fixture
+def restored(binary, tmp_path):
+    """A folder holding blue.jpg and blue.json as the binary writes them."""
+    from PIL import Image
+    from test_ifdo import restore
+
+    rng = np.random.default_rng(3)
+    img = np.clip(rng.normal([40, 110, 150], 25, (48, 64, 3)), 0, 255).astype(np.uint8)
+    Image.fromarray(img).save(tmp_path / "blue.png")
+    out = tmp_path / "out"
+    assert restore("rust", binary, [tmp_path / "blue.png"], out).returncode == 0
+    return out
+
+
+def _ifdo(out, tmp_path):
+    import yaml
+    from test_ifdo import HEADER, POSITION, header_file, uwhl
+
+    head = {**HEADER, **POSITION, "image-datetime": "2026-01-02 03:04:05.000000"}
+    r = uwhl("ifdo", out, "--header", header_file(tmp_path, head))
+    doc = yaml.safe_load((out / "ifdo.yaml").read_text()) if (out / "ifdo.yaml").is_file() else None
+    return r, doc
+
+
+def test_a_sidecar_claiming_another_photo_cannot_change_its_uuid(restored, tmp_path):
+    # a.json sorts before blue.json and names blue.jpg with its true SHA-256
+    # but another image UUID and history: the photo keeps the UUID embedded
+    # in it (its sidecar's), and the planted one is named
+    import json
+
+    genuine = json.loads((restored / "blue.json").read_text())
+    fake = dict(genuine, input="elsewhere/other.jpg")
+    fake["metadata"] = dict(genuine["metadata"], image_uuid="deadbeefdead4eefaeadbeefdeadbeef")
+    (restored / "a.json").write_text(json.dumps(fake))
+    r, doc = _ifdo(restored, tmp_path)
+    assert r.returncode == 0, r.stderr
+    want = genuine["metadata"]["image_uuid"]
+    assert doc["image-set-items"]["blue.jpg"]["image-uuid"].replace("-", "") == want
+    assert "a.json: not a usable sidecar: outputs.image is 'blue.jpg', not an output of its own name 'a'" in r.stdout
+
+
+def test_a_lone_surrogate_in_a_sidecar_is_a_named_problem_not_a_crash(restored, tmp_path):
+    import json
+
+    from test_ifdo import uwhl
+
+    text = (restored / "blue.json").read_text()
+    (restored / "z.json").write_text(text.replace('"blue.jpg"', '"x\\ud800.jpg"'))
+    r, doc = _ifdo(restored, tmp_path)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    assert "z.json: not a usable sidecar: holds a lone UTF-16 surrogate" in r.stdout, r.stdout
+    assert list(doc["image-set-items"]) == ["blue.jpg"]
+    r = uwhl("report", restored)
+    assert r.returncode == 0 and "z.json: not a usable sidecar: holds a lone UTF-16 surrogate" in r.stdout
+    # a pair of surrogate escapes is one character (a fish), not a problem
+    doc = json.loads(text)
+    doc["input"] = "fish\U0001f41f.png"
+    (restored / "z.json").unlink()
+    (restored / "blue.json").write_text(json.dumps(doc))  # ensure_ascii: "\ud83d\udc1f"
+    assert "\\ud83d\\udc1f" in (restored / "blue.json").read_text()
+    r, doc = _ifdo(restored, tmp_path)
+    assert r.returncode == 0 and list(doc["image-set-items"]) == ["blue.jpg"], r.stdout + r.stderr
+
+
+def test_a_sidecars_parameters_are_bounded_before_they_are_copied(restored, tmp_path):
+    # Tiny lists by the hundred thousand (650,000 of them in a sidecar under
+    # its 4 MiB cap), copied into every activity of the iFDO, made a YAML
+    # file of 20 MB and took 750 MB. Real parameters are about 1 kB.
+    import json
+
+    doc = json.loads((restored / "blue.json").read_text())
+    assert len(json.dumps(doc["parameters"])) < 4096
+    doc["parameters"] = {"x": [[0, 0]] * 400_000}
+    (restored / "blue.json").write_text(json.dumps(doc, separators=(",", ":")))
+    r, _ = _ifdo(restored, tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    # as json.dumps spaces it: '{"x": [' + 400,000 x "[0, 0]" + 399,999 x ", " + "]}"
+    assert "blue.json: not a usable sidecar: parameters is 3200007 bytes as JSON, over 32768" in r.stderr, r.stderr

@@ -277,7 +277,7 @@ def test_a_planted_sidecar_lists_no_photo_that_is_not_there_or_not_its_own(binar
     planted = {"ghost": "ghost.jpg", "other": "summary.csv"}
     for stem, image in planted.items():
         doc = copy.deepcopy(side)
-        doc["outputs"]["image"] = image
+        doc["outputs"] = {"image": image}
         doc["metadata"]["image_uuid"] = uuid.uuid4().hex
         (out / f"{stem}.json").write_text(json.dumps(doc))
     # a photo changed after it was written: its sidecar's hash is not its own any more
@@ -292,5 +292,6 @@ def test_a_planted_sidecar_lists_no_photo_that_is_not_there_or_not_its_own(binar
         assert items[n]["image-hash-sha256"] == hashlib.sha256((out / n).read_bytes()).hexdigest()
     said = r.stdout + r.stderr
     assert "'ghost.jpg' is not there; left out of the iFDO" in said
-    assert "'summary.csv' is not the file its sidecar describes" in said
+    # another file of the folder is not an output of the sidecar's own name (NAME.json lists NAME.jpg)
+    assert "other.json: not a usable sidecar: outputs.image is 'summary.csv', not an output of its own name" in said
     assert f"'{names[1]}.jpg' is not the file its sidecar describes" in said
