@@ -259,7 +259,11 @@ fn time_fields(m: &Metadata) -> (Option<String>, Option<String>, Option<String>)
 
 /// When the photograph was taken, from its EXIF: DateTimeOriginal (else
 /// DateTime) as ISO 8601, with SubSecTimeOriginal and OffsetTimeOriginal
-/// when present (`2026-11-30T10:15:42.437+10:00`).
+/// when present (`2026-11-30T10:15:42.437+10:00`). A fraction is digits,
+/// at most nine of them kept (nanoseconds); an offset is `+HH:MM` or
+/// `-HH:MM` within a day (hours 00-23, minutes 00-59). Any other value of
+/// either is left out and the time kept: `+99:99` or 80 digits written
+/// into the sidecar made the report and the iFDO refuse it whole.
 pub fn taken_at(m: &Metadata) -> Option<String> {
     let (raw, subsec, offset) = time_fields(m);
     let raw = raw?;
@@ -278,12 +282,23 @@ pub fn taken_at(m: &Metadata) -> Option<String> {
     let mut iso = format!("{}T{}", date.replace(':', "-"), String::from_utf8_lossy(time));
     if let Some(sub) = subsec.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty() && s.chars().all(|c| c.is_ascii_digit())) {
         iso.push('.');
-        iso.push_str(&sub);
+        iso.push_str(sub.get(..9).unwrap_or(&sub));
     }
-    if let Some(off) = offset.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| s.len() == 6) {
+    if let Some(off) = offset.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| is_utc_offset(s)) {
         iso.push_str(&off);
     }
     Some(iso)
+}
+
+/// Whether `s` is an EXIF time offset within a day: `+HH:MM` or `-HH:MM`,
+/// hours 00-23 and minutes 00-59.
+fn is_utc_offset(s: &str) -> bool {
+    let b = s.as_bytes();
+    let two = |at: usize, max: u8| match (b.get(at), b.get(at + 1)) {
+        (Some(h @ b'0'..=b'9'), Some(l @ b'0'..=b'9')) => (h - b'0') * 10 + (l - b'0') <= max,
+        _ => false,
+    };
+    b.len() == 6 && matches!(b.first(), Some(b'+' | b'-')) && b.get(3) == Some(&b':') && two(1, 23) && two(4, 59)
 }
 
 /// Whether `YYYY:MM:DD` and `HH:MM:SS` (digits and colons already checked)
@@ -822,5 +837,24 @@ mod tests {
         assert_eq!(taken_at(&m), None);
         m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:04:05".into()));
         assert_eq!(taken_at(&m).as_deref(), Some("2026-01-02T03:04:05"));
+    }
+
+    #[test]
+    fn a_bad_offset_or_fraction_is_left_out_and_the_time_kept() {
+        let with = |sub: &str, off: &str| {
+            let mut m = Metadata::new();
+            m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:04:05".into()));
+            m.set_tag(ExifTag::SubSecTimeOriginal(sub.into()));
+            m.set_tag(ExifTag::OffsetTimeOriginal(off.into()));
+            taken_at(&m).unwrap()
+        };
+        assert_eq!(with("437", "+10:00"), "2026-01-02T03:04:05.437+10:00");
+        assert_eq!(with("5", "-23:59"), "2026-01-02T03:04:05.5-23:59");
+        for off in ["+99:99", "ABCDEF", "+24:00", "+10:60", "+1:000", "10:00+", "+10:00:00", "+１0:0"] {
+            assert_eq!(with("1", off), "2026-01-02T03:04:05.1", "{off}");
+        }
+        // digits beyond nanoseconds are dropped: 80 of them ran past the sidecar's 64 characters
+        assert_eq!(with(&"7".repeat(80), "+00:00"), "2026-01-02T03:04:05.777777777+00:00");
+        assert_eq!(with("12a", "+01:00"), "2026-01-02T03:04:05+01:00");
     }
 }
