@@ -98,9 +98,32 @@ def load_yaml(text: str, label: str):
             elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
 
+    if text.lstrip("\ufeff \t\r\n").startswith("{"):
+        doc = _load_json(text, label)
+        if doc is not None:
+            return doc
+
+    class Once(loader):
+        """The safe loader, refusing a key given twice in one mapping (YAML
+        says keys are unique; PyYAML keeps the last without a word)."""
+
+        def construct_mapping(self, node, deep=False):
+            seen = set()
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    twice = key in seen
+                    seen.add(key)
+                except TypeError:  # a list or mapping as a key: the checks after loading name it
+                    continue
+                if twice:
+                    raise IfdoError(f"{label}: the key {printable(repr(key))[:80]} is given twice in one mapping "
+                                    f"(line {key_node.start_mark.line + 1})")
+            return super().construct_mapping(node, deep=deep)
+
     try:
         check(loader)
-        return yaml.load(text, Loader=loader)
+        return yaml.load(text, Loader=Once)
     except IfdoError:  # a ValueError too: said once, as it is
         raise
     except ValueError as e:  # an integer of thousands of digits, a date out of range
@@ -117,7 +140,55 @@ def load_yaml(text: str, label: str):
                 raise
             except (yaml.YAMLError, ValueError, RecursionError):
                 pass
-        raise IfdoError(f"{label}: not YAML or JSON ({str(e).splitlines()[0]})") from None
+        raise IfdoError(f"{label}: not YAML or JSON ({_yaml_problem(e)})") from None
+
+
+def _yaml_problem(e) -> str:
+    """What a YAML error says and where: its problem and its line and
+    column (a bare first line said only "while parsing a quoted scalar")."""
+    problem = getattr(e, "problem", None)
+    mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
+    what = problem or getattr(e, "context", None) or str(e).splitlines()[0]
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    return printable(str(what))[:200] + where
+
+
+def _load_json(text: str, label: str):
+    """A header that is JSON (it starts with ``{``), read as JSON: every
+    JSON file is not YAML to libyaml (a character outside the BMP that
+    ``json.dump`` writes as two escapes, ``\\ud83d\\udc1f``, is refused
+    there). A key twice, a lone surrogate or nesting deeper than
+    :data:`MAX_DEPTH` is refused; None when it is not JSON at
+    all (it is then read as YAML, whose flow style looks alike)."""
+    def once(pairs):
+        seen = set()
+        for k, _ in pairs:
+            if k in seen:
+                raise IfdoError(f"{label}: the key {printable(repr(k))[:80]} is given twice in one object")
+            seen.add(k)
+        return dict(pairs)
+
+    try:
+        # NaN and Infinity are read (a writer may put them) and named with their field by check_header
+        doc = json.loads(text.lstrip("\ufeff"), object_pairs_hook=once)
+    except IfdoError:
+        raise
+    except (ValueError, RecursionError):
+        return None
+    try:
+        json.dumps(doc, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError:
+        raise IfdoError(f"{label}: holds a lone UTF-16 surrogate escape (such as \\ud800), which is no "
+                        "character") from None
+    depth, todo = 0, [(doc, 1)]
+    while todo:
+        v, d = todo.pop()
+        if isinstance(v, (dict, list)):
+            depth = max(depth, d)
+            if depth > MAX_DEPTH:
+                raise IfdoError(f"{label}: nested deeper than {MAX_DEPTH} levels")
+            todo.extend((x, d + 1) for x in (v.values() if isinstance(v, dict) else v))
+    return doc
 
 
 def load_header(path: str) -> dict:

@@ -143,3 +143,49 @@ def test_a_sidecars_parameters_are_bounded_before_they_are_copied(restored, tmp_
     assert r.returncode == 2, r.stdout + r.stderr
     # as json.dumps spaces it: '{"x": [' + 400,000 x "[0, 0]" + 399,999 x ", " + "]}"
     assert "blue.json: not a usable sidecar: parameters is 3200007 bytes as JSON, over 32768" in r.stderr, r.stderr
+
+
+# ------------------------------------------------------------------ iFDO header files
+
+
+def _header_text(tmp_path, text, name):
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_a_json_header_as_json_dump_writes_it_is_read(tmp_path):
+    # json.dump escapes a character outside the BMP as two surrogate escapes: valid JSON that
+    # libyaml refuses ("while parsing a quoted scalar")
+    import json
+
+    import yaml
+    from test_ifdo import HEADER
+
+    from uwhl_rs import ifdo
+
+    head = dict(HEADER, **{"image-abstract": "Coral \U0001f41f survey"})
+    p = _header_text(tmp_path, json.dumps(head), "h.json")
+    assert "\\ud83d\\udc1f" in p.read_text()
+    with pytest.raises(yaml.YAMLError):
+        yaml.load(p.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    assert ifdo.load_header(str(p))["image-abstract"] == "Coral \U0001f41f survey"
+
+
+@pytest.mark.parametrize("text, said", [
+    ('{"image-abstract": "a", "image-abstract": "b"}', "the key 'image-abstract' is given twice in one object"),
+    ('{"x": NaN}', "x must be a finite number, not nan"),
+    ('{"x": "\\ud800"}', "lone UTF-16 surrogate"),
+    ('{"x": ' + "[" * 40 + "]" * 40 + "}", "nested deeper than 32 levels"),
+    ("image-abstract: a\nimage-copyright: c\nimage-abstract: b\n",
+     "the key 'image-abstract' is given twice in one mapping (line 3)"),
+    ('image-abstract: "unterminated\nimage-copyright: c\n', "not YAML or JSON (found unexpected end of stream at line 3, "
+                                                           "column 1)"),
+])
+def test_a_header_file_says_what_is_wrong_and_where(tmp_path, text, said):
+    from uwhl_rs import ifdo
+    from uwhl_rs.errors import IfdoError
+
+    with pytest.raises(IfdoError) as e:
+        ifdo.load_header(str(_header_text(tmp_path, text, "h.yaml")))
+    assert said in str(e.value), str(e.value)
