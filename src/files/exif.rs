@@ -251,13 +251,17 @@ pub fn check(src: &mut dyn Source) -> Result<Walked, String> {
     if header(src)?.0.big {
         return Err("the EXIF block is a BigTIFF, which EXIF does not allow".into());
     }
-    walk(src, true)
+    walk(src, true, false)
 }
 
-/// [`check`] of classic TIFF or BigTIFF, with the image strips and thumbnail checked only when
-/// `check_data`: a whole TIFF file cut short is the decoder's to name
-/// ("the file ends before its image data does").
-fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
+/// [`check`] of classic TIFF or BigTIFF, with the image strips and
+/// thumbnail checked only when `check_data` (a whole TIFF file cut short
+/// is the decoder's to name: "the file ends before its image data does").
+/// With `image` (a TIFF file or a raw file built on TIFF, not an EXIF
+/// block) the SubIFDs (0x014A, where a DNG keeps its raw image) are walked
+/// too, and every IFD with a size and a strip or tile table must list as
+/// many strips or tiles as its size needs ([`covered`]).
+fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, String> {
     let (o, ifd0) = header(src)?;
     let len = src.size();
     let mut seen = HashSet::new();
@@ -277,6 +281,7 @@ fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
             return Err(format!("the EXIF block has more than {MAX_ENTRIES} entries"));
         }
         let (mut strips, mut counts, mut thumb, mut thumb_len) = (None, None, None, None);
+        let mut layout = Layout::default();
         for e in &list {
             let size = type_size(e.kind).ok_or_else(|| format!("EXIF tag 0x{:04X} has an unknown type {}", e.tag, e.kind))?;
             let bytes = size.checked_mul(e.count).unwrap_or(u64::MAX);
@@ -298,11 +303,34 @@ fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
                         _ => return Err(format!("EXIF sub-IFD tag 0x{t:04X} is not a LONG offset")),
                     }
                 }
+                0x014A if image => {
+                    if !matches!(e.kind, 4 | 13 | 16 | 18) {
+                        return Err("EXIF SubIFDs tag 0x014A is not a list of LONG offsets".into());
+                    }
+                    todo.extend(integers(src, o, e, MAX_IFDS as u64)?.into_iter().map(|sub| (sub, false)));
+                }
+                0x0100 | 0x0101 | 0x0115 | 0x0116 | 0x011C | 0x0142 | 0x0143 if image => {
+                    let v = integers(src, o, e, 1 << 16)?.first().copied();
+                    match e.tag {
+                        0x0100 => layout.width = v,
+                        0x0101 => layout.height = v,
+                        0x0115 => layout.samples = v,
+                        0x0116 => layout.rows_per_strip = v,
+                        0x011C => layout.planar = v,
+                        0x0142 => layout.tile_width = v,
+                        _ => layout.tile_height = v,
+                    }
+                }
                 0x0111 | 0x0144 => strips = Some(integers(src, o, e, 1 << 20)?),
                 0x0117 | 0x0145 => counts = Some(integers(src, o, e, 1 << 20)?),
                 0x0201 => thumb = Some(integers(src, o, e, 1 << 20)?),
                 0x0202 => thumb_len = Some(integers(src, o, e, 1 << 20)?),
                 _ => {}
+            }
+        }
+        if image {
+            if let Some(listed) = strips.as_ref().map(Vec::len).into_iter().chain(counts.as_ref().map(Vec::len)).min() {
+                covered(&layout, listed as u64)?;
             }
         }
         for (offsets, sizes) in [(strips, counts), (thumb, thumb_len)] {
@@ -322,6 +350,43 @@ fn walk(src: &mut dyn Source, check_data: bool) -> Result<Walked, String> {
     Ok(Walked { ifds, entries })
 }
 
+/// The layout tags of one IFD ([`covered`]); None when not given.
+#[derive(Debug, Default)]
+struct Layout {
+    width: Option<u64>,
+    height: Option<u64>,
+    samples: Option<u64>,
+    rows_per_strip: Option<u64>,
+    planar: Option<u64>,
+    tile_width: Option<u64>,
+    tile_height: Option<u64>,
+}
+
+/// Whether an IFD's strip or tile table (`listed` entries, the shorter
+/// of its offsets and byte counts) covers its image: ceil(W / TileWidth) x
+/// ceil(H / TileLength) tiles, or ceil(H / RowsPerStrip) strips (one
+/// without RowsPerStrip), each once per sample when the samples are
+/// planar. A decoder reads the missing ones from past the table (LibRaw
+/// restored a DNG patched to 8000 x 4000 over a table of 4 tiles, from
+/// whatever bytes followed, in 3.4 GB). An IFD without a size is not
+/// judged.
+fn covered(l: &Layout, listed: u64) -> Result<(), String> {
+    let (Some(w), Some(h)) = (l.width, l.height) else { return Ok(()) };
+    if w == 0 || h == 0 {
+        return Ok(());
+    }
+    let (what, each) = match (l.tile_width, l.tile_height) {
+        (Some(tw), Some(th)) if tw > 0 && th > 0 => ("tiles", w.div_ceil(tw).saturating_mul(h.div_ceil(th))),
+        _ => ("strips", h.div_ceil(l.rows_per_strip.filter(|&r| r > 0).unwrap_or(h).min(h))),
+    };
+    let planes = if l.planar == Some(2) { l.samples.unwrap_or(1).max(1) } else { 1 };
+    let needed = each.saturating_mul(planes);
+    if listed < needed {
+        return Err(format!("the EXIF image of {w} x {h} pixels needs {needed} {what}, and its table lists {listed}"));
+    }
+    Ok(())
+}
+
 /// A whole TIFF file's structure checked by [`check`] before a decoder
 /// reads it: Err with the reason when it fails. The `tiff` crate trusts
 /// a tag's count (an ASCII ImageWidth of 4 GiB went to a `dbg!` on stderr,
@@ -335,7 +400,7 @@ pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
         return Ok(());
     }
     // the walk's words are an EXIF block's; here the block is the file
-    walk(&mut src, false).map(|_| ()).map_err(|m| m.replace("the block", "the file").replace("EXIF ", "TIFF "))
+    walk(&mut src, false, true).map(|_| ()).map_err(|m| m.replace("the block", "the file").replace("EXIF ", "TIFF "))
 }
 
 /// How the pixels of a TIFF file's first image are laid out, from its
@@ -364,8 +429,10 @@ pub fn tiff_layout(src: &mut dyn Source) -> Option<String> {
         (c, 1) => format!(" ({c} + alpha)"),
         (c, n) => format!(" ({c} + {n} extra samples)"),
     };
-    let bits = if bits.iter().all(|b| *b == bits[0]) { format!("{} bits each", bits[0]) } else {
-        format!("{bits:?} bits")
+    // a BitsPerSample of count 0 is an empty list (found by fuzz/decode_restore)
+    let bits = match bits.first() {
+        Some(first) if bits.iter().all(|b| b == first) => format!("{first} bits each"),
+        _ => format!("{bits:?} bits"),
     };
     let kind = match format {
         2 => ", signed integers",
@@ -960,7 +1027,54 @@ mod tests {
         assert_eq!(integers(&mut src, o, width, 1).unwrap(), vec![40]);
         assert_eq!(next, 0);
         // cut short by 8 bytes (its IFD or its strips), the walk with the data checked fails
-        assert!(walk(&mut &bytes[..bytes.len() - 8], true).is_err());
+        assert!(walk(&mut &bytes[..bytes.len() - 8], true, true).is_err());
+    }
+
+    #[test]
+    fn a_strip_or_tile_table_must_cover_its_image() {
+        let long = |v: u32| v.to_le_bytes();
+        // 64 x 64 in tiles of 32 x 32: four tiles; the table (inline: 2 LONGs do not fit, so at 200) lists two
+        let tiles = |n: u32| {
+            let e = [(0x0100, 4, 1, long(64)), (0x0101, 4, 1, long(64)), (0x0142, 4, 1, long(32)), (0x0143, 4, 1, long(32)),
+                (0x0144, 4, n, long(if n == 1 { 8 } else { 120 })), (0x0145, 4, n, long(if n == 1 { 8 } else { 120 }))];
+            let mut b = tiff(true, &e, 0, &[]);
+            b.resize(200, 0);
+            b
+        };
+        let why = tiff_structure(&mut std::io::Cursor::new(tiles(2))).unwrap_err();
+        assert_eq!(why, "the TIFF image of 64 x 64 pixels needs 4 tiles, and its table lists 2");
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(tiles(4))), Ok(()));
+        // strips: RowsPerStrip 16 of 64 rows needs 4, one without RowsPerStrip; planar RGB needs 3 x as many
+        let strips = |rows: Option<u32>, planar: bool, n: u32| {
+            let mut e = vec![(0x0100, 4, 1, long(8)), (0x0101, 4, 1, long(64)), (0x0115, 3, 1, short(3, true)),
+                (0x0111, 4, n, long(120)), (0x0117, 4, n, long(120))];
+            if let Some(r) = rows {
+                e.push((0x0116, 4, 1, long(r)));
+            }
+            if planar {
+                e.push((0x011C, 3, 1, short(2, true)));
+            }
+            let mut b = tiff(true, &e, 0, &[]);
+            b.resize(200, 0);
+            tiff_structure(&mut std::io::Cursor::new(b))
+        };
+        assert_eq!(strips(Some(16), false, 4), Ok(()));
+        assert!(strips(Some(16), false, 3).unwrap_err().ends_with("needs 4 strips, and its table lists 3"));
+        assert_eq!(strips(None, false, 1), Ok(()));
+        assert_eq!(strips(Some(1000), false, 1), Ok(()));
+        assert!(strips(Some(16), true, 4).unwrap_err().ends_with("needs 12 strips, and its table lists 4"));
+        // an EXIF block is not judged so (its IFD1 describes a thumbnail, not this block's image)
+        let mut b = tiff(true, &[(0x0100, 4, 1, long(64)), (0x0101, 4, 1, long(64)), (0x0116, 4, 1, long(1)),
+            (0x0111, 4, 1, long(8)), (0x0117, 4, 1, long(8))], 0, &[]);
+        b.resize(200, 0);
+        assert!(check(&mut b.as_slice()).is_ok());
+    }
+
+    #[test]
+    fn a_layout_without_bits_per_sample_values_is_said_not_a_panic() {
+        // BitsPerSample (0x0102) typed SHORT with a count of 0
+        let b = tiff(true, &[(0x0102, 3, 0, [0; 4]), (0x0115, 3, 1, short(3, true))], 0, &[]);
+        assert_eq!(tiff_layout(&mut b.as_slice()).as_deref(), Some("3 samples per pixel, [] bits"));
     }
 
     #[test]

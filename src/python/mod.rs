@@ -734,6 +734,20 @@ fn outdir_problem(dir: std::path::PathBuf) -> Option<String> {
     crate::files::jobs::outdir_problem(&dir)
 }
 
+/// Why the TIFF structure of the file at `path` (a TIFF, BigTIFF or a
+/// raw file built on TIFF: DNG, NEF, CR2, ARW, ...) cannot be handed to a
+/// decoder (`crate::files::exif::tiff_structure`: offsets and counts
+/// outside the file, loops, a strip or tile table that does not cover its
+/// image), or None: also when it is no TIFF or cannot be opened, which the
+/// decoder names.
+#[pyfunction]
+fn tiff_problem(py: Python<'_>, path: std::path::PathBuf) -> Option<String> {
+    py.detach(|| {
+        let mut f = std::io::BufReader::new(std::fs::File::open(&path).ok()?);
+        crate::files::exif::tiff_structure(&mut f).err()
+    })
+}
+
 /// The Jerlov type nearest to a water of attenuations `beta` (1/m, R, G, B)
 /// and how near (`crate::method::distance::nearest_type`, METHOD §13).
 #[pyfunction]
@@ -1078,6 +1092,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(nearest_type, m)?)?;
     m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
+    m.add_function(wrap_pyfunction!(tiff_problem, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;
     m.add_function(wrap_pyfunction!(process_base, m)?)?;

@@ -3,6 +3,8 @@ each case says what must happen independently of the code."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -189,3 +191,55 @@ def test_a_header_file_says_what_is_wrong_and_where(tmp_path, text, said):
     with pytest.raises(IfdoError) as e:
         ifdo.load_header(str(_header_text(tmp_path, text, "h.yaml")))
     assert said in str(e.value), str(e.value)
+
+
+# ------------------------------------------------------------------ raw files
+
+
+def _raw_ifd(t):
+    """The IFD of a DNG that holds the most pixels: IFD0 or one of its SubIFDs."""
+    pages = []
+    for p in t.pages:
+        pages.append(p)
+        pages.extend(getattr(p, "pages", None) or [])
+    return max(pages, key=lambda p: p.imagewidth * p.imagelength)
+
+
+@pytest.mark.parametrize("name", ["Blackmagic.dng", "canon_eos_6d.dng"])
+def test_a_dng_whose_size_outgrows_its_tile_table_is_refused_before_libraw(tmp_path, name):
+    # LibRaw decoded the tiles past the table from whatever bytes followed (3.4 GB, garbage, exit 0)
+    import struct
+
+    from uwhl_rs import images
+    from uwhl_rs.errors import ImageReadError
+
+    tifffile = pytest.importorskip("tifffile")
+    src = os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared", "data", "raw", name)
+    if not os.path.isfile(src):
+        pytest.skip("../shared/data is not here")
+    b = bytearray(open(src, "rb").read())
+    with tifffile.TiffFile(src) as t:
+        p = _raw_ifd(t)
+        bo = t.byteorder
+        w, h = p.imagewidth, p.imagelength
+        tiled = p.is_tiled
+        step_w, step_h = (p.tilewidth, p.tilelength) if tiled else (w, p.rowsperstrip or h)
+        listed = len(p.dataoffsets)
+        for tag_name, v in (("ImageWidth", w * 2), ("ImageLength", h * 2)):
+            tag = p.tags[tag_name]
+            if struct.unpack_from(bo + "H", b, tag.offset + 2)[0] == 3:
+                struct.pack_into(bo + "H", b, tag.offset + 2, 4)  # SHORT to LONG, the value field is 4 bytes
+            struct.pack_into(bo + "I", b, tag.offset + 8, v)
+    # by hand: the patched size needs this many strips or tiles, the table lists what it did
+    needed = -(-2 * w // step_w) * -(-2 * h // step_h) if tiled else -(-2 * h // min(step_h, 2 * h))
+    assert needed > listed
+    bad = tmp_path / name
+    bad.write_bytes(bytes(b))
+    with pytest.raises(ImageReadError) as e:
+        images.read_image(str(bad))
+    what = "tiles" if tiled else "strips"
+    assert f"a damaged raw file: the TIFF image of {2 * w} x {2 * h} pixels needs {needed} {what}, and its table " \
+           f"lists {listed}" in str(e.value)
+    # the file as it is reads
+    img, _ = images.read_image(src, half_size=True)
+    assert img.ndim == 3
