@@ -25,13 +25,30 @@ fn description(p: &ColorProfile) -> String {
 }
 
 /// Whether `p` is sRGB: its colorants within [`SRGB_TOLERANCE`] of sRGB's
-/// (a profile that says "sRGB" with other primaries is not).
+/// (a profile that says "sRGB" with other primaries is not). Its curves
+/// are judged apart ([`srgb_curves`]).
 fn is_srgb(p: &ColorProfile) -> bool {
     let s = ColorProfile::new_srgb();
     let near = |a: &moxcms::Xyzd, b: &moxcms::Xyzd| {
         (a.x - b.x).abs() < SRGB_TOLERANCE && (a.y - b.y).abs() < SRGB_TOLERANCE && (a.z - b.z).abs() < SRGB_TOLERANCE
     };
     near(&p.red_colorant, &s.red_colorant) && near(&p.green_colorant, &s.green_colorant) && near(&p.blue_colorant, &s.blue_colorant)
+}
+
+/// Whether the profile `icc` maps sRGB codes to themselves: a ramp of
+/// grays and of each primary, converted to sRGB, within a code and a half
+/// of 8-bit of where it started. sRGB's primaries with a gamma of 1 or 4
+/// (a linear camera profile) are not sRGB, and decoding them as sRGB
+/// would bend every tone without a word.
+fn srgb_curves(icc: &[u8]) -> bool {
+    let steps = 17;
+    let mut ramp = Vec::with_capacity(steps * 12);
+    for k in 0..steps {
+        let v = k as f32 / (steps - 1) as f32;
+        ramp.extend_from_slice(&[v, v, v, v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v]);
+    }
+    let mut out = ramp.clone();
+    convert(icc, &mut out, false).is_ok() && out.iter().zip(&ramp).all(|(a, b)| (a - b).abs() <= 1.5 / 255.0)
 }
 
 /// The working space: sRGB primaries and white, linear (gamma 1) curves.
@@ -65,7 +82,7 @@ pub fn classify(icc: &[u8]) -> Profile {
             "its colour space is {:?}, not RGB; ignored",
             p.color_space
         )),
-        Ok(p) if is_srgb(&p) => Profile::Srgb(description(&p)),
+        Ok(p) if is_srgb(&p) && srgb_curves(icc) => Profile::Srgb(description(&p)),
         Ok(p) => Profile::Other(description(&p)),
         Err(e) => Profile::Unreadable(format!("{e:?}")),
     }
@@ -147,6 +164,29 @@ mod tests {
         assert!(matches!(classify(&encoded(ColorProfile::new_adobe_rgb())), Profile::Other(_)));
         assert!(matches!(classify(&encoded(ColorProfile::new_display_p3())), Profile::Other(_)));
         assert!(matches!(classify(b"not a profile"), Profile::Unreadable(_)));
+    }
+
+    #[test]
+    fn srgb_primaries_with_another_curve_are_not_srgb() {
+        // sRGB's colorants with gamma 1 or 4: converted, not decoded as sRGB
+        for gamma in [1.0, 4.0] {
+            let mut p = ColorProfile::new_srgb();
+            let curve = ToneReprCurve::Parametric(vec![gamma]);
+            p.red_trc = Some(curve.clone());
+            p.green_trc = Some(curve.clone());
+            p.blue_trc = Some(curve);
+            p.cicp = None;
+            let icc = encoded(p);
+            assert!(matches!(classify(&icc), Profile::Other(_)), "gamma {gamma}");
+            // its mid gray is linear 0.5^gamma, not sRGB's 0.214
+            let mut v = vec![0.5, 0.5, 0.5];
+            convert(&icc, &mut v, true).unwrap();
+            assert!(v.iter().all(|x| (x - 0.5f32.powf(gamma as f32)).abs() < 2e-3), "{v:?}");
+        }
+        // sRGB's parametric curve written out is still sRGB
+        let mut p = ColorProfile::new_srgb();
+        p.cicp = None;
+        assert!(matches!(classify(&encoded(p)), Profile::Srgb(_)));
     }
 
     #[test]
