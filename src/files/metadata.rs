@@ -327,13 +327,15 @@ fn is_calendar_time(date: &[u8], time: &[u8]) -> bool {
 
 /// Where the photograph was taken, from its EXIF GPS IFD: latitude and
 /// longitude in decimal degrees (south and west negative) and the altitude
-/// in metres (negative below sea level: a depth), when given.
+/// in metres (negative below sea level: a depth), when given. A hemisphere
+/// letter other than N/S or E/W is no position; an altitude reference
+/// other than 0 (above sea level) or 1 (below) is no altitude.
 pub fn position(m: &Metadata) -> Option<(f64, f64, Option<f64>)> {
     let dms = |v: &[little_exif::rational::uR64]| -> Option<f64> {
         let f = |r: &little_exif::rational::uR64| (r.denominator != 0).then(|| f64::from(r.nominator) / f64::from(r.denominator));
         Some(f(v.first()?)? + f(v.get(1)?)? / 60.0 + f(v.get(2)?)? / 3600.0)
     };
-    let (mut lat, mut lon, mut lat_ref, mut lon_ref, mut alt, mut below) = (None, None, None, None, None, false);
+    let (mut lat, mut lon, mut lat_ref, mut lon_ref, mut alt, mut alt_ref) = (None, None, None, None, None, None);
     for ifd in m.get_ifds() {
         for tag in ifd.get_tags() {
             match tag {
@@ -344,19 +346,32 @@ pub fn position(m: &Metadata) -> Option<(f64, f64, Option<f64>)> {
                 ExifTag::GPSAltitude(v) => {
                     alt = v.first().filter(|r| r.denominator != 0).map(|r| f64::from(r.nominator) / f64::from(r.denominator));
                 }
-                ExifTag::GPSAltitudeRef(v) => below = v.first() == Some(&1),
+                ExifTag::GPSAltitudeRef(v) => alt_ref = Some(v.first().copied()),
                 _ => {}
             }
         }
     }
-    let sign = |r: &Option<String>, neg: &str| if r.as_deref() == Some(neg) { -1.0 } else { 1.0 };
-    let (lat, lon) = (lat? * sign(&lat_ref, "S"), lon? * sign(&lon_ref, "W"));
+    // a reference that is neither letter leaves the hemisphere unknown: no position
+    let sign = |r: &Option<String>, pos: &str, neg: &str| match r.as_deref().map(str::trim) {
+        None => Some(1.0),
+        Some(x) if x == pos => Some(1.0),
+        Some(x) if x == neg => Some(-1.0),
+        Some(_) => None,
+    };
+    let (lat, lon) = (lat? * sign(&lat_ref, "N", "S")?, lon? * sign(&lon_ref, "E", "W")?);
+    // 0 above sea level, 1 below it (EXIF 2.3); 2 and 3 are ellipsoidal
+    // heights (EXIF 3.0), another reference than the sea's: no altitude then
+    let alt_sign = match alt_ref {
+        None | Some(Some(0)) => Some(1.0),
+        Some(Some(1)) => Some(-1.0),
+        Some(_) => None,
+    };
     // a position off the globe (latitude 1000, minutes of 99 past 89 degrees)
     // is none: the sidecar's readers and the iFDO's schema refuse it
     if !(lat.is_finite() && lon.is_finite() && lat.abs() <= 90.0 && lon.abs() <= 180.0) {
         return None;
     }
-    Some((lat, lon, alt.filter(|a| a.is_finite()).map(|a| if below { -a } else { a })))
+    Some((lat, lon, alt.filter(|a| a.is_finite()).zip(alt_sign).map(|(a, k)| k * a)))
 }
 
 /// Lowercase hexadecimal SHA-256 of `bytes`.
@@ -837,6 +852,33 @@ mod tests {
         assert_eq!(taken_at(&m), None);
         m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:04:05".into()));
         assert_eq!(taken_at(&m).as_deref(), Some("2026-01-02T03:04:05"));
+    }
+
+    #[test]
+    fn gps_references_must_be_known_letters_and_codes() {
+        use little_exif::rational::uR64;
+        let r = |n: u32| uR64 { nominator: n, denominator: 1 };
+        let at = |lat_ref: &str, lon_ref: &str, alt_ref: Option<u8>| {
+            let mut m = Metadata::new();
+            m.set_tag(ExifTag::GPSLatitude(vec![r(33), r(30), r(0)]));
+            m.set_tag(ExifTag::GPSLongitude(vec![r(151), r(15), r(0)]));
+            m.set_tag(ExifTag::GPSLatitudeRef(lat_ref.into()));
+            m.set_tag(ExifTag::GPSLongitudeRef(lon_ref.into()));
+            m.set_tag(ExifTag::GPSAltitude(vec![r(12)]));
+            if let Some(a) = alt_ref {
+                m.set_tag(ExifTag::GPSAltitudeRef(vec![a]));
+            }
+            position(&m)
+        };
+        assert_eq!(at("S", "E", Some(1)), Some((-33.5, 151.25, Some(-12.0))));
+        assert_eq!(at("N", "W", Some(0)), Some((33.5, -151.25, Some(12.0))));
+        assert_eq!(at("N", "E", None), Some((33.5, 151.25, Some(12.0))));
+        // EXIF 3.0's ellipsoidal heights are not heights above the sea: no altitude
+        assert_eq!(at("N", "E", Some(2)), Some((33.5, 151.25, None)));
+        assert_eq!(at("N", "E", Some(7)), Some((33.5, 151.25, None)));
+        // a letter that names no hemisphere: no position at all
+        assert_eq!(at("X", "E", Some(0)), None);
+        assert_eq!(at("S", "Q", Some(0)), None);
     }
 
     #[test]
