@@ -579,5 +579,11 @@ class Folder:
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
 
-        atomic_write_bytes(where, fill)
+        try:
+            atomic_write_bytes(where, fill)
+        except OSError as e:
+            if e.filename:
+                raise
+            # the core's rename says "Is a directory (os error 21)" without the name it could not take
+            raise OSError(e.errno, e.strerror or str(e), where) from None
         return where

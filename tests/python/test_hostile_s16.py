@@ -243,3 +243,10 @@ def test_a_dng_whose_size_outgrows_its_tile_table_is_refused_before_libraw(tmp_p
     # the file as it is reads
     img, _ = images.read_image(src, half_size=True)
     assert img.ndim == 3
+
+
+def test_an_ifdo_file_that_cannot_be_replaced_is_named(restored, tmp_path):
+    (restored / "ifdo.yaml").mkdir()
+    r, _ = _ifdo(restored, tmp_path)
+    assert r.returncode == 5 and "Traceback" not in r.stderr, r.stderr
+    assert "cannot write the iFDO" in r.stderr and "ifdo.yaml" in r.stderr, r.stderr
