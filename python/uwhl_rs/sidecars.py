@@ -393,6 +393,17 @@ def _lone_surrogate(doc) -> bool:
     return False
 
 
+def _replace_surrogates(v):
+    """``v`` with every lone surrogate of its strings (keys too) as U+FFFD."""
+    if isinstance(v, str):
+        return v.encode("utf-16", "surrogatepass").decode("utf-16", "replace")
+    if isinstance(v, dict):
+        return {_replace_surrogates(k): _replace_surrogates(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_replace_surrogates(x) for x in v]
+    return v
+
+
 def parse(data: bytes) -> dict | None:
     """The checked sidecar in ``data`` (the bytes of a ``.json`` file of an
     output folder); None when it is a JSON object that is no sidecar at
@@ -419,8 +430,9 @@ def parse(data: bytes) -> dict | None:
     if not any(k in doc for k in _MARKS):
         return None
     if b"\\u" in data and _lone_surrogate(doc):
-        # "\ud800" parses to a str no file name, console or YAML file can hold
-        raise SidecarError("holds a lone UTF-16 surrogate escape (such as \\ud800), which is no character")
+        # "\ud800" parses to a str no file name, console or YAML file can
+        # hold: read as U+FFFD, as the core reads a sidecar
+        doc = _replace_surrogates(doc)
     check(doc)
     return _unknown_as_null(doc)
 

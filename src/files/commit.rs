@@ -20,7 +20,12 @@
 //! stale: the next run takes the name over, and when the claim named the
 //! same input it replaces the outputs that run may have renamed in without
 //! their sidecar (a stale claim of another input leaves the files at the
-//! name alone: they are unrelated to this input).
+//! name alone: they are unrelated to this input). Before a commit touches
+//! the folder it records in its claim, durably, the names it may leave
+//! without a sidecar (the earlier run's outputs it removes, its own it
+//! renames in); the run that takes a dead claim over removes those it does
+//! not write itself, so a run killed mid-commit leaves nothing unlisted
+//! whatever `--format` the next run asks for.
 //!
 //! An input is recognised as the one a sidecar names however it is given
 //! now (another working directory, an absolute path, a name that is not
@@ -28,6 +33,7 @@
 //! records (`metadata.input_sha256`).
 
 use std::collections::HashMap;
+use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Read, Write};
 use std::path::{Path, PathBuf};
@@ -132,6 +138,10 @@ pub struct Claim {
     /// indices of outputs not written this time: an earlier run's file at
     /// such a path is removed on commit
     omitted: Vec<usize>,
+    /// files a dead run of this input recorded it might leave without a
+    /// sidecar and that this run does not write ([`read_left`]): removed on
+    /// commit, as an earlier sidecar's outputs are
+    orphans: Vec<PathBuf>,
 }
 
 /// FNV-1a of the name: a claim file's name stays short whatever the
@@ -221,27 +231,45 @@ pub(crate) fn read_sidecar_within(path: &Path, limit: u64) -> Option<serde_json:
 
 /// A sidecar's JSON. Python's `json` writes a name that is not UTF-8 with
 /// its undecodable bytes as lone surrogate escapes (`\udce9`), which
-/// serde_json refuses; those are read as U+FFFD, as the binary records them.
+/// serde_json refuses; those are read as U+FFFD, as the binary records them,
+/// and so is a lone high half (`\ud800` with no low half after it), as the
+/// Python readers read both. A pair stays one character, and an escaped
+/// backslash before `u` is no escape.
 pub(crate) fn parse_sidecar(text: &[u8]) -> Option<serde_json::Value> {
     if let Ok(v) = serde_json::from_slice(text) {
         return Some(v);
     }
+    // the code unit of a `\uXXXX` escape at `at`
+    let unit = |at: usize| -> Option<u16> {
+        let e = text.get(at..at + 6)?;
+        if !e.starts_with(b"\\u") {
+            return None;
+        }
+        u16::from_str_radix(std::str::from_utf8(e.get(2..)?).ok()?, 16).ok()
+    };
+    let high = |u: u16| (0xD800..0xDC00).contains(&u);
+    let low = |u: u16| (0xDC00..0xE000).contains(&u);
     let mut fixed = Vec::with_capacity(text.len());
     let mut i = 0;
     while let Some(&b) = text.get(i) {
-        let esc = text.get(i..i + 6);
-        let low = esc.is_some_and(|e| e.starts_with(b"\\udc") || e.starts_with(b"\\uDC"));
-        // a low surrogate right after a high one is half of a valid pair
-        let paired = i >= 6 && text.get(i - 6..i).is_some_and(|h| {
-            h.starts_with(b"\\ud") && h.get(3).is_some_and(|c| b"89abAB".contains(c))
-        });
-        if low && !paired {
-            fixed.extend_from_slice(b"\\ufffd");
-            i += 6;
-        } else {
+        if b != b'\\' {
             fixed.push(b);
             i += 1;
+            continue;
         }
+        let step = match unit(i) {
+            Some(u) if high(u) && unit(i + 6).is_some_and(low) => 12,
+            Some(u) if high(u) || low(u) => {
+                fixed.extend_from_slice(b"\\ufffd");
+                i += 6;
+                continue;
+            }
+            Some(_) => 6,
+            // another escape (\\, \", \n): the backslash and what it escapes
+            None => 2,
+        };
+        fixed.extend_from_slice(text.get(i..i + step).or_else(|| text.get(i..))?);
+        i += step;
     }
     serde_json::from_slice(&fixed).ok()
 }
@@ -445,9 +473,10 @@ fn remove_if_present(p: &Path) -> io::Result<()> {
 /// What [`hold_claim`] found at a claim file.
 enum Hold {
     /// this process holds it: the open file, locked (None where the file
-    /// system has no locks), and whether it was a dead run's claim of the
-    /// same input (then that run's half-committed outputs are replaced)
-    Mine(Option<File>, bool),
+    /// system has no locks), and, when it was a dead run's claim of the
+    /// same input, the files that run's commit may have left without a
+    /// sidecar ([`read_left`]; then its half-committed outputs are replaced)
+    Mine(Option<File>, Option<Vec<OsString>>),
     /// a live process (its pid) holds it, for this input
     Theirs(u32, PathBuf),
 }
@@ -470,6 +499,27 @@ fn try_lock(f: &File) -> Option<bool> {
 
 /// The pid, the process's start time (when the claim records it) and the
 /// input an open claim file names.
+/// The names a claim's commit recorded before it touched the folder
+/// ([`Claim::commit`]: `left NAME` lines after the record): the earlier
+/// run's outputs it removes and its own it renames in. A run killed in
+/// between leaves them without a sidecar; the run that takes its claim
+/// over removes those it does not write itself (another `--format`).
+/// Bare file names only; the record is read from its start.
+fn read_left(mut f: &File) -> Vec<OsString> {
+    use std::io::Seek;
+    use std::os::unix::ffi::OsStrExt;
+    let mut s = Vec::new();
+    if f.rewind().is_err() || f.take(1 << 20).read_to_end(&mut s).is_err() {
+        return Vec::new();
+    }
+    s.split(|&b| b == b'\n')
+        .skip(4)
+        .filter_map(|l| l.strip_prefix(b"left "))
+        .filter(|n| !n.is_empty() && !n.contains(&b'/') && *n != b"." && *n != b"..")
+        .map(|n| std::ffi::OsStr::from_bytes(n).to_os_string())
+        .collect()
+}
+
 fn read_record(f: &File) -> Option<(u32, Option<u64>, PathBuf)> {
     use std::os::unix::ffi::OsStrExt;
     let mut s = Vec::new();
@@ -536,7 +586,7 @@ fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record:
     let mut links = true;
     // a dead claim being taken over, locked until this one is in its place
     let mut _dead: Option<File> = None;
-    let mut stale = false;
+    let mut stale: Option<Vec<OsString>> = None;
     let mut waits = 0;
     let wait = |waits: &mut usize| -> io::Result<()> {
         *waits += 1;
@@ -564,7 +614,7 @@ fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record:
             Err(e) => return Err(e),
         }
         _dead = None;
-        stale = false;
+        stale = None;
         let theirs = match OpenOptions::new().read(true).custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW).open(claim_file) {
             Ok(f) => f,
             Err(e) if e.kind() == io::ErrorKind::NotFound => continue,
@@ -623,7 +673,7 @@ fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record:
             // files at the name are that run's half-committed outputs only
             // when it was restoring this same input: a claim naming
             // another input says nothing of them
-            Some((_, _, holder)) => stale = holder == key,
+            Some((_, _, holder)) => stale = (holder == key).then(|| read_left(&theirs)),
             None if waits == 0 => {
                 // a claim of a build that writes after it creates, being
                 // written this instant, or one cut short by a crash: looked
@@ -772,7 +822,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
         record.push(b'\n');
         record.extend_from_slice(started.as_bytes());
         let (lock, stale) = match hold_claim(req.dir, &claim_file, &record, &key) {
-            Ok(Hold::Mine(lock, stale)) => (lock, stale),
+            Ok(Hold::Mine(lock, left)) => (lock, left),
             Ok(Hold::Theirs(pid, holder)) => {
                 if holder == key {
                     let why = if pid == own { Skip::InFlight } else { Skip::Busy(pid) };
@@ -813,7 +863,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
             } else {
                 None
             }
-        } else if req.rename && !stale && paths.iter().any(|p| fs::symlink_metadata(p).is_ok()) {
+        } else if req.rename && stale.is_none() && paths.iter().any(|p| fs::symlink_metadata(p).is_ok()) {
             // unrelated files at this name, not left by a killed run of this
             // input: never replaced, --overwrite or not (it redoes this
             // input's own outputs, found by its sidecar at a later name)
@@ -836,6 +886,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                 m.insert(p.clone(), key.clone());
             }
         });
+        let orphans = stale.unwrap_or_default().into_iter().map(|n| req.dir.join(n)).filter(|p| !paths.contains(p)).collect();
         return Ok(Resolution::Claimed(Claim {
             dir: req.dir.to_path_buf(),
             name,
@@ -844,6 +895,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
             _lock: lock,
             temps: Vec::new(),
             omitted: Vec::new(),
+            orphans,
         }));
     }
     Err(io::Error::other(format!("no free output name for {} in {}", req.base, req.dir.display())))
@@ -906,16 +958,32 @@ impl Claim {
     /// `NAME_sheet.json` is there).
     fn earlier_outputs(&self) -> Vec<PathBuf> {
         let Some(sidecar) = self.paths.last() else { return Vec::new() };
-        let Some(doc) = read_sidecar(sidecar) else { return Vec::new() };
-        listed_outputs(&self.name, &doc)
+        let listed = read_sidecar(sidecar).map(|doc| listed_outputs(&self.name, &doc)).unwrap_or_default();
+        listed
             .into_iter()
             .map(|n| self.dir.join(n))
+            .chain(self.orphans.iter().cloned())
             .filter(|p| {
                 !self.paths.contains(p)
                     && fs::symlink_metadata(p).is_ok_and(|m| m.is_file())
                     && (p.with_extension("json") == *sidecar || !p.with_extension("json").exists())
             })
             .collect()
+    }
+
+    /// Appends `left NAME` to the claim file for each of `paths` (all in
+    /// the claim's folder) and syncs it ([`read_left`]).
+    fn record_left<'a>(&self, paths: impl Iterator<Item = &'a PathBuf>) -> io::Result<()> {
+        use std::os::unix::ffi::OsStrExt;
+        use std::os::unix::fs::OpenOptionsExt;
+        let mut text = Vec::new();
+        for name in paths.filter_map(|p| p.file_name()) {
+            text.extend_from_slice(b"\nleft ");
+            text.extend_from_slice(name.as_bytes());
+        }
+        let mut f = OpenOptions::new().append(true).custom_flags(libc::O_NOFOLLOW).open(&self.claim_file)?;
+        f.write_all(&text)?;
+        f.sync_data()
     }
 
     /// Puts the written temporaries (one per path not omitted, in the
@@ -942,19 +1010,24 @@ impl Claim {
             return Err(io::Error::other("a claim without outputs"));
         };
         let earlier = self.earlier_outputs();
-        match fs::remove_file(sidecar) {
-            Ok(()) => {
-                // best effort: a file that cannot be removed (immutable, a
-                // read-only bind) stays beside the new sidecar, unlisted,
-                // rather than failing the input with its old outputs left
-                // without a sidecar
-                for p in &earlier {
-                    let _ = remove_if_present(p);
-                }
-                sync_dir(&self.dir)?
-            }
-            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+        // what a kill from here on may leave without a sidecar, made
+        // durable first: the run that takes this claim over removes it
+        self.record_left(earlier.iter().chain(outputs.iter()))?;
+        let removed = match fs::remove_file(sidecar) {
+            Ok(()) => true,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => false,
             Err(e) => return Err(e),
+        };
+        // best effort: a file that cannot be removed (immutable, a
+        // read-only bind) stays beside the new sidecar, unlisted, rather
+        // than failing the input with its old outputs left without a
+        // sidecar. Without an earlier sidecar these are a dead run's
+        // leftovers ([`read_left`])
+        for p in &earlier {
+            let _ = remove_if_present(p);
+        }
+        if removed || !earlier.is_empty() {
+            sync_dir(&self.dir)?
         }
         let written: Vec<&PathBuf> = outputs
             .iter()
@@ -1242,6 +1315,15 @@ mod tests {
         let v = parse_sidecar(br#"{"input": "caf\udce9.png", "x": "\ud83d\ude00\udc80"}"#).unwrap();
         assert_eq!(v["input"], "caf\u{fffd}.png");
         assert_eq!(v["x"], "\u{1f600}\u{fffd}");
+        // a lone high half, one at the end, a low half of the DD-DF range, and
+        // a backslash escaped before a u: text, no escape
+        let v = parse_sidecar(br#"{"a": "x\udce9\ud800.png", "b": "\uD83D", "c": "\udfff\ud83d\udc1f", "d": "\\udc80\udc80"}"#).unwrap();
+        assert_eq!(v["a"], "x\u{fffd}\u{fffd}.png");
+        assert_eq!(v["b"], "\u{fffd}");
+        assert_eq!(v["c"], "\u{fffd}\u{1f41f}");
+        assert_eq!(v["d"], "\\udc80\u{fffd}");
+        // JSON that is broken otherwise stays unread
+        assert!(parse_sidecar(br#"{"a": "\ud800"#).is_none());
     }
 
     #[test]
@@ -1429,6 +1511,69 @@ mod tests {
         fs::write(&claim_file, format!("4194399\nx\n{}\n", input_key(&x).display())).unwrap();
         let c = claimed(claim(&request(&d, "x", &x, &s, false)).unwrap());
         assert_eq!(c.name(), "x");
+        drop(c);
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_dead_runs_recorded_leftovers_go_when_its_claim_is_taken_over() {
+        // a run of a.jpg with --format png killed mid-commit: its a.png and
+        // a_t.png are in place, its sidecar is not, and its claim names what
+        // it may have left. The rerun (jpg: .jpg, _t.png) takes the name over
+        // and removes a.png, which it does not write; a name that leaves the
+        // folder is never followed
+        let d = folder("left");
+        let s: Vec<String> = vec![".jpg".into(), "_t.png".into()];
+        let a = d.join("a.jpg");
+        fs::write(&a, b"photo").unwrap();
+        fs::write(d.join("a.png"), b"dead run's image").unwrap();
+        fs::write(d.join("a_t.png"), b"dead run's map").unwrap();
+        let outside = d.parent().unwrap().join(format!("uwhl-left-outside-{}.png", std::process::id()));
+        fs::write(&outside, b"not the folder's").unwrap();
+        let claim_file = d.join(format!(".uwhl-claim-{:016x}", name_hash("a")));
+        let dead = |holder: &Path| {
+            let mut r = format!("4194399\na\n{}\n", holder.display()).into_bytes();
+            for n in ["a.png", "a_t.png", "a.json", "../", "..", ""] {
+                r.extend_from_slice(format!("\nleft {n}").as_bytes());
+            }
+            r.extend_from_slice(format!("\nleft ../{}", outside.file_name().unwrap().to_string_lossy()).as_bytes());
+            r
+        };
+        // a dead claim of another input: its names are not this input's to remove
+        fs::write(&claim_file, dead(&d.join("other.jpg"))).unwrap();
+        let c = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
+        assert_eq!(c.name(), "a_2");
+        drop(c);
+        assert!(d.join("a.png").exists());
+        // a dead claim of this input
+        fs::write(&claim_file, dead(&input_key(&a))).unwrap();
+        let mut c = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
+        assert_eq!(c.name(), "a");
+        let side = serde_json::json!({"input": a, "outputs": {"image": "a.jpg", "transmission": "a_t.png"}}).to_string();
+        let temps = write_all(&mut c, &side);
+        c.commit(&temps).unwrap();
+        assert!(!d.join("a.png").exists(), "the dead run's image in another format stays unlisted");
+        assert!(d.join("a.jpg").exists() && d.join("a.json").exists());
+        assert_ne!(fs::read(d.join("a_t.png")).unwrap(), b"dead run's map");
+        assert_eq!(fs::read(&outside).unwrap(), b"not the folder's");
+        fs::remove_file(&outside).unwrap();
+        fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_commit_records_what_it_may_leave_before_it_touches_the_folder() {
+        let d = folder("record-left");
+        let s = suffixes();
+        let a = d.join("a.jpg");
+        fs::write(&a, b"photo").unwrap();
+        let c = claimed(claim(&request(&d, "a", &a, &s, false)).unwrap());
+        let paths = c.paths().to_vec();
+        c.record_left(paths.iter()).unwrap();
+        let names = read_left(&File::open(d.join(format!(".uwhl-claim-{:016x}", name_hash("a")))).unwrap());
+        assert_eq!(names, vec![OsString::from("a.png"), OsString::from("a_t.png"), OsString::from("a.json")]);
+        // the record's own lines still say whose it is
+        let f = File::open(d.join(format!(".uwhl-claim-{:016x}", name_hash("a")))).unwrap();
+        assert_eq!(read_record(&f).map(|r| (r.0, r.2)), Some((std::process::id(), input_key(&a))));
         drop(c);
         fs::remove_dir_all(&d).unwrap();
     }

@@ -108,27 +108,39 @@ def test_a_sidecar_claiming_another_photo_cannot_change_its_uuid(restored, tmp_p
     assert "a.json: not a usable sidecar: outputs.image is 'blue.jpg', not an output of its own name 'a'" in r.stdout
 
 
-def test_a_lone_surrogate_in_a_sidecar_is_a_named_problem_not_a_crash(restored, tmp_path):
+def test_a_lone_surrogate_in_a_sidecar_is_read_as_u_fffd_not_a_crash(restored, tmp_path):
+    # "\ud800" is valid JSON and no character: os.lstat of it raised
+    # UnicodeEncodeError, and ifdo and restore --ifdo ended with exit 6.
+    # It is read as U+FFFD, as the core reads a sidecar.
     import json
 
     from test_ifdo import uwhl
 
     text = (restored / "blue.json").read_text()
+    # a planted sidecar whose output names one: not its own name, named
     (restored / "z.json").write_text(text.replace('"blue.jpg"', '"x\\ud800.jpg"'))
-    r, doc = _ifdo(restored, tmp_path)
-    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
-    assert "z.json: not a usable sidecar: holds a lone UTF-16 surrogate" in r.stdout, r.stdout
-    assert list(doc["image-set-items"]) == ["blue.jpg"]
-    r = uwhl("report", restored)
-    assert r.returncode == 0 and "z.json: not a usable sidecar: holds a lone UTF-16 surrogate" in r.stdout
-    # a pair of surrogate escapes is one character (a fish), not a problem
+    # the photo's own sidecar with one in its input's name
     doc = json.loads(text)
+    doc["input"] = "in/x\udce9\ud800.png"  # a low half, then a high one with no low after it
+    (restored / "blue.json").write_text(json.dumps(doc))
+    assert "\\udce9\\ud800" in (restored / "blue.json").read_text()
+    r, got = _ifdo(restored, tmp_path)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    assert "z.json: not a usable sidecar: outputs.image is 'x\ufffd.jpg', not an output of its own name 'z'" \
+        in r.stdout, r.stdout
+    assert list(got["image-set-items"]) == ["blue.jpg"]
+    used = got["image-set-header"]["image-set-provenance"]["provenance-activities"][0]["used-entities"][0]
+    assert used["name"] == "x\ufffd\ufffd.png"
+    r = uwhl("report", restored)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    # a pair of surrogate escapes is one character (a fish), kept
     doc["input"] = "fish\U0001f41f.png"
     (restored / "z.json").unlink()
     (restored / "blue.json").write_text(json.dumps(doc))  # ensure_ascii: "\ud83d\udc1f"
     assert "\\ud83d\\udc1f" in (restored / "blue.json").read_text()
-    r, doc = _ifdo(restored, tmp_path)
-    assert r.returncode == 0 and list(doc["image-set-items"]) == ["blue.jpg"], r.stdout + r.stderr
+    r, got = _ifdo(restored, tmp_path)
+    used = got["image-set-header"]["image-set-provenance"]["provenance-activities"][0]["used-entities"][0]
+    assert r.returncode == 0 and used["name"] == "fish\U0001f41f.png", r.stdout + r.stderr
 
 
 def test_a_sidecars_parameters_are_bounded_before_they_are_copied(restored, tmp_path):
