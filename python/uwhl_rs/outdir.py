@@ -422,16 +422,9 @@ def _match(rec: tuple | None, input: str, hashes: dict, storage_options: dict) -
     given, resolved, want = rec
     if is_url(input):
         return "named" if _same_object(given, input, storage_options) else None
-    if is_url(given) or "\0" in given:
+    if is_url(given) or "\0" in given or "\0" in (resolved or ""):
         return None
-    real = os.path.realpath(local_path(input))
-    if resolved is not None:
-        named = resolved == real
-    elif os.path.isabs(given):
-        named = given == input or os.path.realpath(given) == real
-    else:
-        named = want is None and (given == input or os.path.realpath(given) == real)
-    if named:
+    if _core.sidecar_names_input(given, resolved, want is not None, local_path(input)):
         return "named"
     if want is None:
         return None

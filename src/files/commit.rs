@@ -315,21 +315,35 @@ enum Match {
     Contents,
 }
 
-fn sidecar_match(path: &Path, input: &Path, key: &Path, hash: &mut Option<Option<String>>) -> Match {
-    let Some((given, resolved, recorded)) = sidecar_input(path) else { return Match::No };
-    let named = match &resolved {
+/// Whether a sidecar's input, `given` as its run was given it and
+/// `resolved` where the sidecar records that, names the local input at
+/// `input` (`key`: its [`input_key`]) by name, not by contents; `hashed`:
+/// the sidecar records the input's SHA-256. One rule for a folder's claims
+/// and for the Python batch's plan (`outdir._match`).
+pub fn names_input(given: &Path, resolved: Option<&Path>, hashed: bool, input: &Path, key: &Path) -> bool {
+    match resolved {
         // the resolved path, where recorded, decides by name: a relative
         // `input` equal to ours may name another file from another folder
         Some(r) => r == key,
-        None if given.is_absolute() => given == input || input_key(&given) == key,
+        None if given.is_absolute() => given == input || input_key(given) == key,
         // a URL (a stored input restored into this folder) names its object
         None if given.to_str().is_some_and(|g| g.contains("://")) => given == input,
         // a relative path names a file only from the folder its run started
         // in, which the sidecar does not record (`a.png` of another dive):
         // the contents decide where the sidecar records their hash, else
         // the path as given or from here
-        None => recorded.is_none() && (given == input || input_key(&given) == key),
-    };
+        None => !hashed && (given == input || input_key(given) == key),
+    }
+}
+
+/// [`names_input`] of the local input at `input`, its key worked out here.
+pub fn names_local_input(given: &Path, resolved: Option<&Path>, hashed: bool, input: &Path) -> bool {
+    names_input(given, resolved, hashed, input, &input_key(input))
+}
+
+fn sidecar_match(path: &Path, input: &Path, key: &Path, hash: &mut Option<Option<String>>) -> Match {
+    let Some((given, resolved, recorded)) = sidecar_input(path) else { return Match::No };
+    let named = names_input(&given, resolved.as_deref(), recorded.is_some(), input, key);
     if named {
         return Match::Named;
     }

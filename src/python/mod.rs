@@ -734,6 +734,17 @@ fn outdir_problem(dir: std::path::PathBuf) -> Option<String> {
     crate::files::jobs::outdir_problem(&dir)
 }
 
+/// Whether a sidecar whose input is `given` (as its run was given it),
+/// `resolved` where recorded, names the local input at `input` by name
+/// (`crate::files::commit::names_input`, the rule a folder's claims use);
+/// `hashed`: the sidecar records the input's SHA-256, which then decides
+/// for a relative `given`.
+#[pyfunction]
+#[pyo3(signature = (given, resolved, hashed, input))]
+fn sidecar_names_input(given: std::path::PathBuf, resolved: Option<std::path::PathBuf>, hashed: bool, input: std::path::PathBuf) -> bool {
+    crate::files::commit::names_local_input(&given, resolved.as_deref(), hashed, &input)
+}
+
 /// Why the TIFF structure of the file at `path` (a TIFF, BigTIFF or a
 /// raw file built on TIFF: DNG, NEF, CR2, ARW, ...) cannot be handed to a
 /// decoder (`crate::files::exif::tiff_structure`: offsets and counts
@@ -1093,6 +1104,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
     m.add_function(wrap_pyfunction!(tiff_problem, m)?)?;
+    m.add_function(wrap_pyfunction!(sidecar_names_input, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;
     m.add_function(wrap_pyfunction!(process_base, m)?)?;
