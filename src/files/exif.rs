@@ -190,7 +190,9 @@ fn ifd(src: &mut dyn Source, o: Order, at: u64) -> Result<(Vec<Entry>, u64), Str
         })
         .collect();
     let mut l = [0u8; 8];
-    l[..link_size].copy_from_slice(&raw[n * entry_size..]);
+    if let (Some(dst), Some(src)) = (l.get_mut(..link_size), raw.get(n * entry_size..)) {
+        dst.copy_from_slice(src);
+    }
     Ok((entries, o.offset(l)))
 }
 
@@ -219,10 +221,10 @@ fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u64) -> Result<Vec<u
     Ok(data
         .chunks_exact(size)
         .map(|c| match size {
-            1 => u64::from(c[0]),
-            2 => u64::from(o.u16([c[0], c[1]])),
-            4 => u64::from(o.u32([c[0], c[1], c[2], c[3]])),
-            _ => o.u64([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]),
+            1 => c.first().map_or(0, |&b| u64::from(b)),
+            2 => c.try_into().map_or(0, |b| u64::from(o.u16(b))),
+            4 => c.try_into().map_or(0, |b| u64::from(o.u32(b))),
+            _ => c.try_into().map_or(0, |b| o.u64(b)),
         })
         .collect())
 }
@@ -284,7 +286,7 @@ fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, S
         let mut layout = Layout::default();
         for e in &list {
             let size = type_size(e.kind).ok_or_else(|| format!("EXIF tag 0x{:04X} has an unknown type {}", e.tag, e.kind))?;
-            let bytes = size.checked_mul(e.count).unwrap_or(u64::MAX);
+            let bytes = size.saturating_mul(e.count);
             if bytes > o.inline() {
                 let off = o.offset(e.raw);
                 if off.checked_add(bytes).is_none_or(|end| end > len) {

@@ -169,7 +169,7 @@ mod tests {
     #[test]
     fn srgb_primaries_with_another_curve_are_not_srgb() {
         // sRGB's colorants with gamma 1 or 4: converted, not decoded as sRGB
-        for gamma in [1.0, 4.0] {
+        for gamma in [1.0f32, 4.0] {
             let mut p = ColorProfile::new_srgb();
             let curve = ToneReprCurve::Parametric(vec![gamma]);
             p.red_trc = Some(curve.clone());
@@ -181,7 +181,7 @@ mod tests {
             // its mid gray is linear 0.5^gamma, not sRGB's 0.214
             let mut v = vec![0.5, 0.5, 0.5];
             convert(&icc, &mut v, true).unwrap();
-            assert!(v.iter().all(|x| (x - 0.5f32.powf(gamma as f32)).abs() < 2e-3), "{v:?}");
+            assert!(v.iter().all(|x| (x - 0.5f32.powf(gamma)).abs() < 2e-3), "{v:?}");
         }
         // sRGB's parametric curve written out is still sRGB
         let mut p = ColorProfile::new_srgb();
