@@ -110,6 +110,9 @@ def load_yaml(text: str, label: str):
         def construct_mapping(self, node, deep=False):
             seen = set()
             for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    # "<<:" merges a mapping in (its keys yield to this one's): no key of its own
+                    continue
                 key = self.construct_object(key_node, deep=True)
                 try:
                     twice = key in seen

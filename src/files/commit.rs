@@ -511,14 +511,14 @@ fn try_lock(f: &File) -> Option<bool> {
     }
 }
 
-/// The pid, the process's start time (when the claim records it) and the
-/// input an open claim file names.
 /// The names a claim's commit recorded before it touched the folder
 /// ([`Claim::commit`]: `left NAME` lines after the record): the earlier
 /// run's outputs it removes and its own it renames in. A run killed in
 /// between leaves them without a sidecar; the run that takes its claim
-/// over removes those it does not write itself (another `--format`).
-/// Bare file names only; the record is read from its start.
+/// over removes those it does not write itself (another `--format`), and
+/// only names that are its own name and an output's suffix (a planted
+/// claim naming the user's notes.txt or another input's maps removes
+/// nothing). Bare file names only; the record is read from its start.
 fn read_left(mut f: &File) -> Vec<OsString> {
     use std::io::Seek;
     use std::os::unix::ffi::OsStrExt;
@@ -534,6 +534,8 @@ fn read_left(mut f: &File) -> Vec<OsString> {
         .collect()
 }
 
+/// The pid, the process's start time (when the claim records it) and the
+/// input an open claim file names.
 fn read_record(f: &File) -> Option<(u32, Option<u64>, PathBuf)> {
     use std::os::unix::ffi::OsStrExt;
     let mut s = Vec::new();
@@ -900,7 +902,15 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
                 m.insert(p.clone(), key.clone());
             }
         });
-        let orphans = stale.unwrap_or_default().into_iter().map(|n| req.dir.join(n)).filter(|p| !paths.contains(p)).collect();
+        // a dead claim is as hostile as a sidecar: only this name's outputs
+        // (NAME and a suffix the commands write) are ever taken from it
+        let orphans = stale
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|n| n.to_str().and_then(|n| n.strip_prefix(name.as_str())).is_some_and(is_output_suffix))
+            .map(|n| req.dir.join(n))
+            .filter(|p| !paths.contains(p))
+            .collect();
         return Ok(Resolution::Claimed(Claim {
             dir: req.dir.to_path_buf(),
             name,
@@ -1542,12 +1552,16 @@ mod tests {
         fs::write(&a, b"photo").unwrap();
         fs::write(d.join("a.png"), b"dead run's image").unwrap();
         fs::write(d.join("a_t.png"), b"dead run's map").unwrap();
+        // the user's own and another input's files, named by the dead claim too
+        for n in ["notes.txt", "b_t.png", "ab.png", ".uwhl-claim-0"] {
+            fs::write(d.join(n), b"not this input's").unwrap();
+        }
         let outside = d.parent().unwrap().join(format!("uwhl-left-outside-{}.png", std::process::id()));
         fs::write(&outside, b"not the folder's").unwrap();
         let claim_file = d.join(format!(".uwhl-claim-{:016x}", name_hash("a")));
         let dead = |holder: &Path| {
             let mut r = format!("4194399\na\n{}\n", holder.display()).into_bytes();
-            for n in ["a.png", "a_t.png", "a.json", "../", "..", ""] {
+            for n in ["a.png", "a_t.png", "a.json", "../", "..", "", "notes.txt", "b_t.png", "ab.png", ".uwhl-claim-0"] {
                 r.extend_from_slice(format!("\nleft {n}").as_bytes());
             }
             r.extend_from_slice(format!("\nleft ../{}", outside.file_name().unwrap().to_string_lossy()).as_bytes());
@@ -1570,6 +1584,9 @@ mod tests {
         assert!(d.join("a.jpg").exists() && d.join("a.json").exists());
         assert_ne!(fs::read(d.join("a_t.png")).unwrap(), b"dead run's map");
         assert_eq!(fs::read(&outside).unwrap(), b"not the folder's");
+        for n in ["notes.txt", "b_t.png", "ab.png", ".uwhl-claim-0"] {
+            assert_eq!(fs::read(d.join(n)).unwrap(), b"not this input's", "{n}");
+        }
         fs::remove_file(&outside).unwrap();
         fs::remove_dir_all(&d).unwrap();
     }

@@ -23,6 +23,15 @@ pub const MAX_ENTRIES: usize = 8192;
 /// rationals) in one block, not counting image strips and the thumbnail,
 /// which must lie inside the block and not add up to more than it.
 pub const MAX_VALUE_BYTES: u64 = 16 << 20;
+/// The same three limits for a whole TIFF file ([`tiff_structure`]): a
+/// multi-page file or a pyramid has many IFDs (every page and its
+/// SubIFDs), each with its tables, and a decoder reads them lazily, where
+/// an EXIF block is parsed whole.
+pub const MAX_FILE_IFDS: usize = 4096;
+/// See [`MAX_FILE_IFDS`].
+pub const MAX_FILE_ENTRIES: usize = 1 << 18;
+/// See [`MAX_FILE_IFDS`].
+pub const MAX_FILE_VALUE_BYTES: u64 = 1 << 30;
 /// The largest EXIF block, XMP packet or ICC profile read (after
 /// inflating): real ones are well under a few MB.
 pub const MAX_BLOCK: u64 = 16 << 20;
@@ -264,6 +273,8 @@ pub fn check(src: &mut dyn Source) -> Result<Walked, String> {
 /// too, and every IFD with a size and a strip or tile table must list as
 /// many strips or tiles as its size needs ([`covered`]).
 fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, String> {
+    let (max_ifds, max_entries, max_values) =
+        if image { (MAX_FILE_IFDS, MAX_FILE_ENTRIES, MAX_FILE_VALUE_BYTES) } else { (MAX_IFDS, MAX_ENTRIES, MAX_VALUE_BYTES) };
     let (o, ifd0) = header(src)?;
     let len = src.size();
     let mut seen = HashSet::new();
@@ -274,13 +285,13 @@ fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, S
             return Err(format!("the EXIF IFDs form a loop (the IFD at offset {at} is reached twice)"));
         }
         ifds += 1;
-        if ifds > MAX_IFDS {
-            return Err(format!("the EXIF block has more than {MAX_IFDS} IFDs"));
+        if ifds > max_ifds {
+            return Err(format!("the EXIF block has more than {max_ifds} IFDs"));
         }
         let (list, next) = ifd(src, o, at)?;
         entries += list.len();
-        if entries > MAX_ENTRIES {
-            return Err(format!("the EXIF block has more than {MAX_ENTRIES} entries"));
+        if entries > max_entries {
+            return Err(format!("the EXIF block has more than {max_entries} entries"));
         }
         let (mut strips, mut counts, mut thumb, mut thumb_len) = (None, None, None, None);
         let mut layout = Layout::default();
@@ -293,8 +304,8 @@ fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, S
                     return Err(format!("the value of EXIF tag 0x{:04X} ({bytes} bytes at {off}) is outside the block", e.tag));
                 }
                 values += bytes;
-                if values > MAX_VALUE_BYTES {
-                    return Err(format!("the EXIF values add up to more than {MAX_VALUE_BYTES} bytes"));
+                if values > max_values {
+                    return Err(format!("the EXIF values add up to more than {max_values} bytes"));
                 }
             }
             match e.tag {
@@ -309,7 +320,7 @@ fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, S
                     if !matches!(e.kind, 4 | 13 | 16 | 18) {
                         return Err("EXIF SubIFDs tag 0x014A is not a list of LONG offsets".into());
                     }
-                    todo.extend(integers(src, o, e, MAX_IFDS as u64)?.into_iter().map(|sub| (sub, false)));
+                    todo.extend(integers(src, o, e, max_ifds as u64)?.into_iter().map(|sub| (sub, false)));
                 }
                 0x0100 | 0x0101 | 0x0115 | 0x0116 | 0x011C | 0x0142 | 0x0143 if image => {
                     let v = integers(src, o, e, 1 << 16)?.first().copied();
@@ -402,7 +413,9 @@ pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
         return Ok(());
     }
     // the walk's words are an EXIF block's; here the block is the file
-    walk(&mut src, false, true).map(|_| ()).map_err(|m| m.replace("the block", "the file").replace("EXIF ", "TIFF "))
+    walk(&mut src, false, true)
+        .map(|_| ())
+        .map_err(|m| m.replace("the EXIF block", "the file").replace("the block", "the file").replace("an EXIF ", "a TIFF ").replace("EXIF ", "TIFF "))
 }
 
 /// How the pixels of a TIFF file's first image are laid out, from its
@@ -1132,6 +1145,24 @@ mod tests {
             b.extend((8 + 6 * (i + 1)).to_le_bytes());
         }
         assert!(check(&mut b.as_slice()).unwrap_err().contains("IFDs"));
+        // a whole file may hold a multi-page chain or a pyramid that long: its own, larger limit
+        let chain = |n: u32| {
+            let mut b = b"II*\0".to_vec();
+            b.extend(8u32.to_le_bytes());
+            for i in 0..n {
+                b.extend(0u16.to_le_bytes());
+                b.extend((if i + 1 == n { 0 } else { 8 + 6 * (i + 1) }).to_le_bytes());
+            }
+            b
+        };
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(chain(MAX_IFDS as u32 + 1))), Ok(()));
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(chain(MAX_FILE_IFDS as u32))), Ok(()));
+        let why = tiff_structure(&mut std::io::Cursor::new(chain(MAX_FILE_IFDS as u32 + 1)));
+        assert_eq!(why, Err("the file has more than 4096 IFDs".to_string()));
+        // an offset outside, said of a file
+        let mut b = chain(3);
+        b.truncate(b.len() - 6);
+        assert_eq!(tiff_structure(&mut std::io::Cursor::new(b)), Err("a TIFF IFD offset (20) is outside the file".to_string()));
     }
 
     #[test]

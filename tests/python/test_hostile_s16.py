@@ -168,6 +168,17 @@ def _header_text(tmp_path, text, name):
     return p
 
 
+def test_a_yaml_merge_key_is_no_key_given_twice(tmp_path):
+    # "<<:" merges a mapping in; the keys of the mapping itself win over the merged ones
+    from uwhl_rs import ifdo
+    from uwhl_rs.errors import IfdoError
+
+    text = "x:\n  <<: {a: 1, b: 2}\n  b: 3\n"
+    assert ifdo.load_yaml(text, "h") == {"x": {"a": 1, "b": 3}}
+    with pytest.raises(IfdoError, match="the key 'b' is given twice"):
+        ifdo.load_yaml("x:\n  <<: {a: 1}\n  b: 3\n  b: 4\n", "h")
+
+
 def test_a_json_header_as_json_dump_writes_it_is_read(tmp_path):
     # json.dump escapes a character outside the BMP as two surrogate escapes: valid JSON that
     # libyaml refuses ("while parsing a quoted scalar")
