@@ -391,7 +391,7 @@ def _read_raw(path: str, preprocess: str, half_size: bool, max_pixels: int,
     except ImportError:  # pragma: no cover - rawpy is a dependency
         raise ImageReadError(f"{path}: reading raw files needs rawpy (pip install rawpy)") from None
     # LibRaw reads a tile or strip table as far as the size says, past its end
-    why = _core.tiff_problem(path)
+    why = _core.raw_problem(path)
     if why:
         raise ImageReadError(f"{path}: a damaged raw file: {why}")
     try:

@@ -273,57 +273,75 @@ pub fn check(src: &mut dyn Source) -> Result<Walked, String> {
 /// too, and every IFD with a size and a strip or tile table must list as
 /// many strips or tiles as its size needs ([`covered`]).
 fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, String> {
+    walk_as(src, check_data, image, false)
+}
+
+/// [`walk`]; when `lenient` (a raw file, whose own decoder judges its
+/// structure), only a strip or tile table that does not cover its image
+/// fails: an entry that cannot be read is skipped, an IFD that cannot be
+/// read or is reached twice is left, and the walk ends at the limits.
+fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -> Result<Walked, String> {
+    // a problem of the structure: skipped (`$skip`) when lenient, else the error
+    macro_rules! or_skip {
+        ($r:expr, $skip:tt) => {
+            match $r {
+                Ok(v) => v,
+                Err(_) if lenient => $skip,
+                Err(m) => return Err(m),
+            }
+        };
+    }
     let (max_ifds, max_entries, max_values) =
         if image { (MAX_FILE_IFDS, MAX_FILE_ENTRIES, MAX_FILE_VALUE_BYTES) } else { (MAX_IFDS, MAX_ENTRIES, MAX_VALUE_BYTES) };
-    let (o, ifd0) = header(src)?;
+    let (o, ifd0) = or_skip!(header(src), { return Ok(Walked { ifds: 0, entries: 0 }) });
     let len = src.size();
     let mut seen = HashSet::new();
     let mut todo = vec![(ifd0, true)];
     let (mut ifds, mut entries, mut values) = (0usize, 0usize, 0u64);
     while let Some((at, chained)) = todo.pop() {
         if !seen.insert(at) {
-            return Err(format!("the EXIF IFDs form a loop (the IFD at offset {at} is reached twice)"));
+            or_skip!(Err(format!("the EXIF IFDs form a loop (the IFD at offset {at} is reached twice)")), continue);
         }
         ifds += 1;
         if ifds > max_ifds {
-            return Err(format!("the EXIF block has more than {max_ifds} IFDs"));
+            or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
         }
-        let (list, next) = ifd(src, o, at)?;
+        let (list, next) = or_skip!(ifd(src, o, at), continue);
         entries += list.len();
         if entries > max_entries {
-            return Err(format!("the EXIF block has more than {max_entries} entries"));
+            or_skip!(Err(format!("the EXIF block has more than {max_entries} entries")), break);
         }
         let (mut strips, mut counts, mut thumb, mut thumb_len) = (None, None, None, None);
         let mut layout = Layout::default();
         for e in &list {
-            let size = type_size(e.kind).ok_or_else(|| format!("EXIF tag 0x{:04X} has an unknown type {}", e.tag, e.kind))?;
+            let size = or_skip!(type_size(e.kind).ok_or_else(|| format!("EXIF tag 0x{:04X} has an unknown type {}", e.tag, e.kind)), continue);
             let bytes = size.saturating_mul(e.count);
             if bytes > o.inline() {
                 let off = o.offset(e.raw);
                 if off.checked_add(bytes).is_none_or(|end| end > len) {
-                    return Err(format!("the value of EXIF tag 0x{:04X} ({bytes} bytes at {off}) is outside the block", e.tag));
+                    or_skip!(Err(format!("the value of EXIF tag 0x{:04X} ({bytes} bytes at {off}) is outside the block", e.tag)), continue);
                 }
                 values += bytes;
                 if values > max_values {
-                    return Err(format!("the EXIF values add up to more than {max_values} bytes"));
+                    or_skip!(Err(format!("the EXIF values add up to more than {max_values} bytes")), break);
                 }
             }
             match e.tag {
                 t if SUB_IFDS.contains(&t) => {
-                    let first = integers(src, o, e, 1 << 16)?;
+                    let first = or_skip!(integers(src, o, e, 1 << 16), continue);
                     match first.first() {
                         Some(&sub) if matches!(e.kind, 4 | 13 | 16 | 18) => todo.push((sub, false)),
-                        _ => return Err(format!("EXIF sub-IFD tag 0x{t:04X} is not a LONG offset")),
+                        _ => or_skip!(Err(format!("EXIF sub-IFD tag 0x{t:04X} is not a LONG offset")), continue),
                     }
                 }
                 0x014A if image => {
                     if !matches!(e.kind, 4 | 13 | 16 | 18) {
-                        return Err("EXIF SubIFDs tag 0x014A is not a list of LONG offsets".into());
+                        or_skip!(Err("EXIF SubIFDs tag 0x014A is not a list of LONG offsets".to_string()), continue);
                     }
-                    todo.extend(integers(src, o, e, max_ifds as u64)?.into_iter().map(|sub| (sub, false)));
+                    todo.extend(or_skip!(integers(src, o, e, max_ifds as u64), continue).into_iter().map(|sub| (sub, false)));
                 }
                 0x0100 | 0x0101 | 0x0115 | 0x0116 | 0x011C | 0x0142 | 0x0143 if image => {
-                    let v = integers(src, o, e, 1 << 16)?.first().copied();
+                    let v = or_skip!(integers(src, o, e, 1 << 16), continue).first().copied();
                     match e.tag {
                         0x0100 => layout.width = v,
                         0x0101 => layout.height = v,
@@ -334,10 +352,10 @@ fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, S
                         _ => layout.tile_height = v,
                     }
                 }
-                0x0111 | 0x0144 => strips = Some(integers(src, o, e, 1 << 20)?),
-                0x0117 | 0x0145 => counts = Some(integers(src, o, e, 1 << 20)?),
-                0x0201 => thumb = Some(integers(src, o, e, 1 << 20)?),
-                0x0202 => thumb_len = Some(integers(src, o, e, 1 << 20)?),
+                0x0111 | 0x0144 => strips = Some(or_skip!(integers(src, o, e, 1 << 20), continue)),
+                0x0117 | 0x0145 => counts = Some(or_skip!(integers(src, o, e, 1 << 20), continue)),
+                0x0201 => thumb = Some(or_skip!(integers(src, o, e, 1 << 20), continue)),
+                0x0202 => thumb_len = Some(or_skip!(integers(src, o, e, 1 << 20), continue)),
                 _ => {}
             }
         }
@@ -352,7 +370,7 @@ fn walk(src: &mut dyn Source, check_data: bool, image: bool) -> Result<Walked, S
             for (off, n) in offsets.iter().zip(&sizes) {
                 total += n;
                 if off.checked_add(*n).is_none_or(|end| end > len) || total > len {
-                    return Err(format!("the EXIF image data ({n} bytes at {off}) is outside the block"));
+                    or_skip!(Err(format!("the EXIF image data ({n} bytes at {off}) is outside the block")), break);
                 }
             }
         }
@@ -416,6 +434,21 @@ pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
     walk(&mut src, false, true)
         .map(|_| ())
         .map_err(|m| m.replace("the EXIF block", "the file").replace("the block", "the file").replace("an EXIF ", "a TIFF ").replace("EXIF ", "TIFF "))
+}
+
+/// Whether every strip or tile table of a TIFF-based raw file (DNG, NEF,
+/// CR2, ARW, ...) covers its image ([`covered`]; IFD0's chain and the
+/// SubIFDs where a DNG keeps its raw image): Err with the reason when one
+/// does not. Nothing else of the structure is judged: LibRaw reads raws
+/// with a parser of its own, and a camera's odd tag must not cost the
+/// photo. A file that is no TIFF is Ok.
+pub fn raw_tables<R: Read + Seek>(r: &mut R) -> Result<(), String> {
+    let mut src = ReaderSource::new(r).map_err(|e| e.to_string())?;
+    let mut magic = [0u8; 4];
+    if !src.read_at(0, &mut magic) || !matches!(&magic, b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+") {
+        return Ok(());
+    }
+    walk_as(&mut src, false, true, true).map(|_| ()).map_err(|m| m.replace("the EXIF image", "the raw image"))
 }
 
 /// How the pixels of a TIFF file's first image are laid out, from its
@@ -1083,6 +1116,31 @@ mod tests {
             (0x0111, 4, 1, long(8)), (0x0117, 4, 1, long(8))], 0, &[]);
         b.resize(200, 0);
         assert!(check(&mut b.as_slice()).is_ok());
+    }
+
+    #[test]
+    fn a_raw_is_judged_by_its_tables_only() {
+        let long = |v: u32| v.to_le_bytes();
+        // a camera's tag of an unknown type and a value past the end: a strict walk refuses, a raw's does not
+        let odd = |strips: u32| {
+            let mut b = tiff(true, &[(0x0100, 4, 1, long(8)), (0x0101, 4, 1, long(64)), (0x0116, 4, 1, long(16)),
+                (0x0111, 4, strips, long(120)), (0x0117, 4, strips, long(120)), (0xC000, 99, 1, long(0)),
+                (0xC001, 7, 5000, long(100))], 0, &[]);
+            b.resize(200, 0);
+            b
+        };
+        assert!(tiff_structure(&mut std::io::Cursor::new(odd(4))).is_err());
+        assert_eq!(raw_tables(&mut std::io::Cursor::new(odd(4))), Ok(()));
+        // its table short of its size is refused all the same
+        let why = raw_tables(&mut std::io::Cursor::new(odd(3))).unwrap_err();
+        assert_eq!(why, "the raw image of 8 x 64 pixels needs 4 strips, and its table lists 3");
+        // a loop, an IFD past the end, a header cut short: nothing to judge
+        let b = tiff(true, &[(0x0112, 3, 1, short(1, true))], 8, &[]);
+        assert_eq!(raw_tables(&mut std::io::Cursor::new(b)), Ok(()));
+        let b = tiff(true, &[(0x8769, 4, 1, long(90_000))], 0, &[]);
+        assert_eq!(raw_tables(&mut std::io::Cursor::new(b)), Ok(()));
+        assert_eq!(raw_tables(&mut std::io::Cursor::new(b"II+\0\x04\0".to_vec())), Ok(()));
+        assert_eq!(raw_tables(&mut std::io::Cursor::new(b"not a tiff".to_vec())), Ok(()));
     }
 
     #[test]

@@ -745,17 +745,16 @@ fn sidecar_names_input(given: std::path::PathBuf, resolved: Option<std::path::Pa
     crate::files::commit::names_local_input(&given, resolved.as_deref(), hashed, &input)
 }
 
-/// Why the TIFF structure of the file at `path` (a TIFF, BigTIFF or a
-/// raw file built on TIFF: DNG, NEF, CR2, ARW, ...) cannot be handed to a
-/// decoder (`crate::files::exif::tiff_structure`: offsets and counts
-/// outside the file, loops, a strip or tile table that does not cover its
-/// image), or None: also when it is no TIFF or cannot be opened, which the
-/// decoder names.
+/// Why a raw file built on TIFF (DNG, NEF, CR2, ARW, ...) at `path` cannot
+/// be handed to LibRaw: a strip or tile table that does not cover its
+/// image, which LibRaw reads past (`crate::files::exif::raw_tables`); None
+/// otherwise, also when it is no TIFF or cannot be opened, which LibRaw
+/// names.
 #[pyfunction]
-fn tiff_problem(py: Python<'_>, path: std::path::PathBuf) -> Option<String> {
+fn raw_problem(py: Python<'_>, path: std::path::PathBuf) -> Option<String> {
     py.detach(|| {
         let mut f = std::io::BufReader::new(std::fs::File::open(&path).ok()?);
-        crate::files::exif::tiff_structure(&mut f).err()
+        crate::files::exif::raw_tables(&mut f).err()
     })
 }
 
@@ -1103,7 +1102,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(nearest_type, m)?)?;
     m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
-    m.add_function(wrap_pyfunction!(tiff_problem, m)?)?;
+    m.add_function(wrap_pyfunction!(raw_problem, m)?)?;
     m.add_function(wrap_pyfunction!(sidecar_names_input, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;

@@ -261,7 +261,7 @@ def test_a_dng_whose_size_outgrows_its_tile_table_is_refused_before_libraw(tmp_p
     with pytest.raises(ImageReadError) as e:
         images.read_image(str(bad))
     what = "tiles" if tiled else "strips"
-    assert f"a damaged raw file: the TIFF image of {2 * w} x {2 * h} pixels needs {needed} {what}, and its table " \
+    assert f"a damaged raw file: the raw image of {2 * w} x {2 * h} pixels needs {needed} {what}, and its table " \
            f"lists {listed}" in str(e.value)
     # the file as it is reads
     img, _ = images.read_image(src, half_size=True)
