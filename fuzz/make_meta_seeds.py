@@ -126,26 +126,18 @@ def tiff_float(w, h, values, big=False, little=True):
     data = struct.pack(e + "%df" % (w * h), *values)
     tags = [(0x0100, 3, w), (0x0101, 3, h), (0x0102, 3, 32), (0x0103, 3, 1), (0x0106, 3, 1),
             (0x0111, 4, 0), (0x0115, 3, 1), (0x0116, 3, h), (0x0117, 4, len(data)), (0x0153, 3, 3)]
-    head = (b"II" if little else b"MM")
-    if big:
-        ifd_at = 16
-        size = 8 + len(tags) * 20 + 8
-        head += struct.pack(e + "HHHQ", 43, 8, 0, ifd_at)
-        body = struct.pack(e + "Q", len(tags))
-        for tag, kind, v in tags:
-            v = ifd_at + size if tag == 0x0111 else v
-            val = struct.pack(e + ("H" if kind == 3 else "I"), v).ljust(8, b"\0")
-            body += struct.pack(e + "HHQ", tag, kind, 1) + val
-        return head + body + struct.pack(e + "Q", 0) + data
-    ifd_at = 8
-    size = 2 + len(tags) * 12 + 4
-    head += struct.pack(e + "HI", 42, ifd_at)
-    body = struct.pack(e + "H", len(tags))
+    # BigTIFF: counts, links and value fields of 8 bytes; classic TIFF: of 4 (an entry count of 2)
+    word, inline, count = ("Q", 8, "Q") if big else ("I", 4, "H")
+    ifd_at = 16 if big else 8
+    size = struct.calcsize(count) + len(tags) * (4 + 2 * inline) + inline
+    head = (b"II" if little else b"MM") + (struct.pack(e + "HHHQ", 43, 8, 0, ifd_at) if big
+                                           else struct.pack(e + "HI", 42, ifd_at))
+    body = struct.pack(e + count, len(tags))
     for tag, kind, v in tags:
         v = ifd_at + size if tag == 0x0111 else v
-        val = struct.pack(e + ("H" if kind == 3 else "I"), v).ljust(4, b"\0")
-        body += struct.pack(e + "HHI", tag, kind, 1) + val
-    return head + body + struct.pack(e + "I", 0) + data
+        val = struct.pack(e + ("H" if kind == 3 else "I"), v).ljust(inline, b"\0")
+        body += struct.pack(e + "HH" + word, tag, kind, 1) + val
+    return head + body + struct.pack(e + word, 0) + data
 
 
 def exr_float(w, h, values, channel=b"Z"):

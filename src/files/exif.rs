@@ -964,18 +964,38 @@ mod tests {
     /// A little- or big-endian TIFF block with one IFD0 of `entries`
     /// (tag, type, count, 4 value bytes), its link `next`, then `tail`.
     pub(crate) fn tiff(le: bool, entries: &[(u16, u16, u32, [u8; 4])], next: u32, tail: &[u8]) -> Vec<u8> {
+        let wide: Vec<_> = entries.iter().map(|&(t, k, c, v)| (t, k, u64::from(c), v)).collect();
+        ifd_file(le, &wide, u64::from(next), tail)
+    }
+
+    /// One IFD after a classic TIFF header (value fields of 4 bytes: counts
+    /// and links of 4) or a BigTIFF one (of 8: counts and links of 8).
+    fn ifd_file<const N: usize>(le: bool, entries: &[(u16, u16, u64, [u8; N])], next: u64, tail: &[u8]) -> Vec<u8> {
         let u16b = |v: u16| if le { v.to_le_bytes() } else { v.to_be_bytes() };
-        let u32b = |v: u32| if le { v.to_le_bytes() } else { v.to_be_bytes() };
-        let mut b = if le { b"II*\0".to_vec() } else { b"MM\0*".to_vec() };
-        b.extend(u32b(8));
-        b.extend(u16b(entries.len() as u16));
+        // a count or link: 4 bytes in classic TIFF, 8 in BigTIFF
+        let word = |v: u64| {
+            let b = if le { v.to_le_bytes() } else { v.to_be_bytes() };
+            if N == 8 { b.to_vec() } else if le { b[..4].to_vec() } else { b[4..].to_vec() }
+        };
+        let mut b = if le { b"II".to_vec() } else { b"MM".to_vec() };
+        if N == 8 {
+            b.extend(u16b(43));
+            b.extend(u16b(8));
+            b.extend(u16b(0));
+            b.extend(word(16));
+            b.extend(word(entries.len() as u64));
+        } else {
+            b.extend(u16b(42));
+            b.extend(word(8));
+            b.extend(u16b(entries.len() as u16));
+        }
         for &(t, k, c, v) in entries {
             b.extend(u16b(t));
             b.extend(u16b(k));
-            b.extend(u32b(c));
+            b.extend(word(c));
             b.extend(v);
         }
-        b.extend(u32b(next));
+        b.extend(word(next));
         b.extend(tail);
         b
     }
@@ -1002,23 +1022,7 @@ mod tests {
     /// A BigTIFF (magic 43, offset size 8) with one IFD at 16 of 20-byte
     /// entries `(tag, type, count, value field)`, its next-IFD link, then `tail`.
     fn bigtiff(le: bool, entries: &[(u16, u16, u64, [u8; 8])], next: u64, tail: &[u8]) -> Vec<u8> {
-        let u16b = |v: u16| if le { v.to_le_bytes() } else { v.to_be_bytes() };
-        let u64b = |v: u64| if le { v.to_le_bytes() } else { v.to_be_bytes() };
-        let mut b = if le { b"II".to_vec() } else { b"MM".to_vec() };
-        b.extend(u16b(43));
-        b.extend(u16b(8));
-        b.extend(u16b(0));
-        b.extend(u64b(16));
-        b.extend(u64b(entries.len() as u64));
-        for &(t, k, c, v) in entries {
-            b.extend(u16b(t));
-            b.extend(u16b(k));
-            b.extend(u64b(c));
-            b.extend(v);
-        }
-        b.extend(u64b(next));
-        b.extend(tail);
-        b
+        ifd_file(le, entries, next, tail)
     }
 
     #[test]
