@@ -15,7 +15,10 @@
 
 use std::io::Write;
 use std::process::ExitCode;
-use uwhl::cli::{demo_help, help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_frames, run_stream, Command};
+use uwhl::cli::{
+    demo_help, end_at_once_on_signals, help, init_threads, install_interrupt_handler, parse, report, run_batch, run_demo, run_frames, run_stream,
+    Command,
+};
 
 /// Whether stdout was closed when the process started (`>&-`). Rust's
 /// runtime puts /dev/null on a closed standard descriptor before `main`,
@@ -146,10 +149,17 @@ fn main() -> ExitCode {
                 report(&mut stderr, opts.json_errors, None, &e);
                 e.kind.exit_code()
             } else if opts.raw_frames.is_some() {
-                // the frames are read and written as they come; SIGINT ends the run at once (a pipe)
+                // the frames are read and written as they come; a signal ends the run at once (a pipe)
+                let dir = (opts.outdir.as_os_str() != "-").then(|| opts.outdir.clone());
+                if let Err(e) = end_at_once_on_signals(dir, &ignored_now) {
+                    let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT and SIGTERM ({e}); either ends the run at once");
+                }
                 let mut stdin = std::io::stdin().lock();
                 run_frames(&opts, &mut stdin, &mut stdout, &mut stderr)
             } else if opts.stream {
+                if let Err(e) = end_at_once_on_signals(Some(opts.outdir.clone()), &ignored_now) {
+                    let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT and SIGTERM ({e}); either ends the run at once");
+                }
                 // unlocked (the lock is not Send): lines are read on a second thread
                 let mut stdin = std::io::BufReader::new(std::io::stdin());
                 run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)

@@ -28,5 +28,5 @@ use crate::method::water::WaterType;
 pub use args::{demo_help, help, parse, Command, Demo, Format, Options, Preprocess, WaterChoice};
 pub use demo::run_demo;
 pub use frames::run_frames;
-pub use run::{init_threads, install_interrupt_handler, report, run_batch, run_stream};
+pub use run::{end_at_once_on_signals, init_threads, install_interrupt_handler, report, run_batch, run_stream};
 pub use crate::error::{Failure, Kind};

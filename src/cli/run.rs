@@ -270,8 +270,8 @@ static INTERRUPT: std::sync::OnceLock<std::sync::Arc<std::sync::atomic::AtomicBo
 /// Batch mode's SIGINT and SIGTERM handling (SIGTERM is how batch systems
 /// and `timeout` stop a job): the first lets the input being written
 /// finish and stops the batch with exit 130 (docs/CLI.md); a second ends
-/// the process at once. Stream mode keeps the default (the process ends at
-/// once; a shell reports 130 or 143). `ignored_at_start(sig)`: whether the
+/// the process at once. Stream mode and raw frames end at once
+/// ([`end_at_once_on_signals`]). `ignored_at_start(sig)`: whether the
 /// signal was ignored when the process started (the binary asks the
 /// kernel; this library forbids the unsafe call).
 pub fn install_interrupt_handler(ignored_at_start: &dyn Fn(i32) -> bool) -> std::io::Result<()> {
@@ -283,6 +283,36 @@ pub fn install_interrupt_handler(ignored_at_start: &dyn Fn(i32) -> bool) -> std:
         signal_hook::flag::register_conditional_default(sig, flag.clone())?;
         signal_hook::flag::register(sig, flag.clone())?;
     }
+    Ok(())
+}
+
+/// Stream mode's and raw frames' SIGINT and SIGTERM: the run ends at once,
+/// by the signal's own default action (the shell reports 130 or 143), once
+/// this process's temporaries in the output folder `dir` are removed (they
+/// were left for the next run to sweep). A second signal meanwhile ends it
+/// at once. A signal ignored when the process started stays ignored
+/// (`ignored_at_start`, as [`install_interrupt_handler`]).
+pub fn end_at_once_on_signals(dir: Option<std::path::PathBuf>, ignored_at_start: &dyn Fn(i32) -> bool) -> std::io::Result<()> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let sigs: Vec<i32> = [SIGINT, SIGTERM].into_iter().filter(|&s| !ignored_at_start(s)).collect();
+    if sigs.is_empty() {
+        return Ok(());
+    }
+    let armed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for &sig in &sigs {
+        signal_hook::flag::register_conditional_default(sig, armed.clone())?;
+    }
+    let mut signals = signal_hook::iterator::Signals::new(&sigs)?;
+    std::thread::Builder::new().name("uwhl-signals".into()).spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            armed.store(true, std::sync::atomic::Ordering::SeqCst);
+            if let Some(d) = &dir {
+                crate::files::jobs::remove_own_temps(d);
+            }
+            let _ = signal_hook::low_level::emulate_default_handler(sig);
+            std::process::exit(128 + sig);
+        }
+    })?;
     Ok(())
 }
 

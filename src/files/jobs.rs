@@ -135,6 +135,18 @@ pub fn remove_stale_temps(dir: &Path, gate: &Path) -> usize {
     removed
 }
 
+/// Removes from `dir` this process's own temporary files (`.uwhl-PID-...`
+/// of its pid): what a run ended by a signal leaves otherwise until the
+/// next run sweeps it ([`remove_stale_temps`]). Returns how many.
+pub fn remove_own_temps(dir: &Path) -> usize {
+    let prefix = format!(".uwhl-{}-", std::process::id());
+    let Ok(rd) = fs::read_dir(dir) else { return 0 };
+    rd.flatten()
+        .filter(|e| e.file_name().to_str().is_some_and(|n| n.starts_with(&prefix) && n.contains(".tmp")))
+        .filter(|e| e.file_type().is_ok_and(|t| t.is_file()) && fs::remove_file(e.path()).is_ok())
+        .count()
+}
+
 /// The output folders this process's runs hold, each with the identity
 /// (device, inode) its folder had when the run took it.
 static HELD: std::sync::Mutex<Vec<(PathBuf, (u64, u64))>> = std::sync::Mutex::new(Vec::new());

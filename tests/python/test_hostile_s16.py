@@ -273,3 +273,36 @@ def test_an_ifdo_file_that_cannot_be_replaced_is_named(restored, tmp_path):
     r, _ = _ifdo(restored, tmp_path)
     assert r.returncode == 5 and "Traceback" not in r.stderr, r.stderr
     assert "cannot write the iFDO" in r.stderr and "ifdo.yaml" in r.stderr, r.stderr
+
+
+# ------------------------------------------------------------------ signals in stream mode and raw frames
+
+
+@pytest.mark.parametrize("mode", [["--stream"], ["--raw-frames", "64x48"]])
+def test_a_signal_ends_a_stream_at_once_and_takes_its_temporaries(binary, tmp_path, mode):
+    # The run waits on stdin (an idle producer): SIGTERM must end it at once,
+    # by the signal (as the default action did), after removing what this
+    # process left in the output folder; another process's files stay.
+    import signal
+    import subprocess
+    import time
+
+    out = tmp_path / "out"
+    p = subprocess.Popen([binary, "restore", *mode, "-o", str(out)], stdin=subprocess.PIPE,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while not out.is_dir() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        # a temporary of this process (its pid), and one of another
+        mine, theirs = out / f".uwhl-{p.pid}-7.tmp.png", out / ".uwhl-1-7.tmp.png"
+        mine.write_bytes(b"half")
+        theirs.write_bytes(b"another run's")
+        time.sleep(0.2)
+        p.send_signal(signal.SIGTERM)
+        p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == -signal.SIGTERM, (p.returncode, p.stderr.read())
+    assert not mine.exists() and theirs.exists()
