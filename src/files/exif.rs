@@ -436,6 +436,76 @@ pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
         .map_err(|m| m.replace("the EXIF block", "the file").replace("the block", "the file").replace("an EXIF ", "a TIFF ").replace("EXIF ", "TIFF "))
 }
 
+/// The IFD of an EXIF block an entry is in: IFD0's chain, or the Exif,
+/// GPS or Interop sub-IFD.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Group {
+    /// IFD0, IFD1 (the thumbnail's)
+    Ifd0,
+    /// the Exif sub-IFD (0x8769)
+    Exif,
+    /// the GPS sub-IFD (0x8825)
+    Gps,
+    /// the Interop sub-IFD (0xA005)
+    Interop,
+}
+
+/// A copy of the classic-TIFF EXIF block `b` (one [`check`] accepts)
+/// without the entries `drop(group, tag, type)` names, and their tags: each
+/// IFD's kept entries moved up, its count and link after them, the bytes
+/// freed zeroed (values stay where they are). None when the block cannot
+/// be walked so. For a parser that refuses a whole block for one entry
+/// of a type it does not expect (an Orientation written as text cost a
+/// photo its time and position).
+pub fn without_entries(b: &[u8], drop: &dyn Fn(Group, u16, u16) -> bool) -> Option<(Vec<u8>, Vec<u16>)> {
+    let mut src = b;
+    let (o, ifd0) = header(&mut src).ok()?;
+    if o.big {
+        return None;
+    }
+    let mut out = b.to_vec();
+    let mut dropped = Vec::new();
+    let mut seen = HashSet::new();
+    let mut todo = vec![(ifd0, Group::Ifd0, true)];
+    while let Some((at, group, chained)) = todo.pop() {
+        if !seen.insert(at) || seen.len() > MAX_IFDS {
+            return None;
+        }
+        let mut src = b;
+        let (list, next) = ifd(&mut src, o, at).ok()?;
+        let start = usize::try_from(at).ok()?;
+        let mut kept = Vec::with_capacity(list.len() * 12);
+        for (k, e) in list.iter().enumerate() {
+            if drop(group, e.tag, e.kind) {
+                dropped.push(e.tag);
+                continue;
+            }
+            let sub = match e.tag {
+                0x8769 => Some(Group::Exif),
+                0x8825 => Some(Group::Gps),
+                0xA005 => Some(Group::Interop),
+                _ => None,
+            };
+            if let (Some(g), true) = (sub, matches!(e.kind, 4 | 13)) {
+                todo.push((o.offset(e.raw), g, false));
+            }
+            kept.extend_from_slice(b.get(start + 2 + 12 * k..start + 14 + 12 * k)?);
+        }
+        let n = u16::try_from(kept.len() / 12).ok()?;
+        let link = b.get(start + 2 + 12 * list.len()..start + 6 + 12 * list.len())?.to_vec();
+        let dst = out.get_mut(start..start + 6 + 12 * list.len())?;
+        dst.fill(0);
+        let count = if o.le { n.to_le_bytes() } else { n.to_be_bytes() };
+        for (d, v) in dst.iter_mut().zip(count.iter().chain(&kept).chain(&link)) {
+            *d = *v;
+        }
+        if chained && next != 0 {
+            todo.push((next, group, true));
+        }
+    }
+    Some((out, dropped))
+}
+
 /// Whether every strip or tile table of a TIFF-based raw file (DNG, NEF,
 /// CR2, ARW, ...) covers its image ([`covered`]; IFD0's chain and the
 /// SubIFDs where a DNG keeps its raw image): Err with the reason when one
@@ -1120,6 +1190,37 @@ mod tests {
             (0x0111, 4, 1, long(8)), (0x0117, 4, 1, long(8))], 0, &[]);
         b.resize(200, 0);
         assert!(check(&mut b.as_slice()).is_ok());
+    }
+
+    #[test]
+    fn entries_are_dropped_from_a_copy_and_the_rest_kept() {
+        // IFD0: Orientation as text, Make; its Exif sub-IFD: DateTimeOriginal
+        for le in [true, false] {
+            let u32b = |v: u32| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+            let n = 8 + 2 + 12 * 3 + 4;
+            let u16b = |v: u16| if le { v.to_le_bytes() } else { v.to_be_bytes() };
+            // the Exif sub-IFD at n: one entry (DateTimeOriginal, 20 bytes at n + 18), its link, the text
+            let mut tail = u16b(1).to_vec();
+            tail.extend(u16b(0x9003));
+            tail.extend(u16b(2));
+            tail.extend(u32b(20));
+            tail.extend(u32b(n as u32 + 18));
+            tail.extend(u32b(0));
+            tail.extend(b"2026:01:02 03:04:05\0");
+            let b = tiff(le, &[(0x010F, 2, 4, *b"Can\0"), (0x0112, 2, 2, *b"6\0\0\0"), (0x8769, 4, 1, u32b(n as u32))], 0, &tail);
+            assert!(check(&mut b.as_slice()).is_ok());
+            let (c, gone) = without_entries(&b, &|g, tag, kind| g == Group::Ifd0 && tag == 0x0112 && kind != 3).unwrap();
+            assert_eq!(gone, vec![0x0112]);
+            assert_eq!(c.len(), b.len());
+            let walked = check(&mut c.as_slice()).unwrap();
+            assert_eq!(walked, Walked { ifds: 2, entries: 3 });
+            let mut src = c.as_slice();
+            let (o, at) = header(&mut src).unwrap();
+            let (list, _) = ifd(&mut src, o, at).unwrap();
+            assert_eq!(list.iter().map(|e| e.tag).collect::<Vec<_>>(), vec![0x010F, 0x8769]);
+            // nothing named: the same bytes
+            assert_eq!(without_entries(&b, &|_, _, _| false).unwrap(), (b.clone(), vec![]));
+        }
     }
 
     #[test]

@@ -153,10 +153,20 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
         None => {}
         Some(Err(e)) => out.notes.push(format!("metadata: the EXIF is not carried ({e})")),
         Some(Ok(b)) => {
-            let v = b.to_vec();
-            let whole = &v;
-            // little_exif panics on some malformed blocks; a photo never fails because of its metadata
-            match std::panic::catch_unwind(|| Metadata::new_from_vec(whole, FileExtension::TIFF)) {
+            let mut v = b.to_vec();
+            let parse = |v: &Vec<u8>| std::panic::catch_unwind(|| Metadata::new_from_vec(v, FileExtension::TIFF));
+            let mut parsed = parse(&v);
+            // one known tag of a type little_exif does not take (an Orientation
+            // written as text) fails the whole block: read again without it
+            if matches!(&parsed, Ok(Err(e)) if e.to_string().contains("Illegal format for known tag")) {
+                if let Some((lean, gone)) = exif::without_entries(&v, &unexpected_type) {
+                    let tags: Vec<String> = gone.iter().map(|t| format!("0x{t:04X}")).collect();
+                    out.notes.push(format!("metadata: EXIF tag {} of a type it cannot have, left out", tags.join(", ")));
+                    v = lean;
+                    parsed = parse(&v);
+                }
+            }
+            match parsed {
                 Ok(Ok(m)) => {
                     if kind == Container::Tiff {
                         out.xmp = m.get_tag_by_hex(TIFF_XMP_TAG, None).next().map(|t| {
@@ -183,6 +193,22 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
         None => {}
     }
     out
+}
+
+/// Whether an EXIF entry of a tag little_exif knows has a type it refuses
+/// for it (the widenings it takes: SHORT or BYTE for LONG, LONG for SHORT,
+/// unsigned rationals for signed ones).
+fn unexpected_type(group: crate::files::exif::Group, tag: u16, kind: u16) -> bool {
+    use crate::files::exif::Group;
+    let group = match group {
+        Group::Ifd0 => ExifTagGroup::GENERIC,
+        Group::Exif => ExifTagGroup::EXIF,
+        Group::Gps => ExifTagGroup::GPS,
+        Group::Interop => ExifTagGroup::INTEROP,
+    };
+    let Ok(known) = ExifTag::from_u16(tag, &group) else { return false };
+    let want = known.format().as_u16();
+    want != kind && !matches!((want, kind), (4, 3) | (4, 1) | (3, 4) | (10, 5))
 }
 
 fn is_absent(e: &std::io::Error) -> bool {
@@ -843,6 +869,40 @@ mod tests {
         let c = read(jpeg_with_app1(&exif_with_make(8)));
         assert!(c.exif.is_none());
         assert!(c.notes.iter().any(|n| n.contains("loop")), "{:?}", c.notes);
+    }
+
+    #[test]
+    #[cfg(feature = "cli")]
+    fn an_entry_of_a_type_its_tag_cannot_have_costs_only_itself() {
+        // IFD0: Make "Nikon", Orientation written as the text "6", DateTime
+        // (0x0132) of 20 bytes: little_exif refuses the whole block for the
+        // Orientation; read again without it, the make and the time stay
+        let mut b = b"Exif\0\0II*\0\x08\0\0\0\x03\0".to_vec();
+        let values = 8 + 2 + 3 * 12 + 4;
+        for (tag, kind, count, value) in [
+            (0x010Fu16, 2u16, 6u32, values as u32),
+            (0x0112, 2, 2, u32::from_le_bytes(*b"6\0\0\0")),
+            (0x0132, 2, 20, values as u32 + 6),
+        ] {
+            b.extend(tag.to_le_bytes());
+            b.extend(kind.to_le_bytes());
+            b.extend(count.to_le_bytes());
+            b.extend(value.to_le_bytes());
+        }
+        b.extend(0u32.to_le_bytes());
+        b.extend(b"Nikon\0");
+        b.extend(b"2026:01:02 03:04:05\0");
+        let c = read(jpeg_with_app1(&b));
+        assert_eq!(c.notes, vec!["metadata: EXIF tag 0x0112 of a type it cannot have, left out".to_string()]);
+        let m = c.exif.expect("the rest of the block is carried");
+        let tags: Vec<&ExifTag> = m.get_ifds().iter().flat_map(|i| i.get_tags()).collect();
+        assert!(tags.iter().any(|t| matches!(t, ExifTag::Make(s) if s.starts_with("Nikon"))));
+        assert!(!tags.iter().any(|t| t.as_u16() == 0x0112));
+        // an Orientation of its own type: nothing is left out
+        let mut good = b.clone();
+        good[6 + 8 + 2 + 12 + 2..6 + 8 + 2 + 12 + 12].copy_from_slice(&[3, 0, 1, 0, 0, 0, 6, 0, 0, 0]);
+        let c = read(jpeg_with_app1(&good));
+        assert!(c.notes.is_empty(), "{:?}", c.notes);
     }
 
     #[test]
