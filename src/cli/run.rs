@@ -288,31 +288,54 @@ pub fn install_interrupt_handler(ignored_at_start: &dyn Fn(i32) -> bool) -> std:
 
 /// Stream mode's and raw frames' SIGINT and SIGTERM: the run ends at once,
 /// by the signal's own default action (the shell reports 130 or 143), once
-/// this process's temporaries in the output folder `dir` are removed (they
-/// were left for the next run to sweep). A second signal meanwhile ends it
-/// at once. A signal ignored when the process started stays ignored
-/// (`ignored_at_start`, as [`install_interrupt_handler`]).
+/// no new temporary can be created and this process's temporaries in the
+/// output folder `dir` are removed (they were left for the next run to
+/// sweep). A second signal meanwhile ends it at once. A signal ignored when
+/// the process started stays ignored (`ignored_at_start`, as
+/// [`install_interrupt_handler`]). When the handling cannot be set up, none
+/// of it stays: the default action ends the run.
 pub fn end_at_once_on_signals(dir: Option<std::path::PathBuf>, ignored_at_start: &dyn Fn(i32) -> bool) -> std::io::Result<()> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let sigs: Vec<i32> = [SIGINT, SIGTERM].into_iter().filter(|&s| !ignored_at_start(s)).collect();
     if sigs.is_empty() {
         return Ok(());
     }
-    let armed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    for &sig in &sigs {
-        signal_hook::flag::register_conditional_default(sig, armed.clone())?;
-    }
+    // the queue first: a signal from here on waits in it for the thread below
     let mut signals = signal_hook::iterator::Signals::new(&sigs)?;
-    std::thread::Builder::new().name("uwhl-signals".into()).spawn(move || {
+    let handle = signals.handle();
+    let armed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut ids = Vec::new();
+    // whatever fails, nothing of this stays: the default action applies again
+    let undo = |ids: &mut Vec<signal_hook::SigId>| {
+        handle.close();
+        for id in ids.drain(..) {
+            signal_hook::low_level::unregister(id);
+        }
+    };
+    for &sig in &sigs {
+        match signal_hook::flag::register_conditional_default(sig, armed.clone()) {
+            Ok(id) => ids.push(id),
+            Err(e) => {
+                undo(&mut ids);
+                return Err(e);
+            }
+        }
+    }
+    let spawned = std::thread::Builder::new().name("uwhl-signals".into()).spawn(move || {
         if let Some(sig) = signals.forever().next() {
             armed.store(true, std::sync::atomic::Ordering::SeqCst);
+            crate::files::commit::stop_new_temps();
             if let Some(d) = &dir {
                 crate::files::jobs::remove_own_temps(d);
             }
             let _ = signal_hook::low_level::emulate_default_handler(sig);
             std::process::exit(128 + sig);
         }
-    })?;
+    });
+    if let Err(e) = spawned {
+        undo(&mut ids);
+        return Err(e);
+    }
     Ok(())
 }
 

@@ -409,12 +409,28 @@ fn sync_dir(dir: &Path) -> io::Result<()> {
     File::open(dir)?.sync_all()
 }
 
+/// Whether the process is ending ([`stop_new_temps`]): no temporary is
+/// created any more.
+static TEMP_GATE: std::sync::RwLock<bool> = std::sync::RwLock::new(false);
+
+/// From now on no temporary file is created ([`create_temp`] fails), once
+/// those being created have been: the process is ending on a signal, and
+/// what it sweeps from its folder must not be followed by a new one.
+pub fn stop_new_temps() {
+    *TEMP_GATE.write().unwrap_or_else(PoisonError::into_inner) = true;
+}
+
 /// Creates `.uwhl-PID-N.tmp{ext}` beside `dir`'s outputs, exclusively
 /// (`O_EXCL`: a file or link planted at that name is never opened, so a
 /// link cannot redirect the write), under a short name that fits whatever
 /// the output's length. `ext` (e.g. `.png`) tells format-by-name writers
 /// what to write.
 pub fn create_temp(dir: &Path, ext: &str) -> io::Result<(PathBuf, File)> {
+    // held across the creation, so that [`stop_new_temps`] waits for it
+    let gate = TEMP_GATE.read().unwrap_or_else(PoisonError::into_inner);
+    if *gate {
+        return Err(io::Error::other("the run is ending (a signal): no new file is written"));
+    }
     let pid = std::process::id();
     let mut last = None;
     for _ in 0..1000 {

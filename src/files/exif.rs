@@ -330,7 +330,12 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
                 t if SUB_IFDS.contains(&t) => {
                     let first = or_skip!(integers(src, o, e, 1 << 16), continue);
                     match first.first() {
-                        Some(&sub) if matches!(e.kind, 4 | 13 | 16 | 18) => todo.push((sub, false)),
+                        Some(&sub) if matches!(e.kind, 4 | 13 | 16 | 18) => {
+                            if ifds + todo.len() >= max_ifds {
+                                or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
+                            }
+                            todo.push((sub, false))
+                        }
                         _ => or_skip!(Err(format!("EXIF sub-IFD tag 0x{t:04X} is not a LONG offset")), continue),
                     }
                 }
@@ -338,7 +343,12 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
                     if !matches!(e.kind, 4 | 13 | 16 | 18) {
                         or_skip!(Err("EXIF SubIFDs tag 0x014A is not a list of LONG offsets".to_string()), continue);
                     }
-                    todo.extend(or_skip!(integers(src, o, e, max_ifds as u64), continue).into_iter().map(|sub| (sub, false)));
+                    // each one queued counts against the limit now: 8192 entries of 4096 offsets each were 268M
+                    let subs = or_skip!(integers(src, o, e, max_ifds as u64), continue);
+                    if ifds + todo.len() + subs.len() > max_ifds {
+                        or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
+                    }
+                    todo.extend(subs.into_iter().map(|sub| (sub, false)));
                 }
                 0x0100 | 0x0101 | 0x0115 | 0x0116 | 0x011C | 0x0142 | 0x0143 if image => {
                     let v = or_skip!(integers(src, o, e, 1 << 16), continue).first().copied();
@@ -375,6 +385,9 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
             }
         }
         if chained && next != 0 {
+            if ifds + todo.len() >= max_ifds {
+                or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
+            }
             todo.push((next, true));
         }
     }
@@ -450,14 +463,29 @@ pub enum Group {
     Interop,
 }
 
+/// One entry as [`without_entries`] shows it to its rule.
+#[derive(Debug)]
+pub struct EntryView<'a> {
+    /// the IFD it is in
+    pub group: Group,
+    /// its tag and TIFF type
+    pub tag: u16,
+    /// its TIFF type
+    pub kind: u16,
+    /// its first values, at most 64: integers of BYTE, SHORT and LONG,
+    /// the bytes of ASCII and UNDEFINED; empty otherwise
+    pub values: &'a [u64],
+}
+
 /// A copy of the classic-TIFF EXIF block `b` (one [`check`] accepts)
-/// without the entries `drop(group, tag, type)` names, and their tags: each
-/// IFD's kept entries moved up, its count and link after them, the bytes
-/// freed zeroed (values stay where they are). None when the block cannot
-/// be walked so. For a parser that refuses a whole block for one entry
-/// of a type it does not expect (an Orientation written as text cost a
-/// photo its time and position).
-pub fn without_entries(b: &[u8], drop: &dyn Fn(Group, u16, u16) -> bool) -> Option<(Vec<u8>, Vec<u16>)> {
+/// without the entries `drop` names, and their tags: each IFD's kept
+/// entries moved up, its count and link after them, the bytes freed zeroed
+/// (values stay where they are). A sub-IFD pointer typed IFD (13) is
+/// written as LONG (4), the same four bytes, which some readers require.
+/// None when the block cannot be walked so. For a parser that refuses a
+/// whole block for one entry of a type it does not expect (an Orientation
+/// written as text cost a photo its time and position).
+pub fn without_entries(b: &[u8], drop: &dyn Fn(&EntryView) -> bool) -> Option<(Vec<u8>, Vec<u16>)> {
     let mut src = b;
     let (o, ifd0) = header(&mut src).ok()?;
     if o.big {
@@ -476,7 +504,17 @@ pub fn without_entries(b: &[u8], drop: &dyn Fn(Group, u16, u16) -> bool) -> Opti
         let start = usize::try_from(at).ok()?;
         let mut kept = Vec::with_capacity(list.len() * 12);
         for (k, e) in list.iter().enumerate() {
-            if drop(group, e.tag, e.kind) {
+            let values = match e.kind {
+                1 | 3 | 4 => integers(&mut src, o, e, 64).unwrap_or_default(),
+                2 | 7 => {
+                    let n = e.count.min(64) as usize;
+                    let mut v = vec![0u8; n];
+                    let got = if e.count <= 4 { e.raw.get(..n).map(|r| v.copy_from_slice(r)).is_some() } else { src.read_at(o.offset(e.raw), &mut v) };
+                    if got { v.into_iter().map(u64::from).collect() } else { Vec::new() }
+                }
+                _ => Vec::new(),
+            };
+            if drop(&EntryView { group, tag: e.tag, kind: e.kind, values: &values }) {
                 dropped.push(e.tag);
                 continue;
             }
@@ -489,7 +527,12 @@ pub fn without_entries(b: &[u8], drop: &dyn Fn(Group, u16, u16) -> bool) -> Opti
             if let (Some(g), true) = (sub, matches!(e.kind, 4 | 13)) {
                 todo.push((o.offset(e.raw), g, false));
             }
+            let at = kept.len();
             kept.extend_from_slice(b.get(start + 2 + 12 * k..start + 14 + 12 * k)?);
+            if sub.is_some() && e.kind == 13 {
+                let four = if o.le { 4u16.to_le_bytes() } else { 4u16.to_be_bytes() };
+                kept.get_mut(at + 2..at + 4)?.copy_from_slice(&four);
+            }
         }
         let n = u16::try_from(kept.len() / 12).ok()?;
         let link = b.get(start + 2 + 12 * list.len()..start + 6 + 12 * list.len())?.to_vec();
@@ -1209,7 +1252,7 @@ mod tests {
             tail.extend(b"2026:01:02 03:04:05\0");
             let b = tiff(le, &[(0x010F, 2, 4, *b"Can\0"), (0x0112, 2, 2, *b"6\0\0\0"), (0x8769, 4, 1, u32b(n as u32))], 0, &tail);
             assert!(check(&mut b.as_slice()).is_ok());
-            let (c, gone) = without_entries(&b, &|g, tag, kind| g == Group::Ifd0 && tag == 0x0112 && kind != 3).unwrap();
+            let (c, gone) = without_entries(&b, &|e| e.group == Group::Ifd0 && e.tag == 0x0112 && e.kind != 3).unwrap();
             assert_eq!(gone, vec![0x0112]);
             assert_eq!(c.len(), b.len());
             let walked = check(&mut c.as_slice()).unwrap();
@@ -1219,8 +1262,34 @@ mod tests {
             let (list, _) = ifd(&mut src, o, at).unwrap();
             assert_eq!(list.iter().map(|e| e.tag).collect::<Vec<_>>(), vec![0x010F, 0x8769]);
             // nothing named: the same bytes
-            assert_eq!(without_entries(&b, &|_, _, _| false).unwrap(), (b.clone(), vec![]));
+            assert_eq!(without_entries(&b, &|_| false).unwrap(), (b.clone(), vec![]));
+            // the rule sees the values: the text "6" of the Orientation
+            let (_, gone) = without_entries(&b, &|e| e.tag == 0x0112 && e.values == [u64::from(b'6'), 0]).unwrap();
+            assert_eq!(gone, vec![0x0112]);
+            // an Exif pointer typed IFD (13) is written as LONG, its sub-IFD kept
+            let mut t13 = b.clone();
+            let at = 8 + 2 + 2 * 12 + 2;
+            t13[at..at + 2].copy_from_slice(&if le { 13u16.to_le_bytes() } else { 13u16.to_be_bytes() });
+            let (c, gone) = without_entries(&t13, &|_| false).unwrap();
+            assert!(gone.is_empty());
+            assert_eq!(c, b, "the pointer retyped");
         }
+    }
+
+    #[test]
+    fn sub_ifd_offsets_count_against_the_limit_as_they_are_queued() {
+        // 8 entries of 0x014A, each listing 4096 offsets to one IFD: 32768
+        // queued before one is taken, unless they count when queued
+        let n = 8 + 2 + 8 * 12 + 4;
+        let list: Vec<u8> = (0..4096u32).flat_map(|_| (n as u32 + 4096 * 4).to_le_bytes()).collect();
+        let entries: Vec<_> = (0..8).map(|_| (0x014A, 4, 4096, (n as u32).to_le_bytes())).collect();
+        let mut tail = list;
+        tail.extend([0u8; 6]);
+        let b = tiff(true, &entries, 0, &tail);
+        let why = tiff_structure(&mut std::io::Cursor::new(&b)).unwrap_err();
+        assert!(why.contains("more than 4096 IFDs"), "{why}");
+        // the lenient walk of a raw stops at the limit too, without an error
+        assert_eq!(raw_tables(&mut std::io::Cursor::new(&b)), Ok(()));
     }
 
     #[test]

@@ -154,17 +154,27 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
         Some(Err(e)) => out.notes.push(format!("metadata: the EXIF is not carried ({e})")),
         Some(Ok(b)) => {
             let mut v = b.to_vec();
+            let mut gone = Vec::new();
+            // an entry that would trip an assertion inside little_exif (a
+            // GPSAltitudeRef stored as a SHORT of 256) goes first: its panic
+            // is caught, but its message would reach stderr
+            if let Some((lean, g)) = exif::without_entries(&v, &|e| panics_little_exif(e)) {
+                (v, gone) = (lean, g);
+            }
             let parse = |v: &Vec<u8>| std::panic::catch_unwind(|| Metadata::new_from_vec(v, FileExtension::TIFF));
             let mut parsed = parse(&v);
             // one known tag of a type little_exif does not take (an Orientation
-            // written as text) fails the whole block: read again without it
-            if matches!(&parsed, Ok(Err(e)) if e.to_string().contains("Illegal format for known tag")) {
-                if let Some((lean, gone)) = exif::without_entries(&v, &unexpected_type) {
-                    let tags: Vec<String> = gone.iter().map(|t| format!("0x{t:04X}")).collect();
-                    out.notes.push(format!("metadata: EXIF tag {} of a type it cannot have, left out", tags.join(", ")));
+            // or a UserComment written as text) fails the whole block: read
+            // again without such entries
+            if matches!(&parsed, Err(_)) || matches!(&parsed, Ok(Err(e)) if !is_absent(e)) {
+                if let Some((lean, g)) = exif::without_entries(&v, &unexpected_type).filter(|(_, g)| !g.is_empty()) {
+                    gone.extend(g);
                     v = lean;
                     parsed = parse(&v);
                 }
+            }
+            if !gone.is_empty() {
+                out.notes.push(left_out_note(&gone));
             }
             match parsed {
                 Ok(Ok(m)) => {
@@ -195,20 +205,53 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
     out
 }
 
-/// Whether an EXIF entry of a tag little_exif knows has a type it refuses
-/// for it (the widenings it takes: SHORT or BYTE for LONG, LONG for SHORT,
-/// unsigned rationals for signed ones).
-fn unexpected_type(group: crate::files::exif::Group, tag: u16, kind: u16) -> bool {
+/// The type little_exif expects of a tag it knows, in the IFD it is in.
+fn expected_type(e: &crate::files::exif::EntryView) -> Option<u16> {
     use crate::files::exif::Group;
-    let group = match group {
+    let group = match e.group {
         Group::Ifd0 => ExifTagGroup::GENERIC,
         Group::Exif => ExifTagGroup::EXIF,
         Group::Gps => ExifTagGroup::GPS,
         Group::Interop => ExifTagGroup::INTEROP,
     };
-    let Ok(known) = ExifTag::from_u16(tag, &group) else { return false };
-    let want = known.format().as_u16();
-    want != kind && !matches!((want, kind), (4, 3) | (4, 1) | (3, 4) | (10, 5))
+    ExifTag::from_u16(e.tag, &group).ok().map(|t| t.format().as_u16())
+}
+
+/// Whether little_exif would panic on the entry: a BYTE tag stored as
+/// SHORT values over 255 (it asserts they fit).
+fn panics_little_exif(e: &crate::files::exif::EntryView) -> bool {
+    expected_type(e) == Some(1) && e.kind == 3 && e.values.iter().any(|&v| v > 255)
+}
+
+/// Whether an EXIF entry of a tag little_exif knows has a type it refuses
+/// for it. It takes the widenings among BYTE, SHORT and LONG, unsigned
+/// rationals for signed ones, and two texts of the GPS IFD: an altitude
+/// reference written "0" or "1", a processing method written as ASCII.
+fn unexpected_type(e: &crate::files::exif::EntryView) -> bool {
+    let Some(want) = expected_type(e) else { return false };
+    let gps = e.group == crate::files::exif::Group::Gps;
+    let taken = match (want, e.kind) {
+        (w, k) if w == k => true,
+        (4, 3) | (4, 1) | (3, 4) | (3, 1) | (10, 5) => true,
+        (1, 3) => !panics_little_exif(e),
+        (1, 2) => gps && e.tag == 0x0005 && e.values.first().is_some_and(|b| matches!(b, 0x00 | 0x01 | 0x30 | 0x31)),
+        (7, 2) => gps && e.tag == 0x001B,
+        _ => false,
+    };
+    !taken
+}
+
+/// The note for the EXIF entries left out: each tag once, at most eight named.
+fn left_out_note(tags: &[u16]) -> String {
+    let mut once: Vec<u16> = Vec::new();
+    for t in tags {
+        if !once.contains(t) {
+            once.push(*t);
+        }
+    }
+    let named: Vec<String> = once.iter().take(8).map(|t| format!("0x{t:04X}")).collect();
+    let more = if once.len() > 8 { format!(" and {} more", once.len() - 8) } else { String::new() };
+    format!("metadata: EXIF tag {}{more} of a type it cannot have, left out", named.join(", "))
 }
 
 fn is_absent(e: &std::io::Error) -> bool {
@@ -903,6 +946,29 @@ mod tests {
         good[6 + 8 + 2 + 12 + 2..6 + 8 + 2 + 12 + 12].copy_from_slice(&[3, 0, 1, 0, 0, 0, 6, 0, 0, 0]);
         let c = read(jpeg_with_app1(&good));
         assert!(c.notes.is_empty(), "{:?}", c.notes);
+    }
+
+    #[test]
+    fn the_types_little_exif_refuses_are_the_ones_left_out() {
+        use crate::files::exif::{EntryView, Group};
+        let e = |group, tag, kind, values: &[u64]| unexpected_type(&EntryView { group, tag, kind, values });
+        // its own type, and the widenings it takes
+        assert!(!e(Group::Ifd0, 0x0112, 3, &[6]));
+        assert!(!e(Group::Ifd0, 0x0128, 1, &[2]), "ResolutionUnit as BYTE");
+        assert!(!e(Group::Gps, 0x0005, 2, &[u64::from(b'1'), 0]), "GPSAltitudeRef as the text 1");
+        assert!(!e(Group::Gps, 0x0005, 3, &[1]), "GPSAltitudeRef as a SHORT that fits");
+        // text where a number or bytes are, and a SHORT over a byte's range
+        assert!(e(Group::Ifd0, 0x0112, 2, &[u64::from(b'6'), 0]));
+        assert!(e(Group::Exif, 0x9286, 2, &[65, 66]), "UserComment as ASCII");
+        assert!(e(Group::Exif, 0x9000, 2, &[48, 50, 51, 48]), "ExifVersion as ASCII");
+        assert!(e(Group::Gps, 0x0005, 2, &[u64::from(b'x')]));
+        assert!(e(Group::Gps, 0x0005, 3, &[256]) && panics_little_exif(&EntryView { group: Group::Gps, tag: 0x0005, kind: 3, values: &[256] }));
+        // a tag little_exif does not know is never judged
+        assert!(!e(Group::Ifd0, 0xC6F4, 2, &[]));
+        // the note: each tag once, eight at most
+        assert_eq!(left_out_note(&[0x0112, 0x0112]), "metadata: EXIF tag 0x0112 of a type it cannot have, left out");
+        let many: Vec<u16> = (0..10).collect();
+        assert!(left_out_note(&many).ends_with("0x0007 and 2 more of a type it cannot have, left out"));
     }
 
     #[test]
