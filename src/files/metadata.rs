@@ -397,7 +397,7 @@ fn is_calendar_time(date: &[u8], time: &[u8]) -> bool {
 /// Where the photograph was taken, from its EXIF GPS IFD: latitude and
 /// longitude in decimal degrees (south and west negative) and the altitude
 /// in metres (negative below sea level: a depth), when given. A hemisphere
-/// letter other than N/S or E/W is no position; an altitude reference
+/// letter other than N/S or E/W (either case) is no position; an altitude reference
 /// other than 0 (above sea level) or 1 (below) is no altitude.
 pub fn position(m: &Metadata) -> Option<(f64, f64, Option<f64>)> {
     let dms = |v: &[little_exif::rational::uR64]| -> Option<f64> {
@@ -420,11 +420,12 @@ pub fn position(m: &Metadata) -> Option<(f64, f64, Option<f64>)> {
             }
         }
     }
-    // a reference that is neither letter leaves the hemisphere unknown: no position
+    // a reference that is neither letter (in either case) leaves the
+    // hemisphere unknown: no position
     let sign = |r: &Option<String>, pos: &str, neg: &str| match r.as_deref().map(str::trim) {
         None => Some(1.0),
-        Some(x) if x == pos => Some(1.0),
-        Some(x) if x == neg => Some(-1.0),
+        Some(x) if x.eq_ignore_ascii_case(pos) => Some(1.0),
+        Some(x) if x.eq_ignore_ascii_case(neg) => Some(-1.0),
         Some(_) => None,
     };
     let (lat, lon) = (lat? * sign(&lat_ref, "N", "S")?, lon? * sign(&lon_ref, "E", "W")?);
@@ -998,6 +999,7 @@ mod tests {
         };
         assert_eq!(at("S", "E", Some(1)), Some((-33.5, 151.25, Some(-12.0))));
         assert_eq!(at("N", "W", Some(0)), Some((33.5, -151.25, Some(12.0))));
+        assert_eq!(at("s", "w", Some(0)), Some((-33.5, -151.25, Some(12.0))), "a writer's lowercase letters");
         assert_eq!(at("N", "E", None), Some((33.5, 151.25, Some(12.0))));
         // EXIF 3.0's ellipsoidal heights are not heights above the sea: no altitude
         assert_eq!(at("N", "E", Some(2)), Some((33.5, 151.25, None)));
