@@ -185,7 +185,8 @@ fn ifd(src: &mut dyn Source, o: Order, at: u64) -> Result<(Vec<Entry>, u64), Str
         .chunks_exact(entry_size)
         .take(n)
         .map(|e| {
-            let (count, value) = e[4..].split_at(entry_size / 2 - 2);
+            // count then value field: 4 + 4 bytes in classic TIFF, 8 + 8 in BigTIFF
+            let (count, value) = e[4..].split_at((entry_size - 4) / 2);
             let mut v = [0u8; 8];
             v[..value.len()].copy_from_slice(value);
             let mut k = [0u8; 8];
@@ -205,6 +206,19 @@ fn ifd(src: &mut dyn Source, o: Order, at: u64) -> Result<(Vec<Entry>, u64), Str
     Ok((entries, o.offset(l)))
 }
 
+/// The first `n` bytes of an entry's values, `size` bytes each: in its
+/// value field when all of them fit there, else at the offset it holds.
+/// None when they lie outside the block.
+fn value_bytes(src: &mut dyn Source, o: Order, e: &Entry, size: u64, n: usize) -> Option<Vec<u8>> {
+    let mut v = vec![0u8; n];
+    if size.saturating_mul(e.count) <= o.inline() {
+        v.copy_from_slice(e.raw.get(..n)?);
+    } else if !src.read_at(o.offset(e.raw), &mut v) {
+        return None;
+    }
+    Some(v)
+}
+
 /// The integer values (BYTE, SHORT, LONG) of an entry, at most `max` of them.
 fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u64) -> Result<Vec<u64>, String> {
     let size = match e.kind {
@@ -217,16 +231,8 @@ fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u64) -> Result<Vec<u
     if e.count > max {
         return Err(format!("EXIF tag 0x{:04X} has {} values, over {max}", e.tag, e.count));
     }
-    let bytes = size * e.count as usize;
-    let data = if bytes as u64 <= o.inline() {
-        e.raw[..bytes].to_vec()
-    } else {
-        let mut v = vec![0u8; bytes];
-        if !src.read_at(o.offset(e.raw), &mut v) {
-            return Err(format!("the values of EXIF tag 0x{:04X} are outside the block", e.tag));
-        }
-        v
-    };
+    let data = value_bytes(src, o, e, size as u64, size * e.count as usize)
+        .ok_or_else(|| format!("the values of EXIF tag 0x{:04X} are outside the block", e.tag))?;
     Ok(data
         .chunks_exact(size)
         .map(|c| match size {
@@ -295,6 +301,12 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
         if image { (MAX_FILE_IFDS, MAX_FILE_ENTRIES, MAX_FILE_VALUE_BYTES) } else { (MAX_IFDS, MAX_ENTRIES, MAX_VALUE_BYTES) };
     let (o, ifd0) = or_skip!(header(src), { return Ok(Walked { ifds: 0, entries: 0 }) });
     let len = src.size();
+    // an IFD counts against the limit when it is queued: the walked and the
+    // queued ones never exceed it (8192 SubIFDs entries of 4096 offsets each
+    // were 268M queued before one was taken)
+    let room = |walked: usize, queued: usize, more: usize| {
+        if walked + queued + more > max_ifds { Err(format!("the EXIF block has more than {max_ifds} IFDs")) } else { Ok(()) }
+    };
     let mut seen = HashSet::new();
     let mut todo = vec![(ifd0, true)];
     let (mut ifds, mut entries, mut values) = (0usize, 0usize, 0u64);
@@ -303,9 +315,6 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
             or_skip!(Err(format!("the EXIF IFDs form a loop (the IFD at offset {at} is reached twice)")), continue);
         }
         ifds += 1;
-        if ifds > max_ifds {
-            or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
-        }
         let (list, next) = or_skip!(ifd(src, o, at), continue);
         entries += list.len();
         if entries > max_entries {
@@ -331,9 +340,7 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
                     let first = or_skip!(integers(src, o, e, 1 << 16), continue);
                     match first.first() {
                         Some(&sub) if matches!(e.kind, 4 | 13 | 16 | 18) => {
-                            if ifds + todo.len() >= max_ifds {
-                                or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
-                            }
+                            or_skip!(room(ifds, todo.len(), 1), break);
                             todo.push((sub, false))
                         }
                         _ => or_skip!(Err(format!("EXIF sub-IFD tag 0x{t:04X} is not a LONG offset")), continue),
@@ -343,11 +350,8 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
                     if !matches!(e.kind, 4 | 13 | 16 | 18) {
                         or_skip!(Err("EXIF SubIFDs tag 0x014A is not a list of LONG offsets".to_string()), continue);
                     }
-                    // each one queued counts against the limit now: 8192 entries of 4096 offsets each were 268M
                     let subs = or_skip!(integers(src, o, e, max_ifds as u64), continue);
-                    if ifds + todo.len() + subs.len() > max_ifds {
-                        or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
-                    }
+                    or_skip!(room(ifds, todo.len(), subs.len()), break);
                     todo.extend(subs.into_iter().map(|sub| (sub, false)));
                 }
                 0x0100 | 0x0101 | 0x0115 | 0x0116 | 0x011C | 0x0142 | 0x0143 if image => {
@@ -385,9 +389,7 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
             }
         }
         if chained && next != 0 {
-            if ifds + todo.len() >= max_ifds {
-                or_skip!(Err(format!("the EXIF block has more than {max_ifds} IFDs")), break);
-            }
+            or_skip!(room(ifds, todo.len(), 1), break);
             todo.push((next, true));
         }
     }
@@ -431,6 +433,12 @@ fn covered(l: &Layout, listed: u64) -> Result<(), String> {
     Ok(())
 }
 
+/// Whether `src` starts as a classic TIFF or a BigTIFF, either byte order.
+fn is_tiff(src: &mut dyn Source) -> bool {
+    let mut magic = [0u8; 4];
+    src.read_at(0, &mut magic) && matches!(&magic, b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+")
+}
+
 /// A whole TIFF file's structure checked by [`check`] before a decoder
 /// reads it: Err with the reason when it fails. The `tiff` crate trusts
 /// a tag's count (an ASCII ImageWidth of 4 GiB went to a `dbg!` on stderr,
@@ -439,8 +447,7 @@ fn covered(l: &Layout, listed: u64) -> Result<(), String> {
 /// decoder's to name.
 pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
     let mut src = ReaderSource::new(r).map_err(|e| e.to_string())?;
-    let mut magic = [0u8; 4];
-    if !src.read_at(0, &mut magic) || !matches!(&magic, b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+") {
+    if !is_tiff(&mut src) {
         return Ok(());
     }
     // the walk's words are an EXIF block's; here the block is the file
@@ -482,7 +489,8 @@ pub struct EntryView<'a> {
 /// entries moved up, its count and link after them, the bytes freed zeroed
 /// (values stay where they are). A sub-IFD pointer typed IFD (13) is
 /// written as LONG (4), the same four bytes, which some readers require.
-/// None when the block cannot be walked so. For a parser that refuses a
+/// None when nothing is to change (the block is not copied: it is a whole
+/// TIFF file when the photo is one) or the block cannot be walked so. For a parser that refuses a
 /// whole block for one entry of a type it does not expect (an Orientation
 /// written as text cost a photo its time and position).
 pub fn without_entries(b: &[u8], drop: &dyn Fn(&EntryView) -> bool) -> Option<(Vec<u8>, Vec<u16>)> {
@@ -491,7 +499,7 @@ pub fn without_entries(b: &[u8], drop: &dyn Fn(&EntryView) -> bool) -> Option<(V
     if o.big {
         return None;
     }
-    let mut out = b.to_vec();
+    let mut out: Option<Vec<u8>> = None;
     let mut dropped = Vec::new();
     let mut seen = HashSet::new();
     let mut todo = vec![(ifd0, Group::Ifd0, true)];
@@ -503,15 +511,11 @@ pub fn without_entries(b: &[u8], drop: &dyn Fn(&EntryView) -> bool) -> Option<(V
         let (list, next) = ifd(&mut src, o, at).ok()?;
         let start = usize::try_from(at).ok()?;
         let mut kept = Vec::with_capacity(list.len() * 12);
+        let mut retyped = false;
         for (k, e) in list.iter().enumerate() {
             let values = match e.kind {
                 1 | 3 | 4 => integers(&mut src, o, e, 64).unwrap_or_default(),
-                2 | 7 => {
-                    let n = e.count.min(64) as usize;
-                    let mut v = vec![0u8; n];
-                    let got = if e.count <= 4 { e.raw.get(..n).map(|r| v.copy_from_slice(r)).is_some() } else { src.read_at(o.offset(e.raw), &mut v) };
-                    if got { v.into_iter().map(u64::from).collect() } else { Vec::new() }
-                }
+                2 | 7 => value_bytes(&mut src, o, e, 1, e.count.min(64) as usize).unwrap_or_default().into_iter().map(u64::from).collect(),
                 _ => Vec::new(),
             };
             if drop(&EntryView { group, tag: e.tag, kind: e.kind, values: &values }) {
@@ -532,21 +536,25 @@ pub fn without_entries(b: &[u8], drop: &dyn Fn(&EntryView) -> bool) -> Option<(V
             if sub.is_some() && e.kind == 13 {
                 let four = if o.le { 4u16.to_le_bytes() } else { 4u16.to_be_bytes() };
                 kept.get_mut(at + 2..at + 4)?.copy_from_slice(&four);
+                retyped = true;
             }
+        }
+        if chained && next != 0 {
+            todo.push((next, group, true));
+        }
+        if kept.len() == 12 * list.len() && !retyped {
+            continue;
         }
         let n = u16::try_from(kept.len() / 12).ok()?;
         let link = b.get(start + 2 + 12 * list.len()..start + 6 + 12 * list.len())?.to_vec();
-        let dst = out.get_mut(start..start + 6 + 12 * list.len())?;
+        let dst = out.get_or_insert_with(|| b.to_vec()).get_mut(start..start + 6 + 12 * list.len())?;
         dst.fill(0);
         let count = if o.le { n.to_le_bytes() } else { n.to_be_bytes() };
         for (d, v) in dst.iter_mut().zip(count.iter().chain(&kept).chain(&link)) {
             *d = *v;
         }
-        if chained && next != 0 {
-            todo.push((next, group, true));
-        }
     }
-    Some((out, dropped))
+    out.map(|out| (out, dropped))
 }
 
 /// Whether every strip or tile table of a TIFF-based raw file (DNG, NEF,
@@ -557,8 +565,7 @@ pub fn without_entries(b: &[u8], drop: &dyn Fn(&EntryView) -> bool) -> Option<(V
 /// photo. A file that is no TIFF is Ok.
 pub fn raw_tables<R: Read + Seek>(r: &mut R) -> Result<(), String> {
     let mut src = ReaderSource::new(r).map_err(|e| e.to_string())?;
-    let mut magic = [0u8; 4];
-    if !src.read_at(0, &mut magic) || !matches!(&magic, b"II*\0" | b"MM\0*" | b"II+\0" | b"MM\0+") {
+    if !is_tiff(&mut src) {
         return Ok(());
     }
     walk_as(&mut src, false, true, true).map(|_| ()).map_err(|m| m.replace("the EXIF image", "the raw image"))
@@ -616,15 +623,14 @@ pub fn exif_orientation(src: &mut dyn Source) -> Result<Option<u8>, String> {
     if e.count == 0 {
         return Err("the EXIF Orientation has no value".into());
     }
-    // the first value: inline when all of them fit in the entry, else at its offset
+    // the first value only
     let size: u64 = if e.kind == 3 { 2 } else { 4 };
-    let mut b = [0u8; 4];
-    if size.saturating_mul(e.count) <= o.inline() {
-        b[..size as usize].copy_from_slice(&e.raw[..size as usize]);
-    } else if !src.read_at(o.offset(e.raw), &mut b[..size as usize]) {
-        return Err("the EXIF Orientation's value is outside the block".into());
-    }
-    let v = if size == 2 { u32::from(o.u16([b[0], b[1]])) } else { o.u32(b) };
+    let b = value_bytes(src, o, e, size, size as usize).ok_or("the EXIF Orientation's value is outside the block")?;
+    let v = match b[..] {
+        [b0, b1] => u32::from(o.u16([b0, b1])),
+        [b0, b1, b2, b3] => o.u32([b0, b1, b2, b3]),
+        _ => 0,
+    };
     if (1..=8).contains(&v) {
         Ok(Some(v as u8))
     } else {
@@ -937,16 +943,12 @@ fn tiff_xmp(src: &mut dyn Source) -> Result<Option<String>, String> {
     let (o, ifd0) = header(src)?;
     let (list, _) = ifd(src, o, ifd0)?;
     let Some(e) = list.iter().find(|e| e.tag == 700) else { return Ok(None) };
-    let n = e.count.saturating_mul(type_size(e.kind).unwrap_or(1));
+    let size = type_size(e.kind).unwrap_or(1);
+    let n = e.count.saturating_mul(size);
     if n > MAX_BLOCK {
         return Err(format!("the XMP packet is {n} bytes, over {MAX_BLOCK}"));
     }
-    let mut v = vec![0u8; n as usize];
-    if n <= o.inline() {
-        v.copy_from_slice(&e.raw[..n as usize]);
-    } else if !src.read_at(o.offset(e.raw), &mut v) {
-        return Err("the XMP packet is outside the file".into());
-    }
+    let v = value_bytes(src, o, e, size, n as usize).ok_or("the XMP packet is outside the file")?;
     Ok(Some(String::from_utf8_lossy(&v).into_owned()))
 }
 
@@ -1261,8 +1263,8 @@ mod tests {
             let (o, at) = header(&mut src).unwrap();
             let (list, _) = ifd(&mut src, o, at).unwrap();
             assert_eq!(list.iter().map(|e| e.tag).collect::<Vec<_>>(), vec![0x010F, 0x8769]);
-            // nothing named: the same bytes
-            assert_eq!(without_entries(&b, &|_| false).unwrap(), (b.clone(), vec![]));
+            // nothing named: nothing to change, and no copy
+            assert_eq!(without_entries(&b, &|_| false), None);
             // the rule sees the values: the text "6" of the Orientation
             let (_, gone) = without_entries(&b, &|e| e.tag == 0x0112 && e.values == [u64::from(b'6'), 0]).unwrap();
             assert_eq!(gone, vec![0x0112]);

@@ -158,7 +158,7 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
             // an entry that would trip an assertion inside little_exif (a
             // GPSAltitudeRef stored as a SHORT of 256) goes first: its panic
             // is caught, but its message would reach stderr
-            if let Some((lean, g)) = exif::without_entries(&v, &|e| panics_little_exif(e)) {
+            if let Some((lean, g)) = exif::without_entries(&v, &panics_little_exif) {
                 (v, gone) = (lean, g);
             }
             let parse = |v: &Vec<u8>| std::panic::catch_unwind(|| Metadata::new_from_vec(v, FileExtension::TIFF));
@@ -167,7 +167,7 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
             // or a UserComment written as text) fails the whole block: read
             // again without such entries
             if matches!(&parsed, Err(_)) || matches!(&parsed, Ok(Err(e)) if !is_absent(e)) {
-                if let Some((lean, g)) = exif::without_entries(&v, &unexpected_type).filter(|(_, g)| !g.is_empty()) {
+                if let Some((lean, g)) = exif::without_entries(&v, &unexpected_type) {
                     gone.extend(g);
                     v = lean;
                     parsed = parse(&v);
