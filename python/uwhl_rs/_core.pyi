@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "new_run", "nearest_type", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "is_output_of", "new_run", "nearest_type", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
     "name_bases", "MAX_NAMES", "FAMILY_GAP",
     "summary_columns",
@@ -128,6 +128,8 @@ def remove_stale_temps(dir: _PathArg, gate: Optional[_PathArg] = None) -> int:
     """Removes the temporaries dead processes left in `dir` when no other run holds `gate` (`dir`); returns how many."""
 def listed_outputs(name: str, sidecar: bytes) -> list[str]:
     """The outputs an earlier sidecar lists for output name `name` that an --overwrite may remove beside it."""
+def is_output_of(name: str, file: str) -> bool:
+    """Whether `file` is `name` and a suffix the commands write."""
 def outdir_problem(dir: _PathArg) -> Optional[str]:
     """Why the output folder cannot take outputs (a file is at its name), or None."""
 def sidecar_names_input(given: _PathArg, resolved: Optional[_PathArg], hashed: bool, input: _PathArg) -> bool:

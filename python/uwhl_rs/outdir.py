@@ -299,7 +299,7 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
             if why:
                 raise SidecarError(why)
             if doc is not None:
-                _own_outputs(rel, doc, data)
+                _own_outputs(rel, doc)
         except SidecarError as e:
             problems.append(f"{where}: not a usable sidecar: {display(str(e))}")
             continue
@@ -308,16 +308,15 @@ def collect_sidecars(out_dir, storage_options: dict | None = None, *,
     return photos, problems
 
 
-def _own_outputs(rel: str, doc: dict, data: bytes) -> None:
+def _own_outputs(rel: str, doc: dict) -> None:
     """Raises :class:`SidecarError` when the sidecar at ``rel`` lists an
     output that is not its own: both commands write NAME.json beside
-    NAME.jpg, NAME_t.png and the rest (``_core.listed_outputs``), so a
+    NAME.jpg, NAME_t.png and the rest (``_core.is_output_of``), so a
     ``a.json`` naming ``blue.jpg`` was planted, and taking it would hand
     blue.jpg another image UUID and history in the report and the iFDO."""
     name = posixpath.basename(rel)[: -len(".json")]
-    own = set(_core.listed_outputs(name, data))
     for role, value in (doc.get("outputs") or {}).items():
-        if isinstance(value, str) and value not in own:
+        if isinstance(value, str) and not _core.is_output_of(name, value):
             raise SidecarError(f"outputs.{role} is {display(value)!r}, not an output of its own name "
                                f"{display(name)!r} (NAME.json lists NAME.jpg, NAME_t.png, ...)")
 

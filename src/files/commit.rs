@@ -33,7 +33,6 @@
 //! records (`metadata.input_sha256`).
 
 use std::collections::HashMap;
-use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Read, Write};
 use std::path::{Path, PathBuf};
@@ -375,15 +374,23 @@ fn is_output_suffix(suffix: &str) -> bool {
     VIDEO_SUFFIXES.contains(&suffix) || Format::ALL.iter().any(|&f| output_suffixes(f, true).iter().any(|s| s == suffix))
 }
 
+/// Whether the file name `file` is an output of the output name `name`:
+/// `name` and a suffix the commands write ([`is_output_suffix`]). What an
+/// `--overwrite` may remove, what a dead claim's record may name, and what
+/// a sidecar NAME.json may list (the report and the iFDO refuse others).
+pub fn is_output_of(name: &str, file: &str) -> bool {
+    file.strip_prefix(name).is_some_and(is_output_suffix)
+}
+
 /// The names a sidecar `doc` lists under `outputs` that are `name` + an
-/// output's suffix ([`is_output_suffix`]; sorted, once each): what an
+/// output's suffix ([`is_output_of`]; sorted, once each): what an
 /// `--overwrite` of the input at `name` may remove beside the sidecar, in
 /// a folder or on object storage.
 pub fn listed_outputs(name: &str, doc: &serde_json::Value) -> Vec<String> {
     let Some(listed) = doc.get("outputs") else { return Vec::new() };
     let mut names = Vec::new();
     collect_strings(listed, &mut names);
-    names.retain(|n| n.strip_prefix(name).is_some_and(is_output_suffix));
+    names.retain(|n| is_output_of(name, n));
     names.sort();
     names.dedup();
     names
@@ -506,7 +513,7 @@ enum Hold {
     /// system has no locks), and, when it was a dead run's claim of the
     /// same input, the files that run's commit may have left without a
     /// sidecar ([`read_left`]; then its half-committed outputs are replaced)
-    Mine(Option<File>, Option<Vec<OsString>>),
+    Mine(Option<File>, Option<Vec<String>>),
     /// a live process (its pid) holds it, for this input
     Theirs(u32, PathBuf),
 }
@@ -532,12 +539,12 @@ fn try_lock(f: &File) -> Option<bool> {
 /// run's outputs it removes and its own it renames in. A run killed in
 /// between leaves them without a sidecar; the run that takes its claim
 /// over removes those it does not write itself (another `--format`), and
-/// only names that are its own name and an output's suffix (a planted
-/// claim naming the user's notes.txt or another input's maps removes
-/// nothing). Bare file names only; the record is read from its start.
-fn read_left(mut f: &File) -> Vec<OsString> {
+/// only those that are its own outputs ([`is_output_of`]: a planted claim
+/// naming the user's notes.txt or another input's maps removes nothing).
+/// Output names are UTF-8, so a line that is not is no name of one; the
+/// record is read from its start.
+fn read_left(mut f: &File) -> Vec<String> {
     use std::io::Seek;
-    use std::os::unix::ffi::OsStrExt;
     let mut s = Vec::new();
     if f.rewind().is_err() || f.take(1 << 20).read_to_end(&mut s).is_err() {
         return Vec::new();
@@ -545,8 +552,7 @@ fn read_left(mut f: &File) -> Vec<OsString> {
     s.split(|&b| b == b'\n')
         .skip(4)
         .filter_map(|l| l.strip_prefix(b"left "))
-        .filter(|n| !n.is_empty() && !n.contains(&b'/') && *n != b"." && *n != b"..")
-        .map(|n| std::ffi::OsStr::from_bytes(n).to_os_string())
+        .filter_map(|n| String::from_utf8(n.to_vec()).ok())
         .collect()
 }
 
@@ -618,7 +624,7 @@ fn settle_claim(tmp: &Path, mine: File, locked: bool, claim_file: &Path, record:
     let mut links = true;
     // a dead claim being taken over, locked until this one is in its place
     let mut _dead: Option<File> = None;
-    let mut stale: Option<Vec<OsString>> = None;
+    let mut stale: Option<Vec<String>> = None;
     let mut waits = 0;
     let wait = |waits: &mut usize| -> io::Result<()> {
         *waits += 1;
@@ -923,7 +929,7 @@ pub fn claim(req: &Request<'_>) -> io::Result<Resolution> {
         let orphans = stale
             .unwrap_or_default()
             .into_iter()
-            .filter(|n| n.to_str().and_then(|n| n.strip_prefix(name.as_str())).is_some_and(is_output_suffix))
+            .filter(|n| is_output_of(&name, n))
             .map(|n| req.dir.join(n))
             .filter(|p| !paths.contains(p))
             .collect();
@@ -1617,7 +1623,7 @@ mod tests {
         let paths = c.paths().to_vec();
         c.record_left(paths.iter()).unwrap();
         let names = read_left(&File::open(d.join(format!(".uwhl-claim-{:016x}", name_hash("a")))).unwrap());
-        assert_eq!(names, vec![OsString::from("a.png"), OsString::from("a_t.png"), OsString::from("a.json")]);
+        assert_eq!(names, vec!["a.png", "a_t.png", "a.json"]);
         // the record's own lines still say whose it is
         let f = File::open(d.join(format!(".uwhl-claim-{:016x}", name_hash("a")))).unwrap();
         assert_eq!(read_record(&f).map(|r| (r.0, r.2)), Some((std::process::id(), input_key(&a))));

@@ -783,6 +783,13 @@ fn listed_outputs(name: &str, sidecar: &[u8]) -> Vec<String> {
     crate::files::commit::parse_sidecar(sidecar).map(|d| crate::files::commit::listed_outputs(name, &d)).unwrap_or_default()
 }
 
+/// Whether `file` is an output of the output name `name`: `name` and a
+/// suffix the commands write (`crate::files::commit::is_output_of`).
+#[pyfunction]
+fn is_output_of(name: &str, file: &str) -> bool {
+    crate::files::commit::is_output_of(name, file)
+}
+
 /// Removes the temporaries that dead processes left in `dir`, when no
 /// other run holds the output folder `gate` (`dir` itself when not given)
 /// (`crate::files::jobs::remove_stale_temps`); returns how many.
@@ -1103,6 +1110,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
     m.add_function(wrap_pyfunction!(raw_problem, m)?)?;
+    m.add_function(wrap_pyfunction!(is_output_of, m)?)?;
     m.add_function(wrap_pyfunction!(sidecar_names_input, m)?)?;
     m.add_class::<PyClaim>()?;
     m.add_function(wrap_pyfunction!(input_plan, m)?)?;
