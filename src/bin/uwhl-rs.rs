@@ -148,26 +148,28 @@ fn main() -> ExitCode {
                 let e = uwhl::Failure::new(uwhl::Kind::Write, format!("stdout is closed: {what}; nothing was restored"));
                 report(&mut stderr, opts.json_errors, None, &e);
                 e.kind.exit_code()
-            } else if opts.raw_frames.is_some() {
-                // the frames are read and written as they come; a signal ends the run at once (a pipe)
-                let dir = (opts.outdir.as_os_str() != "-").then(|| opts.outdir.clone());
-                if let Err(e) = end_at_once_on_signals(dir, &ignored_now) {
-                    let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT and SIGTERM ({e}); either ends the run at once");
-                }
-                let mut stdin = std::io::stdin().lock();
-                run_frames(&opts, &mut stdin, &mut stdout, &mut stderr)
-            } else if opts.stream {
-                if let Err(e) = end_at_once_on_signals(Some(opts.outdir.clone()), &ignored_now) {
-                    let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT and SIGTERM ({e}); either ends the run at once");
-                }
-                // unlocked (the lock is not Send): lines are read on a second thread
-                let mut stdin = std::io::BufReader::new(std::io::stdin());
-                run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)
             } else {
-                if let Err(e) = install_interrupt_handler(&ignored_now) {
+                // a stream and raw frames (a pipe) end at once on a signal; a batch lets the input being written finish
+                let handled = if opts.stream || opts.raw_frames.is_some() {
+                    let dir = (opts.outdir.as_os_str() != "-").then(|| opts.outdir.clone());
+                    end_at_once_on_signals(dir, &ignored_now)
+                } else {
+                    install_interrupt_handler(&ignored_now)
+                };
+                if let Err(e) = handled {
                     let _ = writeln!(stderr, "uwhl-rs: cannot handle SIGINT and SIGTERM ({e}); either ends the run at once");
                 }
-                run_batch(&opts, &mut stdout, &mut stderr)
+                if opts.raw_frames.is_some() {
+                    // the frames are read and written as they come
+                    let mut stdin = std::io::stdin().lock();
+                    run_frames(&opts, &mut stdin, &mut stdout, &mut stderr)
+                } else if opts.stream {
+                    // unlocked (the lock is not Send): lines are read on a second thread
+                    let mut stdin = std::io::BufReader::new(std::io::stdin());
+                    run_stream(&opts, &mut stdin, &mut stdout, &mut stderr)
+                } else {
+                    run_batch(&opts, &mut stdout, &mut stderr)
+                }
             }
         }
         Err(e) => {

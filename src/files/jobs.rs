@@ -122,10 +122,8 @@ pub fn remove_stale_temps(dir: &Path, gate: &Path) -> usize {
     let own = std::process::id();
     let mut removed = 0;
     for e in rd.flatten() {
-        let name = e.file_name();
-        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(".uwhl-")) else { continue };
-        let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else { continue };
-        if !rest.contains(".tmp") || pid == own || process_runs(pid) {
+        let Some(pid) = temp_owner(&e.file_name()) else { continue };
+        if pid == own || process_runs(pid) {
             continue;
         }
         if e.file_type().is_ok_and(|t| t.is_file()) && fs::remove_file(e.path()).is_ok() {
@@ -139,12 +137,20 @@ pub fn remove_stale_temps(dir: &Path, gate: &Path) -> usize {
 /// of its pid): what a run ended by a signal leaves otherwise until the
 /// next run sweeps it ([`remove_stale_temps`]). Returns how many.
 pub fn remove_own_temps(dir: &Path) -> usize {
-    let prefix = format!(".uwhl-{}-", std::process::id());
+    let own = std::process::id();
     let Ok(rd) = fs::read_dir(dir) else { return 0 };
     rd.flatten()
-        .filter(|e| e.file_name().to_str().is_some_and(|n| n.starts_with(&prefix) && n.contains(".tmp")))
+        .filter(|e| temp_owner(&e.file_name()) == Some(own))
         .filter(|e| e.file_type().is_ok_and(|t| t.is_file()) && fs::remove_file(e.path()).is_ok())
         .count()
+}
+
+/// The pid a temporary file's name (`.uwhl-PID-N.tmp...`, as
+/// `commit::create_temp` makes them) says made it; None for any other name.
+fn temp_owner(name: &std::ffi::OsStr) -> Option<u32> {
+    let rest = name.to_str()?.strip_prefix(".uwhl-")?;
+    rest.contains(".tmp").then_some(())?;
+    rest.split('-').next()?.parse().ok()
 }
 
 /// The output folders this process's runs hold, each with the identity
