@@ -32,7 +32,7 @@ from urllib.parse import quote
 from .errors import IfdoError
 from .ifdocheck import DEFAULT_TIME_FORMAT, field_problems, plain_data
 from .outdir import collect_sidecars
-from .sidecars import LOCAL_SEPARATORS, display, is_sha256, printable
+from .sidecars import LOCAL_SEPARATORS, display, has_lone_surrogate, is_sha256, json_depth, printable
 from .storage import Folder, is_url, on_storage, read_regular, sha256_of
 
 #: the iFDO version written, and the schema it is checked against
@@ -178,19 +178,11 @@ def _load_json(text: str, label: str):
         raise
     except (ValueError, RecursionError):
         return None
-    try:
-        json.dumps(doc, ensure_ascii=False).encode("utf-8")
-    except UnicodeEncodeError:
+    if has_lone_surrogate(doc):
         raise IfdoError(f"{label}: holds a lone UTF-16 surrogate escape (such as \\ud800), which is no "
-                        "character") from None
-    depth, todo = 0, [(doc, 1)]
-    while todo:
-        v, d = todo.pop()
-        if isinstance(v, (dict, list)):
-            depth = max(depth, d)
-            if depth > MAX_DEPTH:
-                raise IfdoError(f"{label}: nested deeper than {MAX_DEPTH} levels")
-            todo.extend((x, d + 1) for x in (v.values() if isinstance(v, dict) else v))
+                        "character")
+    if json_depth(text.encode("utf-8")) > MAX_DEPTH:
+        raise IfdoError(f"{label}: nested deeper than {MAX_DEPTH} levels")
     return doc
 
 

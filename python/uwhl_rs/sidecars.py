@@ -26,7 +26,7 @@ import numpy as np
 from .errors import UwhlError
 
 __all__ = ["SCHEMA_VERSION", "MAX_BYTES", "MAX_DEPTH", "SidecarError", "parse", "plain_name", "local_outputs_problem",
-           "LOCAL_SEPARATORS", "display", "printable", "is_uuid_hex", "is_sha256"]
+           "LOCAL_SEPARATORS", "display", "printable", "is_uuid_hex", "is_sha256", "json_depth", "has_lone_surrogate"]
 
 #: the version of the checked fields (the sidecar's own ``uwhl_version`` says which program wrote it)
 SCHEMA_VERSION = 1
@@ -370,7 +370,7 @@ def _bounded_int(text: str):
     return int(text) if len(text) <= 19 else _finite_float(text)
 
 
-def _depth(data: bytes) -> int:
+def json_depth(data: bytes) -> int:
     """The deepest nesting of ``data``'s arrays and objects, counted
     without recursion (outside strings)."""
     # the running depth as a cumulative sum (a byte at a time in Python took
@@ -382,7 +382,7 @@ def _depth(data: bytes) -> int:
     return max(0, int(np.cumsum(step).max()))
 
 
-def _lone_surrogate(doc) -> bool:
+def has_lone_surrogate(doc) -> bool:
     """Whether a string (a key or a value) of ``doc`` holds a surrogate
     code point that is not half of a pair (JSON's escapes allow one; UTF-8
     cannot encode it)."""
@@ -418,7 +418,7 @@ def parse(data: bytes) -> dict | None:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
         raise SidecarError(f"not UTF-8 text (byte {e.start})") from None
-    if _depth(data) > MAX_DEPTH:
+    if json_depth(data) > MAX_DEPTH:
         raise SidecarError(f"nested deeper than {MAX_DEPTH} levels")
     try:
         doc = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float,
@@ -429,7 +429,7 @@ def parse(data: bytes) -> dict | None:
         raise SidecarError(f"not a JSON object (a {type(doc).__name__})")
     if not any(k in doc for k in _MARKS):
         return None
-    if b"\\u" in data and _lone_surrogate(doc):
+    if b"\\u" in data and has_lone_surrogate(doc):
         # "\ud800" parses to a str no file name, console or YAML file can
         # hold: read as U+FFFD, as the core reads a sidecar
         doc = _replace_surrogates(doc)

@@ -94,7 +94,7 @@ def test_sidecars_of_a_folder_are_read_one_at_a_time(batch, tmp_path, monkeypatc
     (b'{"k": "\\"[[["}', 1), (b"{" * 17 + b"}" * 17, 17),
 ])
 def test_the_nesting_of_a_sidecar_is_counted_outside_strings(data, deepest):
-    assert sidecars._depth(data) == deepest
+    assert sidecars.json_depth(data) == deepest
 
 
 def _png_claiming(path, w, h):
