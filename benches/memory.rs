@@ -67,7 +67,7 @@ fn child_binary(png: &Path, threads: usize) {
         overwrite: true,
         ..Default::default()
     };
-    let (jobs, _) = uwhl::files::jobs::collect_jobs(&[png.to_path_buf()], &out, &[".jpg".into(), "_t.png".into(), "_t_color.png".into()]);
+    let (jobs, _, _) = uwhl::files::jobs::collect_jobs(&[png.to_path_buf()], &out, &[".jpg".into(), "_t.png".into(), "_t_color.png".into()]);
     let base = reset_peak();
     let t = std::time::Instant::now();
     let masks = uwhl::files::pipeline::Masks::default();

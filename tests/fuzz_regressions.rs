@@ -31,7 +31,8 @@ fn fuzz_seeds_and_regressions_give_results_or_clear_errors() {
 fn metadata_seeds_give_results_not_panics() {
     use uwhl::files::exif::fuzzing;
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz").join("meta_seeds");
-    let targets: [(&str, fn(&[u8])); 5] = [
+    type Target = (&'static str, fn(&[u8]));
+    let targets: [Target; 5] = [
         ("exif", fuzzing::exif),
         ("xmp", fuzzing::xmp),
         ("icc", fuzzing::icc),

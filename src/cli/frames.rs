@@ -46,7 +46,7 @@ enum Got {
 fn read_frame(input: &mut dyn Read, buf: &mut [u8]) -> std::io::Result<Got> {
     let mut got = 0;
     while got < buf.len() {
-        match input.read(&mut buf[got..]) {
+        match input.read(buf.get_mut(got..).unwrap_or_default()) {
             Ok(0) => return Ok(if got == 0 { Got::End } else { Got::Partial(got) }),
             Ok(n) => got += n,
             Err(e) if e.kind() == ErrorKind::Interrupted => {}
@@ -185,8 +185,8 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
         }
         let t_frame = Instant::now();
         if bytes_per_sample == 2 {
-            for (s, b) in samples16.iter_mut().zip(bytes_in.chunks_exact(2)) {
-                *s = u16::from_le_bytes([b[0], b[1]]);
+            for (s, &b) in samples16.iter_mut().zip(bytes_in.as_chunks::<2>().0) {
+                *s = u16::from_le_bytes(b);
             }
             codec.decode_u16(&samples16, &mut linear);
         } else {

@@ -1081,8 +1081,8 @@ impl Claim {
             .filter(|(i, _)| !self.omitted.contains(i))
             .map(|(_, p)| p)
             .collect();
-        for &i in &self.omitted {
-            remove_if_present(&outputs[i])?;
+        for p in self.omitted.iter().filter_map(|&i| outputs.get(i)) {
+            remove_if_present(p)?;
         }
         let mut renamed = Vec::new();
         let result = (|| {

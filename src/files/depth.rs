@@ -167,13 +167,14 @@ fn read_distance_from<R: std::io::BufRead + Seek>(mut r: R, max_pixels: u64, max
         }
         Ok(())
     };
-    let (values, h, w) = match &magic[..got] {
+    let head = magic.get(..got).unwrap_or_default();
+    let (values, h, w) = match head {
         [0x93, b'N', b'U', b'M', b'P', b'Y', ..] => read_npy(&mut r, check)?,
         [0x89, b'P', b'N', b'G', ..] => read_png(r, check)?,
         // classic TIFF (42) and BigTIFF (43), either byte order
         [b'I', b'I', 42 | 43, 0, ..] | [b'M', b'M', 0, 42 | 43, ..] => read_tiff(r, check, max_memory)?,
         [0x76, 0x2f, 0x31, 0x01, ..] => read_exr(r, check)?,
-        [b'0'..=b'9', ..] if magic[..got].contains(&b'&') => read_colmap(r, check)?,
+        [b'0'..=b'9', ..] if head.contains(&b'&') => read_colmap(r, check)?,
         _ => {
             return Err(Failure::new(
                 Kind::Input,
@@ -317,23 +318,26 @@ fn read_npy<R: Read>(r: &mut R, check: impl Fn(u64, u64, u64) -> Result<(), Fail
     }
     let vals: Vec<f32> = match size {
         4 => raw
-            .chunks_exact(4)
-            .map(|c| {
-                let b = [c[0], c[1], c[2], c[3]];
+            .as_chunks::<4>()
+            .0
+            .iter()
+            .map(|&b| {
                 if big { f32::from_be_bytes(b) } else { f32::from_le_bytes(b) }
             })
             .collect(),
         8 => raw
-            .chunks_exact(8)
-            .map(|c| {
-                let b = [c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]];
+            .as_chunks::<8>()
+            .0
+            .iter()
+            .map(|&b| {
                 narrow(if big { f64::from_be_bytes(b) } else { f64::from_le_bytes(b) })
             })
             .collect(),
         _ => raw
-            .chunks_exact(2)
-            .map(|c| {
-                let b = [c[0], c[1]];
+            .as_chunks::<2>()
+            .0
+            .iter()
+            .map(|&b| {
                 let v = if big { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) };
                 if mm { f32::from(v) / 1000.0 } else { f32::from(v) }
             })
@@ -369,7 +373,7 @@ fn read_png<R: std::io::BufRead + Seek>(r: R, check: impl Fn(u64, u64, u64) -> R
     let mut buf = vec![0u8; reader.output_buffer_size().unwrap_or(0)];
     let frame = reader.next_frame(&mut buf).map_err(|e| bad(format!("cannot be decoded: {e}")))?;
     let bytes = buf.get(..frame.buffer_size()).unwrap_or(&[]);
-    let vals = bytes.chunks_exact(2).map(|c| f32::from(u16::from_be_bytes([c[0], c[1]])) / 1000.0).collect();
+    let vals = bytes.as_chunks::<2>().0.iter().map(|&c| f32::from(u16::from_be_bytes(c)) / 1000.0).collect();
     Ok((vals, h as usize, w as usize))
 }
 
@@ -447,7 +451,7 @@ fn read_colmap<R: Read>(mut r: R, check: impl Fn(u64, u64, u64) -> Result<(), Fa
     if read_up_to(&mut r, &mut bytes)? < bytes.len() {
         return Err(bad("ends before its values do".into()));
     }
-    let vals = bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let vals = bytes.as_chunks::<4>().0.iter().map(|&b| f32::from_le_bytes(b)).collect();
     Ok((vals, h, w))
 }
 

@@ -207,7 +207,7 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
         Some(w) => weighted_median(v, w, &mut Vec::new()),
         None => median(&mut v.to_vec()),
     };
-    let beta: [f64; 3] = std::array::from_fn(|c| med(&betas.iter().map(|b| b[c]).collect::<Vec<_>>()));
+    let beta: [f64; 3] = std::array::from_fn(|c| med(&betas.iter().filter_map(|b| b.get(c).copied()).collect::<Vec<_>>()));
     // one water: its ratios and its name from the median beta, so that the
     // name, the beta recorded and the ratios restored with agree (medians
     // of the ratios taken apart can be another type's)

@@ -111,7 +111,11 @@ pub fn convert(icc: &[u8], values: &mut [f32], linear: bool) -> Result<(), Strin
     let t = src
         .create_transform_f32(Layout::Rgb, &dst, Layout::Rgb, options)
         .map_err(|e| format!("no transform from the ICC profile {:?}: {e:?}", description(&src)))?;
-    let clip = |p: &[f32]| [p[0].clamp(0.0, 1.0), p[1].clamp(0.0, 1.0), p[2].clamp(0.0, 1.0)];
+    let clip = |p: &[f32]| {
+        let mut c = [0f32; 3];
+        c.iter_mut().zip(p).for_each(|(c, &v)| *c = v.clamp(0.0, 1.0));
+        c
+    };
     // the first pixel before and after, and whether any other differs from it
     let (mut first_in, mut first_out) = (None, None);
     let (mut input_varies, mut output_varies) = (false, false);

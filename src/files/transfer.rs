@@ -162,7 +162,7 @@ impl Codec {
     pub fn decode_u8(&self, codes: &[u8], out: &mut [f32]) {
         out.par_chunks_mut(1 << 14).zip(codes.par_chunks(1 << 14)).for_each(|(o, c)| {
             for (o, &c) in o.iter_mut().zip(c) {
-                *o = self.decode[usize::from(c)];
+                *o = self.decode.get(usize::from(c)).copied().unwrap_or(0.0);
             }
         });
     }
@@ -173,7 +173,7 @@ impl Codec {
         let shift = if self.bits == 8 { 8 } else { 0 };
         out.par_chunks_mut(1 << 14).zip(codes.par_chunks(1 << 14)).for_each(|(o, c)| {
             for (o, &c) in o.iter_mut().zip(c) {
-                *o = self.decode[usize::from(c >> shift)];
+                *o = self.decode.get(usize::from(c >> shift)).copied().unwrap_or(0.0);
             }
         });
     }
@@ -188,7 +188,11 @@ impl Codec {
         let x = l.sqrt() * STEPS as f32;
         let i = (x as usize).min(STEPS - 1);
         let f = x - i as f32;
-        self.encode[i] + f * (self.encode[i + 1] - self.encode[i])
+        // the table has STEPS + 1 entries
+        match self.encode.get(i..i + 2) {
+            Some(&[lo, hi]) => lo + f * (hi - lo),
+            _ => 0.0,
+        }
     }
 
     /// 8-bit codes of linear light (rounded to nearest), into `out`.

@@ -13,6 +13,14 @@ use std::sync::{Arc, Mutex, OnceLock};
 /// does not depend on the number of threads.
 pub const REDUCE_ROWS: usize = 16;
 
+/// `f` applied to the matching channels of two RGB triples, in channel
+/// order (per-channel arithmetic without indexing).
+#[inline]
+pub fn zip3<A: Copy, B: Copy, R>(a: [A; 3], b: [B; 3], f: impl Fn(A, B) -> R) -> [R; 3] {
+    let ([a0, a1, a2], [b0, b1, b2]) = (a, b);
+    [f(a0, b0), f(a1, b1), f(a2, b2)]
+}
+
 /// Percentiles of `values` at the fractions `qs` with linear interpolation
 /// between order statistics (NumPy's default "linear" method), in f64.
 /// Returns 0 for an empty input.

@@ -659,10 +659,9 @@ mod tests {
         for noise in [0.01f32, 0.04, 0.08] {
             let (img, z) = render(200, 300, BETA_3C, A, noise, 1.0, 20.0);
             let fit = fit_water(&img, 200, 300, &z, None).unwrap();
-            for c in 0..3 {
-                let [lo, hi] = fit.beta_range[c];
-                assert!(lo <= fit.beta[c] && fit.beta[c] <= hi, "noise {noise} channel {c}: {:?} {:?}", fit.beta, fit.beta_range);
-                assert!(lo <= BETA_3C[c] && BETA_3C[c] <= hi, "noise {noise} channel {c}: truth outside {:?}", fit.beta_range);
+            for (c, ((&[lo, hi], &b), &truth)) in fit.beta_range.iter().zip(&fit.beta).zip(&BETA_3C).enumerate() {
+                assert!(lo <= b && b <= hi, "noise {noise} channel {c}: {:?} {:?}", fit.beta, fit.beta_range);
+                assert!(lo <= truth && truth <= hi, "noise {noise} channel {c}: truth outside {:?}", fit.beta_range);
             }
             assert!(fit.plausible_types.contains(&"3C"), "noise {noise}: {:?}", fit.plausible_types);
             assert!(fit.plausible_types.contains(&nearest_type(fit.beta).0));
@@ -733,8 +732,8 @@ mod tests {
         // 31% low with the planes alone, 17% low with the correction (without
         // the planes 96% low on the truth renders)
         let fit = fit_water(&img, 200, 300, &noisy, None).unwrap();
-        for c in 0..3 {
-            let r = fit.beta[c] / BETA_3C[c];
+        for (&b, &truth) in fit.beta.iter().zip(&BETA_3C) {
+            let r = b / truth;
             assert!((0.75..1.1).contains(&r), "beta {:?} vs {BETA_3C:?}", fit.beta);
         }
         assert!(!fit.suspect());

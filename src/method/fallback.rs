@@ -16,6 +16,7 @@
 //!   Where it is large, a channel is below the noise floor and its colour
 //!   is a guess.
 
+use crate::kernels::util::zip3;
 use crate::method::image::ImageRef;
 use crate::method::profile::{gains_from, PowerSums, SOG_P};
 use crate::method::recover::Recovery;
@@ -125,7 +126,7 @@ pub fn noise_sigma(img: &ImageRef) -> [f64; 3] {
     let interior = (h - 2) * (w - 2);
     let step = ((interior as f64 / NOISE_SAMPLES as f64).sqrt().ceil() as usize).max(1);
     let d = img.data;
-    let at = |y: usize, x: usize, c: usize| f64::from(d[(y * w + x) * 3 + c]);
+    let at = |y: usize, x: usize, c: usize| d.get((y * w + x) * 3 + c).map_or(0.0, |&v| f64::from(v));
     let ys: Vec<usize> = (1..h - 1).step_by(step).collect();
     let cols = (w - 2).div_ceil(step);
     // one buffer of the grid's exact size for the three channels, filled
@@ -156,7 +157,7 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
     if n % 2 == 1 {
         return hi;
     }
-    let lo = v[..n / 2].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let lo = v.get(..n / 2).unwrap_or_default().iter().copied().fold(f64::NEG_INFINITY, f64::max);
     0.5 * (lo + hi)
 }
 
@@ -206,14 +207,15 @@ impl Terms {
     /// artifact clamp.
     fn pixel(&self, p: &[f32], t: [f32; 3]) -> ([f64; 3], [f64; 3]) {
         let t = t.map(f64::from);
-        let j = [0, 1, 2].map(|c| self.af[c] + (f64::from(p.get(c).copied().unwrap_or(0.0)) - self.af[c]) / t[c]);
+        let i = [0, 1, 2].map(|c| f64::from(p.get(c).copied().unwrap_or(0.0)));
+        let j = zip3(zip3(self.af, i, |a, i| (a, i)), t, |(a, i), t| a + (i - a) / t);
         (t, j)
     }
 
     /// Whether the estimated veil exceeds the observed light beyond the
     /// noise: t_c J_c = I_c - (1 - t_c) A_c, the light left after the veil.
     fn exceeds(&self, t: &[f64; 3], j: &[f64; 3]) -> bool {
-        (0..3).any(|c| t[c] * j[c] < -self.sigma[c])
+        t.iter().zip(j).zip(&self.sigma).any(|((&t, &j), &s)| t * j < -s)
     }
 }
 
@@ -247,7 +249,7 @@ impl Shade {
     /// toward the input's balance: returns (confidence, blend weight).
     fn apply(&self, terms: &Terms, p: &[f32], t: &[f64; 3], j: &[f64; 3], d: &mut [f32], blend: bool) -> (f32, f64) {
         let g = &self.g;
-        let shown = (0..3).map(|c| (g[c] * j[c].max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
+        let shown = g.iter().zip(j).map(|(&g, &j)| (g * j.max(0.0)).powi(2)).sum::<f64>().sqrt().max(1e-6);
         // the floor is looked up only for a channel whose noise it can exceed
         let noise: f64 = p
             .iter()
@@ -265,11 +267,13 @@ impl Shade {
             return (confidence, 0.0);
         }
         let wgt = 1.0 - (1.0 - self.w_photo) * (1.0 - LOCAL_WEIGHT * (1.0 - local));
-        let base = [0, 1, 2].map(|c| (f64::from(p.get(c).copied().unwrap_or(0.0)) * self.k[c]).max(0.0));
+        let i = [0, 1, 2].map(|c| f64::from(p.get(c).copied().unwrap_or(0.0)));
+        let base = zip3(i, self.k, |i, k| (i * k).max(0.0));
         let sum_d: f64 = d.iter().map(|&v| f64::from(v)).sum();
-        let scale = sum_d / (base[0] + base[1] + base[2]).max(1e-9);
-        for (c, v) in d.iter_mut().enumerate().take(3) {
-            let x = (1.0 - wgt) * f64::from(*v) + wgt * base[c] * scale;
+        let [b0, b1, b2] = base;
+        let scale = sum_d / (b0 + b1 + b2).max(1e-9);
+        for (v, &b) in d.iter_mut().zip(&base) {
+            let x = (1.0 - wgt) * f64::from(*v) + wgt * b * scale;
             *v = x.clamp(0.0, 1.0) as f32;
         }
         (confidence, wgt)
@@ -300,7 +304,9 @@ fn first_pass(
                     if !objects(i) {
                         continue;
                     }
-                    let p = &img.data[3 * i..3 * i + 3];
+                    let Some(p @ &[p0, p1, p2]) = img.data.get(3 * i..3 * i + 3) else {
+                        continue;
+                    };
                     let (t, j) = terms.pixel(p, t);
                     s.objects += 1.0;
                     for ((l, b), &v) in s.lit.iter_mut().zip(s.bright.iter_mut()).zip(p) {
@@ -310,9 +316,9 @@ fn first_pass(
                     if terms.exceeds(&t, &j) {
                         s.excess += 1.0;
                     }
-                    s.input.push([p[0], p[1], p[2]]);
-                    if let Some(r) = radiance.and_then(|r| r.get(3 * i..3 * i + 3)) {
-                        s.radiance.push([r[0], r[1], r[2]]);
+                    s.input.push([p0, p1, p2]);
+                    if let Some(&[r0, r1, r2]) = radiance.and_then(|r| r.get(3 * i..3 * i + 3)) {
+                        s.radiance.push([r0, r1, r2]);
                     }
                 }
                 s
@@ -351,7 +357,8 @@ pub fn trust(
     let w = img.width;
     let terms = Terms::new(a, wt, noise_sigma(img));
     let scratch = || vec![[0f32; 3]; w];
-    let total = first_pass(img, objects, &terms, &|y, row| row.copy_from_slice(&t_b[y * w..(y + 1) * w]), Some(radiance));
+    let tb_row = |y: usize| t_b.get(y * w..(y + 1) * w).unwrap_or_default();
+    let total = first_pass(img, objects, &terms, &|y, row| row.iter_mut().zip(tb_row(y)).for_each(|(o, &v)| *o = v), Some(radiance));
     let veil_excess = if total.objects > 0.0 { total.excess / total.objects } else { 0.0 };
     // one channel without light where another has plenty: the water took
     // it (a photo dark in every channel is underexposed, not this)
@@ -368,9 +375,9 @@ pub fn trust(
         .enumerate()
         .map_init(scratch, |tc, (y, (conf_row, img_row))| {
             let mut row_weight = 0.0;
-            row_t(&terms.rec, &t_b[y * w..(y + 1) * w], tc);
-            for (x, ((cf, d), &t)) in conf_row.iter_mut().zip(img_row.chunks_exact_mut(3)).zip(tc.iter()).enumerate() {
-                let p = &img.data[3 * (y * w + x)..3 * (y * w + x) + 3];
+            row_t(&terms.rec, tb_row(y), tc);
+            let in_row = img.data.get(3 * y * w..3 * (y + 1) * w).unwrap_or_default();
+            for (((cf, d), &t), p) in conf_row.iter_mut().zip(img_row.chunks_exact_mut(3)).zip(tc.iter()).zip(in_row.chunks_exact(3)) {
                 let (t, j) = terms.pixel(p, t);
                 let (c, wgt) = shade.apply(&terms, p, &t, &j, d, blend);
                 *cf = c;
@@ -524,7 +531,7 @@ mod tests {
         let d: Vec<f32> = (0..h * w).flat_map(|_| px).collect();
         let img = ImageRef::new(&d, h, w).unwrap();
         let tb = vec![1.0f32; h * w];
-        let shown = vec![0.25f32, 0.5, 0.75].repeat(h * w);
+        let shown = [0.25f32, 0.5, 0.75].repeat(h * w);
         let mut out = shown.clone();
         let tr = trust(&img, &|_| true, [0.1, 0.4, 0.6], &water("II", 0.2773, 0.7937), &tb, &d, &mut out, true);
         assert_eq!(tr.veil_excess, 0.0);
@@ -574,8 +581,8 @@ mod tests {
         let d: Vec<f32> = (0..h * w).flat_map(|_| [0.0f32, 0.4, 0.2]).collect();
         let img = ImageRef::new(&d, h, w).unwrap();
         let tb = vec![0.5f32; h * w];
-        let radiance = vec![0.0f32, 0.3, 0.3].repeat(h * w);
-        let mut out = vec![0.2f32, 0.3, 0.4].repeat(h * w);
+        let radiance = [0.0f32, 0.3, 0.3].repeat(h * w);
+        let mut out = [0.2f32, 0.3, 0.4].repeat(h * w);
         let tr = trust(&img, &|_| true, [0.5, 0.6, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut out, true);
         assert_eq!(tr.veil_excess, 1.0);
         assert!(tr.unreliable());
@@ -586,9 +593,9 @@ mod tests {
             assert!(p[0].abs() < 1e-6 && (p[1] - 0.45).abs() < 1e-6 && (p[2] - 0.45).abs() < 1e-6, "{p:?}");
         }
         // without the blend the image stays and the findings are the same
-        let mut kept = vec![0.2f32, 0.3, 0.4].repeat(h * w);
+        let mut kept = [0.2f32, 0.3, 0.4].repeat(h * w);
         let tr2 = trust(&img, &|_| true, [0.5, 0.6, 0.3], &water("3C", 0.6515, 1.1244), &tb, &radiance, &mut kept, false);
-        assert_eq!(kept, vec![0.2f32, 0.3, 0.4].repeat(h * w));
+        assert_eq!(kept, [0.2f32, 0.3, 0.4].repeat(h * w));
         assert_eq!(tr2.veil_excess, 1.0);
         assert_eq!(tr2.fallback_share, None);
     }

@@ -246,20 +246,20 @@ impl PowerSums {
     /// Adds one pixel.
     #[inline]
     pub fn push(&mut self, v: [f32; 3]) {
-        for c in 0..3 {
-            let x = f64::from(v[c].max(0.0));
-            self.s1[c] += x;
+        for ((s1, sp), v) in self.s1.iter_mut().zip(&mut self.sp).zip(v) {
+            let x = f64::from(v.max(0.0));
+            *s1 += x;
             let x2 = x * x;
-            self.sp[c] += x2 * x2;
+            *sp += x2 * x2;
         }
         self.n += 1.0;
     }
 
     /// Adds a partial sum.
     pub fn add(&mut self, o: &Self) {
-        for c in 0..3 {
-            self.s1[c] += o.s1[c];
-            self.sp[c] += o.sp[c];
+        for ((s1, sp), (o1, op)) in self.s1.iter_mut().zip(&mut self.sp).zip(o.s1.iter().zip(&o.sp)) {
+            *s1 += o1;
+            *sp += op;
         }
         self.n += o.n;
     }
@@ -282,7 +282,7 @@ impl PowerSums {
     pub fn spread(&self) -> f64 {
         let m = self.color(SOG_P);
         let mu = (m[0] + m[1] + m[2]) / 3.0;
-        if !(mu > 0.0) {
+        if mu.is_nan() || mu <= 0.0 {
             return f64::INFINITY;
         }
         let var = m.iter().map(|v| (v - mu).powi(2)).sum::<f64>() / 2.0;

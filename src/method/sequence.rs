@@ -23,6 +23,7 @@
 //! ```
 
 use crate::error::Result;
+use crate::kernels::util::zip3;
 use crate::method::params::{Flag, Input, Params, Restoration};
 use crate::method::pipeline::{restore_with, Buffers};
 use crate::method::water::WaterType;
@@ -111,13 +112,17 @@ impl Signature {
         for y in (0..height).step_by(stride) {
             for x in (0..width).step_by(stride) {
                 let i = 3 * (y * width + x);
-                let (r, g, b) = (data[i], data[i + 1], data[i + 2]);
+                let Some(&[r, g, b]) = data.get(i..i + 3) else {
+                    continue;
+                };
                 let sum = r + g + b;
-                if !(sum >= DARK) || !sum.is_finite() {
+                if !sum.is_finite() || sum < DARK {
                     continue;
                 }
                 let bin = |v: f32| ((v / sum * BINS as f32) as usize).min(BINS - 1);
-                counts[bin(r.max(0.0)) * BINS + bin(g.max(0.0))] += 1;
+                if let Some(n) = counts.get_mut(bin(r.max(0.0)) * BINS + bin(g.max(0.0))) {
+                    *n += 1;
+                }
                 total += 1;
             }
         }
@@ -284,7 +289,7 @@ impl Sequence {
                 let smoothed = match (&self.state, decision) {
                     (Some(old), Decision::Scheduled | Decision::Drift) if self.smoothing < 1.0 => {
                         let w = self.smoothing;
-                        Some(std::array::from_fn(|c| old.veiling_light[c] + w * (res.veiling_light[c] - old.veiling_light[c])))
+                        Some(zip3(old.veiling_light, res.veiling_light, |o, r| o + w * (r - o)))
                     }
                     _ => None,
                 };

@@ -276,7 +276,7 @@ pub(crate) fn method_value(
     let shown = v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
     let wrong = |what: &str| ParameterError::new_err(format!("{key} must be {what}; got {shown}"));
     let is_bool = v.is_instance_of::<pyo3::types::PyBool>()
-        || v.get_type().name().is_ok_and(|n| n.to_string() == "bool_");
+        || v.get_type().name().is_ok_and(|n| n == "bool_");
     let text = v.is_instance_of::<PyString>();
     let int = |what: &str| -> PyResult<u64> {
         if is_bool || text {

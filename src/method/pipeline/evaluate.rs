@@ -463,7 +463,7 @@ impl<'a> Shared<'a> {
             WhiteBalance::ShadesOfGray | WhiteBalance::Stretch => sums.color(SOG_P),
         };
         let gains = gains_from(estimate);
-        let top = (0..3).map(|c| gains[c] * at(c)).fold(0.0f64, f64::max);
+        let top = gains.iter().enumerate().map(|(c, &g)| g * at(c)).fold(0.0f64, f64::max);
         let scale = if top > 0.0 { 1.0 / top } else { 1.0 };
         gains.map(|g| (g * scale) as f32)
     }

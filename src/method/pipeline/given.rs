@@ -202,11 +202,9 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
         .zip(filled.par_iter())
         .for_each(|(((tb, j), px), &zv)| {
             *tb = (-bb * zv).exp().clamp(1e-6, 1.0);
-            for c in 0..3 {
-                let t = (-fit.beta[c] * zv).exp().max(MIN_T);
-                if let (Some(o), Some(&p)) = (j.get_mut(c), px.get(c)) {
-                    *o = a[c] + (p - a[c]) / t;
-                }
+            for (((o, &p), &beta), &ac) in j.iter_mut().zip(px).zip(&fit.beta).zip(&a) {
+                let t = (-beta * zv).exp().max(MIN_T);
+                *o = ac + (p - ac) / t;
             }
         });
     // J below 0 (noise over a far, dark pixel) is clipped; no artifact
@@ -217,7 +215,7 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
     // §13.4: the tint of light that crossed the same water, then exposure
     let objects = |i: usize| inside(i) && known(z.get(i).copied().unwrap_or(f32::NAN)) && !veil.vl.get(i).copied().unwrap_or(false);
     let d = light_path(&radiance, img.height, img.width, &objects, fit.beta);
-    let gains: [f32; 3] = std::array::from_fn(|c| (f64::from(fit.beta[c]) * d).exp() as f32);
+    let gains: [f32; 3] = fit.beta.map(|b| (f64::from(b) * d).exp() as f32);
     let mut image = expose(&radiance, &gains, &inside);
     // the output radiance is J in [0, 1] (METHOD §10)
     radiance.par_iter_mut().for_each(|v| *v = v.min(1.0));
