@@ -119,12 +119,14 @@ fn the_summary_has_a_row_per_input() {
     assert!(g["sidecar"].ends_with("good.json") && g["image"].ends_with("good.jpg"));
     let b = rows.iter().find(|r| r["input"].ends_with("bad.jpg")).unwrap();
     assert_eq!((b["status"].as_str(), b["error_kind"].as_str(), b["exit_code"].as_str()), ("failed", "unreadable_input", "3"));
-    // the rerun: the done input is skipped, its row filled from its sidecar
+    // the rerun given the good input only: it is skipped, its row filled from
+    // its sidecar; the bad one's failure stays listed, first (docs/OUTPUTS.md)
     let o = bin().arg(&good).arg("-o").arg(&out).arg("-q").output().unwrap();
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let rows = read();
-    assert_eq!(rows.len(), 1);
-    assert_eq!((rows[0]["status"].as_str(), rows[0]["water_type"].as_str()), ("skipped", side["water_type"].as_str().unwrap()));
+    assert_eq!(rows.len(), 2);
+    assert!(rows[0]["input"].ends_with("bad.jpg") && rows[0]["status"] == "failed");
+    assert_eq!((rows[1]["status"].as_str(), rows[1]["water_type"].as_str()), ("skipped", side["water_type"].as_str().unwrap()));
 }
 
 #[test]

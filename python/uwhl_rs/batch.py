@@ -251,6 +251,7 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
     scratch = None if not is_url(output) else tempfile.mkdtemp(prefix="uwhl-summary-")
     csv_rows = SummaryWriter(scratch or local_path(output),
                              waiting=(lambda t: listener.note(f"note: {t}")) if listener is not None else None)
+    csv_rows.given([it.input for it in plan.items] + [r["input"] for r in problems])
     for r in problems:
         csv_rows.add(r)
         if listener is not None:

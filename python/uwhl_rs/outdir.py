@@ -107,6 +107,12 @@ class SummaryWriter:
         """It cannot be written because the output folder is read-only."""
         return self._core.read_only
 
+    def given(self, inputs) -> None:
+        """This run's inputs, as its rows' ``input`` cells name them: a run
+        that starts the file afresh keeps an earlier run's failed rows of
+        every other input (docs/OUTPUTS.md "summary.csv")."""
+        self._core.given([os.fspath(i) for i in inputs])
+
     def add(self, row: dict) -> None:
         """One input's row (a ``uwhl_rs.tasks`` row)."""
         self._core.add({k: v for k, v in row.items() if k in CSV_COLUMNS or k == "scores"})

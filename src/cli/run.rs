@@ -396,6 +396,9 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
     // OUTDIR/summary.csv, a row per input as it is settled
     let wait_note = [crate::files::jobs::waiting_note(&opts.outdir)];
     let mut summary = crate::files::summary::Summary::create_waiting(&opts.outdir, &mut || say_notes(&wait_note, opts, err));
+    // an earlier run's failures of inputs this run was not given stay listed
+    let named = |p: &Path| p.to_string_lossy().into_owned();
+    summary.given(jobs.iter().map(|j| named(&j.input)).chain(errors.iter().map(|(p, _)| named(p))));
     for (p, e) in &errors {
         report(err, opts.json_errors, Some(p), e);
         code = code.max(e.kind.exit_code());

@@ -153,6 +153,8 @@ pub struct Summary {
     /// survey: see docs/OUTPUTS.md)
     pub read_only: bool,
     columns: Vec<String>,
+    /// this run's inputs as its rows name them ([`Summary::given`])
+    given: Option<std::collections::HashSet<String>>,
 }
 
 impl Summary {
@@ -176,7 +178,26 @@ impl Summary {
         });
         let start = presence.as_ref().and(start);
         let mark = presence.as_ref().map(|f| crate::files::jobs::Mark::new(outdir, f));
-        Self { outdir: outdir.to_path_buf(), presence, mark, start, opened: false, error: None, read_only: false, columns: columns() }
+        Self {
+            outdir: outdir.to_path_buf(),
+            presence,
+            mark,
+            start,
+            opened: false,
+            error: None,
+            read_only: false,
+            columns: columns(),
+            given: None,
+        }
+    }
+
+    /// This run's inputs, as its rows' `input` cells will name them. A run
+    /// that starts the file afresh then keeps the earlier file's failed
+    /// rows of every other input ([`earlier_failures`]): a folder restored
+    /// in several runs lists each failure until a run is given that input
+    /// again. Without it nothing is kept.
+    pub fn given<I: IntoIterator<Item = String>>(&mut self, inputs: I) {
+        self.given = Some(inputs.into_iter().collect());
     }
 
     /// The path of the file.
@@ -230,8 +251,9 @@ impl Summary {
             // think itself alone too and replace the file: it holds the
             // header only then, and rows open the file anew, so none is lost
             Ok(()) => {
+                let kept = self.given.as_ref().map(|g| earlier_failures(&path, g, &self.columns)).unwrap_or_default();
                 let (tmp, mut t) = crate::files::commit::create_temp_for(&path).map_err(fail)?;
-                let written = t.write_all(header.as_bytes()).and_then(|()| t.sync_all());
+                let written = t.write_all(header.as_bytes()).and_then(|()| t.write_all(kept.as_bytes())).and_then(|()| t.sync_all());
                 drop(t);
                 if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, &path)) {
                     let _ = std::fs::remove_file(&tmp);
@@ -425,6 +447,127 @@ fn path_text(p: &Path) -> String {
     p.to_string_lossy().into_owned()
 }
 
+/// The largest earlier summary read for its failed rows (larger: none kept).
+const MAX_EARLIER_BYTES: u64 = 64 << 20;
+/// A field or a record longer than these is no summary of ours (as the report reads it).
+const MAX_FIELD_BYTES: usize = 128 << 10;
+const MAX_RECORD_BYTES: usize = 1 << 20;
+
+/// The records of CSV `text` as this writer and Python's csv module write
+/// them (fields quoted when needed, quotes doubled, CRLF or LF ends); None
+/// when it is not such a file (an unclosed quote, text after a closing
+/// quote, a field or record over the limits).
+fn csv_records(text: &str) -> Option<Vec<Vec<String>>> {
+    let mut records = Vec::new();
+    let (mut record, mut cur) = (Vec::new(), String::new());
+    let (mut quoted, mut closed, mut size) = (false, false, 0usize);
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        size += c.len_utf8();
+        if cur.len() > MAX_FIELD_BYTES || size > MAX_RECORD_BYTES {
+            return None;
+        }
+        if quoted {
+            match c {
+                '"' if chars.peek() == Some(&'"') => {
+                    chars.next();
+                    cur.push('"');
+                }
+                '"' => (quoted, closed) = (false, true),
+                _ => cur.push(c),
+            }
+            continue;
+        }
+        match c {
+            '"' if cur.is_empty() && !closed => quoted = true,
+            ',' => {
+                record.push(std::mem::take(&mut cur));
+                closed = false;
+            }
+            '\r' if chars.peek() == Some(&'\n') => {}
+            '\n' => {
+                record.push(std::mem::take(&mut cur));
+                records.push(std::mem::take(&mut record));
+                (closed, size) = (false, 0);
+            }
+            _ if closed => return None,
+            _ => cur.push(c),
+        }
+    }
+    if quoted {
+        return None;
+    }
+    if !cur.is_empty() || !record.is_empty() {
+        record.push(cur);
+        records.push(record);
+    }
+    Some(records)
+}
+
+/// The failed rows of the summary at `path` whose input is not in `given`
+/// and whose last row it is, as lines of `columns` (CRLF-ended): the
+/// cells an earlier run wrote, moved under this writer's columns by name.
+/// A text cell is neutralised again ([`neutralise`] of [`restore_cell`]:
+/// the same bytes for a cell of ours, a planted formula made safe); a
+/// number stays as written. Nothing is kept from a file that is not
+/// regular (a link at the name is not followed), is over
+/// [`MAX_EARLIER_BYTES`], is not UTF-8 or not CSV of ours, or has no
+/// `input` and `status` columns.
+fn earlier_failures(path: &Path, given: &std::collections::HashSet<String>, columns: &[String]) -> String {
+    use std::io::Read;
+    use std::os::unix::fs::OpenOptionsExt;
+    let Ok(f) = std::fs::OpenOptions::new().read(true).custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK).open(path) else {
+        return String::new();
+    };
+    if !f.metadata().is_ok_and(|m| m.is_file() && m.len() <= MAX_EARLIER_BYTES) {
+        return String::new();
+    }
+    let mut bytes = Vec::new();
+    if f.take(MAX_EARLIER_BYTES + 1).read_to_end(&mut bytes).is_err() {
+        return String::new();
+    }
+    let Some(records) = String::from_utf8(bytes).ok().and_then(|t| csv_records(&t)) else {
+        return String::new();
+    };
+    let Some((head, rows)) = records.split_first() else {
+        return String::new();
+    };
+    let at = |name: &str| head.iter().position(|h| h == name);
+    let (Some(input), Some(status)) = (at("input"), at("status")) else {
+        return String::new();
+    };
+    // each input's last row decides: a failure restored since is not kept
+    let mut seen = std::collections::HashSet::new();
+    let mut kept: Vec<&Vec<String>> = Vec::new();
+    for r in rows.iter().rev().filter(|r| r.len() == head.len()) {
+        let (Some(name), Some(state)) = (r.get(input), r.get(status)) else {
+            continue;
+        };
+        let name = restore_cell(name);
+        if !given.contains(name) && seen.insert(name) && state == "failed" {
+            kept.push(r);
+        }
+    }
+    kept.reverse();
+    let mut out = String::new();
+    for r in kept {
+        let cells: Vec<String> = columns
+            .iter()
+            .map(|c| {
+                let v = at(c).and_then(|k| r.get(k)).map_or("", String::as_str);
+                if v.parse::<f64>().is_ok_and(f64::is_finite) {
+                    field(v)
+                } else {
+                    field(&neutralise(restore_cell(v)))
+                }
+            })
+            .collect();
+        out.push_str(&cells.join(","));
+        out.push_str("\r\n");
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -432,7 +575,7 @@ mod tests {
     #[test]
     fn a_folder_read_only_by_mount_or_by_permissions_is_read_only() {
         use std::io::{Error, ErrorKind};
-        let mut s = Summary { outdir: std::path::PathBuf::from("/o"), presence: None, mark: None, start: None, opened: false, error: None, read_only: false, columns: columns() };
+        let mut s = Summary { outdir: std::path::PathBuf::from("/o"), presence: None, mark: None, start: None, opened: false, error: None, read_only: false, columns: columns(), given: None };
         for (kind, want) in [(ErrorKind::ReadOnlyFilesystem, true), (ErrorKind::PermissionDenied, true), (ErrorKind::StorageFull, false)] {
             s.fail(&Error::from(kind));
             assert_eq!(s.read_only, want, "{kind:?}");
@@ -642,5 +785,76 @@ mod tests {
         assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
         assert!(crate::files::commit::read_sidecar(&fifo).is_none());
         std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_run_given_other_inputs_keeps_the_earlier_failures_and_only_those() {
+        let d = folder("carry");
+        let path = d.join(FILE_NAME);
+        let given = |names: &[&str]| names.iter().map(|n| n.to_string()).collect::<Vec<_>>();
+        // run 1: a done, "=bad, x.jpg" failed (a formula and a comma), c failed then done
+        let mut s = Summary::create(&d);
+        s.given(given(&["a", "=bad, x.jpg", "c"]));
+        let side = serde_json::json!({"water_type": "II", "veiling_light": [-0.5, 0.2, 0.3]});
+        s.done(Path::new("a"), &side, &d);
+        s.failed(Path::new("=bad, x.jpg"), "unreadable_input", "cannot decode \"it\"\nat all", 3);
+        s.failed(Path::new("c"), "internal", "x", 6);
+        s.done(Path::new("c"), &side, &d);
+        s.close();
+        let first = std::fs::read_to_string(&path).unwrap();
+        let bad_row = first.split("\r\n").find(|l| l.starts_with("\"'=bad")).unwrap().to_string();
+        // run 2 is given b only: the earlier failure of "=bad, x.jpg" stays, byte for byte, then b's row
+        let mut s = Summary::create(&d);
+        s.given(given(&["b"]));
+        s.failed(Path::new("b"), "unreadable_input", "no", 3);
+        s.close();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let rows = csv_records(&text).unwrap();
+        assert_eq!(rows.len(), 3, "{text}");
+        assert_eq!(rows[0], columns());
+        assert!(text.contains(&format!("\r\n{bad_row}\r\n")), "{text}");
+        assert_eq!(restore_cell(&rows[1][0]), "=bad, x.jpg");
+        assert_eq!(rows[1][columns().iter().position(|c| c == "error").unwrap()], "cannot decode \"it\"\nat all");
+        assert_eq!(rows[2][0], "b");
+        // run 3 is given the failed input again: its old row goes, its new one is the only one
+        let mut s = Summary::create(&d);
+        s.given(given(&["=bad, x.jpg"]));
+        s.failed(Path::new("=bad, x.jpg"), "unreadable_input", "again", 3);
+        s.close();
+        let rows = csv_records(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(rows.len(), 3, "b's failure kept, one row for =bad");
+        assert_eq!((rows[1][0].as_str(), restore_cell(&rows[2][0])), ("b", "=bad, x.jpg"));
+        // a planted file: a formula in a failed row is neutralised; a number stays a number
+        let mut head = columns();
+        head.truncate(4);
+        std::fs::write(&path, format!("{}\r\n=HYPERLINK(1),failed,-2,-33.5\r\n", head.join(","))).unwrap();
+        let kept = earlier_failures(&path, &Default::default(), &columns());
+        assert!(kept.starts_with("'=HYPERLINK(1),failed,-2,-33.5,"), "{kept}");
+        // nothing from what is not a summary of ours: an unclosed quote, no status column, a link
+        std::fs::write(&path, "input,status\r\n\"x,failed\r\n").unwrap();
+        assert_eq!(earlier_failures(&path, &Default::default(), &columns()), "");
+        std::fs::write(&path, "input,state\r\nx,failed\r\n").unwrap();
+        assert_eq!(earlier_failures(&path, &Default::default(), &columns()), "");
+        std::fs::write(d.join("elsewhere.csv"), "input,status\r\nx,failed\r\n").unwrap();
+        std::fs::remove_file(&path).unwrap();
+        std::os::unix::fs::symlink(d.join("elsewhere.csv"), &path).unwrap();
+        assert_eq!(earlier_failures(&path, &Default::default(), &columns()), "");
+        // without given, a run keeps nothing (the Dask batch's scratch summary)
+        let mut s = Summary::create(&d);
+        s.failed(Path::new("z"), "internal", "x", 6);
+        s.close();
+        assert_eq!(std::fs::read_to_string(&path).unwrap().lines().count(), 2);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn csv_records_read_what_the_writer_writes() {
+        let cells = ["plain", "a,b", "say \"hi\"", "two\r\nlines", "", "'=x"];
+        let line: Vec<String> = cells.iter().map(|c| field(c)).collect();
+        let text = format!("{}\r\n{}\n", line.join(","), line.join(","));
+        let rows = csv_records(&text).unwrap();
+        assert_eq!(rows, vec![cells.map(String::from).to_vec(); 2]);
+        assert!(csv_records("\"a\"b,c\r\n").is_none(), "text after a closing quote");
+        assert!(csv_records(&format!("{}\r\n", "x".repeat(MAX_FIELD_BYTES + 2))).is_none());
     }
 }

@@ -99,6 +99,15 @@ impl PySummary {
         Self { path: s.path(), inner: Mutex::new(s) }
     }
 
+    /// This run's inputs as its rows name them (`Summary::given`): a run
+    /// that starts the file afresh keeps the earlier failed rows of others.
+    /// Names of undecodable bytes (surrogate escapes) are taken as the rows
+    /// write them, each such byte one U+FFFD.
+    fn given(&self, inputs: Vec<std::ffi::OsString>) {
+        let names = inputs.iter().map(|n| n.to_string_lossy().into_owned());
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).given(names);
+    }
+
     /// The file's path.
     #[getter]
     fn path(&self) -> std::path::PathBuf {
