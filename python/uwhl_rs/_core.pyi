@@ -27,6 +27,7 @@ __all__ = [
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
     "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "is_output_of", "new_run", "nearest_type", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
+    "FLOAT_NOT_PREPROCESSED",
     "name_bases", "MAX_NAMES", "FAMILY_GAP",
     "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
@@ -56,6 +57,8 @@ FIT_BETA_GRID: tuple[float, float]
 MAP_PER_PHOTO_PIXEL: int
 #: a fallback_share from which a photo's colours are the input's balance throughout
 BALANCED_SHARE: float
+#: the note of a float image read with the reference preprocessing (which does not apply to it)
+FLOAT_NOT_PREPROCESSED: str
 #: the names a claim tries for an input (NAME, NAME_2, ...)
 MAX_NAMES: int
 #: names in a row without a sidecar after which a rerun stops looking along a sequence for an input's earlier name
@@ -242,6 +245,8 @@ class Summary:
     @property
     def read_only(self) -> bool:
         """Whether it cannot be written because the folder is read-only."""
+    def given(self, inputs: list[_PathArg]) -> None:
+        """This run's inputs as its rows name them: a run that starts the file afresh keeps the earlier failed rows of others."""
     def add(self, row: dict[str, Any]) -> None:
         """Appends one row (a dict of columns; `scores` a dict), in one locked write."""
     def close(self) -> None:

@@ -25,6 +25,7 @@ import numpy as np
 
 from . import _core
 from .errors import ImageReadError, ImageTooLargeError, ParameterError, shown
+from .imagewrite import atomic_write_bytes, path_arg, quantize, write_image
 from .sidecars import display
 
 __all__ = [
@@ -42,11 +43,12 @@ __all__ = [
     "linear_to_srgb",
     "write_image",
     "atomic_write_bytes",
+    "quantize",
     "colorize_transmission",
 ]
 
 #: Extensions read through LibRaw (every format LibRaw reads; other names
-#: are sniffed: anything that is not JPEG/PNG/TIFF is offered to LibRaw).
+#: are sniffed, and what is not JPEG/PNG/TIFF is refused).
 #: The list is the core's, which both commands' folder walks use.
 RAW_EXTENSIONS = frozenset("." + e for e in _core.RAW_EXTENSIONS)
 #: Extensions read through imageio as sRGB-encoded images (the core's list).
@@ -183,6 +185,11 @@ def read_image(
         raise ImageReadError(f"{path}: cannot open ({e.strerror or e})") from None
     if size == 0:
         raise ImageReadError(f"{path}: empty file")
+    if kind is None and ext not in RAW_EXTENSIONS:
+        # LibRaw takes a file of a headerless camera's exact size for that camera's
+        # raw data (a text file became a photo of noise): only a raw extension goes to it
+        raise ImageReadError(f"{path}: not a JPEG, PNG, TIFF or raw file (its first bytes are none of these, "
+                             f"and {ext or 'no extension'!s} is not a raw camera format's extension)")
     try:
         if kind is None:
             failed = None
@@ -193,12 +200,16 @@ def read_image(
                 except Exception as e:  # judged below, with what the decoder said
                     failed = e
             if failed is not None:
-                early = _ends_early(said)
+                early = _ends_early(said, path)
                 if early and not isinstance(failed, (ImageTooLargeError, MemoryError)):
                     raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {early}") from None
                 raise failed
             return img, _judged_raw(path, meta, said)
-        return _read_encoded(path, kind, preprocess, max_pixels, _on_header)
+        img, meta = _read_encoded(path, kind, preprocess, max_pixels, _on_header)
+        if half_size:
+            meta = dataclasses.replace(meta, notes=tuple(meta.notes) + (
+                "half_size applies to raw files only: this file is read at full size",))
+        return img, meta
     except ImageReadError:
         raise
     except MemoryError:
@@ -227,7 +238,11 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
         than the core's default limit.
     """
     _check_max_pixels(max_pixels)
-    return np.asarray(_core.read_distance_file(path_arg("path", path), int(max_pixels), int(_core.default_max_memory())))
+    arg = path_arg("path", path)
+    try:
+        return np.asarray(_core.read_distance_file(arg, int(max_pixels), int(_core.default_max_memory())))
+    except (_core.ImageError, MemoryError) as e:  # the core's reason, named by its file as read_image names it
+        raise type(e)(f"{path}: {e}") from None
 
 
 #: the largest max_pixels (the option table's: the core's 64-bit count)
@@ -272,6 +287,8 @@ def _read_encoded(path: str, kind: str, preprocess: str, max_pixels: int,
     orientation = int(info["orientation"])
     notes = tuple(info["notes"])
     if info["is_float"]:
+        if preprocess == "reference":
+            notes += (_core.FLOAT_NOT_PREPROCESSED,)
         meta = ImageMeta(path, "linear", info["format"], int(info["bits"]), img.shape[0], img.shape[1], orientation,
                          True, "none", notes=notes)
         return img, meta
@@ -363,11 +380,13 @@ def _decoder_messages():
                         pass
 
 
-def _ends_early(said: list[str]) -> str | None:
-    """The decoder's first line saying a raw file's data ended early, shown."""
+def _ends_early(said: list[str], path: str) -> str | None:
+    """The decoder's first line saying a raw file's data ended early, shown
+    without the file's name (LibRaw's lines begin with it; the message
+    names it once)."""
     for x in said:
         if any(k in x.lower() for k in _TRUNCATED):
-            return display(x.strip())[:200]
+            return display(x.strip().removeprefix(f"{path}: ").removeprefix(f"{path}:"))[:200]
     return None
 
 
@@ -375,7 +394,7 @@ def _judged_raw(path: str, meta: "ImageMeta", said: list[str]) -> "ImageMeta":
     """The decoder's lines about a raw file: one that says its data ended
     early makes it unreadable (its pixels past that point are not the
     photo's); any other becomes a note of the sidecar's ``source.notes``."""
-    early = _ends_early(said)
+    early = _ends_early(said, path)
     if early:
         raise ImageReadError(f"{path}: the raw data ends early (a file cut short?): {early}")
     shown = [display(x.strip())[:200] for x in said if x.strip()]
@@ -478,114 +497,6 @@ def display_linear(linear: np.ndarray, meta: ImageMeta | None) -> np.ndarray:
         m = np.asarray(meta.camera_matrix, dtype=np.float32)
         x = np.clip(x @ m.T, 0.0, 1.0)
     return np.ascontiguousarray(x, dtype=np.float32)
-
-
-def quantize(image: np.ndarray, bits: int, *, encoding: str) -> np.ndarray:
-    """Float image -> uint8/uint16 codes (docs/OUTPUTS.md): ``encoding``
-    "linear" applies the sRGB curve, "srgb" (already encoded) does not."""
-    if encoding not in ("linear", "srgb"):
-        raise ValueError(f"encoding must be 'linear' or 'srgb', not {encoding!r}")
-    return _core._quantize(np.ascontiguousarray(image, dtype=np.float32), bits, encoding == "linear")
-
-
-def atomic_write_bytes(path: str | os.PathLike, write) -> None:
-    """Create ``path`` atomically and durably: ``write(tmp_path)`` fills a
-    temporary file of the same folder (created exclusively under a short
-    name with ``path``'s extension), which is then synced, renamed over
-    ``path``, and the folder synced (``_core.place``). On any failure (full
-    disk, interrupt) the temporary file is removed and ``path`` is
-    untouched."""
-    path = os.fspath(path)
-    tmp = os.fspath(_core.create_temp(path))
-    try:
-        write(tmp)
-    except BaseException:
-        try:
-            os.remove(tmp)
-        except OSError:
-            pass
-        raise
-    _core.place(tmp, path)
-
-
-def _encodable(path: str, image: np.ndarray, bits: int, encoding: str) -> tuple[str, np.ndarray]:
-    """The extension and the integer samples :func:`write_image` writes (or a ParameterError naming what cannot be written)."""
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in IMAGE_EXTENSIONS:
-        raise ParameterError(f"{path}: cannot write {ext or 'a file without extension'}; use .jpg, .png or .tif")
-    a = np.asarray(image)
-    if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] != 3) or a.size == 0:
-        raise ParameterError(f"{path}: cannot write an array of shape {a.shape} (need HxW or HxWx3, non-empty)")
-    if a.dtype.kind == "f":
-        a = quantize(a, bits, encoding=encoding)
-    elif a.dtype not in (np.uint8, np.uint16):
-        raise ParameterError(f"{path}: cannot write samples of type {a.dtype} (float, uint8 or uint16)")
-    if ext in (".jpg", ".jpeg") and a.dtype != np.uint8:
-        raise ParameterError(f"{path}: JPEG holds 8 bits per sample; use .png or .tif for 16 bits")
-    return ext, a
-
-
-def _encode_into(target: str, ext: str, a: np.ndarray, quality: int) -> None:
-    """Writes samples ``a`` into the file ``target`` in the format of ``ext``."""
-    if ext == ".png":
-        with open(target, "wb") as f:
-            f.write(_png_bytes(a))
-    elif ext in (".tif", ".tiff"):
-        import tifffile
-
-        tifffile.imwrite(target, a, photometric="rgb" if a.ndim == 3 else "minisblack", compression="zlib")
-    else:
-        import imageio.v3 as iio
-
-        iio.imwrite(target, a, extension=ext, quality=int(quality))
-
-
-def _os_error(path: str, e: OSError) -> OSError:
-    return OSError(e.errno, f"cannot write {path}: {e.strerror or e}")
-
-
-def path_arg(what: str, path) -> str:
-    """``path`` as text, or a ParameterError naming ``what`` (bytes and
-    other objects are no path the readers and writers take)."""
-    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
-        raise ParameterError(f"{what} must be a path (str or os.PathLike), not {shown(path)}")
-    return os.fspath(path)
-
-
-def write_image(
-    path: str | os.PathLike,
-    image: np.ndarray,
-    *,
-    bits: int = 8,
-    encoding: str = "srgb",
-    quality: int = 95,
-) -> str:
-    """Write an image atomically as JPEG, PNG or TIFF (chosen by the extension).
-
-    ``image``: HxWx3 or HxW; float values in [0, 1] are quantised to
-    ``bits`` (8, or 16 for PNG/TIFF) — ``encoding="linear"`` means they are
-    linear and get the sRGB curve, ``"srgb"`` that they are already
-    encoded — while uint8/uint16 arrays are written as they are. The file
-    appears complete or not at all, and is synced (with its folder) before
-    this returns. Returns the path.
-    """
-    path = path_arg("path", path)
-    if isinstance(bits, (bool, np.bool_)) or not isinstance(bits, (int, np.integer)) or bits not in (8, 16):
-        raise ParameterError(f"bits must be 8 or 16, not {shown(bits)}")
-    if isinstance(quality, (bool, np.bool_)) or not isinstance(quality, (int, np.integer)) or not 1 <= quality <= 100:
-        raise ParameterError(f"quality must be an integer in [1, 100], not {shown(quality)}")
-    ext, a = _encodable(path, image, bits, encoding)
-    try:
-        atomic_write_bytes(path, lambda tmp: _encode_into(tmp, ext, a, quality))
-    except OSError as e:
-        raise _os_error(path, e) from None
-    return path
-
-
-def _png_bytes(a: np.ndarray) -> bytes:
-    """Encode uint8/uint16 HxW or HxWx3 as PNG: the core's encoder (fdeflate
-    with adaptive row filters; the GIL is released while it works)."""
-    return _core._encode_png(np.ascontiguousarray(a))
 
 
 def colorize_transmission(t: np.ndarray) -> np.ndarray:

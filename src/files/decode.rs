@@ -73,6 +73,49 @@ pub struct Decoded {
     pub notes: Vec<String>,
 }
 
+/// A reader that presents `inner` with `bytes` in place of its own at
+/// `at` (when `on`): a TIFF whose first IFD is a thumbnail is shown to the
+/// decoder with the header's IFD offset pointing at the full image.
+struct Patched<R> {
+    inner: R,
+    at: u64,
+    bytes: [u8; 4],
+    on: bool,
+    pos: u64,
+}
+
+impl<R: Read + Seek> Patched<R> {
+    fn new(inner: R, at: u64, bytes: [u8; 4], on: bool) -> Self {
+        Self { inner, at, bytes, on, pos: 0 }
+    }
+}
+
+impl<R: Read + Seek> Read for Patched<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if self.on {
+            for (k, b) in buf.iter_mut().take(n).enumerate() {
+                let p = self.pos + k as u64;
+                if let Some(&v) = p.checked_sub(self.at).and_then(|i| self.bytes.get(usize::try_from(i).ok()?)) {
+                    *b = v;
+                }
+                if p >= self.at + 4 {
+                    break;
+                }
+            }
+        }
+        self.pos += n as u64;
+        Ok(n)
+    }
+}
+
+impl<R: Read + Seek> Seek for Patched<R> {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        self.pos = self.inner.seek(to)?;
+        Ok(self.pos)
+    }
+}
+
 /// A reader that presents `inner` without some byte ranges (whole PNG
 /// chunks the pixel decoder must not inflate or hold: the ICC profile,
 /// read with a cap by `files::exif`, and oversized text and EXIF chunks).
@@ -118,7 +161,7 @@ impl<R: Read + Seek> Read for Without<R> {
             self.inner.seek(SeekFrom::Start(phys))?;
         }
         let n = buf.len().min(usize::try_from(room).unwrap_or(usize::MAX));
-        let got = self.inner.read(&mut buf[..n]);
+        let got = self.inner.read(buf.get_mut(..n).unwrap_or_default());
         let got = got.inspect_err(|_| self.at = None)?;
         self.pos += got as u64;
         self.at = Some(phys + got as u64);
@@ -166,9 +209,32 @@ fn image_error(e: ImageError) -> Failure {
 /// JPEG decoder fills a truncated scan with gray and reports success; a
 /// cut-off frame must be an error instead (Pillow refuses it too).
 pub fn jpeg_complete(bytes: &[u8]) -> bool {
+    jpeg_walk(bytes).is_some()
+}
+
+/// A JPEG frame's height, width and its components' sampling factors (H, V).
+type Frame = (u32, u32, Vec<(u8, u8)>);
+
+/// What the walk of [`jpeg_complete`] finds in a complete JPEG: the frame
+/// (SOF: height, width, and each component's sampling factors) and the
+/// bytes of entropy-coded data over all its scans.
+#[derive(Debug, Default)]
+struct JpegWalk {
+    frame: Option<Frame>,
+    /// whether the frame is arithmetic-coded (SOF9 and up: codes may be under one bit)
+    arithmetic: bool,
+    /// the frame's marker when it is a lossless one (SOF3, 7, B, F) or JPEG-LS (SOF55, F7)
+    lossless: Option<u8>,
+    scan_bytes: u64,
+}
+
+/// The segments of a JPEG stream up to its end-of-image marker; None when
+/// it does not reach one (see [`jpeg_complete`]).
+fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
     if !bytes.starts_with(&[0xFF, 0xD8]) {
-        return false;
+        return None;
     }
+    let mut walk = JpegWalk::default();
     let mut i = 2usize;
     loop {
         // a marker: 0xFF, any fill bytes (0xFF), then its code; stray bytes
@@ -179,33 +245,83 @@ pub fn jpeg_complete(bytes: &[u8]) -> bool {
         while bytes.get(i) == Some(&0xFF) {
             i += 1;
         }
-        let Some(&code) = bytes.get(i) else { return false };
+        let &code = bytes.get(i)?;
         i += 1;
         match code {
-            0xD9 => return true,
+            0xD9 => return Some(walk),
             0x01 | 0xD0..=0xD7 => continue,
             _ => {}
         }
-        let Some(len) = bytes.get(i..i + 2).map(|b| usize::from(u16::from_be_bytes([b[0], b[1]]))) else {
-            return false;
-        };
+        let &len = bytes.get(i..).and_then(<[u8]>::first_chunk::<2>)?;
+        let len = usize::from(u16::from_be_bytes(len));
         if len < 2 {
-            return false;
+            return None;
+        }
+        if matches!(code, 0xC3 | 0xC7 | 0xCB | 0xCF | 0xF7) {
+            walk.lossless.get_or_insert(code);
+        }
+        // SOFn (not DHT C4, JPG C8, DAC CC): precision, height, width, components
+        if matches!(code, 0xC0..=0xCF) && !matches!(code, 0xC4 | 0xC8 | 0xCC) && walk.frame.is_none() {
+            let seg = bytes.get(i + 2..i + len)?;
+            if let Some(([_, h0, h1, w0, w1, n], rest)) = seg.split_first_chunk::<6>() {
+                let comps = rest.chunks_exact(3).take(usize::from(*n)).filter_map(|c| c.get(1)).map(|&f| (f >> 4, f & 15)).collect();
+                walk.frame = Some((u32::from(u16::from_be_bytes([*h0, *h1])), u32::from(u16::from_be_bytes([*w0, *w1])), comps));
+                walk.arithmetic = code >= 0xC9;
+            }
         }
         i += len;
         if code == 0xDA {
             // the entropy-coded data runs to the next marker that is not a restart
+            let begin = i;
             loop {
-                match bytes.get(i..i + 2) {
-                    None => return false,
-                    Some([0xFF, b]) if *b == 0x00 || (0xD0..=0xD7).contains(b) => i += 2,
-                    Some([0xFF, 0xFF]) => i += 1,
-                    Some([0xFF, _]) => break,
-                    Some(_) => i += 1,
+                match bytes.get(i..i + 2)? {
+                    [0xFF, b] if *b == 0x00 || (0xD0..=0xD7).contains(b) => i += 2,
+                    [0xFF, 0xFF] => i += 1,
+                    [0xFF, _] => break,
+                    _ => i += 1,
                 }
             }
+            walk.scan_bytes += (i - begin) as u64;
         }
     }
+}
+
+/// Why a complete JPEG is not decoded, if it is not: a lossless or
+/// JPEG-LS frame (the decoder has no such mode), or scans too short for
+/// the frame's pixels. Every
+/// 8 x 8 block of every component takes at least one bit of Huffman-coded
+/// data (its DC coefficient's code, one bit or more, in sequential and
+/// progressive JPEG alike), so a file whose scans hold fewer bytes than
+/// its blocks need is damaged (cut inside a scan with its end marker
+/// kept) or made to cost memory: a 632-byte file claiming 6000 x 4000
+/// pixels decoded to gray for 2.3 GB. Arithmetic-coded frames are not
+/// judged.
+fn jpeg_problem(bytes: &[u8]) -> Option<String> {
+    let walk = jpeg_walk(bytes)?;
+    if let Some(code) = walk.lossless {
+        let what = if code == 0xF7 { "JPEG-LS" } else { "lossless JPEG" };
+        return Some(format!("{what} (marker FF {code:02X}) is not read: baseline and progressive JPEG are"));
+    }
+    let (h, w, comps) = walk.frame?;
+    if walk.arithmetic || comps.is_empty() {
+        return None;
+    }
+    let (hmax, vmax) = comps.iter().fold((1u64, 1u64), |(a, b), &(x, y)| (a.max(u64::from(x)), b.max(u64::from(y))));
+    let blocks: u64 = comps
+        .iter()
+        .map(|&(x, y)| {
+            let cw = (u64::from(w) * u64::from(x.max(1))).div_ceil(hmax);
+            let ch = (u64::from(h) * u64::from(y.max(1))).div_ceil(vmax);
+            cw.div_ceil(8) * ch.div_ceil(8)
+        })
+        .sum();
+    let need = blocks.div_ceil(8);
+    (walk.scan_bytes < need).then(|| {
+        format!(
+            "a damaged JPEG: its {w}x{h} pixels need at least {need} bytes of scan data, and its scans hold {}",
+            walk.scan_bytes
+        )
+    })
 }
 
 /// Reads a whole JPEG file (bounded by the memory budget) and checks that it
@@ -231,6 +347,9 @@ fn read_jpeg<R: BufRead + Seek>(mut reader: R, limits: &Limits) -> Result<Vec<u8
             "cannot decode: truncated JPEG (no end-of-image marker after the last scan)",
         ));
     }
+    if let Some(why) = jpeg_problem(&bytes) {
+        return Err(Failure::new(Kind::Input, why));
+    }
     Ok(bytes)
 }
 
@@ -251,7 +370,9 @@ fn too_many_pixels(w: u32, h: u32, limits: &Limits) -> Result<(), Failure> {
 /// Err: refused, with the reason; Ok(None): left to the decoder).
 struct Meta {
     orientation: u8,
-    note: Option<String>,
+    notes: Vec<String>,
+    /// the codes are linear light already (a PNG's gAMA of 1.0): no sRGB curve
+    linear_codes: bool,
     icc: Option<Result<Option<Vec<u8>>, String>>,
 }
 
@@ -279,7 +400,7 @@ fn open<R: BufRead + Seek>(
             let (orientation, note) = oriented(&mut || exif::orientation_of(&bytes));
             let icc = exif::jpeg(&mut Cursor::new(&bytes), cap).icc.map(|r| r.map(Some));
             let reader = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
-            open_reader(reader, limits, Meta { orientation, note, icc }, check, None)
+            open_reader(reader, limits, Meta { orientation, notes: note.into_iter().collect(), linear_codes: false, icc }, check, None)
         }
         Some(ImageFormat::Png) => {
             let mut inner = reader.into_inner();
@@ -291,18 +412,25 @@ fn open<R: BufRead + Seek>(
             inner.seek(SeekFrom::Start(0)).map_err(io)?;
             let mut ihdr = None;
             if got == head.len() && &head[12..16] == b"IHDR" {
-                let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]);
+                let be = |b: &[u8]| b.first_chunk::<4>().map_or(0, |&b| u32::from_be_bytes(b));
                 let (w, h) = (be(&head[16..20]), be(&head[20..24]));
                 too_many_pixels(w, h, limits)?;
                 ihdr = Some((w, h));
             }
             let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
             let (found, holes) = exif::png(&mut inner, cap);
+            let (mut notes, linear_codes) = png_colour(&found);
+            if found.animated {
+                notes.push("an animated PNG: its first frame is read".into());
+            }
+            if let Some(n) = note {
+                notes.insert(0, n);
+            }
             let icc = found.icc.map(|r| r.map(Some));
             inner.seek(SeekFrom::Start(0)).map_err(io)?;
             let hidden = BufReader::new(Without::new(inner, holes).map_err(io)?);
             let reader = ImageReader::with_format(hidden, ImageFormat::Png);
-            open_reader(reader, limits, Meta { orientation, note, icc }, check, ihdr)
+            open_reader(reader, limits, Meta { orientation, notes, linear_codes, icc }, check, ihdr)
         }
         Some(ImageFormat::Tiff) => {
             let mut inner = reader.into_inner();
@@ -312,9 +440,28 @@ fn open<R: BufRead + Seek>(
             // its words for a layout it cannot read are its own type names
             // ("color type Unknown(16)")
             let layout = exif::ReaderSource::new(&mut inner).ok().and_then(|mut s| exif::tiff_layout(&mut s));
+            // the image decoded: not a thumbnail stored first, nor integers taken for floats
+            let pick = exif::ReaderSource::new(&mut inner)
+                .map_err(io)
+                .and_then(|mut s| exif::tiff_pick(&mut s).map_err(|why| Failure::new(Kind::Input, why)))?;
+            let mut notes: Vec<String> = note.into_iter().collect();
+            let mut header = None;
+            if let Some(p) = &pick {
+                if p.offset != p.first {
+                    notes.push(format!(
+                        "the file's first image is a reduced-resolution one (a thumbnail); its full-resolution image (IFD {}) is read",
+                        p.index
+                    ));
+                    let at = u32::try_from(p.offset).unwrap_or(0);
+                    header = Some(if p.little_endian { at.to_le_bytes() } else { at.to_be_bytes() });
+                }
+                if p.pages > 1 {
+                    notes.push(format!("the file holds {} full-resolution images; the first is read", p.pages));
+                }
+            }
             inner.seek(SeekFrom::Start(0)).map_err(io)?;
-            let reader = ImageReader::with_format(inner, ImageFormat::Tiff);
-            open_reader(reader, limits, Meta { orientation, note, icc: Some(Ok(None)) }, check, None).map_err(|f| {
+            let reader = ImageReader::with_format(BufReader::new(Patched::new(inner, 4, header.unwrap_or_default(), header.is_some())), ImageFormat::Tiff);
+            open_reader(reader, limits, Meta { orientation, notes, linear_codes: false, icc: Some(Ok(None)) }, check, None).map_err(|f| {
                 match layout {
                     Some(l) if f.kind == Kind::Input && f.message.starts_with("unsupported") => Failure::new(
                         Kind::Input,
@@ -342,7 +489,7 @@ fn open<R: BufRead + Seek>(
             if let Some(f) = guessed {
                 reader.set_format(f);
             }
-            open_reader(reader, limits, Meta { orientation: 1, note: None, icc: None }, check, None)
+            open_reader(reader, limits, Meta { orientation: 1, notes: Vec::new(), linear_codes: false, icc: None }, check, None)
         }
     }
 }
@@ -425,6 +572,51 @@ fn open_reader<R: BufRead + Seek>(
     Ok((img, format, meta))
 }
 
+/// What a PNG's own colour chunks say, when no ICC profile or sRGB chunk
+/// overrides them (the PNG rule): notes, and whether its codes are linear
+/// light. A gAMA of 1.0 (within 1%) is applied: the codes are read without
+/// the sRGB curve. Another gAMA than sRGB's 1/2.2 and a cICP chunk
+/// (BT.2020, PQ, ...) are not applied, and said: the codes are read as sRGB.
+fn png_colour(found: &exif::Found) -> (Vec<String>, bool) {
+    if found.icc.is_some() || found.srgb {
+        return (Vec::new(), false);
+    }
+    if let Some([primaries, transfer, _, _]) = found.cicp {
+        return (
+            vec![format!(
+                "the PNG's cICP chunk (colour primaries {primaries}, transfer {transfer}) is not applied: its codes are read as sRGB"
+            )],
+            false,
+        );
+    }
+    match found.gamma.map(|g| f64::from(g) / 100_000.0) {
+        Some(g) if (g - 1.0).abs() <= 0.01 => (
+            vec!["the PNG's gAMA chunk says its codes are linear light (gamma 1.0): read without the sRGB curve".into()],
+            true,
+        ),
+        Some(g) if (g - 1.0 / 2.2).abs() > 0.005 => {
+            (vec![format!("the PNG's gAMA chunk ({g:.5}) is not applied: its codes are read as sRGB")], false)
+        }
+        _ => (Vec::new(), false),
+    }
+}
+
+/// The share of the pixels that are not fully opaque, when the image has
+/// an alpha channel and some are (the restoration takes every pixel as
+/// scene: the user is told).
+fn not_opaque(img: &DynamicImage) -> Option<f64> {
+    let n = (img.width() as usize * img.height() as usize).max(1) as f64;
+    let count = match img {
+        DynamicImage::ImageLumaA8(b) => b.pixels().filter(|p| p.0[1] < u8::MAX).count(),
+        DynamicImage::ImageRgba8(b) => b.pixels().filter(|p| p.0[3] < u8::MAX).count(),
+        DynamicImage::ImageLumaA16(b) => b.pixels().filter(|p| p.0[1] < u16::MAX).count(),
+        DynamicImage::ImageRgba16(b) => b.pixels().filter(|p| p.0[3] < u16::MAX).count(),
+        DynamicImage::ImageRgba32F(b) => b.pixels().filter(|p| p.0[3] < 1.0).count(),
+        _ => 0,
+    };
+    (count > 0).then(|| count as f64 / n)
+}
+
 /// Decodes one file's bytes from `reader` to H x W x 3 values in [0, 1],
 /// through the inverse sRGB curve when `linearize`. `check` sees the header
 /// before the pixels are decoded and may refuse it (the memory plan).
@@ -434,8 +626,14 @@ pub fn decode<R: BufRead + Seek>(
     linearize: bool,
     check: impl FnOnce(&Header) -> Result<(), Failure>,
 ) -> Result<Decoded, Failure> {
-    let (img, format, meta) = open(reader, limits, true, check)?;
+    let (img, format, mut meta) = open(reader, limits, true, check)?;
     let (height, width) = (img.height() as usize, img.width() as usize);
+    if let Some(share) = not_opaque(&img) {
+        meta.notes.push(format!(
+            "the alpha channel is ignored: {:.1}% of the pixels are not opaque, and are restored as scene",
+            100.0 * share
+        ));
+    }
     let (icc, refused) = match meta.icc {
         Some(Ok(p)) => (p, None),
         Some(Err(why)) => (None, Some(why)),
@@ -474,10 +672,10 @@ pub fn decode<R: BufRead + Seek>(
             (v, 16)
         }
         ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => {
-            (decode_u8(img.into_rgb8().as_raw(), linearize), 8)
+            (decode_u8(img.into_rgb8().as_raw(), linearize && !meta.linear_codes), 8)
         }
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16 => {
-            (decode_u16(img.into_rgb16().as_raw(), linearize), 16)
+            (decode_u16(img.into_rgb16().as_raw(), linearize && !meta.linear_codes), 16)
         }
         ColorType::Rgb32F | ColorType::Rgba32F => (img.into_rgb32f().into_raw(), 32),
         other => {
@@ -495,7 +693,7 @@ pub fn decode<R: BufRead + Seek>(
         bits,
         is_float: bits == 32,
         orientation: meta.orientation,
-        notes: meta.note.into_iter().collect(),
+        notes: meta.notes,
         // float samples are taken as linear values, whatever their profile (as the Python reader does)
         icc_profile: if bits == 32 { None } else { profile },
     })
@@ -656,6 +854,24 @@ mod tests {
         let e = decode(Cursor::new(cut), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
         assert_eq!(e.kind, Kind::Input);
         assert!(e.message.contains("truncated"), "{e}");
+    }
+
+    #[test]
+    fn a_lossless_frame_and_scans_too_short_for_the_frame_are_named() {
+        let jpg = small_jpeg();
+        assert_eq!(jpeg_problem(&jpg), None);
+        let sof = jpg.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap();
+        // the same stream marked lossless (SOF3): the decoder has no such mode
+        let mut lossless = jpg.clone();
+        lossless[sof + 1] = 0xC3;
+        assert_eq!(jpeg_problem(&lossless).unwrap(), "lossless JPEG (marker FF C3) is not read: baseline and progressive JPEG are");
+        // its frame claimed 6000 x 4000: the encoder writes 4:4:4, so 3 x 750 x 500 blocks, one bit each at least
+        let mut big = jpg.clone();
+        big[sof + 5..sof + 9].copy_from_slice(&[0x0F, 0xA0, 0x17, 0x70]);
+        let why = jpeg_problem(&big).unwrap();
+        assert!(why.starts_with("a damaged JPEG: its 6000x4000 pixels need at least 140625 bytes of scan data"), "{why}");
+        let e = decode(Cursor::new(big), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
+        assert_eq!((e.kind, e.message), (Kind::Input, why));
     }
 
     #[test]

@@ -169,7 +169,7 @@ fn header(src: &mut dyn Source) -> Result<(Order, u64), String> {
 fn ifd(src: &mut dyn Source, o: Order, at: u64) -> Result<(Vec<Entry>, u64), String> {
     let (count_size, entry_size, link_size) = if o.big { (8, 20, 8) } else { (2, 12, 4) };
     let mut c = [0u8; 8];
-    if !src.read_at(at, &mut c[..count_size]) {
+    if !c.get_mut(..count_size).is_some_and(|head| src.read_at(at, head)) {
         return Err(format!("an EXIF IFD offset ({at}) is outside the block"));
     }
     let n = if o.big { o.u64(c) } else { u64::from(o.u16([c[0], c[1]])) };
@@ -184,19 +184,22 @@ fn ifd(src: &mut dyn Source, o: Order, at: u64) -> Result<(Vec<Entry>, u64), Str
     let entries = raw
         .chunks_exact(entry_size)
         .take(n)
-        .map(|e| {
-            // count then value field: 4 + 4 bytes in classic TIFF, 8 + 8 in BigTIFF
-            let (count, value) = e[4..].split_at((entry_size - 4) / 2);
+        .filter_map(|e| {
+            // tag and type, then the count and value fields: 4 + 4 bytes in
+            // classic TIFF, 8 + 8 in BigTIFF (every chunk has entry_size bytes)
+            let ([t0, t1, k0, k1], fields) = e.split_first_chunk::<4>()?;
+            let (count, value) = fields.split_at_checked((entry_size - 4) / 2)?;
             let mut v = [0u8; 8];
-            v[..value.len()].copy_from_slice(value);
+            v.iter_mut().zip(value).for_each(|(d, &b)| *d = b);
             let mut k = [0u8; 8];
-            k[..count.len()].copy_from_slice(count);
-            Entry {
-                tag: o.u16([e[0], e[1]]),
-                kind: o.u16([e[2], e[3]]),
-                count: if o.big { o.u64(k) } else { u64::from(o.u32([k[0], k[1], k[2], k[3]])) },
+            k.iter_mut().zip(count).for_each(|(d, &b)| *d = b);
+            let [c0, c1, c2, c3, ..] = k;
+            Some(Entry {
+                tag: o.u16([*t0, *t1]),
+                kind: o.u16([*k0, *k1]),
+                count: if o.big { o.u64(k) } else { u64::from(o.u32([c0, c1, c2, c3])) },
                 raw: v,
-            }
+            })
         })
         .collect();
     let mut l = [0u8; 8];
@@ -300,6 +303,10 @@ fn walk_as(src: &mut dyn Source, check_data: bool, image: bool, lenient: bool) -
     let (max_ifds, max_entries, max_values) =
         if image { (MAX_FILE_IFDS, MAX_FILE_ENTRIES, MAX_FILE_VALUE_BYTES) } else { (MAX_IFDS, MAX_ENTRIES, MAX_VALUE_BYTES) };
     let (o, ifd0) = or_skip!(header(src), { return Ok(Walked { ifds: 0, entries: 0 }) });
+    // IFD0 cannot overlap the header (an offset of 0 would read the header as an IFD)
+    if ifd0 < 8 && !lenient {
+        return Err(format!("the EXIF block's header gives IFD0 at offset {ifd0}, inside the header: no image directory"));
+    }
     let len = src.size();
     // an IFD counts against the limit when it is queued: the walked and the
     // queued ones never exceed it (8192 SubIFDs entries of 4096 offsets each
@@ -454,6 +461,83 @@ pub fn tiff_structure<R: Read + Seek>(r: &mut R) -> Result<(), String> {
     walk(&mut src, false, true)
         .map(|_| ())
         .map_err(|m| m.replace("the EXIF block", "the file").replace("the block", "the file").replace("an EXIF ", "a TIFF ").replace("EXIF ", "TIFF "))
+}
+
+/// The image of a TIFF file that is decoded: the first IFD of the
+/// top-level chain that is not a reduced-resolution image (NewSubfileType
+/// bit 0, or the old SubfileType 2), so that a thumbnail stored first is
+/// not taken for the photo.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TiffPick {
+    /// the picked IFD's offset
+    pub offset: u64,
+    /// IFD0's offset
+    pub first: u64,
+    /// its place in the chain (0 = IFD0)
+    pub index: usize,
+    /// how many full-resolution images the chain holds (pages)
+    pub pages: usize,
+    /// the file's byte order (little-endian)
+    pub little_endian: bool,
+}
+
+/// Picks the image of a classic TIFF to decode ([`TiffPick`]), after
+/// [`tiff_structure`] accepted the file. Err names what is not read: a
+/// file whose every image is reduced (a raw camera file keeps its sensor
+/// mosaic in a SubIFD behind a preview: named as raw), and 32-bit samples
+/// that are not floats (the decoder would take their bits for floats).
+/// Ok(None) for a BigTIFF or what is not a TIFF (the decoder's to name).
+pub fn tiff_pick(src: &mut dyn Source) -> Result<Option<TiffPick>, String> {
+    let (o, first) = header(src)?;
+    if o.big {
+        return Ok(None);
+    }
+    let (mut at, mut index, mut pages) = (first, 0usize, 0usize);
+    let mut pick: Option<(u64, usize, Vec<Entry>)> = None;
+    let mut seen = std::collections::HashSet::new();
+    while at != 0 && index < MAX_FILE_IFDS && seen.insert(at) {
+        let (list, next) = ifd(src, o, at)?;
+        let one = |src: &mut dyn Source, tag: u16| {
+            list.iter().find(|e| e.tag == tag).and_then(|e| integers(src, o, e, 1).ok()).and_then(|v| v.first().copied())
+        };
+        let reduced = one(src, 0x00FE).is_some_and(|v| v & 1 == 1) || one(src, 0x00FF) == Some(2);
+        if !reduced {
+            pages += 1;
+            if pick.is_none() {
+                pick = Some((at, index, list));
+            }
+        }
+        index += 1;
+        at = next;
+    }
+    let Some((offset, index, list)) = pick else {
+        // only previews: a raw camera file (DNG, NEF, ...) keeps its full
+        // image in a SubIFD of IFD0, in the camera's own colours
+        let (ifd0, _) = ifd(src, o, first)?;
+        let subs = ifd0.iter().find(|e| e.tag == 0x014A).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
+        let raw = subs.iter().any(|&sub| {
+            ifd(src, o, sub).ok().is_some_and(|(l, _)| {
+                let kind = l.iter().find(|e| e.tag == 0x00FE).and_then(|e| integers(src, o, e, 1).ok());
+                kind.and_then(|v| v.first().copied()).unwrap_or(0) & 1 == 0
+            })
+        });
+        return Err(if raw {
+            "a raw camera file (its full-resolution image is in a SubIFD, behind the preview a TIFF reader \
+             sees): give it its raw extension (.nef, .dng, ...); the Python command reads raw files"
+                .into()
+        } else {
+            "the file holds only reduced-resolution images (thumbnails: NewSubfileType 1)".into()
+        });
+    };
+    let bits = list.iter().find(|e| e.tag == 0x0102).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
+    let format = list.iter().find(|e| e.tag == 0x0153).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
+    if bits.contains(&32) && format.first().copied().unwrap_or(1) != 3 {
+        let kind = if format.first() == Some(&2) { "signed" } else { "unsigned" };
+        return Err(format!(
+            "32-bit {kind} integer samples are not read: 8/16-bit integer and 32-bit float images are"
+        ));
+    }
+    Ok(Some(TiffPick { offset, first, index, pages, little_endian: o.le }))
 }
 
 /// The IFD of an EXIF block an entry is in: IFD0's chain, or the Exif,
@@ -673,6 +757,15 @@ pub struct Found {
     pub xmp: Option<Result<String, String>>,
     /// the ICC profile (JPEG: its APP2 chunks joined; PNG: iCCP inflated)
     pub icc: Option<Result<Vec<u8>, String>>,
+    /// PNG: the gAMA chunk's value (gamma x 100000), whether an sRGB chunk
+    /// is there, and the cICP chunk (primaries, transfer, matrix, full range)
+    pub gamma: Option<u32>,
+    /// see [`Found::gamma`]
+    pub srgb: bool,
+    /// see [`Found::gamma`]
+    pub cicp: Option<[u8; 4]>,
+    /// PNG: an animation control chunk (acTL): an APNG, of which the first frame is read
+    pub animated: bool,
 }
 
 /// The header of an EXIF APP1 segment and, optionally, of a PNG eXIf chunk.
@@ -757,10 +850,11 @@ pub fn jpeg<R: Read + Seek>(r: &mut R, icc_cap: u64) -> Found {
                 } else if let Some(x) = seg.strip_prefix(XMP_JPEG_HEADER) {
                     f.xmp.get_or_insert_with(|| Ok(String::from_utf8_lossy(x).into_owned()));
                 }
-            } else if let Some(c) = seg.strip_prefix(ICC_JPEG_HEADER).filter(|c| c.len() >= 2) {
-                icc_bytes += (c.len() - 2) as u64;
+            } else if let Some([seq, _, body @ ..]) = seg.strip_prefix(ICC_JPEG_HEADER) {
+                // the chunk's sequence number and count, then its part of the profile
+                icc_bytes += body.len() as u64;
                 if icc_bytes <= icc_cap {
-                    icc.push((c[0], c[2..].to_vec()));
+                    icc.push((*seq, body.to_vec()));
                 }
             }
         }
@@ -804,9 +898,9 @@ fn itxt_payload(rest: &[u8]) -> Option<(bool, &[u8])> {
     let (&compressed, rest) = rest.split_first()?;
     let rest = rest.get(1..)?;
     let lang = rest.iter().position(|&b| b == 0)?;
-    let rest = &rest[lang + 1..];
+    let rest = rest.get(lang + 1..)?;
     let tr = rest.iter().position(|&b| b == 0)?;
-    Some((compressed != 0, &rest[tr + 1..]))
+    Some((compressed != 0, rest.get(tr + 1..)?))
 }
 
 /// The keyword of the text chunks in which ImageMagick (and others) keep
@@ -836,7 +930,7 @@ fn raw_profile(kind: &[u8; 4], data: &[u8]) -> Result<Vec<u8>, String> {
     let digits = text.get(start.ok_or_else(bad)? + 1..).ok_or_else(bad)?;
     let hex = |b: u8| (b as char).to_digit(16).map(|d| d as u8);
     let nibbles: Vec<u8> = digits.iter().filter(|b| !b.is_ascii_whitespace()).map(|&b| hex(b).ok_or_else(bad)).collect::<Result<_, _>>()?;
-    let mut block: Vec<u8> = nibbles.chunks_exact(2).map(|p| p[0] << 4 | p[1]).collect();
+    let mut block: Vec<u8> = nibbles.as_chunks::<2>().0.iter().map(|&[hi, lo]| hi << 4 | lo).collect();
     if block.starts_with(EXIF_HEADER) {
         block.drain(..EXIF_HEADER.len());
     }
@@ -871,6 +965,17 @@ pub fn png<R: Read + Seek>(r: &mut R, icc_cap: u64) -> (Found, Vec<(u64, u64)>) 
         }
         match &kind {
             b"IEND" => break,
+            // the reader stands at the chunk's data
+            b"gAMA" if len == 4 && f.gamma.is_none() => {
+                let mut g = [0u8; 4];
+                f.gamma = r.read_exact(&mut g).ok().map(|()| u32::from_be_bytes(g));
+            }
+            b"cICP" if len == 4 && f.cicp.is_none() => {
+                let mut c = [0u8; 4];
+                f.cicp = r.read_exact(&mut c).ok().map(|()| c);
+            }
+            b"sRGB" => f.srgb = true,
+            b"acTL" => f.animated = true,
             b"eXIf" => {
                 f.exif_blocks += 1;
                 if f.exif.is_none() {
@@ -886,8 +991,9 @@ pub fn png<R: Read + Seek>(r: &mut R, icc_cap: u64) -> (Found, Vec<(u64, u64)>) 
                 // the compressed profile is smaller than the inflated cap (deflate cannot beat 1032:1)
                 f.icc = Some(take(r, len, icc_cap.max(1 << 16), "ICC chunk").and_then(|d| {
                     let name = d.iter().position(|&b| b == 0).filter(|&n| (1..80).contains(&n));
-                    match name.and_then(|n| d.get(n + 1..).map(|rest| (rest, n))) {
-                        Some((rest, _)) if rest.first() == Some(&0) => inflate(&rest[1..], icc_cap, "ICC profile"),
+                    // the name's NUL, then the compression method (0: deflate) and the profile
+                    match name.and_then(|n| d.get(n + 1..)).and_then(|rest| rest.split_first()) {
+                        Some((0, profile)) => inflate(profile, icc_cap, "ICC profile"),
                         _ => Err("the iCCP chunk is malformed".into()),
                     }
                 }));
@@ -898,7 +1004,7 @@ pub fn png<R: Read + Seek>(r: &mut R, icc_cap: u64) -> (Found, Vec<(u64, u64)>) 
                     at = at.saturating_add(len).saturating_add(12);
                     continue;
                 };
-                let keyword = &key[..end];
+                let keyword = key.get(..end).unwrap_or_default();
                 let mut rest = || -> Result<Vec<u8>, String> {
                     let _ = r.seek(SeekFrom::Start(at + 8 + end as u64 + 1));
                     take(r, len - end as u64 - 1, MAX_BLOCK, "text chunk")
@@ -926,7 +1032,7 @@ pub fn png<R: Read + Seek>(r: &mut R, icc_cap: u64) -> (Found, Vec<(u64, u64)>) 
 pub fn scan<R: Read + Seek>(r: &mut R, icc_cap: u64) -> Found {
     let mut sig = [0u8; 8];
     let n = r.seek(SeekFrom::Start(0)).and_then(|_| r.read(&mut sig)).unwrap_or(0);
-    let sig = &sig[..n];
+    let sig = sig.get(..n).unwrap_or_default();
     if sig.starts_with(&[0xFF, 0xD8]) {
         jpeg(r, icc_cap)
     } else if sig.starts_with(b"\x89PNG") {

@@ -223,6 +223,11 @@ pub enum Given<'a> {
     Axis(&'a crate::files::depth::DistanceMap, &'a crate::files::nav::LensOf, crate::method::floor::Port),
 }
 
+/// The note of a float image given `--preprocess reference` (the Python
+/// command says the same).
+pub const FLOAT_NOT_PREPROCESSED: &str =
+    "the reference preprocessing does not apply to float samples (linear light): they are restored as they are";
+
 #[cfg(any(test, feature = "internals"))]
 /// Decodes one file from `reader` and restores it with the options, as the
 /// next frame of `seq` when given (`--reuse-estimates`: its
@@ -349,7 +354,13 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
         icc_profile: decoded.icc_profile.clone(),
         camera_matrix: None,
         white_balance: None,
-        notes: decoded.notes.clone(),
+        notes: {
+            let mut n = decoded.notes.clone();
+            if reference && decoded.is_float {
+                n.push(FLOAT_NOT_PREPROCESSED.to_string());
+            }
+            n
+        },
     };
     Ok(Restored {
         res,
@@ -658,22 +669,21 @@ pub fn write_outputs(mut claimed: Claim, out: Outputs<'_>, opts: &Settings, timi
     let (hp, wp) = (out.source.processed_height, out.source.processed_width);
     let t2 = Instant::now();
     let paths = claimed.paths().to_vec();
-    let sheet_path = match (paths.len(), out.contact_sheet) {
-        (5, None) => None,
-        (6, Some(_)) => Some(paths[4].clone()),
-        (n, sheet) => {
+    // the claim's order: image, t, t colour, confidence, [contact sheet,] sidecar
+    let (image_path, t_path, tc_path, conf_slot, sheet_path, sidecar_path) = match (paths.as_slice(), out.contact_sheet) {
+        ([i, t, tc, c, s], None) => (i.clone(), t.clone(), tc.clone(), c.clone(), None, s.clone()),
+        ([i, t, tc, c, sheet, s], Some(_)) => (i.clone(), t.clone(), tc.clone(), c.clone(), Some(sheet.clone()), s.clone()),
+        (paths, sheet) => {
             return Err(Failure::new(
                 Kind::Internal,
-                format!("a claim of {n} outputs does not fit {} contact sheet", if sheet.is_some() { "a" } else { "no" }),
+                format!("a claim of {} outputs does not fit {} contact sheet", paths.len(), if sheet.is_some() { "a" } else { "no" }),
             ))
         }
     };
-    let (image_path, t_path, tc_path) = (paths[0].clone(), paths[1].clone(), paths[2].clone());
-    let conf_path = out.confidence.map(|_| paths[3].clone());
+    let conf_path = out.confidence.map(|_| conf_slot);
     if out.confidence.is_none() {
         claimed.omit(3);
     }
-    let sidecar_path = paths[paths.len() - 1].clone();
     let enc = Encoding {
         format: opts.format,
         bits: opts.bits(),

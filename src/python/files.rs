@@ -265,6 +265,9 @@ fn read_distance_file<'py>(
     Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
 }
 
+/// The ranges (an array), the sidecar's `distance.depth` (JSON) and why not.
+type RangeFor<'py> = (Option<Bound<'py, PyAny>>, Option<String>, Option<String>);
+
 /// With `distance_kind="depth"`: an input's map of depth along the camera's
 /// axis turned into ranges (METHOD §13.7, the binary's `LensOf`), with the
 /// lens of `fov` or the photo's EXIF and `port`, for a photo of `height` x
@@ -280,7 +283,7 @@ fn depth_to_range_for<'py>(
     depth: numpy::PyReadonlyArray2<'py, f32>,
     height: usize,
     width: usize,
-) -> PyResult<(Option<Bound<'py, PyAny>>, Option<String>, Option<String>)> {
+) -> PyResult<RangeFor<'py>> {
     let opts = &settings.0;
     let [mh, mw] = [depth.shape()[0], depth.shape()[1]];
     let data = depth.as_array().iter().copied().collect::<Vec<f32>>();
@@ -495,6 +498,7 @@ fn write_input_outputs(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFileSettings>()?;
     m.add_function(wrap_pyfunction!(decode_file, m)?)?;
+    m.add("FLOAT_NOT_PREPROCESSED", crate::files::pipeline::FLOAT_NOT_PREPROCESSED)?;
     m.add_function(wrap_pyfunction!(decode_mask_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_for, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_file, m)?)?;

@@ -280,7 +280,8 @@ def test_write_is_atomic_and_leaves_nothing_on_failure(tmp_path, monkeypatch):
     def boom(a):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(images, "_png_bytes", boom)
+    from uwhl_rs import imagewrite
+    monkeypatch.setattr(imagewrite, "_png_bytes", boom)
     with pytest.raises(OSError, match="No space left"):
         images.write_image(p, np.ones((4, 4, 3), np.float32))
     assert p.read_bytes() == before  # the old file is untouched
