@@ -322,8 +322,10 @@ def evaluate_entry(entry: Entry, method: str = METHODS[0], mask_charts: bool = F
             angles[m] = {f"{k}_deg": _finite(v) for k, v in gt.score(im, truth_img, scored).items()}
     rho = {}
     if distance is not None:
+        # not for a restoration given the map: its t_B is the map's own (rho 1 by construction)
         for m, r in restorations.items():
-            rho[m] = _rho_pair(distance, r)
+            if not m.endswith("+distance"):
+                rho[m] = _rho_pair(distance, r)
     truth = None
     profiles = {}
     for m in [method, *compare]:
@@ -503,9 +505,11 @@ def write_results(out_dir: str, manifest: str, results: list[dict], problems: li
                 angles = r.get("truth_angles", {})
 
                 def tail(m):
-                    # a profile's own choice (baselines and type:NAME rows show the method's), then the truth angles
+                    # a profile's own choice, the type a type:NAME row was given, none for a baseline
+                    # (input, stretch, gray world: no water type), then the truth angles
                     a = angles.get(m, {})
-                    return [profiles[m]["water_type"] if m in profiles else chosen, truth.get("true", ""),
+                    wt = profiles[m]["water_type"] if m in profiles else m[5:] if m.startswith("type:") else ""
+                    return [wt, truth.get("true", ""),
                             *(_fmt(a.get(k)) for k in TRUTH_KEYS)]
 
                 for row in r["charts"]:

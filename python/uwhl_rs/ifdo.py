@@ -420,6 +420,9 @@ def build_ifdo(out: str, header: dict, *, handle_base: str | None = None,
                 "water-type": doc.get("water_type"),
                 "veiling-light": doc.get("veiling_light"),
                 "flags": doc.get("flags") or [],
+                # where the shown colours come from (METHOD §12.5): the input's balance's share, and why
+                "fallback-share": _share(doc.get("fallback_share")),
+                "veil-excess": _share(doc.get("veil_excess")),
                 "parameters": doc.get("parameters") or {},
                 "sidecar": shown,
             },
@@ -523,6 +526,14 @@ def inside(key: str) -> bool:
         parts = key.replace("\\", "/").split("/")  # where a backslash separates folders too
     return (bool(key) and not key.startswith(("/", "\\")) and not re.match(r"[A-Za-z]:", key)
             and all(p not in ("", ".", "..") for p in parts))
+
+
+def _share(v) -> float | None:
+    """A sidecar's share (``fallback_share``, ``veil_excess``) as the iFDO
+    records it: a number in [0, 1], else None (absent, or not a share)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+        return None
+    return float(v)
 
 
 def _input_name(source: str) -> str:

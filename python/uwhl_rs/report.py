@@ -543,7 +543,7 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>uwhl report: {_text(folder.name)}</title><style>{_CSS}</style></head><body>
 <h1>{_text(folder.display)}</h1>
-<p class="meta" id="summary">{len(photos)} photos{f" and {len(videos)} videos" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {n_failed} failed{f", {balanced} with the input's balance for colours" if balanced else ""}; water types:
+<p class="meta" id="summary">{_count(len(photos), "photo")}{f" and {_count(len(videos), 'video')}" if videos else ""} restored, {flagged + len(flagged_videos)} flagged, {n_failed} failed{f", {balanced} with the input's balance for colours" if balanced else ""}; water types:
 {', '.join(f'{_text(t)} {n}' for t, n in counts.items()) or 'none'}. uwhl_rs {html.escape(uwhl_rs.__version__)},
 {html.escape(time.strftime('%Y-%m-%d %H:%M'))}.</p>
 {failed_html}
@@ -564,6 +564,11 @@ def _write_report(folder, workers, side: int, page_size: int) -> dict:
     return {"path": path, "photos": len(photos), "videos": len(videos), "flagged": flagged + len(flagged_videos),
             "failed": n_failed, "thumbnails_written": written,
             "problems": problems, "seconds": time.perf_counter() - t0}
+
+
+def _count(n: int, noun: str) -> str:
+    """``n`` and ``noun``, plural unless one."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def _text(s: str) -> str:

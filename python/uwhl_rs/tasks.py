@@ -40,7 +40,8 @@ VIDEO_KEYS = ("every", "video_codec", "video_quality", "transfer", "scene_cut", 
 _HEADER_BYTES = 1 << 18
 
 #: a row's columns, in order (``restore_many``'s DataFrame)
-COLUMNS = ["input", "status", "water_type", "A_R", "A_G", "A_B", "flags", "seconds", "image", "transmission",
+COLUMNS = ["input", "status", "water_type", "A_R", "A_G", "A_B", "flags", "veil_excess", "fallback_share", "seconds",
+           "image", "transmission",
            "transmission_color", "confidence", "contact_sheet", "sidecar", "reused_estimates", "error_kind", "error", "exit_code",
            "worker", "scores", "taken_at", "latitude", "longitude", "altitude"]
 

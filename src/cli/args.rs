@@ -122,8 +122,10 @@ codes are those of the Python command 'uwhl restore' (docs/CLI.md).
   -V, --version              the version
 
 {}In stream mode the exit code is 0 at the end of stdin unless the arguments were bad (2)
-or the run was interrupted (130). With --raw-frames it is 0 at a clean end of stdin, 3 when
-stdin ends inside a frame, 4 when a frame does not fit --max-memory, 5 when stdout closes.
+or the output folder cannot be made (5). With --raw-frames it is 0 at a clean end of stdin,
+3 when stdin ends inside a frame, 4 when a frame does not fit --max-memory, 5 when stdout
+closes. In both, SIGINT or SIGTERM end the run at once by that signal (a shell shows 130
+or 143).
 ",
         help_text(Faces::Rust, 100),
         exit_code_text()

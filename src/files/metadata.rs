@@ -166,7 +166,7 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
             // one known tag of a type little_exif does not take (an Orientation
             // or a UserComment written as text) fails the whole block: read
             // again without such entries
-            if matches!(&parsed, Err(_)) || matches!(&parsed, Ok(Err(e)) if !is_absent(e)) {
+            if parsed.is_err() || matches!(&parsed, Ok(Err(e)) if !is_absent(e)) {
                 if let Some((lean, g)) = exif::without_entries(&v, &unexpected_type) {
                     gone.extend(g);
                     v = lean;
@@ -293,7 +293,7 @@ fn is_offset(tag: &ExifTag) -> bool {
 /// The EXIF of an output of `width` x `height` sRGB pixels, upright: the
 /// carried tags with Orientation 1, ColorSpace 1 (sRGB) and the pixel size.
 pub fn output_exif(c: &Carried, width: u32, height: u32) -> Metadata {
-    let mut m = c.exif.clone().unwrap_or_else(Metadata::new);
+    let mut m = c.exif.clone().unwrap_or_default();
     m.set_tag(ExifTag::Orientation(vec![1]));
     m.set_tag(ExifTag::ColorSpace(vec![1]));
     m.set_tag(ExifTag::ExifImageWidth(vec![width]));
@@ -464,10 +464,19 @@ pub fn image_uuid(input_sha256: &str, record: &Record) -> String {
         text.push_str(&format!("{k}={v}\n"));
     }
     let hex = sha256_hex(text.as_bytes());
-    let mut digits: Vec<u8> = hex.as_bytes()[..32].to_vec();
-    digits[12] = b'4'; // version 4
-    let variant = u8::from_str_radix(std::str::from_utf8(&digits[16..17]).unwrap_or("0"), 16).unwrap_or(0);
-    digits[16] = b"89ab"[usize::from(variant & 3)]; // RFC 4122 variant: 10xx
+    let mut digits: Vec<u8> = hex.bytes().take(32).collect();
+    if let Some(d) = digits.get_mut(12) {
+        *d = b'4'; // version 4
+    }
+    if let Some(d) = digits.get_mut(16) {
+        // RFC 4122 variant: 10xx
+        *d = match char::from(*d).to_digit(16).unwrap_or(0) & 3 {
+            0 => b'8',
+            1 => b'9',
+            2 => b'a',
+            _ => b'b',
+        };
+    }
     String::from_utf8(digits).unwrap_or_default()
 }
 
@@ -667,6 +676,21 @@ pub fn record_from_sidecar(side: &serde_json::Value, sidecar_name: &str) -> Reco
     ]
 }
 
+/// Where the shown colours come from (METHOD §12.5), for the XMP record:
+/// `Fallback` (the sidecar's `parameters.fallback`), `FallbackShare` (the
+/// share of the shown colour that is the input's own balance, 0-1) and
+/// `VeilExcess` (the share of object pixels under more veil than light),
+/// each empty when the sidecar has none (the paper profile, a known
+/// distance).
+pub fn colour_source(side: &serde_json::Value) -> Record {
+    let number = |k: &str| side.get(k).and_then(serde_json::Value::as_f64).map(|v| format!("{v:.4}")).unwrap_or_default();
+    vec![
+        ("Fallback", value_text(side.get("parameters").and_then(|p| p.get("fallback")))),
+        ("FallbackShare", number("fallback_share")),
+        ("VeilExcess", number("veil_excess")),
+    ]
+}
+
 /// Carries the metadata of the input file (`input`, its bytes) into the
 /// encoded output `encoded` of `width` x `height` pixels, with the
 /// restoration record of the sidecar `side`: the output's bytes and the
@@ -683,8 +707,11 @@ fn carry_read(c: Carried, input_sha256: String, encoded: Vec<u8>, side: &serde_j
     width: u32, height: u32) -> (Vec<u8>, serde_json::Value) {
     let exif_tags = c.exif.as_ref().map_or(0, |m| m.get_ifds().iter().map(|i| i.get_tags().len()).sum::<usize>());
     let input_uuid = c.exif.as_ref().and_then(unique_id);
-    let record = record_from_sidecar(side, sidecar_name);
+    let mut record = record_from_sidecar(side, sidecar_name);
     let uuid = image_uuid(&input_sha256, &record);
+    // where the colours come from, in the photo's own record but not in its
+    // UUID: it follows from the input and the parameters the UUID already has
+    record.extend(colour_source(side));
     let mut exif = output_exif(&c, width, height);
     exif.set_tag(ExifTag::ImageUniqueID(uuid.clone()));
     let xmp = output_xmp(&c, &record);
@@ -793,10 +820,10 @@ fn read_from(path: &std::path::Path, tiff_cap: u64) -> std::io::Result<(Carried,
         if n == 0 {
             break;
         }
-        if head.len() < 8 {
-            head.extend_from_slice(&buf[..n.min(8 - head.len())]);
-        }
-        hasher.update(&buf[..n]);
+        let chunk = buf.get(..n).unwrap_or_default();
+        let room = 8usize.saturating_sub(head.len());
+        head.extend(chunk.iter().take(room));
+        hasher.update(chunk);
         len += n as u64;
     }
     let sha = hasher.finalize().iter().map(|b| format!("{b:02x}")).collect::<String>();
@@ -895,6 +922,7 @@ mod tests {
 
     /// "Exif\0\0" and a little-endian block: IFD0 with Make "Nikon" and
     /// its next-IFD link `next`.
+    #[cfg(feature = "cli")]
     fn exif_with_make(next: u32) -> Vec<u8> {
         let mut b = b"Exif\0\0II*\0\x08\0\0\0\x01\0\x0F\x01\x02\0\x06\0\0\0\x1A\0\0\0".to_vec();
         b.extend(next.to_le_bytes());

@@ -122,9 +122,13 @@ impl ByName {
         Ok(())
     }
 
-    /// The record of the file name `file`, else the first (in the log) whose stem is `stem`.
+    /// The record of the file name `file`, else the first (in the log) whose
+    /// stem is `stem` (the photo in another format), else one named `stem`
+    /// itself (a log of image names without extensions).
     fn get(&self, file: &str, stem: &str) -> Option<&Named> {
-        self.first(&self.by_file, file, false).or_else(|| self.first(&self.by_stem, stem, true))
+        self.first(&self.by_file, file, false)
+            .or_else(|| self.first(&self.by_stem, stem, true))
+            .or_else(|| self.first(&self.by_file, stem, false))
     }
 
     /// The earliest record of `list` (sorted by file name, or by stem when
@@ -834,6 +838,11 @@ mod tests {
         assert_eq!(log.pose(Path::new("b.tif"), None).unwrap().0.altitude, 4.0);
         let e = log.pose(Path::new("c.jpg"), None).unwrap_err();
         assert!(e.contains("no row for \"c.jpg\""), "{e}");
+        // a log of image names without extensions
+        let log = parse_log("image,altitude\nIMG_0001,3.5\nIMG_0002.x,4\n").unwrap();
+        assert_eq!(log.pose(Path::new("IMG_0001.JPG"), None).unwrap().0.altitude, 3.5);
+        assert_eq!(log.pose(Path::new("IMG_0002.x.tif"), None).unwrap().0.altitude, 4.0);
+        assert!(log.pose(Path::new("IMG_0001x.jpg"), None).is_err());
     }
 
     #[test]

@@ -357,7 +357,7 @@ sequences)",
         group: Group::Resources, faces: Faces::Both, method: true },
     Spec { key: "max_memory", flag: "--max-memory", short: None, metavar: "BYTES", kind: Kind::Bytes,
         default: Default::None, help: "peak memory of the process per input, checked from the header before \
-decoding (suffixes K, M, G; default: 16G, or what the machine, its cgroup or ulimit -v gives if less)",
+decoding (suffixes K, M, G, T; default: 16G, or what the machine, its cgroup or ulimit -v gives if less)",
         group: Group::Resources, faces: Faces::Both, method: true },
     Spec { key: "dask", flag: "--dask", short: None, metavar: "ADDRESS", kind: Kind::Address,
         default: Default::None, help: "run the batch on a Dask cluster: a scheduler's address (tcp://HOST:PORT) or \

@@ -80,11 +80,12 @@ impl WaterType {
         })
     }
 
-    /// A type of the Jerlov table by its name (case-sensitive, as in METHOD §1).
+    /// A type of the Jerlov table by its name in any ASCII case (`3c` is
+    /// `3C`), named as the table names it (METHOD §1).
     pub fn by_name(name: &str) -> Result<Self> {
         JERLOV
             .iter()
-            .find(|(n, _, _)| *n == name)
+            .find(|(n, _, _)| n.eq_ignore_ascii_case(name))
             .map(|&(n, br, bg)| Self {
                 name: n.to_string(),
                 beta_br: br,
@@ -147,6 +148,7 @@ mod tests {
         assert_eq!(t[9].name, "9C");
         // 5C is where red and blue attenuate alike (METHOD §1).
         assert_eq!(WaterType::by_name("5C").unwrap().beta_br, 1.0);
+        assert_eq!(WaterType::by_name("ib").unwrap().name, "IB");
     }
 
     #[test]

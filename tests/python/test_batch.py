@@ -136,6 +136,7 @@ def test_local_cluster_equals_local_run(cluster, inputs, local_run, tmp_path):
         side = json.load(open(row.sidecar))
         assert side["water_type"] == row.water_type
         assert [row.A_R, row.A_G, row.A_B] == side["veiling_light"]
+        assert (row.veil_excess, row.fallback_share) == (side["veil_excess"], side["fallback_share"])
         assert os.path.exists(row.image) and row.worker.startswith("tcp://127.0.0.1:")
     # rerun: every done input is skipped, the corrupt one fails again
     again = batch.restore_many(inputs, out, client=client)

@@ -112,6 +112,10 @@ def test_gps_time_camera_and_exposure_survive_exactly(face, binary, gps_jpeg, tm
     assert rec[b"WaterType"].decode() == side["water_type"]
     assert [float(v) for v in rec[b"VeilingLight"].split()] == pytest.approx(side["veiling_light"], abs=1e-6)
     assert rec[b"Method"] == b"revised" and rec[b"Sidecar"] == b"dive_0001.json"
+    # where the colours come from, as the sidecar has it (METHOD §12.5)
+    assert rec[b"Fallback"] == b"input_balance"
+    assert float(rec[b"FallbackShare"]) == pytest.approx(side["fallback_share"], abs=5e-5)
+    assert float(rec[b"VeilExcess"]) == pytest.approx(side["veil_excess"], abs=5e-5)
     assert side["metadata"]["written"] and side["metadata"]["exif_tags_carried"] >= 15
 
 

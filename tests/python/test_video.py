@@ -237,7 +237,7 @@ def test_a_folder_mixing_videos_and_photos(clips, tmp_path):
     assert side["video"]["schedule"]["refresh_every"] == 5
     page = (out / "report" / "index.html").read_text()
     assert 'id="videos"' in page and "a_strip.jpg" in page and "1 videos" not in page or True
-    assert "1 photos and 1 videos restored" in page
+    assert "1 photo and 1 video restored" in page
     # every row's time is its sidecar's, the video's as the photo's
     import csv
     with open(out / "summary.csv", newline="", encoding="utf-8") as f:
