@@ -84,12 +84,14 @@ def run(a: argparse.Namespace, console: Console) -> int:
     truth = any(v.get("images_with_truth") for m, v in doc["summary"].items() if m not in ev.SUMMARY_EXTRAS)
     # with a truth: the median over images of the per-image median angle, raw and after the best gains
     console.line()
-    console.line(f"{'method':<12} {'psi-bar':>8} {'rho t_B':>8}" + (f" {'truth':>8} {'gains':>8}" if truth else ""))
+    # the method column as wide as its longest name ("revised+distance", "type:9C"), columns aligned
+    width = max([12] + [len(m) for m in doc["summary"] if m not in ev.SUMMARY_EXTRAS])
+    console.line(f"{'method':<{width}} {'psi-bar':>8} {'rho t_B':>8}" + (f" {'truth':>8} {'gains':>8}" if truth else ""))
     for m, v in doc["summary"].items():
         if m in ev.SUMMARY_EXTRAS:
             continue
         ci = v.get("truth_median_deg_ci95")
-        console.line(f"{m:<12} {_fmt(v['psi_deg']):>8} {_fmt(v['rho_B']):>8}"
+        console.line(f"{m:<{width}} {_fmt(v['psi_deg']):>8} {_fmt(v['rho_B']):>8}"
                      + (f" {_fmt(v['truth_median_deg']):>8} {_fmt(v['truth_gain_median_deg']):>8}" if truth else "")
                      + (f"  95% {_fmt(ci[0])}-{_fmt(ci[1])}" if truth and ci else ""))
     for m, against in doc["summary"].get("paired", {}).items():
