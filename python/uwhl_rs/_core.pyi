@@ -240,6 +240,9 @@ class Summary:
     def path(self) -> Path:
         """The file's path."""
     @property
+    def notes(self) -> list[str]:
+        """What the run tells the user about the file (an earlier summary's failures not listed again, and why)."""
+    @property
     def error(self) -> Optional[str]:
         """Why the file cannot be written, or None."""
     @property

@@ -209,6 +209,30 @@ class BatchResult:
     problems: int = 0
 
 
+#: the largest earlier summary.csv the core reads for its failures (src/files/summary.rs)
+_EARLIER_SUMMARY_BYTES = 64 << 20
+
+
+def _earlier_summary(output: str, so, scratch: str, listener) -> None:
+    """The destination's summary.csv copied into the scratch folder, so that
+    the batch lists its earlier failures again as a local run does (the
+    core reads the copy). One that cannot be read, or is over the size
+    the core reads, is not copied (said)."""
+    try:
+        fs, root = filesystem(output, so)
+        src = join(root, FILE_NAME)
+        if not fs.exists(src):
+            return
+        size = int(fs.info(src).get("size") or 0)
+        if size > _EARLIER_SUMMARY_BYTES:
+            raise ValueError(f"it is over {_EARLIER_SUMMARY_BYTES >> 20} MiB")
+        fs.get_file(src, os.path.join(scratch, FILE_NAME))
+    except Exception as e:  # the store's own errors: the batch goes on, the earlier failures are not listed
+        if listener is not None:
+            listener.note(f"note: the earlier {FILE_NAME} of {output} is not read ({type(e).__name__}: {e}): "
+                          "its failures are not listed again")
+
+
 def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None = None,
               storage_options: dict | None = None, overwrite: bool = False, reuse_estimates: int | None = None,
               reuse_water_mask: bool = False, options: dict | None = None, jobs: int = 1,
@@ -249,6 +273,8 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
     # summary.csv as the batch goes: in OUTDIR, or (object storage) in a
     # local file uploaded when the batch ends
     scratch = None if not is_url(output) else tempfile.mkdtemp(prefix="uwhl-summary-")
+    if scratch is not None:
+        _earlier_summary(output, so, scratch, listener)
     csv_rows = SummaryWriter(scratch or local_path(output),
                              waiting=(lambda t: listener.note(f"note: {t}")) if listener is not None else None)
     csv_rows.given([it.input for it in plan.items] + [r["input"] for r in problems])
@@ -290,6 +316,8 @@ def run_batch(inputs: list[str], output: str, *, client=None, dask: str | None =
             c.close()
             started.close()
         csv_rows.close()
+        for n in csv_rows.notes if listener is not None else ():
+            listener.note(f"note: {n}")
         if scratch is not None:
             try:
                 fs, root = filesystem(output, so)

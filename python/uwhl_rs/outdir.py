@@ -107,6 +107,11 @@ class SummaryWriter:
         """It cannot be written because the output folder is read-only."""
         return self._core.read_only
 
+    @property
+    def notes(self) -> list[str]:
+        """What to tell the user about the file (an earlier summary's failures not listed again)."""
+        return list(self._core.notes)
+
     def given(self, inputs) -> None:
         """This run's inputs, as its rows' ``input`` cells name them: a run
         that starts the file afresh keeps an earlier run's failed rows of

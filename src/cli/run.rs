@@ -482,6 +482,7 @@ pub fn run_batch(opts: &Options, out: &mut dyn Write, err: &mut dyn Write) -> u8
         code = code.max(e.kind.exit_code());
     }
     summary.close();
+    say_notes(&summary.notes, opts, err);
     if let Some(why) = summary.error.take() {
         if summary.read_only && counts[0] == 0 {
             // a rerun over a finished survey on a read-only mount: nothing

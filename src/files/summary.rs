@@ -153,8 +153,18 @@ pub struct Summary {
     /// survey: see docs/OUTPUTS.md)
     pub read_only: bool,
     columns: Vec<String>,
-    /// this run's inputs as its rows name them ([`Summary::given`])
+    /// this run's inputs, by [`input_key`] ([`Summary::given`])
     given: Option<std::collections::HashSet<String>>,
+    /// the earlier failed rows of inputs given, not yet written again
+    pending: Vec<(String, String)>,
+    /// what the run tells the user about the file (earlier failures not kept)
+    pub notes: Vec<String>,
+}
+
+impl Drop for Summary {
+    fn drop(&mut self) {
+        self.close();
+    }
 }
 
 impl Summary {
@@ -188,16 +198,20 @@ impl Summary {
             read_only: false,
             columns: columns(),
             given: None,
+            pending: Vec::new(),
+            notes: Vec::new(),
         }
     }
 
     /// This run's inputs, as its rows' `input` cells will name them. A run
     /// that starts the file afresh then keeps the earlier file's failed
-    /// rows of every other input ([`earlier_failures`]): a folder restored
-    /// in several runs lists each failure until a run is given that input
-    /// again. Without it nothing is kept.
+    /// rows ([`earlier_failures`]): those of other inputs at once, those of
+    /// its own inputs when it ends, unless it wrote a row for them (an
+    /// interrupted run loses none). A folder restored in several runs lists
+    /// each failure until a run restores or retries that input. Without
+    /// it nothing is kept.
     pub fn given<I: IntoIterator<Item = String>>(&mut self, inputs: I) {
-        self.given = Some(inputs.into_iter().collect());
+        self.given = Some(inputs.into_iter().map(|n| input_key(&n)).collect());
     }
 
     /// The path of the file.
@@ -213,7 +227,8 @@ impl Summary {
     fn open(&mut self) {
         self.opened = true;
         let held = self.presence.take().zip(self.start);
-        match self.try_open(held) {
+        let opened = self.try_open(held);
+        match opened {
             Ok(presence) => self.presence = Some(presence),
             Err(e) => self.fail(&e),
         }
@@ -223,7 +238,7 @@ impl Summary {
     /// what the run found then. The file starts afresh when the run was
     /// alone at its start and nobody wrote the file since (a run that
     /// started later and finished sooner wrote its rows there: they stay).
-    fn try_open(&self, held: Option<(File, Start)>) -> std::io::Result<File> {
+    fn try_open(&mut self, held: Option<(File, Start)>) -> std::io::Result<File> {
         let path = self.path();
         let fail = |e: std::io::Error| std::io::Error::new(e.kind(), format!("cannot write {}: {e}", path.display()));
         std::fs::create_dir_all(&self.outdir).map_err(fail)?;
@@ -251,14 +266,16 @@ impl Summary {
             // think itself alone too and replace the file: it holds the
             // header only then, and rows open the file anew, so none is lost
             Ok(()) => {
-                let kept = self.given.as_ref().map(|g| earlier_failures(&path, g, &self.columns)).unwrap_or_default();
+                let earlier = self.given.as_ref().map(|g| earlier_failures(&path, g, &self.columns)).unwrap_or_default();
                 let (tmp, mut t) = crate::files::commit::create_temp_for(&path).map_err(fail)?;
-                let written = t.write_all(header.as_bytes()).and_then(|()| t.write_all(kept.as_bytes())).and_then(|()| t.sync_all());
+                let written = t.write_all(header.as_bytes()).and_then(|()| t.write_all(earlier.kept.as_bytes())).and_then(|()| t.sync_all());
                 drop(t);
                 if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, &path)) {
                     let _ = std::fs::remove_file(&tmp);
                     return Err(fail(e));
                 }
+                self.pending = earlier.pending;
+                self.notes.extend(earlier.note);
                 presence.unlock().map_err(fail)?;
                 // (another program's long exclusive lock: the run goes on without its hold)
                 crate::files::jobs::lock_shared_within(&presence);
@@ -291,6 +308,16 @@ impl Summary {
         }
         let mut line: String = self.columns.iter().map(|c| cell(row.get(c))).collect::<Vec<_>>().join(",");
         line.push_str("\r\n");
+        if !self.pending.is_empty() {
+            // this input's own row now stands for it: its earlier failure is not written again
+            let key = input_key(&text(row.get("input")));
+            self.pending.retain(|(k, _)| *k != key);
+        }
+        self.append(line);
+    }
+
+    /// Appends `line` (whole rows, CRLF-ended) in one write under the file's lock.
+    fn append(&mut self, mut line: String) {
         let path = self.path();
         let header = &self.columns;
         let ok = open_append(&path, true).map_err(|e| open_error(&path, &e)).and_then(|f| {
@@ -347,8 +374,14 @@ impl Summary {
         self.write(&row);
     }
 
-    /// Closes the file and lets the folder's lock go (also when dropped).
+    /// Closes the file and lets the folder's lock go (also when dropped),
+    /// after the earlier failures of inputs this run was given and did not
+    /// settle (it was interrupted) are written again.
     pub fn close(&mut self) {
+        let pending = std::mem::take(&mut self.pending);
+        if !pending.is_empty() && self.presence.is_some() {
+            self.append(pending.into_iter().map(|(_, line)| line).collect());
+        }
         self.presence = None;
         self.mark = None;
     }
@@ -447,127 +480,236 @@ fn path_text(p: &Path) -> String {
     p.to_string_lossy().into_owned()
 }
 
-/// The largest earlier summary read for its failed rows (larger: none kept).
+/// The largest earlier summary read for its failed rows (larger: none kept, said).
 const MAX_EARLIER_BYTES: u64 = 64 << 20;
-/// A field or a record longer than these is no summary of ours (as the report reads it).
+/// A field or a record longer than these is no row of ours (as the report reads it).
 const MAX_FIELD_BYTES: usize = 128 << 10;
 const MAX_RECORD_BYTES: usize = 1 << 20;
+/// The most earlier failures kept (the latest ones), so that a planted
+/// file of tiny failed rows cannot make the new summary many times larger.
+const MAX_KEPT: usize = 100_000;
 
-/// The records of CSV `text` as this writer and Python's csv module write
-/// them (fields quoted when needed, quotes doubled, CRLF or LF ends); None
-/// when it is not such a file (an unclosed quote, text after a closing
-/// quote, a field or record over the limits).
-fn csv_records(text: &str) -> Option<Vec<Vec<String>>> {
-    let mut records = Vec::new();
-    let (mut record, mut cur) = (Vec::new(), String::new());
-    let (mut quoted, mut closed, mut size) = (false, false, 0usize);
-    let mut chars = text.chars().peekable();
-    while let Some(c) = chars.next() {
-        size += c.len_utf8();
-        if cur.len() > MAX_FIELD_BYTES || size > MAX_RECORD_BYTES {
-            return None;
-        }
-        if quoted {
-            match c {
-                '"' if chars.peek() == Some(&'"') => {
-                    chars.next();
-                    cur.push('"');
-                }
-                '"' => (quoted, closed) = (false, true),
-                _ => cur.push(c),
-            }
-            continue;
-        }
-        match c {
-            '"' if cur.is_empty() && !closed => quoted = true,
-            ',' => {
-                record.push(std::mem::take(&mut cur));
-                closed = false;
-            }
-            '\r' if chars.peek() == Some(&'\n') => {}
-            '\n' => {
-                record.push(std::mem::take(&mut cur));
-                records.push(std::mem::take(&mut record));
-                (closed, size) = (false, 0);
-            }
-            _ if closed => return None,
-            _ => cur.push(c),
-        }
-    }
-    if quoted {
-        return None;
-    }
-    if !cur.is_empty() || !record.is_empty() {
-        record.push(cur);
-        records.push(record);
-    }
-    Some(records)
+/// The records of a CSV stream as this writer and Python's csv module
+/// write them (fields quoted when needed, quotes doubled; CRLF, LF or CR
+/// ends), one at a time with the byte offset where each starts; a record
+/// that is no row of ours (an unclosed quote, text after a closing quote,
+/// bytes that are not UTF-8, a field or record over the limits) comes as
+/// None, and the reading goes on at the next line end.
+struct Records<R> {
+    inner: R,
+    at: u64,
 }
 
-/// The failed rows of the summary at `path` whose input is not in `given`
-/// and whose last row it is, as lines of `columns` (CRLF-ended): the
-/// cells an earlier run wrote, moved under this writer's columns by name.
-/// A text cell is neutralised again ([`neutralise`] of [`restore_cell`]:
-/// the same bytes for a cell of ours, a planted formula made safe); a
-/// number stays as written. Nothing is kept from a file that is not
-/// regular (a link at the name is not followed), is over
-/// [`MAX_EARLIER_BYTES`], is not UTF-8 or not CSV of ours, or has no
-/// `input` and `status` columns.
-fn earlier_failures(path: &Path, given: &std::collections::HashSet<String>, columns: &[String]) -> String {
-    use std::io::Read;
+impl<R: std::io::BufRead> Records<R> {
+    fn new(inner: R) -> Self {
+        Self { inner, at: 0 }
+    }
+
+    fn byte(&mut self) -> Option<u8> {
+        let b = *self.inner.fill_buf().ok()?.first()?;
+        self.inner.consume(1);
+        self.at += 1;
+        Some(b)
+    }
+
+    fn peek(&mut self) -> Option<u8> {
+        self.inner.fill_buf().ok()?.first().copied()
+    }
+
+    /// The next record and where it starts; None at the end.
+    fn next_record(&mut self) -> Option<(u64, Option<Vec<String>>)> {
+        let start = self.at;
+        let first = self.byte()?;
+        let (mut fields, mut cur): (Vec<Vec<u8>>, Vec<u8>) = (Vec::new(), Vec::new());
+        let (mut quoted, mut closed, mut bad, mut size) = (false, false, false, 0usize);
+        let mut b = Some(first);
+        while let Some(c) = b {
+            size += 1;
+            bad |= cur.len() > MAX_FIELD_BYTES || size > MAX_RECORD_BYTES;
+            if bad {
+                // no row of ours: skipped to the next line end
+                if c == b'\n' || (c == b'\r' && !quoted) {
+                    if c == b'\r' && self.peek() == Some(b'\n') {
+                        self.byte();
+                    }
+                    break;
+                }
+                b = self.byte();
+                continue;
+            }
+            if quoted {
+                match c {
+                    b'"' if self.peek() == Some(b'"') => {
+                        self.byte();
+                        cur.push(b'"');
+                    }
+                    b'"' => (quoted, closed) = (false, true),
+                    _ => cur.push(c),
+                }
+            } else {
+                match c {
+                    b'"' if cur.is_empty() && !closed => quoted = true,
+                    b',' => {
+                        fields.push(std::mem::take(&mut cur));
+                        closed = false;
+                    }
+                    b'\r' | b'\n' => {
+                        if c == b'\r' && self.peek() == Some(b'\n') {
+                            self.byte();
+                        }
+                        break;
+                    }
+                    _ if closed => bad = true,
+                    _ => cur.push(c),
+                }
+            }
+            b = self.byte();
+        }
+        if quoted {
+            bad = true;
+        }
+        fields.push(cur);
+        let record = (!bad).then(|| fields.into_iter().map(String::from_utf8).collect::<Result<Vec<_>, _>>().ok()).flatten();
+        Some((start, record))
+    }
+}
+
+/// The name an input's row is matched by across runs and both commands:
+/// a URL as written; a path made absolute (from the current folder) and
+/// its `.` and `..` parts and doubled slashes taken out, as text
+/// (`./cam/a.jpg`, `cam//a.jpg` and `/abs/cam/a.jpg` are one input).
+pub fn input_key(name: &str) -> String {
+    if name.contains("://") {
+        return name.to_string();
+    }
+    let p = Path::new(name);
+    let abs = if p.is_absolute() { p.to_path_buf() } else { std::env::current_dir().unwrap_or_default().join(p) };
+    let mut out = std::path::PathBuf::new();
+    for c in abs.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out.to_string_lossy().into_owned()
+}
+
+/// What a run keeps of the earlier summary it replaces ([`earlier_failures`]).
+#[derive(Debug, Default)]
+struct Earlier {
+    /// lines to write after the header: the failed rows of inputs not given
+    kept: String,
+    /// the failed rows of inputs given: written when the run ends unless it
+    /// wrote a row for that input (an interrupted run loses none), by key
+    pending: Vec<(String, String)>,
+    /// what the user is told (a file not read, failures left out)
+    note: Option<String>,
+}
+
+/// A kept row's cells moved under `columns` by name: a text cell is
+/// neutralised again ([`neutralise`] of [`restore_cell`]: the same bytes
+/// for a cell of ours, a planted formula made safe); a number stays as
+/// written. CRLF-ended.
+fn kept_line(head: &[String], row: &[String], columns: &[String]) -> String {
+    let cells: Vec<String> = columns
+        .iter()
+        .map(|c| {
+            let v = head.iter().position(|h| h == c).and_then(|k| row.get(k)).map_or("", String::as_str);
+            if v.parse::<f64>().is_ok_and(f64::is_finite) {
+                field(v)
+            } else {
+                field(&neutralise(restore_cell(v)))
+            }
+        })
+        .collect();
+    let mut line = cells.join(",");
+    line.push_str("\r\n");
+    line
+}
+
+/// The earlier summary at `path`, read for its failures: every input whose
+/// last row failed is kept ([`Earlier`]), the latest [`MAX_KEPT`] of them.
+/// The file is read twice as a stream (its records' input keys, hashed
+/// with a random key, and offsets; then the kept records), so memory
+/// follows the number of rows, 16 bytes each, never the file's text.
+/// Nothing is kept from a file that is not regular (a link at the name is
+/// not followed), is over [`MAX_EARLIER_BYTES`], or has no `input` and
+/// `status` columns; a record that is no row of ours is passed over.
+fn earlier_failures(path: &Path, given: &std::collections::HashSet<String>, columns: &[String]) -> Earlier {
+    use std::hash::BuildHasher;
+    use std::io::{BufReader, Seek};
     use std::os::unix::fs::OpenOptionsExt;
     let Ok(f) = std::fs::OpenOptions::new().read(true).custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK).open(path) else {
-        return String::new();
+        return Earlier::default();
     };
-    if !f.metadata().is_ok_and(|m| m.is_file() && m.len() <= MAX_EARLIER_BYTES) {
-        return String::new();
+    let Ok(meta) = f.metadata() else { return Earlier::default() };
+    if !meta.is_file() {
+        return Earlier::default();
     }
-    let mut bytes = Vec::new();
-    if f.take(MAX_EARLIER_BYTES + 1).read_to_end(&mut bytes).is_err() {
-        return String::new();
+    let not_kept = |why: String| Earlier { note: Some(format!("the earlier {FILE_NAME} {why}: its failures are not listed again")), ..Earlier::default() };
+    if meta.len() > MAX_EARLIER_BYTES {
+        return not_kept(format!("is over {} MiB", MAX_EARLIER_BYTES >> 20));
     }
-    let Some(records) = String::from_utf8(bytes).ok().and_then(|t| csv_records(&t)) else {
-        return String::new();
-    };
-    let Some((head, rows)) = records.split_first() else {
-        return String::new();
+    let mut records = Records::new(BufReader::new(&f));
+    let head = match records.next_record() {
+        Some((_, Some(mut h))) => {
+            if let Some(first) = h.first_mut() {
+                *first = first.trim_start_matches('\u{feff}').to_string();
+            }
+            h
+        }
+        _ => return not_kept("has no header".into()),
     };
     let at = |name: &str| head.iter().position(|h| h == name);
     let (Some(input), Some(status)) = (at("input"), at("status")) else {
-        return String::new();
+        return not_kept("is not a summary of ours (no input and status columns)".into());
     };
-    // each input's last row decides: a failure restored since is not kept
-    let mut seen = std::collections::HashSet::new();
-    let mut kept: Vec<&Vec<String>> = Vec::new();
-    for r in rows.iter().rev().filter(|r| r.len() == head.len()) {
-        let (Some(name), Some(state)) = (r.get(input), r.get(status)) else {
-            continue;
-        };
-        let name = restore_cell(name);
-        if !given.contains(name) && seen.insert(name) && state == "failed" {
-            kept.push(r);
-        }
+    let hasher = std::collections::hash_map::RandomState::new();
+    // (key hash, record offset, failed), 16 bytes a row
+    let mut rows: Vec<(u64, u32, bool)> = Vec::new();
+    while let Some((offset, record)) = records.next_record() {
+        let Some(r) = record.filter(|r| r.len() == head.len()) else { continue };
+        let (Some(name), Some(state), Ok(offset)) = (r.get(input), r.get(status), u32::try_from(offset)) else { continue };
+        rows.push((hasher.hash_one(input_key(restore_cell(name))), offset, state == "failed"));
     }
-    kept.reverse();
-    let mut out = String::new();
-    for r in kept {
-        let cells: Vec<String> = columns
-            .iter()
-            .map(|c| {
-                let v = at(c).and_then(|k| r.get(k)).map_or("", String::as_str);
-                if v.parse::<f64>().is_ok_and(f64::is_finite) {
-                    field(v)
-                } else {
-                    field(&neutralise(restore_cell(v)))
-                }
-            })
-            .collect();
-        out.push_str(&cells.join(","));
-        out.push_str("\r\n");
+    // each input's last row decides: a failure restored since is not kept
+    rows.sort_unstable_by_key(|&(h, o, _)| (h, o));
+    let mut last: Vec<u32> = rows
+        .iter()
+        .enumerate()
+        .filter(|&(i, &(h, _, failed))| failed && rows.get(i + 1).is_none_or(|n| n.0 != h))
+        .map(|(_, &(_, o, _))| o)
+        .collect();
+    drop(rows);
+    last.sort_unstable();
+    let mut out = Earlier::default();
+    if last.len() > MAX_KEPT {
+        out.note = Some(format!(
+            "the earlier {FILE_NAME} lists {} failures: the latest {MAX_KEPT} are listed again",
+            last.len()
+        ));
+        last.drain(..last.len() - MAX_KEPT);
+    }
+    let mut reader = BufReader::new(&f);
+    for o in last {
+        if reader.seek(std::io::SeekFrom::Start(u64::from(o))).is_err() {
+            break;
+        }
+        let mut one = Records::new(&mut reader);
+        let Some((_, Some(r))) = one.next_record() else { continue };
+        let key = input_key(restore_cell(r.get(input).map_or("", String::as_str)));
+        let line = kept_line(&head, &r, columns);
+        if given.contains(&key) {
+            out.pending.push((key, line));
+        } else {
+            out.kept.push_str(&line);
+        }
     }
     out
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -575,7 +717,7 @@ mod tests {
     #[test]
     fn a_folder_read_only_by_mount_or_by_permissions_is_read_only() {
         use std::io::{Error, ErrorKind};
-        let mut s = Summary { outdir: std::path::PathBuf::from("/o"), presence: None, mark: None, start: None, opened: false, error: None, read_only: false, columns: columns(), given: None };
+        let mut s = Summary { outdir: std::path::PathBuf::from("/o"), presence: None, mark: None, start: None, opened: false, error: None, read_only: false, columns: columns(), given: None, pending: Vec::new(), notes: Vec::new() };
         for (kind, want) in [(ErrorKind::ReadOnlyFilesystem, true), (ErrorKind::PermissionDenied, true), (ErrorKind::StorageFull, false)] {
             s.fail(&Error::from(kind));
             assert_eq!(s.read_only, want, "{kind:?}");
@@ -792,6 +934,7 @@ mod tests {
         let d = folder("carry");
         let path = d.join(FILE_NAME);
         let given = |names: &[&str]| names.iter().map(|n| n.to_string()).collect::<Vec<_>>();
+        let read = || records(&std::fs::read_to_string(&path).unwrap());
         // run 1: a done, "=bad, x.jpg" failed (a formula and a comma), c failed then done
         let mut s = Summary::create(&d);
         s.given(given(&["a", "=bad, x.jpg", "c"]));
@@ -809,37 +952,70 @@ mod tests {
         s.failed(Path::new("b"), "unreadable_input", "no", 3);
         s.close();
         let text = std::fs::read_to_string(&path).unwrap();
-        let rows = csv_records(&text).unwrap();
+        let rows = read();
         assert_eq!(rows.len(), 3, "{text}");
         assert_eq!(rows[0], columns());
         assert!(text.contains(&format!("\r\n{bad_row}\r\n")), "{text}");
         assert_eq!(restore_cell(&rows[1][0]), "=bad, x.jpg");
         assert_eq!(rows[1][columns().iter().position(|c| c == "error").unwrap()], "cannot decode \"it\"\nat all");
         assert_eq!(rows[2][0], "b");
-        // run 3 is given the failed input again: its old row goes, its new one is the only one
+        // run 3 is given the failed input again, spelled otherwise: its old row goes, its new one stays
         let mut s = Summary::create(&d);
-        s.given(given(&["=bad, x.jpg"]));
-        s.failed(Path::new("=bad, x.jpg"), "unreadable_input", "again", 3);
+        s.given(given(&["./=bad, x.jpg"]));
+        s.failed(Path::new("./=bad, x.jpg"), "unreadable_input", "again", 3);
         s.close();
-        let rows = csv_records(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let rows = read();
         assert_eq!(rows.len(), 3, "b's failure kept, one row for =bad");
-        assert_eq!((rows[1][0].as_str(), restore_cell(&rows[2][0])), ("b", "=bad, x.jpg"));
-        // a planted file: a formula in a failed row is neutralised; a number stays a number
+        assert_eq!((rows[1][0].as_str(), restore_cell(&rows[2][0])), ("b", "./=bad, x.jpg"));
+        // run 4 is given b and stops before settling it (interrupted): b's failure is written again at the end
+        let mut s = Summary::create(&d);
+        s.given(given(&["b", "e"]));
+        s.failed(Path::new("e"), "internal", "x", 6);
+        drop(s);
+        let rows = read();
+        let names: Vec<&str> = rows[1..].iter().map(|r| r[0].as_str()).collect();
+        assert_eq!(names, ["./=bad, x.jpg", "e", "b"], "{rows:?}");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn what_is_not_a_summary_of_ours_keeps_nothing_and_says_so() {
+        let d = folder("planted");
+        let path = d.join(FILE_NAME);
+        let none = std::collections::HashSet::new();
+        // a formula in a failed row is neutralised; a number stays a number; a BOM and CR-only ends are read
         let mut head = columns();
         head.truncate(4);
-        std::fs::write(&path, format!("{}\r\n=HYPERLINK(1),failed,-2,-33.5\r\n", head.join(","))).unwrap();
-        let kept = earlier_failures(&path, &Default::default(), &columns());
-        assert!(kept.starts_with("'=HYPERLINK(1),failed,-2,-33.5,"), "{kept}");
-        // nothing from what is not a summary of ours: an unclosed quote, no status column, a link
-        std::fs::write(&path, "input,status\r\n\"x,failed\r\n").unwrap();
-        assert_eq!(earlier_failures(&path, &Default::default(), &columns()), "");
+        std::fs::write(&path, format!("\u{feff}{}\r=HYPERLINK(1),failed,-2,-33.5\r", head.join(","))).unwrap();
+        let e = earlier_failures(&path, &none, &columns());
+        assert!(e.kept.starts_with("'=HYPERLINK(1),failed,-2,-33.5,") && e.note.is_none(), "{e:?}");
+        // a record that is no row of ours is passed over, the others kept
+        std::fs::write(&path, b"input,status\r\n\"x\"z,failed\r\n\xff\xfe,failed\r\ny,failed\r\n").unwrap();
+        let e = earlier_failures(&path, &none, &columns());
+        assert!(e.kept.starts_with("y,failed,"), "{e:?}");
+        // no status column, or over the size: nothing, and a note
         std::fs::write(&path, "input,state\r\nx,failed\r\n").unwrap();
-        assert_eq!(earlier_failures(&path, &Default::default(), &columns()), "");
+        let e = earlier_failures(&path, &none, &columns());
+        assert!(e.kept.is_empty() && e.note.unwrap().contains("not a summary of ours"));
+        let f = std::fs::File::create(&path).unwrap();
+        f.set_len(MAX_EARLIER_BYTES + 1).unwrap();
+        let e = earlier_failures(&path, &none, &columns());
+        assert!(e.kept.is_empty() && e.note.unwrap().contains("over 64 MiB"));
+        // a link at the name is not followed
         std::fs::write(d.join("elsewhere.csv"), "input,status\r\nx,failed\r\n").unwrap();
         std::fs::remove_file(&path).unwrap();
         std::os::unix::fs::symlink(d.join("elsewhere.csv"), &path).unwrap();
-        assert_eq!(earlier_failures(&path, &Default::default(), &columns()), "");
+        let e = earlier_failures(&path, &none, &columns());
+        assert!(e.kept.is_empty() && e.note.is_none());
+        // more failures than MAX_KEPT: the latest ones, said
+        let rows: String = (0..MAX_KEPT + 3).map(|k| format!("in{k},failed\n")).collect();
+        std::fs::write(d.join("many.csv"), format!("input,status\n{rows}")).unwrap();
+        let e = earlier_failures(&d.join("many.csv"), &none, &["input".to_string()]);
+        assert_eq!(e.kept.lines().count(), MAX_KEPT);
+        assert!(e.kept.starts_with("in3\r\n") && e.note.unwrap().contains(&format!("lists {} failures", MAX_KEPT + 3)));
         // without given, a run keeps nothing (the Dask batch's scratch summary)
+        std::fs::remove_file(&path).unwrap();
+        std::fs::write(&path, "input,status\r\nx,failed\r\n").unwrap();
         let mut s = Summary::create(&d);
         s.failed(Path::new("z"), "internal", "x", 6);
         s.close();
@@ -847,14 +1023,27 @@ mod tests {
         std::fs::remove_dir_all(&d).unwrap();
     }
 
+    /// Every record of `text`, each a row of ours.
+    fn records(text: &str) -> Vec<Vec<String>> {
+        let mut r = Records::new(text.as_bytes());
+        std::iter::from_fn(|| r.next_record()).map(|(_, rec)| rec.unwrap()).collect()
+    }
+
     #[test]
-    fn csv_records_read_what_the_writer_writes() {
+    fn records_read_what_the_writer_writes_and_name_inputs_alike() {
         let cells = ["plain", "a,b", "say \"hi\"", "two\r\nlines", "", "'=x"];
         let line: Vec<String> = cells.iter().map(|c| field(c)).collect();
         let text = format!("{}\r\n{}\n", line.join(","), line.join(","));
-        let rows = csv_records(&text).unwrap();
-        assert_eq!(rows, vec![cells.map(String::from).to_vec(); 2]);
-        assert!(csv_records("\"a\"b,c\r\n").is_none(), "text after a closing quote");
-        assert!(csv_records(&format!("{}\r\n", "x".repeat(MAX_FIELD_BYTES + 2))).is_none());
+        assert_eq!(records(&text), vec![cells.map(String::from).to_vec(); 2]);
+        let mut bad = Records::new(&b"\"a\"b,c\r\nok\r\n"[..]);
+        assert_eq!(bad.next_record().unwrap().1, None, "text after a closing quote");
+        assert_eq!(bad.next_record().unwrap(), (8, Some(vec!["ok".to_string()])));
+        let long = format!("{}\r\nok\r\n", "x".repeat(MAX_FIELD_BYTES + 2));
+        let mut r = Records::new(long.as_bytes());
+        assert_eq!(r.next_record().unwrap().1, None);
+        assert_eq!(r.next_record().unwrap().1, Some(vec!["ok".to_string()]));
+        assert_eq!(input_key("./cam//a.jpg"), input_key("cam/x/../a.jpg"));
+        assert_eq!(input_key("/d/cam/./a.jpg"), "/d/cam/a.jpg");
+        assert_eq!(input_key("s3://b/x/../a.jpg"), "s3://b/x/../a.jpg");
     }
 }

@@ -114,6 +114,13 @@ impl PySummary {
         self.path.clone()
     }
 
+    /// What the run tells the user about the file (an earlier summary's
+    /// failures not listed again, and why).
+    #[getter]
+    fn notes(&self) -> Vec<String> {
+        self.inner.lock().unwrap_or_else(PoisonError::into_inner).notes.clone()
+    }
+
     /// Why the file cannot be written, or None.
     #[getter]
     fn error(&self) -> Option<String> {

@@ -76,7 +76,7 @@ def test_an_impossible_exif_time_or_position_is_dropped_and_the_photo_stays_in_t
     notes = " ".join(md["notes"])
     assert "time" in notes and "position" in notes, notes
     page = uwhl("report", out)
-    assert page.returncode == 0 and "(1 photos" in page.stdout, page.stdout + page.stderr
+    assert page.returncode == 0 and "(1 photo," in page.stdout, page.stdout + page.stderr
 
 
 @pytest.mark.parametrize("when, expected", [
@@ -164,7 +164,7 @@ def test_an_input_named_ifdo_never_has_the_ifdos_file_as_its_sidecar(binary, tmp
     side = json.loads((out / "ifdo_2.json").read_text())
     assert side["outputs"]["image"] == "ifdo_2.jpg"
     page = uwhl("report", out)
-    assert "(1 photos" in page.stdout, page.stdout + page.stderr
+    assert "(1 photo," in page.stdout, page.stdout + page.stderr
     r = uwhl("ifdo", out, "--header", _header(tmp_path / "h.yaml"), "--format", "json")
     assert r.returncode == 0, r.stderr
     assert "image-set-header" in json.loads((out / "ifdo.json").read_text())

@@ -31,7 +31,8 @@ def write(out_dir: str, console: Console, storage_options: dict | None = None) -
     except OSError as e:
         raise CommandError(f"cannot write the report: {describe(e)}", "write_failed", out_dir) from e
     videos = f"{done['videos']} video{'s' if done['videos'] != 1 else ''}, " if done.get("videos") else ""
-    console.line(f"report: {done['path']} ({done['photos']} photos, {videos}{done['flagged']} flagged, {done['failed']} failed, "
+    photos = f"{done['photos']} photo{'s' if done['photos'] != 1 else ''}"
+    console.line(f"report: {done['path']} ({photos}, {videos}{done['flagged']} flagged, {done['failed']} failed, "
                  f"{done['thumbnails_written']} thumbnails written, {done['seconds']:.1f} s)")
     for p in done["problems"][:20]:
         console.line(f"  note: {p}")
