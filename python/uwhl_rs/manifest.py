@@ -124,7 +124,7 @@ def _entry(k: int, raw, folder: str) -> Entry:
     truth_mask = file_key("truth_mask", "truth-mask")
     if truth_mask is not None and truth is None:
         raise ManifestError(f"{label}: 'truth_mask' says which pixels to score against 'truth', which is missing")
-    wt = raw.get("water_type")
+    wt = _table_name(raw.get("water_type"))
     if wt is not None and wt not in TYPE_ORDER:
         raise ManifestError(f"{label}: water_type {_short(wt)} is not one of {TYPE_ORDER}")
     charts = []
@@ -197,6 +197,14 @@ def _short(v, limit: int = 80) -> str:
     return r if len(r) <= limit else r[:limit] + "..."
 
 
+def _table_name(name):
+    """A table water type's name as the table writes it, read in any case as
+    ``restore`` reads it (``"3c"`` is ``"3C"``); anything else as it is."""
+    if isinstance(name, str):
+        return next((t for t in TYPE_ORDER if t.lower() == name.lower()), name)
+    return name
+
+
 def _water_types(value, what: str) -> list:
     """restore.water_types as ``restore`` takes it. JSON has no tuples, so a
     custom type is written ``[NAME, BETA_BR, BETA_BG]`` or
@@ -208,6 +216,7 @@ def _water_types(value, what: str) -> list:
         if isinstance(t, dict) and set(t) == {"name", "beta_br", "beta_bg"}:
             t = [t["name"], t["beta_br"], t["beta_bg"]]
         if isinstance(t, str):
+            t = _table_name(t)
             if t not in TYPE_ORDER:
                 raise ManifestError(f"{what}[{i}]: unknown water type {_short(t)} (known: {', '.join(TYPE_ORDER)}; "
                                     'a custom type is [NAME, BETA_BR, BETA_BG] or {"name": ..., "beta_br": ..., '

@@ -435,16 +435,11 @@ fn open<R: BufRead + Seek>(
         Some(ImageFormat::Tiff) => {
             let mut inner = reader.into_inner();
             exif::tiff_structure(&mut inner).map_err(|why| Failure::new(Kind::Input, format!("a damaged TIFF: {why}")))?;
-            let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
-            // what the file holds, read before the decoder takes the reader:
-            // its words for a layout it cannot read are its own type names
-            // ("color type Unknown(16)")
-            let layout = exif::ReaderSource::new(&mut inner).ok().and_then(|mut s| exif::tiff_layout(&mut s));
             // the image decoded: not a thumbnail stored first, nor integers taken for floats
             let pick = exif::ReaderSource::new(&mut inner)
                 .map_err(io)
                 .and_then(|mut s| exif::tiff_pick(&mut s).map_err(|why| Failure::new(Kind::Input, why)))?;
-            let mut notes: Vec<String> = note.into_iter().collect();
+            let mut notes: Vec<String> = Vec::new();
             let mut header = None;
             if let Some(p) = &pick {
                 if p.offset != p.first {
@@ -459,8 +454,20 @@ fn open<R: BufRead + Seek>(
                     notes.push(format!("the file holds {} full-resolution images; the first is read", p.pages));
                 }
             }
+            // from here on the file is seen with the picked image first: its
+            // orientation, its XMP and its layout are the ones read
             inner.seek(SeekFrom::Start(0)).map_err(io)?;
-            let reader = ImageReader::with_format(BufReader::new(Patched::new(inner, 4, header.unwrap_or_default(), header.is_some())), ImageFormat::Tiff);
+            let mut inner = BufReader::new(Patched::new(inner, 4, header.unwrap_or_default(), header.is_some()));
+            let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
+            if let Some(n) = note {
+                notes.insert(0, n);
+            }
+            // what the file holds, read before the decoder takes the reader:
+            // its words for a layout it cannot read are its own type names
+            // ("color type Unknown(16)")
+            let layout = exif::ReaderSource::new(&mut inner).ok().and_then(|mut s| exif::tiff_layout(&mut s));
+            inner.seek(SeekFrom::Start(0)).map_err(io)?;
+            let reader = ImageReader::with_format(inner, ImageFormat::Tiff);
             open_reader(reader, limits, Meta { orientation, notes, linear_codes: false, icc: Some(Ok(None)) }, check, None).map_err(|f| {
                 match layout {
                     Some(l) if f.kind == Kind::Input && f.message.starts_with("unsupported") => Failure::new(

@@ -500,7 +500,8 @@ pub fn tiff_pick(src: &mut dyn Source) -> Result<Option<TiffPick>, String> {
         let one = |src: &mut dyn Source, tag: u16| {
             list.iter().find(|e| e.tag == tag).and_then(|e| integers(src, o, e, 1).ok()).and_then(|v| v.first().copied())
         };
-        let reduced = one(src, 0x00FE).is_some_and(|v| v & 1 == 1) || one(src, 0x00FF) == Some(2);
+        // a reduced-resolution image (bit 0) or a transparency mask (bit 2) is no photo
+        let reduced = one(src, 0x00FE).is_some_and(|v| v & 0b101 != 0) || one(src, 0x00FF) == Some(2);
         if !reduced {
             pages += 1;
             if pick.is_none() {
@@ -529,6 +530,13 @@ pub fn tiff_pick(src: &mut dyn Source) -> Result<Option<TiffPick>, String> {
             "the file holds only reduced-resolution images (thumbnails: NewSubfileType 1)".into()
         });
     };
+    // a sensor mosaic (CFA) or DNG's LinearRaw as the main image: a raw file
+    let photometric = list.iter().find(|e| e.tag == 0x0106).and_then(|e| integers(src, o, e, 1).ok());
+    if photometric.and_then(|v| v.first().copied()).is_some_and(|p| p == 32803 || p == 34892) {
+        return Err("a raw camera file (its image is a sensor mosaic): give it its raw extension (.dng, .nef, ...); \
+                    the Python command reads raw files"
+            .into());
+    }
     let bits = list.iter().find(|e| e.tag == 0x0102).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
     let format = list.iter().find(|e| e.tag == 0x0153).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
     if bits.contains(&32) && format.first().copied().unwrap_or(1) != 3 {
@@ -953,6 +961,7 @@ pub fn png<R: Read + Seek>(r: &mut R, icc_cap: u64) -> (Found, Vec<(u64, u64)>) 
     }
     let mut at = 8u64;
     let mut raw_exif = None;
+    let mut pixels = false;
     loop {
         let mut h = [0u8; 8];
         if r.seek(SeekFrom::Start(at)).is_err() || r.read_exact(&mut h).is_err() {
@@ -965,17 +974,18 @@ pub fn png<R: Read + Seek>(r: &mut R, icc_cap: u64) -> (Found, Vec<(u64, u64)>) 
         }
         match &kind {
             b"IEND" => break,
-            // the reader stands at the chunk's data
-            b"gAMA" if len == 4 && f.gamma.is_none() => {
+            b"IDAT" => pixels = true,
+            // the reader stands at the chunk's data; colour chunks count before the pixel data only (the PNG rule)
+            b"gAMA" if len == 4 && f.gamma.is_none() && !pixels => {
                 let mut g = [0u8; 4];
                 f.gamma = r.read_exact(&mut g).ok().map(|()| u32::from_be_bytes(g));
             }
-            b"cICP" if len == 4 && f.cicp.is_none() => {
+            b"cICP" if len == 4 && f.cicp.is_none() && !pixels => {
                 let mut c = [0u8; 4];
                 f.cicp = r.read_exact(&mut c).ok().map(|()| c);
             }
-            b"sRGB" => f.srgb = true,
-            b"acTL" => f.animated = true,
+            b"sRGB" if !pixels => f.srgb = true,
+            b"acTL" if !pixels => f.animated = true,
             b"eXIf" => {
                 f.exif_blocks += 1;
                 if f.exif.is_none() {

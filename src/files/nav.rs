@@ -122,13 +122,15 @@ impl ByName {
         Ok(())
     }
 
-    /// The record of the file name `file`, else the first (in the log) whose
-    /// stem is `stem` (the photo in another format), else one named `stem`
-    /// itself (a log of image names without extensions).
-    fn get(&self, file: &str, stem: &str) -> Option<&Named> {
+    /// The record of the file name `file`, else one named `stem` itself (a
+    /// log of image names without extensions), else the first (in the log)
+    /// whose stem is `stem` (the photo in another format); with how it
+    /// matched: "name", "stem" or "stem, another extension".
+    fn get(&self, file: &str, stem: &str) -> Option<(&Named, &'static str)> {
         self.first(&self.by_file, file, false)
-            .or_else(|| self.first(&self.by_stem, stem, true))
-            .or_else(|| self.first(&self.by_file, stem, false))
+            .map(|r| (r, "name"))
+            .or_else(|| self.first(&self.by_file, stem, false).map(|r| (r, "stem")))
+            .or_else(|| self.first(&self.by_stem, stem, true).map(|r| (r, "stem, another extension")))
     }
 
     /// The earliest record of `list` (sorted by file name, or by stem when
@@ -600,7 +602,7 @@ impl NavLog {
         let stem = input.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         if self.named {
             return match self.by_name.get(&file, &stem) {
-                Some(r) => Ok((r.pose, json!({"log": self.path.to_string_lossy(), "line": r.line, "matched": "name"}))),
+                Some((r, how)) => Ok((r.pose, json!({"log": self.path.to_string_lossy(), "line": r.line, "matched": how}))),
                 None => Err(format!("{} has no row for {}", self.path.display(), shown(&file))),
             };
         }
@@ -851,8 +853,12 @@ mod tests {
         let alt = |name: &str| log.pose(Path::new(name), None).map(|(p, from)| (p.altitude, from["line"].clone()));
         assert_eq!(alt("d.jpg"), Ok((6.0, json!(3))));
         assert_eq!(alt("d"), Ok((7.0, json!(4))));
+        // the bare stem's row before another extension's
+        assert_eq!(alt("d.tif"), Ok((7.0, json!(4))));
         // by stem: the first of d.png and d.jpg in the log
-        assert_eq!(alt("d.tif"), Ok((5.0, json!(2))));
+        let log2 = parse_log("file,altitude\nd.png,5\nd.jpg,6\n").unwrap();
+        assert_eq!(log2.pose(Path::new("d.tif"), None).map(|(p, from)| (p.altitude, from["line"].clone(), from["matched"].clone())),
+                   Ok((5.0, json!(2), json!("stem, another extension"))));
         // the same record twice is one record: its first line
         assert_eq!(alt("e.jpg"), Ok((1.0, json!(5))));
         // of two clashes, the one the log reaches first is named

@@ -126,7 +126,9 @@ pub fn validate_types(types: &[WaterType]) -> Result<()> {
     }
     for (i, t) in types.iter().enumerate() {
         WaterType::new(&t.name, t.beta_br, t.beta_bg)?;
-        if types.iter().take(i).any(|o| o.name == t.name) {
+        // names are told apart in any case, as table names are read (a custom
+        // "ia" beside the table's IA would be two types of one name)
+        if types.iter().take(i).any(|o| o.name.eq_ignore_ascii_case(&t.name)) {
             return Err(Error::WaterType(format!(
                 "water type {:?} is listed twice",
                 t.name
@@ -149,6 +151,13 @@ mod tests {
         // 5C is where red and blue attenuate alike (METHOD §1).
         assert_eq!(WaterType::by_name("5C").unwrap().beta_br, 1.0);
         assert_eq!(WaterType::by_name("ib").unwrap().name, "IB");
+        // two types whose names differ only in case are one name listed twice
+        let custom = |n: &str, br: f64, bg: f64| WaterType { name: n.into(), beta_br: br, beta_bg: bg };
+        let ia = WaterType::by_name("IA").unwrap();
+        assert!(validate_types(&[ia.clone(), custom("ia", 0.5, 0.6)]).unwrap_err().to_string().contains("listed twice"));
+        // a fitted water named by its nearest type (--water-from) is a type of its own
+        assert!(validate_types(&[custom("IA", 0.5, 0.6)]).is_ok());
+        assert!(validate_types(&[ia, custom("mine", 0.5, 0.6)]).is_ok());
     }
 
     #[test]

@@ -20,7 +20,7 @@ def _tiff(ifds: list[dict]) -> bytes:
     """A little-endian classic TIFF of uncompressed RGB images, one strip
     each. Each IFD: ``pixels`` (H x W x 3 uint8 or uint32), ``subfile``
     (NewSubfileType), ``sub`` (images put in IFD0's SubIFDs instead of the
-    chain)."""
+    chain), ``orientation``, ``photometric``."""
     out = bytearray(b"II*\x00\x00\x00\x00\x00")
 
     def put(data: bytes) -> int:
@@ -37,7 +37,8 @@ def _tiff(ifds: list[dict]) -> bytes:
         data_at = put(px.astype(px.dtype.newbyteorder("<")).tobytes())
         bits_at = put(struct.pack("<3H", bits, bits, bits))
         entries = [(0x00FE, 4, 1, img.get("subfile", 0)), (0x0100, 4, 1, w), (0x0101, 4, 1, h),
-                   (0x0102, 3, 3, bits_at), (0x0103, 3, 1, 1), (0x0106, 3, 1, 2), (0x0111, 4, 1, data_at),
+                   (0x0102, 3, 3, bits_at), (0x0103, 3, 1, 1), (0x0106, 3, 1, img.get("photometric", 2)),
+                   (0x0111, 4, 1, data_at), (0x0112, 3, 1, img.get("orientation", 1)),
                    (0x0115, 3, 1, 3), (0x0116, 4, 1, h), (0x0117, 4, 1, px.nbytes), (0x011C, 3, 1, 1)]
         if px.dtype.kind == "f":  # SampleFormat: IEEE floating point
             entries.append((0x0153, 3, 3, put(struct.pack("<3H", 3, 3, 3))))
@@ -207,3 +208,45 @@ def test_an_animated_png_says_its_first_frame_is_read(tmp_path):
     img, meta = images.read_image(tmp_path / "anim.png")
     assert "an animated PNG: its first frame is read" in meta.notes
     assert np.allclose(img, images.srgb_to_linear(first / 255.0), atol=1e-6)
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_the_orientation_is_the_picked_images_own(impl, binary, tmp_path):
+    # the thumbnail says 6 (rotate), the full image 1: upright as stored; then the other way round
+    p = tmp_path / "o1.tif"
+    p.write_bytes(_tiff([{"pixels": _scene(6, 8), "subfile": 1, "orientation": 6}, {"pixels": _scene(48, 64, 1)}]))
+    r, side = _restore(impl, binary, p, tmp_path / "a")
+    assert r.returncode == 0, r.stderr
+    assert (side["source"]["height"], side["source"]["width"], side["source"]["orientation"]) == (48, 64, 1)
+    p = tmp_path / "o6.tif"
+    p.write_bytes(_tiff([{"pixels": _scene(6, 8), "subfile": 1}, {"pixels": _scene(48, 64, 1), "orientation": 6}]))
+    r, side = _restore(impl, binary, p, tmp_path / "b")
+    assert r.returncode == 0, r.stderr
+    assert (side["source"]["height"], side["source"]["width"], side["source"]["orientation"]) == (64, 48, 6)
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_transparency_mask_first_and_a_sensor_mosaic_are_no_photo(impl, binary, tmp_path):
+    p = tmp_path / "masked.tif"  # NewSubfileType 4: a transparency mask stored before the image
+    p.write_bytes(_tiff([{"pixels": _scene(6, 8), "subfile": 4}, {"pixels": _scene(48, 64, 1)}]))
+    r, side = _restore(impl, binary, p, tmp_path / "a")
+    assert r.returncode == 0 and (side["source"]["height"], side["source"]["width"]) == (48, 64), r.stderr
+    p = tmp_path / "mosaic.tif"  # PhotometricInterpretation CFA in IFD0: a raw file renamed
+    p.write_bytes(_tiff([{"pixels": _scene(48, 64), "photometric": 32803}]))
+    r, side = _restore(impl, binary, p, tmp_path / "b")
+    assert r.returncode == 3 and side is None and "a raw camera file" in r.stderr, r.stderr
+
+
+def test_colour_chunks_after_the_pixel_data_are_not_read(tmp_path):
+    # the PNG rule (libpng and PIL too): gAMA, sRGB and cICP count before the first IDAT only
+    import zlib
+    from uwhl_rs import images
+    buf = io.BytesIO()
+    Image.fromarray(np.full((24, 32, 3), 128, np.uint8)).save(buf, "PNG")
+    b = buf.getvalue()
+    gama = struct.pack(">I", 100000)
+    chunk = struct.pack(">I", 4) + b"gAMA" + gama + struct.pack(">I", zlib.crc32(b"gAMA" + gama))
+    end = b.rindex(b"IEND") - 4
+    (tmp_path / "late.png").write_bytes(b[:end] + chunk + b[end:])
+    img, meta = images.read_image(tmp_path / "late.png")
+    assert np.allclose(img, ((128 / 255 + 0.055) / 1.055) ** 2.4, atol=1e-6) and not meta.notes
