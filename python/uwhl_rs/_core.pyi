@@ -27,7 +27,7 @@ __all__ = [
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
     "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "is_output_of", "new_run", "nearest_type", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
-    "FLOAT_NOT_PREPROCESSED",
+    "FLOAT_NOT_PREPROCESSED", "upright_said",
     "name_bases", "MAX_NAMES", "FAMILY_GAP",
     "summary_columns",
     "Claim", "input_plan", "process_base", "default_max_memory", "can_allocate", "claim_outputs", "create_temp",
@@ -255,6 +255,8 @@ class Summary:
     def close(self) -> None:
         """Closes the file (and lets the folder's lock go)."""
 
+def upright_said(orientation: int) -> str:
+    """What a mask's size error adds for an input its EXIF orientation turned ('' for 1)."""
 def summary_cell(cell: str) -> str:
     """A summary.csv cell's text as it was before a formula was neutralised."""
 def csv_text(cell: str) -> str:

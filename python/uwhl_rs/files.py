@@ -89,13 +89,14 @@ def output_paths(out_dir: str, name: str, fmt: str = "jpg", contact: bool = Fals
 
 
 def read_mask(mask, shape, what: str, *, max_pixels: int | None = None, max_memory: int | None = None,
-              of: str = "the image") -> np.ndarray | None:
+              of: str = "the image", orientation: int = 1) -> np.ndarray | None:
     """A bool mask from an array or an image file (nonzero = True). A mask
     is an argument: one that cannot be read, or of another size than the
     image, is a ``ParameterError`` (exit 2, as in the binary). Files are
     read by the binary's mask reader (``_core.decode_mask_file``: regular
     files only, ``max_pixels`` and ``max_memory`` checked from the header).
-    ``what`` names the mask in messages and ``of`` what it must match."""
+    ``what`` names the mask in messages and ``of`` what it must match (an
+    input turned upright by its EXIF ``orientation``: said)."""
     if mask is None:
         return None
     if isinstance(mask, (str, os.PathLike)):
@@ -106,7 +107,8 @@ def read_mask(mask, shape, what: str, *, max_pixels: int | None = None, max_memo
         if m.ndim != 2:
             raise ParameterError(f"{what} must be a 2-D array of bools or an image file, not {shown(mask)}")
     if m.shape != tuple(shape):
-        raise ParameterError(f"{what} is {m.shape[1]}x{m.shape[0]} pixels but {of} is {shape[1]}x{shape[0]}")
+        raise ParameterError(f"{what} is {m.shape[1]}x{m.shape[0]} pixels but {of} is {shape[1]}x{shape[0]}"
+                             + _core.upright_said(int(orientation)))
     return m
 
 
@@ -327,8 +329,11 @@ def _read_and_restore(in_path, out_dir, claim, settings, *, format, preprocess, 
     full_hw = image.shape[:2]
     # the binary's words for its own flags: "--mask is 32x24 pixels but the input is 64x48"
     of = "the input" if flags else "the image"
-    m = read_mask(mask, full_hw, spelt("mask", flags), max_pixels=max_pixels, max_memory=budget, of=of)
-    wm = read_mask(water_mask, full_hw, spelt("water_mask", flags), max_pixels=max_pixels, max_memory=budget, of=of)
+    turned = int(meta.orientation or 1)
+    m = read_mask(mask, full_hw, spelt("mask", flags), max_pixels=max_pixels, max_memory=budget, of=of,
+                  orientation=turned)
+    wm = read_mask(water_mask, full_hw, spelt("water_mask", flags), max_pixels=max_pixels, max_memory=budget, of=of,
+                   orientation=turned)
     s = max_side_factor(*full_hw, max_side)
     if s > 1:
         image = _core._downscale(image, s)

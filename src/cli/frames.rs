@@ -116,8 +116,8 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
         }
     };
     // checked against the frames' size once (the photo path's check)
-    let fitted = fit_mask(masks.mask.as_ref(), "--mask", h, w, 1, 1.0)
-        .and_then(|m| Ok((m, fit_mask(masks.water.as_ref(), "--water-mask", h, w, 1, 0.5)?)));
+    let fitted = fit_mask(masks.mask.as_ref(), "--mask", (h, w, 1), 1, 1.0)
+        .and_then(|m| Ok((m, fit_mask(masks.water.as_ref(), "--water-mask", (h, w, 1), 1, 0.5)?)));
     let (mask, water) = match fitted {
         Ok(m) => m,
         Err(e) => {

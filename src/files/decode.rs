@@ -758,6 +758,29 @@ pub fn decode_mask<R: BufRead + Seek>(
     })?;
     let (h, w) = (img.height() as usize, img.width() as usize);
     let c = usize::from(img.color().channel_count());
+    // a mask drawn in the alpha of a black image reads as all false: say why
+    let alpha_only = |colour_empty: bool, alpha_varies: bool| {
+        if colour_empty && alpha_varies {
+            Err(Failure::new(
+                Kind::Input,
+                "the mask's colour is black everywhere and only its alpha varies: a mask is read from its colour \
+                 (nonzero = true), not from its alpha",
+            ))
+        } else {
+            Ok(())
+        }
+    };
+    match &img {
+        DynamicImage::ImageRgba8(b) => alpha_only(
+            b.pixels().all(|p| p.0[..3] == [0, 0, 0]),
+            b.pixels().any(|p| p.0[3] != b.pixels().next().map_or(0, |q| q.0[3])),
+        )?,
+        DynamicImage::ImageRgba16(b) => alpha_only(
+            b.pixels().all(|p| p.0[..3] == [0, 0, 0]),
+            b.pixels().any(|p| p.0[3] != b.pixels().next().map_or(0, |q| q.0[3])),
+        )?,
+        _ => {}
+    }
     let mask = match img {
         DynamicImage::ImageLuma8(b) => nonzero(b.as_raw(), c),
         DynamicImage::ImageLumaA8(b) => nonzero(b.as_raw(), c),

@@ -91,14 +91,28 @@ pub enum Outcome {
     Skipped(PathBuf, Skip),
 }
 
-/// A mask checked against the input size and downscaled by `factor`: a
-/// block is true when at least `need` of its pixels are (1.0 = all).
-pub(crate) fn fit_mask(m: Option<&Mask>, flag: &str, h: usize, w: usize, factor: usize, need: f32) -> Result<Option<Vec<bool>>, Failure> {
+/// What a mask's size error adds for an input its EXIF orientation turned:
+/// masks are drawn on the upright photo (both commands say it alike).
+pub fn upright_said(orientation: u8) -> String {
+    if orientation == 1 {
+        String::new()
+    } else {
+        format!(" upright (after its EXIF orientation {orientation}; a mask is drawn on the upright photo)")
+    }
+}
+
+/// A mask checked against the input size (upright: after its EXIF
+/// `orientation`) and downscaled by `factor`: a block is true when at
+/// least `need` of its pixels are (1.0 = all).
+pub(crate) fn fit_mask(m: Option<&Mask>, flag: &str, (h, w, orientation): (usize, usize, u8), factor: usize, need: f32)
+    -> Result<Option<Vec<bool>>, Failure> {
     let Some(m) = m else { return Ok(None) };
     if (m.height, m.width) != (h, w) {
         return Err(Failure::usage(format!(
-            "{flag} is {}x{} pixels but the input is {w}x{h}",
-            m.width, m.height
+            "{flag} is {}x{} pixels but the input is {w}x{h}{}",
+            m.width,
+            m.height,
+            upright_said(orientation)
         )));
     }
     if factor <= 1 {
@@ -286,8 +300,8 @@ fn decode_and_restore_gated<R: BufRead + Seek>(
     // float samples are linear: no reference stretch, sRGB curve on output
     let linear = !reference || decoded.is_float;
     let factor = opts.max_side.map_or(1, |n| max_side_factor(h, w, n));
-    let mask = fit_mask(masks.mask.as_ref(), "--mask", h, w, factor, 1.0)?;
-    let water = fit_mask(masks.water.as_ref(), "--water-mask", h, w, factor, 0.5)?;
+    let mask = fit_mask(masks.mask.as_ref(), "--mask", (h, w, decoded.orientation), factor, 1.0)?;
+    let water = fit_mask(masks.water.as_ref(), "--water-mask", (h, w, decoded.orientation), factor, 0.5)?;
     // the full-size values are dropped as soon as the next copy is made: a
     // shadowed binding would hold them (12 bytes a pixel of the input)
     // through the restoration, which the memory plan does not count

@@ -265,6 +265,13 @@ fn read_distance_file<'py>(
     Ok(PyArray1::from_vec(py, m.data).reshape([m.height, m.width])?.into_any())
 }
 
+/// What a mask's size error adds for an input its EXIF `orientation`
+/// turned (`crate::files::pipeline::upright_said`), as the binary says it.
+#[pyfunction]
+fn upright_said(orientation: u8) -> String {
+    crate::files::pipeline::upright_said(orientation)
+}
+
 /// The ranges (an array), the sidecar's `distance.depth` (JSON) and why not.
 type RangeFor<'py> = (Option<Bound<'py, PyAny>>, Option<String>, Option<String>);
 
@@ -499,6 +506,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFileSettings>()?;
     m.add_function(wrap_pyfunction!(decode_file, m)?)?;
     m.add("FLOAT_NOT_PREPROCESSED", crate::files::pipeline::FLOAT_NOT_PREPROCESSED)?;
+    m.add_function(wrap_pyfunction!(upright_said, m)?)?;
     m.add_function(wrap_pyfunction!(decode_mask_file, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_for, m)?)?;
     m.add_function(wrap_pyfunction!(read_distance_file, m)?)?;

@@ -250,3 +250,33 @@ def test_colour_chunks_after_the_pixel_data_are_not_read(tmp_path):
     (tmp_path / "late.png").write_bytes(b[:end] + chunk + b[end:])
     img, meta = images.read_image(tmp_path / "late.png")
     assert np.allclose(img, ((128 / 255 + 0.055) / 1.055) ** 2.4, atol=1e-6) and not meta.notes
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_mask_of_the_stored_size_of_a_turned_photo_is_told_why_it_does_not_fit(impl, binary, tmp_path):
+    # stored 64 x 48 with EXIF orientation 6: upright it is 48 x 64, and masks are drawn on that
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(_scene(48, 64)).save(tmp_path / "turned.jpg", exif=exif.tobytes(), quality=95)
+    Image.fromarray(np.full((48, 64), 255, np.uint8)).save(tmp_path / "stored.png")
+    r = run_restore(cmds(binary)[impl], tmp_path / "turned.jpg", "-o", tmp_path / "o", "--mask", tmp_path / "stored.png")
+    assert r.returncode == 2, r.stderr
+    assert ("--mask is 64x48 pixels but the input is 48x64 upright (after its EXIF orientation 6; "
+            "a mask is drawn on the upright photo)") in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_mask_drawn_only_in_its_alpha_is_named_not_read_as_empty(impl, binary, tmp_path):
+    # black everywhere, the left half opaque: read by its colour it is all false (no water region, silently)
+    rgba = np.zeros((48, 64, 4), np.uint8)
+    rgba[:, :32, 3] = 255
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "alpha.png")
+    Image.fromarray(_scene(48, 64)).save(tmp_path / "p.png")
+    r = run_restore(cmds(binary)[impl], tmp_path / "p.png", "-o", tmp_path / "o", "--water-mask", tmp_path / "alpha.png")
+    assert r.returncode == 2, r.stderr
+    assert "only its alpha varies: a mask is read from its colour (nonzero = true), not from its alpha" in r.stderr
+    # the same mask drawn in its colour is read
+    rgba[:, :32, :3] = 255
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "colour.png")
+    r = run_restore(cmds(binary)[impl], tmp_path / "p.png", "-o", tmp_path / "o2", "--water-mask", tmp_path / "colour.png")
+    assert r.returncode == 0, r.stderr
