@@ -113,8 +113,9 @@ def series_svg(axis: Axis, types: list[str]) -> str:
     for c, color in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
         out.append(poly(list(a[:, c]), 0.0, hi, H, color))
     sc = [(p.doc.get("scores") or {}).get(p.doc.get("water_type")) for p in photos]
-    sv = [v for v in sc if v is not None]
-    out.append(f'<text x="{left}" y="{2 * H + 12}" class="lab">score of the chosen type (lower is better)</text>')
+    sv = [v for v in sc if v is not None and np.isfinite(v)]
+    scale = f", {min(sv):.3f} to {max(sv):.3f}" if sv else ""
+    out.append(f'<text x="{left}" y="{2 * H + 12}" class="lab">score of the chosen type (lower is better){scale}</text>')
     if sv:
         out.append(poly(sc, min(sv), max(sv), 2 * H, "#9467bd"))
     if panels == 4:

@@ -120,3 +120,13 @@ def test_evaluate_rows_name_only_the_water_type_each_method_had(tmp_path):
     assert by["revised"]["water_type"] == doc["images"][0]["water_type"]
     dist = [m for m in doc["images"][0]["rho"] if m.endswith("+distance")]
     assert dist == [] and "revised" in doc["images"][0]["rho"]
+
+
+def test_the_score_panel_states_its_scale_as_the_a_panel_does():
+    # the review found the A panel labelled "0 to 0.3" and the score panel without a range
+    from uwhl_rs.outdir import Photo
+    from uwhl_rs.report_series import series_axis, series_svg
+    docs = [{"water_type": "II", "scores": {"II": 0.0412}, "veiling_light": [0.1, 0.3, 0.4]},
+            {"water_type": "3C", "scores": {"3C": 0.2875}, "veiling_light": [0.1, 0.3, 0.4]}]
+    svg = series_svg(series_axis([Photo(f"p{k}.json", d) for k, d in enumerate(docs)]), ["II", "3C"])
+    assert "score of the chosen type (lower is better), 0.041 to 0.287" in svg
