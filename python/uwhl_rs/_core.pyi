@@ -26,7 +26,7 @@ __all__ = [
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
     "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "is_output_of", "new_run", "nearest_type", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
-    "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE",
+    "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE", "EARLIER_SUMMARY_BYTES",
     "FLOAT_NOT_PREPROCESSED", "upright_said",
     "name_bases", "MAX_NAMES", "FAMILY_GAP",
     "summary_columns",
@@ -57,6 +57,8 @@ FIT_BETA_GRID: tuple[float, float]
 MAP_PER_PHOTO_PIXEL: int
 #: a fallback_share from which a photo's colours are the input's balance throughout
 BALANCED_SHARE: float
+#: the largest earlier summary.csv read for its failures (a larger one keeps none)
+EARLIER_SUMMARY_BYTES: int
 #: the note of a float image read with the reference preprocessing (which does not apply to it)
 FLOAT_NOT_PREPROCESSED: str
 #: the names a claim tries for an input (NAME, NAME_2, ...)

@@ -209,10 +209,6 @@ class BatchResult:
     problems: int = 0
 
 
-#: the largest earlier summary.csv the core reads for its failures (src/files/summary.rs)
-_EARLIER_SUMMARY_BYTES = 64 << 20
-
-
 def _earlier_summary(output: str, so, scratch: str, listener) -> None:
     """The destination's summary.csv copied into the scratch folder, so that
     the batch lists its earlier failures again as a local run does (the
@@ -224,8 +220,8 @@ def _earlier_summary(output: str, so, scratch: str, listener) -> None:
         if not fs.exists(src):
             return
         size = int(fs.info(src).get("size") or 0)
-        if size > _EARLIER_SUMMARY_BYTES:
-            raise ValueError(f"it is over {_EARLIER_SUMMARY_BYTES >> 20} MiB")
+        if size > _core.EARLIER_SUMMARY_BYTES:
+            raise ValueError(f"it is over {_core.EARLIER_SUMMARY_BYTES >> 20} MiB")
         fs.get_file(src, os.path.join(scratch, FILE_NAME))
     except Exception as e:  # the store's own errors: the batch goes on, the earlier failures are not listed
         if listener is not None:

@@ -25,7 +25,7 @@ import numpy as np
 
 from . import _core
 from .errors import ImageReadError, ImageTooLargeError, ParameterError, shown
-from .imagewrite import atomic_write_bytes, path_arg, quantize, write_image
+from .imagewrite import IMAGE_EXTENSIONS, atomic_write_bytes, path_arg, quantize, write_image
 from .sidecars import display
 
 __all__ = [
@@ -51,8 +51,6 @@ __all__ = [
 #: are sniffed, and what is not JPEG/PNG/TIFF is refused).
 #: The list is the core's, which both commands' folder walks use.
 RAW_EXTENSIONS = frozenset("." + e for e in _core.RAW_EXTENSIONS)
-#: Extensions read through imageio as sRGB-encoded images (the core's list).
-IMAGE_EXTENSIONS = frozenset("." + e for e in _core.IMAGE_EXTENSIONS)
 #: ``none``: linear data (sRGB decoded through the inverse curve; raw as
 #: decoded). ``reference``: the reference code's preprocessing (METHOD §2).
 PREPROCESS_MODES = ("none", "reference")

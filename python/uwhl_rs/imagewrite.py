@@ -10,10 +10,10 @@ import numpy as np
 from . import _core
 from .errors import ParameterError, shown
 
-__all__ = ["quantize", "atomic_write_bytes", "path_arg", "write_image"]
+__all__ = ["IMAGE_EXTENSIONS", "quantize", "atomic_write_bytes", "path_arg", "write_image"]
 
-#: The extensions written (the core's list of images read).
-_WRITABLE = frozenset("." + e for e in _core.IMAGE_EXTENSIONS)
+#: Extensions read through imageio as sRGB-encoded images, and written (the core's list).
+IMAGE_EXTENSIONS = frozenset("." + e for e in _core.IMAGE_EXTENSIONS)
 
 
 def quantize(image: np.ndarray, bits: int, *, encoding: str) -> np.ndarray:
@@ -47,7 +47,7 @@ def atomic_write_bytes(path: str | os.PathLike, write) -> None:
 def _encodable(path: str, image: np.ndarray, bits: int, encoding: str) -> tuple[str, np.ndarray]:
     """The extension and the integer samples :func:`write_image` writes (or a ParameterError naming what cannot be written)."""
     ext = os.path.splitext(path)[1].lower()
-    if ext not in _WRITABLE:
+    if ext not in IMAGE_EXTENSIONS:
         raise ParameterError(f"{path}: cannot write {ext or 'a file without extension'}; use .jpg, .png or .tif")
     a = np.asarray(image)
     if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] != 3) or a.size == 0:

@@ -73,34 +73,34 @@ pub struct Decoded {
     pub notes: Vec<String>,
 }
 
-/// A reader that presents `inner` with `bytes` in place of its own at
-/// `at` (when `on`): a TIFF whose first IFD is a thumbnail is shown to the
-/// decoder with the header's IFD offset pointing at the full image.
+/// Where a classic TIFF header holds the offset of IFD0 (bytes 4-7).
+const IFD0_OFFSET_AT: u64 = 4;
+
+/// A reader that presents a classic TIFF `inner` with `ifd0` (the offset
+/// of another IFD, in the file's byte order) in its header when given: a
+/// TIFF whose first IFD is a thumbnail is shown to the decoder with IFD0
+/// being the full image.
 struct Patched<R> {
     inner: R,
-    at: u64,
-    bytes: [u8; 4],
-    on: bool,
+    ifd0: Option<[u8; 4]>,
     pos: u64,
 }
 
 impl<R: Read + Seek> Patched<R> {
-    fn new(inner: R, at: u64, bytes: [u8; 4], on: bool) -> Self {
-        Self { inner, at, bytes, on, pos: 0 }
+    fn new(inner: R, ifd0: Option<[u8; 4]>) -> Self {
+        Self { inner, ifd0, pos: 0 }
     }
 }
 
 impl<R: Read + Seek> Read for Patched<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
-        if self.on {
-            for (k, b) in buf.iter_mut().take(n).enumerate() {
-                let p = self.pos + k as u64;
-                if let Some(&v) = p.checked_sub(self.at).and_then(|i| self.bytes.get(usize::try_from(i).ok()?)) {
+        if let Some(bytes) = self.ifd0 {
+            // the patched bytes this read covers
+            for (k, &v) in (IFD0_OFFSET_AT..).zip(&bytes) {
+                let into = k.checked_sub(self.pos).and_then(|i| usize::try_from(i).ok()).filter(|&i| i < n);
+                if let Some(b) = into.and_then(|i| buf.get_mut(i)) {
                     *b = v;
-                }
-                if p >= self.at + 4 {
-                    break;
                 }
             }
         }
@@ -200,24 +200,12 @@ fn image_error(e: ImageError) -> Failure {
     }
 }
 
-/// Whether a JPEG stream is complete: walking its segments from SOI (each
-/// marker's length, and past each scan's entropy-coded data, where 0xFF is
-/// followed only by 0x00, a restart marker or fill bytes) reaches the
-/// end-of-image marker (FF D9) before the data ends. What follows that
-/// marker is not looked at: phones append a video or a depth map after it
-/// (Motion Photos, MPF), whose bytes hold FF DA and FF D9 at random. The
-/// JPEG decoder fills a truncated scan with gray and reports success; a
-/// cut-off frame must be an error instead (Pillow refuses it too).
-pub fn jpeg_complete(bytes: &[u8]) -> bool {
-    jpeg_walk(bytes).is_some()
-}
-
 /// A JPEG frame's height, width and its components' sampling factors (H, V).
 type Frame = (u32, u32, Vec<(u8, u8)>);
 
-/// What the walk of [`jpeg_complete`] finds in a complete JPEG: the frame
-/// (SOF: height, width, and each component's sampling factors) and the
-/// bytes of entropy-coded data over all its scans.
+/// What [`jpeg_walk`] finds in a complete JPEG: the frame (SOF: height,
+/// width, and each component's sampling factors) and the bytes of
+/// entropy-coded data over all its scans.
 #[derive(Debug, Default)]
 struct JpegWalk {
     frame: Option<Frame>,
@@ -228,8 +216,15 @@ struct JpegWalk {
     scan_bytes: u64,
 }
 
-/// The segments of a JPEG stream up to its end-of-image marker; None when
-/// it does not reach one (see [`jpeg_complete`]).
+/// The segments of a complete JPEG stream; None when it is not complete.
+/// Complete: walking its segments from SOI (each marker's length, and past
+/// each scan's entropy-coded data, where 0xFF is followed only by 0x00, a
+/// restart marker or fill bytes) reaches the end-of-image marker (FF D9)
+/// before the data ends. What follows that marker is not looked at: phones
+/// append a video or a depth map after it (Motion Photos, MPF), whose bytes
+/// hold FF DA and FF D9 at random. The JPEG decoder fills a truncated scan
+/// with gray and reports success; a cut-off frame must be an error instead
+/// (Pillow refuses it too).
 fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
     if !bytes.starts_with(&[0xFF, 0xD8]) {
         return None;
@@ -286,7 +281,7 @@ fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
     }
 }
 
-/// Why a complete JPEG is not decoded, if it is not: a lossless or
+/// Why a complete JPEG (its [`jpeg_walk`]) is not decoded, if it is not: a lossless or
 /// JPEG-LS frame (the decoder has no such mode), or scans too short for
 /// the frame's pixels. Every
 /// 8 x 8 block of every component takes at least one bit of Huffman-coded
@@ -296,8 +291,7 @@ fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
 /// kept) or made to cost memory: a 632-byte file claiming 6000 x 4000
 /// pixels decoded to gray for 2.3 GB. Arithmetic-coded frames are not
 /// judged.
-fn jpeg_problem(bytes: &[u8]) -> Option<String> {
-    let walk = jpeg_walk(bytes)?;
+fn jpeg_problem(walk: JpegWalk) -> Option<String> {
     if let Some(code) = walk.lossless {
         let what = if code == 0xF7 { "JPEG-LS" } else { "lossless JPEG" };
         return Some(format!("{what} (marker FF {code:02X}) is not read: baseline and progressive JPEG are"));
@@ -341,13 +335,13 @@ fn read_jpeg<R: BufRead + Seek>(mut reader: R, limits: &Limits) -> Result<Vec<u8
         .try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX))
         .map_err(|e| Failure::new(Kind::Budget, format!("cannot hold the file: {e}")))?;
     reader.read_to_end(&mut bytes).map_err(io)?;
-    if !jpeg_complete(&bytes) {
+    let Some(walk) = jpeg_walk(&bytes) else {
         return Err(Failure::new(
             Kind::Input,
             "cannot decode: truncated JPEG (no end-of-image marker after the last scan)",
         ));
-    }
-    if let Some(why) = jpeg_problem(&bytes) {
+    };
+    if let Some(why) = jpeg_problem(walk) {
         return Err(Failure::new(Kind::Input, why));
     }
     Ok(bytes)
@@ -440,7 +434,7 @@ fn open<R: BufRead + Seek>(
                 .map_err(io)
                 .and_then(|mut s| exif::tiff_pick(&mut s).map_err(|why| Failure::new(Kind::Input, why)))?;
             let mut notes: Vec<String> = Vec::new();
-            let mut header = None;
+            let mut ifd0 = None;
             if let Some(p) = &pick {
                 if p.offset != p.first {
                     notes.push(format!(
@@ -448,7 +442,7 @@ fn open<R: BufRead + Seek>(
                         p.index
                     ));
                     let at = u32::try_from(p.offset).unwrap_or(0);
-                    header = Some(if p.little_endian { at.to_le_bytes() } else { at.to_be_bytes() });
+                    ifd0 = Some(if p.little_endian { at.to_le_bytes() } else { at.to_be_bytes() });
                 }
                 if p.pages > 1 {
                     notes.push(format!("the file holds {} full-resolution images; the first is read", p.pages));
@@ -457,7 +451,7 @@ fn open<R: BufRead + Seek>(
             // from here on the file is seen with the picked image first: its
             // orientation, its XMP and its layout are the ones read
             inner.seek(SeekFrom::Start(0)).map_err(io)?;
-            let mut inner = BufReader::new(Patched::new(inner, 4, header.unwrap_or_default(), header.is_some()));
+            let mut inner = BufReader::new(Patched::new(inner, ifd0));
             let (orientation, note) = oriented(&mut || exif::orientation_from(&mut inner));
             if let Some(n) = note {
                 notes.insert(0, n);
@@ -736,6 +730,14 @@ fn through_profile<T: Copy + Into<f32>>(
     }
 }
 
+/// Whether RGBA integer samples are black everywhere while their alpha
+/// varies: a mask drawn in its alpha only.
+fn drawn_in_alpha<T: Copy + PartialEq + Default>(rgba: &[T]) -> bool {
+    let px = rgba.as_chunks::<4>().0;
+    let first = px.first().map(|&[_, _, _, a]| a);
+    px.iter().all(|&[r, g, b, _]| [r, g, b] == [T::default(); 3]) && px.iter().any(|&[_, _, _, a]| Some(a) != first)
+}
+
 /// Decodes a mask image (not oriented): a pixel is true when any of its
 /// first three channels is nonzero (RGBA: alpha ignored; gray + alpha:
 /// either). Returns (mask, height, width).
@@ -759,27 +761,17 @@ pub fn decode_mask<R: BufRead + Seek>(
     let (h, w) = (img.height() as usize, img.width() as usize);
     let c = usize::from(img.color().channel_count());
     // a mask drawn in the alpha of a black image reads as all false: say why
-    let alpha_only = |colour_empty: bool, alpha_varies: bool| {
-        if colour_empty && alpha_varies {
-            Err(Failure::new(
-                Kind::Input,
-                "the mask's colour is black everywhere and only its alpha varies: a mask is read from its colour \
-                 (nonzero = true), not from its alpha",
-            ))
-        } else {
-            Ok(())
-        }
+    let alpha_only = match &img {
+        DynamicImage::ImageRgba8(b) => drawn_in_alpha(b.as_raw()),
+        DynamicImage::ImageRgba16(b) => drawn_in_alpha(b.as_raw()),
+        _ => false,
     };
-    match &img {
-        DynamicImage::ImageRgba8(b) => alpha_only(
-            b.pixels().all(|p| p.0[..3] == [0, 0, 0]),
-            b.pixels().any(|p| p.0[3] != b.pixels().next().map_or(0, |q| q.0[3])),
-        )?,
-        DynamicImage::ImageRgba16(b) => alpha_only(
-            b.pixels().all(|p| p.0[..3] == [0, 0, 0]),
-            b.pixels().any(|p| p.0[3] != b.pixels().next().map_or(0, |q| q.0[3])),
-        )?,
-        _ => {}
+    if alpha_only {
+        return Err(Failure::new(
+            Kind::Input,
+            "the mask's colour is black everywhere and only its alpha varies: a mask is read from its colour \
+             (nonzero = true), not from its alpha",
+        ));
     }
     let mask = match img {
         DynamicImage::ImageLuma8(b) => nonzero(b.as_raw(), c),
@@ -876,11 +868,11 @@ mod tests {
     #[test]
     fn truncated_jpeg_is_an_input_error() {
         let jpg = small_jpeg();
-        assert!(jpeg_complete(&jpg));
+        assert!(jpeg_walk(&jpg).is_some());
         let d = decode(Cursor::new(jpg.clone()), &NO_LIMIT, true, |_| Ok(())).unwrap();
         assert_eq!((d.format, d.height, d.width), ("JPEG", 16, 16));
         let cut = &jpg[..jpg.len() - 10];
-        assert!(!jpeg_complete(cut));
+        assert!(jpeg_walk(cut).is_none());
         let e = decode(Cursor::new(cut), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
         assert_eq!(e.kind, Kind::Input);
         assert!(e.message.contains("truncated"), "{e}");
@@ -888,17 +880,18 @@ mod tests {
 
     #[test]
     fn a_lossless_frame_and_scans_too_short_for_the_frame_are_named() {
+        let problem = |b: &[u8]| jpeg_walk(b).and_then(jpeg_problem);
         let jpg = small_jpeg();
-        assert_eq!(jpeg_problem(&jpg), None);
+        assert_eq!(problem(&jpg), None);
         let sof = jpg.windows(2).position(|w| w == [0xFF, 0xC0]).unwrap();
         // the same stream marked lossless (SOF3): the decoder has no such mode
         let mut lossless = jpg.clone();
         lossless[sof + 1] = 0xC3;
-        assert_eq!(jpeg_problem(&lossless).unwrap(), "lossless JPEG (marker FF C3) is not read: baseline and progressive JPEG are");
+        assert_eq!(problem(&lossless).unwrap(), "lossless JPEG (marker FF C3) is not read: baseline and progressive JPEG are");
         // its frame claimed 6000 x 4000: the encoder writes 4:4:4, so 3 x 750 x 500 blocks, one bit each at least
         let mut big = jpg.clone();
         big[sof + 5..sof + 9].copy_from_slice(&[0x0F, 0xA0, 0x17, 0x70]);
-        let why = jpeg_problem(&big).unwrap();
+        let why = problem(&big).unwrap();
         assert!(why.starts_with("a damaged JPEG: its 6000x4000 pixels need at least 140625 bytes of scan data"), "{why}");
         let e = decode(Cursor::new(big), &NO_LIMIT, true, |_| Ok(())).unwrap_err();
         assert_eq!((e.kind, e.message), (Kind::Input, why));
@@ -910,20 +903,20 @@ mod tests {
         // a video appended after the end (a Motion Photo) holding a start-of-scan and no end marker
         let mut motion = jpg.clone();
         motion.extend_from_slice(b"\0\0\0\x18ftypmp42\xff\xda\x00\x08junk");
-        assert!(jpeg_complete(&motion));
+        assert!(jpeg_walk(&motion).is_some());
         let d = decode(Cursor::new(motion), &NO_LIMIT, true, |_| Ok(())).unwrap();
         assert_eq!((d.height, d.width), (16, 16));
         // stray bytes between two segments
         let mut padded = jpg[..2].to_vec();
         padded.extend_from_slice(&[0, 0]);
         padded.extend_from_slice(&jpg[2..]);
-        assert!(jpeg_complete(&padded));
+        assert!(jpeg_walk(&padded).is_some());
         // cut inside the scan, or right after its header
         let sos = jpg.windows(2).position(|w| w == [0xFF, 0xDA]).unwrap();
-        assert!(!jpeg_complete(&jpg[..sos + 20]));
-        assert!(!jpeg_complete(&jpg[..sos + 1]));
-        assert!(!jpeg_complete(b"\xff\xd8"));
-        assert!(!jpeg_complete(b"not a jpeg"));
+        assert!(jpeg_walk(&jpg[..sos + 20]).is_none());
+        assert!(jpeg_walk(&jpg[..sos + 1]).is_none());
+        assert!(jpeg_walk(b"\xff\xd8").is_none());
+        assert!(jpeg_walk(b"not a jpeg").is_none());
     }
 
     #[test]

@@ -222,6 +222,17 @@ fn value_bytes(src: &mut dyn Source, o: Order, e: &Entry, size: u64, n: usize) -
     Some(v)
 }
 
+/// The integer values of the entry tagged `tag` in `list`, at most `max`
+/// of them; None when there is none or its values cannot be read.
+fn tag_integers(src: &mut dyn Source, o: Order, list: &[Entry], tag: u16, max: u64) -> Option<Vec<u64>> {
+    list.iter().find(|e| e.tag == tag).and_then(|e| integers(src, o, e, max).ok())
+}
+
+/// The first integer value of the entry tagged `tag` in `list` ([`tag_integers`]).
+fn tag_integer(src: &mut dyn Source, o: Order, list: &[Entry], tag: u16) -> Option<u64> {
+    tag_integers(src, o, list, tag, 1).and_then(|v| v.first().copied())
+}
+
 /// The integer values (BYTE, SHORT, LONG) of an entry, at most `max` of them.
 fn integers(src: &mut dyn Source, o: Order, e: &Entry, max: u64) -> Result<Vec<u64>, String> {
     let size = match e.kind {
@@ -497,11 +508,9 @@ pub fn tiff_pick(src: &mut dyn Source) -> Result<Option<TiffPick>, String> {
     let mut seen = std::collections::HashSet::new();
     while at != 0 && index < MAX_FILE_IFDS && seen.insert(at) {
         let (list, next) = ifd(src, o, at)?;
-        let one = |src: &mut dyn Source, tag: u16| {
-            list.iter().find(|e| e.tag == tag).and_then(|e| integers(src, o, e, 1).ok()).and_then(|v| v.first().copied())
-        };
         // a reduced-resolution image (bit 0) or a transparency mask (bit 2) is no photo
-        let reduced = one(src, 0x00FE).is_some_and(|v| v & 0b101 != 0) || one(src, 0x00FF) == Some(2);
+        let reduced = tag_integer(src, o, &list, 0x00FE).is_some_and(|v| v & 0b101 != 0)
+            || tag_integer(src, o, &list, 0x00FF) == Some(2);
         if !reduced {
             pages += 1;
             if pick.is_none() {
@@ -515,13 +524,10 @@ pub fn tiff_pick(src: &mut dyn Source) -> Result<Option<TiffPick>, String> {
         // only previews: a raw camera file (DNG, NEF, ...) keeps its full
         // image in a SubIFD of IFD0, in the camera's own colours
         let (ifd0, _) = ifd(src, o, first)?;
-        let subs = ifd0.iter().find(|e| e.tag == 0x014A).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
-        let raw = subs.iter().any(|&sub| {
-            ifd(src, o, sub).ok().is_some_and(|(l, _)| {
-                let kind = l.iter().find(|e| e.tag == 0x00FE).and_then(|e| integers(src, o, e, 1).ok());
-                kind.and_then(|v| v.first().copied()).unwrap_or(0) & 1 == 0
-            })
-        });
+        let subs = tag_integers(src, o, &ifd0, 0x014A, 64).unwrap_or_default();
+        let raw = subs
+            .iter()
+            .any(|&sub| ifd(src, o, sub).ok().is_some_and(|(l, _)| tag_integer(src, o, &l, 0x00FE).unwrap_or(0) & 1 == 0));
         return Err(if raw {
             "a raw camera file (its full-resolution image is in a SubIFD, behind the preview a TIFF reader \
              sees): give it its raw extension (.nef, .dng, ...); the Python command reads raw files"
@@ -531,14 +537,13 @@ pub fn tiff_pick(src: &mut dyn Source) -> Result<Option<TiffPick>, String> {
         });
     };
     // a sensor mosaic (CFA) or DNG's LinearRaw as the main image: a raw file
-    let photometric = list.iter().find(|e| e.tag == 0x0106).and_then(|e| integers(src, o, e, 1).ok());
-    if photometric.and_then(|v| v.first().copied()).is_some_and(|p| p == 32803 || p == 34892) {
+    if tag_integer(src, o, &list, 0x0106).is_some_and(|p| p == 32803 || p == 34892) {
         return Err("a raw camera file (its image is a sensor mosaic): give it its raw extension (.dng, .nef, ...); \
                     the Python command reads raw files"
             .into());
     }
-    let bits = list.iter().find(|e| e.tag == 0x0102).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
-    let format = list.iter().find(|e| e.tag == 0x0153).and_then(|e| integers(src, o, e, 64).ok()).unwrap_or_default();
+    let bits = tag_integers(src, o, &list, 0x0102, 64).unwrap_or_default();
+    let format = tag_integers(src, o, &list, 0x0153, 64).unwrap_or_default();
     if bits.contains(&32) && format.first().copied().unwrap_or(1) != 3 {
         let kind = if format.first() == Some(&2) { "signed" } else { "unsigned" };
         return Err(format!(
@@ -669,7 +674,7 @@ pub fn raw_tables<R: Read + Seek>(r: &mut R) -> Result<(), String> {
 pub fn tiff_layout(src: &mut dyn Source) -> Option<String> {
     let (o, ifd0) = header(src).ok()?;
     let (list, _) = ifd(src, o, ifd0).ok()?;
-    let mut get = |tag: u16| list.iter().find(|e| e.tag == tag).and_then(|e| integers(src, o, e, 64).ok());
+    let mut get = |tag: u16| tag_integers(src, o, &list, tag, 64);
     let samples = get(0x0115).and_then(|v| v.first().copied()).unwrap_or(1);
     let bits = get(0x0102).unwrap_or_else(|| vec![1]);
     let photometric = get(0x0106).and_then(|v| v.first().copied());

@@ -66,7 +66,6 @@ pub fn neutralise(s: &str) -> String {
 
 /// The text a reader of summary.csv gets back from a cell written through
 /// [`neutralise`] (the inverse: the one quote taken off).
-#[cfg_attr(not(feature = "python"), allow(dead_code))]
 pub fn restore_cell(s: &str) -> &str {
     let mut c = s.chars();
     match (c.next(), c.next()) {
@@ -227,8 +226,7 @@ impl Summary {
     fn open(&mut self) {
         self.opened = true;
         let held = self.presence.take().zip(self.start);
-        let opened = self.try_open(held);
-        match opened {
+        match self.try_open(held) {
             Ok(presence) => self.presence = Some(presence),
             Err(e) => self.fail(&e),
         }
@@ -481,7 +479,7 @@ fn path_text(p: &Path) -> String {
 }
 
 /// The largest earlier summary read for its failed rows (larger: none kept, said).
-const MAX_EARLIER_BYTES: u64 = 64 << 20;
+pub const MAX_EARLIER_BYTES: u64 = 64 << 20;
 /// A field or a record longer than these is no row of ours (as the report reads it).
 const MAX_FIELD_BYTES: usize = 128 << 10;
 const MAX_RECORD_BYTES: usize = 1 << 20;

@@ -355,7 +355,7 @@ pub fn haze_floor_from_name(name: &str) -> Result<Option<&'static str>> {
     if name.eq_ignore_ascii_case("none") {
         return Ok(None);
     }
-    crate::method::water::JERLOV.iter().find(|t| t.0.eq_ignore_ascii_case(name)).map(|t| Some(t.0)).ok_or_else(|| Error::Param {
+    crate::method::water::table_entry(name).map(|t| Some(t.0)).ok_or_else(|| Error::Param {
         name: "haze_floor",
         msg: format!("must be \"none\" or a Jerlov type (I IA IB II III 1C 3C 5C 7C 9C); got {name:?}"),
     })

@@ -83,9 +83,7 @@ impl WaterType {
     /// A type of the Jerlov table by its name in any ASCII case (`3c` is
     /// `3C`), named as the table names it (METHOD §1).
     pub fn by_name(name: &str) -> Result<Self> {
-        JERLOV
-            .iter()
-            .find(|(n, _, _)| n.eq_ignore_ascii_case(name))
+        table_entry(name)
             .map(|&(n, br, bg)| Self {
                 name: n.to_string(),
                 beta_br: br,
@@ -99,6 +97,11 @@ impl WaterType {
                 ))
             })
     }
+}
+
+/// The row of the Jerlov table named `name` in any ASCII case (METHOD §1).
+pub fn table_entry(name: &str) -> Option<&'static (&'static str, f64, f64)> {
+    JERLOV.iter().find(|(n, _, _)| n.eq_ignore_ascii_case(name))
 }
 
 /// All ten Jerlov types in table order (the default search space).

@@ -214,6 +214,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(progress_said, m)?)?;
     m.add_function(wrap_pyfunction!(water_with_distance_note, m)?)?;
     m.add("BALANCED_SHARE", crate::method::fallback::BALANCED)?;
+    m.add("EARLIER_SUMMARY_BYTES", summary::MAX_EARLIER_BYTES)?;
     m.add_function(wrap_pyfunction!(summary_columns, m)?)?;
     m.add_function(wrap_pyfunction!(name_bases, m)?)?;
     m.add("MAX_NAMES", crate::files::commit::MAX_NAMES)?;
