@@ -730,6 +730,21 @@ fn through_profile<T: Copy + Into<f32>>(
     }
 }
 
+/// Per pixel of a JPEG mask (8-bit gray or RGB): is any of its first three
+/// channels at least half the mask's brightest value. Lossy compression rings
+/// around a drawn edge and turns black pixels beside it into small nonzero
+/// codes, which the nonzero rule would take as true (a mask drawn 0/255 and
+/// saved at quality 75 gains a band of true pixels around every shape); the
+/// half-way threshold keeps the edge where it was drawn, and a mask drawn
+/// 0/1 is still read as nonzero.
+fn at_least_half(raw: &[u8], channels: usize) -> Vec<bool> {
+    let top = raw.chunks_exact(channels.max(1)).flat_map(|p| p.iter().take(3)).copied().max().unwrap_or(0);
+    let half = top.div_ceil(2).max(1);
+    raw.chunks_exact(channels.max(1))
+        .map(|p| p.iter().take(3).any(|v| *v >= half))
+        .collect()
+}
+
 /// Whether RGBA integer samples are black everywhere while their alpha
 /// varies: a mask drawn in its alpha only.
 fn drawn_in_alpha<T: Copy + PartialEq + Default>(rgba: &[T]) -> bool {
@@ -740,13 +755,14 @@ fn drawn_in_alpha<T: Copy + PartialEq + Default>(rgba: &[T]) -> bool {
 
 /// Decodes a mask image (not oriented): a pixel is true when any of its
 /// first three channels is nonzero (RGBA: alpha ignored; gray + alpha:
-/// either). Returns (mask, height, width).
+/// either); in a JPEG, when it reaches half the mask's brightest value
+/// ([`at_least_half`]). Returns (mask, height, width).
 pub fn decode_mask<R: BufRead + Seek>(
     reader: R,
     limits: &Limits,
 ) -> Result<(Vec<bool>, usize, usize), Failure> {
     let budget = limits.max_memory;
-    let (img, _, _) = open(reader, limits, false, |h| {
+    let (img, format, _) = open(reader, limits, false, |h| {
         let n = (h.height as u64).saturating_mul(h.width as u64);
         // decoded + converted (6 bytes per pixel) + the bools
         let need = n.saturating_mul(h.bpp.saturating_mul(2).saturating_add(7));
@@ -774,6 +790,8 @@ pub fn decode_mask<R: BufRead + Seek>(
         ));
     }
     let mask = match img {
+        DynamicImage::ImageLuma8(b) if format == "JPEG" => at_least_half(b.as_raw(), c),
+        DynamicImage::ImageRgb8(b) if format == "JPEG" => at_least_half(b.as_raw(), c),
         DynamicImage::ImageLuma8(b) => nonzero(b.as_raw(), c),
         DynamicImage::ImageLumaA8(b) => nonzero(b.as_raw(), c),
         DynamicImage::ImageRgb8(b) => nonzero(b.as_raw(), c),
@@ -930,6 +948,46 @@ mod tests {
         let f = png(2, 1, image::ExtendedColorType::La8, &[0, 5, 0, 0]);
         let (m, _, _) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
         assert_eq!(m, vec![true, false]);
+    }
+
+    /// A JPEG mask: a disc drawn 0/`on` on a gray 80 x 60 image, saved at
+    /// quality 75, and the disc itself.
+    fn jpeg_disc(on: u8) -> (Vec<u8>, Vec<bool>) {
+        let (w, h) = (80u32, 60u32);
+        let disc: Vec<bool> = (0..h * w)
+            .map(|i| {
+                let (y, x) = (f64::from(i / w), f64::from(i % w));
+                (y - 29.3).powi(2) + (x - 37.6).powi(2) <= 19.5f64.powi(2)
+            })
+            .collect();
+        let px: Vec<u8> = disc.iter().map(|&d| if d { on } else { 0 }).collect();
+        let mut out = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 75)
+            .encode(&px, w, h, image::ExtendedColorType::L8)
+            .unwrap();
+        (out, disc)
+    }
+
+    #[test]
+    fn a_jpeg_mask_keeps_its_drawn_edge() {
+        let (f, disc) = jpeg_disc(255);
+        // what a nonzero reading of the same codes would give: the ringing band
+        let ringing = {
+            let img = image::load_from_memory(&f).unwrap().into_luma8();
+            img.as_raw().iter().zip(&disc).filter(|&(&v, &d)| (v != 0) != d).count()
+        };
+        assert!(ringing > 100, "the encoder did not ring ({ringing} pixels): the test shows nothing");
+        let (m, h, w) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
+        assert_eq!((h, w), (60, 80));
+        let wrong = m.iter().zip(&disc).filter(|(a, b)| a != b).count();
+        // the disc's edge is about 120 pixels long; a pixel cut by it may go either way
+        assert!(wrong <= 12, "{wrong} pixels differ from the disc drawn");
+        // drawn 0/1, its codes stay at most 2: read as nonzero (half of 1 or 2 is 1)
+        let (f, _) = jpeg_disc(1);
+        let codes = image::load_from_memory(&f).unwrap().into_luma8().into_raw();
+        assert!(codes.iter().all(|&v| v <= 2) && codes.contains(&1));
+        let (m, _, _) = decode_mask(Cursor::new(f), &NO_LIMIT).unwrap();
+        assert_eq!(m, codes.iter().map(|&v| v != 0).collect::<Vec<_>>());
     }
 
     /// A PNG of `w` x `h` RGB pixels with `chunks` (kind, data) before IDAT,

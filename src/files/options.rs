@@ -241,10 +241,11 @@ is used if all its pixels are, a water-mask block is water if at least half its 
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "mask", flag: "--mask", short: None, metavar: "PATH", kind: Kind::Path,
         default: Default::None, help: "image of the input's size: nonzero = use the pixel for estimation, \
-zero = ignore it (e.g. a color chart)",
+zero = ignore it (e.g. a color chart); in a JPEG, at least half its brightest value",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "water_mask", flag: "--water-mask", short: None, metavar: "PATH", kind: Kind::Path,
-        default: Default::None, help: "image of the input's size: nonzero = water region VL (replaces detection)",
+        default: Default::None, help: "image of the input's size: nonzero = water region VL (replaces detection); \
+in a JPEG, at least half its brightest value",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "distance", flag: "--distance", short: None, metavar: "TEMPLATE", kind: Kind::Path,
         default: Default::None, help: "each input's distance map, e.g. 'depth/{stem}.tif' ({stem}: the input's \
