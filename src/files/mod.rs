@@ -18,7 +18,7 @@ pub mod color;
 pub mod transfer;
 
 #[cfg(any(feature = "cli", feature = "python"))]
-stage_modules! { budget, commit, jobs, settings, decode, depth, dive, encode, nav, pipeline, sidecar, summary }
+stage_modules! { budget, commit, jobs, settings, decode, depth, dive, encode, jpeg, nav, pipeline, sidecar, summary }
 
 /// The input's metadata carried into the corrected photo, and the
 /// restoration recorded in XMP (both commands).
