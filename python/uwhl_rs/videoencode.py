@@ -17,7 +17,7 @@ from . import _core, video
 from .errors import CommandError, ParameterError
 
 __all__ = ["CODECS", "INPUT_CODECS", "Writer", "codec_for", "resolve_codec", "ffmpeg_text", "check_size", "extension",
-           "write_error"]
+           "write_error", "local_url"]
 
 #: --video-codec: (FFmpeg encoder, pixel format for 8-bit input, for deeper input, containers it goes in)
 CODECS = {
@@ -55,6 +55,16 @@ def resolve_codec(choice: str, path: str) -> str:
         return codec_for(choice, video.probe(path, transfer="bt709", rotation=False))
     except (ValueError, OSError):
         return choice
+
+
+def local_url(path: str) -> str:
+    """What FFmpeg is given to write the local file at ``path``: its
+    absolute path behind ``file:``. A bare name is read as a URL, so an
+    output folder called ``tcp:`` would send the video to a socket,
+    ``file:zz`` would write it to ``zz``, ``dive:2`` would be an unknown
+    protocol; and PyAV opens an output with ``avio_open`` without the
+    options, so a ``protocol_whitelist`` there would not be honoured."""
+    return "file:" + os.path.abspath(path)
 
 
 def ffmpeg_text(e: BaseException) -> str:
@@ -129,7 +139,7 @@ class Writer:
         self.first_rescaled: tuple[int, int, int] | None = None
         fmt = {".mkv": "matroska", ".ts": "mpegts", ".mts": "mpegts", ".m2ts": "mpegts", ".m4v": "mp4"}.get(ext)
         try:
-            self.out = av.open(tmp, "w", format=fmt or ext.lstrip("."))
+            self.out = av.open(local_url(tmp), "w", format=fmt or ext.lstrip("."))
         except (av.FFmpegError, ValueError) as e:
             raise CommandError(f"cannot write a {ext} video: {ffmpeg_text(e)}", "write_failed") from None
         try:

@@ -346,6 +346,11 @@ pub fn read_log(path: &Path) -> Result<NavLog, Failure> {
     Ok(log)
 }
 
+/// Most fields a line of a navigation log may have: vehicle logs have tens
+/// to a few hundred columns. A line of a quarter of a gigabyte of commas
+/// would otherwise be held as that many strings (24 bytes each, 6 GB).
+const MAX_FIELDS: usize = 4096;
+
 /// The fields of one CSV line: commas (or the header's delimiter), double
 /// quotes around a field that holds one, `""` for a quote inside.
 fn fields(line: &str, delim: char) -> Result<Vec<String>, String> {
@@ -371,6 +376,9 @@ fn fields(line: &str, delim: char) -> Result<Vec<String>, String> {
             was_quoted = true;
             cur.clear();
         } else if c == delim {
+            if out.len() + 1 >= MAX_FIELDS {
+                return Err(format!("more than {MAX_FIELDS} fields: not a navigation log's line"));
+            }
             out.push(std::mem::take(&mut cur).trim().to_string());
             was_quoted = false;
         } else {
@@ -828,6 +836,19 @@ mod tests {
                     "2026-11-30T10:15:40+99:00", "2026-11-30T10:15:40+10:60", "1e300", "-1e12"] {
             assert_eq!(parse_time(bad), None, "{bad}");
         }
+    }
+
+    #[test]
+    fn a_line_of_thousands_of_fields_is_refused_by_its_number() {
+        let wide = format!("file,altitude{}\na.png,2.0\n", ",".repeat(5000));
+        let e = parse_log(&wide).unwrap_err();
+        assert!(e.starts_with("line 1: more than 4096 fields"), "{e}");
+        let wide = format!("# a comment\nfile,altitude\na.png,2.0{}\n", ",".repeat(250_000));
+        let e = parse_log(&wide).unwrap_err();
+        assert!(e.starts_with("line 3: more than 4096 fields"), "{e}");
+        // a wide log within the bound is read
+        let ok = format!("file,altitude{}\na.png,2.0{}\n", ",x".repeat(4000), ",1".repeat(4000));
+        assert_eq!(parse_log(&ok).unwrap().pose(Path::new("a.png"), None).unwrap().0.altitude, 2.0);
     }
 
     #[test]
