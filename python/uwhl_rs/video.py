@@ -36,7 +36,7 @@ from .files import max_side_factor
 from .errors import ImageReadError, ParameterError
 
 __all__ = ["VIDEO_EXTENSIONS", "StreamInfo", "Frame", "RestoredFrame", "is_video", "probe", "read_frames",
-           "restore_frames", "refresh_for"]
+           "restore_frames", "refresh_for", "display_angle", "display_rotation", "quarter_turns"]
 
 #: file extensions read as videos (lower case, with the dot)
 VIDEO_EXTENSIONS = frozenset("." + e for e in _core.VIDEO_EXTENSIONS)
@@ -102,6 +102,17 @@ class StreamInfo:
     end: float | None = None
     #: the counter-clockwise rotation of its display matrix, degrees (0, 90, 180, 270; :func:`probe`)
     rotation: int = 0
+    #: of ``frames``, those the container's edit list leaves out (an MP4 or MOV trimmed without
+    #: re-encoding keeps the samples before the cut and marks them discarded in its index)
+    edited_out: int = 0
+
+    @property
+    def frames_shown(self) -> int | None:
+        """The frames the stream gives when decoded: the stated count less
+        those its edit list leaves out (None: the container does not say)."""
+        if not self.frames:
+            return None
+        return max(self.frames - self.edited_out, 0) or None
 
     def to_dict(self) -> dict:
         """The sidecar's ``video.stream``."""
@@ -110,6 +121,7 @@ class StreamInfo:
                                             "transfer", "transfer_from", "matrix", "matrix_from")}
         # FFmpeg's sign: -90 is a phone held upright (turned a quarter clockwise to show)
         d["rotation"] = -90 if self.rotation == 270 else self.rotation
+        d["frames_edited_out"] = int(self.edited_out)
         d["rate"] = None if self.rate is None else float(self.rate)
         d["rate_fraction"] = None if self.rate is None else f"{self.rate.numerator}/{self.rate.denominator}"
         d["time_base"] = f"{self.time_base.numerator}/{self.time_base.denominator}"
@@ -242,6 +254,7 @@ def _info(path: str, container, transfer: str | None) -> StreamInfo:
         name = getattr(getattr(s, "codec_context", None), "name", None) or "unknown"
         others.append({"index": int(s.index), "type": s.type, "codec": name})
     duration, end = _stream_span(container, vs)
+    edited_out = _edited_out(vs)
     return StreamInfo(
         path=path, container=container.format.name, codec=cc.codec.name, width=int(cc.width), height=int(cc.height),
         rate=fractions.Fraction(rate) if rate else None,
@@ -249,8 +262,21 @@ def _info(path: str, container, transfer: str | None) -> StreamInfo:
         frames=int(vs.frames) or None, duration=duration, pix_fmt=str(cc.pix_fmt), bits=bits,
         transfer_tag=trc_tag, primaries_tag=_enum_name(ColorPrimaries, cc.color_primaries), matrix_tag=matrix_tag,
         range_tag=_enum_name(ColorRange, cc.color_range), transfer=curve, transfer_from=why, matrix=matrix,
-        matrix_from=matrix_from, others=others, metadata=dict(container.metadata), end=end,
+        matrix_from=matrix_from, others=others, metadata=dict(container.metadata), end=end, edited_out=edited_out,
     )
+
+
+def _edited_out(vs) -> int:
+    """The samples of the stream's index that the demuxer marks discarded:
+    those an MP4 or MOV edit list leaves out (before a trim's start, after
+    its end), which the stated frame count includes and the decoder never
+    gives. 0 for a container without such an index (Matroska's cues, a
+    transport stream's none)."""
+    try:
+        entries = vs.index_entries
+        return sum(1 for e in entries if e.is_discard)
+    except (AttributeError, TypeError, ValueError, IndexError):
+        return 0  # a PyAV without index entries: the stated count stands
 
 
 def _stream_span(container, vs) -> tuple[float | None, float | None]:
@@ -284,21 +310,36 @@ def _stream_span(container, vs) -> tuple[float | None, float | None]:
     return None, None
 
 
-def display_rotation(path: str) -> int:
-    """The counter-clockwise rotation (degrees) a player applies to the
-    stream's frames (a phone's display matrix), read from its first frame;
-    0 when it has none or the frame cannot be decoded. It decodes a whole
+def display_angle(path: str) -> float:
+    """The counter-clockwise rotation (degrees, as FFmpeg reports it) of
+    the stream's display matrix (a phone's), read from its first frame; 0
+    when it has none or the frame cannot be decoded. It decodes a whole
     frame: a caller that plans memory reads the size from :func:`probe`
     (``rotation=False``) and checks it first."""
     av = _av()
     try:
         with _av_open(path) as c:
             for frame in c.decode(c.streams.video[0]):
-                r = getattr(frame, "rotation", 0) or 0
-                return int(round(float(r) / 90.0)) * 90 % 360 if math.isfinite(float(r)) else 0
-    except (av.FFmpegError, EOFError, ValueError, OverflowError, IndexError):
+                r = float(getattr(frame, "rotation", 0) or 0)
+                return r if math.isfinite(r) else 0.0
+    except (av.FFmpegError, EOFError, ValueError, OverflowError, IndexError, TypeError):
         pass
-    return 0
+    return 0.0
+
+
+def quarter_turns(angle: float) -> int | None:
+    """``angle`` (degrees) as a rotation a player applies by quarter turns
+    (0, 90, 180, 270), or None when it is not a multiple of 90 (half a
+    degree either way is the fixed-point matrix's rounding)."""
+    q = round(angle / 90.0)
+    return int(q) * 90 % 360 if abs(angle - 90.0 * q) < 0.5 else None
+
+
+def display_rotation(path: str) -> int:
+    """The counter-clockwise rotation (0, 90, 180, 270) a player applies to
+    the stream's frames (:func:`display_angle`); 0 also for a matrix that is
+    not a multiple of 90 degrees, which is not applied (:func:`quarter_turns`)."""
+    return quarter_turns(display_angle(path)) or 0
 
 
 def probe(path: str | os.PathLike, *, transfer: str | None = None, rotation: bool = True) -> StreamInfo:
@@ -334,7 +375,8 @@ class FrameReader:
     cannot decode: :attr:`stopped` then says where and why (a truncated or
     corrupt file restores the frames before it)."""
 
-    def __init__(self, path: str, *, transfer: str | None = None, every: int = 1, max_side: int | None = None):
+    def __init__(self, path: str, *, transfer: str | None = None, every: int = 1, max_side: int | None = None,
+                 rotation: int = 0):
         self.path = path
         self._c = _open(path)
         try:
@@ -344,6 +386,8 @@ class FrameReader:
             raise
         self.every = max(1, int(every))
         self.max_side = max_side
+        #: quarter turns counter-clockwise (np.rot90) given to each frame, so that it is shown as a player shows it
+        self.turns = (int(rotation) // 90) % 4
         #: None, or where decoding stopped: {"frame": k, "time": seconds or None, "error": text}
         self.stopped: dict | None = None
         #: frames decoded (read, whether or not ``every`` kept them)
@@ -372,7 +416,8 @@ class FrameReader:
         rgb = frame.to_ndarray(format="rgb48le", src_colorspace=self.info.matrix, src_color_range=rng)
         img = _core.frame_to_linear(np.ascontiguousarray(rgb), self.info.transfer)
         s = max_side_factor(*img.shape[:2], self.max_side)
-        return _core._downscale(img, s) if s > 1 else img
+        img = _core._downscale(img, s) if s > 1 else img
+        return np.ascontiguousarray(np.rot90(img, self.turns)) if self.turns else img
 
     def __iter__(self) -> Iterator[Frame]:
         av = _av()
@@ -409,12 +454,15 @@ class FrameReader:
         except (av.FFmpegError, EOFError) as e:
             self.stopped = {"frame": k, "time": self._time_of(k), "error": f"{type(e).__name__}: {e}"[:500]}
             return
-        # a file cut short may end without an error: fewer frames than its header states,
-        # or (no count stated) its frames end well before the time the stream states it ends
-        expected = self.info.frames
+        # a file cut short may end without an error: fewer frames than its header states (less those
+        # its edit list leaves out, which the decoder never gives), or (no count stated) its frames
+        # end well before the time the stream states it ends
+        expected = self.info.frames_shown
         if expected and k < expected - 1:
+            trim = f" ({self.info.edited_out} of them left out by its edit list)" if self.info.edited_out else ""
             self.stopped = {"frame": k, "time": self._time_of(k),
-                            "error": f"the file ends after {k} frames; its header states {expected}: cut short?"}
+                            "error": f"the file ends after {k} frames; its header states {self.info.frames}{trim}: "
+                                     "cut short?"}
         elif not expected and self.info.end and self.info.rate:
             step = 1.0 / float(self.info.rate)
             reached = (last_t + step) if last_t is not None else k * step
@@ -429,13 +477,15 @@ class FrameReader:
 
 
 def read_frames(path: str | os.PathLike, *, transfer: str | None = None, every: int = 1,
-                max_side: int | None = None) -> FrameReader:
+                max_side: int | None = None, rotation: int = 0) -> FrameReader:
     """The frames of the video at ``path`` as linear light (a
     :class:`FrameReader`: iterate it; use it in a ``with`` block to close
     the file). ``transfer`` overrides the stream's curve (``--transfer``'s
     names), ``every`` keeps every N-th frame, ``max_side`` block-averages
-    each frame so its longer side is at most N."""
-    return FrameReader(os.fspath(path), transfer=transfer, every=every, max_side=max_side)
+    each frame so its longer side is at most N, ``rotation`` (degrees
+    counter-clockwise, a multiple of 90: :func:`display_rotation`) turns
+    each frame as a player shows it."""
+    return FrameReader(os.fspath(path), transfer=transfer, every=every, max_side=max_side, rotation=rotation)
 
 
 @dataclass

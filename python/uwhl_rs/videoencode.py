@@ -163,8 +163,8 @@ class Writer:
                 st.set_display_rotation(info.rotation if info.rotation <= 180 else info.rotation - 360)
             cc = st.codec_context
             # the tags of what is written: the input's primaries, the curve
-            # the frames were encoded with, BT.709's matrix, limited range
-            # (full for motion JPEG)
+            # the frames were encoded with, BT.709's matrix (RGB's for
+            # FFV1), limited range (full for motion JPEG and RGB)
             from av.video.reformatter import ColorPrimaries, ColorRange, Colorspace, ColorTrc
 
             trc = {"bt709": ColorTrc.BT709, "srgb": ColorTrc.IEC61966_2_1, "gamma22": ColorTrc.GAMMA22,
@@ -173,7 +173,8 @@ class Writer:
             cc.color_primaries = int(prim) if int(prim or 2) != 2 else int(ColorPrimaries.BT709)
             cc.color_trc = int(trc)
             self.rgb = self.pix.startswith("rgb")
-            cc.colorspace = int(Colorspace.RGB if self.rgb and hasattr(Colorspace, "RGB") else Colorspace.ITU709)
+            # FFmpeg's AVCOL_SPC_RGB is 0 (H.273's identity matrix, "gbr"), which PyAV's Colorspace does not name
+            cc.colorspace = 0 if self.rgb else int(Colorspace.ITU709)
             self.range = ColorRange.JPEG if self.pix.startswith("yuvj") or self.rgb else ColorRange.MPEG
             cc.color_range = int(self.range)
             self.video = st

@@ -152,7 +152,7 @@ def _expected_frames(info: video.StreamInfo, every: int | None) -> int | None:
     its duration and rate agree with it (a header may state 2^32 frames),
     else duration x rate; None when neither is known."""
     by_time = int(info.duration * float(info.rate)) + 1 if info.duration and info.rate else None
-    n = info.frames
+    n = info.frames_shown
     if n and by_time and n > 2 * by_time:
         n = by_time
     n = n or by_time
@@ -178,7 +178,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
                   max_side: int | None = None, reuse_estimates: int | None = None, reuse_water_mask: bool = False,
                   scene_cut: float | None = None, smoothing: float | None = None, overwrite: bool = True,
                   progress: Callable[[str], None] | None = None, _claim=None, _label: str | None = None,
-                  _stop=None, _flags: bool = False, **options) -> VideoResult:
+                  _stop=None, _flags: bool = False, _base: int | None = None, **options) -> VideoResult:
     """Restore the video at ``in_path`` into ``out_dir`` (module docs).
 
     ``options``: the photo options of :func:`uwhl_rs.files.restore_file`
@@ -191,7 +191,12 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
     ``_stop`` (the command's): a ``threading.Event`` that, once set (an
     interrupt), stops the video at its next frame: nothing of it is kept.
     ``_flags`` (the command's): errors name options by their flags
-    (``--mask``, ``--max-memory``) instead of the keywords.
+    (``--mask``, ``--max-memory``) instead of the keywords. ``_base``: what
+    the process holds anyway, counted with the frames' plan against
+    ``max_memory`` as a photo's ``_base`` is; None counts the process's
+    base (``_core.process_base()``, as a batch's context does) when the
+    command called (``_claim`` given), nothing for a direct call (as
+    :func:`uwhl_rs.files.restore_file`).
     A frame that holds nothing to restore (black, flat) is written as it
     came in and counted (the sidecar's ``video.unrestored``).
     """
@@ -218,15 +223,27 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
                                  f"{files.spelt('max_pixels', _flags)} {max_pixels}")
     if not every:
         check_size(codec, _processed(info, max_side), label, max_side)
-    need = frame_need(info, max_side)
+    if _base is None:
+        # the batch context's base (uwhl_rs.tasks.context): the process before its first input and the
+        # writer threads' 4 MiB, which a photo of the same run counts too
+        _base = _core.process_base() + (4 << 20) if _claim is not None else 0
+    frame = frame_need(info, max_side)
+    need = frame + int(_base)
     if need > budget:
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, over "
                                  f"{memory} {budget} (use {side} or raise {memory})")
-    if not _core.can_allocate(need):
+    if not _core.can_allocate(frame):
         # within the budget, but more than the system gives now (as a photo's plan is checked)
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, more "
                                  f"than the system gives now (free memory, a container limit or ulimit -v); use {side}")
-    info.rotation = video.display_rotation(in_path)
+    angle = video.display_angle(in_path)
+    info.rotation = video.quarter_turns(angle) or 0
+    tilt = None
+    if video.quarter_turns(angle) is None:
+        # turning the pixels shows quarter turns only: another angle is said, not dropped silently
+        what = "the stills and the strip are not turned" if every else \
+            "the restored video and the strip are not turned, and the video has no display matrix"
+        tilt = f"the display matrix turns the frames {angle:g} degrees, not a multiple of 90: not applied ({what})"
     if name and _claim is None:
         files.check_name(name)  # a caller's name, never a path out of out_dir (a batch's are the core's, claimed)
     name = name or os.path.splitext(os.path.basename(in_path))[0]
@@ -241,7 +258,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
             every=every, video_quality=video_quality, transfer=transfer, max_side=max_side,
             reuse_estimates=reuse_estimates, reuse_water_mask=reuse_water_mask, scene_cut=scene_cut,
             smoothing=smoothing, overwrite=overwrite, progress=progress, label=label, t_start=t_start, fmt=fmt,
-            method=options, still_dir=os.path.dirname(str(claim.paths[-1])), stop=_stop))
+            method=options, still_dir=os.path.dirname(str(claim.paths[-1])), stop=_stop, tilt=tilt))
     finally:
         claim.release()
 
@@ -249,10 +266,12 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
 def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
     every, label = o["every"], o["label"]
     paths = [str(p) for p in claim.paths]
-    reader = video.read_frames(in_path, transfer=o["transfer"], every=every or 1, max_side=o["max_side"])
+    # stills are photos: upright in their pixels, as the strip is (a restored video keeps the display matrix)
+    reader = video.read_frames(in_path, transfer=o["transfer"], every=every or 1, max_side=o["max_side"],
+                               rotation=info.rotation if every else 0)
     temps: list[str] = []
     writer = None
-    notes: list[str] = []
+    notes: list[str] = [o["tilt"]] if o.get("tilt") else []
     try:
         if every:
             # the stills stand for the video: a restored video of an earlier run goes
@@ -275,7 +294,7 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
                 notes.append("only the first video stream is restored; not copied: "
                              + ", ".join(f"#{x['index']} video {x['codec']}" for x in videos))
             reader.on_packet = writer.copy
-        strip = _Strip((info.frames or 0) // (every or 1) or None, info.rotation)
+        strip = _Strip((info.frames_shown or 0) // (every or 1) or None, 0 if every else info.rotation)
         events, stills, counts = [], [], {"restored": 0, "reused": 0, "flags": {}}
         unrestored: list[dict] = []
         n_unrestored = 0
@@ -393,8 +412,12 @@ def _write_still(video_name: str, rf, info: video.StreamInfo, settings, o) -> di
         return entry
     try:
         h, w = res.transmission.shape
+        # the frame as a player shows it: its sides swapped by a quarter turn, which is recorded as the
+        # EXIF orientation a photo turned the same way has (8: a quarter counter-clockwise)
+        tall = info.rotation in (90, 270)
         source = {"kind": "linear", "format": f"video frame ({info.codec})", "bits": 16 if info.bits > 8 else 8,
-                  "height": info.height, "width": info.width, "orientation": 1, "linear": True,
+                  "height": info.width if tall else info.height, "width": info.height if tall else info.width,
+                  "orientation": {90: 8, 180: 3, 270: 6}.get(info.rotation, 1), "linear": True,
                   "preprocess": "none", "processed_height": int(h), "processed_width": int(w),
                   "icc_profile": None, "camera_matrix": None, "white_balance": None,
                   "notes": [f"frame {rf.index} of {os.path.basename(o['label'])} at "

@@ -6,7 +6,7 @@
 //! treats it as a hole (METHOD §13).
 
 use std::fs::File;
-use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::io::{BufRead as _, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Failure, Kind};
@@ -457,14 +457,76 @@ fn read_colmap<R: Read>(mut r: R, check: impl Fn(u64, u64, u64) -> Result<(), Fa
 
 /// The channel of an OpenEXR part that holds the distance: `Z` (or a
 /// layered `<layer>.Z`, as renderers name their depth pass), else `depth`
-/// (or `<layer>.depth`), else the part's only channel.
-fn exr_depth_channel(names: &[String]) -> Option<usize> {
+/// (or `<layer>.depth`), else the part's only channel. Two channels of one
+/// of those names (a stereo pair's `left.Z` and `right.Z`, or `Z` and `z`)
+/// are an error naming both: which one is this photo's is not known.
+fn exr_depth_channel(names: &[String]) -> Result<Option<usize>, String> {
     let last = |n: &str| n.rsplit('.').next().unwrap_or(n).to_ascii_lowercase();
-    names
-        .iter()
-        .position(|n| last(n) == "z")
-        .or_else(|| names.iter().position(|n| last(n) == "depth"))
-        .or_else(|| (names.len() == 1).then_some(0))
+    for want in ["z", "depth"] {
+        let mut found = names.iter().enumerate().filter(|(_, n)| last(n) == want);
+        if let Some((i, first)) = found.next() {
+            if let Some((_, second)) = found.next() {
+                return Err(format!("has two depth channels, {} and {}: write the photo's own in a file of its own", crate::files::nav::shown(first), crate::files::nav::shown(second)));
+            }
+            return Ok(Some(i));
+        }
+    }
+    Ok((names.len() == 1).then_some(0))
+}
+
+/// Largest OpenEXR header (all parts' attributes) read for a distance map,
+/// and most attributes in it. Headers are parsed whole before any size is
+/// known: a 20 MB file of a million small attributes took 2.4 GB, one
+/// attribute of 100 MB took 300 MB. A renderer's header, preview image
+/// included, is far below both.
+const MAX_EXR_HEADER_BYTES: u64 = 16 << 20;
+const MAX_EXR_ATTRIBUTES: usize = 16_384;
+
+/// Walks an OpenEXR file's headers (attribute names, types and sizes,
+/// values passed over) within [`MAX_EXR_HEADER_BYTES`] and
+/// [`MAX_EXR_ATTRIBUTES`], before the decoder parses them. Returns to the
+/// start of the file.
+fn exr_header_bounded<R: std::io::BufRead + Seek>(r: &mut R) -> Result<(), String> {
+    let mut head = [0u8; 8];
+    r.read_exact(&mut head).map_err(|e| format!("cannot be read: {e}"))?;
+    let multipart = head.get(5).is_some_and(|f| f & 0x10 != 0);
+    let mut at = 8u64;
+    let mut attributes = 0usize;
+    // one null-terminated name of at most 255 bytes; empty at the end of a header
+    let name = |r: &mut R, at: &mut u64| -> Result<bool, String> {
+        let mut buf = Vec::new();
+        let n = r.by_ref().take(256).read_until(0, &mut buf).map_err(|e| format!("cannot be read: {e}"))?;
+        *at += n as u64;
+        match buf.last() {
+            Some(0) => Ok(buf.len() > 1),
+            _ => Err("cannot be read: an attribute name of more than 255 bytes, or the file ends inside its header".into()),
+        }
+    };
+    loop {
+        // one header: attributes until an empty name
+        let mut any = false;
+        while name(r, &mut at)? {
+            any = true;
+            attributes += 1;
+            name(r, &mut at)?;
+            let mut size = [0u8; 4];
+            r.read_exact(&mut size).map_err(|_| "cannot be read: the file ends inside its header".to_string())?;
+            let size = u64::try_from(i32::from_le_bytes(size)).map_err(|_| "cannot be read: an attribute of negative size".to_string())?;
+            at = at.saturating_add(4).saturating_add(size);
+            if at > MAX_EXR_HEADER_BYTES || attributes > MAX_EXR_ATTRIBUTES {
+                return Err(format!(
+                    "has a header of more than {MAX_EXR_HEADER_BYTES} bytes or {MAX_EXR_ATTRIBUTES} attributes: not a distance map's"
+                ));
+            }
+            r.seek_relative(i64::try_from(size).unwrap_or(i64::MAX)).map_err(|e| format!("cannot be read: {e}"))?;
+        }
+        // a multipart file's list of headers ends with an empty one
+        if !multipart || !any {
+            break;
+        }
+    }
+    r.seek(SeekFrom::Start(0)).map_err(|e| format!("cannot be read: {e}"))?;
+    Ok(())
 }
 
 /// The most samples an OpenEXR distance map's parts may hold together for
@@ -483,9 +545,19 @@ fn read_exr<R: std::io::BufRead + Seek>(mut r: R, check: impl Fn(u64, u64, u64) 
     use exr::image::read::layers::ReadChannels as _;
     use exr::prelude::{read, FlatSamples};
     let bad = |m: String| Failure::new(Kind::Input, format!("an OpenEXR distance map {m}"));
+    exr_header_bounded(&mut r).map_err(bad)?;
     let meta = exr::meta::MetaData::read_from_buffered(&mut r, false).map_err(|e| bad(format!("cannot be read: {e}")))?;
     let names = |h: &exr::meta::header::Header| -> Vec<String> { h.channels.list.iter().map(|c| c.name.to_string()).collect() };
-    let Some((part, header)) = meta.headers.iter().enumerate().find(|(_, h)| exr_depth_channel(&names(h)).is_some()) else {
+    let mut with_depth = Vec::new();
+    for (i, h) in meta.headers.iter().enumerate() {
+        if exr_depth_channel(&names(h)).map_err(bad)?.is_some() {
+            with_depth.push(i);
+        }
+    }
+    if let [first, second, ..] = with_depth.as_slice() {
+        return Err(bad(format!("has depth channels in two parts, {} and {}: write the photo's own in a file of its own", first + 1, second + 1)));
+    }
+    let Some((part, header)) = with_depth.first().and_then(|&i| meta.headers.get(i).map(|h| (i, h))) else {
         let first = meta.headers.first().map(names).unwrap_or_default();
         let first = match first.len() {
             n if n > 8 => format!("{}, ... ({n} in all)", first.get(..8).unwrap_or(&[]).join(", ")),
@@ -500,6 +572,22 @@ fn read_exr<R: std::io::BufRead + Seek>(mut r: R, check: impl Fn(u64, u64, u64) 
         return Err(bad("has subsampled channels: a distance map is sampled at every pixel".into()));
     }
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
+    // the data window is where the pixels are; the display window is the
+    // frame they belong in (the photo's). A map cropped to its content, or
+    // rendered with overscan, would be stretched over the photo.
+    let display = &header.shared_attributes.display_window;
+    if header.own_attributes.layer_position != display.position || header.layer_size != display.size {
+        let corners = |p: exr::math::Vec2<i32>, s: exr::math::Vec2<usize>| {
+            let end = |a: i32, n: usize| i64::from(a) + i64::try_from(n).unwrap_or(i64::MAX) - 1;
+            format!("({}, {})-({}, {})", p.x(), p.y(), end(p.x(), s.width()), end(p.y(), s.height()))
+        };
+        return Err(bad(format!(
+            "has its data window {} apart from its display window {}: a cropped or overscanned map is not placed; \
+             write it over the whole frame",
+            corners(header.own_attributes.layer_position, header.layer_size),
+            corners(display.position, display.size)
+        )));
+    }
     // every channel of every part is decoded, at most 4 bytes a sample
     let samples: u64 = meta.headers.iter().map(|hd| (hd.channels.list.len() as u64).saturating_mul(hd.layer_size.area() as u64)).sum();
     let area = (w as u64).saturating_mul(h as u64).max(1);
@@ -528,7 +616,7 @@ fn read_exr<R: std::io::BufRead + Seek>(mut r: R, check: impl Fn(u64, u64, u64) 
     let layer = image.layer_data.get(part).ok_or_else(|| bad("has fewer parts than its header lists".into()))?;
     let list = &layer.channel_data.list;
     let chosen: Vec<String> = list.iter().map(|c| c.name.to_string()).collect();
-    let ch = exr_depth_channel(&chosen).and_then(|i| list.get(i)).ok_or_else(|| bad("lost its depth channel while decoding".into()))?;
+    let ch = exr_depth_channel(&chosen).ok().flatten().and_then(|i| list.get(i)).ok_or_else(|| bad("lost its depth channel while decoding".into()))?;
     let vals: Vec<f32> = match &ch.sample_data {
         FlatSamples::F16(_) | FlatSamples::F32(_) => ch.sample_data.values_as_f32().collect(),
         FlatSamples::U32(_) => return Err(bad(format!("has an integer channel {}: metres are read from float channels", ch.name))),
@@ -783,6 +871,58 @@ mod tests {
             let e = read_distance(&tmp(name, &bytes), 1 << 20, 1 << 30).unwrap_err();
             assert!(e.message.starts_with("an OpenEXR distance map cannot be"), "{name}: {}", e.message);
         }
+    }
+
+    /// An OpenEXR file of one `Z` channel (3 x 2 values of 2 m) whose data
+    /// window starts at `at` inside a display window of `display` pixels,
+    /// with `extra` attributes of 4 bytes each.
+    fn exr_placed(name: &str, at: (i32, i32), display: (usize, usize), extra: usize) -> PathBuf {
+        use exr::prelude::*;
+        let mut attrs = LayerAttributes::named("depth");
+        attrs.layer_position = Vec2(at.0, at.1);
+        for i in 0..extra {
+            attrs.other.insert(Text::from(format!("a{i}").as_str()), AttributeValue::I32(0));
+        }
+        let z: SmallVec<[AnyChannel<FlatSamples>; 4]> = [AnyChannel::new("Z", FlatSamples::F32(vec![2.0; 6]))].into_iter().collect();
+        let z = AnyChannels::sort(z);
+        let layer = Layer::new((3, 2), attrs, Encoding::UNCOMPRESSED, z);
+        let mut image = Image::from_layer(layer);
+        image.attributes.display_window = IntegerBounds::new(Vec2(0, 0), Vec2(display.0, display.1));
+        let d = std::env::temp_dir().join(format!("uwhl-depth-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join(name);
+        image.write().to_file(&p).unwrap();
+        p
+    }
+
+    #[test]
+    fn exr_maps_that_cannot_be_placed_or_chosen_are_refused_by_name() {
+        use exr::prelude::FlatSamples;
+        // placed over its whole frame: read
+        assert_eq!(read_distance(&exr_placed("whole.exr", (0, 0), (3, 2), 0), 1 << 20, 1 << 30).unwrap().data, vec![2.0; 6]);
+        // cropped inside a 5 x 4 frame, or shifted out of it
+        for (name, at, display, corners) in [
+            ("crop.exr", (1, 1), (5, 4), "data window (1, 1)-(3, 2) apart from its display window (0, 0)-(4, 3)"),
+            ("shifted.exr", (40, 0), (3, 2), "data window (40, 0)-(42, 1) apart from its display window (0, 0)-(2, 1)"),
+        ] {
+            let e = read_distance(&exr_placed(name, at, display, 0), 1 << 20, 1 << 30).unwrap_err();
+            assert!(e.message.contains(corners), "{name}: {}", e.message);
+        }
+        // a stereo pair's two depth passes, or Z beside z
+        fn two<'a>(a: &'a str, b: &'a str) -> Vec<(&'a str, FlatSamples)> {
+            vec![(a, FlatSamples::F32(vec![1.0; 6])), (b, FlatSamples::F32(vec![3.0; 6]))]
+        }
+        for (name, chans) in [("stereo.exr", two("left.Z", "right.Z")), ("zz.exr", two("Z", "z")), ("dd.exr", two("a.depth", "b.depth"))] {
+            let e = read_distance(&exr_file(name, 3, 2, chans), 1 << 20, 1 << 30).unwrap_err();
+            assert!(e.message.contains("has two depth channels"), "{name}: {}", e.message);
+        }
+        // Z beside a depth pass: Z is the distance, as before
+        let m = read_distance(&exr_file("zd.exr", 3, 2, two("depth", "Z")), 1 << 20, 1 << 30).unwrap();
+        assert_eq!(m.data, vec![3.0; 6]);
+        // a header of 20,000 small attributes is refused before it is parsed
+        let e = read_distance(&exr_placed("attrs.exr", (0, 0), (3, 2), 20_000), 1 << 20, 1 << 30).unwrap_err();
+        assert!(e.message.contains("16384 attributes"), "{}", e.message);
+        assert_eq!(read_distance(&exr_placed("some.exr", (0, 0), (3, 2), 500), 1 << 20, 1 << 30).unwrap().data.len(), 6);
     }
 
     /// COLMAP's layout: the header, then float32 with the column index fastest.
