@@ -131,6 +131,20 @@ impl WaterFit {
         !(self.optical_depth >= MIN_OPTICAL_DEPTH && self.residual <= RESIDUAL_WRONG)
     }
 
+    /// Whether the fitted blue attenuation sits within one step of either
+    /// end of the search's grid ([`BETA_MIN`], [`BETA_MAX`]): the minimum
+    /// lies at or past the end, where no water is (5 1/m is murkier than
+    /// any harbour, 0.001 clearer than pure water). Its distances are then
+    /// in other units than metres: centimetres or millimetres read as
+    /// metres, or a reconstruction's own scale (a COLMAP model normalised
+    /// to a unit size). Fitted all the same, such a map left a photo further
+    /// from its true colours than the input (24.5 against 17.2 degrees).
+    pub fn at_grid_end(&self) -> bool {
+        let step = (BETA_MAX.ln() - BETA_MIN.ln()) / (BETA_STEPS - 1) as f64;
+        let lb = f64::from(self.beta[2]).ln();
+        lb <= BETA_MIN.ln() + step * 1.01 || lb >= BETA_MAX.ln() - step * 1.01
+    }
+
     /// The transmissions e^(-beta_c z) of METHOD §0 at one distance.
     pub fn transmission(&self, z: f32) -> [f32; 3] {
         self.beta.map(|b| (-b * z).exp())
@@ -651,6 +665,22 @@ mod tests {
         assert_eq!(nearest_type(fit.beta).0, "3C");
         assert!(!fit.suspect(), "residual {}", fit.residual);
         assert_eq!((fit.coverage, fit.pixels), (1.0, 60000));
+    }
+
+    #[test]
+    fn distances_in_other_units_leave_the_fit_at_the_end_of_its_grid() {
+        let (img, z) = render(200, 300, BETA_3C, A, 0.01, 1.0, 20.0);
+        assert!(!fit_water(&img, 200, 300, &z, None).unwrap().at_grid_end());
+        // metres given in hundredths: blue would be 35 1/m, past the grid's 5
+        let hundredths: Vec<f32> = z.iter().map(|v| v * 0.01).collect();
+        let fit = fit_water(&img, 200, 300, &hundredths, None).unwrap();
+        assert!(fit.at_grid_end(), "beta {:?}", fit.beta);
+        // 0.2-4 m given as 50-1000: blue would be 0.00092 1/m, below the grid's 0.001
+        let (img, z) = render(200, 300, BETA_3C, A, 0.01, 0.2, 4.0);
+        assert!(!fit_water(&img, 200, 300, &z, None).unwrap().at_grid_end());
+        let far: Vec<f32> = z.iter().map(|v| v * 250.0).collect();
+        let fit = fit_water(&img, 200, 300, &far, None).unwrap();
+        assert!(fit.at_grid_end(), "beta {:?}", fit.beta);
     }
 
     #[test]

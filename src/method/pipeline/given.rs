@@ -166,6 +166,17 @@ pub fn restore_at_distance(input: &Input, distance: &[f32], zh: usize, zw: usize
             );
             return rejected(why, coverage, Some(f), None);
         }
+        Ok(f) if f.at_grid_end() => {
+            let why = format!(
+                "the fit's blue attenuation, {:.4} 1/m, is at the end of what it searches ({} to {} 1/m): \
+                 the distances are likely in other units than metres (centimetres or millimetres as metres, \
+                 or a reconstruction's own scale)",
+                f.beta[2],
+                crate::method::distance::BETA_MIN,
+                crate::method::distance::BETA_MAX
+            );
+            return rejected(why, coverage, Some(f), None);
+        }
         Ok(f) => f,
         Err(why) => return rejected(why, coverage, None, None),
     };
