@@ -63,6 +63,11 @@ pub struct Carried {
     pub icc: Option<Vec<u8>>,
     /// why something could not be read (the sidecar's `source.notes`)
     pub notes: Vec<String>,
+    /// the input's EXIF ExifImageWidth and ExifImageHeight (the size the
+    /// camera wrote, the sensor's pixels the focal plane resolution counts
+    /// in), which are rewritten, not carried, since the output's size is
+    /// its own
+    pub exif_size: Option<(u32, u32)>,
 }
 
 /// The container of a file, from its first bytes.
@@ -184,6 +189,7 @@ fn read_found(kind: Container, found: crate::files::exif::Found, bytes: &[u8]) -
                             String::from_utf8_lossy(&raw).trim_end_matches('\0').to_string()
                         });
                     }
+                    out.exif_size = exif_size(&m);
                     out.exif = carried_exif(&m);
                 }
                 Ok(Err(e)) if is_absent(&e) => {}
@@ -261,6 +267,21 @@ fn is_absent(e: &std::io::Error) -> bool {
 
 /// The input's tags worth carrying: IFD0's descriptive ones, the Exif
 /// sub-IFD (less what is rewritten) and GPS; no thumbnail (IFD1), no pixel layout.
+/// The EXIF ExifImageWidth and ExifImageHeight of `m`, both nonzero.
+fn exif_size(m: &Metadata) -> Option<(u32, u32)> {
+    let (mut w, mut h) = (None, None);
+    for ifd in m.get_ifds() {
+        for tag in ifd.get_tags() {
+            match tag {
+                ExifTag::ExifImageWidth(v) => w = v.first().copied().filter(|x| *x > 0),
+                ExifTag::ExifImageHeight(v) => h = v.first().copied().filter(|x| *x > 0),
+                _ => {}
+            }
+        }
+    }
+    w.zip(h)
+}
+
 fn carried_exif(m: &Metadata) -> Option<Metadata> {
     let mut out = Metadata::new();
     let mut n = 0;

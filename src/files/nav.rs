@@ -229,7 +229,7 @@ impl LensOf {
             return Ok(LensOf { lens: Lens::Horizontal(f), from: "--fov".into() });
         }
         let carried = crate::files::metadata::read_path(input)?;
-        let (lens, from) = carried.exif.as_ref().ok_or(NO_LENS.to_string()).and_then(exif_lens)?;
+        let (lens, from) = exif_lens(&carried)?;
         Ok(LensOf { lens, from })
     }
 
@@ -709,10 +709,13 @@ fn xmp_altitude_values(xmp: &str) -> impl Iterator<Item = &str> {
 
 /// The lens of a photo from its EXIF: FocalLengthIn35mmFormat, else
 /// FocalLength with FocalPlaneXResolution and its unit (the sensor's
-/// pixel diagonal from ExifImageWidth and ExifImageHeight, else the photo's).
-fn exif_lens(m: &little_exif::metadata::Metadata) -> Result<(Lens, String), String> {
+/// pixel diagonal from ExifImageWidth and ExifImageHeight, read before
+/// they are dropped from what is carried: `carried.exif_size`; else the
+/// photo's).
+fn exif_lens(carried: &crate::files::metadata::Carried) -> Result<(Lens, String), String> {
     use little_exif::exif_tag::ExifTag;
-    let (mut f35, mut focal, mut res, mut unit, mut px, mut py) = (None, None, None, None, None, None);
+    let m = carried.exif.as_ref().ok_or(NO_LENS.to_string())?;
+    let (mut f35, mut focal, mut res, mut unit) = (None, None, None, None);
     let ratio = |v: &[little_exif::rational::uR64]| {
         v.first().filter(|r| r.denominator != 0).map(|r| f64::from(r.nominator) / f64::from(r.denominator))
     };
@@ -723,8 +726,6 @@ fn exif_lens(m: &little_exif::metadata::Metadata) -> Result<(Lens, String), Stri
                 ExifTag::FocalLength(v) => focal = ratio(v),
                 ExifTag::FocalPlaneXResolution(v) => res = ratio(v),
                 ExifTag::FocalPlaneResolutionUnit(v) => unit = v.first().copied(),
-                ExifTag::ExifImageWidth(v) => px = v.first().copied().filter(|x| *x > 0).map(f64::from),
-                ExifTag::ExifImageHeight(v) => py = v.first().copied().filter(|x| *x > 0).map(f64::from),
                 _ => {}
             }
         }
@@ -750,7 +751,8 @@ fn exif_lens(m: &little_exif::metadata::Metadata) -> Result<(Lens, String), Stri
     if !(res.is_finite() && res > 0.0) {
         return Err(no_lens(format!("the EXIF FocalPlaneXResolution is {}", crate::error::shown_number(res))));
     }
-    let lens = Lens::FocalPlane { focal, mm_per_px: mm_per_unit / res, pixels: px.zip(py) };
+    let pixels = carried.exif_size.map(|(w, h)| (f64::from(w), f64::from(h)));
+    let lens = Lens::FocalPlane { focal, mm_per_px: mm_per_unit / res, pixels };
     Ok((lens, format!("EXIF FocalLength {focal} mm and FocalPlaneXResolution {res} per {mm_per_unit} mm")))
 }
 
@@ -795,7 +797,7 @@ pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Re
     };
     let (lens, lens_from) = match fov {
         Some(f) => (Lens::Horizontal(f), "--fov".to_string()),
-        None => exif.ok_or(NO_LENS.to_string()).and_then(exif_lens)?,
+        None => carried.as_ref().ok_or(NO_LENS.to_string()).and_then(exif_lens)?,
     };
     let max = f64::from(crate::method::distance::MAX_DISTANCE);
     if !(pose.altitude.is_finite() && pose.altitude > 0.0 && pose.altitude <= max) {
@@ -990,6 +992,27 @@ mod tests {
         // an absurd EXIF focal length: refused by name
         let wide = Camera { lens: Lens::HalfDiagonalTan(1e6), lens_from: "EXIF x".into(), ..cam };
         assert!(wide.floor(2000, 3000, Port::Flat).unwrap_err().contains("field of view from EXIF x"));
+    }
+
+    #[test]
+    fn a_resized_photo_takes_its_sensor_size_from_the_exif_it_was_written_with() {
+        use little_exif::{exif_tag::ExifTag, metadata::Metadata, rational::uR64, filetype::FileExtension};
+        let mut jpg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new(&mut jpg).encode(&[90u8; 40 * 30 * 3], 40, 30, image::ExtendedColorType::Rgb8).unwrap();
+        let mut m = Metadata::new();
+        m.set_tag(ExifTag::FocalLength(vec![uR64 { nominator: 45, denominator: 10 }]));
+        m.set_tag(ExifTag::FocalPlaneXResolution(vec![uR64 { nominator: 625, denominator: 1 }]));
+        m.set_tag(ExifTag::FocalPlaneResolutionUnit(vec![4]));
+        m.set_tag(ExifTag::ExifImageWidth(vec![4000]));
+        m.set_tag(ExifTag::ExifImageHeight(vec![3000]));
+        m.write_to_vec(&mut jpg, FileExtension::JPEG).unwrap();
+        let p = std::env::temp_dir().join(format!("uwhl-nav-lens-{}.jpg", std::process::id()));
+        std::fs::write(&p, &jpg).unwrap();
+        let lens = LensOf::of(None, &p).unwrap();
+        std::fs::remove_file(&p).unwrap();
+        // 4000 x 3000 pixels of 1.6 um: an 8 mm diagonal; 4.5 mm: 2 atan(4 / 4.5 x 4/5) = 70.834 degrees across a 4:3 photo
+        let fov = lens.lens.across(30, 40);
+        assert!((fov - 70.834).abs() < 1e-3, "{fov} ({})", lens.from);
     }
 
     #[test]
