@@ -328,6 +328,13 @@ pub fn time_tag(m: &Metadata) -> Option<String> {
     time_fields(m).0
 }
 
+/// The EXIF OffsetTimeOriginal as written when it is there and is not an
+/// offset `taken_at` keeps (`+HH:MM` within a day): the time is then read
+/// without it, which is another instant unless the camera was on UTC.
+pub fn unread_offset(m: &Metadata) -> Option<String> {
+    time_fields(m).2.map(|s| s.trim_end_matches('\0').trim().to_string()).filter(|s| !s.is_empty() && !is_utc_offset(s))
+}
+
 /// The EXIF fields of the time, in one pass over the tags: [`time_tag`],
 /// SubSecTimeOriginal and OffsetTimeOriginal as written.
 fn time_fields(m: &Metadata) -> (Option<String>, Option<String>, Option<String>) {
@@ -1028,6 +1035,17 @@ mod tests {
         assert_eq!(taken_at(&m), None);
         m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:04:05".into()));
         assert_eq!(taken_at(&m).as_deref(), Some("2026-01-02T03:04:05"));
+    }
+
+    #[test]
+    fn an_offset_that_is_not_one_is_named_for_a_log_by_time() {
+        let mut m = Metadata::new();
+        m.set_tag(ExifTag::DateTimeOriginal("2026:01:02 03:04:05".into()));
+        assert_eq!(unread_offset(&m), None);
+        for (written, unread) in [("+10:00", None), ("-03:30", None), ("+1000", Some("+1000")), ("+99:00", Some("+99:00")), ("  ", None)] {
+            m.set_tag(ExifTag::OffsetTimeOriginal(written.into()));
+            assert_eq!(unread_offset(&m).as_deref(), unread, "{written:?}");
+        }
     }
 
     #[test]

@@ -782,6 +782,16 @@ pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Re
         AltitudeSource::Log(log) => {
             let iso = exif.and_then(crate::files::metadata::taken_at);
             let taken = iso.as_deref().and_then(|s| parse_time(s).map(|t| (t, s)));
+            // by time, an offset that cannot be read would place the photo
+            // on UTC's clock: hours from its records, matched all the same
+            if let Some(off) = exif.and_then(crate::files::metadata::unread_offset).filter(|_| !log.named) {
+                return Err(format!(
+                    "{} is matched by time and the photo's EXIF OffsetTimeOriginal {} is not an offset (+HH:MM): \
+                     its time cannot be placed on the log's clock",
+                    log.path.display(),
+                    shown(&off)
+                ));
+            }
             if taken.is_none() && !log.named {
                 // a time that is there but cannot be read is named, not called missing
                 let raw = exif.and_then(crate::files::metadata::time_tag);

@@ -231,6 +231,21 @@ pub fn parameters(o: &Settings) -> Value {
             p.insert("distance_kind".into(), json!("depth"));
         }
     }
+    // the floor's pose and lens: a rerun with another altitude, field of
+    // view or window is said to have been restored with another one
+    if let Some(a) = &o.altitude {
+        use crate::files::nav::AltitudeSource;
+        let v = match a {
+            AltitudeSource::Constant(h) => json!(h),
+            AltitudeSource::Xmp => json!("xmp"),
+            AltitudeSource::Log(l) => json!(path(&l.path)),
+        };
+        p.insert("altitude".into(), v);
+    }
+    if o.altitude.is_some() || (o.distance.is_some() && o.depth_along_axis) {
+        p.insert("fov".into(), json!(o.fov));
+        p.insert("port".into(), json!(o.port.name()));
+    }
     if let Some(d) = &o.water_from {
         p.insert("water_from".into(), d.record());
     }
