@@ -320,9 +320,12 @@ where
         if o.stream || !o.inputs.is_empty() {
             return Err(Failure::usage("--raw-frames reads the frames from stdin; give no INPUT arguments and no --stream"));
         }
-        if o.outdir.as_os_str() == "-" && o.max_side.is_some() {
+        // frames are restored at their own size: a reduced size of the
+        // frames out would no longer match the frames in (-o -), and the
+        // folder's frames were written at full size whatever --max-side said
+        if o.max_side.is_some() {
             return Err(Failure::usage(
-                "--max-side with --raw-frames -o -: the frames out would not be the size of the frames in (write to a folder instead)",
+                "--max-side with --raw-frames: frames are restored at the size they come in (scale them before the pipe, e.g. ffmpeg -vf scale)",
             ));
         }
         if o.distance.is_some() || o.altitude.is_some() || water_from.is_some() {

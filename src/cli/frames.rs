@@ -151,6 +151,19 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
             Err(code) => return code,
         }
     };
+    // one pipe at a time in a folder: two would write frame_000000 on, each
+    // reporting the other's frames as its own
+    let _pipe = if to_stdout {
+        None
+    } else {
+        match hold_pipe(&opts.outdir) {
+            Ok(f) => Some(f),
+            Err(e) => {
+                report(err, opts.json_errors, Some(&opts.outdir), &e);
+                return e.kind.exit_code();
+            }
+        }
+    };
     let mut sink = if to_stdout { Sink::Stdout(out) } else { Sink::Folder(&opts.outdir, out) };
     // the buffers of every frame, made once
     let mut bytes_in = vec![0u8; frame_bytes];
@@ -346,10 +359,51 @@ impl Unrestored {
     }
 }
 
+/// The lock of the one pipe of frames writing to `dir` (an exclusive
+/// `flock` on `dir/.uwhl-frames.lock`, held while the returned file is):
+/// a second pipe into the folder is refused before it reads a frame.
+fn hold_pipe(dir: &Path) -> Result<std::fs::File, Failure> {
+    let path = dir.join(".uwhl-frames.lock");
+    let cannot = |e: std::io::Error| Failure::new(Kind::Write, format!("cannot make {}: {e}", path.display()));
+    let f = std::fs::OpenOptions::new().create(true).truncate(false).write(true).open(&path).map_err(cannot)?;
+    match f.try_lock() {
+        Ok(()) => Ok(f),
+        Err(std::fs::TryLockError::WouldBlock) => Err(Failure::new(
+            Kind::Write,
+            format!(
+                "another --raw-frames run is writing to {}: the frames of both would take the same names; give each pipe a folder of its own",
+                dir.display()
+            ),
+        )),
+        Err(std::fs::TryLockError::Error(e)) => Err(cannot(e)),
+    }
+}
+
+/// Why frame `k`'s name in `dir` is not this pipe's to replace: its
+/// sidecar is another input's (a photo named `frame_000000.png` restored
+/// into the folder). The frames of a pipe replace an earlier pipe's
+/// (`stdin#k`), never another input's outputs.
+fn others_at(dir: &Path, name: &str, k: usize) -> Result<(), Failure> {
+    let sidecar = dir.join(format!("{name}.json"));
+    let Some(side) = crate::files::commit::read_sidecar(&sidecar) else { return Ok(()) };
+    match side.get("input").and_then(serde_json::Value::as_str) {
+        Some(input) if input == format!("stdin#{k}") => Ok(()),
+        other => Err(Failure::new(
+            Kind::Write,
+            format!(
+                "{} holds the outputs of {}: not replaced (write the frames to a folder of their own)",
+                sidecar.display(),
+                other.map_or_else(|| "another input".to_string(), crate::files::nav::shown)
+            ),
+        )),
+    }
+}
+
 /// Removes what an earlier run wrote as frame `k` in `dir` (a frame this
 /// run cannot restore has no outputs, only its line).
 fn clear_frame(opts: &Options, dir: &Path, k: usize) -> Result<(), Failure> {
     let name = format!("frame_{k:06}");
+    others_at(dir, &name, k)?;
     let input = PathBuf::from(format!("stdin#{k}"));
     let suffixes = crate::files::pipeline::output_suffixes(opts);
     // nothing there (the usual case): no claim, no sync of the folder
@@ -382,6 +436,7 @@ fn write_frame(
     timing: Timing,
 ) -> Result<String, Failure> {
     let name = format!("frame_{k:06}");
+    others_at(dir, &name, k)?;
     let label = format!("stdin#{k}");
     let suffixes = crate::files::pipeline::output_suffixes(opts);
     let input = PathBuf::from(&label);

@@ -1,0 +1,169 @@
+"""What a hostile review of distance inputs, raw-frame pipes and JPEG
+files found on 2026-12-06, in both commands: each case states its answer
+independently of the code (a disc drawn by hand, a file cut at a known
+place, a map in known wrong units, a lock held by the test itself)."""
+
+from __future__ import annotations
+
+import fcntl
+import io
+import json
+import subprocess
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from bothcmds import cmds, run_restore, sidecar
+from exrfile import exr_bytes
+from uwhl_rs import files, synth
+
+IMPLS = ["python", "rust"]
+H, W = 90, 120
+
+
+@pytest.fixture(scope="module")
+def seabed(tmp_path_factory):
+    """A render in 3C water (open water above a seabed from 1 to 10 m) and
+    its true distance in metres (NaN in the open water)."""
+    d = tmp_path_factory.mktemp("seabed")
+    sc = synth.scene(H, W, kind="open_water", seed=3)
+    img = synth.render(sc.clean, sc.distance, "3C", beta_b=0.3, noise=0.004, seed=1)
+    Image.fromarray((np.clip(img, 0, 1) ** (1 / 2.2) * 255).round().astype(np.uint8)).save(d / "sea.png")
+    z = np.where(np.isfinite(sc.distance), sc.distance, np.nan).astype(np.float32)
+    return d, z
+
+
+def test_a_jpeg_mask_is_read_as_drawn_not_as_its_ringing(tmp_path):
+    """A disc drawn 0/255 and saved by Pillow at quality 75: the mask read
+    is the disc to within its edge, where nonzero codes ring well beyond it."""
+    yy, xx = np.mgrid[:60, :80]
+    disc = (yy - 29.3) ** 2 + (xx - 37.6) ** 2 <= 19.5 ** 2
+    p = tmp_path / "mask.jpg"
+    Image.fromarray(np.where(disc, 255, 0).astype(np.uint8)).save(p, quality=75)
+    codes = np.asarray(Image.open(p))
+    assert ((codes != 0) != disc).sum() > 100  # what the nonzero rule would have read
+    m = files.read_mask(str(p), (60, 80), "--mask")
+    assert (m != disc).sum() <= 12
+
+
+def _cut_with_end_kept(jpg: bytes, keep: float) -> bytes:
+    sos = jpg.index(b"\xff\xda")
+    cut = jpg[: sos + int((len(jpg) - sos) * keep)].rstrip(b"\xff")
+    return cut + b"\xff\xd9"
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_jpeg_cut_inside_its_scan_with_its_end_marker_is_refused(impl, binary, tmp_path):
+    rng = np.random.default_rng(4)
+    px = np.clip(rng.normal((60, 120, 150), 40, (160, 240, 3)), 0, 255).astype(np.uint8)
+    buf = io.BytesIO()
+    Image.fromarray(px).save(buf, format="JPEG", quality=90)
+    whole = tmp_path / "whole.jpg"
+    whole.write_bytes(buf.getvalue())
+    cut = tmp_path / "cut.jpg"
+    cut.write_bytes(_cut_with_end_kept(buf.getvalue(), 0.5))
+    # Pillow itself decodes the cut file without an error: the gray below the cut is made up
+    Image.open(cut).load()
+    r = run_restore(cmds(binary)[impl], whole, "-o", tmp_path / "o1")
+    assert r.returncode == 0, r.stderr
+    r = run_restore(cmds(binary)[impl], cut, "-o", tmp_path / "o2")
+    assert r.returncode == 3, r.stderr
+    assert "a damaged JPEG: its scan data ends after" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_distances_in_other_units_are_not_used(impl, binary, seabed, tmp_path):
+    """The true map in hundredths of metres: blue would be 30 1/m, beyond
+    the fit's search (5); the photo is restored without it and says why."""
+    d, z = seabed
+    np.save(tmp_path / "sea.npy", z * 0.01)
+    r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o", "--distance", tmp_path / "{stem}.npy")
+    assert r.returncode == 0, r.stderr
+    dist = sidecar(tmp_path / "o", "sea")["distance"]
+    assert dist["used"] is False and "other units than metres" in dist["rejected"]
+    # the same map in metres is used
+    np.save(tmp_path / "sea.npy", z)
+    r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o2", "--distance", tmp_path / "{stem}.npy")
+    assert sidecar(tmp_path / "o2", "sea")["distance"]["used"] is True
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_an_exr_map_cropped_inside_its_frame_or_with_two_depths_is_not_used(impl, binary, seabed, tmp_path):
+    d, z = seabed
+    crop = z[10:80, 10:110]
+    cases = {
+        "cropped": (exr_bytes({"Z": crop}, display=(-10, -10, W - 11, H - 11)), "data window"),
+        "stereo": (exr_bytes({"left.Z": z, "right.Z": z * 1.1}), "two depth channels"),
+        "attributes": (exr_bytes({"Z": z}, extra=20_000), "16384 attributes"),
+    }
+    for name, (data, why) in cases.items():
+        (tmp_path / "sea.exr").write_bytes(data)
+        out = tmp_path / name
+        r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", out, "--distance", tmp_path / "{stem}.exr")
+        assert r.returncode == 0, r.stderr
+        dist = sidecar(out, "sea")["distance"]
+        assert dist["used"] is False and why in dist["rejected"], (name, dist["rejected"])
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_navigation_line_of_thousands_of_fields_is_refused_by_its_line(impl, binary, seabed, tmp_path):
+    d, _ = seabed
+    log = tmp_path / "nav.csv"
+    log.write_text("file,altitude\nsea.png,2.0" + "," * 100_000 + "\n")
+    r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o", "--altitude", log, "--fov", "70")
+    assert r.returncode == 2 and "line 2: more than 4096 fields" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_rerun_with_another_altitude_field_of_view_or_window_says_so(impl, binary, seabed, tmp_path):
+    d, _ = seabed
+    cmd = cmds(binary)[impl]
+    out = tmp_path / "o"
+    assert run_restore(cmd, d / "sea.png", "-o", out, "--altitude", "2.5", "--fov", "70").returncode == 0
+    for extra, flag in [(["--altitude", "3", "--fov", "70"], "--altitude"), (["--altitude", "2.5", "--fov", "60"], "--fov"),
+                        (["--altitude", "2.5", "--fov", "70", "--port", "dome"], "--port")]:
+        r = subprocess.run([*cmd, "restore", d / "sea.png", "-o", out, *extra], capture_output=True, text=True, timeout=300)
+        assert f"restored with another {flag}" in r.stdout + r.stderr, (extra, r.stdout, r.stderr)
+    r = subprocess.run([*cmd, "restore", d / "sea.png", "-o", out, "--altitude", "2.5", "--fov", "70"],
+                       capture_output=True, text=True, timeout=300)
+    assert "skipped" in r.stdout + r.stderr and "restored with another" not in r.stdout + r.stderr
+
+
+def _frames(n, h=48, w=64, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.clip(rng.normal((40, 110, 150), 30, (n, h, w, 3)), 0, 255).astype(np.uint8).tobytes()
+
+
+def test_raw_frames_never_replace_another_inputs_outputs(binary, seabed, tmp_path):
+    d, _ = seabed
+    out = tmp_path / "o"
+    photo = tmp_path / "frame_000000.png"
+    photo.write_bytes((d / "sea.png").read_bytes())
+    assert run_restore([binary], photo, "-o", out).returncode == 0
+    before = (out / "frame_000000.jpg").read_bytes()
+    r = subprocess.run([binary, "restore", "--raw-frames", "64x48", "-o", out, "-q"], input=_frames(2),
+                       capture_output=True, timeout=300)
+    lines = [json.loads(x) for x in r.stdout.decode().splitlines()]
+    assert lines[0]["error"] == "write_failed" and "not replaced" in lines[0]["message"]
+    assert lines[1]["input"] == "stdin#1" and "error" not in lines[1]
+    assert (out / "frame_000000.jpg").read_bytes() == before
+    assert sidecar(out, "frame_000000")["input"].endswith("frame_000000.png")
+
+
+def test_a_second_pipe_into_a_folder_is_refused_and_max_side_with_frames(binary, tmp_path):
+    out = tmp_path / "o"
+    out.mkdir()
+    with open(out / ".uwhl-frames.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)  # another pipe, as the test holds it
+        r = subprocess.run([binary, "restore", "--raw-frames", "64x48", "-o", out], input=_frames(1),
+                           capture_output=True, timeout=300)
+    assert r.returncode == 5 and b"another --raw-frames run is writing to" in r.stderr
+    assert not (out / "frame_000000.jpg").exists()
+    r = subprocess.run([binary, "restore", "--raw-frames", "64x48", "-o", out], input=_frames(1),
+                       capture_output=True, timeout=300)
+    assert r.returncode == 0 and (out / "frame_000000.jpg").exists()
+    for o in (out, "-"):
+        r = subprocess.run([binary, "restore", "--raw-frames", "64x48", "--max-side", "32", "-o", o], input=_frames(1),
+                           capture_output=True, timeout=300)
+        assert r.returncode == 2 and b"--max-side with --raw-frames" in r.stderr
