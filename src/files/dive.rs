@@ -104,6 +104,22 @@ fn range_weight(side: &Value, blue: f64) -> Option<f64> {
     usable.then(|| 1.0 / span.max(1.01).ln())
 }
 
+/// Most weight one fit may have, as a multiple of the median weight of
+/// the folder's fits (METHOD §13.6).
+const MAX_WEIGHT_OVER_MEDIAN: f64 = 10.0;
+
+/// `w` with each weight at most [`MAX_WEIGHT_OVER_MEDIAN`] times their
+/// median: a narrow range is better evidence, not the whole of it. A
+/// single sidecar whose range was [b, b] (weight 100) otherwise outweighed
+/// sixty fits of weight 0.37 and set the dive's water alone.
+fn cap_weights(mut w: Vec<f64>) -> Vec<f64> {
+    let cap = MAX_WEIGHT_OVER_MEDIAN * median(&mut w.clone());
+    if cap.is_finite() {
+        w.iter_mut().for_each(|x| *x = x.min(cap));
+    }
+    w
+}
+
 /// The fitted attenuation a sidecar records, when its distance was used:
 /// exactly three numbers that a fit could have written
 /// ([`crate::method::distance::writable`]).
@@ -202,7 +218,7 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     let spread = [range(&br), range(&bg)];
     // weighted only when every fit has its range: a folder of sidecars
     // written before the range existed keeps its plain medians
-    let weights: Option<Vec<f64>> = weights.into_iter().collect();
+    let weights: Option<Vec<f64>> = weights.into_iter().collect::<Option<Vec<f64>>>().map(cap_weights);
     let med = |v: &[f64]| match &weights {
         Some(w) => weighted_median(v, w, &mut Vec::new()),
         None => median(&mut v.to_vec()),
@@ -346,6 +362,23 @@ mod tests {
             .unwrap();
             assert!(!read_water_from(&d).unwrap().weighted);
         }
+        // a fit whose range is one value (weight 1 / ln 1.01 = 100.5) counts at most ten
+        // times the median weight (0.334 x 10): twelve wide fits (4.0 together) outweigh it
+        let e = std::env::temp_dir().join(format!("uwhl-dive-cap-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&e);
+        std::fs::create_dir_all(&e).unwrap();
+        std::fs::write(e.join("one.json"), side([2.0, 0.6, 0.9], [0.9, 0.9])).unwrap();
+        for k in 0..12 {
+            std::fs::write(e.join(format!("w{k:02}.json")), side([0.4, 0.1, 0.08], [0.01, 0.2])).unwrap();
+        }
+        let w = read_water_from(&e).unwrap();
+        assert!(w.weighted && (w.beta[2] - 0.08).abs() < 1e-12, "{:?}", w.beta);
+        // with eight of them (2.7 together) the narrow fit is still the median
+        for k in 8..12 {
+            std::fs::remove_file(e.join(format!("w{k:02}.json"))).unwrap();
+        }
+        assert!((read_water_from(&e).unwrap().beta[2] - 0.9).abs() < 1e-12);
+        std::fs::remove_dir_all(&e).unwrap();
         // a link to a sidecar of the folder is not followed: the fit counts once
         #[cfg(unix)]
         {
