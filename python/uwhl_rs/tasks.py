@@ -472,7 +472,7 @@ def _begin_video(item: Item, ctx: Context) -> dict | Callable[[], dict]:
             result = videofiles.restore_video(local_in, out_dir, name=claim.name, _claim=claim, _label=item.input,
                                               reuse_estimates=ctx.reuse, reuse_water_mask=ctx.reuse_water_mask,
                                               overwrite=ctx.overwrite, progress=ctx.progress, _stop=ctx.stop,
-                                              **opts)
+                                              _base=ctx.base, **opts)
         except (Exception, MemoryError) as e:
             claim.release()
             return failure_row(item, e, False, time.perf_counter() - t0, local_in)

@@ -310,6 +310,16 @@ def _stream_span(container, vs) -> tuple[float | None, float | None]:
     return None, None
 
 
+def _angle_of(frame) -> float:
+    """The counter-clockwise rotation (degrees, as FFmpeg reports it) of a
+    decoded frame's display matrix; 0 without one."""
+    try:
+        r = float(getattr(frame, "rotation", 0) or 0)
+    except (TypeError, ValueError, OverflowError):
+        return 0.0
+    return r if math.isfinite(r) else 0.0
+
+
 def display_angle(path: str) -> float:
     """The counter-clockwise rotation (degrees, as FFmpeg reports it) of
     the stream's display matrix (a phone's), read from its first frame; 0
@@ -320,9 +330,8 @@ def display_angle(path: str) -> float:
     try:
         with _av_open(path) as c:
             for frame in c.decode(c.streams.video[0]):
-                r = float(getattr(frame, "rotation", 0) or 0)
-                return r if math.isfinite(r) else 0.0
-    except (av.FFmpegError, EOFError, ValueError, OverflowError, IndexError, TypeError):
+                return _angle_of(frame)
+    except (av.FFmpegError, EOFError, ValueError, OverflowError, IndexError):
         pass
     return 0.0
 
@@ -388,6 +397,8 @@ class FrameReader:
         self.max_side = max_side
         #: quarter turns counter-clockwise (np.rot90) given to each frame, so that it is shown as a player shows it
         self.turns = (int(rotation) // 90) % 4
+        #: the display matrix's angle on the first frame decoded (:func:`display_angle`), None before it
+        self.angle: float | None = None
         #: None, or where decoding stopped: {"frame": k, "time": seconds or None, "error": text}
         self.stopped: dict | None = None
         #: frames decoded (read, whether or not ``every`` kept them)
@@ -434,6 +445,8 @@ class FrameReader:
                     continue
                 for frame in packet.decode():
                     self.decoded = k + 1
+                    if self.angle is None:
+                        self.angle = _angle_of(frame)
                     if frame.pts is not None and tb is not None:
                         t_k = float(frame.pts * tb)
                         last_t = t_k if last_t is None else max(last_t, t_k)

@@ -236,14 +236,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
         # within the budget, but more than the system gives now (as a photo's plan is checked)
         raise ImageTooLargeError(f"{label}: frames of {info.width}x{info.height} need about {need} bytes, more "
                                  f"than the system gives now (free memory, a container limit or ulimit -v); use {side}")
-    angle = video.display_angle(in_path)
-    info.rotation = video.quarter_turns(angle) or 0
-    tilt = None
-    if video.quarter_turns(angle) is None:
-        # turning the pixels shows quarter turns only: another angle is said, not dropped silently
-        what = "the stills and the strip are not turned" if every else \
-            "the restored video and the strip are not turned, and the video has no display matrix"
-        tilt = f"the display matrix turns the frames {angle:g} degrees, not a multiple of 90: not applied ({what})"
+    info.rotation = video.display_rotation(in_path)
     if name and _claim is None:
         files.check_name(name)  # a caller's name, never a path out of out_dir (a batch's are the core's, claimed)
     name = name or os.path.splitext(os.path.basename(in_path))[0]
@@ -258,7 +251,7 @@ def restore_video(in_path, out_dir, *, name: str | None = None, every: int | Non
             every=every, video_quality=video_quality, transfer=transfer, max_side=max_side,
             reuse_estimates=reuse_estimates, reuse_water_mask=reuse_water_mask, scene_cut=scene_cut,
             smoothing=smoothing, overwrite=overwrite, progress=progress, label=label, t_start=t_start, fmt=fmt,
-            method=options, still_dir=os.path.dirname(str(claim.paths[-1])), stop=_stop, tilt=tilt))
+            method=options, still_dir=os.path.dirname(str(claim.paths[-1])), stop=_stop))
     finally:
         claim.release()
 
@@ -271,7 +264,7 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
                                rotation=info.rotation if every else 0)
     temps: list[str] = []
     writer = None
-    notes: list[str] = [o["tilt"]] if o.get("tilt") else []
+    notes: list[str] = []
     try:
         if every:
             # the stills stand for the video: a restored video of an earlier run goes
@@ -352,6 +345,12 @@ def _run(in_path, claim, info, codec, settings, o) -> VideoResult:
                                     f"each was written scaled to {writer.size[1]}x{writer.size[0]}")
             writer = None
         t_done = time.perf_counter()
+        if reader.angle is not None and video.quarter_turns(reader.angle) is None:
+            # turning the pixels shows quarter turns only: another angle is said, not dropped silently
+            what = "the stills and the strip are not turned" if every else \
+                "the restored video and the strip are not turned, and the video has no display matrix"
+            notes.insert(0, f"the display matrix turns the frames {reader.angle:g} degrees, not a multiple of 90: "
+                            f"not applied ({what})")
         if counts["restored"] == 0:
             why = unrestored[0]["error"] + f" (every one of its {n_unrestored} frames)" if unrestored else \
                 reader.stopped["error"] if reader.stopped else "the stream has no frame"
