@@ -236,7 +236,8 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         such regions are filled (METHOD §4.5) and get one transmission each
         (METHOD §6). At least one pixel must be True.
     distance : float ndarray (h, w), optional
-        The distance of each pixel in metres (NaN, 0 or negative = unknown;
+        The distance of each pixel in metres (NaN, below 1 cm or above
+        1000 m = unknown;
         integer arrays are refused: their unit is not known, convert
         millimetres with ``z.astype(np.float32) / 1000``),
         of any size with the image's aspect ratio (resized by nearest

@@ -199,6 +199,17 @@ fn read_distance_from<R: std::io::BufRead + Seek>(mut r: R, max_pixels: u64, max
     Ok(DistanceMap { data, height: h, width: w, out_of_range })
 }
 
+/// A 16-bit distance in millimetres, in metres; 65535, the no-data value
+/// of 16-bit depth exports (the largest code), is unknown (NaN), not
+/// 65.5 m.
+fn millimetres(v: u16) -> f32 {
+    if v == u16::MAX {
+        f32::NAN
+    } else {
+        f32::from(v) / 1000.0
+    }
+}
+
 /// A float64 distance as float32: a finite value beyond float32's range
 /// stays finite (the largest float32), so that it is counted out of range
 /// like any other absurd distance instead of becoming inf (unknown).
@@ -339,7 +350,7 @@ fn read_npy<R: Read>(r: &mut R, check: impl Fn(u64, u64, u64) -> Result<(), Fail
             .iter()
             .map(|&b| {
                 let v = if big { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) };
-                if mm { f32::from(v) / 1000.0 } else { f32::from(v) }
+                if mm { millimetres(v) } else { f32::from(v) }
             })
             .collect(),
     };
@@ -373,7 +384,7 @@ fn read_png<R: std::io::BufRead + Seek>(r: R, check: impl Fn(u64, u64, u64) -> R
     let mut buf = vec![0u8; reader.output_buffer_size().unwrap_or(0)];
     let frame = reader.next_frame(&mut buf).map_err(|e| bad(format!("cannot be decoded: {e}")))?;
     let bytes = buf.get(..frame.buffer_size()).unwrap_or(&[]);
-    let vals = bytes.as_chunks::<2>().0.iter().map(|&c| f32::from(u16::from_be_bytes(c)) / 1000.0).collect();
+    let vals = bytes.as_chunks::<2>().0.iter().map(|&c| millimetres(u16::from_be_bytes(c))).collect();
     Ok((vals, h as usize, w as usize))
 }
 
@@ -403,7 +414,7 @@ fn read_tiff<R: Read + Seek>(mut r: R, check: impl Fn(u64, u64, u64) -> Result<(
     let vals: Vec<f32> = match data {
         DecodingResult::F32(v) => v,
         DecodingResult::F64(v) => v.into_iter().map(narrow).collect(),
-        DecodingResult::U16(v) => v.into_iter().map(|x| f32::from(x) / 1000.0).collect(),
+        DecodingResult::U16(v) => v.into_iter().map(millimetres).collect(),
         DecodingResult::I16(_) => return Err(bad("of signed 16-bit samples: float32/float64 metres or unsigned 16-bit millimetres are read".into())),
         DecodingResult::F16(_) => return Err(bad("of 16-bit float samples: float32/float64 metres or unsigned 16-bit millimetres are read".into())),
         _ => return Err(bad(format!("of {bits}-bit samples: float32/float64 metres or unsigned 16-bit millimetres are read"))),
@@ -749,6 +760,12 @@ mod tests {
         let m = read_distance(&tmp("d.png", &buf), 1 << 20, 1 << 30).unwrap();
         assert_eq!(m.data[0], 3.0);
         assert!(m.data[1].is_nan());
+        // 65535, the no-data code, and 5 mm (below 1 cm) are unknown; 65534 and 10 mm are distances
+        let codes: [u16; 4] = [65535, 5, 65534, 10];
+        let buf = gray_png(4, 1, png::BitDepth::Sixteen, &codes.iter().flat_map(|c| c.to_be_bytes()).collect::<Vec<u8>>());
+        let m = read_distance(&tmp("nodata.png", &buf), 1 << 20, 1 << 30).unwrap();
+        assert!(m.data[0].is_nan() && m.data[1].is_nan(), "{:?}", m.data);
+        assert_eq!((m.data[2], m.data[3]), (65.534, 0.01));
         let buf = gray_png(1, 1, png::BitDepth::Eight, &[7]);
         let e = read_distance(&tmp("d8.png", &buf), 1 << 20, 1 << 30).unwrap_err();
         assert!(e.message.contains("16-bit"), "{}", e.message);

@@ -250,7 +250,7 @@ in a JPEG, at least half its brightest value",
     Spec { key: "distance", flag: "--distance", short: None, metavar: "TEMPLATE", kind: Kind::Path,
         default: Default::None, help: "each input's distance map, e.g. 'depth/{stem}.tif' ({stem}: the input's \
 name without its extension, {name}: with it): .npy or float TIFF in metres, 16-bit PNG or TIFF in millimetres, \
-NaN or 0 = unknown, any size of the input's aspect; the water is fitted from it (METHOD §13); a photo without a \
+NaN, 0 or 65535 mm = unknown, any size of the input's aspect; the water is fitted from it (METHOD §13); a photo without a \
 readable map is restored without and flagged distance_missing",
         group: Group::Input, faces: Faces::Both, method: false },
     Spec { key: "altitude", flag: "--altitude", short: None, metavar: "SOURCE", kind: Kind::Path,

@@ -34,6 +34,11 @@ pub const MIN_TILES: usize = 40;
 /// the clearest ocean's blue transmission is below e^-20), so such a value
 /// is a sentinel or a unit error.
 pub const MAX_DISTANCE: f32 = 1000.0;
+/// Distances below this (metres) are treated as unknown: no lens behind a
+/// port focuses nearer than a few centimetres, so 1e-40 or a millimetre is
+/// a hole filled with a sentinel (it was fitted as a near surface, and the
+/// fit gave a water several types off).
+pub const MIN_DISTANCE: f32 = 0.01;
 /// The attenuation grid: `BETA_STEPS` values evenly spaced in ln beta over
 /// [`BETA_MIN`, `BETA_MAX`] (1/m).
 pub const BETA_MIN: f64 = 1e-3;
@@ -151,9 +156,10 @@ impl WaterFit {
     }
 }
 
-/// Whether a distance counts as known (METHOD §13): finite, > 0, <= `MAX_DISTANCE`.
+/// Whether a distance counts as known (METHOD §13): finite, within
+/// [`MIN_DISTANCE`] and [`MAX_DISTANCE`].
 pub fn known(z: f32) -> bool {
-    z.is_finite() && z > 0.0 && z <= MAX_DISTANCE
+    z.is_finite() && (MIN_DISTANCE..=MAX_DISTANCE).contains(&z)
 }
 
 /// ln beta at grid point k.
