@@ -409,6 +409,11 @@ fn read_tiff<R: Read + Seek>(mut r: R, check: impl Fn(u64, u64, u64) -> Result<(
         }
         _ => return Err(bad("is not a one-channel image: a distance map has one channel".into())),
     };
+    // WhiteIsZero: the decoder turns the codes over (65535 - v), so a map
+    // written so reads as other distances with no word
+    if d.get_tag_u32(tiff::tags::Tag::PhotometricInterpretation).ok() == Some(0) {
+        return Err(bad("has PhotometricInterpretation WhiteIsZero: a distance map's values are read as written, with BlackIsZero (1)".into()));
+    }
     check(u64::from(h), u64::from(w), u64::from(bits.max(8)) / 8)?;
     let data = d.read_image().map_err(|e| bad(format!("cannot be decoded: {e}")))?;
     let vals: Vec<f32> = match data {

@@ -340,7 +340,11 @@ pub fn read_log(path: &Path) -> Result<NavLog, Failure> {
         return Err(bad(format!("{size} bytes, over the {MAX_LOG_BYTES} a navigation log may have")));
     }
     let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read: {e}")))?;
-    let text = String::from_utf8(bytes).map_err(|e| bad(format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))?;
+    let mut text = String::from_utf8(bytes).map_err(|e| bad(format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))?;
+    // lines ended by CR alone (classic Mac OS, some loggers' exports) are lines
+    if !text.contains('\n') && text.contains('\r') {
+        text = text.replace('\r', "\n");
+    }
     let mut log = parse_log(&text).map_err(bad)?;
     log.path = path.to_path_buf();
     Ok(log)

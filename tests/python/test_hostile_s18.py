@@ -167,3 +167,25 @@ def test_a_second_pipe_into_a_folder_is_refused_and_max_side_with_frames(binary,
         r = subprocess.run([binary, "restore", "--raw-frames", "64x48", "--max-side", "32", "-o", o], input=_frames(1),
                            capture_output=True, timeout=300)
         assert r.returncode == 2 and b"--max-side with --raw-frames" in r.stderr
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_white_is_zero_tiff_map_is_refused_not_turned_over(impl, binary, seabed, tmp_path):
+    tifffile = pytest.importorskip("tifffile")
+    d, z = seabed
+    mm = np.where(np.isfinite(z), np.round(z * 1000), 0).astype(np.uint16)
+    tifffile.imwrite(tmp_path / "sea.tif", mm, photometric="miniswhite")
+    r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o", "--distance", tmp_path / "{stem}.tif")
+    assert r.returncode == 0, r.stderr
+    dist = sidecar(tmp_path / "o", "sea")["distance"]
+    assert dist["used"] is False and "WhiteIsZero" in dist["rejected"]
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_log_whose_lines_end_in_cr_alone_is_read(impl, binary, seabed, tmp_path):
+    d, _ = seabed
+    log = tmp_path / "nav.csv"
+    log.write_bytes(b"file,altitude\rsea.png,2.5\r")
+    r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o", "--altitude", log, "--fov", "70")
+    assert r.returncode == 0, r.stderr
+    assert sidecar(tmp_path / "o", "sea")["distance"]["floor"]["altitude"] == 2.5
