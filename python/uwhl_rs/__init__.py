@@ -348,9 +348,13 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
         if method.get("water_types") is not None:
             raise ParameterError("water and water_types both name the water: give one")
         try:
-            if any(isinstance(v, (bool, str, bytes)) for v in water["beta"]):
+            beta = water["beta"]
+            # an ordered sequence of three numbers: bytes iterate as codes, a set in any order
+            if not isinstance(beta, (list, tuple, np.ndarray)) or len(beta) != 3:
+                raise TypeError("not three numbers")
+            if any(isinstance(v, (bool, str, bytes)) for v in beta):
                 raise TypeError("not numbers")
-            br, bg, bb = (float(v) for v in water["beta"])
+            br, bg, bb = (float(v) for v in beta)
         except OverflowError:
             # an integer beyond a float: a number, but no attenuation
             raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}") \
@@ -362,6 +366,10 @@ def restore(image, *, water_mask=None, mask=None, distance=None, water=None, **m
             raise ParameterError(f"water's beta must be three positive numbers, not {shown(list(water['beta']))}")
         method["water_types"] = [(_nearest_type(water, (br, bg, bb)), bb / br, bb / bg)]
     params = _method_params(**method)
+    # after the ratios' own check (its message names them): a water no fit gives
+    if water is not None and not _core.water_writable((br, bg, bb)):
+        raise ParameterError(f"water's beta {shown([br, bg, bb])} is no water a fit gives (blue 0.001 to 5 1/m, "
+                             "the ratios on the Jerlov curve's stretch; METHOD §13.6), as --water-from refuses it")
     _check_room(image, params, distance)
     img = _as_image(image)
     hw = img.shape[:2]

@@ -25,7 +25,7 @@ __all__ = [
     "_stage_haze_lines", "_stage_lower_bound", "_stage_matting", "_stage_guided", "_stage_recover",
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
-    "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "is_output_of", "new_run", "nearest_type", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
+    "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "is_output_of", "new_run", "nearest_type", "water_writable", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
     "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE", "EARLIER_SUMMARY_BYTES",
     "FLOAT_NOT_PREPROCESSED", "upright_said",
     "name_bases", "MAX_NAMES", "FAMILY_GAP",
@@ -127,6 +127,8 @@ def name_jobs(found: list[tuple[str, str]], suffixes: list[str]) -> list[str]:
 
 def nearest_type(beta: tuple[float, float, float] | list[float]) -> tuple[str, float]:
     """The Jerlov type nearest to a water of attenuations `beta` (1/m, R, G, B) and how near."""
+def water_writable(beta: tuple[float, float, float] | list[float]) -> bool:
+    """Whether a fit could have written `beta` (1/m, R, G, B): the water `--water-from` takes."""
 def new_run() -> None:
     """A new run starts: the `--water-from` folders and `--altitude` navigation logs are read again."""
 def remove_stale_temps(dir: _PathArg, gate: Optional[_PathArg] = None) -> int:

@@ -60,6 +60,10 @@ def distance_map(value, name: str) -> np.ndarray:
     :func:`depth_to_range` both take it: real float metres, (H, W) or
     (H, W, 1) (a one-channel image's shape), anything else a
     ParameterError naming ``name``."""
+    # a masked array's masked pixels are unknown, not the values under the mask
+    if isinstance(value, np.ma.MaskedArray):
+        _metres(np.asarray(value.data), name)
+        value = np.ma.filled(value.astype(np.float64), np.nan)
     z = np.asarray(value)
     _metres(z, name)
     if z.ndim == 3 and z.shape[2] == 1:

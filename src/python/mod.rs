@@ -765,6 +765,13 @@ fn nearest_type(beta: [f32; 3]) -> (&'static str, f32) {
     crate::method::distance::nearest_type(beta)
 }
 
+/// Whether a fit could have written `beta` (1/m, R, G, B): the water
+/// `--water-from` takes (`crate::method::distance::writable`, METHOD §13.6).
+#[pyfunction]
+fn water_writable(beta: [f64; 3]) -> bool {
+    crate::method::distance::writable(beta)
+}
+
 /// A new run starts: the `--water-from` folders and the `--altitude`
 /// navigation logs a run reads once are read again
 /// (`crate::files::dive::forget_water_from`, `crate::files::nav::forget_logs`).
@@ -1107,6 +1114,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(listed_outputs, m)?)?;
     m.add_function(wrap_pyfunction!(new_run, m)?)?;
     m.add_function(wrap_pyfunction!(nearest_type, m)?)?;
+    m.add_function(wrap_pyfunction!(water_writable, m)?)?;
     m.add_function(wrap_pyfunction!(_restoration_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(outdir_problem, m)?)?;
     m.add_function(wrap_pyfunction!(raw_problem, m)?)?;

@@ -189,3 +189,24 @@ def test_a_log_whose_lines_end_in_cr_alone_is_read(impl, binary, seabed, tmp_pat
     r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o", "--altitude", log, "--fov", "70")
     assert r.returncode == 0, r.stderr
     assert sidecar(tmp_path / "o", "sea")["distance"]["floor"]["altitude"] == 2.5
+
+
+def test_water_and_distance_given_in_python_take_what_the_commands_take():
+    import uwhl_rs
+    from uwhl_rs.errors import ParameterError
+    img = synth.demo_input()[0][:64, :64]
+    # bytes iterate as their codes (97, 98, 99) and a set has no order: neither is three attenuations
+    for beta in (b"abc", {0.1, 0.2, 0.3}, [0.1, 0.2], "0.1,0.2,0.3"):
+        with pytest.raises(ParameterError, match="three attenuations"):
+            uwhl_rs.restore(img, water={"beta": beta})
+    # blue 10 1/m (its ratios 0.5 and 0.83 are on the table's stretch) is no water --water-from takes
+    with pytest.raises(ParameterError, match="no water a fit gives"):
+        uwhl_rs.restore(img, water={"beta": [20.0, 12.0, 10.0]})
+    assert uwhl_rs.restore(img, water={"beta": (0.35, 0.2, 0.23)}).water_type == "fitted"
+    # a masked array's masked pixels are unknown, whatever lies under the mask
+    z = np.ma.masked_array(np.full((64, 64), 0.5), mask=np.zeros((64, 64), bool))
+    z.mask[:32] = True
+    got = uwhl_rs.distances.distance_map(z, "distance")
+    assert np.isnan(got[:32]).all() and (got[32:] == 0.5).all()
+    with pytest.raises(ParameterError, match="dtype uint16"):
+        uwhl_rs.distances.distance_map(np.ma.masked_array(np.ones((4, 4), np.uint16)), "distance")
