@@ -651,6 +651,8 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
             }
         }
     };
+    // stdin itself could not be read (a folder given as stdin): the run's code
+    let mut fatal: Option<u8> = None;
     let write = |item: StreamItem| {
         let result = match item {
             StreamItem::Frame(job, r) => match r.and_then(|p| complete(&job, p, opts)) {
@@ -660,6 +662,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
             StreamItem::BadLine(e, shown) => Err((Some(PathBuf::from(shown)), e)),
             StreamItem::Fatal(e) => {
                 report(err, opts.json_errors, None, &e);
+                fatal = Some(e.kind.exit_code());
                 return;
             }
         };
@@ -704,7 +707,7 @@ pub fn run_stream(opts: &Options, input: &mut (dyn BufRead + Send), out: &mut dy
         report(err, opts.json_errors, None, &e);
         return e.kind.exit_code();
     }
-    0
+    fatal.unwrap_or(0)
 }
 
 #[cfg(test)]

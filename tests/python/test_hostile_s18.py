@@ -210,3 +210,14 @@ def test_water_and_distance_given_in_python_take_what_the_commands_take():
     assert np.isnan(got[:32]).all() and (got[32:] == 0.5).all()
     with pytest.raises(ParameterError, match="dtype uint16"):
         uwhl_rs.distances.distance_map(np.ma.masked_array(np.ones((4, 4), np.uint16)), "distance")
+
+
+def test_a_stream_whose_stdin_cannot_be_read_says_so_in_its_exit_code(binary, tmp_path):
+    import os
+    fd = os.open(tmp_path, os.O_RDONLY)  # a folder as stdin: reading it fails with EISDIR
+    try:
+        r = subprocess.run([binary, "restore", "--stream", "-o", tmp_path / "o"], stdin=fd, capture_output=True,
+                           timeout=120)
+    finally:
+        os.close(fd)
+    assert r.returncode == 3 and b"cannot read stdin" in r.stderr
