@@ -247,7 +247,8 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                         if let Err(why) = clear_frame(opts, dir, k) {
                             report(err, opts.json_errors, None, &why);
                         }
-                        writeln!(lines, "{}", crate::cli::run::json_line(&crate::cli::run::spaced(&e.to_json(Some(&format!("stdin#{k}"))))))
+                        // compact, as every other line on stdout (the sidecars, the write errors)
+                        writeln!(lines, "{}", crate::cli::run::json_line(&e.to_json(Some(&format!("stdin#{k}"))).to_string()))
                             .and_then(|()| lines.flush())
                             .map_err(
                             |why| Failure::new(Kind::Write, format!("cannot write the line of frame {k} to stdout ({why}): stopped")),

@@ -25,8 +25,10 @@ pub const RAW_EXTENSIONS: [&str; 46] = [
 /// taken when walking a folder, so that output names agree between the
 /// commands, and refused with an input error by the binary, which restores
 /// a video's frames piped in (`--raw-frames`).
-pub const VIDEO_EXTENSIONS: [&str; 14] = [
-    "mp4", "m4v", "mov", "mkv", "avi", "mts", "m2ts", "ts", "webm", "mxf", "mpg", "mpeg", "wmv", "3gp",
+pub const VIDEO_EXTENSIONS: [&str; 21] = [
+    "mp4", "m4v", "mov", "mkv", "avi", "mts", "m2ts", "ts", "webm", "mxf", "mpg", "mpeg", "wmv", "3gp", "flv", "ogv", "asf",
+    // raw streams of the codecs whose demuxers are allowed (docs/OUTPUTS.md "Videos")
+    "h264", "264", "hevc", "h265",
 ];
 
 /// The lower-case extension of `p` ("" for none).

@@ -221,3 +221,20 @@ def test_a_stream_whose_stdin_cannot_be_read_says_so_in_its_exit_code(binary, tm
     finally:
         os.close(fd)
     assert r.returncode == 3 and b"cannot read stdin" in r.stderr
+
+
+@pytest.mark.parametrize("ext, codec", [("flv", "flv1"), ("ogv", "libtheora"), ("h264", "libx264"), ("asf", "wmv2")])
+def test_videos_of_the_containers_read_are_taken_by_their_extension(ext, codec, binary, tmp_path):
+    pytest.importorskip("av")
+    from systools import installed
+    src = tmp_path / f"clip.{ext}"
+    r = subprocess.run([installed("ffmpeg", "ffmpeg"), "-v", "error", "-y", "-f", "lavfi", "-i",
+                        "testsrc2=size=64x48:rate=10:duration=0.5", "-c:v", codec, "-pix_fmt", "yuv420p", src],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    r = run_restore(cmds(binary)["python"], src, "-o", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert sidecar(tmp_path / "o", "clip")["video"]["frames"]["decoded"] == 5
+    # the binary restores piped frames, not videos: it points at uwhl
+    r = run_restore(cmds(binary)["rust"], src, "-o", tmp_path / "o2")
+    assert r.returncode == 3 and "uwhl" in r.stderr
