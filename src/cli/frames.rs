@@ -177,6 +177,9 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     // the run ends (/dev/zero would otherwise be thousands of lines a second)
     let mut run = Unrestored::default();
     let mut restored = 0usize;
+    // why the first frame that could not be restored was not: said again
+    // when none could be (-q keeps the per-frame lines quiet)
+    let mut why_not: Option<String> = None;
     let code = loop {
         match read_frame(input, &mut bytes_in) {
             Ok(Got::Frame) => {}
@@ -229,9 +232,15 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
                 // or its line is the error (a folder)
                 let e = Failure::from(e);
                 let first = run.add(k);
+                if why_not.is_none() {
+                    why_not = Some(format!("frame {k}: {}", e.message));
+                }
                 let written = match &mut sink {
                     Sink::Stdout(o) => {
-                        if !opts.quiet && first {
+                        if first && opts.json_errors {
+                            let said = Failure::new(e.kind, format!("frame {k}: {}; written as it came in", e.message));
+                            report(err, true, None, &said);
+                        } else if !opts.quiet && first {
                             let _ = writeln!(err, "uwhl-rs: frame {k}: {}; written as it came in", e.message);
                         }
                         o.write_all(&bytes_in).and_then(|()| o.flush()).map_err(|why| {
@@ -325,7 +334,8 @@ pub fn run_frames(opts: &Options, input: &mut dyn Read, out: &mut dyn Write, err
     // a stream of which no frame could be restored failed, as a video
     // whose frames all fail does: its frames still went out in step
     if code == 0 && k > 0 && restored == 0 {
-        let e = Failure::new(Kind::Input, format!("no frame could be restored (all {k} read from stdin)"));
+        let why = why_not.map(|w| format!("; {w}")).unwrap_or_default();
+        let e = Failure::new(Kind::Input, format!("no frame could be restored (all {k} read from stdin){why}"));
         report(err, opts.json_errors, None, &e);
         return e.kind.exit_code();
     }

@@ -238,3 +238,15 @@ def test_videos_of_the_containers_read_are_taken_by_their_extension(ext, codec, 
     # the binary restores piped frames, not videos: it points at uwhl
     r = run_restore(cmds(binary)["rust"], src, "-o", tmp_path / "o2")
     assert r.returncode == 3 and "uwhl" in r.stderr
+
+
+def test_a_pipe_of_which_no_frame_could_be_restored_says_why_even_quiet(binary):
+    black = bytes(64 * 48 * 3)
+    r = subprocess.run([binary, "restore", "--raw-frames", "64x48", "-o", "-", "-q"], input=black,
+                       capture_output=True, timeout=120)
+    assert r.returncode == 3 and r.stdout == black
+    assert b"no frame could be restored (all 1 read from stdin); frame 0: image is constant" in r.stderr
+    r = subprocess.run([binary, "restore", "--raw-frames", "64x48", "-o", "-", "--json-errors"], input=black,
+                       capture_output=True, timeout=120)
+    errors = [json.loads(x) for x in r.stderr.decode().splitlines() if x.startswith("{")]
+    assert [e["message"].split(":")[0] for e in errors] == ["frame 0", "no frame could be restored (all 1 read from stdin); frame 0"]
