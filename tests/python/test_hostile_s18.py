@@ -250,3 +250,35 @@ def test_a_pipe_of_which_no_frame_could_be_restored_says_why_even_quiet(binary):
                        capture_output=True, timeout=120)
     errors = [json.loads(x) for x in r.stderr.decode().splitlines() if x.startswith("{")]
     assert [e["message"].split(":")[0] for e in errors] == ["frame 0", "no frame could be restored (all 1 read from stdin); frame 0"]
+
+
+def _png16(a: np.ndarray, extra: list[tuple[bytes, bytes]]) -> bytes:
+    """A 16-bit grayscale PNG of ``a`` with ``extra`` chunks (type, data) before its pixels."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    h, w = a.shape
+    raw = b"".join(b"\0" + a[y].astype(">u2").tobytes() for y in range(h))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0))
+            + b"".join(chunk(k, d) for k, d in extra) + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_png_maps_other_chunks_are_not_read_into_memory(impl, binary, seabed, tmp_path):
+    import zlib
+    d, z = seabed
+    mm = np.where(np.isfinite(z), np.round(z * 1000), 0).astype(np.uint16)
+    # a profile of 300 MB compressed to 300 KB: passed over, the map is used
+    iccp = b"icc\0\0" + zlib.compress(bytes(300 << 20), 9)
+    (tmp_path / "sea.png").write_bytes(_png16(mm, [(b"iCCP", iccp)]))
+    r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o", "--distance", tmp_path / "{stem}.png",
+                    "--max-memory", "200M")
+    assert r.returncode == 0, r.stderr
+    assert sidecar(tmp_path / "o", "sea")["distance"]["used"] is True
+    # 40 MB of EXIF beside a map: refused by name, not held
+    (tmp_path / "sea.png").write_bytes(_png16(mm, [(b"eXIf", b"MM\0*" + bytes(40 << 20))]))
+    r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o2", "--distance", tmp_path / "{stem}.png")
+    dist = sidecar(tmp_path / "o2", "sea")["distance"]
+    assert dist["used"] is False and "a PNG distance map cannot be read" in dist["rejected"]
