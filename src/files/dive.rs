@@ -161,9 +161,15 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
     let mut paths = Vec::new();
     // a file with several names (hard links) is one photo's fit: read once
     let mut files = std::collections::HashSet::new();
+    // *.json that are not regular files: named, not read
+    let mut odd = Vec::new();
     for e in entries.flatten() {
         let p = e.path();
-        if p.extension().and_then(|x| x.to_str()) != Some("json") || !e.file_type().is_ok_and(|t| t.is_file()) {
+        if p.extension().and_then(|x| x.to_str()) != Some("json") {
+            continue;
+        }
+        if !e.file_type().is_ok_and(|t| t.is_file()) {
+            odd.push(p);
             continue;
         }
         if let Ok(m) = e.metadata() {
@@ -190,6 +196,10 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
             skipped.1.push(format!("{}: {why}", p.display()));
         }
     };
+    odd.sort();
+    for p in &odd {
+        skip(p, "not a regular file (a link, a folder or a pipe): not read");
+    }
     for p in &paths {
         let Some(side) = crate::files::commit::read_sidecar_within(p, MAX_FIT_SIDECAR) else {
             skip(p, "not a photo's sidecar (not a regular file, over 1 MiB, or not JSON)");
@@ -208,7 +218,12 @@ pub fn read_water_from(dir: &Path) -> Result<DiveWater, Failure> {
             format!(
                 "--water-from {}: no sidecar there records a water fitted from a distance (restore the calibrated photos with --distance first){}",
                 dir.display(),
-                if skipped.0 > 0 { format!("; {} of its *.json files could not be used", skipped.0) } else { String::new() }
+                if skipped.0 > 0 {
+                    let first: Vec<&str> = skipped.1.iter().take(3).map(String::as_str).collect();
+                    format!("; {} of its *.json files could not be used ({}{})", skipped.0, first.join("; "), if skipped.0 > 3 { "; ..." } else { "" })
+                } else {
+                    String::new()
+                }
             ),
         ));
     }
@@ -379,6 +394,17 @@ mod tests {
         }
         assert!((read_water_from(&e).unwrap().beta[2] - 0.9).abs() < 1e-12);
         std::fs::remove_dir_all(&e).unwrap();
+        // a folder named *.json is named, not read; with no fit at all, the error names it too
+        let f = std::env::temp_dir().join(format!("uwhl-dive-odd-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&f);
+        std::fs::create_dir_all(f.join("x.json")).unwrap();
+        let e = read_water_from(&f).unwrap_err().message;
+        assert!(e.contains("1 of its *.json files could not be used") && e.contains("x.json: not a regular file"), "{e}");
+        std::fs::write(f.join("z.json"), side([0.4, 0.1, 0.08], [0.01, 0.2])).unwrap();
+        let w = read_water_from(&f).unwrap();
+        assert_eq!((w.photos, w.skipped.0), (1, 1));
+        assert!(w.notes().iter().any(|n| n.contains("x.json: not a regular file")), "{:?}", w.notes());
+        std::fs::remove_dir_all(&f).unwrap();
         // a link to a sidecar of the folder is not followed: the fit counts once
         #[cfg(unix)]
         {
