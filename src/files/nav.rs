@@ -613,6 +613,11 @@ impl NavLog {
         let file = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let stem = input.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         if self.named {
+            // a name that is not UTF-8 has no spelling a text log can give: read
+            // lossily, two photos differing in one stray byte took one row
+            if input.file_name().is_some_and(|n| n.to_str().is_none()) {
+                return Err(format!("{} names its photos, and {} is not UTF-8 text: no row can name it", self.path.display(), shown(&file)));
+            }
             return match self.by_name.get(&file, &stem) {
                 Some((r, how)) => Ok((r.pose, json!({"log": self.path.to_string_lossy(), "line": r.line, "matched": how}))),
                 None => Err(format!("{} has no row for {}", self.path.display(), shown(&file))),
@@ -852,6 +857,16 @@ mod tests {
                     "2026-11-30T10:15:40+99:00", "2026-11-30T10:15:40+10:60", "1e300", "-1e12"] {
             assert_eq!(parse_time(bad), None, "{bad}");
         }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_photo_whose_name_is_not_utf8_takes_no_row() {
+        use std::os::unix::ffi::OsStrExt;
+        let log = parse_log("file,altitude\nq\u{FFFD}.png,2.0\n").unwrap();
+        let name = std::ffi::OsStr::from_bytes(b"q\xfe.png");
+        let e = log.pose(Path::new(name), None).unwrap_err();
+        assert!(e.contains("is not UTF-8 text"), "{e}");
     }
 
     #[test]
