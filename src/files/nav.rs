@@ -662,7 +662,13 @@ impl NavLog {
 /// attribute (`...:image-meters-above-ground="2.4"`) or an element
 /// (`<...:image-meters-above-ground>2.4</...>`).
 pub fn xmp_altitude(xmp: &str) -> Option<f64> {
-    xmp_altitude_values(&without_comments(xmp)).find_map(|v| v.trim().parse::<f64>().ok())
+    // every value must be the same number: a packet that gives the field
+    // twice, differently, says nothing sure (a log that does is refused too)
+    let text = without_comments(xmp);
+    // (an element's closing tag reads as an empty value)
+    let mut values = xmp_altitude_values(&text).filter(|v| !v.trim().is_empty()).take(64).map(|v| v.trim().parse::<f64>().ok());
+    let first = values.next()??;
+    values.all(|v| v == Some(first)).then_some(first)
 }
 
 /// `xmp` with its XML comments (`<!-- ... -->`, an unclosed one to the
@@ -680,11 +686,13 @@ fn without_comments(xmp: &str) -> std::borrow::Cow<'_, str> {
     std::borrow::Cow::Owned(out)
 }
 
-/// The first value of `image-meters-above-ground` in an XMP packet as
-/// text, number or not: what a photo whose [`xmp_altitude`] is None says
-/// instead of one.
+/// The values of `image-meters-above-ground` in an XMP packet as text,
+/// numbers or not, joined by " and " (at most four): what a photo whose
+/// [`xmp_altitude`] is None says instead of one.
 fn xmp_altitude_text(xmp: &str) -> Option<String> {
-    xmp_altitude_values(&without_comments(xmp)).next().map(|v| v.trim().to_string())
+    let text = without_comments(xmp);
+    let values: Vec<String> = xmp_altitude_values(&text).map(str::trim).filter(|v| !v.is_empty()).take(4).map(str::to_string).collect();
+    (!values.is_empty()).then(|| values.join(" and "))
 }
 
 /// Every value of the iFDO field `image-meters-above-ground` in an XMP
@@ -783,6 +791,9 @@ pub fn camera_for(source: &AltitudeSource, fov: Option<f64>, input: &Path) -> Re
         AltitudeSource::Xmp => {
             let xmp = carried.as_ref().and_then(|c| c.xmp.as_deref());
             let a = xmp.and_then(xmp_altitude).ok_or_else(|| match xmp.and_then(xmp_altitude_text) {
+                Some(t) if t.contains(" and ") => {
+                    format!("the photo's XMP gives image-meters-above-ground (the iFDO field) more than once, {}: which is its altitude is not known", shown(&t))
+                }
                 Some(t) => format!("the photo's XMP image-meters-above-ground (the iFDO field) is {}: not a number", shown(&t)),
                 None => "the photo's XMP has no image-meters-above-ground (the iFDO field)".to_string(),
             })?;
@@ -1001,6 +1012,12 @@ mod tests {
         assert_eq!(xmp_altitude(r#"<!-- ifdo:image-meters-above-ground="7" --><a ifdo:image-meters-above-ground="2"/>"#), Some(2.0));
         assert_eq!(xmp_altitude(r#"<a ifdo:not-image-meters-above-ground="9" ifdo:image-meters-above-ground="4"/>"#), Some(4.0));
         assert_eq!(xmp_altitude(r#"<a ifdo:not-image-meters-above-ground="9"/>"#), None);
+        // given twice: the same number is that number; two others, or text beside a number, none
+        assert_eq!(xmp_altitude(r#"<a ifdo:image-meters-above-ground="3.0"/><b ifdo:image-meters-above-ground="3"/>"#), Some(3.0));
+        let two = r#"<a ifdo:image-meters-above-ground="abc"/><b ifdo:image-meters-above-ground="3.0"/>"#;
+        assert_eq!(xmp_altitude(two), None);
+        assert_eq!(xmp_altitude_text(two).as_deref(), Some("abc and 3.0"));
+        assert_eq!(xmp_altitude(r#"<a ifdo:image-meters-above-ground="2"/><b ifdo:image-meters-above-ground="3"/>"#), None);
         assert_eq!(xmp_altitude(r#"<a/><!-- ifdo:image-meters-above-ground="7" "#), None);
     }
 
