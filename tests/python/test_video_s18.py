@@ -27,8 +27,6 @@ from uwhl_rs.errors import ImageTooLargeError
 
 av = pytest.importorskip("av")
 
-PY = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "python")
-
 
 def _ffmpeg(*args) -> None:
     r = subprocess.run([installed("ffmpeg", "ffmpeg"), "-v", "error", "-y", *map(str, args)], capture_output=True,
@@ -58,9 +56,9 @@ def _clip(path, seconds=0.5, size="64x48", extra=()) -> None:
 
 
 def _restore(*args, cwd=None):
-    env = dict(os.environ, PYTHONPATH=PY + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    # the package the tests import (installed, or on the PYTHONPATH a developer set), from any folder
     r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", *map(str, args)], capture_output=True,
-                       text=True, timeout=300, cwd=cwd, env=env)
+                       text=True, timeout=300, cwd=cwd)
     assert "Traceback" not in r.stderr, r.stderr
     return r
 
