@@ -26,7 +26,7 @@ __all__ = [
     "_stage_display_stretch", "_stage_chart_fill", "_stage_sphere", "UwhlError", "ImageError", "ParameterError",
     "output_suffixes", "JERLOV_TABLE", "__version__", "OPTIONS", "FLAGS", "STAGES", "EXIT_CODES", "EXIT_CODES_HELP", "parse_option",
     "options_help", "check_combination", "check_distance", "check_water", "parse_water_types", "unknown_short_said", "depth_to_range", "floor_distance", "floor_for", "collect_jobs", "name_jobs", "remove_stale_temps", "listed_outputs", "is_output_of", "new_run", "nearest_type", "water_writable", "outdir_problem", "raw_problem", "sidecar_names_input", "FileSettings", "decode_file", "decode_mask_file", "read_distance_for", "read_distance_file", "depth_to_range_for", "write_input_outputs",
-    "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "BALANCED_SHARE", "EARLIER_SUMMARY_BYTES",
+    "Summary", "summary_cell", "csv_text", "skipped_with_other_options", "progress_said", "water_with_distance_note", "transfer_note", "BALANCED_SHARE", "EARLIER_SUMMARY_BYTES",
     "FLOAT_NOT_PREPROCESSED", "upright_said",
     "name_bases", "MAX_NAMES", "FAMILY_GAP",
     "summary_columns",
@@ -271,6 +271,8 @@ def progress_said(fallback_share: Optional[float], flags: list[str]) -> str:
     """What an input's progress line says after its water type: a distance
     asked for and not used, colours that are the input's balance throughout."""
 
+def transfer_note(transfer: bool, videos: bool) -> Optional[str]:
+    """The note said once when `--transfer` is given to a run that may hold no video."""
 def water_with_distance_note(water_from: bool, water_type: bool, distance: bool, altitude: bool) -> Optional[str]:
     """The note printed once before the inputs when a water is given with a
     source of distance (each argument: that option was given); None otherwise."""

@@ -152,6 +152,10 @@ fn dive_notes(opts: &Options, err: &mut dyn Write) {
     if let Some(n) = note {
         say_notes(&[n], opts, err);
     }
+    // this command's batches and streams are photos only
+    if let Some(n) = crate::files::sidecar::transfer_note(s.transfer.is_some(), false) {
+        say_notes(&[n], opts, err);
+    }
 }
 
 /// A sidecar's flags, as names.

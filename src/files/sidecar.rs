@@ -303,6 +303,18 @@ pub fn water_with_distance_note(water_from: bool, water_type: bool, distance: bo
     ))
 }
 
+/// The note both commands print once before the inputs when `--transfer`
+/// is given to a run that may hold no video (`videos`: whether it may; the
+/// binary's batches never do): photos are decoded by their own colour
+/// profile, and the curve does nothing for them.
+pub fn transfer_note(transfer: bool, videos: bool) -> Option<String> {
+    (transfer && !videos).then(|| {
+        "--transfer is the curve of video and raw-frame samples: photos are decoded through their own colour profile, \
+         and it does nothing for them"
+            .to_string()
+    })
+}
+
 /// The options of `current` (what [`parameters`] gives for this run) that
 /// differ from those the sidecar at `path` recorded, by name and sorted:
 /// what a skipped input (its sidecar exists) says it was restored with.

@@ -186,6 +186,13 @@ fn progress_said(fallback_share: Option<f64>, flags: Vec<String>) -> String {
 /// The note printed once before the inputs when a water is given with a
 /// source of distance; each argument says whether that option was given
 /// (`crate::files::sidecar::water_with_distance_note`).
+/// The note said once when `--transfer` is given to a run that may hold no
+/// video (`crate::files::sidecar::transfer_note`).
+#[pyfunction]
+fn transfer_note(transfer: bool, videos: bool) -> Option<String> {
+    crate::files::sidecar::transfer_note(transfer, videos)
+}
+
 #[pyfunction]
 fn water_with_distance_note(water_from: bool, water_type: bool, distance: bool, altitude: bool) -> Option<String> {
     crate::files::sidecar::water_with_distance_note(water_from, water_type, distance, altitude)
@@ -213,6 +220,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(skipped_with_other_options, m)?)?;
     m.add_function(wrap_pyfunction!(progress_said, m)?)?;
     m.add_function(wrap_pyfunction!(water_with_distance_note, m)?)?;
+    m.add_function(wrap_pyfunction!(transfer_note, m)?)?;
     m.add("BALANCED_SHARE", crate::method::fallback::BALANCED)?;
     m.add("EARLIER_SUMMARY_BYTES", summary::MAX_EARLIER_BYTES)?;
     m.add_function(wrap_pyfunction!(summary_columns, m)?)?;

@@ -282,3 +282,16 @@ def test_a_png_maps_other_chunks_are_not_read_into_memory(impl, binary, seabed, 
     r = run_restore(cmds(binary)[impl], d / "sea.png", "-o", tmp_path / "o2", "--distance", tmp_path / "{stem}.png")
     dist = sidecar(tmp_path / "o2", "sea")["distance"]
     assert dist["used"] is False and "a PNG distance map cannot be read" in dist["rejected"]
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_transfer_given_to_photos_only_is_said_to_do_nothing(impl, binary, seabed, tmp_path):
+    d, _ = seabed
+    r = subprocess.run([*cmds(binary)[impl], "restore", d / "sea.png", "-o", tmp_path / "o", "--transfer", "linear"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "note: --transfer is the curve of video and raw-frame samples" in r.stderr
+    # without it, no such note
+    r = subprocess.run([*cmds(binary)[impl], "restore", d / "sea.png", "-o", tmp_path / "o2"],
+                       capture_output=True, text=True, timeout=300)
+    assert "--transfer" not in r.stderr

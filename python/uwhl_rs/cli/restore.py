@@ -102,6 +102,11 @@ def run(a: argparse.Namespace, console: Console) -> int:
                                           a.distance is not None, a.altitude is not None)
     if note:
         console.note(f"note: {note}")
+    # a run of photos only (every input a file that is no video) ignores --transfer: said once
+    videos = any(not os.path.isfile(p) or os.path.splitext(p)[1].lower().lstrip(".") in _core.VIDEO_EXTENSIONS
+                 for p in a.inputs)
+    if (note := _core.transfer_note(a.transfer is not None, videos)) is not None:
+        console.note(f"note: {note}")
     so: dict = {}
     if a.dask is not None or any(is_url(p) for p in [*a.inputs, a.out]):
         if a.jobs != 1:
