@@ -409,6 +409,17 @@ def _subsample_label(v) -> int:
     return 0 if isinstance(v, str) and v == "auto" else int(v)
 
 
+def _fov(fov):
+    """``fov`` for the core: an integer too large for a float is named
+    here, compactly (the core's message would show all of its digits)."""
+    if isinstance(fov, int) and not isinstance(fov, bool):
+        try:
+            float(fov)
+        except OverflowError:
+            raise ParameterError(f"fov {shown(fov)} is out of range (too large for a float)") from None
+    return fov
+
+
 def _altitude_source(altitude) -> str | None:
     """``altitude`` as ``--altitude`` takes it: metres (a number, as the
     flag's text), a navigation log's path, or ``"xmp"``; a ParameterError
@@ -416,7 +427,10 @@ def _altitude_source(altitude) -> str | None:
     if altitude is None:
         return None
     if isinstance(altitude, numbers.Real) and not isinstance(altitude, (bool, np.bool_)):
-        return repr(float(altitude))
+        try:
+            return repr(float(altitude))
+        except OverflowError:
+            raise ParameterError(f"altitude {shown(altitude)} is out of range (too large for a float)") from None
     if isinstance(altitude, (str, os.PathLike)):
         return os.fspath(altitude)
     raise ParameterError(f"altitude must be metres (a number), a navigation log's path or 'xmp', not {shown(altitude)}")
@@ -440,7 +454,7 @@ def settings_of(*, format: str = _D["format"], bits: int | None = _D["bits"], qu
                                   half_size=half_size, max_side=max_side, max_pixels=max_pixels,
                                   mask=_mask_label(mask), water_mask=_mask_label(water_mask),
                                   distance=os.fspath(distance) if isinstance(distance, (str, os.PathLike)) else None,
-                                  altitude=_altitude_source(altitude), fov=fov, port=port,
+                                  altitude=_altitude_source(altitude), fov=_fov(fov), port=port,
                                   distance_kind=distance_kind,
                                   water_from=None if water_from is None else os.fspath(water_from), **restore_kwargs)
     except (TypeError, OverflowError) as e:

@@ -240,7 +240,8 @@ def read_distance(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXE
     try:
         return np.asarray(_core.read_distance_file(arg, int(max_pixels), int(_core.default_max_memory())))
     except (_core.ImageError, MemoryError) as e:  # the core's reason, named by its file as read_image names it
-        raise type(e)(f"{path}: {e}") from None
+        # the command's flag is this function's keyword
+        raise type(e)(f"{path}: {str(e).replace('--max-pixels', 'max_pixels')}") from None
 
 
 #: the largest max_pixels (the option table's: the core's 64-bit count)

@@ -295,3 +295,16 @@ def test_transfer_given_to_photos_only_is_said_to_do_nothing(impl, binary, seabe
     r = subprocess.run([*cmds(binary)[impl], "restore", d / "sea.png", "-o", tmp_path / "o2"],
                        capture_output=True, text=True, timeout=300)
     assert "--transfer" not in r.stderr
+
+
+def test_the_api_names_its_own_keywords_and_numbers_compactly(seabed, tmp_path):
+    import uwhl_rs
+    from uwhl_rs.errors import ParameterError
+    d, z = seabed
+    for kw, said in [({"altitude": 2.5, "fov": 10 ** 400}, r"fov 1e\+400 is out of range"),
+                     ({"altitude": 10 ** 400, "fov": 70}, r"altitude 1e\+400 is out of range")]:
+        with pytest.raises(ParameterError, match=said):
+            uwhl_rs.restore_file(d / "sea.png", tmp_path / "o", **kw)
+    np.save(tmp_path / "z.npy", z)
+    with pytest.raises(MemoryError, match="over max_pixels 10"):
+        uwhl_rs.read_distance(tmp_path / "z.npy", max_pixels=10)
