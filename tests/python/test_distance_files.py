@@ -53,7 +53,7 @@ def test_read_distance_gives_the_map_the_commands_read(dive, tmp_path):
     (tmp_path / "notes.exr").write_text("a text file named like a map")
     with pytest.raises(uwhl_rs.ImageError, match="not a distance map"):
         uwhl_rs.read_distance(tmp_path / "notes.exr")
-    with pytest.raises(MemoryError, match="over --max-pixels 100"):
+    with pytest.raises(MemoryError, match="over max_pixels 100"):
         uwhl_rs.read_distance(d / "depth" / "p1.exr", max_pixels=100)
 
 
