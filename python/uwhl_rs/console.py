@@ -8,6 +8,7 @@ stdout, errors on stderr as ``uwhl: INPUT: MESSAGE`` or, with
 from __future__ import annotations
 
 import json
+import os
 import sys
 import threading
 
@@ -33,6 +34,8 @@ class Console:
         #: the run's options (``files.restore_file``'s keywords), so that a
         #: skipped input's line can say it was restored with others
         self.options: dict | None = None
+        #: its video options as given (``videofiles.given_video_options``)
+        self.video_options: dict = {}
         self._parameters: str | None = None
 
     @property
@@ -110,7 +113,10 @@ class Console:
         elif row["status"] == "skipped":
             if row["error"] == DONE_NOTE:
                 # the options it was restored with, when they are not this run's (as uwhl-rs says)
-                other = _core.skipped_with_other_options(row["sidecar"], p) if (p := self._recorded()) else ""
+                p = self._recorded()
+                if p and os.path.splitext(str(row["input"]))[1].lower().lstrip(".") in _core.VIDEO_EXTENSIONS:
+                    p = json.dumps({**json.loads(p), **self.video_options})  # as a video's sidecar records them
+                other = _core.skipped_with_other_options(row["sidecar"], p) if p else ""
                 why = f"{row['sidecar']} exists{other}"
             else:
                 why = row["error"]

@@ -459,6 +459,20 @@ def _dominant(events: list[dict], decoded: int) -> dict:
     return best
 
 
+#: the video options of the option table, which a video's sidecar records when given
+VIDEO_OPTIONS = ("every", "video_codec", "video_quality", "transfer", "scene_cut", "smoothing")
+_VIDEO_DEFAULTS = {o["key"]: o["default"] for o in _core.OPTIONS if o["key"] in VIDEO_OPTIONS}
+
+
+def given_video_options(options: dict) -> dict:
+    """The video options of ``options`` that are not their defaults: what a
+    video's sidecar records beside the photo's ``parameters``, so that a
+    rerun with another ``--every`` or ``--video-codec`` says so (a video
+    restored before they were recorded, with their defaults, matches)."""
+    return {k: options[k] for k in VIDEO_OPTIONS
+            if options.get(k) is not None and options[k] != _VIDEO_DEFAULTS.get(k)}
+
+
 def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, counts, reader, notes,
              t_open: float, t_frames: float) -> dict:
     """The video's sidecar (docs/OUTPUTS.md "Videos")."""
@@ -499,7 +513,7 @@ def _sidecar(in_path, label, paths, info, codec, settings, o, events, stills, co
             "stills": stills,
             "notes": notes,
         },
-        "parameters": json.loads(settings.parameters),
+        "parameters": {**json.loads(settings.parameters), **given_video_options(o)},
         "seconds": {"open": round(t_open, 4), "frames": round(t_frames, 4), "total": round(t_open + t_frames, 4)},
     }
     # a local file's absolute path, links resolved, as a photo's sidecar

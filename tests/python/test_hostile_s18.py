@@ -308,3 +308,24 @@ def test_the_api_names_its_own_keywords_and_numbers_compactly(seabed, tmp_path):
     np.save(tmp_path / "z.npy", z)
     with pytest.raises(MemoryError, match="over max_pixels 10"):
         uwhl_rs.read_distance(tmp_path / "z.npy", max_pixels=10)
+
+
+def test_a_video_rerun_with_other_video_options_says_which(tmp_path):
+    pytest.importorskip("av")
+    import sys
+    from systools import installed
+    src = tmp_path / "clip.mp4"
+    r = subprocess.run([installed("ffmpeg", "ffmpeg"), "-v", "error", "-y", "-f", "lavfi", "-i",
+                        "testsrc2=size=64x48:rate=10:duration=1", "-c:v", "libx264", "-pix_fmt", "yuv420p", src],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+
+    def rerun(*extra):
+        r = subprocess.run([sys.executable, "-m", "uwhl_rs", "restore", src, "-o", tmp_path / "o", *extra],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        return r.stdout
+    rerun("--every", "5")
+    assert "restored with another" not in rerun("--every", "5")
+    assert "restored with another --every" in rerun()
+    assert "restored with another --every, --video-codec" in rerun("--video-codec", "ffv1")

@@ -119,6 +119,9 @@ def run(a: argparse.Namespace, console: Console) -> int:
         raise _bad("--reuse-estimates restores the inputs in order; it needs --jobs 1")
     # the options a sidecar records, for the line of an input skipped because an earlier run restored it
     console.options = {k: v for k, v in options.items() if k not in tasks.VIDEO_KEYS}
+    from ..videofiles import given_video_options
+
+    console.video_options = given_video_options(options)
     if not is_url(a.out):
         # a file at the output's name would fail every input, and summary.csv, one by one (as uwhl-rs)
         why = _core.outdir_problem(a.out)
