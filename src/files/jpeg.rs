@@ -9,14 +9,37 @@ use crate::error::{Failure, Kind};
 use crate::files::decode::Limits;
 use std::io::{BufRead, Seek};
 
-/// A JPEG frame's height, width and its components' sampling factors (H, V).
-type Frame = (u32, u32, Vec<(u8, u8)>);
-
-/// A baseline frame's components as its scans name them: (id, H, V).
+/// A JPEG frame's components as its scans name them, with their sampling
+/// factors: (id, H, V).
 type Components = Vec<(u8, u8, u8)>;
 
+/// A JPEG frame's height, width and components.
+type Frame = (u32, u32, Components);
+
+/// The largest sampling factors (H, V) of a frame's components (at least 1).
+fn max_sampling(comps: &[(u8, u8, u8)]) -> (u64, u64) {
+    comps.iter().fold((1, 1), |(a, b), &(_, x, y)| (a.max(u64::from(x)), b.max(u64::from(y))))
+}
+
+/// The 8 x 8 blocks across and down of a component sampled (H, V) in a
+/// frame of `w` x `h` pixels whose largest factors are `max` (A.2.2).
+fn component_blocks((hs, vs): (u8, u8), (w, h): (u32, u32), (hmax, vmax): (u64, u64)) -> (u64, u64) {
+    let across = (u64::from(w) * u64::from(hs.max(1))).div_ceil(hmax).div_ceil(8);
+    let down = (u64::from(h) * u64::from(vs.max(1))).div_ceil(vmax).div_ceil(8);
+    (across, down)
+}
+
+/// The components of a scan (its SOS segment `header`): (id, table ids).
+fn scan_components(header: &[u8]) -> impl Iterator<Item = (u8, u8)> + '_ {
+    let n = usize::from(header.first().copied().unwrap_or(0));
+    header.get(1..).unwrap_or_default().chunks_exact(2).take(n).filter_map(|c| match c {
+        &[id, tables] => Some((id, tables)),
+        _ => None,
+    })
+}
+
 /// What [`jpeg_walk`] finds in a complete JPEG: the frame (SOF: height,
-/// width, and each component's sampling factors) and the bytes of
+/// width, and each component's id and sampling factors) and the bytes of
 /// entropy-coded data over all its scans.
 #[derive(Debug, Default)]
 struct JpegWalk {
@@ -62,7 +85,8 @@ fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
     // what the scans of a sequential Huffman frame are counted with
     let mut tables: [[Option<Huffman>; 4]; 2] = Default::default();
     let mut restart = 0u64;
-    let mut sequential: Option<Components> = None;
+    // a Huffman-coded sequential frame (SOF0, SOF1), whose scans are counted
+    let mut sequential = false;
     let mut counted = Counted::default();
     let mut i = 2usize;
     loop {
@@ -78,8 +102,8 @@ fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
         i += 1;
         match code {
             0xD9 => {
-                if let (Some(comps), Some((h, w, _))) = (&sequential, &walk.frame) {
-                    walk.short = counted.verdict(comps, (*h, *w));
+                if let (true, Some(frame)) = (sequential, &walk.frame) {
+                    walk.short = counted.verdict(frame);
                 }
                 return Some(walk);
             }
@@ -94,22 +118,19 @@ fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
         if matches!(code, 0xC3 | 0xC7 | 0xCB | 0xCF | 0xF7) {
             walk.lossless.get_or_insert(code);
         }
+        let seg = bytes.get(i + 2..i + len)?;
         // SOFn (not DHT C4, JPG C8, DAC CC): precision, height, width, components
         if matches!(code, 0xC0..=0xCF) && !matches!(code, 0xC4 | 0xC8 | 0xCC) && walk.frame.is_none() {
-            let seg = bytes.get(i + 2..i + len)?;
             if let Some(([_, h0, h1, w0, w1, n], rest)) = seg.split_first_chunk::<6>() {
-                let comps = rest.chunks_exact(3).take(usize::from(*n)).filter_map(|c| c.get(1)).map(|&f| (f >> 4, f & 15)).collect();
-                walk.frame = Some((u32::from(u16::from_be_bytes([*h0, *h1])), u32::from(u16::from_be_bytes([*w0, *w1])), comps));
+                let comps = rest.chunks_exact(3).take(usize::from(*n)).filter_map(|c| match c {
+                    &[id, f, _] => Some((id, f >> 4, f & 15)),
+                    _ => None,
+                });
+                walk.frame = Some((u32::from(u16::from_be_bytes([*h0, *h1])), u32::from(u16::from_be_bytes([*w0, *w1])), comps.collect()));
                 walk.arithmetic = code >= 0xC9;
-                if matches!(code, 0xC0 | 0xC1) {
-                    sequential = Some(rest.chunks_exact(3).take(usize::from(*n)).filter_map(|c| match c {
-                        [id, f, _] => Some((*id, f >> 4, f & 15)),
-                        _ => None,
-                    }).collect());
-                }
+                sequential = matches!(code, 0xC0 | 0xC1);
             }
         }
-        let seg = bytes.get(i + 2..i + len)?;
         match code {
             0xC4 => read_huffman(seg, &mut tables),
             0xDD => restart = seg.first_chunk::<2>().map_or(0, |&r| u64::from(u16::from_be_bytes(r))),
@@ -128,12 +149,12 @@ fn jpeg_walk(bytes: &[u8]) -> Option<JpegWalk> {
                 }
             }
             walk.scan_bytes += (i - begin) as u64;
-            if let (Some(comps), Some((h, w, _))) = (&sequential, &walk.frame) {
-                match bytes.get(begin..i).and_then(|data| scan_blocks(data, seg, comps, (*h, *w), &tables, restart)) {
+            if let (true, Some(frame)) = (sequential, &walk.frame) {
+                match bytes.get(begin..i).and_then(|data| scan_blocks(data, seg, frame, &tables, restart)) {
                     Some((held, need, row)) => {
                         counted.blocks = (counted.blocks.0 + held, counted.blocks.1 + need);
                         counted.short |= held + row <= need;
-                        counted.coded.extend(seg.get(1..).unwrap_or_default().chunks_exact(2).filter_map(|c| c.first()).take(usize::from(seg.first().copied().unwrap_or(0))));
+                        counted.coded.extend(scan_components(seg).map(|(id, _)| id));
                     }
                     None => counted.unjudged = true,
                 }
@@ -161,13 +182,12 @@ fn jpeg_problem(walk: JpegWalk) -> Option<String> {
     if walk.arithmetic || comps.is_empty() {
         return None;
     }
-    let (hmax, vmax) = comps.iter().fold((1u64, 1u64), |(a, b), &(x, y)| (a.max(u64::from(x)), b.max(u64::from(y))));
+    let max = max_sampling(&comps);
     let blocks: u64 = comps
         .iter()
-        .map(|&(x, y)| {
-            let cw = (u64::from(w) * u64::from(x.max(1))).div_ceil(hmax);
-            let ch = (u64::from(h) * u64::from(y.max(1))).div_ceil(vmax);
-            cw.div_ceil(8) * ch.div_ceil(8)
+        .map(|&(_, x, y)| {
+            let (across, down) = component_blocks((x, y), (w, h), max);
+            across * down
         })
         .sum();
     let need = blocks.div_ceil(8);
@@ -376,15 +396,18 @@ impl Counted {
     /// a row of MCUs or more, or a component without a scan (a file cut
     /// between the scans of a frame coded one component a scan). None when
     /// whole, or when a scan could not be judged.
-    fn verdict(&self, comps: &Components, (h, w): (u32, u32)) -> Option<(u64, u64)> {
+    fn verdict(&self, (h, w, comps): &Frame) -> Option<(u64, u64)> {
         if self.unjudged || self.coded.is_empty() {
             return None;
         }
-        let (hmax, vmax) = comps.iter().fold((1u64, 1u64), |(a, b), &(_, x, y)| (a.max(u64::from(x)), b.max(u64::from(y))));
+        let max = max_sampling(comps);
         let missing: u64 = comps
             .iter()
             .filter(|(id, _, _)| !self.coded.contains(id))
-            .map(|&(_, x, y)| (u64::from(w) * u64::from(x.max(1))).div_ceil(hmax).div_ceil(8) * (u64::from(h) * u64::from(y.max(1))).div_ceil(vmax).div_ceil(8))
+            .map(|&(_, x, y)| {
+                let (across, down) = component_blocks((x, y), (*w, *h), max);
+                across * down
+            })
             .sum();
         let (held, need) = self.blocks;
         (self.short || missing > 0).then_some((held, need + missing))
@@ -395,32 +418,35 @@ impl Counted {
 /// should and the blocks of one row of its MCUs; None when it is not judged
 /// (a table missing or not a prefix code, a code no table holds, a frame of
 /// unknown height, a component not in the frame).
-/// `data`: its entropy-coded bytes; `header`: its SOS segment; `frame`:
-/// (height, width). A scan's stretches between restart markers each hold at
+/// `data`: its entropy-coded bytes; `header`: its SOS segment. A scan's stretches between restart markers each hold at
 /// most `restart` MCUs (all of them when 0); every MCU of a sequential
 /// scan takes at least one bit per block, so this reads each bit at most
 /// once and stops where the data does. A cut stream whose end marker was
 /// kept decodes without an error: the decoder reads zero bits past the cut.
-fn scan_blocks(data: &[u8], header: &[u8], comps: &Components, (h, w): (u32, u32), tables: &[[Option<Huffman>; 4]; 2], restart: u64) -> Option<(u64, u64, u64)> {
-    let (&[ns], rest) = header.split_first_chunk::<1>()?;
+fn scan_blocks(data: &[u8], header: &[u8], (h, w, comps): &Frame, tables: &[[Option<Huffman>; 4]; 2], restart: u64) -> Option<(u64, u64, u64)> {
     let mut scan = Vec::new();
-    for c in rest.chunks_exact(2).take(usize::from(ns)) {
-        let &[id, t] = c else { return None };
+    for (id, t) in scan_components(header) {
         let &(_, hs, vs) = comps.iter().find(|(cid, _, _)| *cid == id)?;
         let dc = tables.first()?.get(usize::from(t >> 4))?.as_ref()?;
         let ac = tables.get(1)?.get(usize::from(t & 15))?.as_ref()?;
-        scan.push((u64::from(hs.max(1)), u64::from(vs.max(1)), dc, ac));
+        scan.push((hs, vs, dc, ac));
     }
-    if scan.is_empty() || h == 0 {
+    if scan.is_empty() || *h == 0 {
         return None;
     }
-    let (hmax, vmax) = comps.iter().fold((1u64, 1u64), |(a, b), &(_, x, y)| (a.max(u64::from(x)), b.max(u64::from(y))));
-    let (w, h) = (u64::from(w), u64::from(h));
+    let max = max_sampling(comps);
     // MCUs and blocks: one block an MCU for a single component (A.2.2), else
     // each component's H x V blocks in an MCU of 8 Hmax x 8 Vmax pixels (A.2.3)
     let (per_row, rows, units): (u64, u64, Vec<(u64, &Huffman, &Huffman)>) = match scan.as_slice() {
-        [(hs, vs, dc, ac)] => ((w * hs).div_ceil(hmax).div_ceil(8), (h * vs).div_ceil(vmax).div_ceil(8), vec![(1, *dc, *ac)]),
-        many => (w.div_ceil(8 * hmax), h.div_ceil(8 * vmax), many.iter().map(|(hs, vs, dc, ac)| (hs * vs, *dc, *ac)).collect()),
+        [(hs, vs, dc, ac)] => {
+            let (across, down) = component_blocks((*hs, *vs), (*w, *h), max);
+            (across, down, vec![(1, *dc, *ac)])
+        }
+        many => (
+            u64::from(*w).div_ceil(8 * max.0),
+            u64::from(*h).div_ceil(8 * max.1),
+            many.iter().map(|(hs, vs, dc, ac)| (u64::from(hs.max(&1) * vs.max(&1)), *dc, *ac)).collect(),
+        ),
     };
     let blocks_per_mcu: u64 = units.iter().map(|(n, _, _)| n).sum();
     let need = per_row * rows;
